@@ -1,0 +1,1 @@
+//! (brdf: not written yet)

@@ -1,0 +1,1 @@
+//! (colmap: not written yet)

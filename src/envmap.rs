@@ -1,0 +1,1 @@
+//! (envmap: not written yet)

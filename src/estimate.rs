@@ -1,0 +1,1 @@
+//! (estimate: not written yet)

@@ -1,0 +1,1 @@
+//! (haar: not written yet)

@@ -1,0 +1,1 @@
+//! (photo: not written yet)

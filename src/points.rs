@@ -1,0 +1,1 @@
+//! (points: not written yet)

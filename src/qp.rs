@@ -1,0 +1,1 @@
+//! (qp: not written yet)

@@ -1,0 +1,1 @@
+//! (reference: not written yet)

@@ -1,0 +1,1 @@
+//! (trace: not written yet)

@@ -1,0 +1,1 @@
+//! (triple: not written yet)

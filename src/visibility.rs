@@ -1,0 +1,1 @@
+//! (visibility: not written yet)
