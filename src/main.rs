@@ -24,10 +24,8 @@ fn main() {
     let cli = Cli::parse();
     if let Err(err) = dispatch(cli.command) {
         eprintln!("error: {err}");
-        let mut source = err.source();
-        while let Some(cause) = source {
+        for cause in err.chain().skip(1) {
             eprintln!("  caused by: {cause}");
-            source = cause.source();
         }
         std::process::exit(1);
     }
