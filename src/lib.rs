@@ -52,6 +52,7 @@ pub mod qp;
 
 // The tool.
 pub mod report;
+pub mod stages;
 pub mod run;
 
 pub use error::{Error, Result};

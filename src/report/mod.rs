@@ -1,0 +1,487 @@
+//! The run report: `report.json` for machines, `report.md` plus PNG figures for people.
+//!
+//! Figures in the report (DESIGN §4, issue 6):
+//! - held-out RMSE and PSNR in linear RGB on the photo's [0, 1] scale over object pixels
+//!   that are not overexposed, per protocol: (a) `truth` light, (b) `half` light fitted with
+//!   frozen reflectance on the left half of the object, measured on the right half,
+//!   (c) `mean` of the training maps. `rmse` is the raw figure, `rmse_scaled` the figure
+//!   after the best global scale `s* = Σ y·ŷ / Σ ŷ²` (which removes the scale ambiguity of
+//!   Eq. 9 and any exposure difference), PSNR = −20 log10(rmse) for a peak of 1;
+//! - error against run time (objective, training RMSE, held-out RMSE per outer iteration);
+//! - wall time, CPU time and peak memory per stage;
+//! - the model chosen (materials, basis, resolutions) and the reason for each choice.
+
+pub mod plot;
+
+use crate::stages::StageRecord;
+use crate::{Error, Result};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// One held-out figure.
+#[derive(Debug, Clone, Serialize)]
+pub struct HoldoutEntry {
+    /// Image name as in `images.txt`.
+    pub image: String,
+    /// `truth`, `half` or `mean` (DESIGN §4 (a), (b), (c)).
+    pub protocol: String,
+    /// Raw RMSE, linear RGB, [0, 1] photo scale.
+    pub rmse: f64,
+    /// RMSE after the best global scale.
+    pub rmse_scaled: f64,
+    /// The best global scale applied for `rmse_scaled`.
+    pub scale: f64,
+    /// PSNR in dB of the raw RMSE (peak 1).
+    pub psnr: f64,
+    /// Pixels compared.
+    pub pixels: usize,
+}
+
+/// One training photo's fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrainEntry {
+    /// Image name.
+    pub image: String,
+    /// RMSE over its observations (linear RGB).
+    pub rmse: f64,
+    /// Observations used.
+    pub observations: usize,
+}
+
+/// One outer iteration of the estimator.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimelinePoint {
+    /// Seconds since the estimator started.
+    pub seconds: f64,
+    /// Objective of Eq. 9 (with regularisers).
+    pub objective: f64,
+    /// RMSE on the training observations.
+    pub train_rmse: f64,
+    /// Mean held-out RMSE (protocol (a) when available, else (c)), when evaluated.
+    pub holdout_rmse: Option<f64>,
+}
+
+/// The model that was fitted and why.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct ModelReport {
+    /// Number of materials K.
+    pub materials: usize,
+    /// Basis BRDF labels, in order.
+    pub basis: Vec<String>,
+    /// Global (octahedral) map resolution per side.
+    pub global_resolution: usize,
+    /// Local (hemi-octahedral) resolution per side.
+    pub local_resolution: usize,
+    /// Normal-grid resolution of the rotation per side.
+    pub normal_grid: usize,
+    /// Kept Haar coefficients per transport row (0 = all).
+    pub kept_coefficients: usize,
+    /// One sentence per decision: what was chosen and why.
+    pub reasons: Vec<String>,
+}
+
+/// Everything `report.json` holds.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct RunReport {
+    /// Tool version.
+    pub version: String,
+    /// Workspace path.
+    pub workspace: String,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Held-out figures, per image and protocol.
+    pub holdout: Vec<HoldoutEntry>,
+    /// RMSE over all training observations.
+    pub train_rmse: f64,
+    /// Per training photo.
+    pub train: Vec<TrainEntry>,
+    /// Error against run time.
+    pub timeline: Vec<TimelinePoint>,
+    /// `{stage: wall seconds}`.
+    pub stages: BTreeMap<String, f64>,
+    /// Per stage: wall, CPU, peak memory, in run order.
+    pub stage_details: Vec<StageRecord>,
+    /// Peak resident memory of the run.
+    pub peak_memory_bytes: u64,
+    /// The model chosen.
+    pub model: ModelReport,
+    /// Notes on what the import found and picked, skipped photos, etc.
+    pub notes: Vec<String>,
+    /// Condition-number estimates of the systems the solver saw, by name.
+    pub conditioning: BTreeMap<String, f64>,
+}
+
+/// sRGB encoding of a linear value in [0, 1] (clamped), the exact piecewise curve.
+pub fn srgb_encode(v: f32) -> f32 {
+    // Replaced by `photo::linear_to_srgb` once the photo module lands.
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// RMSE and best-scale RMSE of `pred` against `truth` (both linear RGB), over the
+/// pixels where `mask` holds: `(rmse, rmse_scaled, scale, pixels)`.
+pub fn compare(truth: &[[f32; 3]], pred: &[[f32; 3]], mask: &[bool]) -> (f64, f64, f64, usize) {
+    let (mut syy, mut syp, mut spp, mut se, mut n) = (0.0, 0.0, 0.0, 0.0, 0usize);
+    for ((t, p), &m) in truth.iter().zip(pred).zip(mask) {
+        if !m {
+            continue;
+        }
+        for c in 0..3 {
+            let (y, q) = (t[c] as f64, p[c] as f64);
+            syy += y * y;
+            syp += y * q;
+            spp += q * q;
+            se += (y - q) * (y - q);
+        }
+        n += 1;
+    }
+    if n == 0 {
+        return (f64::NAN, f64::NAN, 1.0, 0);
+    }
+    let count = 3.0 * n as f64;
+    let scale = if spp > 0.0 { syp / spp } else { 1.0 };
+    // Σ (y − s q)² = Σy² − 2s Σyq + s² Σq²; clamp rounding below zero.
+    let se_scaled = (syy - 2.0 * scale * syp + scale * scale * spp).max(0.0);
+    ((se / count).sqrt(), (se_scaled / count).sqrt(), scale, n)
+}
+
+/// PSNR in dB of an RMSE against a peak of 1.
+pub fn psnr(rmse: f64) -> f64 {
+    if rmse > 0.0 {
+        -20.0 * rmse.log10()
+    } else {
+        f64::INFINITY
+    }
+}
+
+impl RunReport {
+    /// Write `report.json`, `report.md` and the figures `plots/*.png` into `dir`.
+    /// `maps`: `(caption, width, height, lat-long pixels)` of the environment maps to show.
+    pub fn write(&self, dir: &Path, maps: &[(String, usize, usize, &[[f32; 3]])]) -> Result<()> {
+        let plots = dir.join("plots");
+        std::fs::create_dir_all(&plots).map_err(|e| Error::io(&plots, e))?;
+        let json = serde_json::to_string_pretty(&json_safe(self))
+            .map_err(|e| Error::Config(e.to_string()))?;
+        let path = dir.join("report.json");
+        std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
+
+        self.plot_timeline(&plots.join("error_vs_time.png"))?;
+        self.plot_per_photo(&plots.join("per_photo_rmse.png"))?;
+        self.plot_stages(&plots.join("stages.png"))?;
+        if !maps.is_empty() {
+            plot::gallery(&plots.join("envmaps.png"), maps)?;
+        }
+        let path = dir.join("report.md");
+        std::fs::write(&path, self.markdown(!maps.is_empty())).map_err(|e| Error::io(&path, e))?;
+        Ok(())
+    }
+
+    fn plot_timeline(&self, path: &Path) -> Result<()> {
+        let t = &self.timeline;
+        let pts = |f: &dyn Fn(&TimelinePoint) -> Option<f64>| -> Vec<(f64, f64)> {
+            t.iter()
+                .filter_map(|p| f(p).map(|v| (p.seconds, v)))
+                .collect()
+        };
+        let mut rmse = vec![plot::Series {
+            label: "training RMSE",
+            points: pts(&|p| Some(p.train_rmse)),
+            color: plot::PALETTE[0],
+        }];
+        let held = pts(&|p| p.holdout_rmse);
+        if !held.is_empty() {
+            rmse.push(plot::Series {
+                label: "held-out RMSE",
+                points: held,
+                color: plot::PALETTE[1],
+            });
+        }
+        let objective = vec![plot::Series {
+            label: "objective (Eq. 9)",
+            points: pts(&|p| Some(p.objective)),
+            color: plot::PALETTE[2],
+        }];
+        plot::line_panels(
+            path,
+            "seconds since the estimator started",
+            &[
+                ("Objective against run time", "objective", objective),
+                ("Error against run time", "RMSE (linear RGB)", rmse),
+            ],
+        )
+    }
+
+    fn plot_per_photo(&self, path: &Path) -> Result<()> {
+        let mut rows: Vec<(String, f64, plotters::style::RGBColor)> = self
+            .train
+            .iter()
+            .map(|e| (format!("{} (train)", e.image), e.rmse, plot::PALETTE[0]))
+            .collect();
+        for h in &self.holdout {
+            rows.push((
+                format!("{} ({}, scaled)", h.image, h.protocol),
+                h.rmse_scaled,
+                plot::PALETTE[1],
+            ));
+        }
+        plot::bars(path, "RMSE per photo", "RMSE (linear RGB)", &rows, &|v| {
+            format!("{v:.4}")
+        })
+    }
+
+    fn plot_stages(&self, path: &Path) -> Result<()> {
+        let rows: Vec<_> = self
+            .stage_details
+            .iter()
+            .map(|s| {
+                (
+                    format!("{} ({} MiB)", s.name, s.peak_memory_bytes >> 20),
+                    s.seconds,
+                    plot::PALETTE[3],
+                )
+            })
+            .collect();
+        plot::bars(
+            path,
+            "Wall time per stage (peak memory in brackets)",
+            "seconds",
+            &rows,
+            &|v| format!("{v:.2} s"),
+        )
+    }
+
+    /// The Markdown report.
+    pub fn markdown(&self, with_maps: bool) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "# relight-cpc report\n");
+        let _ = writeln!(
+            s,
+            "Workspace: `{}`, seed {}, relight-cpc {}.\n",
+            self.workspace, self.seed, self.version
+        );
+        let _ = writeln!(s, "## Held-out photos\n");
+        if self.holdout.is_empty() {
+            let _ = writeln!(s, "No photo was held out.\n");
+        } else {
+            let _ = writeln!(
+                s,
+                "RMSE in linear RGB on the photo's [0, 1] scale over object pixels that are not \
+                 overexposed. Protocols (DESIGN §4): `truth` = the true light, `half` = light fitted \
+                 on the left half of the object with the reflectance frozen, measured on the right \
+                 half, `mean` = the mean of the training maps. *raw* is the figure as rendered, \
+                 *scaled* after the best global scale (shown).\n"
+            );
+            let _ = writeln!(
+                s,
+                "| image | protocol | RMSE raw | RMSE scaled | scale | PSNR raw (dB) | pixels |"
+            );
+            let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|");
+            for h in &self.holdout {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {:.5} | {:.5} | {:.3} | {:.2} | {} |",
+                    h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale, h.psnr, h.pixels
+                );
+            }
+            let _ = writeln!(s);
+        }
+        let _ = writeln!(s, "## Training fit\n");
+        let _ = writeln!(
+            s,
+            "RMSE over all training observations: **{:.5}**.\n",
+            self.train_rmse
+        );
+        let _ = writeln!(s, "![RMSE per photo](plots/per_photo_rmse.png)\n");
+        let _ = writeln!(s, "## Error against run time\n");
+        let _ = writeln!(s, "![error against run time](plots/error_vs_time.png)\n");
+        let _ = writeln!(s, "| seconds | objective | training RMSE | held-out RMSE |");
+        let _ = writeln!(s, "|---:|---:|---:|---:|");
+        for t in &self.timeline {
+            let held = t
+                .holdout_rmse
+                .map_or("–".to_string(), |v| format!("{v:.5}"));
+            let _ = writeln!(
+                s,
+                "| {:.2} | {:.6e} | {:.5} | {} |",
+                t.seconds, t.objective, t.train_rmse, held
+            );
+        }
+        let _ = writeln!(s);
+        if with_maps {
+            let _ = writeln!(s, "## Environment maps\n");
+            let _ = writeln!(
+                s,
+                "Lat-long, sky up (DESIGN §3), tone-mapped with one shared exposure. Linear EXR files are in `envmaps/`.\n"
+            );
+            let _ = writeln!(s, "![environment maps](plots/envmaps.png)\n");
+        }
+        let _ = writeln!(s, "## Model\n");
+        let m = &self.model;
+        let _ = writeln!(
+            s,
+            "{} material(s); basis BRDFs: {}; global map {}×{}, local map {}×{}, normal grid {}×{}, kept coefficients per row: {}.\n",
+            m.materials,
+            m.basis.join(", "),
+            m.global_resolution,
+            m.global_resolution,
+            m.local_resolution,
+            m.local_resolution,
+            m.normal_grid,
+            m.normal_grid,
+            if m.kept_coefficients == 0 { "all".to_string() } else { m.kept_coefficients.to_string() }
+        );
+        for r in &m.reasons {
+            let _ = writeln!(s, "- {r}");
+        }
+        let _ = writeln!(s);
+        if !self.conditioning.is_empty() {
+            let _ = writeln!(s, "Condition-number estimates of the solved systems:\n");
+            for (k, v) in &self.conditioning {
+                let _ = writeln!(s, "- {k}: {v:.3e}");
+            }
+            let _ = writeln!(s);
+        }
+        let _ = writeln!(s, "## Time and memory per stage\n");
+        let _ = writeln!(s, "![stages](plots/stages.png)\n");
+        let _ = writeln!(s, "| stage | wall s | CPU s | peak memory MiB |");
+        let _ = writeln!(s, "|---|---:|---:|---:|");
+        for st in &self.stage_details {
+            let _ = writeln!(
+                s,
+                "| {} | {:.2} | {:.2} | {:.1}{} |",
+                st.name,
+                st.seconds,
+                st.cpu_seconds,
+                st.peak_memory_bytes as f64 / (1u64 << 20) as f64,
+                if st.memory_exact {
+                    ""
+                } else {
+                    " (process peak)"
+                }
+            );
+        }
+        let _ = writeln!(
+            s,
+            "\nPeak memory of the run: {:.1} MiB.\n",
+            self.peak_memory_bytes as f64 / (1u64 << 20) as f64
+        );
+        if !self.notes.is_empty() {
+            let _ = writeln!(s, "## Notes\n");
+            for n in &self.notes {
+                let _ = writeln!(s, "- {n}");
+            }
+        }
+        s
+    }
+}
+
+/// JSON cannot hold NaN or infinities: serialise them as `null`.
+fn json_safe(report: &RunReport) -> serde_json::Value {
+    fn fix(v: serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Array(a) => {
+                serde_json::Value::Array(a.into_iter().map(fix).collect())
+            }
+            serde_json::Value::Object(o) => {
+                serde_json::Value::Object(o.into_iter().map(|(k, v)| (k, fix(v))).collect())
+            }
+            other => other,
+        }
+    }
+    // serde_json already writes non-finite f64 as null; walk the value to be explicit.
+    fix(serde_json::to_value(report).unwrap_or(serde_json::Value::Null))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compare_matches_direct_formulas() {
+        // Prediction = truth / 2 on the masked pixels: raw RMSE is the RMS of truth/2, the
+        // best scale is exactly 2 and the scaled RMSE is 0 (to f64 rounding, 1e-12).
+        let truth = vec![[0.2f32, 0.4, 0.6], [0.8, 0.1, 0.3], [5.0, 5.0, 5.0]];
+        let pred: Vec<[f32; 3]> = truth
+            .iter()
+            .map(|p| [p[0] / 2.0, p[1] / 2.0, p[2] / 2.0])
+            .collect();
+        let mask = vec![true, true, false];
+        let (rmse, scaled, scale, n) = compare(&truth, &pred, &mask);
+        let direct = ((0.1f64.powi(2)
+            + 0.2f64.powi(2)
+            + 0.3f64.powi(2)
+            + 0.4f64.powi(2)
+            + 0.05f64.powi(2)
+            + 0.15f64.powi(2))
+            / 6.0)
+            .sqrt();
+        assert_eq!(n, 2);
+        assert!((rmse - direct).abs() < 1e-6, "{rmse} vs {direct}");
+        assert!((scale - 2.0).abs() < 1e-6);
+        assert!(scaled < 1e-6);
+        assert!((psnr(0.1) - 20.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn report_writes_json_markdown_and_pngs() {
+        let dir = std::env::temp_dir().join(format!("relight-report-test-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut r = RunReport {
+            version: "test".into(),
+            train_rmse: 0.01,
+            ..Default::default()
+        };
+        r.timeline = (0..4)
+            .map(|i| TimelinePoint {
+                seconds: i as f64,
+                objective: 1.0 / (1.0 + i as f64),
+                train_rmse: 0.1 / (1.0 + i as f64),
+                holdout_rmse: Some(f64::NAN),
+            })
+            .collect();
+        r.holdout.push(HoldoutEntry {
+            image: "a.png".into(),
+            protocol: "mean".into(),
+            rmse: 0.1,
+            rmse_scaled: 0.05,
+            scale: 1.2,
+            psnr: 20.0,
+            pixels: 10,
+        });
+        let map = vec![[1.0f32, 0.5, 0.25]; 8 * 4];
+        r.write(&dir, &[("map".into(), 8, 4, &map)]).unwrap();
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
+                .unwrap();
+        for key in [
+            "holdout",
+            "train_rmse",
+            "timeline",
+            "stages",
+            "peak_memory_bytes",
+            "model",
+        ] {
+            assert!(json.get(key).is_some(), "report.json lacks {key}");
+        }
+        assert!(json["timeline"][0]["holdout_rmse"].is_null());
+        for f in [
+            "error_vs_time.png",
+            "per_photo_rmse.png",
+            "stages.png",
+            "envmaps.png",
+        ] {
+            let img = image::open(dir.join("plots").join(f)).unwrap();
+            assert!(img.width() > 100 && img.height() > 50, "{f}");
+        }
+        assert!(std::fs::read_to_string(dir.join("report.md"))
+            .unwrap()
+            .contains("| a.png | mean |"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
