@@ -1,1 +1,0 @@
-//! (colmap: not written yet)
