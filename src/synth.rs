@@ -1,1 +1,3 @@
-//! (synth: not written yet)
+//! Known-truth synthetic COLMAP workspaces (`relight-cpc synth`).
+
+pub mod geometry;
