@@ -1,1 +1,273 @@
-//! (photo: not written yet)
+//! Photos as linear RGB with an overexposure mask: the observations `y_p` of the paper's
+//! objective (Eq. 9) are samples of these, and overexposed pixels get confidence `α_p = 0`.
+//!
+//! Decoding (DESIGN §3):
+//! - 8- and 16-bit PNG and JPEG (the `image` crate) are sRGB-encoded. Each channel value
+//!   `c ∈ [0, 1]` (code / 255 or code / 65535) is decoded with the exact piecewise curve of
+//!   IEC 61966-2-1: `c / 12.92` for `c ≤ 0.04045`, else `((c + 0.055) / 1.055)^2.4`.
+//! - A pixel is *overexposed* when any channel's encoded value is `≥ clip_threshold`
+//!   (default 250/255), i.e. the sensor or the JPEG encoder may have clipped it.
+//! - EXR (the `exr` crate) is already linear and may exceed 1: there is no encoded scale to
+//!   clip on, so only non-finite or negative-infinite samples are marked overexposed (and
+//!   stored as 0). A user who knows an EXR's clip level can mask it before import.
+//!
+//! Pixel coordinates follow COLMAP: the top-left pixel's centre is `(0.5, 0.5)`, x right,
+//! y down. [`Photo::sample`] interpolates bilinearly between pixel centres.
+
+use std::path::Path;
+
+use crate::{Error, Result};
+
+/// The default overexposure threshold on the encoded `[0, 1]` scale.
+pub const DEFAULT_CLIP: f32 = 250.0 / 255.0;
+
+/// A decoded photo.
+#[derive(Debug, Clone, Default)]
+pub struct Photo {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Linear RGB, row-major, `width · height` entries (row 0 at the top).
+    pub rgb: Vec<[f32; 3]>,
+    /// Per pixel: any channel at or above the clip threshold.
+    pub overexposed: Vec<bool>,
+}
+
+/// sRGB decoding, exact piecewise curve (IEC 61966-2-1): encoded `[0, 1]` → linear.
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// sRGB encoding, the inverse of [`srgb_to_linear`]: linear → encoded `[0, 1]` scale
+/// (values outside `[0, 1]` are clamped first).
+pub fn linear_to_srgb(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.0031308 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+fn image_error(path: &Path, message: impl Into<String>) -> Error {
+    Error::Image {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+impl Photo {
+    /// A photo from linear RGB values (row-major), nothing overexposed.
+    /// `rgb.len()` must be `width · height`; a shorter or longer vector is cut or padded
+    /// with black so the struct stays consistent.
+    pub fn from_linear(width: u32, height: u32, rgb: Vec<[f32; 3]>) -> Photo {
+        let n = width as usize * height as usize;
+        let mut rgb = rgb;
+        rgb.resize(n, [0.0; 3]);
+        Photo {
+            width,
+            height,
+            rgb,
+            overexposed: vec![false; n],
+        }
+    }
+
+    /// Loads a PNG, JPEG or EXR file (by its content for PNG/JPEG, by the `.exr` extension
+    /// for EXR) into linear RGB and the overexposure mask (module docs).
+    /// `clip_threshold` is on the encoded `[0, 1]` scale ([`DEFAULT_CLIP`]).
+    pub fn load(path: &Path, clip_threshold: f32) -> Result<Photo> {
+        if !path.exists() {
+            return Err(Error::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "photo not found"),
+            ));
+        }
+        let is_exr = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if is_exr {
+            return load_exr(path);
+        }
+        let reader = image::ImageReader::open(path)
+            .map_err(|e| Error::io(path, e))?
+            .with_guessed_format()
+            .map_err(|e| Error::io(path, e))?;
+        let img = reader
+            .decode()
+            .map_err(|e| image_error(path, format!("cannot decode image: {e}")))?;
+        let (width, height) = (img.width(), img.height());
+        let n = width as usize * height as usize;
+        let mut rgb = Vec::with_capacity(n);
+        let mut overexposed = Vec::with_capacity(n);
+        match img {
+            image::DynamicImage::ImageLuma8(_)
+            | image::DynamicImage::ImageLumaA8(_)
+            | image::DynamicImage::ImageRgb8(_)
+            | image::DynamicImage::ImageRgba8(_) => {
+                // 8 bit: one table lookup per channel.
+                let lut: Vec<f32> = (0..256).map(|c| srgb_to_linear(c as f32 / 255.0)).collect();
+                let clip = clip_code(clip_threshold, 255.0);
+                for px in img.into_rgb8().pixels() {
+                    let [r, g, b] = px.0;
+                    rgb.push([lut[r as usize], lut[g as usize], lut[b as usize]]);
+                    overexposed.push(r as f64 >= clip || g as f64 >= clip || b as f64 >= clip);
+                }
+            }
+            other => {
+                let clip = clip_code(clip_threshold, 65535.0);
+                for px in other.into_rgb16().pixels() {
+                    let [r, g, b] = px.0;
+                    rgb.push([r, g, b].map(|c| srgb_to_linear(c as f32 / 65535.0)));
+                    overexposed.push(r as f64 >= clip || g as f64 >= clip || b as f64 >= clip);
+                }
+            }
+        }
+        Ok(Photo {
+            width,
+            height,
+            rgb,
+            overexposed,
+        })
+    }
+
+    /// Fraction of pixels marked overexposed.
+    pub fn overexposed_fraction(&self) -> f64 {
+        if self.overexposed.is_empty() {
+            return 0.0;
+        }
+        self.overexposed.iter().filter(|&&o| o).count() as f64 / self.overexposed.len() as f64
+    }
+
+    /// Linear RGB at `pixel = [x, y]` (COLMAP pixel coordinates, centres at `+0.5`),
+    /// bilinear between the four nearest pixel centres, clamped to the edge within the
+    /// image's half-pixel border. `None` outside `[0, width] × [0, height]`. The flag is true
+    /// when any pixel contributing with non-zero weight is overexposed.
+    pub fn sample(&self, pixel: [f64; 2]) -> Option<([f32; 3], bool)> {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let [x, y] = pixel;
+        if !(x >= 0.0 && x <= w && y >= 0.0 && y <= h) || self.rgb.is_empty() {
+            return None;
+        }
+        // Continuous index with pixel centres at integers, clamped to the centre range.
+        let fx = (x - 0.5).clamp(0.0, w - 1.0);
+        let fy = (y - 0.5).clamp(0.0, h - 1.0);
+        let (x0, y0) = (fx.floor() as usize, fy.floor() as usize);
+        let (x1, y1) = (
+            (x0 + 1).min(self.width as usize - 1),
+            (y0 + 1).min(self.height as usize - 1),
+        );
+        let (tx, ty) = ((fx - x0 as f64) as f32, (fy - y0 as f64) as f32);
+        let stride = self.width as usize;
+        let taps = [
+            (y0 * stride + x0, (1.0 - tx) * (1.0 - ty)),
+            (y0 * stride + x1, tx * (1.0 - ty)),
+            (y1 * stride + x0, (1.0 - tx) * ty),
+            (y1 * stride + x1, tx * ty),
+        ];
+        let mut out = [0.0f32; 3];
+        let mut over = false;
+        for (i, wgt) in taps {
+            if wgt > 0.0 {
+                over |= self.overexposed[i];
+                for (o, v) in out.iter_mut().zip(self.rgb[i]) {
+                    *o += wgt * v;
+                }
+            }
+        }
+        Some((out, over))
+    }
+}
+
+/// The smallest integer code counted as clipped for a threshold on the `[0, 1]` scale.
+/// Rounded to the nearest code so 250/255 in f32 means code 250 exactly.
+fn clip_code(threshold: f32, max_code: f64) -> f64 {
+    (threshold as f64 * max_code).round()
+}
+
+fn load_exr(path: &Path) -> Result<Photo> {
+    use exr::prelude::*;
+    struct Buf {
+        width: usize,
+        rgb: Vec<[f32; 3]>,
+        over: Vec<bool>,
+    }
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution: Vec2<usize>, _| Buf {
+            width: resolution.width(),
+            rgb: vec![[0.0; 3]; resolution.width() * resolution.height()],
+            over: vec![false; resolution.width() * resolution.height()],
+        },
+        |buf: &mut Buf, pos: Vec2<usize>, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let i = pos.y() * buf.width + pos.x();
+            if r.is_finite() && g.is_finite() && b.is_finite() {
+                buf.rgb[i] = [r, g, b];
+            } else {
+                buf.over[i] = true;
+            }
+        },
+    )
+    .map_err(|e| image_error(path, format!("cannot read EXR: {e}")))?;
+    let size = image.layer_data.size;
+    let buf = image.layer_data.channel_data.pixels;
+    Ok(Photo {
+        width: size.width() as u32,
+        height: size.height() as u32,
+        rgb: buf.rgb,
+        overexposed: buf.over,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_curve_is_continuous_and_inverts() {
+        // The two pieces meet at 0.04045 within f32 rounding (the standard's constants are
+        // rounded: the gap is ~1e-7 relative), and encode ∘ decode is the identity to 1e-6.
+        let a = 0.04045f32 / 12.92;
+        let b = ((0.04045f32 + 0.055) / 1.055).powf(2.4);
+        assert!((a - b).abs() < 1e-6 * a.max(1e-3));
+        for i in 0..=1000 {
+            let v = i as f32 / 1000.0;
+            assert!((linear_to_srgb(srgb_to_linear(v)) - v).abs() < 2e-6, "{v}");
+        }
+        // Known points: 0 → 0, 1 → 1, code 128 → 0.2158605 (published sRGB tables).
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+        assert!((srgb_to_linear(128.0 / 255.0) - 0.215_860_5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bilinear_sample_reproduces_an_affine_image() {
+        // Bilinear interpolation is exact for an affine function of the pixel centre, so
+        // sampling f(x, y) = 0.1 + 0.01 x + 0.02 y anywhere between centres returns f
+        // (f32 arithmetic: 1e-5).
+        let (w, h) = (7u32, 5u32);
+        let f = |x: f64, y: f64| (0.1 + 0.01 * x + 0.02 * y) as f32;
+        let rgb = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let v = f(i as f64 + 0.5, j as f64 + 0.5);
+                [v, 2.0 * v, 3.0 * v]
+            })
+            .collect();
+        let photo = Photo::from_linear(w, h, rgb);
+        for &(x, y) in &[(0.5, 0.5), (1.3, 2.7), (6.5, 4.5), (3.0, 3.0), (5.9, 0.6)] {
+            let (s, over) = photo.sample([x, y]).unwrap();
+            assert!(!over);
+            assert!((s[0] - f(x, y)).abs() < 1e-5, "{x},{y}: {s:?}");
+            assert!((s[2] - 3.0 * f(x, y)).abs() < 3e-5);
+        }
+        assert!(photo.sample([-0.1, 1.0]).is_none());
+        assert!(photo.sample([1.0, 5.01]).is_none());
+        assert!(photo.sample([f64::NAN, 1.0]).is_none());
+    }
+}
