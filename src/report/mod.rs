@@ -113,17 +113,6 @@ pub struct RunReport {
     pub conditioning: BTreeMap<String, f64>,
 }
 
-/// sRGB encoding of a linear value in [0, 1] (clamped), the exact piecewise curve.
-pub fn srgb_encode(v: f32) -> f32 {
-    // Replaced by `photo::linear_to_srgb` once the photo module lands.
-    let v = v.clamp(0.0, 1.0);
-    if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
-}
-
 /// RMSE and best-scale RMSE of `pred` against `truth` (both linear RGB), over the
 /// pixels where `mask` holds: `(rmse, rmse_scaled, scale, pixels)`.
 pub fn compare(truth: &[[f32; 3]], pred: &[[f32; 3]], mask: &[bool]) -> (f64, f64, f64, usize) {

@@ -226,7 +226,7 @@ pub fn gallery(path: &Path, images: &[(String, usize, usize, &[[f32; 3]])]) -> R
                 let sx = (x * iw / cell_w).min(iw.saturating_sub(1));
                 let sy = (y * ih / dh.max(1)).min(ih.saturating_sub(1));
                 let p = px.get(sy * iw + sx).copied().unwrap_or([0.0; 3]);
-                let c = |v: f32| (crate::report::srgb_encode(v / white) * 255.0).round() as u8;
+                let c = |v: f32| (crate::render::srgb_encode(v / white) * 255.0).round() as u8;
                 root.draw_pixel(
                     ((cx + x) as i32, (cy + y) as i32),
                     &RGBColor(c(p[0]), c(p[1]), c(p[2])),
