@@ -2,11 +2,13 @@
 # Photos -> COLMAP sparse model (binary + text) -> undistorted dense workspace, CPU only.
 #
 # Usage: scripts/colmap_sparse.sh IMAGE_DIR OUT_DIR [--max-size PX] [--camera-model MODEL]
+#                                 [--max-features N]
 #
 # Steps (each timed, one log per step in OUT_DIR/logs/):
 #   0. (with --max-size) downscale the photos so the longer side is at most PX (Pillow, Lanczos)
 #      into OUT_DIR/images; without it the photos are copied there unchanged.
-#   1. feature_extractor   (SIFT on the CPU, one shared camera, model SIMPLE_RADIAL by default)
+#   1. feature_extractor   (SIFT on the CPU, one shared camera, model SIMPLE_RADIAL by default,
+#                          at most --max-features keypoints per photo, COLMAP's 8192 by default)
 #   2. exhaustive_matcher  (CPU)
 #   3. mapper              -> OUT_DIR/sparse/0 (binary)
 #   4. model_converter     -> OUT_DIR/sparse/0-txt (text copy of the same model)
@@ -19,7 +21,7 @@
 set -euo pipefail
 
 usage() {
-    echo "usage: $0 IMAGE_DIR OUT_DIR [--max-size PX] [--camera-model MODEL]" >&2
+    echo "usage: $0 IMAGE_DIR OUT_DIR [--max-size PX] [--camera-model MODEL] [--max-features N]" >&2
     exit 2
 }
 
@@ -29,11 +31,17 @@ OUT_DIR=$2
 shift 2
 MAX_SIZE=""
 CAMERA_MODEL="SIMPLE_RADIAL"
+MAX_FEATURES=8192
 while [[ $# -gt 0 ]]; do
     case "$1" in
     --max-size)
         [[ $# -ge 2 ]] || usage
         MAX_SIZE=$2
+        shift 2
+        ;;
+    --max-features)
+        [[ $# -ge 2 ]] || usage
+        MAX_FEATURES=$2
         shift 2
         ;;
     --camera-model)
@@ -115,7 +123,8 @@ rm -f "$DB"
 run 1-feature_extractor colmap feature_extractor \
     --database_path "$DB" --image_path "$OUT_DIR/images" \
     --ImageReader.single_camera 1 --ImageReader.camera_model "$CAMERA_MODEL" \
-    --SiftExtraction.use_gpu 0 --SiftExtraction.num_threads 2
+    --SiftExtraction.use_gpu 0 --SiftExtraction.num_threads 2 \
+    --SiftExtraction.max_num_features "$MAX_FEATURES"
 run 2-exhaustive_matcher colmap exhaustive_matcher \
     --database_path "$DB" --SiftMatching.use_gpu 0 --SiftMatching.num_threads 2
 rm -rf "$OUT_DIR/sparse"/*
