@@ -1,1 +1,343 @@
-//! (observe: not written yet)
+//! Observations: which mesh vertex is seen in which photo, the linear RGB seen there and
+//! its confidence — the data term of the paper's objective (Eq. 9),
+//! `Σ_p α_p (y_p − ρ_xᵀ T_x L̃_I)²`, one `p` per (vertex, photo) pair kept here.
+//!
+//! Vertex `x` (unit normal `n`) is observed in view `I` (camera centre `C`) when all hold:
+//!
+//! 1. **in front and inside**: `X_cam = R x + t` has `z > 0` and its pixel `π(X_cam)` lies in
+//!    `[m, W − m] × [m, H − m]` (`m = margin_px`);
+//! 2. **facing**: `cos θ = n · ω_o > min_cos`, `ω_o = (C − x) / |C − x|`;
+//! 3. **unoccluded**: the segment from `x + ε n` to `C` (`ε` = [`SceneBvh::ray_offset`])
+//!    hits no triangle for `t ∈ [ε, |C − x − ε n| − ε]`;
+//! 4. **not on a depth discontinuity**: four probe rays from `C` through the pixels
+//!    `π(X_cam) ± (r, 0)`, `± (0, r)` (`r = probe_px`, the reach of the bilinear sample
+//!    plus a margin) must hit the mesh at the depth the vertex's tangent plane predicts,
+//!    `t_plane = n · (x − C) / (n · d)`, within a relative `depth_discontinuity`:
+//!    `|t_hit − t_plane| ≤ τ · t_plane`. A probe that misses, hits a nearer occluder, or
+//!    passes behind the silhouette flags the vertex: its pixel mixes two surfaces.
+//!
+//! The sample `y_p` is the photo's bilinear linear RGB at `π(X_cam)`. Its confidence is a
+//! ramp in the cosine that vanishes at the cut-off, so nothing jumps at `min_cos`:
+//!
+//! `α_p = ((cos θ − min_cos) / (1 − min_cos))^grazing_power`, and `α_p = 0` when any pixel
+//! under the bilinear footprint is overexposed (the observation is kept with zero weight,
+//! so counts stay honest).
+//!
+//! Output is a struct of arrays sorted by photo then vertex, identical for any thread count:
+//! each photo's vertices are processed in parallel with rayon and collected in order.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use crate::photo::Photo;
+use crate::scene::View;
+use crate::trace::SceneBvh;
+use crate::{mesh::Mesh, Vec3};
+
+/// All observations, struct of arrays, sorted by photo then vertex.
+#[derive(Debug, Clone, Default)]
+pub struct Observations {
+    /// Observed vertex (index into [`Mesh::positions`]).
+    pub vertex: Vec<u32>,
+    /// Photo index (into `Scene::views` / the `photos` slice).
+    pub photo: Vec<u32>,
+    /// Linear RGB sample `y_p`.
+    pub rgb: Vec<[f32; 3]>,
+    /// Confidence `α_p` (module docs); 0 when overexposed.
+    pub weight: Vec<f32>,
+    /// Unit world direction from the vertex toward the camera centre (`ω_o`, world frame).
+    pub dir: Vec<[f32; 3]>,
+    /// Observations of photo `i` are `photo_ranges[i]`.
+    pub photo_ranges: Vec<Range<usize>>,
+}
+
+impl Observations {
+    /// Number of observations.
+    pub fn len(&self) -> usize {
+        self.vertex.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.vertex.is_empty()
+    }
+
+    /// Bytes held by the arrays.
+    pub fn memory_bytes(&self) -> usize {
+        self.len() * (4 + 4 + 12 + 4 + 12) + self.photo_ranges.len() * 16
+    }
+
+    /// How many photos see each of `n_vertices` vertices.
+    pub fn views_per_vertex(&self, n_vertices: usize) -> Vec<u32> {
+        let mut count = vec![0u32; n_vertices];
+        for &v in &self.vertex {
+            if let Some(c) = count.get_mut(v as usize) {
+                *c += 1;
+            }
+        }
+        count
+    }
+}
+
+/// Tunables of [`extract`] (module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObserveOptions {
+    /// Pixels kept clear of the photo border (`m`). Default 2.
+    pub margin_px: f64,
+    /// Exponent of the grazing ramp. Default 1.
+    pub grazing_power: f64,
+    /// Minimum `cos θ` between normal and view direction. Default 0.1 (about 84°).
+    pub min_cos: f64,
+    /// Relative depth jump `τ` that marks a discontinuity. Default 0.02.
+    pub depth_discontinuity: f64,
+    /// Probe offset `r` in pixels; 0 disables the discontinuity test. Default 1.5.
+    pub probe_px: f64,
+}
+
+impl Default for ObserveOptions {
+    fn default() -> Self {
+        ObserveOptions {
+            margin_px: 2.0,
+            grazing_power: 1.0,
+            min_cos: 0.1,
+            depth_discontinuity: 0.02,
+            probe_px: 1.5,
+        }
+    }
+}
+
+/// Why candidate (vertex, photo) pairs were kept or rejected, per view.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ViewStats {
+    /// Vertices projecting inside the photo (with the margin).
+    pub inside: usize,
+    /// Of those, vertices facing the camera.
+    pub facing: usize,
+    /// Of those, vertices whose ray to the camera is blocked.
+    pub occluded: usize,
+    /// Of the unoccluded, vertices on a depth discontinuity.
+    pub discontinuity: usize,
+    /// Observations kept.
+    pub observed: usize,
+    /// Kept observations on overexposed pixels (weight 0).
+    pub overexposed: usize,
+}
+
+/// `α` for a cosine (module docs); 0 at or below `min_cos`.
+pub fn grazing_confidence(cos: f64, opts: &ObserveOptions) -> f64 {
+    if !(cos > opts.min_cos) {
+        return 0.0;
+    }
+    let ramp = ((cos - opts.min_cos) / (1.0 - opts.min_cos)).clamp(0.0, 1.0);
+    ramp.powf(opts.grazing_power)
+}
+
+/// One kept observation before it is split into arrays.
+struct Record {
+    vertex: u32,
+    rgb: [f32; 3],
+    weight: f32,
+    dir: [f32; 3],
+}
+
+enum Outcome {
+    Outside,
+    BackFacing,
+    Occluded,
+    Discontinuity,
+    Kept(Record, bool),
+}
+
+/// The per-view quantities every vertex test needs.
+struct ViewGeometry<'a> {
+    rot: nalgebra::Matrix3<f64>,
+    t: Vec3,
+    center: Vec3,
+    view: &'a View,
+    photo: &'a Photo,
+    /// Camera pixel → photo pixel scale (1 when the sizes agree, as `load_photos` checks).
+    scale: [f64; 2],
+}
+
+impl ViewGeometry<'_> {
+    /// Whether the probe through camera pixel `px` meets the tangent plane `(x, n)` where the
+    /// mesh is (module docs, test 4).
+    fn probe_agrees(&self, bvh: &SceneBvh, px: [f64; 2], x: &Vec3, n: &Vec3, tau: f64) -> bool {
+        let Some(d_cam) = self.view.camera.unproject(px) else {
+            return false;
+        };
+        let d = self.rot.transpose() * d_cam;
+        let denom = n.dot(&d);
+        if denom >= 0.0 {
+            return false; // the probe sees the back of the tangent plane: a silhouette
+        }
+        let t_plane = n.dot(&(x - self.center)) / denom;
+        match bvh.intersect(&self.center, &d, 0.0, f64::INFINITY) {
+            Some(hit) => (hit.t - t_plane).abs() <= tau * t_plane,
+            None => false,
+        }
+    }
+
+    fn test(&self, mesh: &Mesh, bvh: &SceneBvh, v: usize, opts: &ObserveOptions) -> Outcome {
+        let x = mesh.positions[v];
+        let n = mesh.normals[v];
+        let cam = &self.view.camera;
+        let p_cam = self.rot * x + self.t;
+        let Some(px) = cam.project(&p_cam) else {
+            return Outcome::Outside;
+        };
+        let m = opts.margin_px;
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        if !(px[0] >= m && px[0] <= w - m && px[1] >= m && px[1] <= h - m) {
+            return Outcome::Outside;
+        }
+        let to_cam = self.center - x;
+        let dist = to_cam.norm();
+        if !(dist > 0.0) {
+            return Outcome::Outside;
+        }
+        let wo = to_cam / dist;
+        let cos = n.dot(&wo);
+        if !(cos > opts.min_cos) {
+            return Outcome::BackFacing;
+        }
+        // Shadow ray toward the camera centre, lifted off the surface.
+        let eps = bvh.ray_offset();
+        let origin = x + n * eps;
+        let seg = self.center - origin;
+        let len = seg.norm();
+        if len > 2.0 * eps && bvh.occluded(&origin, &(seg / len), eps, len - eps) {
+            return Outcome::Occluded;
+        }
+        if opts.probe_px > 0.0 {
+            let r = opts.probe_px;
+            for off in [[r, 0.0], [-r, 0.0], [0.0, r], [0.0, -r]] {
+                let probe = [px[0] + off[0], px[1] + off[1]];
+                if !self.probe_agrees(bvh, probe, &x, &n, opts.depth_discontinuity) {
+                    return Outcome::Discontinuity;
+                }
+            }
+        }
+        let Some((rgb, over)) = self
+            .photo
+            .sample([px[0] * self.scale[0], px[1] * self.scale[1]])
+        else {
+            return Outcome::Outside;
+        };
+        let weight = if over {
+            0.0
+        } else {
+            grazing_confidence(cos, opts) as f32
+        };
+        Outcome::Kept(
+            Record {
+                vertex: v as u32,
+                rgb,
+                weight,
+                dir: [wo.x as f32, wo.y as f32, wo.z as f32],
+            },
+            over,
+        )
+    }
+}
+
+/// Extracts the observations of every vertex in every view (module docs).
+/// `photos[i]` is the photo of `views[i]`; views without a photo are skipped.
+pub fn extract(
+    mesh: &Mesh,
+    bvh: &SceneBvh,
+    views: &[View],
+    photos: &[Photo],
+    opts: &ObserveOptions,
+) -> Observations {
+    extract_with_stats(mesh, bvh, views, photos, opts).0
+}
+
+/// [`extract`], also returning per-view counts of kept and rejected candidates.
+pub fn extract_with_stats(
+    mesh: &Mesh,
+    bvh: &SceneBvh,
+    views: &[View],
+    photos: &[Photo],
+    opts: &ObserveOptions,
+) -> (Observations, Vec<ViewStats>) {
+    let mut obs = Observations::default();
+    let mut stats = Vec::with_capacity(views.len());
+    for (i, view) in views.iter().enumerate() {
+        let start = obs.len();
+        let Some(photo) = photos.get(i) else {
+            obs.photo_ranges.push(start..start);
+            stats.push(ViewStats::default());
+            continue;
+        };
+        let cam = &view.camera;
+        let geo = ViewGeometry {
+            rot: *view.image.rotation().matrix(),
+            t: Vec3::from(view.image.tvec),
+            center: view.image.center(),
+            view,
+            photo,
+            scale: [
+                photo.width as f64 / cam.width.max(1) as f64,
+                photo.height as f64 / cam.height.max(1) as f64,
+            ],
+        };
+        let outcomes: Vec<Outcome> = (0..mesh.positions.len())
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|v| geo.test(mesh, bvh, v, opts))
+            .collect();
+        let mut s = ViewStats::default();
+        for o in outcomes {
+            match o {
+                Outcome::Outside => {}
+                Outcome::BackFacing => s.inside += 1,
+                Outcome::Occluded => {
+                    s.inside += 1;
+                    s.facing += 1;
+                    s.occluded += 1;
+                }
+                Outcome::Discontinuity => {
+                    s.inside += 1;
+                    s.facing += 1;
+                    s.discontinuity += 1;
+                }
+                Outcome::Kept(r, over) => {
+                    s.inside += 1;
+                    s.facing += 1;
+                    s.observed += 1;
+                    s.overexposed += over as usize;
+                    obs.vertex.push(r.vertex);
+                    obs.photo.push(i as u32);
+                    obs.rgb.push(r.rgb);
+                    obs.weight.push(r.weight);
+                    obs.dir.push(r.dir);
+                }
+            }
+        }
+        obs.photo_ranges.push(start..obs.len());
+        stats.push(s);
+    }
+    (obs, stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn confidence_ramp_matches_formula() {
+        let o = ObserveOptions {
+            min_cos: 0.2,
+            grazing_power: 2.0,
+            ..Default::default()
+        };
+        assert_eq!(grazing_confidence(0.2, &o), 0.0);
+        assert_eq!(grazing_confidence(-1.0, &o), 0.0);
+        assert!((grazing_confidence(1.0, &o) - 1.0).abs() < 1e-15);
+        // (0.6 − 0.2)/0.8 = 0.5, squared.
+        assert!((grazing_confidence(0.6, &o) - 0.25).abs() < 1e-15);
+        assert_eq!(grazing_confidence(f64::NAN, &o), 0.0);
+    }
+}

@@ -105,7 +105,9 @@ pub fn intersect_triangle(
 
 fn to_ray(origin: &Vec3, dir: &Vec3, t_min: f64, t_max: f64) -> Option<Ray> {
     let o = [origin.x as f32, origin.y as f32, origin.z as f32];
-    let d = [dir.x as f32, dir.y as f32, dir.z as f32];
+    // `+ 0.0` turns −0.0 into +0.0: obvhs reads a direction's sign in two ways (sign bit
+    // and comparison), and a −0.0 component makes them disagree and miss hits.
+    let d = [dir.x as f32 + 0.0, dir.y as f32 + 0.0, dir.z as f32 + 0.0];
     let finite = o.iter().chain(d.iter()).all(|v| v.is_finite());
     if !finite || d == [0.0; 3] || t_min.is_nan() || t_max.is_nan() || t_min > t_max {
         return None;
@@ -307,6 +309,32 @@ mod tests {
         // Ray through the shared edge of two triangles hits (edge-inclusive).
         let o = Vec3::new(1.0, 1.5, 1.0); // on the hypotenuse x/2 + y/3 = 1
         assert!(intersect_triangle(&c, &o, &Vec3::new(0.0, 0.0, -1.0), 0.0, 9.0).is_some());
+    }
+
+    #[test]
+    fn negative_zero_direction_components_still_hit() {
+        // A camera centre computed as −Rᵀt often has −0.0 components; rays along an axis
+        // then carry −0.0 and must hit exactly as with +0.0.
+        let (quad, _) = Mesh::from_parts(
+            vec![
+                Vec3::new(-0.2, -0.2, 3.0),
+                Vec3::new(0.3, -0.2, 3.0),
+                Vec3::new(0.3, 0.3, 3.0),
+                Vec3::new(-0.2, 0.3, 3.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let bvh = SceneBvh::new(&quad);
+        for d in [
+            Vec3::new(-0.0, -0.0, 1.0),
+            Vec3::new(0.0, -0.0, 1.0),
+            Vec3::new(-0.0, 0.1, 1.0),
+        ] {
+            let o = Vec3::new(0.0, 0.0, 1.0);
+            assert!(bvh.occluded(&o, &d, 0.0, 10.0), "{d:?}");
+            let h = bvh.intersect(&o, &d, 0.0, 10.0).unwrap();
+            assert!((h.t - 2.0).abs() < 1e-12);
+        }
     }
 
     #[test]
