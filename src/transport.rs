@@ -14,6 +14,31 @@
 //!
 //! [`Transport`] stores the `g_{p,b}` sparsely (the kept Haar coefficients, largest first
 //! after truncation), in compressed rows indexed by `p * n_basis + b`.
+//!
+//! Building it ([`build`]): per observation, in the vertex's local hemi-octahedral map
+//! (`n_local²` texels, frame [`crate::sphere::local_frame`] of the env-frame normal), the
+//! texel product `f_t = V_t · ρ_b(ω_o)_t · Δω_t` (visibility fraction, texel-averaged slice
+//! [`crate::brdf::BasisBrdf::slice`], exact texel solid angle) so that, with `L_t` the local
+//! texel averages of the light, `s = Σ_t f_t L_t` is the midpoint-rule value of Eq. 1 (the
+//! quadrature weights `Δω` live here and nowhere else). With the orthonormal Haar matrices
+//! `W` ([`crate::haar`]) and `L_local = W_lᵀ R_n L̃` this is `s = (R_nᵀ W_l f)ᵀ L̃`, i.e.
+//! `g_{p,b} = R_nᵀ W_l f` — the triple product of Eq. 5/7 evaluated in the texel domain,
+//! where for piecewise-constant functions on one grid it is exact and costs `O(n_local²)`.
+//! `g` is then truncated to its `keep` largest-magnitude coefficients, which minimises the
+//! `ℓ²` norm of what is dropped and hence the worst-case response error `‖g_drop‖ ‖L̃‖`.
+//! The Lambert row depends only on the vertex and is computed once per vertex.
+//! Memory grows as observations × basis × `keep` (8 bytes per kept entry).
+
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+use crate::brdf::{BasisBrdf, SliceGrid, SliceTable};
+use crate::envmap::OctEnv;
+use crate::haar;
+use crate::observe::Observations;
+use crate::sphere::{from_local, local_frame, to_local, SphereGrid};
+use crate::visibility::Visibility;
+use crate::{Error, Result, Vec3};
 
 /// Sparse per-observation, per-basis transport vectors in the global Haar basis.
 #[derive(Debug, Clone, Default)]
@@ -56,5 +81,495 @@ impl Transport {
         self.offsets.len() * std::mem::size_of::<usize>()
             + self.index.len() * std::mem::size_of::<u32>()
             + self.value.len() * std::mem::size_of::<f32>()
+    }
+}
+
+/// Resolutions and truncation of the transport.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TransportOptions {
+    /// Global octahedral map side (default 64).
+    pub n_global: usize,
+    /// Local hemi-octahedral map side (default 32).
+    pub n_local: usize,
+    /// Kept coefficients per row (largest magnitude); 0 keeps every non-zero one.
+    pub keep: usize,
+}
+
+impl Default for TransportOptions {
+    fn default() -> Self {
+        TransportOptions {
+            n_global: 64,
+            n_local: 32,
+            keep: 128,
+        }
+    }
+}
+
+/// The lighting rotation as the transport sees it: `R_n` maps the global Haar coefficients
+/// of a light (`n_global²`) to the local Haar coefficients (`n_local²`) in the frame of
+/// unit normal `n` (environment frame). Implemented for [`crate::rotation::Rotation`]
+/// (blended, Eq. 6) and for [`ExactRotation`] (a per-normal supersampled reference).
+pub trait LocalRotation: Sync {
+    /// Global map side.
+    fn n_global(&self) -> usize;
+    /// Local map side.
+    fn n_local(&self) -> usize;
+    /// `local = R_n global` (overwrites `local`).
+    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]);
+    /// `global += R_nᵀ local`.
+    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]);
+}
+
+/// A reference rotation without normal blending: `R_n = W_l S_n W_gᵀ`, where `S_n` averages
+/// the global texels under `s × s` sub-texels of each local texel (nearest global texel per
+/// sub-texel, weights = exact sub-texel solid angles). Slow (`n_local² s²` lookups per
+/// call): for tests and for checking the blended rotation.
+#[derive(Debug, Clone)]
+pub struct ExactRotation {
+    global: SphereGrid,
+    local: SphereGrid,
+    /// Sub-texels per local texel: local direction and weight `w / Δω_t`.
+    subs: Vec<Vec<(Vec3, f64)>>,
+}
+
+impl ExactRotation {
+    /// Sub-sampling `s × s` per local texel.
+    pub fn new(n_global: usize, n_local: usize, s: usize) -> Self {
+        let local = SphereGrid::hemi(n_local);
+        let subs = (0..local.len())
+            .map(|t| {
+                let pts: Vec<(Vec3, f64)> = local.sample_points(t, s).collect();
+                let total: f64 = pts.iter().map(|p| p.1).sum();
+                pts.into_iter().map(|(d, w)| (d, w / total)).collect()
+            })
+            .collect();
+        ExactRotation {
+            global: SphereGrid::full(n_global),
+            local,
+            subs,
+        }
+    }
+}
+
+impl LocalRotation for ExactRotation {
+    fn n_global(&self) -> usize {
+        self.global.n
+    }
+    fn n_local(&self) -> usize {
+        self.local.n
+    }
+    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]) {
+        let mut texels = global.to_vec();
+        haar::inverse(&mut texels, self.global.n);
+        let frame = local_frame(normal_env);
+        for (t, o) in local.iter_mut().enumerate() {
+            *o = self.subs[t]
+                .iter()
+                .map(|(d, w)| w * texels[self.global.texel_of(&from_local(&frame, d))])
+                .sum();
+        }
+        haar::forward(local, self.local.n);
+    }
+    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]) {
+        let mut lt = local.to_vec();
+        haar::inverse(&mut lt, self.local.n);
+        let frame = local_frame(normal_env);
+        let mut acc = vec![0.0; self.global.len()];
+        for (t, &x) in lt.iter().enumerate() {
+            if x == 0.0 {
+                continue;
+            }
+            for (d, w) in &self.subs[t] {
+                acc[self.global.texel_of(&from_local(&frame, d))] += w * x;
+            }
+        }
+        haar::forward(&mut acc, self.global.n);
+        for (g, a) in global.iter_mut().zip(&acc) {
+            *g += a;
+        }
+    }
+}
+
+/// How a basis BRDF's slices are produced for the transport: tabulated over `ω_o` and
+/// interpolated when the lobe is broad compared with the table spacing, computed on demand
+/// otherwise (see benches/transport.rs for the measurement behind the threshold).
+enum SliceSource {
+    /// View-independent (Lambert): one slice.
+    Fixed(Vec<f64>),
+    Table(SliceTable),
+    OnDemand,
+}
+
+/// `ω_o` table side for tabulated slices.
+const TABLE_SIDE: usize = 32;
+/// Lobes with `σ` at least this many `ω_o` table spacings are tabulated.
+const TABLE_MIN_SIGMA_SPACINGS: f64 = 4.0;
+
+impl SliceSource {
+    fn new(b: &BasisBrdf, grid: &SliceGrid) -> Result<Self> {
+        if !b.view_dependent() {
+            let mut s = vec![0.0; grid.centre.len()];
+            b.slice_with(grid, &Vec3::z(), &mut s);
+            return Ok(SliceSource::Fixed(s));
+        }
+        // Spacing of the ω_o table: π/2 over TABLE_SIDE/√2 texels along a diagonal, roughly.
+        let spacing = std::f64::consts::PI / TABLE_SIDE as f64;
+        if b.lobe_sigma() >= TABLE_MIN_SIGMA_SPACINGS * spacing {
+            Ok(SliceSource::Table(SliceTable::new(b, grid, TABLE_SIDE)?))
+        } else {
+            Ok(SliceSource::OnDemand)
+        }
+    }
+
+    fn slice(&self, b: &BasisBrdf, grid: &SliceGrid, wo: &Vec3, out: &mut [f64]) {
+        match self {
+            SliceSource::Fixed(s) => out.copy_from_slice(s),
+            SliceSource::Table(t) => t.lookup(wo, out),
+            SliceSource::OnDemand => b.slice_with(grid, wo, out),
+        }
+    }
+}
+
+/// Outgoing direction in the local frame, kept strictly above the horizon.
+fn local_wo(frame: &[Vec3; 3], wo_env: &Vec3) -> Option<Vec3> {
+    let mut w = to_local(frame, wo_env);
+    if !w.iter().all(|c| c.is_finite()) || w.norm() == 0.0 {
+        return None;
+    }
+    w.z = w.z.max(1e-3 * w.norm());
+    Some(w.normalize())
+}
+
+/// Per-vertex context: frame, `V ⊙ Δω`.
+struct VertexContext {
+    normal: Vec3,
+    frame: [Vec3; 3],
+    v_dw: Vec<f64>,
+}
+
+fn vertex_context(normal_env: &Vec3, vis_row: &[u8], solid_angle: &[f64]) -> Option<VertexContext> {
+    let nn = normal_env.norm();
+    if !(nn.is_finite() && nn > 0.0) {
+        return None;
+    }
+    let normal = normal_env / nn;
+    Some(VertexContext {
+        normal,
+        frame: local_frame(&normal),
+        v_dw: vis_row
+            .iter()
+            .zip(solid_angle)
+            .map(|(&v, &w)| v as f64 / 255.0 * w)
+            .collect(),
+    })
+}
+
+/// Scratch buffers for one thread.
+struct Scratch {
+    slice: Vec<f64>,
+    local: Vec<f64>,
+    global: Vec<f64>,
+}
+
+impl Scratch {
+    fn new(n_local: usize, n_global: usize) -> Self {
+        Scratch {
+            slice: vec![0.0; n_local * n_local],
+            local: vec![0.0; n_local * n_local],
+            global: vec![0.0; n_global * n_global],
+        }
+    }
+}
+
+/// `g = R_nᵀ W_l (V ⊙ Δω ⊙ slice)` into `scratch.global` (dense).
+fn dense_row<R: LocalRotation>(ctx: &VertexContext, rot: &R, scratch: &mut Scratch) {
+    for ((l, s), vw) in scratch.local.iter_mut().zip(&scratch.slice).zip(&ctx.v_dw) {
+        *l = s * vw;
+    }
+    haar::forward(&mut scratch.local, rot.n_local());
+    scratch.global.fill(0.0);
+    rot.apply_transpose_add(&ctx.normal, &scratch.local, &mut scratch.global);
+}
+
+type Row = (Vec<u32>, Vec<f32>);
+
+fn truncate(global: &[f64], keep: usize) -> Row {
+    let k = if keep == 0 { global.len() } else { keep };
+    let (idx, val, _) = haar::keep_largest(global, k, None);
+    (idx, val.into_iter().map(|v| v as f32).collect())
+}
+
+fn check_inputs<R: LocalRotation>(
+    n_vertices: usize,
+    vis: &Visibility,
+    basis: &[BasisBrdf],
+    rot: &R,
+    opts: &TransportOptions,
+) -> Result<()> {
+    if basis.is_empty() {
+        return Err(Error::Config("transport: no basis BRDFs".into()));
+    }
+    if rot.n_global() != opts.n_global || rot.n_local() != opts.n_local {
+        return Err(Error::Config(format!(
+            "transport: the rotation is {}→{} texels per side but the options ask for {}→{}",
+            rot.n_global(),
+            rot.n_local(),
+            opts.n_global,
+            opts.n_local
+        )));
+    }
+    if vis.n_local != opts.n_local || vis.frac.len() != n_vertices * opts.n_local * opts.n_local {
+        return Err(Error::Config(format!(
+            "transport: visibility holds {} vertices at {}² texels, expected {} vertices at {}²",
+            vis.frac.len() / (vis.n_local * vis.n_local).max(1),
+            vis.n_local,
+            n_vertices,
+            opts.n_local
+        )));
+    }
+    Ok(())
+}
+
+/// Build the transport for observations given by their vertex and their outgoing
+/// direction in the ENVIRONMENT frame (unit, vertex → camera). The kernel behind [`build`];
+/// generic over the rotation so tests can use [`ExactRotation`].
+pub fn build_rows<R: LocalRotation>(
+    normals_env: &[Vec3],
+    obs_vertex: &[u32],
+    obs_dir_env: &[Vec3],
+    vis: &Visibility,
+    basis: &[BasisBrdf],
+    rot: &R,
+    opts: &TransportOptions,
+) -> Result<Transport> {
+    check_inputs(normals_env.len(), vis, basis, rot, opts)?;
+    if obs_vertex.len() != obs_dir_env.len() {
+        return Err(Error::Config(format!(
+            "transport: {} observation vertices but {} directions",
+            obs_vertex.len(),
+            obs_dir_env.len()
+        )));
+    }
+    if let Some(p) = obs_vertex
+        .iter()
+        .position(|&v| v as usize >= normals_env.len())
+    {
+        return Err(Error::Numeric {
+            stage: "transport".into(),
+            message: format!(
+                "observation {p} names vertex {} but the mesh has {}",
+                obs_vertex[p],
+                normals_env.len()
+            ),
+        });
+    }
+    let grid = SliceGrid::shared(opts.n_local)?;
+    let sources: Vec<SliceSource> = basis
+        .iter()
+        .map(|b| SliceSource::new(b, &grid))
+        .collect::<Result<_>>()?;
+    let nb = basis.len();
+    let n_obs = obs_vertex.len();
+
+    // Group observations by vertex (stable order), so per-vertex work is done once.
+    let mut order: Vec<u32> = (0..n_obs as u32).collect();
+    order.sort_by_key(|&p| (obs_vertex[p as usize], p));
+    let mut groups: Vec<&[u32]> = Vec::new();
+    let mut start = 0;
+    for k in 1..=n_obs {
+        if k == n_obs || obs_vertex[order[k] as usize] != obs_vertex[order[start] as usize] {
+            groups.push(&order[start..k]);
+            start = k;
+        }
+    }
+
+    let per_group: Vec<Vec<(u32, Vec<Row>)>> = groups
+        .par_iter()
+        .map_init(
+            || Scratch::new(opts.n_local, opts.n_global),
+            |scratch, group| {
+                let v = obs_vertex[group[0] as usize] as usize;
+                let empty = || (Vec::new(), Vec::new());
+                let Some(ctx) = vertex_context(&normals_env[v], vis.vertex(v), &grid.solid_angle)
+                else {
+                    return group
+                        .iter()
+                        .map(|&p| (p, (0..nb).map(|_| empty()).collect()))
+                        .collect();
+                };
+                // View-independent rows, once per vertex.
+                let fixed: Vec<Option<Row>> = basis
+                    .iter()
+                    .zip(&sources)
+                    .map(|(b, src)| match src {
+                        SliceSource::Fixed(_) => {
+                            src.slice(b, &grid, &Vec3::z(), &mut scratch.slice);
+                            dense_row(&ctx, rot, scratch);
+                            Some(truncate(&scratch.global, opts.keep))
+                        }
+                        _ => None,
+                    })
+                    .collect();
+                group
+                    .iter()
+                    .map(|&p| {
+                        let wo = local_wo(&ctx.frame, &obs_dir_env[p as usize]);
+                        let rows = basis
+                            .iter()
+                            .zip(&sources)
+                            .zip(&fixed)
+                            .map(|((b, src), fixed)| {
+                                if let Some(r) = fixed {
+                                    return r.clone();
+                                }
+                                let Some(wo) = wo else { return empty() };
+                                src.slice(b, &grid, &wo, &mut scratch.slice);
+                                dense_row(&ctx, rot, scratch);
+                                truncate(&scratch.global, opts.keep)
+                            })
+                            .collect();
+                        (p, rows)
+                    })
+                    .collect()
+            },
+        )
+        .collect();
+
+    // Scatter into observation order and concatenate.
+    let mut rows: Vec<Option<Vec<Row>>> = (0..n_obs).map(|_| None).collect();
+    for (p, r) in per_group.into_iter().flatten() {
+        rows[p as usize] = Some(r);
+    }
+    let total: usize = rows
+        .iter()
+        .flatten()
+        .flat_map(|r| r.iter().map(|x| x.0.len()))
+        .sum();
+    let mut t = Transport {
+        n_global: opts.n_global,
+        n_basis: nb,
+        n_obs,
+        offsets: Vec::with_capacity(n_obs * nb + 1),
+        index: Vec::with_capacity(total),
+        value: Vec::with_capacity(total),
+    };
+    t.offsets.push(0);
+    for r in rows.into_iter() {
+        for (idx, val) in r.into_iter().flatten() {
+            t.index.extend_from_slice(&idx);
+            t.value.extend_from_slice(&val);
+            t.offsets.push(t.index.len());
+        }
+    }
+    if t.offsets.len() != n_obs * nb + 1 {
+        return Err(Error::Numeric {
+            stage: "transport".into(),
+            message: "internal: row count mismatch".into(),
+        });
+    }
+    Ok(t)
+}
+
+/// Build the transport of every observation (module docs): `normals_env` are the unit
+/// vertex normals in the environment frame, `env_from_world` the matrix with rows
+/// `e_x, e_y, e_z` (observation directions are world vectors).
+pub fn build<R: LocalRotation>(
+    normals_env: &[Vec3],
+    obs: &Observations,
+    env_from_world: &Matrix3<f64>,
+    vis: &Visibility,
+    basis: &[BasisBrdf],
+    rot: &R,
+    opts: &TransportOptions,
+) -> Result<Transport> {
+    let dirs: Vec<Vec3> = obs
+        .dir
+        .iter()
+        .map(|d| env_from_world * Vec3::new(d[0] as f64, d[1] as f64, d[2] as f64))
+        .collect();
+    build_rows(normals_env, &obs.vertex, &dirs, vis, basis, rot, opts)
+}
+
+/// The Haar coefficients of each channel of an octahedral environment map (the `L̃` that
+/// [`Transport::response`] and [`vertex_radiance`] take).
+pub fn light_haar(env: &OctEnv) -> [Vec<f64>; 3] {
+    [0, 1, 2].map(|c| {
+        let mut ch = env.channel(c);
+        haar::forward(&mut ch, env.n);
+        ch
+    })
+}
+
+/// Precomputed state for evaluating the model's radiance at arbitrary vertices and views
+/// under one environment map (the wavelet renderer, Eq. 5–8): per vertex, the light rotated
+/// into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed on first use by
+/// [`WaveletRenderer::vertex_radiance`].
+pub struct WaveletRenderer<'a, R: LocalRotation> {
+    rot: &'a R,
+    basis: &'a [BasisBrdf],
+    light: [Vec<f64>; 3],
+    grid: std::sync::Arc<SliceGrid>,
+}
+
+impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
+    /// A renderer for `env` (its side must equal the rotation's global side).
+    pub fn new(rot: &'a R, basis: &'a [BasisBrdf], env: &OctEnv) -> Result<Self> {
+        if env.n != rot.n_global() {
+            return Err(Error::Config(format!(
+                "wavelet renderer: environment map is {}² but the rotation expects {}²",
+                env.n,
+                rot.n_global()
+            )));
+        }
+        Ok(WaveletRenderer {
+            rot,
+            basis,
+            light: light_haar(env),
+            grid: SliceGrid::shared(rot.n_local())?,
+        })
+    }
+
+    /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) at a vertex with
+    /// unit normal `normal_env`, visibility row `vis_row` (`n_local²` fractions) and
+    /// outgoing direction `wo_env` (both in the environment frame), for per-basis RGB
+    /// weights `beta` (`B` entries). Untruncated: the reference the kept transport rows
+    /// approximate. Returns zero for a degenerate normal or direction.
+    pub fn vertex_radiance(
+        &self,
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        wo_env: &Vec3,
+        beta: &[[f64; 3]],
+    ) -> [f64; 3] {
+        let Some(ctx) = vertex_context(normal_env, vis_row, &self.grid.solid_angle) else {
+            return [0.0; 3];
+        };
+        let Some(wo) = local_wo(&ctx.frame, wo_env) else {
+            return [0.0; 3];
+        };
+        let nl = self.rot.n_local();
+        let mut local = [0, 1, 2].map(|_| vec![0.0; nl * nl]);
+        for (c, l) in local.iter_mut().enumerate() {
+            self.rot.apply(&ctx.normal, &self.light[c], l);
+            haar::inverse(l, nl);
+        }
+        let mut slice = vec![0.0; nl * nl];
+        let mut out = [0.0; 3];
+        for (b, w) in self.basis.iter().zip(beta) {
+            if w.iter().all(|&x| x == 0.0) {
+                continue;
+            }
+            b.slice_with(&self.grid, &wo, &mut slice);
+            for c in 0..3 {
+                let s: f64 = slice
+                    .iter()
+                    .zip(&ctx.v_dw)
+                    .zip(&local[c])
+                    .map(|((s, vw), l)| s * vw * l)
+                    .sum();
+                out[c] += w[c] * s;
+            }
+        }
+        out
     }
 }
