@@ -230,7 +230,7 @@ impl LatLong {
     /// pixels by their solid angle: each new pixel is the exact average radiance over its
     /// area, so `∫ L̃ dω` is conserved (a sun keeps its energy).
     pub fn downsample(&self, factor: usize) -> Result<LatLong> {
-        if factor == 0 || self.height % factor != 0 {
+        if factor == 0 || !self.height.is_multiple_of(factor) {
             return Err(Error::Config(format!(
                 "cannot downsample a lat-long map of height {} by {factor}",
                 self.height
@@ -354,8 +354,8 @@ impl OctEnv {
                     for a in 0..s {
                         let d = ll.dir_at(u as f64 + (a as f64 + 0.5) / sf, y0 + 0.5 / sf);
                         for (t, bw) in grid.bilinear(&d) {
-                            for c in 0..3 {
-                                acc[c] += w * bw * self.rgb[t][c] as f64;
+                            for (a, &x) in acc.iter_mut().zip(&self.rgb[t]) {
+                                *a += w * bw * x as f64;
                             }
                         }
                         wsum += w;

@@ -237,6 +237,7 @@ pub fn keep_largest(
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // index loops mirror the sums being checked
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};

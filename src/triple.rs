@@ -349,6 +349,7 @@ pub fn double_product(n: usize, f: &[f64], g: &[f64], out: &mut [f64]) {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)] // index loops mirror the sums being checked
 mod tests {
     use super::*;
     use crate::haar::{basis_value, forward, inverse, keep_largest};
