@@ -1,1 +1,300 @@
-//! (cluster: not written yet)
+//! Initial materials (paper Sec. 5.2, last paragraph): cluster the per-vertex mean colours.
+//!
+//! Each seen vertex's mean linear RGB colour goes to HSV (`H ∈ [0,1)`, `S = (max−min)/max`,
+//! `V = max`; `H = 0` for greys) and then to the feature `(cos 2πH, sin 2πH, S)` — hue on
+//! the unit circle so that red at `H ≈ 0` and `H ≈ 1` are close, brightness left out so
+//! shading does not split a material. k-means (linfa-clustering, Lloyd iterations) from a
+//! seeded k-means++ start (several starts, the lowest inertia kept) gives K clusters; each is
+//! a material whose Lambertian weight is the component-wise median colour of its members.
+//!
+//! Blending weights from the distances `d_k(x)` to the centroids:
+//! `w_k(x) ∝ exp(−d_k² / (2 s²))`, normalised to sum to one, with `s` the root-mean-square
+//! distance of the vertices to their own centroid (floored at 0.05 so that tight clusters
+//! still give near one-hot weights rather than NaN). Vertices seen by no photo get uniform
+//! weights and the label of the largest cluster.
+//!
+//! When the colours have fewer than `k` distinct features, fewer materials are returned
+//! (`albedo.len()` is the count); a cluster that k-means leaves empty is dropped likewise.
+
+use crate::{Error, Result};
+use linfa::prelude::*;
+use linfa::DatasetBase;
+use linfa_clustering::{KMeans, KMeansInit};
+use ndarray::Array2;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// The clustering result: the start of the material estimation.
+#[derive(Debug, Clone)]
+pub struct InitialMaterials {
+    /// Cluster of every vertex (`V` entries; unseen vertices: the largest cluster).
+    pub labels: Vec<usize>,
+    /// Median linear RGB colour of every cluster (`K` entries): its Lambertian weight.
+    pub albedo: Vec<[f64; 3]>,
+    /// Blending weights `w_k(x)`, row-major `V × K`, each row summing to one.
+    pub weights: Vec<f64>,
+    /// Cluster centres in feature space `(cos 2πH, sin 2πH, S)`.
+    pub centroids: Vec<[f64; 3]>,
+}
+
+/// HSV of a linear RGB colour: `(H ∈ [0,1), S ∈ [0,1], V)`; `H = 0` when `S = 0`.
+pub fn rgb_to_hsv(rgb: [f64; 3]) -> [f64; 3] {
+    let [r, g, b] = rgb.map(|v| v.max(0.0));
+    let max = r.max(g).max(b);
+    let min = r.min(g).min(b);
+    let delta = max - min;
+    let s = if max > 0.0 { delta / max } else { 0.0 };
+    let h = if delta <= 0.0 {
+        0.0
+    } else if max == r {
+        ((g - b) / delta).rem_euclid(6.0) / 6.0
+    } else if max == g {
+        ((b - r) / delta + 2.0) / 6.0
+    } else {
+        ((r - g) / delta + 4.0) / 6.0
+    };
+    [h.rem_euclid(1.0), s, max]
+}
+
+/// The clustering feature `(cos 2πH, sin 2πH, S)` of a linear RGB colour.
+pub fn hue_feature(rgb: [f64; 3]) -> [f64; 3] {
+    let [h, s, _] = rgb_to_hsv(rgb);
+    let a = 2.0 * std::f64::consts::PI * h;
+    [a.cos(), a.sin(), s]
+}
+
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum()
+}
+
+/// k-means++ seeding (Arthur & Vassilvitskii 2007) over distinct points, seeded.
+fn kmeans_pp(points: &[[f64; 3]], k: usize, rng: &mut Pcg64) -> Vec<[f64; 3]> {
+    let mut centres = vec![points[rng.random_range(0..points.len())]];
+    let mut d2: Vec<f64> = points.iter().map(|p| dist2(p, &centres[0])).collect();
+    while centres.len() < k {
+        let total: f64 = d2.iter().sum();
+        if total <= 0.0 {
+            break;
+        }
+        let mut t = rng.random::<f64>() * total;
+        let mut pick = points.len() - 1;
+        for (i, &d) in d2.iter().enumerate() {
+            if t < d {
+                pick = i;
+                break;
+            }
+            t -= d;
+        }
+        let c = points[pick];
+        centres.push(c);
+        for (i, p) in points.iter().enumerate() {
+            d2[i] = d2[i].min(dist2(p, &c));
+        }
+    }
+    centres
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Initial materials from per-vertex mean linear colours (`mean_rgb`, `V` entries; only
+/// vertices with `seen[x]` count), at most `k` clusters, deterministic for a given `seed`.
+///
+/// Errors: `Config` when `k == 0` or the slices differ in length; `Numeric` when no vertex
+/// is seen or a seen colour is not finite.
+pub fn initial_materials(
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+    k: usize,
+    seed: u64,
+) -> Result<InitialMaterials> {
+    if k == 0 {
+        return Err(Error::Config(
+            "the number of materials must be at least 1".into(),
+        ));
+    }
+    if mean_rgb.len() != seen.len() {
+        return Err(Error::Config(format!(
+            "{} vertex colours but {} seen flags",
+            mean_rgb.len(),
+            seen.len()
+        )));
+    }
+    let idx: Vec<usize> = (0..seen.len()).filter(|&x| seen[x]).collect();
+    if idx.is_empty() {
+        return Err(Error::Numeric {
+            stage: "initial materials".into(),
+            message: "no vertex is seen by any photo".into(),
+        });
+    }
+    if let Some(&x) = idx
+        .iter()
+        .find(|&&x| mean_rgb[x].iter().any(|v| !v.is_finite()))
+    {
+        return Err(Error::Numeric {
+            stage: "initial materials".into(),
+            message: format!("vertex {x} has a non-finite mean colour {:?}", mean_rgb[x]),
+        });
+    }
+    let feats: Vec<[f64; 3]> = idx.iter().map(|&x| hue_feature(mean_rgb[x])).collect();
+
+    // Distinct features (bitwise), in first-seen order: k-means++ cannot place more centres
+    // than there are distinct points.
+    let mut distinct: Vec<[f64; 3]> = feats.clone();
+    distinct.sort_by(|a, b| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| x.total_cmp(y))
+            .find(|o| o.is_ne())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    distinct.dedup();
+    let k_eff = k.min(distinct.len());
+
+    let records = Array2::from_shape_fn((feats.len(), 3), |(i, j)| feats[i][j]);
+    let data = DatasetBase::from(records.clone());
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let mut best: Option<(f64, Vec<[f64; 3]>)> = None;
+    for _ in 0..8 {
+        let start = kmeans_pp(&distinct, k_eff, &mut rng);
+        let kk = start.len();
+        let init = Array2::from_shape_fn((kk, 3), |(i, j)| start[i][j]);
+        let model = KMeans::params(kk)
+            .init_method(KMeansInit::Precomputed(init))
+            .n_runs(1)
+            .max_n_iterations(300)
+            .tolerance(1e-10)
+            .fit(&data)
+            .map_err(|e| Error::Numeric {
+                stage: "initial materials (k-means)".into(),
+                message: e.to_string(),
+            })?;
+        let c = model.centroids();
+        let centres: Vec<[f64; 3]> = (0..kk).map(|i| [c[(i, 0)], c[(i, 1)], c[(i, 2)]]).collect();
+        let inertia: f64 = feats
+            .iter()
+            .map(|f| {
+                centres
+                    .iter()
+                    .map(|c| dist2(f, c))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .sum();
+        if centres.iter().flatten().all(|v| v.is_finite())
+            && best.as_ref().is_none_or(|(bi, _)| inertia < *bi)
+        {
+            best = Some((inertia, centres));
+        }
+    }
+    let Some((_, mut centres)) = best else {
+        return Err(Error::Numeric {
+            stage: "initial materials (k-means)".into(),
+            message: "k-means produced no finite centroids".into(),
+        });
+    };
+
+    // Assign, drop empty clusters, re-assign.
+    let nearest = |f: &[f64; 3], cs: &[[f64; 3]]| {
+        let mut bi = 0;
+        for (i, c) in cs.iter().enumerate() {
+            if dist2(f, c) < dist2(f, &cs[bi]) {
+                bi = i;
+            }
+        }
+        bi
+    };
+    let mut count = vec![0usize; centres.len()];
+    for f in &feats {
+        count[nearest(f, &centres)] += 1;
+    }
+    centres = centres
+        .into_iter()
+        .zip(&count)
+        .filter(|(_, &n)| n > 0)
+        .map(|(c, _)| c)
+        .collect();
+    let kk = centres.len();
+    let member: Vec<usize> = feats.iter().map(|f| nearest(f, &centres)).collect();
+
+    // Median colour per cluster.
+    let mut albedo = vec![[0.0; 3]; kk];
+    for (c, alb) in albedo.iter_mut().enumerate() {
+        for (ch, a) in alb.iter_mut().enumerate() {
+            let mut vals: Vec<f64> = idx
+                .iter()
+                .zip(&member)
+                .filter(|(_, &m)| m == c)
+                .map(|(&x, _)| mean_rgb[x][ch])
+                .collect();
+            *a = median(&mut vals);
+        }
+    }
+
+    // Soft weights from centroid distances.
+    let spread2 = feats
+        .iter()
+        .zip(&member)
+        .map(|(f, &m)| dist2(f, &centres[m]))
+        .sum::<f64>()
+        / feats.len() as f64;
+    let s2 = spread2.max(0.05 * 0.05);
+    let nv = mean_rgb.len();
+    let mut weights = vec![1.0 / kk as f64; nv * kk];
+    let mut count = vec![0usize; kk];
+    for &m in &member {
+        count[m] += 1;
+    }
+    let largest = (0..kk)
+        .max_by_key(|&c| (count[c], usize::MAX - c))
+        .unwrap_or(0);
+    let mut labels = vec![largest; nv];
+    for ((&x, f), &m) in idx.iter().zip(&feats).zip(&member) {
+        labels[x] = m;
+        let d2: Vec<f64> = centres.iter().map(|c| dist2(f, c)).collect();
+        let dmin = d2.iter().copied().fold(f64::INFINITY, f64::min);
+        // Shift by the nearest distance so the largest weight is exp(0) = 1: no underflow.
+        let e: Vec<f64> = d2
+            .iter()
+            .map(|d| (-(d - dmin) / (2.0 * s2)).exp())
+            .collect();
+        let sum: f64 = e.iter().sum();
+        for c in 0..kk {
+            weights[x * kk + c] = e[c] / sum;
+        }
+    }
+    Ok(InitialMaterials {
+        labels,
+        albedo,
+        weights,
+        centroids: centres,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hsv_of_primaries_and_greys() {
+        // Closed forms: red H=0, green 1/3, blue 2/3, grey S=0.
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        let r = rgb_to_hsv([1.0, 0.0, 0.0]);
+        assert!(close(r[0], 0.0) && close(r[1], 1.0) && close(r[2], 1.0));
+        assert!(close(rgb_to_hsv([0.0, 0.5, 0.0])[0], 1.0 / 3.0));
+        assert!(close(rgb_to_hsv([0.0, 0.0, 0.2])[0], 2.0 / 3.0));
+        let g = rgb_to_hsv([0.3, 0.3, 0.3]);
+        assert!(close(g[0], 0.0) && close(g[1], 0.0));
+        assert_eq!(rgb_to_hsv([0.0; 3]), [0.0, 0.0, 0.0]);
+        // Magenta-ish red just below H = 1 lies close to red on the hue circle.
+        let f1 = hue_feature([1.0, 0.0, 0.05]);
+        let f0 = hue_feature([1.0, 0.05, 0.0]);
+        assert!(dist2(&f0, &f1) < 0.02);
+    }
+}

@@ -1,1 +1,556 @@
-//! (qp: not written yet)
+//! Non-negative quadratic programs: the solvers behind the lighting and material steps
+//! (paper Sec. 5, Eq. 10–12, all unknowns constrained `≥ 0`).
+//!
+//! Every problem here is the bound-constrained convex QP
+//!
+//! `min_x ½ xᵀ H x − bᵀ x   subject to   x ≥ 0`,   `H` symmetric positive semi-definite,
+//!
+//! whose KKT conditions are `x ≥ 0`, `g = H x − b ≥ 0`, `xᵢ gᵢ = 0`, or equivalently
+//! `P(x − g) = x` with `P` the projection onto the non-negative orthant. The residual
+//! `‖P(x − g) − x‖∞` ([`kkt_violation`]) is zero exactly at the solution and is the stopping
+//! rule of both solvers, so every answer can be checked by the caller.
+//!
+//! - [`nnls`]: Lawson–Hanson active-set NNLS (Lawson & Hanson 1974, ch. 23) on the normal
+//!   equations (`H = AᵀA`, `b = Aᵀy`, the Bro–De Jong 1997 formulation). Finite termination;
+//!   used for the small dense systems of the material step (K·B unknowns for λ, K for w).
+//! - [`bound_qp`]: matrix-free gradient projection + conjugate gradients (GPCG, Moré &
+//!   Toraldo 1991, SIAM J. Optim. 1(1)): projected-gradient steps with an Armijo projected
+//!   search identify the active face, CG on the free variables solves the reduced Newton
+//!   system, and a projected search along the CG direction keeps feasibility. Used for the
+//!   lighting step (thousands of texels, Hessian applied through the sparse transport).
+//!
+//! Interior point (clarabel) solves the same problems; on the material step's dense
+//! 6–42-unknown systems the active set is faster and exact to rounding (it ends with
+//! an unconstrained solve on the identified face), so it is the one used.
+
+use crate::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+
+/// `‖P(x − g) − x‖∞`, the projected-gradient KKT residual of `min f(x)` s.t. `x ≥ 0`, where
+/// `g = ∇f(x)` and `P` clamps to `≥ 0`. Zero exactly at a KKT point.
+pub fn kkt_violation(grad: &[f64], x: &[f64]) -> f64 {
+    grad.iter()
+        .zip(x)
+        .map(|(&g, &xi)| ((xi - g).max(0.0) - xi).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Options of [`nnls`].
+#[derive(Debug, Clone, Copy)]
+pub struct NnlsOptions {
+    /// Dual-feasibility tolerance relative to `max(‖Aᵀy‖∞, max diag(AᵀA))`:
+    /// the solver stops when no inactive variable has gradient `< −rel_tol · scale`.
+    pub rel_tol: f64,
+    /// Cap on outer (variable-adding) iterations; 0 means `3 n`.
+    pub max_iter: usize,
+}
+
+impl Default for NnlsOptions {
+    fn default() -> Self {
+        NnlsOptions {
+            rel_tol: 1e-11,
+            max_iter: 0,
+        }
+    }
+}
+
+/// Solves `H_PP z = b_P` on the passive set `P` (Cholesky; symmetric eigen pseudo-inverse
+/// when the sub-matrix is singular to working precision).
+fn solve_passive(ata: &DMatrix<f64>, atb: &DVector<f64>, passive: &[usize]) -> Vec<f64> {
+    let m = passive.len();
+    let sub = DMatrix::from_fn(m, m, |i, j| ata[(passive[i], passive[j])]);
+    let rhs = DVector::from_fn(m, |i, _| atb[passive[i]]);
+    let max_diag = (0..m).map(|i| sub[(i, i)]).fold(0.0, f64::max);
+    if let Some(ch) = sub.clone().cholesky() {
+        let z = ch.solve(&rhs);
+        // Reject a numerically singular factorisation (huge pivots ratio).
+        let min_l = (0..m).map(|i| ch.l()[(i, i)]).fold(f64::INFINITY, f64::min);
+        if z.iter().all(|v| v.is_finite()) && min_l * min_l > 1e-14 * max_diag {
+            return z.iter().copied().collect();
+        }
+    }
+    let eig = sub.symmetric_eigen();
+    let cut = 1e-13 * eig.eigenvalues.iter().fold(0.0_f64, |a, &v| a.max(v.abs()));
+    let mut z = DVector::zeros(m);
+    for (k, &ev) in eig.eigenvalues.iter().enumerate() {
+        if ev > cut {
+            let u = eig.eigenvectors.column(k);
+            z += u * (u.dot(&rhs) / ev);
+        }
+    }
+    z.iter().copied().collect()
+}
+
+/// Non-negative least squares on the normal equations: `min ½ xᵀ(AᵀA)x − (Aᵀy)ᵀx`, `x ≥ 0`,
+/// by the Lawson–Hanson active-set method. `ata` must be symmetric positive semi-definite.
+///
+/// Returns `Error::Numeric` on non-finite input. Terminates in finitely many steps; after
+/// `max_iter` outer steps the current (feasible, improved) iterate is returned.
+pub fn nnls(ata: &DMatrix<f64>, atb: &DVector<f64>, opts: &NnlsOptions) -> Result<DVector<f64>> {
+    let n = atb.len();
+    if ata.nrows() != n || ata.ncols() != n {
+        return Err(Error::Numeric {
+            stage: "nnls".into(),
+            message: format!("matrix is {}×{}, vector {n}", ata.nrows(), ata.ncols()),
+        });
+    }
+    if ata.iter().chain(atb.iter()).any(|v| !v.is_finite()) {
+        return Err(Error::Numeric {
+            stage: "nnls".into(),
+            message: "non-finite entry in the normal equations".into(),
+        });
+    }
+    let mut x = DVector::<f64>::zeros(n);
+    if n == 0 {
+        return Ok(x);
+    }
+    let scale = atb
+        .amax()
+        .max((0..n).map(|i| ata[(i, i)]).fold(0.0, f64::max))
+        .max(f64::MIN_POSITIVE);
+    let tol = opts.rel_tol * scale;
+    let max_iter = if opts.max_iter == 0 {
+        3 * n
+    } else {
+        opts.max_iter
+    };
+    let mut passive = vec![false; n];
+    // Variables that failed to enter (rounding) are barred until the next successful step.
+    let mut barred = vec![false; n];
+    for _ in 0..max_iter {
+        // Dual variables w = Aᵀy − AᵀA x (negative gradient).
+        let w = atb - ata * &x;
+        let mut best = None;
+        for j in 0..n {
+            if !passive[j] && !barred[j] && w[j] > tol && best.is_none_or(|(_, v)| w[j] > v) {
+                best = Some((j, w[j]));
+            }
+        }
+        let Some((j, _)) = best else { break };
+        passive[j] = true;
+        // Inner loop: keep the passive solution feasible.
+        let mut first = true;
+        loop {
+            let set: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+            let z = solve_passive(ata, atb, &set);
+            if first {
+                first = false;
+                // In exact arithmetic w_j > 0 makes the entering z_j positive (Lawson–Hanson
+                // Lemma 23.17); a non-positive one is a rounding artefact of a near-zero
+                // dual: bar j until the next successful step and keep the iterate.
+                let pos = set.iter().position(|&i| i == j).unwrap_or(0);
+                if z[pos] <= 0.0 {
+                    passive[j] = false;
+                    barred[j] = true;
+                    break;
+                }
+            }
+            if z.iter().all(|&v| v > 0.0) {
+                for (i, &v) in set.iter().zip(&z) {
+                    x[*i] = v;
+                }
+                for i in 0..n {
+                    if !passive[i] {
+                        x[i] = 0.0;
+                    }
+                }
+                barred.iter_mut().for_each(|b| *b = false);
+                break;
+            }
+            // Step from x toward z until the first passive variable hits zero.
+            let mut alpha = f64::INFINITY;
+            let mut hit = set[0];
+            for (i, &v) in set.iter().zip(&z) {
+                if v <= 0.0 {
+                    let a = if x[*i] - v > 0.0 {
+                        x[*i] / (x[*i] - v)
+                    } else {
+                        0.0
+                    };
+                    if a < alpha {
+                        alpha = a;
+                        hit = *i;
+                    }
+                }
+            }
+            let alpha = alpha.min(1.0);
+            for (i, &v) in set.iter().zip(&z) {
+                x[*i] += alpha * (v - x[*i]);
+            }
+            x[hit] = 0.0;
+            for &i in &set {
+                if x[i] <= 0.0 {
+                    x[i] = 0.0;
+                    passive[i] = false;
+                }
+            }
+            if !passive.iter().any(|&p| p) {
+                break;
+            }
+        }
+    }
+    Ok(x)
+}
+
+/// Options of [`bound_qp`].
+#[derive(Debug, Clone, Copy)]
+pub struct QpOptions {
+    /// Stop when `‖P(x − ∇f) − x‖∞ ≤ tol` (absolute, in the units of `b`).
+    pub tol: f64,
+    /// Cap on outer (gradient projection + CG) iterations.
+    pub max_iter: usize,
+    /// Cap on CG iterations per outer iteration.
+    pub max_cg: usize,
+}
+
+impl Default for QpOptions {
+    fn default() -> Self {
+        QpOptions {
+            tol: 1e-9,
+            max_iter: 500,
+            max_cg: 100,
+        }
+    }
+}
+
+/// Answer of [`bound_qp`].
+#[derive(Debug, Clone)]
+pub struct QpResult {
+    /// The minimiser, `≥ 0`.
+    pub x: Vec<f64>,
+    /// `‖P(x − ∇f) − x‖∞` at `x`.
+    pub kkt: f64,
+    /// `½ xᵀHx − bᵀx` at `x`.
+    pub objective: f64,
+    /// Outer iterations done.
+    pub iterations: usize,
+    /// Hessian products done.
+    pub matvecs: usize,
+    /// Whether `kkt ≤ tol` was reached (else the iteration cap was).
+    pub converged: bool,
+    /// Lower bound on the condition number of `H`: the ratio of the largest to the smallest
+    /// Rayleigh quotient / Ritz value met along the search directions and in the CG
+    /// (Lanczos) runs on the free faces. Tight when CG ran many steps.
+    pub cond_lower_bound: f64,
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// State shared by the two kinds of projected search.
+struct Iterate {
+    x: Vec<f64>,
+    hx: Vec<f64>,
+    g: Vec<f64>,
+    f: f64,
+}
+
+impl Iterate {
+    fn refresh(&mut self, b: &[f64]) {
+        for i in 0..self.x.len() {
+            self.g[i] = self.hx[i] - b[i];
+        }
+        self.f = 0.5 * dot(&self.x, &self.hx) - dot(b, &self.x);
+    }
+}
+
+/// Projected Armijo search along `d` from `it` (`hd = H d`), first trial step `alpha`.
+/// Returns whether a step was accepted (and then updates `it`).
+fn projected_search<H: Fn(&[f64], &mut [f64])>(
+    hess_mul: &H,
+    b: &[f64],
+    it: &mut Iterate,
+    d: &[f64],
+    hd: &[f64],
+    mut alpha: f64,
+    matvecs: &mut usize,
+) -> bool {
+    let n = it.x.len();
+    let mut xn = vec![0.0; n];
+    let mut hxn = vec![0.0; n];
+    for _ in 0..60 {
+        let mut clipped = false;
+        for i in 0..n {
+            let v = it.x[i] + alpha * d[i];
+            if v < 0.0 {
+                clipped = true;
+                xn[i] = 0.0;
+            } else {
+                xn[i] = v;
+            }
+        }
+        if clipped {
+            hess_mul(&xn, &mut hxn);
+            *matvecs += 1;
+        } else {
+            for i in 0..n {
+                hxn[i] = it.hx[i] + alpha * hd[i];
+            }
+        }
+        // f(xn) − f(x) = gᵀs + ½ sᵀHs with s = xn − x, summed without the cancellation of
+        // differencing two objective values.
+        let (mut gstep, mut df) = (0.0, 0.0);
+        for i in 0..n {
+            let s = xn[i] - it.x[i];
+            gstep += it.g[i] * s;
+            df += s * (it.g[i] + 0.5 * (hxn[i] - it.hx[i]));
+        }
+        if gstep < 0.0 && df <= 1e-4 * gstep {
+            std::mem::swap(&mut it.x, &mut xn);
+            std::mem::swap(&mut it.hx, &mut hxn);
+            it.refresh(b);
+            return true;
+        }
+        alpha *= 0.5;
+    }
+    false
+}
+
+/// Widens `spec = (min, max)` by a positive Rayleigh quotient `q`.
+fn record(spec: &mut (f64, f64), q: f64) {
+    if q > 0.0 && q.is_finite() {
+        spec.0 = spec.0.min(q);
+        spec.1 = spec.1.max(q);
+    }
+}
+
+/// Extreme eigenvalues of the Lanczos tridiagonal built from CG steps `(α_j, β_j)`:
+/// `T_jj = 1/α_j + β_{j−1}/α_{j−1}`, `T_{j,j+1} = √β_j / α_j` (Saad, Iterative Methods, §6.7.3).
+fn ritz_extremes(steps: &[(f64, f64)]) -> Option<(f64, f64)> {
+    let k = steps.len();
+    if k < 2 {
+        return None;
+    }
+    let mut t = DMatrix::zeros(k, k);
+    for j in 0..k {
+        let (a, _) = steps[j];
+        t[(j, j)] = 1.0 / a
+            + if j > 0 {
+                steps[j - 1].1 / steps[j - 1].0
+            } else {
+                0.0
+            };
+        if j + 1 < k {
+            let off = steps[j].1.sqrt() / a;
+            t[(j, j + 1)] = off;
+            t[(j + 1, j)] = off;
+        }
+    }
+    let ev = t.symmetric_eigenvalues();
+    let lo = ev.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ev.iter().copied().fold(0.0, f64::max);
+    (lo > 0.0 && hi.is_finite()).then_some((lo, hi))
+}
+
+/// Matrix-free `min ½ xᵀHx − bᵀx` s.t. `x ≥ 0` by GPCG (Moré & Toraldo 1991), `H` symmetric
+/// positive semi-definite given by `hess_mul(v, out)` (`out = H v`). Starts from `P(x0)`.
+///
+/// Stops when `‖P(x − ∇f) − x‖∞ ≤ opts.tol`, or after `opts.max_iter` outer iterations (then
+/// `converged == false`; the iterate is feasible and no worse than the start).
+pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
+    hess_mul: H,
+    b: &[f64],
+    x0: &[f64],
+    opts: &QpOptions,
+) -> Result<QpResult> {
+    let n = b.len();
+    if x0.len() != n {
+        return Err(Error::Numeric {
+            stage: "bound_qp".into(),
+            message: format!("start has {} entries, b has {n}", x0.len()),
+        });
+    }
+    if b.iter().chain(x0).any(|v| !v.is_finite()) {
+        return Err(Error::Numeric {
+            stage: "bound_qp".into(),
+            message: "non-finite entry in b or the start".into(),
+        });
+    }
+    let mut it = Iterate {
+        x: x0.iter().map(|v| v.max(0.0)).collect(),
+        hx: vec![0.0; n],
+        g: vec![0.0; n],
+        f: 0.0,
+    };
+    hess_mul(&it.x, &mut it.hx);
+    let mut matvecs = 1;
+    it.refresh(b);
+    // Extreme Rayleigh quotients / Ritz values seen: (min, max).
+    let mut spec = (f64::INFINITY, 0.0_f64);
+    let mut d = vec![0.0; n];
+    let mut hd = vec![0.0; n];
+    let mut p = vec![0.0; n];
+    let mut hp = vec![0.0; n];
+    let mut r = vec![0.0; n];
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut kkt = kkt_violation(&it.g, &it.x);
+    while iterations < opts.max_iter {
+        if !kkt.is_finite() || !it.f.is_finite() {
+            return Err(Error::Numeric {
+                stage: "bound_qp".into(),
+                message: "the iterate became non-finite (is H positive semi-definite?)".into(),
+            });
+        }
+        if kkt <= opts.tol {
+            converged = true;
+            break;
+        }
+        iterations += 1;
+        // Exact products now and then, against drift of the updated H x.
+        if iterations % 8 == 0 {
+            hess_mul(&it.x, &mut it.hx);
+            matvecs += 1;
+            it.refresh(b);
+        }
+
+        // 1. Gradient projection phase: steepest descent with projected search until the
+        //    active face settles or progress stalls (Moré–Toraldo, η₂ = 0.25).
+        let mut best_dec = 0.0_f64;
+        for _ in 0..12 {
+            for i in 0..n {
+                d[i] = if it.x[i] <= 0.0 && it.g[i] > 0.0 {
+                    0.0
+                } else {
+                    -it.g[i]
+                };
+            }
+            let dd = dot(&d, &d);
+            if dd == 0.0 {
+                break;
+            }
+            hess_mul(&d, &mut hd);
+            matvecs += 1;
+            let dhd = dot(&d, &hd);
+            record(&mut spec, dhd / dd);
+            let alpha = if dhd > 0.0 { dd / dhd } else { 1.0 };
+            let before: Vec<bool> = it.x.iter().map(|&v| v > 0.0).collect();
+            let f_old = it.f;
+            if !projected_search(&hess_mul, b, &mut it, &d, &hd, alpha, &mut matvecs) {
+                break;
+            }
+            let dec = f_old - it.f;
+            best_dec = best_dec.max(dec);
+            let same_face = it.x.iter().zip(&before).all(|(&v, &b0)| (v > 0.0) == b0);
+            if same_face || dec <= 0.25 * best_dec {
+                break;
+            }
+        }
+        kkt = kkt_violation(&it.g, &it.x);
+        if kkt <= opts.tol {
+            converged = true;
+            break;
+        }
+
+        // 2. CG on the free face F = {x > 0}: H_FF d_F = −g_F.
+        let free: Vec<bool> = it.x.iter().map(|&v| v > 0.0).collect();
+        for i in 0..n {
+            r[i] = if free[i] { -it.g[i] } else { 0.0 };
+            d[i] = 0.0;
+            hd[i] = 0.0;
+        }
+        let rr0 = dot(&r, &r);
+        if rr0 > 0.0 {
+            p.copy_from_slice(&r);
+            let mut rr = rr0;
+            // Forcing term: superlinear near the solution, loose far from it.
+            let eta = (rr0.sqrt().sqrt()).clamp(1e-10, 0.1);
+            // CG's (α, β) define the Lanczos tridiagonal whose Ritz values bound the
+            // spectrum of H_FF from inside: used for the condition-number estimate.
+            let mut lanczos: Vec<(f64, f64)> = Vec::new();
+            for _ in 0..opts.max_cg {
+                hess_mul(&p, &mut hp);
+                matvecs += 1;
+                let php: f64 = (0..n).filter(|&i| free[i]).map(|i| p[i] * hp[i]).sum();
+                record(&mut spec, php / dot(&p, &p));
+                if php <= 0.0 {
+                    break;
+                }
+                let a = rr / php;
+                for i in 0..n {
+                    d[i] += a * p[i];
+                    hd[i] += a * hp[i];
+                    if free[i] {
+                        r[i] -= a * hp[i];
+                    }
+                }
+                let rr_new = dot(&r, &r);
+                if rr_new.sqrt() <= eta * rr0.sqrt() {
+                    break;
+                }
+                let beta = rr_new / rr;
+                lanczos.push((a, beta));
+                for i in 0..n {
+                    p[i] = r[i] + beta * p[i];
+                }
+                rr = rr_new;
+            }
+            if let Some((lo, hi)) = ritz_extremes(&lanczos) {
+                record(&mut spec, lo);
+                record(&mut spec, hi);
+            }
+            projected_search(&hess_mul, b, &mut it, &d, &hd, 1.0, &mut matvecs);
+        }
+        kkt = kkt_violation(&it.g, &it.x);
+    }
+    if !converged && kkt <= opts.tol {
+        converged = true;
+    }
+    Ok(QpResult {
+        objective: it.f,
+        kkt,
+        x: it.x,
+        iterations,
+        matvecs,
+        converged,
+        cond_lower_bound: if spec.0.is_finite() && spec.0 > 0.0 {
+            spec.1 / spec.0
+        } else {
+            f64::INFINITY
+        },
+    })
+}
+
+/// Dense convenience: `bound_qp` with `H` given as a matrix.
+pub fn bound_qp_dense(
+    h: &DMatrix<f64>,
+    b: &DVector<f64>,
+    x0: &[f64],
+    opts: &QpOptions,
+) -> Result<QpResult> {
+    let n = b.len();
+    bound_qp(
+        |v: &[f64], out: &mut [f64]| {
+            for (i, o) in out.iter_mut().enumerate().take(n) {
+                *o = (0..n).map(|j| h[(i, j)] * v[j]).sum();
+            }
+        },
+        b.as_slice(),
+        x0,
+        opts,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kkt_violation_is_zero_exactly_at_kkt_points() {
+        // x=0 with g ≥ 0 and x>0 with g=0 are KKT points; a negative gradient at 0 is not.
+        assert_eq!(kkt_violation(&[1.0, 0.0], &[0.0, 2.0]), 0.0);
+        assert_eq!(kkt_violation(&[-0.5, 0.0], &[0.0, 2.0]), 0.5);
+        assert_eq!(kkt_violation(&[0.3, 0.0], &[2.0, 2.0]), 0.3);
+    }
+
+    #[test]
+    fn nnls_one_dimensional_closed_form() {
+        // min ½ a x² − c x, x ≥ 0: x = max(c/a, 0).
+        let a = DMatrix::from_element(1, 1, 2.0);
+        let x = nnls(&a, &DVector::from_element(1, 3.0), &NnlsOptions::default()).unwrap();
+        assert!((x[0] - 1.5).abs() < 1e-14);
+        let x = nnls(&a, &DVector::from_element(1, -3.0), &NnlsOptions::default()).unwrap();
+        assert_eq!(x[0], 0.0);
+    }
+}
