@@ -1,0 +1,129 @@
+#!/usr/bin/env bash
+# Undistorted COLMAP workspace -> depth/normal maps (CPU) -> fused points -> cleaned Poisson mesh.
+#
+# Usage: scripts/colmap_dense.sh OUT_DIR [--poisson-depth D] [--min-num-pixels N]
+#                                [--max-normal-error DEG] [--trim-factor F] [--min-component F]
+#                                [--neighbours K] [--max-angle DEG] [--venv DIR]
+#
+# OUT_DIR is a project folder that scripts/colmap_sparse.sh (or colmap_workspace.sh) made:
+# OUT_DIR/dense/{images,sparse,stereo} from `colmap image_undistorter --output_type COLMAP`.
+# Debian's COLMAP 3.8 has no CUDA, so patch_match_stereo is replaced by
+# scripts/depth_sgbm.py (OpenCV semi-global matching on rectified pairs; see its header).
+#
+# Steps (each timed into OUT_DIR/logs/timings.tsv, one log each in OUT_DIR/logs/):
+#   30-depth_sgbm      -> dense/stereo/{depth_maps,normal_maps}/NAME.geometric.bin (COLMAP arrays)
+#   31-stereo_fusion   -> dense/fused.ply (+ fused.ply.vis), --input_type geometric
+#   32-poisson_mesher  -> dense/meshed-poisson-raw.ply (screened Poisson, no density trim:
+#                         with sparse fused points COLMAP's trim removes the whole surface)
+#   33-mesh_clean      -> dense/meshed-poisson.ply (scripts/depth_mesh_clean.py: faces far from
+#                         the fused points and small floating components removed)
+#
+# Python packages come from scripts/requirements-depth.txt, installed when missing into a venv
+# (default ~/.cache/relight-cpc/venv; python3-venv is installed with apt-get when missing).
+set -euo pipefail
+
+usage() {
+    sed -n 3,6p "$0" >&2
+    exit 2
+}
+
+[[ $# -ge 1 ]] || usage
+OUT_DIR=$(realpath "$1")
+shift
+POISSON_DEPTH=9
+MIN_NUM_PIXELS=2
+MAX_NORMAL_ERROR=25
+TRIM_FACTOR=6
+MIN_COMPONENT=0.05
+NEIGHBOURS=4
+MAX_ANGLE=45
+VENV=${RELIGHT_VENV:-$HOME/.cache/relight-cpc/venv}
+while [[ $# -gt 0 ]]; do
+    [[ $# -ge 2 ]] || usage
+    case "$1" in
+    --poisson-depth) POISSON_DEPTH=$2 ;;
+    --min-num-pixels) MIN_NUM_PIXELS=$2 ;;
+    --max-normal-error) MAX_NORMAL_ERROR=$2 ;;
+    --trim-factor) TRIM_FACTOR=$2 ;;
+    --min-component) MIN_COMPONENT=$2 ;;
+    --neighbours) NEIGHBOURS=$2 ;;
+    --max-angle) MAX_ANGLE=$2 ;;
+    --venv) VENV=$2 ;;
+    *) usage ;;
+    esac
+    shift 2
+done
+
+SCRIPTS=$(cd "$(dirname "$0")" && pwd)
+DENSE=$OUT_DIR/dense
+[[ -f $DENSE/sparse/images.bin && -d $DENSE/images ]] || {
+    echo "$DENSE: no undistorted workspace (dense/sparse/images.bin, dense/images/)" >&2
+    exit 1
+}
+export QT_QPA_PLATFORM=offscreen
+LOGS=$OUT_DIR/logs
+TIMES=$LOGS/timings.tsv
+mkdir -p "$LOGS"
+[[ -f $TIMES ]] || printf 'step\tseconds\n' >"$TIMES"
+
+# run NAME CMD...: one step, its output in logs/NAME.log, its wall time in timings.tsv.
+run() {
+    local name=$1
+    shift
+    local t0 t1
+    t0=$(date +%s.%N)
+    echo "[$(date -u +%H:%M:%S)] $name: $*"
+    if ! "$@" >"$LOGS/$name.log" 2>&1; then
+        echo "step $name failed; see $LOGS/$name.log" >&2
+        tail -20 "$LOGS/$name.log" >&2
+        exit 1
+    fi
+    t1=$(date +%s.%N)
+    printf '%s\t%.2f\n' "$name" "$(echo "$t1 - $t0" | bc)" >>"$TIMES"
+}
+
+# Tools: colmap (apt), a venv with the Python packages.
+need_apt=()
+command -v colmap >/dev/null 2>&1 || need_apt+=(colmap)
+command -v bc >/dev/null 2>&1 || need_apt+=(bc)
+/usr/bin/python3 -c "import venv, ensurepip" >/dev/null 2>&1 || need_apt+=(python3-venv)
+if [[ ${#need_apt[@]} -gt 0 ]]; then
+    echo "installing ${need_apt[*]} with apt-get"
+    apt-get update
+    DEBIAN_FRONTEND=noninteractive apt-get install -y "${need_apt[@]}"
+fi
+PY=$VENV/bin/python
+if ! "$PY" -c "import cv2, numpy, scipy" >/dev/null 2>&1; then
+    echo "creating the Python environment $VENV"
+    /usr/bin/python3 -m venv "$VENV"
+    "$VENV/bin/pip" install -q -r "$SCRIPTS/requirements-depth.txt"
+fi
+
+# 30. Depth and normal maps on the CPU.
+rm -f "$DENSE"/stereo/depth_maps/*.bin "$DENSE"/stereo/normal_maps/*.bin
+run 30-depth_sgbm "$PY" "$SCRIPTS/depth_sgbm.py" "$DENSE" \
+    --neighbours "$NEIGHBOURS" --max-angle "$MAX_ANGLE" --min-consistent 1
+
+# 31. COLMAP's own fusion of the geometric maps.
+run 31-stereo_fusion colmap stereo_fusion \
+    --workspace_path "$DENSE" --workspace_format COLMAP --input_type geometric \
+    --output_path "$DENSE/fused.ply" \
+    --StereoFusion.min_num_pixels "$MIN_NUM_PIXELS" \
+    --StereoFusion.max_normal_error "$MAX_NORMAL_ERROR" \
+    --StereoFusion.num_threads 2
+
+# 32. Screened Poisson surface.
+run 32-poisson_mesher colmap poisson_mesher \
+    --input_path "$DENSE/fused.ply" --output_path "$DENSE/meshed-poisson-raw.ply" \
+    --PoissonMeshing.depth "$POISSON_DEPTH" --PoissonMeshing.trim 0 \
+    --PoissonMeshing.num_threads 2
+
+# 33. Trim far from the points, drop floating components.
+run 33-mesh_clean "$PY" "$SCRIPTS/depth_mesh_clean.py" \
+    "$DENSE/meshed-poisson-raw.ply" "$DENSE/meshed-poisson.ply" --points "$DENSE/fused.ply" \
+    --trim-factor "$TRIM_FACTOR" --min-component "$MIN_COMPONENT"
+
+tail -n 1 "$LOGS/33-mesh_clean.log" >"$LOGS/mesh_stats.json"
+echo "dense done: $DENSE/fused.ply, $DENSE/meshed-poisson.ply"
+grep -h "Number of fused points" "$LOGS/31-stereo_fusion.log" || true
+cat "$LOGS/mesh_stats.json"
