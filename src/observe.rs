@@ -5,7 +5,8 @@
 //! Vertex `x` (unit normal `n`) is observed in view `I` (camera centre `C`) when all hold:
 //!
 //! 1. **in front and inside**: `X_cam = R x + t` has `z > 0` and its pixel `π(X_cam)` lies in
-//!    `[m, W − m] × [m, H − m]` (`m = margin_px`);
+//!    `[m, W − m] × [m, H − m]` (`m = margin_px`), and the camera model does not fold there
+//!    ([`project_unfolded`]);
 //! 2. **facing**: `cos θ = n · ω_o > min_cos`, `ω_o = (C − x) / |C − x|`;
 //! 3. **unoccluded**: the segment from `x + ε n` to `C` (`ε` = [`SceneBvh::ray_offset`])
 //!    hits no triangle for `t ∈ [ε, |C − x − ε n| − ε]`;
@@ -30,6 +31,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
+use crate::colmap::{Camera, CameraModel};
 use crate::photo::Photo;
 use crate::scene::View;
 use crate::trace::SceneBvh;
@@ -133,6 +135,21 @@ pub fn grazing_confidence(cos: f64, opts: &ObserveOptions) -> f64 {
     ramp.powf(opts.grazing_power)
 }
 
+/// `π(p_cam)` when the projection is one-to-one there. A radial model with `k < 0` folds
+/// back beyond `r² = −1/(3k)`: points far outside the view then land inside the photo. The
+/// pixel is accepted only when unprojecting it returns the ray it came from (to
+/// `1e-6 (1 + |(u, v)|)` in normalized units); pinhole models cannot fold.
+pub fn project_unfolded(cam: &Camera, p_cam: &Vec3) -> Option<[f64; 2]> {
+    let px = cam.project(p_cam)?;
+    if matches!(cam.model, CameraModel::Pinhole | CameraModel::SimplePinhole) {
+        return Some(px);
+    }
+    let (u, v) = (p_cam.x / p_cam.z, p_cam.y / p_cam.z);
+    let back = cam.unproject(px)?;
+    let tol = 1e-6 * (1.0 + (u * u + v * v).sqrt());
+    ((back.x - u).abs() <= tol && (back.y - v).abs() <= tol).then_some(px)
+}
+
 /// One kept observation before it is split into arrays.
 struct Record {
     vertex: u32,
@@ -184,7 +201,7 @@ impl ViewGeometry<'_> {
         let n = mesh.normals[v];
         let cam = &self.view.camera;
         let p_cam = self.rot * x + self.t;
-        let Some(px) = cam.project(&p_cam) else {
+        let Some(px) = project_unfolded(cam, &p_cam) else {
             return Outcome::Outside;
         };
         let m = opts.margin_px;

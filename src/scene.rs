@@ -1,8 +1,40 @@
-//! The imported scene: a COLMAP workspace's model, mesh, registered photos and fused points.
+//! The imported scene: a COLMAP workspace's model, cleaned mesh, registered photos that
+//! exist on disk, and the fused point cloud carried to the mesh — everything the paper's
+//! pipeline (Sec. 3–5) starts from — plus `inspect`, the report of what import found.
+//!
+//! Import is [`load_scene`] (model, mesh, view list; cheap) then [`load_photos`] (decodes
+//! every photo in parallel and checks its size against its camera). `inspect` adds the BVH
+//! and observation extraction ([`crate::observe`]) and summarises per photo:
+//! - `observed_vertices`: observations kept in that photo;
+//! - `overexposed_fraction`: the fraction of those observations whose bilinear footprint
+//!   touches an overexposed pixel (weight 0); `overexposed_pixel_fraction` is the same over
+//!   all the photo's pixels;
+//! - `mean_confidence`: mean `α_p` over the photo's observations;
+//! - `reprojection_error_px`: mean `|π(R X + t) − x_obs|` over the photo's 2D points with a
+//!   3D point ([`Reconstruction::reprojection_errors`]), leaving out (and counting in
+//!   `reprojection_outliers`) errors above 4 px, the mapper's own filter threshold: they are
+//!   not bundle-adjusted observations but artefacts such as keypoints that a folding radial
+//!   distortion matched to far-away points, which `image_undistorter` then moves to their
+//!   true place (14 of 1581 in the colmap-buddha fixture, at ~60 px each).
 
-use std::path::PathBuf;
+/// Reprojection errors above this (pixels) are outliers in [`InspectReport`]: COLMAP's
+/// mapper filters observations at 4 px (`--Mapper.filter_max_reproj_error`).
+pub const REPROJECTION_OUTLIER_PX: f64 = 4.0;
 
-use crate::colmap::{Camera, Image};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::colmap::{Camera, Image, ImageId, Reconstruction};
+use crate::mesh::{Mesh, MeshCleanup};
+use crate::observe::{extract_with_stats, Observations, ObserveOptions, ViewStats};
+use crate::photo::{Photo, DEFAULT_CLIP};
+use crate::points::{transfer, DistanceStats, FusedTransfer};
+use crate::trace::SceneBvh;
+use crate::workspace::Workspace;
+use crate::{Error, Result};
 
 /// One registered image whose photo is on disk, with its camera.
 #[derive(Debug, Clone)]
@@ -13,4 +45,401 @@ pub struct View {
     pub camera: Camera,
     /// The photo file.
     pub photo_path: PathBuf,
+}
+
+/// A loaded workspace.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Where everything was found.
+    pub workspace: Workspace,
+    /// The sparse model.
+    pub recon: Reconstruction,
+    /// The cleaned mesh.
+    pub mesh: Mesh,
+    /// What cleaning changed.
+    pub cleanup: MeshCleanup,
+    /// Registered images whose photo exists, sorted by name.
+    pub views: Vec<View>,
+    /// Photos left out, each `"name: reason"` (missing on disk, or not registered).
+    pub skipped: Vec<String>,
+    /// The fused point cloud carried to the mesh vertices, when `fused.ply` exists.
+    pub fused: Option<FusedTransfer>,
+}
+
+/// Reads the model, the mesh and (when present) the fused points of a discovered
+/// workspace, and lists the views. Registered images missing on disk and unregistered
+/// photos are skipped and listed in [`Scene::skipped`]; no photo found at all is an error.
+pub fn load_scene(ws: Workspace) -> Result<Scene> {
+    let recon = ws.read_model()?;
+    let (mesh, cleanup) = Mesh::read_ply(&ws.mesh_path)?;
+    let matched = ws.match_photos(&recon);
+    let mut views = Vec::with_capacity(matched.found.len());
+    for (id, path) in &matched.found {
+        let Some(image) = recon.images.get(id) else {
+            continue;
+        };
+        let camera = recon.camera_of(image).ok_or_else(|| {
+            Error::format(
+                &ws.sparse_dir,
+                format!("image {} ({})", id.0, image.name),
+                format!(
+                    "refers to camera {} that the model lacks",
+                    image.camera_id.0
+                ),
+            )
+        })?;
+        views.push(View {
+            image: image.clone(),
+            camera: camera.clone(),
+            photo_path: path.clone(),
+        });
+    }
+    views.sort_by(|a, b| a.image.name.cmp(&b.image.name));
+    let mut skipped: Vec<String> = matched
+        .missing
+        .iter()
+        .map(|(_, name)| {
+            format!(
+                "{name}: registered in the model but not found in {}",
+                ws.images_dir.display()
+            )
+        })
+        .collect();
+    skipped.extend(
+        matched
+            .unregistered
+            .iter()
+            .map(|name| format!("{name}: in the photo folder but not registered by the model")),
+    );
+    if views.is_empty() {
+        return Err(Error::Workspace {
+            path: ws.images_dir.clone(),
+            message: format!(
+                "none of the {} registered photos was found here",
+                recon.images.len()
+            ),
+        });
+    }
+    let fused = match &ws.fused_path {
+        Some(p) => Some(transfer(p, &mesh)?),
+        None => None,
+    };
+    Ok(Scene {
+        workspace: ws,
+        recon,
+        mesh,
+        cleanup,
+        views,
+        skipped,
+        fused,
+    })
+}
+
+/// Decodes the photo of every view (in parallel), in view order. `clip` is the
+/// overexposure threshold on the encoded scale ([`DEFAULT_CLIP`]).
+pub fn load_photos(scene: &Scene, clip: f32) -> Result<Vec<Photo>> {
+    load_view_photos(&scene.views, clip)
+}
+
+/// [`load_photos`] for any list of views. A photo whose size differs from its camera's is
+/// an [`Error::Image`] naming the photo; when several photos fail, the first in view order
+/// is reported.
+pub fn load_view_photos(views: &[View], clip: f32) -> Result<Vec<Photo>> {
+    let loaded: Vec<Result<Photo>> = views
+        .par_iter()
+        .map(|v| {
+            let photo = Photo::load(&v.photo_path, clip)?;
+            if photo.width != v.camera.width || photo.height != v.camera.height {
+                return Err(Error::Image {
+                    path: v.photo_path.clone(),
+                    message: format!(
+                        "photo is {}x{} but its camera {} is {}x{}",
+                        photo.width, photo.height, v.camera.id.0, v.camera.width, v.camera.height
+                    ),
+                });
+            }
+            Ok(photo)
+        })
+        .collect();
+    loaded.into_iter().collect()
+}
+
+/// Per-photo figures of [`InspectReport`] (module docs).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ImageReport {
+    /// Image name in the model.
+    pub name: String,
+    /// Photo width in pixels.
+    pub width: u32,
+    /// Photo height in pixels.
+    pub height: u32,
+    /// Observations kept in this photo.
+    pub observed_vertices: usize,
+    /// Fraction of those observations on overexposed pixels.
+    pub overexposed_fraction: f64,
+    /// Fraction of the photo's pixels that are overexposed.
+    pub overexposed_pixel_fraction: f64,
+    /// Mean confidence `α_p` over the photo's observations (0 without any).
+    pub mean_confidence: f64,
+    /// Mean reprojection error of the photo's 2D points with a 3D point, outliers left out
+    /// (module docs); `null` without any.
+    pub reprojection_error_px: Option<f64>,
+    /// Observations the mean is taken over.
+    pub reprojection_observations: usize,
+    /// Observations left out for an error above 4 px.
+    pub reprojection_outliers: usize,
+    /// Number of 2D points with a 3D point in this image.
+    pub points2d_with_3d: usize,
+    /// Candidate counts (inside, facing, occluded, discontinuity, ...).
+    pub candidates: ViewStats,
+}
+
+/// The fused point cloud's part of [`InspectReport`].
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FusedReport {
+    /// The file.
+    pub path: String,
+    /// Points read.
+    pub points: usize,
+    /// Whether colours / normals were carried to the mesh.
+    pub colors: bool,
+    /// See `colors`.
+    pub normals: bool,
+    /// Mesh-vertex-to-nearest-point distances.
+    pub distance: DistanceStats,
+}
+
+/// What `relight-cpc inspect` prints: what was found and picked, counts, per-photo figures.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct InspectReport {
+    /// The workspace folder.
+    pub workspace: String,
+    /// What discovery picked and passed over.
+    pub notes: Vec<String>,
+    /// The model folder read.
+    pub sparse_dir: String,
+    /// The photo folder.
+    pub images_dir: String,
+    /// The mesh read.
+    pub mesh_path: String,
+    /// Cameras in the model.
+    pub cameras: usize,
+    /// Registered images in the model.
+    pub images_registered: usize,
+    /// 3D points in the model.
+    pub points3d: usize,
+    /// Mean reprojection error over all observations of all 3D points, outliers left out
+    /// (pixels).
+    pub mean_reprojection_error_px: Option<f64>,
+    /// Vertices after cleaning.
+    pub mesh_vertices: usize,
+    /// Faces after cleaning.
+    pub mesh_faces: usize,
+    /// Faces dropped as degenerate (the rest of the cleaning is in `mesh_cleanup`).
+    pub dropped_faces: usize,
+    /// Everything cleaning changed.
+    pub mesh_cleanup: MeshCleanup,
+    /// Photos used.
+    pub views_used: usize,
+    /// Photos left out, with the reason.
+    pub skipped: Vec<String>,
+    /// Observations kept over all photos.
+    pub observations: usize,
+    /// Vertices seen by at least one photo.
+    pub vertices_observed: usize,
+    /// The fused point cloud, when present.
+    pub fused: Option<FusedReport>,
+    /// One entry per photo used, in name order.
+    pub per_image: Vec<ImageReport>,
+}
+
+impl InspectReport {
+    /// Builds the report from a loaded scene, its photos and the extracted observations.
+    pub fn new(
+        scene: &Scene,
+        photos: &[Photo],
+        obs: &Observations,
+        stats: &[ViewStats],
+    ) -> InspectReport {
+        // Reprojection errors grouped by image: (sum of inlier errors, inliers, outliers).
+        let mut per_image_err: BTreeMap<ImageId, (f64, usize, usize)> = BTreeMap::new();
+        let (mut sum, mut inliers) = (0.0, 0usize);
+        for (_, image, e) in scene.recon.reprojection_errors() {
+            let s = per_image_err.entry(image).or_default();
+            if e <= REPROJECTION_OUTLIER_PX {
+                s.0 += e;
+                s.1 += 1;
+                sum += e;
+                inliers += 1;
+            } else {
+                s.2 += 1;
+            }
+        }
+        let mean_err = (inliers > 0).then(|| sum / inliers as f64);
+        let per_image = scene
+            .views
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let range = obs.photo_ranges.get(i).cloned().unwrap_or(0..0);
+                let n = range.len();
+                let w = &obs.weight[range];
+                let s = stats.get(i).copied().unwrap_or_default();
+                let err = per_image_err.get(&v.image.id);
+                ImageReport {
+                    name: v.image.name.clone(),
+                    width: v.camera.width,
+                    height: v.camera.height,
+                    observed_vertices: n,
+                    overexposed_fraction: if n > 0 {
+                        s.overexposed as f64 / n as f64
+                    } else {
+                        0.0
+                    },
+                    overexposed_pixel_fraction: photos
+                        .get(i)
+                        .map_or(0.0, |p| p.overexposed_fraction()),
+                    mean_confidence: if n > 0 {
+                        w.iter().map(|&x| x as f64).sum::<f64>() / n as f64
+                    } else {
+                        0.0
+                    },
+                    reprojection_error_px: err.filter(|e| e.1 > 0).map(|&(s, k, _)| s / k as f64),
+                    reprojection_observations: err.map_or(0, |e| e.1),
+                    reprojection_outliers: err.map_or(0, |e| e.2),
+                    points2d_with_3d: v
+                        .image
+                        .points2d
+                        .iter()
+                        .filter(|p| p.point3d_id.is_some())
+                        .count(),
+                    candidates: s,
+                }
+            })
+            .collect();
+        let ws = &scene.workspace;
+        InspectReport {
+            workspace: ws.root.display().to_string(),
+            notes: ws.notes.clone(),
+            sparse_dir: ws.sparse_dir.display().to_string(),
+            images_dir: ws.images_dir.display().to_string(),
+            mesh_path: ws.mesh_path.display().to_string(),
+            cameras: scene.recon.cameras.len(),
+            images_registered: scene.recon.images.len(),
+            points3d: scene.recon.points3d.len(),
+            mean_reprojection_error_px: mean_err,
+            mesh_vertices: scene.mesh.positions.len(),
+            mesh_faces: scene.mesh.faces.len(),
+            dropped_faces: scene.cleanup.degenerate_faces + scene.cleanup.invalid_faces,
+            mesh_cleanup: scene.cleanup.clone(),
+            views_used: scene.views.len(),
+            skipped: scene.skipped.clone(),
+            observations: obs.len(),
+            vertices_observed: obs
+                .views_per_vertex(scene.mesh.positions.len())
+                .iter()
+                .filter(|&&c| c > 0)
+                .count(),
+            fused: scene.fused.as_ref().map(|f| FusedReport {
+                path: f.path.display().to_string(),
+                points: f.n_points,
+                colors: f.colors.is_some(),
+                normals: f.normals.is_some(),
+                distance: f.stats,
+            }),
+            per_image,
+        }
+    }
+}
+
+/// Discovers, loads and extracts observations with the default options, and reports.
+pub fn inspect(ws_root: &Path, mesh_override: Option<&Path>) -> Result<InspectReport> {
+    inspect_with(
+        ws_root,
+        mesh_override,
+        DEFAULT_CLIP,
+        &ObserveOptions::default(),
+    )
+}
+
+/// [`inspect`] with a chosen clip threshold and observation options.
+pub fn inspect_with(
+    ws_root: &Path,
+    mesh_override: Option<&Path>,
+    clip: f32,
+    opts: &ObserveOptions,
+) -> Result<InspectReport> {
+    let ws = Workspace::discover(ws_root, mesh_override)?;
+    let scene = load_scene(ws)?;
+    let photos = load_photos(&scene, clip)?;
+    let bvh = SceneBvh::new(&scene.mesh);
+    let (obs, stats) = extract_with_stats(&scene.mesh, &bvh, &scene.views, &photos, opts);
+    Ok(InspectReport::new(&scene, &photos, &obs, &stats))
+}
+
+impl fmt::Display for InspectReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "workspace {}", self.workspace)?;
+        for n in &self.notes {
+            writeln!(f, "  {n}")?;
+        }
+        let err = self
+            .mean_reprojection_error_px
+            .map_or("-".to_string(), |e| format!("{e:.3} px"));
+        writeln!(
+            f,
+            "model: {} cameras, {} registered images, {} 3D points, mean reprojection error {err}",
+            self.cameras, self.images_registered, self.points3d
+        )?;
+        let c = &self.mesh_cleanup;
+        writeln!(
+            f,
+            "mesh: {} vertices, {} faces; dropped {} degenerate + {} invalid faces and {} unreferenced vertices; normals {}",
+            self.mesh_vertices,
+            self.mesh_faces,
+            c.degenerate_faces,
+            c.invalid_faces,
+            c.unreferenced_vertices,
+            if c.normals_computed { "computed (area-weighted)" } else { "from the file" }
+        )?;
+        if let Some(fr) = &self.fused {
+            writeln!(
+                f,
+                "fused points: {} ({} points); mesh-to-points distance mean {:.4}, median {:.4}, p95 {:.4}, max {:.4}",
+                fr.path, fr.points, fr.distance.mean, fr.distance.median, fr.distance.p95, fr.distance.max
+            )?;
+        }
+        writeln!(
+            f,
+            "photos: {} used, {} skipped; {} observations of {} vertices",
+            self.views_used,
+            self.skipped.len(),
+            self.observations,
+            self.vertices_observed
+        )?;
+        for s in &self.skipped {
+            writeln!(f, "  skipped {s}")?;
+        }
+        writeln!(
+            f,
+            "  {:<24} {:>9} {:>8} {:>8} {:>9} {:>9}",
+            "photo", "observed", "overexp", "mean α", "reproj px", "occluded"
+        )?;
+        for im in &self.per_image {
+            let e = im
+                .reprojection_error_px
+                .map_or("-".to_string(), |e| format!("{e:.3}"));
+            writeln!(
+                f,
+                "  {:<24} {:>9} {:>8.3} {:>8.3} {:>9} {:>9}",
+                im.name,
+                im.observed_vertices,
+                im.overexposed_fraction,
+                im.mean_confidence,
+                e,
+                im.candidates.occluded
+            )?;
+        }
+        Ok(())
+    }
 }
