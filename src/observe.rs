@@ -128,7 +128,7 @@ pub struct ViewStats {
 
 /// `α` for a cosine (module docs); 0 at or below `min_cos`.
 pub fn grazing_confidence(cos: f64, opts: &ObserveOptions) -> f64 {
-    if !(cos > opts.min_cos) {
+    if cos.is_nan() || cos <= opts.min_cos {
         return 0.0;
     }
     let ramp = ((cos - opts.min_cos) / (1.0 - opts.min_cos)).clamp(0.0, 1.0);
@@ -211,12 +211,12 @@ impl ViewGeometry<'_> {
         }
         let to_cam = self.center - x;
         let dist = to_cam.norm();
-        if !(dist > 0.0) {
+        if dist.is_nan() || dist <= 0.0 {
             return Outcome::Outside;
         }
         let wo = to_cam / dist;
         let cos = n.dot(&wo);
-        if !(cos > opts.min_cos) {
+        if cos.is_nan() || cos <= opts.min_cos {
             return Outcome::BackFacing;
         }
         // Shadow ray toward the camera centre, lifted off the surface.

@@ -79,7 +79,7 @@ fn write_variant(path: &Path, v: &Variant) {
         v.index_name
     );
     let mut out = h.into_bytes();
-    let mut num = |out: &mut Vec<u8>, x: f64, double: bool| match v.enc {
+    let num = |out: &mut Vec<u8>, x: f64, double: bool| match v.enc {
         Enc::Ascii => out.extend(format!("{x} ").as_bytes()),
         Enc::Le if double => out.extend(x.to_le_bytes()),
         Enc::Le => out.extend((x as f32).to_le_bytes()),
@@ -155,8 +155,8 @@ fn every_encoding_and_property_variant_reads_the_same_mesh() {
                     let what = format!("variant {k} ({index_name}, double {double})");
                     // Coordinates are multiples of 1/4: exact in f32 and ascii.
                     assert_eq!(mesh.positions.len(), 5, "{what}");
-                    for i in 0..5 {
-                        assert_eq!(mesh.positions[i], Vec3::from(P[i]), "{what}");
+                    for (p, expect) in mesh.positions.iter().zip(P) {
+                        assert_eq!(*p, Vec3::from(expect), "{what}");
                     }
                     // 4 triangles + the quad as a 2-triangle fan from its first corner.
                     assert_eq!(mesh.faces.len(), 6, "{what}");
