@@ -369,3 +369,73 @@ fn degenerate_faces_in_a_file_are_dropped_and_counted() {
     assert_eq!(c.unreferenced_vertices, 3);
     assert_eq!(mesh.positions.len(), 3);
 }
+
+mod fuzz {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn valid_binary() -> Vec<u8> {
+        let p = scratch("fuzz_src.ply");
+        write_variant(
+            &p,
+            &Variant {
+                enc: Enc::Le,
+                double: false,
+                index_name: "vertex_indices",
+                normals: true,
+                colors: true,
+            },
+        );
+        std::fs::read(p).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        /// Corrupted or truncated files give Ok or an error, never a panic.
+        #[test]
+        fn corrupted_files_never_panic(
+            cut in 0usize..400,
+            flips in proptest::collection::vec((0usize..400, any::<u8>()), 0..6),
+            case in 0u32..1_000_000,
+        ) {
+            let mut bytes = valid_binary();
+            for (at, b) in flips {
+                let n = bytes.len();
+                bytes[at % n] = b;
+            }
+            bytes.truncate(cut.min(bytes.len()));
+            let p = scratch(&format!("fuzz_{case}.ply"));
+            std::fs::write(&p, &bytes).unwrap();
+            if let Ok((mesh, _)) = Mesh::read_ply(&p) {
+                // Whatever reads must be a consistent mesh.
+                prop_assert!(mesh.faces.iter().flatten().all(|&k| (k as usize) < mesh.positions.len()));
+                prop_assert_eq!(mesh.normals.len(), mesh.positions.len());
+            }
+            let _ = std::fs::remove_file(&p);
+        }
+
+        /// write_ply then read_ply returns the mesh (positions rounded to f32).
+        #[test]
+        fn write_read_round_trip(
+            pts in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3, -1e3f64..1e3), 3..40),
+            tris in proptest::collection::vec((0u32..40, 0u32..40, 0u32..40), 1..60),
+            case in 0u32..1_000_000,
+        ) {
+            let positions: Vec<Vec3> = pts.iter().map(|&(x, y, z)| Vec3::new(x, y, z)).collect();
+            let n = positions.len() as u32;
+            let faces = tris.iter().map(|&(a, b, c)| [a % n, b % n, c % n]).collect();
+            let (mesh, _) = Mesh::from_parts(positions, faces);
+            let p = scratch(&format!("rt_{case}.ply"));
+            mesh.write_ply(&p, &[]).unwrap();
+            let (back, c) = Mesh::read_ply(&p).unwrap();
+            let _ = std::fs::remove_file(&p);
+            prop_assert_eq!(&back.faces.len(), &mesh.faces.len());
+            prop_assert_eq!(c.unreferenced_vertices, 0);
+            for (a, b) in back.positions.iter().zip(&mesh.positions) {
+                // f32 storage: relative 2^-24 of |coordinate| ≤ 1e3.
+                prop_assert!((a - b).amax() <= 1e3 * 6e-8);
+            }
+        }
+    }
+}

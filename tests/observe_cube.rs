@@ -220,3 +220,74 @@ fn output_is_identical_with_one_thread() {
     assert_eq!(a.weight, b.weight);
     assert_eq!(a.dir, b.dir);
 }
+
+#[test]
+fn smooth_convex_surface_has_no_false_discontinuities() {
+    // A unit UV sphere seen from (0, 0, 5): convex, so nothing is occluded, and the
+    // tangent-plane depth prediction of the probes holds away from the silhouette. Every
+    // vertex with cos θ > 0.5 lies ≥ 5 px inside the silhouette (image radius ≈ 41 px,
+    // 41·(1 − sin 60°) ≈ 5.5 px) and must be observed; every vertex with cos θ ≤ min_cos
+    // must not be. Curvature bends the surface off its tangent plane by ~s²/2 over the
+    // probe footprint s ≈ 0.03, far below τ = 2% of the depth.
+    let (rings, segs) = (60usize, 120usize);
+    let mut pos = vec![Vec3::z()];
+    for i in 1..rings {
+        let th = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segs {
+            let ph = 2.0 * std::f64::consts::PI * j as f64 / segs as f64;
+            pos.push(Vec3::new(
+                th.sin() * ph.cos(),
+                th.sin() * ph.sin(),
+                th.cos(),
+            ));
+        }
+    }
+    pos.push(-Vec3::z());
+    let last = (pos.len() - 1) as u32;
+    let ring = |i: usize, j: usize| (1 + (i - 1) * segs + j % segs) as u32;
+    let mut faces = Vec::new();
+    for j in 0..segs {
+        faces.push([0, ring(1, j), ring(1, j + 1)]);
+        faces.push([last, ring(rings - 1, j + 1), ring(rings - 1, j)]);
+    }
+    for i in 1..rings - 1 {
+        for j in 0..segs {
+            faces.push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
+            faces.push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
+        }
+    }
+    let (mesh, _) = Mesh::from_parts(pos, faces);
+    let bvh = SceneBvh::new(&mesh);
+    let c = Vec3::new(0.0, 0.0, 5.0);
+    let views = vec![view(
+        1,
+        [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+        c,
+    )];
+    let photos = vec![Photo::from_linear(W, W, vec![[0.5; 3]; (W * W) as usize])];
+    let opts = ObserveOptions::default();
+    let (obs, stats) = extract_with_stats(&mesh, &bvh, &views, &photos, &opts);
+    assert_eq!(stats[0].occluded, 0);
+    let seen: std::collections::HashSet<u32> = obs.vertex.iter().copied().collect();
+    let mut strict = 0;
+    for (v, (p, n)) in mesh.positions.iter().zip(&mesh.normals).enumerate() {
+        let cos = n.dot(&(c - p).normalize());
+        if cos > 0.5 {
+            strict += 1;
+            assert!(
+                seen.contains(&(v as u32)),
+                "vertex {v} (cos {cos:.3}) not observed"
+            );
+        }
+        if cos <= opts.min_cos {
+            assert!(!seen.contains(&(v as u32)));
+        }
+    }
+    assert!(strict > 500);
+    // The flagged ones are all near the silhouette.
+    assert!(
+        stats[0].discontinuity < stats[0].facing / 5,
+        "{:?}",
+        stats[0]
+    );
+}
