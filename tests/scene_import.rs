@@ -19,11 +19,27 @@ use relight_cpc::{Error, Vec3};
 const W: u32 = 64;
 const H: u32 = 48;
 
-fn scratch(name: &str) -> PathBuf {
+/// A fresh folder under the system temp dir, removed when dropped.
+struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn scratch(name: &str) -> Scratch {
     let d = std::env::temp_dir().join(format!("relight-scene-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    Scratch(d)
 }
 
 /// Cube [-1, 1]³ as 8 vertices and 12 outward triangles.
@@ -167,7 +183,7 @@ fn wrong_size_and_unreadable_photos_are_errors_naming_the_photo() {
     // The CLI reports it and exits 1.
     let out = Command::new(env!("CARGO_BIN_EXE_relight-cpc"))
         .arg("inspect")
-        .arg(&root)
+        .arg(&*root)
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
