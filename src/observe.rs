@@ -201,12 +201,14 @@ impl ViewGeometry<'_> {
         let n = mesh.normals[v];
         let cam = &self.view.camera;
         let p_cam = self.rot * x + self.t;
-        let Some(px) = project_unfolded(cam, &p_cam) else {
+        let Some(px) = cam.project(&p_cam) else {
             return Outcome::Outside;
         };
         let m = opts.margin_px;
         let (w, h) = (cam.width as f64, cam.height as f64);
-        if !(px[0] >= m && px[0] <= w - m && px[1] >= m && px[1] <= h - m) {
+        let inside = px[0] >= m && px[0] <= w - m && px[1] >= m && px[1] <= h - m;
+        // The (iterative) fold check only for pixels that would be kept.
+        if !inside || project_unfolded(cam, &p_cam).is_none() {
             return Outcome::Outside;
         }
         let to_cam = self.center - x;
@@ -342,6 +344,27 @@ pub fn extract_with_stats(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn folded_radial_projections_are_rejected() {
+        // SIMPLE_RADIAL with k = −0.1 folds at r² = −1/(3k) = 10/3. The point at normalized
+        // (2.5, 0) distorts to 2.5 · (1 − 0.625) = 0.9375: inside a photo spanning ±1, but
+        // not where the point is. (0.5, 0.2) is well inside the one-to-one zone.
+        let cam = Camera::new(
+            crate::colmap::CameraId(1),
+            CameraModel::SimpleRadial,
+            200,
+            200,
+            vec![100.0, 100.0, 100.0, -0.1],
+        )
+        .unwrap();
+        let far = Vec3::new(2.5, 0.0, 1.0);
+        let px = cam.project(&far).unwrap();
+        assert!((px[0] - (100.0 + 100.0 * 0.9375)).abs() < 1e-9);
+        assert!(project_unfolded(&cam, &far).is_none());
+        let near = Vec3::new(0.5, 0.2, 1.0);
+        assert_eq!(project_unfolded(&cam, &near), cam.project(&near));
+    }
 
     #[test]
     fn confidence_ramp_matches_formula() {
