@@ -274,12 +274,31 @@ impl Camera {
     /// Camera coordinates (x right, y down, z forward) → pixel (COLMAP: top-left pixel
     /// centre at (0.5, 0.5)); `None` if `z <= 0` or the result is not finite.
     pub fn project(&self, p_cam: &Vec3) -> Option<[f64; 2]> {
-        if !(p_cam.z > 0.0) || !p_cam.x.is_finite() || !p_cam.y.is_finite() || !p_cam.z.is_finite()
-        {
+        if !p_cam.z.is_finite() || p_cam.z <= 0.0 || !p_cam.x.is_finite() || !p_cam.y.is_finite() {
             return None;
         }
         let px = self.world_to_image([p_cam.x / p_cam.z, p_cam.y / p_cam.z]);
         (px[0].is_finite() && px[1].is_finite()).then_some(px)
+    }
+
+    /// Like [`Camera::project`], but `None` also when the pixel is not the unique image of
+    /// the ray: polynomial distortion folds back beyond some radius (SIMPLE_RADIAL with
+    /// `k < 0` past `r² = −1/(3k)`), so a point far outside the view can land inside the
+    /// image. COLMAP does not check this; use this for anything that must not see such
+    /// points (e.g. which mesh vertices a photo observes). The check unprojects the pixel
+    /// and requires the ray back to within `1e-6 (1 + |(u, v)|)` in normalized units.
+    pub fn project_checked(&self, p_cam: &Vec3) -> Option<[f64; 2]> {
+        let px = self.project(p_cam)?;
+        if matches!(
+            self.model,
+            CameraModel::SimplePinhole | CameraModel::Pinhole
+        ) {
+            return Some(px);
+        }
+        let (u, v) = (p_cam.x / p_cam.z, p_cam.y / p_cam.z);
+        let [ub, vb] = self.image_to_world(px);
+        let tol = 1e-6 * (1.0 + (u * u + v * v).sqrt());
+        ((ub - u).abs() <= tol && (vb - v).abs() <= tol).then_some(px)
     }
 
     /// Pixel → ray direction in camera coordinates with `z = 1` (distortion removed by
@@ -479,7 +498,8 @@ pub fn iterative_undistortion(model: CameraModel, extra: &[f64], x0: [f64; 2]) -
         let s0 = (j11 * r0 - j01 * r1) / det;
         let s1 = (-j10 * r0 + j00 * r1) / det;
         x = [x[0] - s0, x[1] - s1];
-        if !(s0 * s0 + s1 * s1 >= MAX_STEP_NORM) {
+        let step_norm = s0 * s0 + s1 * s1;
+        if step_norm.is_nan() || step_norm < MAX_STEP_NORM {
             // Converged (or the step is NaN, which the caller sees in `x`).
             break;
         }

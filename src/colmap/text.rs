@@ -202,7 +202,7 @@ pub fn read_images(reader: impl BufRead, path: &Path) -> Result<BTreeMap<ImageId
             )));
         };
         let tokens: Vec<&str> = points_line.split_whitespace().collect();
-        if tokens.len() % 3 != 0 {
+        if !tokens.len().is_multiple_of(3) {
             return Err(lines.err(format!(
                 "2D points of image id {}: {} fields is not a multiple of 3 (X Y POINT3D_ID)",
                 image.id.0,
@@ -258,7 +258,7 @@ pub fn read_points3d(reader: impl BufRead, path: &Path) -> Result<BTreeMap<Point
             ];
             let error = finite(&tokens, 7, "ERROR")?;
             let rest = tokens.len().saturating_sub(8);
-            if rest % 2 != 0 {
+            if !rest.is_multiple_of(2) {
                 return Err(format!(
                     "the track has {rest} fields, not a whole number of (IMAGE_ID, POINT2D_IDX) pairs"
                 ));
