@@ -10,6 +10,9 @@
 //! and extract the observations. Peak memory is the process's VmHWM, reset after the
 //! generation step through /proc/self/clear_refs.
 //!
+//! Also measured (after the timed import, not part of the total): ray throughput of the
+//! BVH for occlusion (any hit) and closest-hit rays, the figure visibility depends on.
+//!
 //! Run: `cargo bench --bench import`. Writes bench-results/import.json and import.md.
 
 use std::collections::BTreeMap;
@@ -126,6 +129,14 @@ fn peak_rss_bytes() -> u64 {
         .map_or(0, |kb| kb * 1024)
 }
 
+/// The 1-minute load average: the machine is shared, so figures say how busy it was.
+fn loadavg() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().and_then(|x| x.parse().ok()))
+        .unwrap_or(f64::NAN)
+}
+
 fn main() {
     let root = std::env::temp_dir().join(format!("relight-bench-import-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&root);
@@ -135,6 +146,7 @@ fn main() {
     // Reset the peak-RSS counter so generation does not count.
     let _ = std::fs::write("/proc/self/clear_refs", "5");
 
+    let load_before = loadavg();
     let t0 = Instant::now();
     let ws = Workspace::discover(&root, None).unwrap();
     let scene = load_scene(ws).unwrap();
@@ -151,6 +163,45 @@ fn main() {
     let t_extract = t.elapsed().as_secs_f64();
     let total = t0.elapsed().as_secs_f64();
     let peak = peak_rss_bytes();
+
+    // Ray throughput on this mesh (what visibility needs): occlusion and closest-hit rays
+    // from every vertex, lifted by the ray offset, in pseudo-random hemisphere directions.
+    let n_rays = 1_000_000usize;
+    let dirs = |i: usize| {
+        let v = i % scene.mesh.positions.len();
+        let n = scene.mesh.normals[v];
+        // Golden-ratio sequence on the sphere, flipped into the normal's hemisphere.
+        let z = 1.0 - 2.0 * ((i as f64 * 0.618_033_988_75) % 1.0);
+        let ph = i as f64 * 2.399_963_229_73;
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let d = Vec3::new(r * ph.cos(), r * ph.sin(), z);
+        let d = if d.dot(&n) < 0.0 { -d } else { d };
+        (scene.mesh.positions[v] + n * bvh.ray_offset(), d)
+    };
+    use rayon::prelude::*;
+    let t = Instant::now();
+    let blocked = (0..n_rays)
+        .into_par_iter()
+        .filter(|&i| {
+            let (o, d) = dirs(i);
+            bvh.occluded(&o, &d, bvh.ray_offset(), f64::INFINITY)
+        })
+        .count();
+    let occlusion_rays_per_s = n_rays as f64 / t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let hits = (0..n_rays)
+        .into_par_iter()
+        .filter(|&i| {
+            let (o, d) = dirs(i);
+            bvh.intersect(&o, &d, bvh.ray_offset(), f64::INFINITY)
+                .is_some()
+        })
+        .count();
+    let closest_hit_rays_per_s = n_rays as f64 / t.elapsed().as_secs_f64();
+    assert_eq!(
+        blocked, hits,
+        "any-hit and closest-hit must agree on what is blocked"
+    );
 
     let occluded: usize = stats.iter().map(|s| s.occluded).sum();
     let discontinuity: usize = stats.iter().map(|s| s.discontinuity).sum();
@@ -179,7 +230,14 @@ fn main() {
             "total": total,
             "workspace_generation_untimed": gen_s,
         },
+        "load_average_1min_before_after": [load_before, loadavg()],
         "peak_rss_bytes": peak,
+        "ray_throughput": {
+            "rays": n_rays,
+            "blocked_fraction": blocked as f64 / n_rays as f64,
+            "occlusion_rays_per_s": occlusion_rays_per_s,
+            "closest_hit_rays_per_s": closest_hit_rays_per_s,
+        },
         "observation_bytes": obs.memory_bytes(),
         "target": {"seconds": 10.0, "bytes": 2u64 << 30},
         "meets_target": total < 10.0 && peak < (2u64 << 30),
@@ -200,16 +258,23 @@ fn main() {
          | BVH build (obvhs CWBVH) | {t_bvh:.3} |\n\
          | extract observations | {t_extract:.3} |\n\
          | **total** | **{total:.3}** |\n\n\
-         Peak RSS {:.0} MiB (target: under 10 s and 2048 MiB: {}).\n\
+         Peak RSS {:.0} MiB (target: under 10 s and 2048 MiB: {}). Load average (1 min) \
+         {load_before:.1} before, {:.1} after, on 2 cores shared with other jobs.\n\
          Observations: {} ({:.1} MiB as arrays); candidates occluded {occluded}, on depth \
-         discontinuities {discontinuity}; overexposed {overexposed}.\n",
+         discontinuities {discontinuity}; overexposed {overexposed}.\n\n\
+         Ray throughput on this mesh ({threads} threads, 1M rays from the vertices into their \
+         hemispheres, {:.0}% blocked): occlusion {:.2} M rays/s, closest hit {:.2} M rays/s.\n",
         scene.mesh.positions.len(),
         scene.mesh.faces.len(),
         photos.len(),
         peak as f64 / (1u64 << 20) as f64,
         if total < 10.0 && peak < (2u64 << 30) { "met" } else { "NOT met" },
+        loadavg(),
         obs.len(),
         obs.memory_bytes() as f64 / (1u64 << 20) as f64,
+        100.0 * blocked as f64 / n_rays as f64,
+        occlusion_rays_per_s / 1e6,
+        closest_hit_rays_per_s / 1e6,
     );
     std::fs::write(out_dir.join("import.md"), md.clone()).unwrap();
     print!("{md}");
