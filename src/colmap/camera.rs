@@ -277,6 +277,9 @@ impl Camera {
         if !p_cam.z.is_finite() || p_cam.z <= 0.0 || !p_cam.x.is_finite() || !p_cam.y.is_finite() {
             return None;
         }
+        if self.params.len() != self.model.num_params() {
+            return None;
+        }
         let px = self.world_to_image([p_cam.x / p_cam.z, p_cam.y / p_cam.z]);
         (px[0].is_finite() && px[1].is_finite()).then_some(px)
     }
@@ -304,11 +307,15 @@ impl Camera {
     /// Pixel → ray direction in camera coordinates with `z = 1` (distortion removed by
     /// COLMAP's scheme); `None` if the inversion does not give a finite answer.
     pub fn unproject(&self, pixel: [f64; 2]) -> Option<Vec3> {
+        if self.params.len() != self.model.num_params() {
+            return None;
+        }
         let [u, v] = self.image_to_world(pixel);
         (u.is_finite() && v.is_finite()).then(|| Vec3::new(u, v, 1.0))
     }
 
-    /// COLMAP's `WorldToImage`: normalized-plane point `(u, v)` → pixel.
+    /// COLMAP's `WorldToImage`: normalized-plane point `(u, v)` → pixel. The camera must
+    /// have `model.num_params()` parameters (as [`Camera::new`] and the readers ensure).
     pub fn world_to_image(&self, uv: [f64; 2]) -> [f64; 2] {
         let (fx, fy) = self.focal();
         let (cx, cy) = self.principal_point();
@@ -330,7 +337,8 @@ impl Camera {
         [fx * xd + cx, fy * yd + cy]
     }
 
-    /// COLMAP's `ImageToWorld`: pixel → normalized-plane point `(u, v)`.
+    /// COLMAP's `ImageToWorld`: pixel → normalized-plane point `(u, v)`. The camera must
+    /// have `model.num_params()` parameters (as [`Camera::new`] and the readers ensure).
     pub fn image_to_world(&self, pixel: [f64; 2]) -> [f64; 2] {
         let (fx, fy) = self.focal();
         let (cx, cy) = self.principal_point();

@@ -214,16 +214,20 @@ pub fn read_images(reader: impl BufRead, path: &Path) -> Result<BTreeMap<ImageId
             for k in (0..tokens.len()).step_by(3) {
                 let x = finite(&tokens, k, "X")?;
                 let y = finite(&tokens, k + 1, "Y")?;
-                let pid: i64 = field(&tokens, k + 2, "POINT3D_ID")?;
-                let point3d_id = match pid {
-                    -1 => None,
-                    p if p >= 0 => Some(Point3DId(p as u64)),
-                    p => {
-                        return Err(format!(
-                            "field {} (POINT3D_ID) is {p}; only -1 or ids >= 0 are valid",
-                            k + 3
-                        ))
-                    }
+                // -1 (and u64::MAX, COLMAP's invalid id in binary) mean "no 3D point".
+                let point3d_id = match tokens[k + 2] {
+                    "-1" => None,
+                    _ => match field::<u64>(&tokens, k + 2, "POINT3D_ID") {
+                        Ok(u64::MAX) => None,
+                        Ok(p) => Some(Point3DId(p)),
+                        Err(_) => {
+                            return Err(format!(
+                                "field {} (POINT3D_ID) is {:?}; only -1 or ids >= 0 are valid",
+                                k + 3,
+                                tokens[k + 2]
+                            ))
+                        }
+                    },
                 };
                 points.push(Point2D {
                     xy: [x, y],
