@@ -1,1 +1,1230 @@
-//! (estimate: not written yet)
+//! The estimator (paper Sec. 5): per-photo illumination and per-vertex materials by
+//! alternating non-negative solves of the objective (Eq. 9)
+//!
+//! `F = Σ_p Σ_c α_p ω_{p,c} (y_{p,c} − Σ_b β_{x,b,c} ⟨g_{p,b}, W x_{I,c}⟩)²
+//!      + Σ_{I,c} μ_{I,c} ‖Δ x_{I,c}‖² + β_λ ‖λ‖²`,
+//!
+//! with `β_{x,b,c} = Σ_k w_k(x) λ_{k,b,c}` (Eq. 11), `x_{I,c}` the texels of photo `I`'s
+//! global octahedral map in channel `c` (`W` = [`crate::haar::forward`], orthonormal, so
+//! `⟨g, W x⟩ = ⟨Wᵀ g, x⟩`), `Δ` the 4-neighbour graph Laplacian of the map across its folded
+//! seams ([`crate::sphere::SphereGrid::neighbors`]), `ω` the IRLS weights (1 without a
+//! robust loss). Every unknown is constrained `≥ 0`: texels, `λ`, `w`.
+//!
+//! 1. Lighting step (Sec. 5.1, Eq. 10), per photo, the three channels together:
+//!    `min_x ½ xᵀ(Wᵀ Aᵀ D A W + μ ΔᵀΔ) x − (Wᵀ Aᵀ D y)ᵀ x`, `x ≥ 0`, solved matrix-free by
+//!    [`crate::qp::bound_qp`]: one product is a forward Haar, a pass over the photo's sparse
+//!    transport rows and back (`Aᵀ`), an inverse Haar and the Laplacian twice. `μ_{I,c}` =
+//!    `smoothness` × the largest diagonal entry of `Aᵀ D A` (in the Haar basis), fixed at
+//!    the photo's first lighting step. IRLS (Huber or Tukey on residuals scaled by their
+//!    MAD, per channel) restarts from unit weights at every lighting step, as the paper says.
+//!    Photos are independent and solved in parallel.
+//! 2. Material step (Sec. 5.2, Eq. 11–12): with `s_{p,b,c} = ⟨g_{p,b}, W x_{I,c}⟩` fixed,
+//!    `λ` per channel from all observations jointly (`K·B` unknowns, design row
+//!    `w_k(x_p) s_{p,b,c}`, ridge `β_λ`), then `w(x)` per vertex from its observations in
+//!    all three channels (`K` unknowns, row `Σ_b λ_{k,b,c} s_{p,b,c}`). Both are small dense
+//!    NNLS problems solved exactly by the active-set [`crate::qp::nnls`], so each step
+//!    minimises `F` over its block and `F` never increases (without IRLS; with it, the
+//!    weights change between steps).
+//!
+//! Scale: `F` is invariant under `x → s x`, `λ → λ / s` (and `w_k → t w_k`, `λ_k → λ_k / t`)
+//! up to the tiny regularisers. After the alternation the result is normalised once:
+//! every material's largest blending weight is 1, then the mean Lambertian weight
+//! (basis `lambert_basis`) over materials and channels equals that of the start (the initial
+//! materials' median colours), the maps taking the inverse scale. The exact rule is in
+//! [`Estimate::normalisation`]. With `fixed_materials` (Sec. 6.1) nothing is rescaled.
+//!
+//! Deterministic: every reduction runs in a fixed order (fixed chunks reduced in sequence),
+//! so the output does not depend on the number of threads.
+
+use std::time::Instant;
+
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+use crate::haar;
+use crate::observe::Observations;
+use crate::qp::{bound_qp, nnls, NnlsOptions, QpOptions};
+use crate::sphere::SphereGrid;
+use crate::transport::Transport;
+use crate::{Error, Result};
+
+/// The data of one estimation: observations, their transport, and the sizes.
+#[derive(Debug, Clone, Copy)]
+pub struct Problem<'a> {
+    /// Observations sorted by photo (`photo_ranges`).
+    pub obs: &'a Observations,
+    /// Transport rows `g_{p,b}`, one per observation and basis BRDF.
+    pub transport: &'a Transport,
+    /// Number of mesh vertices `V`.
+    pub n_vertices: usize,
+    /// Number of photos (`obs.photo_ranges.len()`).
+    pub n_photos: usize,
+}
+
+impl Problem<'_> {
+    /// Checks sizes and indices; `Error::Config` naming the first inconsistency.
+    pub fn validate(&self) -> Result<()> {
+        let o = self.obs;
+        let p = o.vertex.len();
+        let bad = |m: String| Err(Error::Config(format!("estimation problem: {m}")));
+        if o.photo.len() != p || o.rgb.len() != p || o.weight.len() != p {
+            return bad(format!(
+                "observation arrays differ in length (vertex {p}, photo {}, rgb {}, weight {})",
+                o.photo.len(),
+                o.rgb.len(),
+                o.weight.len()
+            ));
+        }
+        let t = self.transport;
+        if t.n_obs != p || t.offsets.len() != p * t.n_basis + 1 {
+            return bad(format!(
+                "transport has {} observations × {} bases ({} offsets) for {p} observations",
+                t.n_obs,
+                t.n_basis,
+                t.offsets.len()
+            ));
+        }
+        if t.n_basis == 0 || t.n_global < 2 || !t.n_global.is_power_of_two() {
+            return bad(format!(
+                "transport has {} bases and map side {}",
+                t.n_basis, t.n_global
+            ));
+        }
+        let n2 = (t.n_global * t.n_global) as u32;
+        if let Some(i) = t.index.iter().position(|&m| m >= n2) {
+            return bad(format!(
+                "transport entry {i} indexes coefficient {} ≥ {n2}",
+                t.index[i]
+            ));
+        }
+        if o.photo_ranges.len() != self.n_photos {
+            return bad(format!(
+                "{} photo ranges for {} photos",
+                o.photo_ranges.len(),
+                self.n_photos
+            ));
+        }
+        for (i, r) in o.photo_ranges.iter().enumerate() {
+            if r.end > p || r.start > r.end {
+                return bad(format!("photo {i} range {r:?} outside 0..{p}"));
+            }
+            if let Some(q) = r.clone().find(|&q| o.photo[q] as usize != i) {
+                return bad(format!(
+                    "observation {q} is in photo {i}'s range but names photo {}",
+                    o.photo[q]
+                ));
+            }
+        }
+        if let Some(q) = o.vertex.iter().position(|&x| x as usize >= self.n_vertices) {
+            return bad(format!(
+                "observation {q} names vertex {} of {}",
+                o.vertex[q], self.n_vertices
+            ));
+        }
+        if let Some(q) = (0..p).find(|&q| {
+            !(o.weight[q].is_finite() && o.weight[q] >= 0.0)
+                || o.rgb[q].iter().any(|v| !v.is_finite())
+        }) {
+            return bad(format!(
+                "observation {q} has weight {} and colour {:?}",
+                o.weight[q], o.rgb[q]
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Robust loss for IRLS, thresholds in units of the residuals' robust scale
+/// `σ = 1.4826 · median |r|` (per photo and channel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Robust {
+    /// Plain least squares, no reweighting.
+    None,
+    /// Huber: weight `min(1, kσ / |r|)` (k = 1.345 is 95% efficient on Gaussian noise).
+    Huber { k: f64 },
+    /// Tukey's biweight: weight `(1 − (r / cσ)²)²` inside `|r| < cσ`, 0 outside (c = 4.685).
+    Tukey { c: f64 },
+}
+
+/// Options of [`estimate`].
+#[derive(Debug, Clone)]
+pub struct EstimateOptions {
+    /// Cap on outer (lighting + materials) iterations.
+    pub max_outer: usize,
+    /// Stop when the objective's relative decrease falls below this.
+    pub rel_tol: f64,
+    /// Laplacian weight relative to the largest diagonal entry of the lighting system.
+    pub smoothness: f64,
+    /// Robust loss of the lighting step (IRLS); its final weights carry to the materials.
+    pub robust: Robust,
+    /// IRLS passes per lighting step (the first one unweighted); 1 = plain weighted LS.
+    pub irls_iters: usize,
+    /// Ridge on λ, relative to the largest diagonal entry of the first λ system.
+    pub beta: f64,
+    /// Known reflectance (Sec. 6.1): only the lighting is estimated.
+    pub fixed_materials: bool,
+    /// Lighting QP stopping rule: projected gradient ≤ `qp_rel_tol · ‖Wᵀ Aᵀ D y‖∞`.
+    pub qp_rel_tol: f64,
+    /// Cap on GPCG iterations per lighting QP.
+    pub qp_max_iter: usize,
+    /// λ / w alternations per material step.
+    pub material_sweeps: usize,
+    /// Index of the Lambertian basis BRDF (used by the normalisation).
+    pub lambert_basis: usize,
+    /// Extrapolate the alternation (accepted only when the objective drops).
+    pub extrapolate: bool,
+}
+
+impl Default for EstimateOptions {
+    fn default() -> Self {
+        EstimateOptions {
+            max_outer: 12,
+            rel_tol: 1e-4,
+            smoothness: 1e-3,
+            robust: Robust::Huber { k: 1.345 },
+            irls_iters: 4,
+            beta: 1e-8,
+            fixed_materials: false,
+            qp_rel_tol: 1e-7,
+            qp_max_iter: 300,
+            material_sweeps: 1,
+            lambert_basis: 0,
+            extrapolate: true,
+        }
+    }
+}
+
+/// One outer iteration's log line.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Iteration {
+    /// Seconds since the estimation started.
+    pub seconds: f64,
+    /// Objective `F` (module docs) after the iteration, IRLS weights of its lighting step.
+    pub objective: f64,
+    /// RMSE over observations with `α > 0` and channels, unweighted, linear RGB.
+    pub train_rmse: f64,
+}
+
+/// Starting materials: `λ` (`K × B`, per channel) and blending weights `w` (`V × K`).
+#[derive(Debug, Clone)]
+pub struct Materials0 {
+    /// `lambda[k][b][c]`.
+    pub lambda: Vec<Vec<[f64; 3]>>,
+    /// Row-major `V × K`.
+    pub weights: Vec<f64>,
+}
+
+impl Materials0 {
+    /// From clustered initial materials: the median colour as the Lambertian weight
+    /// (basis `lambert_basis`), every other basis 0 (paper Sec. 5.2).
+    pub fn from_initial(
+        init: &crate::cluster::InitialMaterials,
+        n_basis: usize,
+        lambert_basis: usize,
+    ) -> Self {
+        let lambda = init
+            .albedo
+            .iter()
+            .map(|a| {
+                let mut row = vec![[0.0; 3]; n_basis];
+                if lambert_basis < n_basis {
+                    row[lambert_basis] = *a;
+                }
+                row
+            })
+            .collect();
+        Materials0 {
+            lambda,
+            weights: init.weights.clone(),
+        }
+    }
+}
+
+/// Condition-number figures of the systems solved (issue 8).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Conditioning {
+    /// Per photo: lower bound on the lighting system's condition number (Ritz values of
+    /// the GPCG runs, three channels together), from the last lighting step.
+    pub lighting: Vec<f64>,
+    /// Per channel: condition number of the last λ system (with ridge), exact.
+    pub lambda: [f64; 3],
+    /// Largest condition number over the last w systems with a full-rank normal matrix.
+    pub weights_max: f64,
+    /// How many vertices' w systems were singular (fewer independent rows than materials).
+    pub weights_singular: usize,
+    /// Lighting QPs that hit the iteration cap before the KKT tolerance.
+    pub qp_unconverged: usize,
+    /// Hessian products of all lighting QPs so far (the lighting step's cost unit).
+    pub lighting_matvecs: usize,
+}
+
+/// The estimation result.
+#[derive(Debug, Clone)]
+pub struct Estimate {
+    /// Per photo, per channel: the texels of the `n_global²` global octahedral map, `≥ 0`.
+    pub lights: Vec<[Vec<f64>; 3]>,
+    /// `lambda[k][b][c] ≥ 0`.
+    pub lambda: Vec<Vec<[f64; 3]>>,
+    /// Row-major `V × K`, `≥ 0`.
+    pub weights: Vec<f64>,
+    /// One entry per outer iteration.
+    pub timeline: Vec<Iteration>,
+    /// The scale normalisation applied, in words.
+    pub normalisation: String,
+    /// Laplacian weights `μ_{I,c}` used (after normalisation's rescaling).
+    pub mu: Vec<[f64; 3]>,
+    /// Final IRLS weights per observation and channel (1 without robust loss).
+    pub irls_weights: Vec<[f32; 3]>,
+    /// Conditioning of the systems.
+    pub conditioning: Conditioning,
+}
+
+/// `β_{x,b,c} = Σ_k w_k(x) λ_{k,b,c}`, row-major `V × B`.
+pub fn beta_per_vertex(
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    n_vertices: usize,
+) -> Vec<[f64; 3]> {
+    let k_count = lambda.len();
+    let nb = lambda.first().map_or(0, |l| l.len());
+    let mut out = vec![[0.0; 3]; n_vertices * nb];
+    for x in 0..n_vertices {
+        for (k, lk) in lambda.iter().enumerate() {
+            let w = weights[x * k_count + k];
+            if w == 0.0 {
+                continue;
+            }
+            for b in 0..nb {
+                for c in 0..3 {
+                    out[x * nb + b][c] += w * lk[b][c];
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The map's graph Laplacian `Δ` on the full octahedral grid (4 neighbours across seams):
+/// `(Δ x)_t = Σ_{s ∈ N(t)} (x_t − x_s)`, with `apply` and its transpose.
+struct Laplacian {
+    nb: Vec<[usize; 4]>,
+}
+
+impl Laplacian {
+    fn new(n: usize) -> Self {
+        let g = SphereGrid::full(n);
+        Laplacian {
+            nb: (0..n * n).map(|t| g.neighbors(t)).collect(),
+        }
+    }
+    fn apply(&self, x: &[f64], out: &mut [f64]) {
+        for (t, nb) in self.nb.iter().enumerate() {
+            out[t] = nb.iter().map(|&s| x[t] - x[s]).sum();
+        }
+    }
+    /// `out += μ ΔᵀΔ x`.
+    fn add_normal(&self, x: &[f64], mu: f64, out: &mut [f64]) {
+        let mut lx = vec![0.0; x.len()];
+        self.apply(x, &mut lx);
+        for (t, nb) in self.nb.iter().enumerate() {
+            let v = mu * lx[t];
+            for &s in nb {
+                out[t] += v;
+                out[s] -= v;
+            }
+        }
+    }
+    fn energy(&self, x: &[f64]) -> f64 {
+        let mut lx = vec![0.0; x.len()];
+        self.apply(x, &mut lx);
+        lx.iter().map(|v| v * v).sum()
+    }
+}
+
+/// Haar coefficients of three texel maps, interleaved per coefficient.
+fn haar3(tex: &[Vec<f64>; 3], n: usize) -> Vec<[f64; 3]> {
+    let mut out = vec![[0.0; 3]; n * n];
+    for (c, t) in tex.iter().enumerate() {
+        let mut h = t.clone();
+        haar::forward(&mut h, n);
+        for (o, v) in out.iter_mut().zip(&h) {
+            o[c] = *v;
+        }
+    }
+    out
+}
+
+/// One photo's data for the lighting step.
+struct PhotoSystem<'a> {
+    problem: &'a Problem<'a>,
+    beta: &'a [[f64; 3]],
+    range: std::ops::Range<usize>,
+    n: usize,
+    /// `α_p ω_{p,c}` for the range's observations.
+    dw: Vec<[f64; 3]>,
+}
+
+impl PhotoSystem<'_> {
+    /// `s_{p,c} = Σ_b β_{x,b,c} ⟨g_{p,b}, h_c⟩` for the range (`h` interleaved Haar).
+    fn forward_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        let t = self.problem.transport;
+        let nb = t.n_basis;
+        for (q, p) in self.range.clone().enumerate() {
+            let x = self.problem.obs.vertex[p] as usize;
+            let mut s = [0.0; 3];
+            for b in 0..nb {
+                let be = self.beta[x * nb + b];
+                if be == [0.0; 3] {
+                    continue;
+                }
+                let (idx, val) = t.row(p, b);
+                let mut acc = [0.0; 3];
+                for (&m, &g) in idx.iter().zip(val) {
+                    let hm = h[m as usize];
+                    let g = g as f64;
+                    acc[0] += g * hm[0];
+                    acc[1] += g * hm[1];
+                    acc[2] += g * hm[2];
+                }
+                for c in 0..3 {
+                    s[c] += be[c] * acc[c];
+                }
+            }
+            out[q] = s;
+        }
+    }
+
+    /// `out += Aᵀ u` in the Haar basis (`u` per observation of the range and channel).
+    fn adjoint_rows(&self, u: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        let t = self.problem.transport;
+        let nb = t.n_basis;
+        for (q, p) in self.range.clone().enumerate() {
+            if u[q] == [0.0; 3] {
+                continue;
+            }
+            let x = self.problem.obs.vertex[p] as usize;
+            for b in 0..nb {
+                let be = self.beta[x * nb + b];
+                let f = [be[0] * u[q][0], be[1] * u[q][1], be[2] * u[q][2]];
+                if f == [0.0; 3] {
+                    continue;
+                }
+                let (idx, val) = t.row(p, b);
+                for (&m, &g) in idx.iter().zip(val) {
+                    let o = &mut out[m as usize];
+                    let g = g as f64;
+                    o[0] += g * f[0];
+                    o[1] += g * f[1];
+                    o[2] += g * f[2];
+                }
+            }
+        }
+    }
+
+    /// Largest diagonal entry of `Aᵀ D A` per channel, in the Haar basis.
+    fn max_diag(&self) -> [f64; 3] {
+        let t = self.problem.transport;
+        let nb = t.n_basis;
+        let n2 = self.n * self.n;
+        let mut diag = vec![[0.0; 3]; n2];
+        let mut row = vec![[0.0; 3]; n2];
+        let mut touched: Vec<usize> = Vec::new();
+        for (q, p) in self.range.clone().enumerate() {
+            let x = self.problem.obs.vertex[p] as usize;
+            for b in 0..nb {
+                let be = self.beta[x * nb + b];
+                let (idx, val) = t.row(p, b);
+                for (&m, &g) in idx.iter().zip(val) {
+                    let m = m as usize;
+                    if row[m] == [0.0; 3] {
+                        touched.push(m);
+                    }
+                    for c in 0..3 {
+                        row[m][c] += be[c] * g as f64;
+                    }
+                }
+            }
+            for &m in &touched {
+                for c in 0..3 {
+                    diag[m][c] += self.dw[q][c] * row[m][c] * row[m][c];
+                }
+                row[m] = [0.0; 3];
+            }
+            touched.clear();
+        }
+        let mut mx = [0.0_f64; 3];
+        for d in &diag {
+            for c in 0..3 {
+                mx[c] = mx[c].max(d[c]);
+            }
+        }
+        mx
+    }
+}
+
+/// Result of one photo's lighting step.
+#[derive(Debug, Clone)]
+pub struct LightingResult {
+    /// Texels per channel, `≥ 0`.
+    pub light: [Vec<f64>; 3],
+    /// Laplacian weights used.
+    pub mu: [f64; 3],
+    /// Final IRLS weights `ω` for the photo's observations (range order).
+    pub irls_weights: Vec<[f32; 3]>,
+    /// Condition-number lower bound of the last QP.
+    pub cond_lower_bound: f64,
+    /// Whether every QP met its KKT tolerance.
+    pub converged: bool,
+    /// Hessian products used.
+    pub matvecs: usize,
+}
+
+fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
+    match robust {
+        Robust::None => 1.0,
+        Robust::Huber { k } => {
+            let t = k * sigma;
+            if r.abs() <= t {
+                1.0
+            } else {
+                t / r.abs()
+            }
+        }
+        Robust::Tukey { c } => {
+            let u = r / (c * sigma);
+            if u.abs() < 1.0 {
+                (1.0 - u * u).powi(2)
+            } else {
+                0.0
+            }
+        }
+    }
+}
+
+/// Lighting step for one photo with full control: start texels (`None` = zeros), Laplacian
+/// weights (`None` = `smoothness` × largest system diagonal, computed here).
+pub fn lighting_step_full(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    photo: usize,
+    start: Option<&[Vec<f64>; 3]>,
+    mu: Option<[f64; 3]>,
+    opts: &EstimateOptions,
+) -> Result<LightingResult> {
+    let t = problem.transport;
+    let n = t.n_global;
+    let n2 = n * n;
+    let range = problem.obs.photo_ranges[photo].clone();
+    let obs = problem.obs;
+    let alpha: Vec<f64> = range.clone().map(|p| obs.weight[p] as f64).collect();
+    let y: Vec<[f64; 3]> = range.clone().map(|p| obs.rgb[p].map(f64::from)).collect();
+    let mut sys = PhotoSystem {
+        problem,
+        beta,
+        range: range.clone(),
+        n,
+        dw: alpha.iter().map(|&a| [a; 3]).collect(),
+    };
+    let mu = match mu {
+        Some(m) => m,
+        None => sys.max_diag().map(|d| opts.smoothness * d),
+    };
+    let lap = Laplacian::new(n);
+    let mut x: Vec<f64> = match start {
+        Some(s) => s.iter().flat_map(|c| c.iter().copied()).collect(),
+        None => vec![0.0; 3 * n2],
+    };
+    if x.len() != 3 * n2 {
+        return Err(Error::Config(format!(
+            "lighting start has {} texels, expected {}",
+            x.len(),
+            3 * n2
+        )));
+    }
+    let mut omega = vec![[1.0_f64; 3]; range.len()];
+    let passes = if opts.robust == Robust::None {
+        1
+    } else {
+        opts.irls_iters.max(1)
+    };
+    let mut cond = 0.0_f64;
+    let mut converged = true;
+    let mut matvecs = 0;
+    let mut pred = vec![[0.0; 3]; range.len()];
+    for pass in 0..passes {
+        // Reweight from the current residuals (the first pass: unit weights, a restart).
+        if pass > 0 {
+            let h = haar3(&split3(&x, n2), n);
+            sys.forward_rows(&h, &mut pred);
+            for c in 0..3 {
+                let mut ab: Vec<f64> = (0..range.len())
+                    .filter(|&q| alpha[q] > 0.0)
+                    .map(|q| (y[q][c] - pred[q][c]).abs())
+                    .collect();
+                if ab.is_empty() {
+                    continue;
+                }
+                let mid = ab.len() / 2;
+                let (_, med, _) = ab.select_nth_unstable_by(mid, f64::total_cmp);
+                let scale = y.iter().map(|v| v[c].abs()).sum::<f64>() / y.len() as f64;
+                let sigma = (1.4826 * *med).max(1e-9 * scale).max(f64::MIN_POSITIVE);
+                for q in 0..range.len() {
+                    omega[q][c] = robust_weight(opts.robust, y[q][c] - pred[q][c], sigma);
+                }
+            }
+        }
+        for q in 0..range.len() {
+            for c in 0..3 {
+                sys.dw[q][c] = alpha[q] * omega[q][c];
+            }
+        }
+        // Right-hand side Wᵀ Aᵀ D y.
+        let u: Vec<[f64; 3]> = (0..range.len())
+            .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * y[q][c]))
+            .collect();
+        let mut hb = vec![[0.0; 3]; n2];
+        sys.adjoint_rows(&u, &mut hb);
+        let b = unhaar3(&hb, n);
+        let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        if bmax == 0.0 {
+            // No light reaches any weighted observation: the minimiser is x = 0.
+            x.iter_mut().for_each(|v| *v = 0.0);
+            continue;
+        }
+        let sys_ref = &sys;
+        let lap_ref = &lap;
+        let hess = |v: &[f64], out: &mut [f64]| {
+            let h = haar3(&split3(v, n2), n);
+            let mut s = vec![[0.0; 3]; sys_ref.range.len()];
+            sys_ref.forward_rows(&h, &mut s);
+            for (sq, d) in s.iter_mut().zip(&sys_ref.dw) {
+                for c in 0..3 {
+                    sq[c] *= d[c];
+                }
+            }
+            let mut hb = vec![[0.0; 3]; n2];
+            sys_ref.adjoint_rows(&s, &mut hb);
+            let r = unhaar3(&hb, n);
+            out.copy_from_slice(&r);
+            for c in 0..3 {
+                lap_ref.add_normal(
+                    &v[c * n2..(c + 1) * n2],
+                    mu[c],
+                    &mut out[c * n2..(c + 1) * n2],
+                );
+            }
+        };
+        let qp = QpOptions {
+            tol: opts.qp_rel_tol * bmax,
+            max_iter: opts.qp_max_iter,
+            max_cg: 100,
+        };
+        let res = bound_qp(hess, &b, &x, &qp).map_err(|e| Error::Numeric {
+            stage: format!("lighting step, photo {photo}"),
+            message: e.to_string(),
+        })?;
+        converged &= res.converged;
+        matvecs += res.matvecs;
+        if res.cond_lower_bound.is_finite() {
+            cond = res.cond_lower_bound;
+        }
+        x = res.x;
+    }
+    Ok(LightingResult {
+        light: split3(&x, n2),
+        mu,
+        irls_weights: omega.iter().map(|o| o.map(|v| v as f32)).collect(),
+        cond_lower_bound: cond,
+        converged,
+        matvecs,
+    })
+}
+
+fn split3(x: &[f64], n2: usize) -> [Vec<f64>; 3] {
+    [0, 1, 2].map(|c| x[c * n2..(c + 1) * n2].to_vec())
+}
+
+/// Channel-major texels `Wᵀ h` of interleaved Haar coefficients.
+fn unhaar3(h: &[[f64; 3]], n: usize) -> Vec<f64> {
+    let n2 = n * n;
+    let mut out = vec![0.0; 3 * n2];
+    for c in 0..3 {
+        let ch = &mut out[c * n2..(c + 1) * n2];
+        for (o, v) in ch.iter_mut().zip(h) {
+            *o = v[c];
+        }
+        haar::inverse(ch, n);
+    }
+    out
+}
+
+/// Lighting step (Eq. 10 + Laplacian + IRLS) for one photo from zero: its three channels'
+/// texels. `beta` is [`beta_per_vertex`].
+pub fn lighting_step(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    photo: usize,
+    opts: &EstimateOptions,
+) -> Result<[Vec<f64>; 3]> {
+    Ok(lighting_step_full(problem, beta, photo, None, None, opts)?.light)
+}
+
+/// Lighting with the reflectance frozen (held-out protocol (b)): `problem` holds only the
+/// fitting half's observations of the photo.
+pub fn fit_light_frozen(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    photo: usize,
+    opts: &EstimateOptions,
+) -> Result<[Vec<f64>; 3]> {
+    lighting_step(problem, beta, photo, opts)
+}
+
+/// `s_{p,b,c} = ⟨g_{p,b}, W x_{I(p),c}⟩` for every observation and basis, row-major `P × B`.
+pub fn basis_responses(problem: &Problem, lights: &[[Vec<f64>; 3]]) -> Vec<[f64; 3]> {
+    let t = problem.transport;
+    let n = t.n_global;
+    let nb = t.n_basis;
+    let hs: Vec<Vec<[f64; 3]>> = lights.par_iter().map(|l| haar3(l, n)).collect();
+    let mut out = vec![[0.0; 3]; problem.obs.vertex.len() * nb];
+    out.par_chunks_mut(nb.max(1))
+        .enumerate()
+        .for_each(|(p, o)| {
+            let h = &hs[problem.obs.photo[p] as usize];
+            for (b, ob) in o.iter_mut().enumerate() {
+                let (idx, val) = t.row(p, b);
+                let mut acc = [0.0; 3];
+                for (&m, &g) in idx.iter().zip(val) {
+                    let hm = h[m as usize];
+                    for c in 0..3 {
+                        acc[c] += g as f64 * hm[c];
+                    }
+                }
+                *ob = acc;
+            }
+        });
+    out
+}
+
+/// Model prediction per observation: `Σ_b β_{x,b,c} s_{p,b,c}`.
+pub fn predict(problem: &Problem, est: &Estimate) -> Vec<[f64; 3]> {
+    let beta = beta_per_vertex(&est.lambda, &est.weights, problem.n_vertices);
+    let s = basis_responses(problem, &est.lights);
+    predict_from(problem, &beta, &s)
+}
+
+fn predict_from(problem: &Problem, beta: &[[f64; 3]], s: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let nb = problem.transport.n_basis;
+    (0..problem.obs.vertex.len())
+        .into_par_iter()
+        .map(|p| {
+            let x = problem.obs.vertex[p] as usize;
+            let mut y = [0.0; 3];
+            for b in 0..nb {
+                for c in 0..3 {
+                    y[c] += beta[x * nb + b][c] * s[p * nb + b][c];
+                }
+            }
+            y
+        })
+        .collect()
+}
+
+/// Observations per fixed-size chunk in ordered parallel reductions.
+const CHUNK: usize = 4096;
+
+/// Material step, λ part: per channel, NNLS over all observations (`K·B` unknowns) with
+/// ridge `ridge[c]` (absolute). Returns λ and each channel system's condition number and
+/// largest diagonal entry (before the ridge).
+pub fn lambda_step(
+    problem: &Problem,
+    s: &[[f64; 3]],
+    weights: &[f64],
+    n_materials: usize,
+    dw: &[[f64; 3]],
+    ridge: Option<[f64; 3]>,
+    rel_ridge: f64,
+) -> Result<(Vec<Vec<[f64; 3]>>, [f64; 3], [f64; 3])> {
+    let nb = problem.transport.n_basis;
+    let kk = n_materials;
+    let m = kk * nb;
+    let obs = problem.obs;
+    let np = obs.vertex.len();
+    // Ordered reduction: fixed chunks in parallel, summed in chunk order.
+    let partial: Vec<[(DMatrix<f64>, DVector<f64>); 3]> = (0..np.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
+            let mut acc =
+                [0, 1, 2].map(|_| (DMatrix::<f64>::zeros(m, m), DVector::<f64>::zeros(m)));
+            let mut a = vec![0.0; m];
+            for p in ci * CHUNK..((ci + 1) * CHUNK).min(np) {
+                let x = obs.vertex[p] as usize;
+                for c in 0..3 {
+                    let d = dw[p][c];
+                    if d == 0.0 {
+                        continue;
+                    }
+                    for k in 0..kk {
+                        let w = weights[x * kk + k];
+                        for b in 0..nb {
+                            a[k * nb + b] = w * s[p * nb + b][c];
+                        }
+                    }
+                    let (mat, rhs) = &mut acc[c];
+                    let yc = obs.rgb[p][c] as f64;
+                    for i in 0..m {
+                        if a[i] == 0.0 {
+                            continue;
+                        }
+                        let ai = d * a[i];
+                        rhs[i] += ai * yc;
+                        for j in 0..=i {
+                            mat[(i, j)] += ai * a[j];
+                        }
+                    }
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut sys = [0, 1, 2].map(|_| (DMatrix::<f64>::zeros(m, m), DVector::<f64>::zeros(m)));
+    for part in partial {
+        for (c, (pm, pr)) in part.into_iter().enumerate() {
+            sys[c].0 += pm;
+            sys[c].1 += pr;
+        }
+    }
+    let mut lambda = vec![vec![[0.0; 3]; nb]; kk];
+    let mut cond = [0.0; 3];
+    let mut maxd = [0.0; 3];
+    for c in 0..3 {
+        let (mat, rhs) = &mut sys[c];
+        for i in 0..m {
+            for j in 0..i {
+                mat[(j, i)] = mat[(i, j)];
+            }
+        }
+        maxd[c] = (0..m).map(|i| mat[(i, i)]).fold(0.0, f64::max);
+        let r = ridge.map_or(rel_ridge * maxd[c], |r| r[c]);
+        for i in 0..m {
+            mat[(i, i)] += r;
+        }
+        let ev = mat.clone().symmetric_eigenvalues();
+        let (lo, hi) = ev
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(l, h), &v| (l.min(v), h.max(v)));
+        cond[c] = if lo > 0.0 { hi / lo } else { f64::INFINITY };
+        let sol = nnls(mat, rhs, &NnlsOptions::default()).map_err(|e| Error::Numeric {
+            stage: format!("material step (λ, channel {c})"),
+            message: e.to_string(),
+        })?;
+        for k in 0..kk {
+            for b in 0..nb {
+                lambda[k][b][c] = sol[k * nb + b];
+            }
+        }
+    }
+    Ok((lambda, cond, maxd))
+}
+
+/// Observations of each vertex (CSR over vertices): `(offsets, obs indices)`.
+fn by_vertex(obs: &Observations, n_vertices: usize) -> (Vec<usize>, Vec<usize>) {
+    let mut off = vec![0usize; n_vertices + 1];
+    for &x in &obs.vertex {
+        off[x as usize + 1] += 1;
+    }
+    for i in 0..n_vertices {
+        off[i + 1] += off[i];
+    }
+    let mut fill = off.clone();
+    let mut list = vec![0usize; obs.vertex.len()];
+    for (p, &x) in obs.vertex.iter().enumerate() {
+        list[fill[x as usize]] = p;
+        fill[x as usize] += 1;
+    }
+    (off, list)
+}
+
+/// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels.
+/// Vertices without weighted observations keep their weights. Returns the new weights, the
+/// largest finite condition number and the count of singular systems.
+pub fn weights_step(
+    problem: &Problem,
+    s: &[[f64; 3]],
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    dw: &[[f64; 3]],
+) -> Result<(Vec<f64>, f64, usize)> {
+    let nb = problem.transport.n_basis;
+    let kk = lambda.len();
+    let obs = problem.obs;
+    let (off, list) = by_vertex(obs, problem.n_vertices);
+    let rows: Vec<Result<(Vec<f64>, f64)>> = (0..problem.n_vertices)
+        .into_par_iter()
+        .map(|x| {
+            let mut mat = DMatrix::<f64>::zeros(kk, kk);
+            let mut rhs = DVector::<f64>::zeros(kk);
+            let mut a = vec![0.0; kk];
+            let mut any = false;
+            for &p in &list[off[x]..off[x + 1]] {
+                for c in 0..3 {
+                    let d = dw[p][c];
+                    if d == 0.0 {
+                        continue;
+                    }
+                    any = true;
+                    for k in 0..kk {
+                        a[k] = (0..nb).map(|b| lambda[k][b][c] * s[p * nb + b][c]).sum();
+                    }
+                    let yc = obs.rgb[p][c] as f64;
+                    for i in 0..kk {
+                        rhs[i] += d * a[i] * yc;
+                        for j in 0..kk {
+                            mat[(i, j)] += d * a[i] * a[j];
+                        }
+                    }
+                }
+            }
+            let old = weights[x * kk..(x + 1) * kk].to_vec();
+            if !any {
+                return Ok((old, 0.0));
+            }
+            let ev = mat.clone().symmetric_eigenvalues();
+            let (lo, hi) = ev
+                .iter()
+                .fold((f64::INFINITY, 0.0_f64), |(l, h), &v| (l.min(v), h.max(v)));
+            let cond = if lo > 1e-14 * hi && hi > 0.0 {
+                hi / lo
+            } else {
+                f64::INFINITY
+            };
+            let sol = nnls(&mat, &rhs, &NnlsOptions::default()).map_err(|e| Error::Numeric {
+                stage: format!("material step (w, vertex {x})"),
+                message: e.to_string(),
+            })?;
+            Ok((sol.iter().copied().collect(), cond))
+        })
+        .collect();
+    let mut out = Vec::with_capacity(weights.len());
+    let (mut cmax, mut singular) = (0.0_f64, 0usize);
+    for r in rows {
+        let (w, c) = r?;
+        out.extend(w);
+        if c.is_finite() {
+            cmax = cmax.max(c);
+        } else {
+            singular += 1;
+        }
+    }
+    Ok((out, cmax, singular))
+}
+
+/// Data term, train RMSE: `(Σ α ω r², RMSE over α > 0)`.
+fn data_fit(problem: &Problem, pred: &[[f64; 3]], omega: &[[f32; 3]]) -> (f64, f64) {
+    let obs = problem.obs;
+    let np = obs.vertex.len();
+    let parts: Vec<(f64, f64, usize)> = (0..np.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
+            let (mut f, mut sq, mut cnt) = (0.0, 0.0, 0usize);
+            for p in ci * CHUNK..((ci + 1) * CHUNK).min(np) {
+                let a = obs.weight[p] as f64;
+                if a <= 0.0 {
+                    continue;
+                }
+                cnt += 1;
+                for c in 0..3 {
+                    let r = obs.rgb[p][c] as f64 - pred[p][c];
+                    f += a * omega[p][c] as f64 * r * r;
+                    sq += r * r;
+                }
+            }
+            (f, sq, cnt)
+        })
+        .collect();
+    let (mut f, mut sq, mut cnt) = (0.0, 0.0, 0usize);
+    for (a, b, c) in parts {
+        f += a;
+        sq += b;
+        cnt += c;
+    }
+    (
+        f,
+        if cnt > 0 {
+            (sq / (3 * cnt) as f64).sqrt()
+        } else {
+            0.0
+        },
+    )
+}
+
+/// Objective `F` (module docs) and train RMSE for a state; `s` = its basis responses when
+/// already computed.
+#[allow(clippy::too_many_arguments)]
+fn evaluate(
+    problem: &Problem,
+    lights: &[[Vec<f64>; 3]],
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    mu: &[Option<[f64; 3]>],
+    ridge: Option<[f64; 3]>,
+    omega: &[[f32; 3]],
+    lap: &Laplacian,
+    s: Option<&[[f64; 3]]>,
+) -> (f64, f64) {
+    let owned;
+    let s = match s {
+        Some(s) => s,
+        None => {
+            owned = basis_responses(problem, lights);
+            &owned
+        }
+    };
+    let beta = beta_per_vertex(lambda, weights, problem.n_vertices);
+    let pred = predict_from(problem, &beta, s);
+    let (data, rmse) = data_fit(problem, &pred, omega);
+    let smooth: f64 = lights
+        .iter()
+        .zip(mu)
+        .map(|(l, m)| {
+            let m = m.unwrap_or([0.0; 3]);
+            (0..3).map(|c| m[c] * lap.energy(&l[c])).sum::<f64>()
+        })
+        .sum();
+    let rid: f64 = ridge.map_or(0.0, |r| {
+        lambda
+            .iter()
+            .flatten()
+            .map(|v| (0..3).map(|c| r[c] * v[c] * v[c]).sum::<f64>())
+            .sum()
+    });
+    (data + smooth + rid, rmse)
+}
+
+/// The alternation (Sec. 5): lighting steps for all photos (in parallel), then the material
+/// step, until the objective's relative decrease is below `rel_tol` or `max_outer` is reached.
+/// `on_iter` sees every outer iteration's log line.
+pub fn estimate(
+    problem: &Problem,
+    init: Materials0,
+    opts: &EstimateOptions,
+    on_iter: &mut dyn FnMut(&Iteration),
+) -> Result<Estimate> {
+    problem.validate()?;
+    let t0 = Instant::now();
+    let nb = problem.transport.n_basis;
+    let n2 = problem.transport.n_global * problem.transport.n_global;
+    let kk = init.lambda.len();
+    let nv = problem.n_vertices;
+    if kk == 0 || init.lambda.iter().any(|l| l.len() != nb) || init.weights.len() != nv * kk {
+        return Err(Error::Config(format!(
+            "initial materials: {kk} materials with {:?} bases and {} weights, expected B = {nb}, V·K = {}",
+            init.lambda.iter().map(|l| l.len()).collect::<Vec<_>>(),
+            init.weights.len(),
+            nv * kk
+        )));
+    }
+    if init
+        .lambda
+        .iter()
+        .flatten()
+        .flatten()
+        .chain(&init.weights)
+        .any(|v| !v.is_finite() || *v < 0.0)
+    {
+        return Err(Error::Config(
+            "initial materials must be finite and non-negative".into(),
+        ));
+    }
+    let mut lambda = init.lambda.clone();
+    let mut weights = init.weights.clone();
+    let np = problem.obs.vertex.len();
+    let mut lights: Vec<[Vec<f64>; 3]> = (0..problem.n_photos)
+        .map(|_| [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]])
+        .collect();
+    let mut mu: Vec<Option<[f64; 3]>> = vec![None; problem.n_photos];
+    let mut omega = vec![[1.0_f32; 3]; np];
+    let mut ridge: Option<[f64; 3]> = None;
+    let mut timeline = Vec::new();
+    let mut cond = Conditioning::default();
+    let lap = Laplacian::new(problem.transport.n_global);
+    let mut prev_obj = f64::INFINITY;
+    let mut prev_state: Option<(Vec<[Vec<f64>; 3]>, Vec<Vec<[f64; 3]>>, Vec<f64>)> = None;
+    let mut outer_it = 1usize;
+    let outer = if opts.fixed_materials {
+        1
+    } else {
+        opts.max_outer.max(1)
+    };
+    for _ in 0..outer {
+        // 1. Lighting, photos in parallel (each photo's solve is sequential: deterministic).
+        let beta = beta_per_vertex(&lambda, &weights, nv);
+        let results: Vec<Result<LightingResult>> = (0..problem.n_photos)
+            .into_par_iter()
+            .map(|i| lighting_step_full(problem, &beta, i, Some(&lights[i]), mu[i], opts))
+            .collect();
+        cond.lighting.clear();
+        cond.qp_unconverged = 0;
+        for (i, r) in results.into_iter().enumerate() {
+            let r = r?;
+            let range = problem.obs.photo_ranges[i].clone();
+            omega[range].copy_from_slice(&r.irls_weights);
+            lights[i] = r.light;
+            mu[i] = Some(r.mu);
+            cond.lighting.push(r.cond_lower_bound);
+            cond.qp_unconverged += usize::from(!r.converged);
+            cond.lighting_matvecs += r.matvecs;
+        }
+        // 2. Materials.
+        let dw: Vec<[f64; 3]> = (0..np)
+            .map(|p| omega[p].map(|o| o as f64 * problem.obs.weight[p] as f64))
+            .collect();
+        let s = basis_responses(problem, &lights);
+        if !opts.fixed_materials {
+            for _ in 0..opts.material_sweeps.max(1) {
+                let (l, c, maxd) = lambda_step(problem, &s, &weights, kk, &dw, ridge, opts.beta)?;
+                if ridge.is_none() {
+                    ridge = Some(maxd.map(|d| opts.beta * d));
+                }
+                lambda = l;
+                cond.lambda = c;
+                let (w, cmax, sing) = weights_step(problem, &s, &lambda, &weights, &dw)?;
+                weights = w;
+                cond.weights_max = cmax;
+                cond.weights_singular = sing;
+            }
+        }
+        // 3. Extrapolate (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
+        //    crawls along the bilinear valley): try θ + σ(θ − θ_prev), σ = t^{1/3},
+        //    projected to ≥ 0, kept only when the objective drops, so F stays monotone.
+        let (mut objective, mut rmse) = evaluate(
+            problem,
+            &lights,
+            &lambda,
+            &weights,
+            &mu,
+            ridge,
+            &omega,
+            &lap,
+            Some(&s),
+        );
+        if !opts.fixed_materials && opts.extrapolate {
+            if let Some((pl, plam, pw)) = &prev_state {
+                let sig = (outer_it as f64).cbrt();
+                let ext = |a: f64, b: f64| (a + sig * (a - b)).max(0.0);
+                let cl: Vec<[Vec<f64>; 3]> = lights
+                    .iter()
+                    .zip(pl)
+                    .map(|(l, q)| {
+                        [0, 1, 2]
+                            .map(|c| l[c].iter().zip(&q[c]).map(|(&a, &b)| ext(a, b)).collect())
+                    })
+                    .collect();
+                let clam: Vec<Vec<[f64; 3]>> = lambda
+                    .iter()
+                    .zip(plam)
+                    .map(|(l, q)| {
+                        l.iter()
+                            .zip(q)
+                            .map(|(a, b)| [0, 1, 2].map(|c| ext(a[c], b[c])))
+                            .collect()
+                    })
+                    .collect();
+                let cw: Vec<f64> = weights.iter().zip(pw).map(|(&a, &b)| ext(a, b)).collect();
+                let (fo, ro) = evaluate(problem, &cl, &clam, &cw, &mu, ridge, &omega, &lap, None);
+                if fo < objective {
+                    lights = cl;
+                    lambda = clam;
+                    weights = cw;
+                    objective = fo;
+                    rmse = ro;
+                }
+            }
+            prev_state = Some((lights.clone(), lambda.clone(), weights.clone()));
+        }
+        outer_it += 1;
+        if !objective.is_finite() {
+            return Err(Error::Numeric {
+                stage: "estimation".into(),
+                message: "the objective became non-finite".into(),
+            });
+        }
+        let it = Iteration {
+            seconds: t0.elapsed().as_secs_f64(),
+            objective,
+            train_rmse: rmse,
+        };
+        on_iter(&it);
+        timeline.push(it);
+        if prev_obj.is_finite() && (prev_obj - objective).abs() <= opts.rel_tol * prev_obj.abs() {
+            break;
+        }
+        prev_obj = objective;
+    }
+
+    // Normalisation (module docs).
+    let mut mu: Vec<[f64; 3]> = mu.into_iter().map(|m| m.unwrap_or([0.0; 3])).collect();
+    let normalisation = if opts.fixed_materials {
+        "none: the reflectance is given, so the lights carry the absolute scale".to_string()
+    } else {
+        for k in 0..kk {
+            let wmax = (0..nv).map(|x| weights[x * kk + k]).fold(0.0, f64::max);
+            if wmax > 0.0 {
+                for x in 0..nv {
+                    weights[x * kk + k] /= wmax;
+                }
+                for v in lambda[k].iter_mut().flatten() {
+                    *v *= wmax;
+                }
+            }
+        }
+        let lb = opts.lambert_basis.min(nb - 1);
+        let mean_l = |l: &[Vec<[f64; 3]>]| {
+            l.iter().map(|r| r[lb].iter().sum::<f64>()).sum::<f64>() / (3 * kk) as f64
+        };
+        let mean_all =
+            |l: &[Vec<[f64; 3]>]| l.iter().flatten().flatten().sum::<f64>() / (3 * kk * nb) as f64;
+        let (target, now, what) = if mean_l(&init.lambda) > 0.0 && mean_l(&lambda) > 0.0 {
+            (
+                mean_l(&init.lambda),
+                mean_l(&lambda),
+                format!("the mean Lambertian weight λ_k,{lb},c over materials and channels"),
+            )
+        } else {
+            (
+                mean_all(&init.lambda),
+                mean_all(&lambda),
+                "the mean of all λ_k,b,c".to_string(),
+            )
+        };
+        if target > 0.0 && now > 0.0 {
+            let s = target / now;
+            for v in lambda.iter_mut().flatten().flatten() {
+                *v *= s;
+            }
+            for l in lights.iter_mut() {
+                for v in l.iter_mut().flatten() {
+                    *v /= s;
+                }
+            }
+            for m in mu.iter_mut() {
+                for v in m.iter_mut() {
+                    *v *= s * s;
+                }
+            }
+        }
+        format!(
+            "every material's largest blending weight is 1; then {what} equals its initial value {target:.6e}; maps scaled inversely"
+        )
+    };
+    Ok(Estimate {
+        lights,
+        lambda,
+        weights,
+        timeline,
+        normalisation,
+        mu,
+        irls_weights: omega,
+        conditioning: cond,
+    })
+}
