@@ -122,6 +122,7 @@ pub fn rasterize_projected(
     let mut bary = vec![[0.0f32; 3]; w * h];
     let mut depth = vec![f32::INFINITY; w * h];
     const BAND: usize = 16;
+    const EDGE_EPS: f64 = 1e-9;
     face.par_chunks_mut(BAND * w.max(1))
         .zip(bary.par_chunks_mut(BAND * w.max(1)))
         .zip(depth.par_chunks_mut(BAND * w.max(1)))
@@ -147,10 +148,13 @@ pub fn rasterize_projected(
                         let l0 = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) * inv;
                         let l1 = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) * inv;
                         let l2 = 1.0 - l0 - l1;
-                        if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                        // Inclusive, with a rounding margin so that pixel centres on an
+                        // edge shared by two triangles are never dropped by both.
+                        if l0 < -EDGE_EPS || l1 < -EDGE_EPS || l2 < -EDGE_EPS {
                             continue;
                         }
                         // Perspective-correct weights (1/z is affine in screen space).
+                        let (l0, l1, l2) = (l0.max(0.0), l1.max(0.0), l2.max(0.0));
                         let q = [l0 / a[2], l1 / b[2], l2 / c[2]];
                         let s = q[0] + q[1] + q[2];
                         let z = 1.0 / s;

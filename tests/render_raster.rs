@@ -1,0 +1,196 @@
+//! Rasteriser and image writers against analytic geometry (issue 4).
+
+use nalgebra::Rotation3;
+use relight_cpc::colmap::{Camera, CameraId, Image, ImageId};
+use relight_cpc::mesh::Mesh;
+use relight_cpc::render::{
+    interpolate_scalar, rasterize, shade_vertices, srgb_encode, write_exr, write_png,
+};
+use relight_cpc::Vec3;
+
+const W: u32 = 80;
+const H: u32 = 60;
+const F: f64 = 70.0;
+const CX: f64 = 40.0;
+const CY: f64 = 30.0;
+
+fn camera() -> Camera {
+    Camera::pinhole(CameraId(1), W, H, F, F, CX, CY)
+}
+
+/// Camera at the world origin looking down +z (X_cam = X_world).
+fn image_identity() -> Image {
+    Image::from_pose(
+        ImageId(1),
+        "a.png",
+        CameraId(1),
+        &Rotation3::identity(),
+        &Vec3::zeros(),
+    )
+}
+
+/// Quad `a b c d` (two triangles) as a mesh.
+fn quad(p: [Vec3; 4]) -> Mesh {
+    let (m, _) = Mesh::from_parts(p.to_vec(), vec![[0, 1, 2], [0, 2, 3]]);
+    m
+}
+
+/// The ray through pixel centre `(x + ½, y + ½)` in camera coordinates (z = 1).
+fn pixel_ray(x: u32, y: u32) -> Vec3 {
+    Vec3::new((x as f64 + 0.5 - CX) / F, (y as f64 + 0.5 - CY) / F, 1.0)
+}
+
+#[test]
+fn perspective_correct_interpolation_on_a_tilted_quad() {
+    // A quad on the tilted plane z = 3 + 0.8 x + 0.3 y, strongly foreshortened. A value
+    // linear in 3D position, v(p) = 2 p.x − p.y + 0.5 p.z, interpolated across the
+    // triangles must equal v at the ray–plane intersection (screen-space interpolation
+    // would be off by several percent here), and the depth must equal the intersection's
+    // z. Tolerance: f32 barycentrics and depth, 1e-4 relative.
+    let z = |x: f64, y: f64| 3.0 + 0.8 * x + 0.3 * y;
+    let c = [(-1.0, -0.8), (1.0, -0.8), (1.0, 0.8), (-1.0, 0.8)];
+    let mesh = quad(c.map(|(x, y)| Vec3::new(x, y, z(x, y))));
+    let value = |p: &Vec3| 2.0 * p.x - p.y + 0.5 * p.z;
+    let vals: Vec<f32> = mesh.positions.iter().map(|p| value(p) as f32).collect();
+    let r = rasterize(&mesh, &camera(), &image_identity());
+    let interp = interpolate_scalar(&r, &mesh, &vals);
+    let mut inside = 0;
+    for y in 0..H {
+        for x in 0..W {
+            let k = (y * W + x) as usize;
+            let d = pixel_ray(x, y);
+            // Intersect t d with the plane: t = 3 / (1 − 0.8 d.x − 0.3 d.y).
+            let t = 3.0 / (1.0 - 0.8 * d.x - 0.3 * d.y);
+            let p = d * t;
+            let strictly_inside = p.x.abs() < 0.98 && p.y.abs() < 0.78;
+            let outside = p.x.abs() > 1.02 || p.y.abs() > 0.82;
+            if strictly_inside {
+                inside += 1;
+                assert_ne!(r.face[k], u32::MAX, "hole at ({x}, {y})");
+                let v = value(&p);
+                assert!(
+                    (interp[k] as f64 - v).abs() < 1e-4 * v.abs().max(1.0),
+                    "({x},{y})"
+                );
+                assert!((r.depth[k] as f64 - p.z).abs() < 1e-4 * p.z);
+                let b = r.bary[k];
+                assert!((b[0] + b[1] + b[2] - 1.0).abs() < 1e-5);
+            } else if outside {
+                assert_eq!(r.face[k], u32::MAX, "spill at ({x}, {y})");
+                assert!(interp[k].is_nan());
+            }
+        }
+    }
+    assert!(inside > 500);
+}
+
+#[test]
+fn z_buffer_keeps_the_nearest_surface_and_coverage_matches_the_projection() {
+    // Two fronto-parallel squares: the far one (z = 5, half-size 1.2) and a near one
+    // (z = 2, half-size 0.31, shifted right). A square at depth z with half-size s covers
+    // the pixel centres with |x + ½ − c_x| ≤ F s / z (and likewise in y): count them
+    // (sizes chosen so that no pixel centre lies on an edge).
+    let sq = |cx: f64, s: f64, z: f64| {
+        [
+            Vec3::new(cx - s, -s, z),
+            Vec3::new(cx + s, -s, z),
+            Vec3::new(cx + s, s, z),
+            Vec3::new(cx - s, s, z),
+        ]
+    };
+    let far = sq(0.0, 1.2, 5.0);
+    let near = sq(0.1, 0.31, 2.0);
+    let mut pts = far.to_vec();
+    pts.extend_from_slice(&near);
+    // Near faces listed first, so a z-buffer is needed to get it right.
+    let faces = vec![[4, 5, 6], [4, 6, 7], [0, 1, 2], [0, 2, 3]];
+    let (mesh, _) = Mesh::from_parts(pts, faces);
+    let r = rasterize(&mesh, &camera(), &image_identity());
+    let count = |cx: f64, s: f64, z: f64| {
+        let (hx, hy) = (F * s / z, F * s / z);
+        let u0 = CX + F * cx / z;
+        let nx = (0..W)
+            .filter(|&x| (x as f64 + 0.5 - u0).abs() <= hx)
+            .count();
+        let ny = (0..H)
+            .filter(|&y| (y as f64 + 0.5 - CY).abs() <= hy)
+            .count();
+        nx * ny
+    };
+    let n_near = r.face.iter().filter(|&&f| f <= 1).count();
+    let n_all = r.covered();
+    assert_eq!(n_near, count(0.1, 0.31, 2.0));
+    assert_eq!(n_all, count(0.0, 1.2, 5.0));
+    for (k, &f) in r.face.iter().enumerate() {
+        if f != u32::MAX {
+            let want = if f <= 1 { 2.0 } else { 5.0 };
+            assert!((r.depth[k] - want).abs() < 1e-5);
+        }
+    }
+    // Shading with per-vertex colours: near square red, far square blue.
+    let mut rgb = vec![[0.0, 0.0, 1.0f32]; 4];
+    rgb.extend(vec![[1.0, 0.0, 0.0f32]; 4]);
+    let img = shade_vertices(&r, &mesh, &rgb);
+    for (k, &f) in r.face.iter().enumerate() {
+        let want = match f {
+            u32::MAX => [0.0; 3],
+            0 | 1 => [1.0, 0.0, 0.0],
+            _ => [0.0, 0.0, 1.0],
+        };
+        for c in 0..3 {
+            assert!((img[k][c] - want[c]).abs() < 1e-5);
+        }
+    }
+}
+
+#[test]
+fn png_and_exr_round_trip() {
+    let dir = std::env::temp_dir().join(format!("relight-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (5u32, 3u32);
+    let rgb: Vec<[f32; 3]> = (0..w * h)
+        .map(|k| [k as f32 / 15.0, 0.5, 2.0 * k as f32])
+        .collect();
+    let mask: Vec<bool> = (0..w * h).map(|k| k % 4 != 0).collect();
+
+    // sRGB curve at known points (IEC 61966-2-1): 0.5 → 0.735357, 0.0031308 → 0.0404500.
+    assert!((srgb_encode(0.5) - 0.735_357).abs() < 1e-5);
+    assert!((srgb_encode(0.003_130_8) - 0.040_450).abs() < 1e-5);
+    assert!((srgb_encode(2.0) - 1.0).abs() < 1e-6);
+
+    let png = dir.join("a.png");
+    write_png(&png, w, h, &rgb, Some(&mask), 1.0).unwrap();
+    let back = image::open(&png).unwrap().to_rgba8();
+    assert_eq!(back.dimensions(), (w, h));
+    for (k, px) in back.pixels().enumerate() {
+        // 0.5 linear encodes to round(0.735357 · 255) = 188.
+        assert_eq!(px[1], 188);
+        assert_eq!(px[3], if mask[k] { 255 } else { 0 });
+        let want = (srgb_encode(rgb[k][0]) * 255.0).round() as u8;
+        assert_eq!(px[0], want);
+    }
+    // Exposure scales linear values before encoding: 0.5 · 0.5 = 0.25 → 137.
+    write_png(&png, w, h, &rgb, None, 0.5).unwrap();
+    let back = image::open(&png).unwrap().to_rgb8();
+    assert_eq!(back.get_pixel(0, 0)[1], 137);
+
+    let exr_path = dir.join("a.exr");
+    write_exr(&exr_path, w, h, &rgb, Some(&mask)).unwrap();
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        &exr_path,
+        |res, _| vec![[0.0f32; 4]; res.width() * res.height()],
+        move |buf, pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            buf[pos.y() * 5 + pos.x()] = [r, g, b, a];
+        },
+    )
+    .unwrap();
+    let px = &img.layer_data.channel_data.pixels;
+    for k in 0..(w * h) as usize {
+        assert_eq!(&px[k][..3], &rgb[k][..]);
+        assert_eq!(px[k][3], if mask[k] { 1.0 } else { 0.0 });
+    }
+    // Size mismatches are errors naming the file.
+    let e = write_png(&png, w + 1, h, &rgb, None, 1.0).unwrap_err();
+    assert!(e.to_string().contains("a.png"));
+    std::fs::remove_dir_all(&dir).ok();
+}
