@@ -6,7 +6,7 @@
 //!
 //! 1. **in front and inside**: `X_cam = R x + t` has `z > 0` and its pixel `π(X_cam)` lies in
 //!    `[m, W − m] × [m, H − m]` (`m = margin_px`), and the camera model does not fold there
-//!    ([`project_unfolded`]);
+//!    ([`Camera::project_checked`]: unprojecting the pixel gives back the ray);
 //! 2. **facing**: `cos θ = n · ω_o > min_cos`, `ω_o = (C − x) / |C − x|`;
 //! 3. **unoccluded**: the segment from `x + ε n` to `C` (`ε` = [`SceneBvh::ray_offset`])
 //!    hits no triangle for `t ∈ [ε, |C − x − ε n| − ε]`;
@@ -31,7 +31,6 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::colmap::{Camera, CameraModel};
 use crate::photo::Photo;
 use crate::scene::View;
 use crate::trace::SceneBvh;
@@ -135,21 +134,6 @@ pub fn grazing_confidence(cos: f64, opts: &ObserveOptions) -> f64 {
     ramp.powf(opts.grazing_power)
 }
 
-/// `π(p_cam)` when the projection is one-to-one there. A radial model with `k < 0` folds
-/// back beyond `r² = −1/(3k)`: points far outside the view then land inside the photo. The
-/// pixel is accepted only when unprojecting it returns the ray it came from (to
-/// `1e-6 (1 + |(u, v)|)` in normalized units); pinhole models cannot fold.
-pub fn project_unfolded(cam: &Camera, p_cam: &Vec3) -> Option<[f64; 2]> {
-    let px = cam.project(p_cam)?;
-    if matches!(cam.model, CameraModel::Pinhole | CameraModel::SimplePinhole) {
-        return Some(px);
-    }
-    let (u, v) = (p_cam.x / p_cam.z, p_cam.y / p_cam.z);
-    let back = cam.unproject(px)?;
-    let tol = 1e-6 * (1.0 + (u * u + v * v).sqrt());
-    ((back.x - u).abs() <= tol && (back.y - v).abs() <= tol).then_some(px)
-}
-
 /// One kept observation before it is split into arrays.
 struct Record {
     vertex: u32,
@@ -207,8 +191,9 @@ impl ViewGeometry<'_> {
         let m = opts.margin_px;
         let (w, h) = (cam.width as f64, cam.height as f64);
         let inside = px[0] >= m && px[0] <= w - m && px[1] >= m && px[1] <= h - m;
-        // The (iterative) fold check only for pixels that would be kept.
-        if !inside || project_unfolded(cam, &p_cam).is_none() {
+        // A radial model with k < 0 folds back beyond r² = −1/(3k): points far outside the
+        // view land inside the photo. The (iterative) check only for pixels that would be kept.
+        if !inside || cam.project_checked(&p_cam).is_none() {
             return Outcome::Outside;
         }
         let to_cam = self.center - x;
@@ -346,24 +331,48 @@ mod tests {
     use super::*;
 
     #[test]
-    fn folded_radial_projections_are_rejected() {
-        // SIMPLE_RADIAL with k = −0.1 folds at r² = −1/(3k) = 10/3. The point at normalized
-        // (2.5, 0) distorts to 2.5 · (1 − 0.625) = 0.9375: inside a photo spanning ±1, but
-        // not where the point is. (0.5, 0.2) is well inside the one-to-one zone.
+    fn folded_radial_projections_are_not_observed() {
+        // SIMPLE_RADIAL f = 100, c = (100, 100), k = −0.1 folds at r² = −1/(3k) = 10/3. A
+        // small triangle around normalized (2.5, 0) at depth 1 distorts to 2.5·(1 − 0.625)
+        // = 0.9375 → pixel x ≈ 194: inside the 200-px photo, but not where it is. The same
+        // triangle around (0.5, 0.2) is observed (all three corners).
+        use crate::colmap::{Camera, CameraId, CameraModel, Image, ImageId};
         let cam = Camera::new(
-            crate::colmap::CameraId(1),
+            CameraId(1),
             CameraModel::SimpleRadial,
             200,
             200,
             vec![100.0, 100.0, 100.0, -0.1],
         )
         .unwrap();
-        let far = Vec3::new(2.5, 0.0, 1.0);
-        let px = cam.project(&far).unwrap();
-        assert!((px[0] - (100.0 + 100.0 * 0.9375)).abs() < 1e-9);
-        assert!(project_unfolded(&cam, &far).is_none());
-        let near = Vec3::new(0.5, 0.2, 1.0);
-        assert_eq!(project_unfolded(&cam, &near), cam.project(&near));
+        let view = View {
+            image: Image::from_pose(
+                ImageId(1),
+                "a",
+                CameraId(1),
+                &nalgebra::Rotation3::identity(),
+                &Vec3::zeros(),
+            ),
+            camera: cam,
+            photo_path: "a".into(),
+        };
+        let photo = Photo::from_linear(200, 200, vec![[0.5; 3]; 200 * 200]);
+        for (centre, expect) in [((2.5, 0.0), 0usize), ((0.5, 0.2), 3)] {
+            // Facing the camera (normal −z), 0.01 across.
+            let p = |dx: f64, dy: f64| Vec3::new(centre.0 + dx, centre.1 + dy, 1.0);
+            let (mesh, _) = Mesh::from_parts(
+                vec![p(0.0, 0.0), p(0.0, 0.01), p(0.01, 0.0)],
+                vec![[0, 1, 2]],
+            );
+            assert!(mesh.normals[0].z < -0.99);
+            let bvh = SceneBvh::new(&mesh);
+            let opts = ObserveOptions {
+                probe_px: 0.0,
+                ..Default::default()
+            };
+            let obs = extract(&mesh, &bvh, &[view.clone()], &[photo.clone()], &opts);
+            assert_eq!(obs.len(), expect, "triangle at {centre:?}");
+        }
     }
 
     #[test]
