@@ -367,3 +367,30 @@ fn behind_and_non_finite() {
         assert!(c.unproject([f64::NAN, 3.0]).is_none());
     }
 }
+
+/// Rescaling a camera by (s_x, s_y) scales every projected pixel by the same factors
+/// (COLMAP's Camera::Rescale); for single-focal models s_x = s_y keeps that exact.
+/// Tolerance 1e-9 px: one multiplication more on either side.
+#[test]
+fn rescaled_camera_scales_pixels() {
+    let mut runner = proptest::test_runner::TestRunner::deterministic();
+    for _ in 0..200 {
+        let cam = camera_strategy().new_tree(&mut runner).unwrap().current();
+        let (w, h) = if cam.model.has_single_focal() {
+            (500, 500)
+        } else {
+            (250, 700)
+        };
+        let small = cam.rescaled(w, h);
+        let (sx, sy) = (w as f64 / 1000.0, h as f64 / 1000.0);
+        let p = Vec3::new(0.2, -0.3, 1.7);
+        let a = cam.project(&p).unwrap();
+        let b = small.project(&p).unwrap();
+        assert!(
+            close(b, [a[0] * sx, a[1] * sy], 1e-9),
+            "{:?}: {a:?} -> {b:?}",
+            cam.model
+        );
+        assert_eq!((small.width, small.height), (w, h));
+    }
+}

@@ -253,6 +253,36 @@ impl Camera {
         Ok(())
     }
 
+    /// The same camera for the photo resized to `width` x `height`, as COLMAP's
+    /// `Camera::Rescale`: focal lengths and principal point scale with the size
+    /// (`f_x, c_x` by `width / self.width`, `f_y, c_y` by `height / self.height`; the
+    /// single-focal models by the mean of the two), distortion is unchanged, so every pixel
+    /// position scales: `project'(X) = (s_x, s_y) ⊙ project(X)`.
+    pub fn rescaled(&self, width: u32, height: u32) -> Camera {
+        let sx = width as f64 / self.width as f64;
+        let sy = height as f64 / self.height as f64;
+        let mut params = self.params.clone();
+        if params.len() == self.model.num_params() {
+            if self.model.has_single_focal() {
+                params[0] *= 0.5 * (sx + sy);
+                params[1] *= sx;
+                params[2] *= sy;
+            } else {
+                params[0] *= sx;
+                params[1] *= sy;
+                params[2] *= sx;
+                params[3] *= sy;
+            }
+        }
+        Camera {
+            id: self.id,
+            model: self.model,
+            width,
+            height,
+            params,
+        }
+    }
+
     /// Focal lengths `(f_x, f_y)` in pixels.
     pub fn focal(&self) -> (f64, f64) {
         if self.model.has_single_focal() {
