@@ -12,18 +12,19 @@ DENSE/sparse in binary form, PINHOLE or SIMPLE_PINHOLE cameras) and writes
 so that `colmap stereo_fusion --input_type geometric` and `poisson_mesher` can follow.
 
 Method (two-view semi-global matching, median-fused; Hirschmueller 2008 as in OpenCV):
-1. Neighbours. For reference image i, every other image j that shares at least
-   --min-shared sparse points with i is scored by the number of shared points, if the median
-   triangulation angle of those points lies in [--min-angle, --max-angle] and the baseline is
-   not along either viewing direction (the epipole must stay outside the image). The best
-   --neighbours are kept.
+1. Neighbours. For reference image i, the sparse points i sees that project inside image j
+   (in front of it) are j's covisible points (shared tracks alone are too few when the views
+   are far apart). j qualifies with at least --min-shared of them, a median triangulation
+   angle in [--min-angle, --max-angle], and a baseline not along either viewing direction
+   (the epipole must stay outside the image); its score is the count times
+   exp(-((angle - 20 deg) / 20 deg)^2). The best --neighbours are kept.
 2. Rectification. Both cameras are rotated into a common frame R_rect whose x axis is the
    baseline C_j - C_i and whose z axis is the mean viewing direction made orthogonal to it;
    a pixel moves by the homography H = K_n R_rect R^T K^-1 (one focal length f for both,
    its own horizontal offset cx per image, one cy). In that frame a point at rectified depth Z
    appears at x_j = x_i - (f b / Z + cx_i - cx_j), i.e. image i is OpenCV's "left" view.
 3. Matching. cv2.StereoSGBM (3-way, block 5, uniqueness 10, left-right check 1 px,
-   speckle filter) over the disparity range the shared sparse points predict, widened by
+   speckle filter) over the disparity range the covisible sparse points predict, widened by
    25% and 16 px on each side.
 4. Back-projection. Each pixel (col, row) of image i (pixel index = coordinate, as COLMAP's
    fusion does) is mapped through H_i, its disparity read (nearest), Z = f b / (d - cx_i + cx_j),
@@ -162,7 +163,20 @@ def centre(img):
     return -img["R"].T @ img["t"]
 
 
-def choose_neighbours(imgs, points, args):
+def covisible(a, b, cams, points):
+    """Sparse points image a sees that project inside image b, in front of it (N x 3)."""
+    X = np.array([points[p] for p in a["point_ids"] if p in points]).reshape(-1, 3)
+    w, h, K = cams[b["cam"]]
+    pc = b["R"] @ X.T + b["t"][:, None]
+    z = pc[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = K[0, 0] * pc[0] / z + K[0, 2]
+        v = K[1, 1] * pc[1] / z + K[1, 2]
+    ok = (z > 0) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    return X[ok]
+
+
+def choose_neighbours(imgs, points, cams, args):
     """For each image id: [(score, j, median angle in degrees)], best first."""
     out = {}
     for i, a in imgs.items():
@@ -171,11 +185,8 @@ def choose_neighbours(imgs, points, args):
         for j, b in imgs.items():
             if j == i:
                 continue
-            shared = a["point_ids"] & b["point_ids"]
-            if len(shared) < args.min_shared:
-                continue
             cj, zj = centre(b), b["R"][2]
-            X = np.array([points[p] for p in shared if p in points])
+            X = covisible(a, b, cams, points)
             if len(X) < args.min_shared:
                 continue
             ri = X - ci
@@ -189,7 +200,9 @@ def choose_neighbours(imgs, points, args):
             if abs(base @ zi) > math.cos(math.radians(args.min_epipole_angle)) or \
                abs(base @ zj) > math.cos(math.radians(args.min_epipole_angle)):
                 continue
-            cands.append((len(X), j, ang))
+            # Prefer many covisible points and a moderate angle (about 20 degrees).
+            score = len(X) * math.exp(-((ang - 20.0) / 20.0) ** 2)
+            cands.append((score, j, ang))
         cands.sort(reverse=True)
         out[i] = cands[: args.neighbours]
     return out
@@ -242,8 +255,8 @@ def pair_depth(a, b, ga, gb, cams, points, rect, args):
     W, H = rect["size"]
     f, bl, dcx = rect["f"], rect["bl"], rect["cx"][0] - rect["cx"][1]
     # Disparity range predicted by the points both images see.
-    shared = [points[p] for p in a["point_ids"] & b["point_ids"] if p in points]
-    Z = (rect["R_rect"] @ (np.array(shared) - centre(a)).T)[2]
+    shared = covisible(a, b, cams, points)
+    Z = (rect["R_rect"] @ (shared - centre(a)).T)[2]
     Z = Z[Z > 0]
     if len(Z) < args.min_shared:
         return None
@@ -346,7 +359,7 @@ def main():
     points = read_points3d_bin(sp / "points3D.bin")
     (dense / "stereo" / "depth_maps").mkdir(parents=True, exist_ok=True)
     (dense / "stereo" / "normal_maps").mkdir(parents=True, exist_ok=True)
-    neigh = choose_neighbours(imgs, points, args)
+    neigh = choose_neighbours(imgs, points, cams, args)
     gray = {}
     for i, a in imgs.items():
         g = cv2.imread(str(dense / "images" / a["name"]), cv2.IMREAD_GRAYSCALE)
