@@ -46,12 +46,12 @@ pub enum RotationForm {
 #[derive(Debug, Clone, Default)]
 struct Csr {
     offsets: Vec<usize>,
-    index: Vec<u32>,
+    index: Vec<u16>,
     value: Vec<f32>,
 }
 
 impl Csr {
-    fn row(&self, r: usize) -> (&[u32], &[f32]) {
+    fn row(&self, r: usize) -> (&[u16], &[f32]) {
         let (lo, hi) = (self.offsets[r], self.offsets[r + 1]);
         (&self.index[lo..hi], &self.value[lo..hi])
     }
@@ -62,7 +62,7 @@ impl Csr {
         }
         for row in rows {
             for (i, v) in row {
-                self.index.push(i);
+                self.index.push(i as u16);
                 self.value.push(v);
             }
             self.offsets.push(self.index.len());
@@ -70,7 +70,7 @@ impl Csr {
     }
 
     fn bytes(&self) -> usize {
-        self.offsets.len() * 8 + self.index.len() * 4 + self.value.len() * 4
+        self.offsets.len() * 8 + self.index.len() * 2 + self.value.len() * 4
     }
 }
 
@@ -189,7 +189,8 @@ thread_local! {
 }
 
 impl Rotation {
-    /// Build all `R_ν` (in parallel). Sizes must be powers of two `≥ 2`.
+    /// Build all `R_ν` (in parallel). Sizes must be powers of two `≥ 2`, `n_global ≤ 256`
+    /// (entries are stored with 16-bit indices).
     pub fn new(n_global: usize, n_local: usize, n_normals: usize, form: RotationForm) -> Rotation {
         Self::with_supersample(n_global, n_local, n_normals, form, DEFAULT_SUPERSAMPLE)
     }
@@ -202,6 +203,10 @@ impl Rotation {
         form: RotationForm,
         supersample: usize,
     ) -> Rotation {
+        assert!(
+            n_global <= 256,
+            "global map side {n_global} > 256: rotation indices are 16-bit"
+        );
         let gn = SphereGrid::full(n_normals);
         let per: Vec<Vec<Vec<(u32, f32)>>> = (0..gn.len())
             .into_par_iter()
