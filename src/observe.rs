@@ -8,8 +8,13 @@
 //!    `[m, W − m] × [m, H − m]` (`m = margin_px`), and the camera model does not fold there
 //!    ([`Camera::project_checked`]: unprojecting the pixel gives back the ray);
 //! 2. **facing**: `cos θ = n · ω_o > min_cos`, `ω_o = (C − x) / |C − x|`;
-//! 3. **unoccluded**: the segment from `x + ε n` to `C` (`ε` = [`SceneBvh::ray_offset`])
-//!    hits no triangle for `t ∈ [ε, |C − x − ε n| − ε]`;
+//! 3. **unoccluded**: the ray from `C` toward `x` hits nothing before `|x − C| − δ_x`,
+//!    `δ_x` = the mean length of the edges at `x` (at least [`SceneBvh::ray_offset`]).
+//!    Like a z-buffer test with a tolerance of one mesh edge: geometry within an edge of the
+//!    vertex cannot hide it at the mesh's own resolution. A shadow ray started at
+//!    `x + ε n` can instead clip the vertex's own neighbours where the mesh is rough; on
+//!    the colmap-dense-buddha Poisson mesh the two tests differ by well under 1% of the
+//!    observations, nearly all the occlusion there being by geometry 30–100 edges in front.
 //! 4. **not on a depth discontinuity**: four probe rays from `C` through the pixels
 //!    `π(X_cam) ± (r, 0)`, `± (0, r)` (`r = probe_px`, the reach of the bilinear sample
 //!    plus a margin) must hit the mesh at the depth the vertex's tangent plane predicts,
@@ -180,7 +185,14 @@ impl ViewGeometry<'_> {
         }
     }
 
-    fn test(&self, mesh: &Mesh, bvh: &SceneBvh, v: usize, opts: &ObserveOptions) -> Outcome {
+    fn test(
+        &self,
+        mesh: &Mesh,
+        bvh: &SceneBvh,
+        v: usize,
+        reach: f64,
+        opts: &ObserveOptions,
+    ) -> Outcome {
         let x = mesh.positions[v];
         let n = mesh.normals[v];
         let cam = &self.view.camera;
@@ -206,12 +218,9 @@ impl ViewGeometry<'_> {
         if cos.is_nan() || cos <= opts.min_cos {
             return Outcome::BackFacing;
         }
-        // Shadow ray toward the camera centre, lifted off the surface.
-        let eps = bvh.ray_offset();
-        let origin = x + n * eps;
-        let seg = self.center - origin;
-        let len = seg.norm();
-        if len > 2.0 * eps && bvh.occluded(&origin, &(seg / len), eps, len - eps) {
+        // Camera ray toward the vertex, stopping one edge length short of it.
+        let t_max = dist - reach.max(bvh.ray_offset());
+        if t_max > 0.0 && bvh.occluded(&self.center, &(-wo), 0.0, t_max) {
             return Outcome::Occluded;
         }
         if opts.probe_px > 0.0 {
@@ -246,6 +255,27 @@ impl ViewGeometry<'_> {
     }
 }
 
+/// Mean length of the edges at each vertex (0 for a vertex without faces); each edge is
+/// counted once per incident face.
+pub fn mean_edge_lengths(mesh: &Mesh) -> Vec<f64> {
+    let mut sum = vec![0.0; mesh.positions.len()];
+    let mut count = vec![0u32; mesh.positions.len()];
+    for f in &mesh.faces {
+        for j in 0..3 {
+            let (a, b) = (f[j] as usize, f[(j + 1) % 3] as usize);
+            let l = (mesh.positions[a] - mesh.positions[b]).norm();
+            sum[a] += l;
+            sum[b] += l;
+            count[a] += 1;
+            count[b] += 1;
+        }
+    }
+    sum.iter()
+        .zip(&count)
+        .map(|(&s, &c)| if c > 0 { s / c as f64 } else { 0.0 })
+        .collect()
+}
+
 /// Extracts the observations of every vertex in every view (module docs).
 /// `photos[i]` is the photo of `views[i]`; views without a photo are skipped.
 pub fn extract(
@@ -268,6 +298,7 @@ pub fn extract_with_stats(
 ) -> (Observations, Vec<ViewStats>) {
     let mut obs = Observations::default();
     let mut stats = Vec::with_capacity(views.len());
+    let reach = mean_edge_lengths(mesh);
     for (i, view) in views.iter().enumerate() {
         let start = obs.len();
         let Some(photo) = photos.get(i) else {
@@ -290,7 +321,7 @@ pub fn extract_with_stats(
         let outcomes: Vec<Outcome> = (0..mesh.positions.len())
             .into_par_iter()
             .with_min_len(512)
-            .map(|v| geo.test(mesh, bvh, v, opts))
+            .map(|v| geo.test(mesh, bvh, v, reach[v], opts))
             .collect();
         let mut s = ViewStats::default();
         for o in outcomes {
