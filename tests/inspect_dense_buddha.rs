@@ -1,0 +1,101 @@
+//! `inspect` on a complete workspace made by real COLMAP with a dense point cloud and a
+//! Poisson mesh (tests/fixtures/colmap-dense-buddha, scripts/colmap_workspace.sh): counts
+//! against COLMAP's model_analyzer log and the fixture's README, the fused-point transfer
+//! against a brute-force nearest-neighbour search over the file read by ply-rs directly.
+
+use std::path::{Path, PathBuf};
+
+use relight_cpc::scene::{inspect, load_scene};
+use relight_cpc::workspace::Workspace;
+use relight_cpc::Vec3;
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-dense-buddha")
+}
+
+#[test]
+fn dense_workspace_inspects_to_the_figures_its_tools_wrote() {
+    let r = inspect(&fixture(), None).unwrap();
+    // Discovery: the undistorted pair, the Poisson mesh and the fused cloud.
+    assert!(r.sparse_dir.ends_with("dense/sparse"), "{}", r.sparse_dir);
+    assert!(r.mesh_path.ends_with("dense/meshed-poisson.ply"));
+    // logs/26-model_analyzer.log: 1 camera, 11 registered images, 415 points,
+    // 1143 observations, mean reprojection error 0.273553 px.
+    assert_eq!(r.cameras, 1);
+    assert_eq!(r.images_registered, 11);
+    assert_eq!(r.points3d, 415);
+    assert_eq!(r.views_used, 11);
+    let obs: usize = r
+        .per_image
+        .iter()
+        .map(|i| i.reprojection_observations + i.reprojection_outliers)
+        .sum();
+    assert_eq!(obs, 1143);
+    // model_analyzer prints the per-point errors COLMAP stored, which image_undistorter
+    // copies unchanged from the mapper's model: they are in the pixels of the mapper's
+    // 1024-px-wide photos (calibration.txt), while the undistorted photos are smaller, so
+    // our recomputed figure is that one times width / 1024. It also averages per point, we
+    // per observation: 0.05 px (see inspect_buddha).
+    let scale = r.per_image[0].width as f64 / 1024.0;
+    assert!(scale < 0.6, "undistorted photos are downscaled ({scale})");
+    let e = r.mean_reprojection_error_px.unwrap();
+    assert!(
+        (e - 0.273553 * scale).abs() < 0.05,
+        "{e} vs {}",
+        0.273553 * scale
+    );
+    // README: the fixture's mesh was decimated to 6,405 vertices / 11,698 faces and the
+    // fused cloud thinned to 15,000 points; the mesh is clean, so nothing may be dropped.
+    assert_eq!(r.mesh_vertices, 6405);
+    assert_eq!(r.mesh_faces, 11698);
+    assert_eq!(r.dropped_faces + r.mesh_cleanup.unreferenced_vertices, 0);
+    let f = r.fused.as_ref().unwrap();
+    assert_eq!(f.points, 15000);
+    assert!(f.colors && f.normals);
+    assert!(f.distance.mean <= f.distance.median * 3.0 && f.distance.p95 <= f.distance.max);
+    // Every registered photo sees part of the mesh; confidences in (0, 1].
+    for im in &r.per_image {
+        assert!(im.observed_vertices > 0, "{}", im.name);
+        assert!(im.mean_confidence > 0.0 && im.mean_confidence <= 1.0);
+        assert!(im.candidates.observed == im.observed_vertices);
+    }
+    assert!(
+        r.vertices_observed * 2 > r.mesh_vertices,
+        "{}",
+        r.vertices_observed
+    );
+}
+
+#[test]
+fn fused_transfer_matches_brute_force_nearest_points() {
+    use ply_rs::parser::Parser;
+    use ply_rs::ply::{DefaultElement, Property};
+    let scene = load_scene(Workspace::discover(&fixture(), None).unwrap()).unwrap();
+    let fused = scene.fused.as_ref().unwrap();
+    // The cloud, read without this crate.
+    let mut file = std::fs::File::open(fixture().join("dense/fused.ply")).unwrap();
+    let ply = Parser::<DefaultElement>::new().read_ply(&mut file).unwrap();
+    let coord = |e: &DefaultElement, k: &str| match e[k] {
+        Property::Float(v) => v as f64,
+        Property::Double(v) => v,
+        ref p => panic!("{p:?}"),
+    };
+    let pts: Vec<Vec3> = ply.payload["vertex"]
+        .iter()
+        .map(|e| Vec3::new(coord(e, "x"), coord(e, "y"), coord(e, "z")))
+        .collect();
+    // Every 7th vertex (915 of them) against all 15,000 points. Distances are stored in
+    // f32: 1e-6 relative.
+    for v in (0..scene.mesh.positions.len()).step_by(7) {
+        let x = scene.mesh.positions[v];
+        let best = pts
+            .iter()
+            .map(|p| (p - x).norm())
+            .fold(f64::INFINITY, f64::min);
+        let got = fused.distance[v] as f64;
+        assert!(
+            (got - best).abs() <= 1e-6 * best.max(1e-3),
+            "vertex {v}: {got} vs {best}"
+        );
+    }
+}
