@@ -18,6 +18,10 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     // Each subcommand: one variant here, one arm in `dispatch`.
+    /// Fit reflectance and per-photo illumination to a COLMAP workspace, evaluate held-out
+    /// photos, and write maps, materials, renders and a report. Without WORKSPACE it runs
+    /// on the built-in example (examples/spot).
+    Run(RunArgs),
     /// Show what a COLMAP workspace holds: what was found and picked, counts, and per photo
     /// the observed vertices, overexposure, confidence and reprojection error.
     Inspect {
@@ -30,10 +34,211 @@ enum Command {
         #[arg(long)]
         mesh: Option<std::path::PathBuf>,
     },
+    /// Write a known-truth synthetic COLMAP workspace (photos rendered by the reference
+    /// renderer, ground truth in OUT_DIR/truth/).
+    Synth {
+        /// Scene name (see --list).
+        scene: Option<String>,
+        /// Output folder.
+        out_dir: Option<std::path::PathBuf>,
+        /// Print the scene names, one per line, and exit.
+        #[arg(long)]
+        list: bool,
+        /// Photo width in pixels.
+        #[arg(long, default_value_t = 256)]
+        width: u32,
+        /// Photo height in pixels.
+        #[arg(long, default_value_t = 256)]
+        height: u32,
+        /// Number of photos (default: the scene's).
+        #[arg(long)]
+        photos: Option<usize>,
+        /// Seed of every random choice.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Minimum number of mesh vertices (default about 10K).
+        #[arg(long)]
+        vertices: Option<usize>,
+        /// Gaussian noise σ on the linear [0, 1] photo scale.
+        #[arg(long, default_value_t = 0.0)]
+        noise: f64,
+        /// Random per-photo white balance.
+        #[arg(long)]
+        white_balance: bool,
+        /// Primary rays per pixel.
+        #[arg(long, default_value_t = 4)]
+        spp: u32,
+        /// MIS sample pairs (environment + BRDF) per shading point.
+        #[arg(long, default_value_t = 16)]
+        light_samples: u32,
+        /// Surface points sampled for points3D.txt.
+        #[arg(long, default_value_t = 3000)]
+        points: usize,
+    },
+}
+
+/// Flags of `run` (the README explains each default).
+#[derive(clap::Args)]
+struct RunArgs {
+    /// The COLMAP workspace (default: the built-in example).
+    workspace: Option<std::path::PathBuf>,
+    /// Output folder (default: out/NAME, NAME = the workspace's folder name).
+    #[arg(long)]
+    out: Option<std::path::PathBuf>,
+    /// Use this mesh instead of the workspace's.
+    #[arg(long)]
+    mesh: Option<std::path::PathBuf>,
+    /// Hold out these photos (image names, comma-separated); `none` holds out nothing.
+    /// Default: the workspace's truth/manifest.json list, if any.
+    #[arg(long, value_delimiter = ',', conflicts_with = "holdout_every")]
+    holdout: Option<Vec<String>>,
+    /// Hold out every N-th photo in name order.
+    #[arg(long)]
+    holdout_every: Option<usize>,
+    /// World up as X,Y,Z (default: estimated from the cameras).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        num_args = 3,
+        allow_negative_numbers = true
+    )]
+    up: Option<Vec<f64>>,
+    /// Number of materials, or `auto`.
+    #[arg(long, default_value = "auto")]
+    materials: String,
+    /// Basis BRDFs, comma-separated: lambert, phong:N, ggx:ALPHA.
+    #[arg(long, default_value = "lambert,phong:50,phong:500")]
+    basis: String,
+    /// Global (octahedral) environment map side, a power of two.
+    #[arg(long, default_value_t = 64)]
+    global_resolution: usize,
+    /// Local (hemi-octahedral) map side, a power of two.
+    #[arg(long, default_value_t = 32)]
+    local_resolution: usize,
+    /// Normal-grid side of the precomputed rotations, a power of two.
+    #[arg(long, default_value_t = 32)]
+    normal_grid: usize,
+    /// Haar coefficients kept per transport row (0 = all).
+    #[arg(long, default_value_t = 128)]
+    keep: usize,
+    /// Visibility rays per local texel.
+    #[arg(long, default_value_t = 2)]
+    rays_per_texel: usize,
+    /// Outer (lighting + materials) iterations at most.
+    #[arg(long, default_value_t = 8)]
+    iterations: usize,
+    /// Stop when the objective improves by less than this fraction.
+    #[arg(long, default_value_t = 1e-3)]
+    tolerance: f64,
+    /// Laplacian smoothness of the maps, as a fraction of the system's largest value.
+    #[arg(long, default_value_t = 1e-3)]
+    smoothness: f64,
+    /// IRLS passes per lighting step (1 = plain least squares).
+    #[arg(long, default_value_t = 3)]
+    irls_iterations: usize,
+    /// Overexposure threshold on the 8-bit scale: a pixel with any channel at or above it
+    /// is ignored.
+    #[arg(long, default_value_t = 250.0)]
+    clip: f32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// No progress output.
+    #[arg(long)]
+    quiet: bool,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    force: bool,
+    /// Skip the renders of the training views.
+    #[arg(long)]
+    no_training_renders: bool,
+}
+
+impl RunArgs {
+    fn options(self) -> anyhow::Result<relight_cpc::run::RunOptions> {
+        use relight_cpc::run::{builtin_example, Holdout, MaterialCount, RunOptions};
+        let workspace = self.workspace.unwrap_or_else(builtin_example);
+        let out = self.out.unwrap_or_else(|| {
+            let name = workspace
+                .canonicalize()
+                .ok()
+                .and_then(|p| p.file_name().map(|n| n.to_owned()))
+                .unwrap_or_else(|| "result".into());
+            std::path::Path::new("out").join(name)
+        });
+        let mut o = RunOptions::new(workspace, out);
+        o.mesh = self.mesh;
+        o.holdout = match (self.holdout, self.holdout_every) {
+            (Some(names), _) if names.len() == 1 && names[0] == "none" => Holdout::None,
+            (Some(names), _) => Holdout::Names(names),
+            (None, Some(k)) => Holdout::Every(k),
+            (None, None) => Holdout::Default,
+        };
+        o.up = self.up.map(|v| relight_cpc::Vec3::new(v[0], v[1], v[2]));
+        o.materials = match self.materials.as_str() {
+            "auto" => MaterialCount::Auto,
+            s => MaterialCount::Fixed(s.parse().map_err(|_| {
+                anyhow::anyhow!("--materials {s}: expected a whole number or `auto`")
+            })?),
+        };
+        o.basis = relight_cpc::brdf::parse_list(&self.basis)?;
+        o.global_resolution = self.global_resolution;
+        o.local_resolution = self.local_resolution;
+        o.normal_grid = self.normal_grid;
+        o.keep = self.keep;
+        o.rays_per_texel = self.rays_per_texel;
+        o.max_iterations = self.iterations;
+        o.rel_tol = self.tolerance;
+        o.smoothness = self.smoothness;
+        o.irls_iterations = self.irls_iterations;
+        o.clip = self.clip / 255.0;
+        o.seed = self.seed;
+        o.progress = !self.quiet;
+        o.force = self.force;
+        o.render_training = !self.no_training_renders;
+        Ok(o)
+    }
+}
+
+/// Size rayon's global pool (once, before any parallel work).
+fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        if n == 0 {
+            anyhow::bail!("--threads 0: at least one thread is needed");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()?;
+    }
+    Ok(())
 }
 
 fn dispatch(command: Command) -> anyhow::Result<()> {
     match command {
+        Command::Run(args) => {
+            set_threads(args.threads)?;
+            let quiet = args.quiet;
+            let opts = args.options()?;
+            let summary = relight_cpc::run::run(&opts)?;
+            if !quiet {
+                let r = &summary.report;
+                println!(
+                    "training RMSE {:.5}; results, report.md and report.json in {}",
+                    r.train_rmse,
+                    summary.out.display()
+                );
+                for h in &r.holdout {
+                    println!(
+                        "held out {} ({}): RMSE {:.5} raw, {:.5} after scale {:.3}",
+                        h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale
+                    );
+                }
+            }
+            Ok(())
+        }
         Command::Inspect {
             workspace,
             json,
@@ -45,6 +250,59 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             } else {
                 print!("{report}");
             }
+            Ok(())
+        }
+        Command::Synth {
+            scene,
+            out_dir,
+            list,
+            width,
+            height,
+            photos,
+            seed,
+            vertices,
+            noise,
+            white_balance,
+            spp,
+            light_samples,
+            points,
+        } => {
+            if list {
+                for name in relight_cpc::synth::scene_names() {
+                    println!("{name}");
+                }
+                return Ok(());
+            }
+            let (Some(scene), Some(out_dir)) = (scene, out_dir) else {
+                anyhow::bail!("usage: relight-cpc synth SCENE OUT_DIR (or --list)");
+            };
+            let opts = relight_cpc::synth::SynthOptions {
+                width,
+                height,
+                photos,
+                seed,
+                vertices,
+                noise,
+                white_balance,
+                samples: relight_cpc::reference::Samples {
+                    per_pixel: spp,
+                    light: light_samples,
+                    seed,
+                },
+                points,
+            };
+            let s = relight_cpc::synth::build(&scene, &out_dir, &opts)?;
+            println!(
+                "{}: {} photos ({} held out), {} vertices, {} faces, {} points3D, {} observations, rendering {:.1} s",
+                s.scene,
+                s.photos.len(),
+                s.held_out.len(),
+                s.vertices,
+                s.faces,
+                s.points3d,
+                s.observations,
+                s.render_seconds
+            );
             Ok(())
         }
     }

@@ -77,49 +77,30 @@ pub fn line_panels(path: &Path, x_label: &str, panels: &[(&str, &str, Vec<Series
             y0 /= 1.25;
             y1 *= 1.25;
         }
-        let mut chart = ChartBuilder::on(area)
-            .caption(*title, (FONT, 20))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
-            .map_err(|e| plot_err(path, e))?;
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc(*y_label)
-            .label_style((FONT, 13))
-            .axis_desc_style((FONT, 15))
-            .y_label_formatter(&|v| format!("{v:.3e}"))
-            .draw()
-            .map_err(|e| plot_err(path, e))?;
-        for s in series {
-            let pts: Vec<(f64, f64)> = s
-                .points
-                .iter()
-                .copied()
-                .filter(|p| p.1 > 0.0 && p.0.is_finite() && p.1.is_finite())
-                .collect();
-            let color = s.color;
-            chart
-                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-                .map_err(|e| plot_err(path, e))?
-                .label(s.label)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-                });
-            chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-                .map_err(|e| plot_err(path, e))?;
+        if y1 / y0 > 20.0 {
+            draw_panel(
+                path,
+                area,
+                title,
+                x_label,
+                y_label,
+                series,
+                x0..x1,
+                (y0..y1).log_scale(),
+            )?;
+        } else {
+            let pad = 0.05 * (y1 - y0);
+            draw_panel(
+                path,
+                area,
+                title,
+                x_label,
+                y_label,
+                series,
+                x0..x1,
+                (y0 - pad).max(0.0)..y1 + pad,
+            )?;
         }
-        chart
-            .configure_series_labels()
-            .label_font((FONT, 14))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(|e| plot_err(path, e))?;
     }
     root.present().map_err(|e| plot_err(path, e))?;
     Ok(())
@@ -242,5 +223,70 @@ pub fn gallery(path: &Path, images: &[(String, usize, usize, &[[f32; 3]])]) -> R
         .map_err(|e| plot_err(path, e))?;
     }
     root.present().map_err(|e| plot_err(path, e))?;
+    Ok(())
+}
+
+/// One panel of [`line_panels`] on any y axis (linear or logarithmic).
+#[allow(clippy::too_many_arguments)]
+fn draw_panel<DB, Y>(
+    path: &Path,
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    x_range: std::ops::Range<f64>,
+    y_range: Y,
+) -> Result<()>
+where
+    DB: DrawingBackend,
+    DB::ErrorType: 'static,
+    Y: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
+    <Y as plotters::coord::ranged1d::AsRangedCoord>::CoordDescType:
+        plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, (FONT, 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x_range, y_range)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .y_label_formatter(&|v| format!("{v:.3e}"))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    for s in series {
+        let pts: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|p| p.1 > 0.0 && p.0.is_finite() && p.1.is_finite())
+            .collect();
+        let color = s.color;
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .map_err(|e| plot_err(path, e))?
+            .label(s.label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        chart
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
     Ok(())
 }

@@ -1,1 +1,0 @@
-//! (run: not written yet)

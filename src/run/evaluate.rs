@@ -1,0 +1,405 @@
+//! Held-out evaluation (DESIGN §4) and view rendering with the fitted model.
+//!
+//! A held-out photo was not used to fit the reflectance; its light is unknown, so each
+//! protocol that applies is reported:
+//! - (a) `truth`: the workspace's `truth/` gives the photo's map (and the exposure and white
+//!   balance it was taken with), resampled into this run's environment frame;
+//! - (b) `half`: the light fitted with the reflectance frozen to observations on the left
+//!   half of the object's pixels (`x` below the middle of the object's bounding box),
+//!   the error measured on the right half only;
+//! - (c) `mean`: the mean of the training maps.
+//!
+//! Each view is rendered by rasterising the mesh (z-buffer) and interpolating per-vertex
+//! radiance from the wavelet renderer (Eq. 5–8, untruncated) across triangles; RMSE is over
+//! object pixels that are not overexposed in the photo.
+
+use super::Fitted;
+use crate::envmap::{LatLong, OctEnv};
+use crate::estimate::{self, Problem};
+use crate::observe::{self, Observations, ObserveOptions};
+use crate::photo::Photo;
+use crate::render::{self, Raster};
+use crate::report::{compare, psnr, HoldoutEntry};
+use crate::transport::{self, TransportOptions, WaveletRenderer};
+use crate::{Error, Result, Vec3};
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One photo's entry in `truth/manifest.json`.
+#[derive(Debug, Clone)]
+pub struct TruthPhoto {
+    /// Lat-long map the photo was rendered with.
+    pub env: PathBuf,
+    /// Linear exposure factor applied to the rendering.
+    pub exposure: f64,
+    /// Per-channel white-balance gains.
+    pub white_balance: [f64; 3],
+}
+
+/// The ground truth of a synthetic workspace (`truth/manifest.json`, written by `synth`).
+#[derive(Debug, Clone)]
+pub struct Truth {
+    /// The `truth/` folder.
+    pub dir: PathBuf,
+    /// Held-out photo names.
+    pub held_out: Vec<String>,
+    /// Rows `e_x, e_y, e_z` of the truth maps' environment frame (world coordinates).
+    pub env_from_world: Matrix3<f64>,
+    /// Per photo name.
+    pub photos: BTreeMap<String, TruthPhoto>,
+}
+
+impl Truth {
+    /// Read `dir/manifest.json`.
+    pub fn read(dir: &Path) -> Result<Truth> {
+        let path = dir.join("manifest.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let json: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| Error::format(&path, format!("line {}", e.line()), e.to_string()))?;
+        let bad = |what: &str| Error::format(&path, what.to_string(), "missing or malformed");
+        let held_out = json["held_out"]
+            .as_array()
+            .ok_or_else(|| bad("held_out"))?
+            .iter()
+            .map(|v| {
+                v.as_str()
+                    .map(str::to_string)
+                    .ok_or_else(|| bad("held_out"))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let frame = json["env_frame"]
+            .as_array()
+            .ok_or_else(|| bad("env_frame"))?;
+        let mut rows = [[0.0f64; 3]; 3];
+        for (r, row) in frame.iter().take(3).enumerate() {
+            for c in 0..3 {
+                rows[r][c] = row[c].as_f64().ok_or_else(|| bad("env_frame"))?;
+            }
+        }
+        let env_from_world = Matrix3::from_row_slice(&rows.concat());
+        let mut photos = BTreeMap::new();
+        for p in json["photos"].as_array().ok_or_else(|| bad("photos"))? {
+            let name = p["name"].as_str().ok_or_else(|| bad("photos[].name"))?;
+            let env = p["env"].as_str().ok_or_else(|| bad("photos[].env"))?;
+            let wb = &p["white_balance"];
+            photos.insert(
+                name.to_string(),
+                TruthPhoto {
+                    env: dir.join(env),
+                    exposure: p["exposure"].as_f64().unwrap_or(1.0),
+                    white_balance: [0, 1, 2].map(|c| wb[c].as_f64().unwrap_or(1.0)),
+                },
+            );
+        }
+        Ok(Truth {
+            dir: dir.to_path_buf(),
+            held_out,
+            env_from_world,
+            photos,
+        })
+    }
+
+    /// The light photo `name` was taken under, as this run's model sees it: the truth map
+    /// resampled into the run's environment frame (`env_from_world`) on an `n × n`
+    /// octahedral map, times the photo's exposure and white balance. `None` when the
+    /// manifest does not list the photo.
+    pub fn light(
+        &self,
+        name: &str,
+        n: usize,
+        env_from_world: &Matrix3<f64>,
+    ) -> Result<Option<OctEnv>> {
+        let Some(p) = self.photos.get(name) else {
+            return Ok(None);
+        };
+        let (ll, _) = LatLong::read_exr(&p.env)?;
+        // Same frame: resample directly (exact energy); otherwise re-express each lat-long
+        // pixel's direction in the truth frame and look it up there.
+        let same = (env_from_world - self.env_from_world).abs().max() < 1e-9;
+        let ll = if same {
+            ll
+        } else {
+            let to_truth = self.env_from_world * env_from_world.transpose();
+            let mut out = LatLong::black(ll.height);
+            for v in 0..out.height {
+                for u in 0..out.width {
+                    let d: Vec3 = to_truth * out.dir(u, v);
+                    out.rgb[v * out.width + u] = ll.lookup(&d);
+                }
+            }
+            out
+        };
+        let mut env = OctEnv::from_latlong(&ll, n);
+        let s = p.exposure;
+        for t in env.rgb.iter_mut() {
+            for c in 0..3 {
+                t[c] = (t[c] as f64 * s * p.white_balance[c]) as f32;
+            }
+        }
+        Ok(Some(env))
+    }
+}
+
+/// What the evaluation found.
+pub(crate) struct Evaluation {
+    pub holdout: Vec<HoldoutEntry>,
+    pub mean_holdout_rmse: Option<f64>,
+}
+
+/// A rendered view: the raster and the linear RGB image.
+pub(crate) struct RenderedView {
+    pub raster: Raster,
+    pub rgb: Vec<[f32; 3]>,
+}
+
+/// Render view `v` of the scene with the fitted reflectance under `light`.
+pub(crate) fn render_view(f: &Fitted, v: usize, light: &OctEnv) -> Result<RenderedView> {
+    let view = &f.scene.views[v];
+    let mesh = &f.scene.mesh;
+    let raster = render::rasterize(mesh, &view.camera, &view.image);
+    let mut needed = vec![false; mesh.positions.len()];
+    for &face in raster.face.iter().filter(|&&x| x != u32::MAX) {
+        for &i in &mesh.faces[face as usize] {
+            needed[i as usize] = true;
+        }
+    }
+    let renderer = WaveletRenderer::new(&f.rot, &f.basis, light)?;
+    let centre = view.image.center();
+    let nb = f.basis.len();
+    let radiance: Vec<[f32; 3]> = (0..mesh.positions.len())
+        .into_par_iter()
+        .map(|x| {
+            if !needed[x] {
+                return [0.0; 3];
+            }
+            let d = centre - mesh.positions[x];
+            let n = d.norm();
+            if n <= 0.0 {
+                return [0.0; 3];
+            }
+            let wo = f.env_from_world * (d / n);
+            let r = renderer.vertex_radiance(
+                &f.normals_env[x],
+                f.vis.vertex(x),
+                &wo,
+                &f.beta[x * nb..(x + 1) * nb],
+            );
+            [r[0] as f32, r[1] as f32, r[2] as f32]
+        })
+        .collect();
+    let rgb = render::shade_vertices(&raster, mesh, &radiance);
+    Ok(RenderedView { raster, rgb })
+}
+
+/// The texels of a photo's fitted map as an [`OctEnv`].
+pub(crate) fn fitted_env(f: &Fitted, k: usize) -> OctEnv {
+    let l = &f.est.lights[k];
+    OctEnv::from_channels(f.opts.global_resolution, [&l[0], &l[1], &l[2]])
+}
+
+/// The mean of the training maps.
+pub(crate) fn mean_env(f: &Fitted) -> OctEnv {
+    let n2 = f.opts.global_resolution * f.opts.global_resolution;
+    let mut sum = [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]];
+    for l in &f.est.lights {
+        for c in 0..3 {
+            for (s, v) in sum[c].iter_mut().zip(&l[c]) {
+                *s += v;
+            }
+        }
+    }
+    let k = f.est.lights.len().max(1) as f64;
+    for ch in sum.iter_mut() {
+        ch.iter_mut().for_each(|v| *v /= k);
+    }
+    OctEnv::from_channels(f.opts.global_resolution, [&sum[0], &sum[1], &sum[2]])
+}
+
+/// Pixels that count: object pixels not overexposed in the photo.
+fn valid_mask(raster: &Raster, photo: &Photo) -> Vec<bool> {
+    raster
+        .face
+        .iter()
+        .zip(&photo.overexposed)
+        .map(|(&face, &over)| face != u32::MAX && !over)
+        .collect()
+}
+
+fn entry(
+    image: &str,
+    protocol: &str,
+    photo: &Photo,
+    pred: &[[f32; 3]],
+    mask: &[bool],
+) -> HoldoutEntry {
+    let (rmse, rmse_scaled, scale, pixels) = compare(&photo.rgb, pred, mask);
+    HoldoutEntry {
+        image: image.to_string(),
+        protocol: protocol.to_string(),
+        rmse,
+        rmse_scaled,
+        scale,
+        psnr: psnr(rmse),
+        pixels,
+    }
+}
+
+/// The middle of the object's bounding box in `x` (pixels), or `None` for an empty raster.
+fn object_mid_x(raster: &Raster) -> Option<f64> {
+    let w = raster.width as usize;
+    let xs = raster
+        .face
+        .iter()
+        .enumerate()
+        .filter(|(_, &f)| f != u32::MAX)
+        .map(|(i, _)| i % w);
+    let (lo, hi) = xs.fold((usize::MAX, 0), |(lo, hi), x| (lo.min(x), hi.max(x)));
+    (lo <= hi).then(|| 0.5 * (lo + hi + 1) as f64)
+}
+
+/// Protocol (b): fit the light on the observations left of `mid_x`, frozen reflectance.
+fn fit_left_half(f: &Fitted, v: usize, mid_x: f64) -> Result<Option<OctEnv>> {
+    let view = &f.scene.views[v];
+    let obs = observe::extract(
+        &f.scene.mesh,
+        &f.bvh,
+        std::slice::from_ref(view),
+        std::slice::from_ref(&f.photos[v]),
+        &ObserveOptions::default(),
+    );
+    let mut left = Observations::default();
+    for p in 0..obs.len() {
+        let x = obs.vertex[p] as usize;
+        let cam = view.image.world_to_cam(&f.scene.mesh.positions[x]);
+        let Some(px) = view.camera.project(&cam) else {
+            continue;
+        };
+        if px[0] < mid_x && obs.weight[p] > 0.0 {
+            left.vertex.push(obs.vertex[p]);
+            left.photo.push(0);
+            left.rgb.push(obs.rgb[p]);
+            left.weight.push(obs.weight[p]);
+            left.dir.push(obs.dir[p]);
+        }
+    }
+    if left.is_empty() {
+        return Ok(None);
+    }
+    left.photo_ranges = vec![0..left.len()];
+    let topts = TransportOptions {
+        n_global: f.opts.global_resolution,
+        n_local: f.opts.local_resolution,
+        keep: f.opts.keep,
+    };
+    let tr = transport::build(
+        &f.normals_env,
+        &left,
+        &f.env_from_world,
+        &f.vis,
+        &f.basis,
+        &f.rot,
+        &topts,
+    )?;
+    let problem = Problem {
+        obs: &left,
+        transport: &tr,
+        n_vertices: f.scene.mesh.positions.len(),
+        n_photos: 1,
+    };
+    let l = estimate::fit_light_frozen(&problem, &f.beta, 0, &f.estimate_options)?;
+    Ok(Some(OctEnv::from_channels(
+        f.opts.global_resolution,
+        [&l[0], &l[1], &l[2]],
+    )))
+}
+
+/// Evaluate every held-out view under each protocol that applies; write its renders.
+pub(crate) fn evaluate(
+    f: &Fitted,
+    truth: Option<&super::Truth>,
+    dir: &Path,
+    progress: &super::Progress,
+) -> Result<Evaluation> {
+    let mut holdout = Vec::new();
+    let renders = dir.join("renders");
+    std::fs::create_dir_all(&renders).map_err(|e| Error::io(&renders, e))?;
+    let mean = mean_env(f);
+    let bar = progress.bar(f.held.len() as u64, "held-out photos");
+    let mut headline = Vec::new();
+    for &v in &f.held {
+        let view = &f.scene.views[v];
+        let name = view.image.name.as_str();
+        let photo = &f.photos[v];
+        let stem = super::output::file_stem(name);
+
+        // (a) truth.
+        let mut best: Option<(f64, String)> = None;
+        if let Some(t) = truth {
+            if let Some(env) = t.light(name, f.opts.global_resolution, &f.env_from_world)? {
+                let r = render_view(f, v, &env)?;
+                let mask = valid_mask(&r.raster, photo);
+                let e = entry(name, "truth", photo, &r.rgb, &mask);
+                best = Some((e.rmse_scaled, "truth".into()));
+                super::output::write_triptych(
+                    &renders.join(format!("{stem}.truth.png")),
+                    photo,
+                    &r,
+                    e.scale,
+                )?;
+                holdout.push(e);
+            }
+        }
+        // (b) left half / right half.
+        let r_mean = render_view(f, v, &mean)?;
+        if let Some(mid) = object_mid_x(&r_mean.raster) {
+            if let Some(env) = fit_left_half(f, v, mid)? {
+                let r = render_view(f, v, &env)?;
+                let w = r.raster.width as usize;
+                let mask: Vec<bool> = valid_mask(&r.raster, photo)
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &m)| m && (i % w) as f64 >= mid)
+                    .collect();
+                let e = entry(name, "half", photo, &r.rgb, &mask);
+                if best.is_none() {
+                    best = Some((e.rmse_scaled, "half".into()));
+                }
+                super::output::write_triptych(
+                    &renders.join(format!("{stem}.half.png")),
+                    photo,
+                    &r,
+                    e.scale,
+                )?;
+                holdout.push(e);
+            }
+        }
+        // (c) mean of the training maps.
+        let mask = valid_mask(&r_mean.raster, photo);
+        let e = entry(name, "mean", photo, &r_mean.rgb, &mask);
+        if best.is_none() {
+            best = Some((e.rmse_scaled, "mean".into()));
+        }
+        super::output::write_triptych(
+            &renders.join(format!("{stem}.mean.png")),
+            photo,
+            &r_mean,
+            e.scale,
+        )?;
+        holdout.push(e);
+        if let Some((rmse, _)) = best {
+            if rmse.is_finite() {
+                headline.push(rmse);
+            }
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let mean_holdout_rmse =
+        (!headline.is_empty()).then(|| headline.iter().sum::<f64>() / headline.len() as f64);
+    Ok(Evaluation {
+        holdout,
+        mean_holdout_rmse,
+    })
+}

@@ -1,0 +1,780 @@
+//! `relight-cpc run`: the whole pipeline, workspace → scene → observations → transport →
+//! estimate → renders and report (DESIGN §1, §4).
+//!
+//! The stages, in order, each timed and measured by [`crate::stages`]:
+//! 1. `import`: discover the workspace, read the model, the mesh and the photos;
+//! 2. `observations`: BVH, per-vertex observations in every registered photo;
+//! 3. `visibility`: per-vertex visibility over the local hemisphere (Sec. 3);
+//! 4. `rotation`: the wavelet rotations `R_ν` (Sec. 4.2, Eq. 6);
+//! 5. `transport`: `g_{p,b} = R_nᵀ T_x ρ_b(ω_o)` per observation (Eq. 5–8);
+//! 6. `estimate`: alternating lighting (Eq. 10) and material (Eq. 11–12) steps;
+//! 7. `evaluation`: held-out photos under each protocol of DESIGN §4;
+//! 8. `output`: environment maps, materials, coloured mesh, renders, report.
+//!
+//! Everything is written into a hidden sibling `.NAME.partial/` of the output folder and
+//! renamed to `NAME/` only when complete, so an interrupted run never leaves a folder that
+//! looks finished.
+
+mod evaluate;
+mod output;
+mod progress;
+
+pub use evaluate::Truth;
+pub use progress::Progress;
+
+use crate::brdf::BasisBrdf;
+use crate::cluster::initial_materials;
+use crate::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::observe::{self, Observations, ObserveOptions};
+use crate::report::{ModelReport, RunReport, TimelinePoint};
+use crate::rotation::{Rotation, RotationForm};
+use crate::scene::{self, Scene};
+use crate::stages::Stages;
+use crate::trace::SceneBvh;
+use crate::transport::{self, Transport, TransportOptions};
+use crate::visibility;
+use crate::workspace::Workspace;
+use crate::{Error, Result, Vec3};
+use nalgebra::Matrix3;
+use std::path::{Path, PathBuf};
+
+/// How many materials to fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MaterialCount {
+    /// Choose from the data: the smallest count whose k-means clustering of the hue
+    /// features leaves little unexplained (see [`choose_material_count`]).
+    Auto,
+    /// Exactly this many.
+    Fixed(usize),
+}
+
+/// Which photos are held out.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Holdout {
+    /// The workspace's `truth/manifest.json` list when present, else none.
+    #[default]
+    Default,
+    /// No photo.
+    None,
+    /// These image names.
+    Names(Vec<String>),
+    /// Every N-th registered photo (by name order), starting with the N-th.
+    Every(usize),
+}
+
+/// Checked options of a run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// The COLMAP workspace.
+    pub workspace: PathBuf,
+    /// Output folder.
+    pub out: PathBuf,
+    /// A mesh to use instead of the workspace's.
+    pub mesh: Option<PathBuf>,
+    /// Held-out photos.
+    pub holdout: Holdout,
+    /// World up; estimated from the cameras when `None`.
+    pub up: Option<Vec3>,
+    /// Number of materials.
+    pub materials: MaterialCount,
+    /// Basis BRDF specifications (`lambert`, `phong:50`, `ggx:0.2`); the first Lambertian
+    /// one carries the diffuse colour.
+    pub basis: Vec<BasisBrdf>,
+    /// Global octahedral map side.
+    pub global_resolution: usize,
+    /// Local hemi-octahedral map side.
+    pub local_resolution: usize,
+    /// Normal-grid side of the rotation.
+    pub normal_grid: usize,
+    /// Haar coefficients kept per transport row (0 = all).
+    pub keep: usize,
+    /// Visibility rays per local texel.
+    pub rays_per_texel: usize,
+    /// Outer iterations at most.
+    pub max_iterations: usize,
+    /// Stop when the objective improves by less than this fraction.
+    pub rel_tol: f64,
+    /// Laplacian smoothness, as a fraction of the largest system value.
+    pub smoothness: f64,
+    /// IRLS passes per lighting step (1 = no reweighting).
+    pub irls_iterations: usize,
+    /// Overexposure threshold on the encoded [0, 1] scale.
+    pub clip: f32,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Progress bars on standard error.
+    pub progress: bool,
+    /// Replace an existing output folder.
+    pub force: bool,
+    /// Write renders of every view (not only held-out ones).
+    pub render_training: bool,
+}
+
+impl RunOptions {
+    /// Defaults for a workspace (the README says why each default).
+    pub fn new(workspace: PathBuf, out: PathBuf) -> Self {
+        RunOptions {
+            workspace,
+            out,
+            mesh: None,
+            holdout: Holdout::Default,
+            up: None,
+            materials: MaterialCount::Auto,
+            basis: vec![
+                BasisBrdf::Lambert,
+                BasisBrdf::Phong { exponent: 50.0 },
+                BasisBrdf::Phong { exponent: 500.0 },
+            ],
+            global_resolution: 64,
+            local_resolution: 32,
+            normal_grid: 32,
+            keep: 128,
+            rays_per_texel: 2,
+            max_iterations: 8,
+            rel_tol: 1e-3,
+            smoothness: 1e-3,
+            irls_iterations: 3,
+            clip: crate::photo::DEFAULT_CLIP,
+            seed: 1,
+            progress: true,
+            force: false,
+            render_training: true,
+        }
+    }
+
+    /// Reject impossible values with a message naming the option.
+    pub fn check(&self) -> Result<()> {
+        let pow2 = |name: &str, v: usize, lo: usize, hi: usize| {
+            if v.is_power_of_two() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(Error::Config(format!(
+                    "--{name} {v}: must be a power of two from {lo} to {hi}"
+                )))
+            }
+        };
+        pow2("global-resolution", self.global_resolution, 4, 256)?;
+        pow2("local-resolution", self.local_resolution, 4, 128)?;
+        pow2("normal-grid", self.normal_grid, 2, 128)?;
+        if self.basis.is_empty() {
+            return Err(Error::Config(
+                "--basis: at least one basis BRDF is needed".into(),
+            ));
+        }
+        if let MaterialCount::Fixed(k) = self.materials {
+            if k == 0 || k > 32 {
+                return Err(Error::Config(format!(
+                    "--materials {k}: must be from 1 to 32, or auto"
+                )));
+            }
+        }
+        if !(self.clip > 0.0 && self.clip <= 1.0) {
+            return Err(Error::Config(format!(
+                "--clip {}: must be in (0, 1]",
+                self.clip
+            )));
+        }
+        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
+            return Err(Error::Config(format!(
+                "--smoothness {}: must be a finite number ≥ 0",
+                self.smoothness
+            )));
+        }
+        if !(self.rel_tol >= 0.0 && self.rel_tol.is_finite()) {
+            return Err(Error::Config(format!(
+                "--tolerance {}: must be a finite number ≥ 0",
+                self.rel_tol
+            )));
+        }
+        if self.rays_per_texel == 0 || self.rays_per_texel > 64 {
+            return Err(Error::Config(format!(
+                "--rays-per-texel {}: must be from 1 to 64",
+                self.rays_per_texel
+            )));
+        }
+        if self.max_iterations == 0 {
+            return Err(Error::Config(
+                "--iterations 0: at least one is needed".into(),
+            ));
+        }
+        if self.irls_iterations == 0 {
+            return Err(Error::Config(
+                "--irls-iterations 0: at least one (plain least squares) is needed".into(),
+            ));
+        }
+        if let Some(up) = self.up {
+            if !(up.norm() > 0.0 && up.iter().all(|v| v.is_finite())) {
+                return Err(Error::Config(
+                    "--up: must be a non-zero finite vector".into(),
+                ));
+            }
+        }
+        if let Holdout::Every(0) = self.holdout {
+            return Err(Error::Config(
+                "--holdout-every 0: must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Where the built-in example lives: a small `synth` workspace made from real data (the
+/// Spot mesh and real HDR maps; see `examples/README.md`).
+pub fn builtin_example() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join("spot")
+}
+
+/// What a finished run hands back (also written to `OUT/report.json`).
+#[derive(Debug)]
+pub struct RunSummary {
+    /// The output folder.
+    pub out: PathBuf,
+    /// The report that was written.
+    pub report: RunReport,
+}
+
+/// World up from the cameras (DESIGN §3): the mean of their `−y` axes in world
+/// coordinates (COLMAP cameras have y pointing down in the image).
+pub fn estimate_up(views: &[scene::View]) -> Option<Vec3> {
+    let sum: Vec3 = views
+        .iter()
+        .map(|v| -v.image.rotation().matrix().row(1).transpose())
+        .sum();
+    (sum.norm() > 1e-9 * views.len().max(1) as f64).then(|| sum.normalize())
+}
+
+/// The matrix with rows `e_x, e_y, e_z` (environment from world).
+pub fn env_from_world(up: &Vec3) -> Result<Matrix3<f64>> {
+    let f = crate::sphere::env_frame(up)
+        .ok_or_else(|| Error::Config("the up vector must be non-zero and finite".into()))?;
+    Ok(Matrix3::from_rows(&[
+        f[0].transpose(),
+        f[1].transpose(),
+        f[2].transpose(),
+    ]))
+}
+
+/// Indices of the held-out views under `holdout` (the truth manifest's list for
+/// [`Holdout::Default`]). Unknown names are an error naming them.
+fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Result<Vec<usize>> {
+    let names: Vec<String> = match holdout {
+        Holdout::None => Vec::new(),
+        Holdout::Default => truth.map(|t| t.held_out.clone()).unwrap_or_default(),
+        Holdout::Names(n) => n.clone(),
+        Holdout::Every(k) => scene
+            .views
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| (i + 1) % k == 0)
+            .map(|(_, v)| v.image.name.clone())
+            .collect(),
+    };
+    let mut idx = Vec::new();
+    for name in &names {
+        match scene.views.iter().position(|v| &v.image.name == name) {
+            Some(i) => idx.push(i),
+            None if matches!(holdout, Holdout::Default) => {}
+            None => {
+                return Err(Error::Config(format!(
+                    "--holdout {name}: no registered photo of that name (known: {})",
+                    scene
+                        .views
+                        .iter()
+                        .map(|v| v.image.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )))
+            }
+        }
+    }
+    idx.sort_unstable();
+    idx.dedup();
+    if idx.len() >= scene.views.len() {
+        return Err(Error::Config(format!(
+            "all {} photos are held out: at least one must be used for fitting",
+            scene.views.len()
+        )));
+    }
+    Ok(idx)
+}
+
+/// Choose the number of materials from the per-vertex mean colours: the smallest K in
+/// 1..=6 after which one more cluster lowers the k-means inertia of the hue features by
+/// less than a quarter (an elbow rule), with the reason in words.
+pub fn choose_material_count(mean_rgb: &[[f64; 3]], seen: &[bool], seed: u64) -> (usize, String) {
+    let feats: Vec<[f64; 3]> = mean_rgb
+        .iter()
+        .zip(seen)
+        .filter(|(_, &s)| s)
+        .map(|(c, _)| crate::cluster::hue_feature(*c))
+        .collect();
+    let inertia = |k: usize| -> Option<f64> {
+        let init = initial_materials(mean_rgb, seen, k, seed).ok()?;
+        let mut sum = 0.0;
+        let mut fi = 0;
+        for (x, &s) in seen.iter().enumerate() {
+            if !s {
+                continue;
+            }
+            let c = init.centroids.get(init.labels[x])?;
+            let f = feats[fi];
+            fi += 1;
+            sum += (0..3).map(|i| (f[i] - c[i]).powi(2)).sum::<f64>();
+        }
+        Some(sum)
+    };
+    let total = inertia(1).unwrap_or(0.0);
+    if total <= 1e-12 * feats.len().max(1) as f64 {
+        return (
+            1,
+            "materials: 1, the observed colours all have the same hue and saturation".into(),
+        );
+    }
+    let mut prev = total;
+    for k in 1..6 {
+        let next = inertia(k + 1).unwrap_or(prev);
+        if next > 0.75 * prev {
+            return (
+                k,
+                format!(
+                    "materials: {k} (auto), k-means of (cos 2πH, sin 2πH, S): a {}th cluster would remove only {:.0}% of the remaining spread ({:.3e} → {:.3e})",
+                    k + 1,
+                    100.0 * (1.0 - next / prev.max(1e-300)),
+                    prev,
+                    next
+                ),
+            );
+        }
+        prev = next;
+    }
+    (
+        6,
+        "materials: 6 (auto, the cap): every extra cluster still removed over a quarter of the spread".into(),
+    )
+}
+
+/// Per-vertex mean colour (α-weighted) over the observations, and whether each vertex was seen.
+pub fn mean_colours(obs: &Observations, n_vertices: usize) -> (Vec<[f64; 3]>, Vec<bool>) {
+    let mut sum = vec![[0.0f64; 3]; n_vertices];
+    let mut wsum = vec![0.0f64; n_vertices];
+    for p in 0..obs.len() {
+        let v = obs.vertex[p] as usize;
+        let w = obs.weight[p] as f64;
+        if w <= 0.0 {
+            continue;
+        }
+        for c in 0..3 {
+            sum[v][c] += w * obs.rgb[p][c] as f64;
+        }
+        wsum[v] += w;
+    }
+    let seen: Vec<bool> = wsum.iter().map(|&w| w > 0.0).collect();
+    let mean = sum
+        .iter()
+        .zip(&wsum)
+        .map(|(s, &w)| {
+            if w > 0.0 {
+                [s[0] / w, s[1] / w, s[2] / w]
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    (mean, seen)
+}
+
+/// The state shared by the evaluation and output stages.
+pub(crate) struct Fitted<'a> {
+    pub scene: &'a Scene,
+    pub photos: &'a [crate::photo::Photo],
+    pub train: Vec<usize>,
+    pub held: Vec<usize>,
+    pub env_from_world: Matrix3<f64>,
+    pub normals_env: Vec<Vec3>,
+    pub vis: visibility::Visibility,
+    pub rot: Rotation,
+    pub basis: Vec<BasisBrdf>,
+    pub est: estimate::Estimate,
+    pub beta: Vec<[f64; 3]>,
+    pub opts: &'a RunOptions,
+    pub estimate_options: EstimateOptions,
+    pub bvh: SceneBvh,
+}
+
+/// Run the pipeline with `opts`, reporting progress to `progress`.
+pub fn run(opts: &RunOptions) -> Result<RunSummary> {
+    opts.check()?;
+    let progress = Progress::new(opts.progress);
+    let partial = partial_dir(&opts.out)?;
+    let result = run_into(opts, &partial, &progress);
+    match result {
+        Ok(report) => {
+            finish_dir(&partial, &opts.out, opts.force)?;
+            progress.finish(&format!("results in {}", opts.out.display()));
+            Ok(RunSummary {
+                out: opts.out.clone(),
+                report,
+            })
+        }
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&partial);
+            Err(e)
+        }
+    }
+}
+
+fn partial_dir(out: &Path) -> Result<PathBuf> {
+    let name = out
+        .file_name()
+        .ok_or_else(|| Error::Config(format!("--out {}: needs a folder name", out.display())))?;
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+    let partial = parent.join(format!(".{}.partial", name.to_string_lossy()));
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+    }
+    std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
+    Ok(partial)
+}
+
+fn finish_dir(partial: &Path, out: &Path, force: bool) -> Result<()> {
+    if out.exists() {
+        if !force && !out.join("report.json").exists() {
+            return Err(Error::Config(format!(
+                "--out {}: exists and is not a relight-cpc result; choose another folder or pass --force",
+                out.display()
+            )));
+        }
+        std::fs::remove_dir_all(out).map_err(|e| Error::io(out, e))?;
+    }
+    std::fs::rename(partial, out).map_err(|e| Error::io(out, e))
+}
+
+fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunReport> {
+    let mut stages = Stages::new();
+    let mut notes: Vec<String> = Vec::new();
+
+    // 1. Import.
+    progress.stage("import");
+    let (scene, photos) = stages.run("import", || -> Result<_> {
+        let ws = Workspace::discover(&opts.workspace, opts.mesh.as_deref())?;
+        let scene = scene::load_scene(ws)?;
+        let photos = scene::load_photos(&scene, opts.clip)?;
+        Ok((scene, photos))
+    })?;
+    notes.extend(scene.workspace.notes.iter().cloned());
+    notes.extend(scene.skipped.iter().map(|s| format!("skipped {s}")));
+    let truth = match &scene.workspace.truth_dir {
+        Some(t) => Some(Truth::read(t)?),
+        None => None,
+    };
+    let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
+    let train: Vec<usize> = (0..scene.views.len())
+        .filter(|i| !held.contains(i))
+        .collect();
+    let nv = scene.mesh.positions.len();
+
+    // 2. Observations of the training photos (held-out ones are extracted by the evaluation).
+    progress.stage("observations");
+    let (bvh, obs) = stages.run("observations", || {
+        let bvh = SceneBvh::new(&scene.mesh);
+        let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
+        let ph: Vec<_> = train.iter().map(|&i| photos[i].clone()).collect();
+        let obs = observe::extract(&scene.mesh, &bvh, &views, &ph, &ObserveOptions::default());
+        (bvh, obs)
+    });
+    let useful = obs.weight.iter().filter(|&&w| w > 0.0).count();
+    if useful == 0 {
+        return Err(Error::Numeric {
+            stage: "observations".into(),
+            message: "no vertex is seen un-clipped in any training photo: check the mesh \
+                      against the cameras (`relight-cpc inspect`) and the --clip threshold"
+                .into(),
+        });
+    }
+    for (k, &i) in train.iter().enumerate() {
+        if obs.photo_ranges[k].is_empty() {
+            notes.push(format!(
+                "{}: no vertex observed in it; its map stays black",
+                scene.views[i].image.name
+            ));
+        }
+    }
+
+    // Frames.
+    let up = match opts.up {
+        Some(u) => u.normalize(),
+        None => {
+            let u = estimate_up(&scene.views).ok_or_else(|| {
+                Error::Config("cannot estimate world up from the cameras (their −y axes cancel out); give --up X,Y,Z".into())
+            })?;
+            notes.push(format!(
+                "world up estimated from the cameras' −y axes: ({:.4}, {:.4}, {:.4})",
+                u.x, u.y, u.z
+            ));
+            u
+        }
+    };
+    let env_from_world = env_from_world(&up)?;
+    let normals_env: Vec<Vec3> = scene
+        .mesh
+        .normals
+        .iter()
+        .map(|n| env_from_world * n)
+        .collect();
+
+    // 3. Visibility.
+    progress.stage("visibility");
+    let vis = stages.run("visibility", || {
+        visibility::compute(
+            &scene.mesh,
+            &bvh,
+            &env_from_world,
+            opts.local_resolution,
+            opts.rays_per_texel,
+            opts.seed,
+        )
+    });
+    notes.push(format!(
+        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced",
+        vis.open_count(),
+        nv,
+        vis.rays_traced
+    ));
+
+    // 4. Rotation.
+    progress.stage("rotation");
+    let rot = stages.run("rotation", || {
+        Rotation::new(
+            opts.global_resolution,
+            opts.local_resolution,
+            opts.normal_grid,
+            RotationForm::Factored,
+        )
+    });
+
+    // 5. Transport.
+    progress.stage("transport");
+    let topts = TransportOptions {
+        n_global: opts.global_resolution,
+        n_local: opts.local_resolution,
+        keep: opts.keep,
+    };
+    let tr: Transport = stages.run("transport", || {
+        transport::build(
+            &normals_env,
+            &obs,
+            &env_from_world,
+            &vis,
+            &opts.basis,
+            &rot,
+            &topts,
+        )
+    })?;
+
+    // 6. Estimate.
+    let lambert = opts
+        .basis
+        .iter()
+        .position(|b| matches!(b, BasisBrdf::Lambert))
+        .ok_or_else(|| {
+            Error::Config("--basis: a Lambertian lobe is needed to carry the diffuse colour".into())
+        })?;
+    let (mean_rgb, seen) = mean_colours(&obs, nv);
+    let (k, k_reason) = match opts.materials {
+        MaterialCount::Fixed(k) => (k, format!("materials: {k}, as given by --materials")),
+        MaterialCount::Auto => choose_material_count(&mean_rgb, &seen, opts.seed),
+    };
+    let init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
+    let mut reasons = vec![k_reason];
+    if init.albedo.len() < k {
+        reasons.push(format!(
+            "only {} distinct colour clusters exist, so {} materials are fitted",
+            init.albedo.len(),
+            init.albedo.len()
+        ));
+    }
+    let problem = Problem {
+        obs: &obs,
+        transport: &tr,
+        n_vertices: nv,
+        n_photos: train.len(),
+    };
+    let eopts = EstimateOptions {
+        max_outer: opts.max_iterations,
+        rel_tol: opts.rel_tol,
+        smoothness: opts.smoothness,
+        robust: if opts.irls_iterations > 1 {
+            Robust::Huber { k: 1.345 }
+        } else {
+            Robust::None
+        },
+        irls_iters: opts.irls_iterations,
+        lambert_basis: lambert,
+        ..EstimateOptions::default()
+    };
+    let materials0 = Materials0::from_initial(&init, opts.basis.len(), lambert);
+    progress.stage("estimate");
+    let bar = progress.bar(opts.max_iterations as u64, "outer iterations");
+    let mut timeline: Vec<TimelinePoint> = Vec::new();
+    let est = stages.run("estimate", || {
+        estimate::estimate(&problem, materials0, &eopts, &mut |it| {
+            bar.inc(1);
+            bar.set_message(format!(
+                "objective {:.4e}, RMSE {:.5}",
+                it.objective, it.train_rmse
+            ));
+            timeline.push(TimelinePoint {
+                seconds: it.seconds,
+                objective: it.objective,
+                train_rmse: it.train_rmse,
+                holdout_rmse: None,
+            });
+        })
+    })?;
+    bar.finish_and_clear();
+    let beta = estimate::beta_per_vertex(&est.lambda, &est.weights, nv);
+    let train_entries = train_errors(&scene, &train, &obs, &estimate::predict(&problem, &est));
+
+    let fitted = Fitted {
+        scene: &scene,
+        photos: &photos,
+        train,
+        held,
+        env_from_world,
+        normals_env,
+        vis,
+        rot,
+        basis: opts.basis.clone(),
+        est,
+        beta,
+        opts,
+        estimate_options: eopts,
+        bvh,
+    };
+
+    // 7. Evaluation of held-out photos, and per-photo training error.
+    progress.stage("evaluation");
+    let evaluation = stages.run("evaluation", || {
+        evaluate::evaluate(&fitted, truth.as_ref(), dir, progress)
+    })?;
+
+    // 8. Outputs.
+    progress.stage("output");
+    stages.run("output", || output::write_results(&fitted, dir, progress))?;
+
+    let mut conditioning = std::collections::BTreeMap::new();
+    let c = &fitted.est.conditioning;
+    if let Some(max) = c
+        .lighting
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .reduce(f64::max)
+    {
+        conditioning.insert("lighting (max over photos, lower bound)".to_string(), max);
+    }
+    for (ch, v) in ["R", "G", "B"].iter().zip(c.lambda) {
+        conditioning.insert(format!("material weights λ, channel {ch}"), v);
+    }
+    conditioning.insert(
+        "blending weights w (max over vertices)".into(),
+        c.weights_max,
+    );
+    if c.weights_singular > 0 {
+        notes.push(format!(
+            "{} vertices had fewer independent observations than materials (their blending weights are minimum-norm)",
+            c.weights_singular
+        ));
+    }
+    if c.qp_unconverged > 0 {
+        notes.push(format!(
+            "{} lighting solves stopped at the iteration cap before the KKT tolerance",
+            c.qp_unconverged
+        ));
+    }
+    notes.push(format!("scale normalisation: {}", fitted.est.normalisation));
+
+    let mut report = RunReport {
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        workspace: opts.workspace.display().to_string(),
+        seed: opts.seed,
+        holdout: evaluation.holdout,
+        train_rmse: fitted
+            .est
+            .timeline
+            .last()
+            .map_or(f64::NAN, |t| t.train_rmse),
+        train: train_entries,
+        timeline,
+        model: ModelReport {
+            materials: fitted.est.lambda.len(),
+            basis: opts.basis.iter().map(|b| b.label()).collect(),
+            global_resolution: opts.global_resolution,
+            local_resolution: opts.local_resolution,
+            normal_grid: opts.normal_grid,
+            kept_coefficients: opts.keep,
+            reasons,
+        },
+        notes,
+        conditioning,
+        ..Default::default()
+    };
+    if let Some(last) = report.timeline.last_mut() {
+        last.holdout_rmse = evaluation.mean_holdout_rmse;
+    }
+    progress.stage("report");
+    // The report's own writing is timed but cannot appear in the file it is writing.
+    report.stage_details = stages.records.clone();
+    report.stages = report
+        .stage_details
+        .iter()
+        .map(|s| (s.name.clone(), s.seconds))
+        .collect();
+    report.peak_memory_bytes = stages.peak_memory_bytes();
+    let maps = output::gallery_maps(&fitted);
+    let refs: Vec<(String, usize, usize, &[[f32; 3]])> = maps
+        .iter()
+        .map(|(n, ll)| (n.clone(), ll.width, ll.height, ll.rgb.as_slice()))
+        .collect();
+    report.write(dir, &refs)?;
+    Ok(report)
+}
+
+/// RMSE per training photo over its observations with `α > 0` (linear RGB).
+fn train_errors(
+    scene: &Scene,
+    train: &[usize],
+    obs: &Observations,
+    pred: &[[f64; 3]],
+) -> Vec<crate::report::TrainEntry> {
+    train
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| {
+            let (mut se, mut n) = (0.0, 0usize);
+            for p in obs.photo_ranges[k].clone() {
+                if obs.weight[p] > 0.0 {
+                    for c in 0..3 {
+                        se += (obs.rgb[p][c] as f64 - pred[p][c]).powi(2);
+                    }
+                    n += 1;
+                }
+            }
+            crate::report::TrainEntry {
+                image: scene.views[v].image.name.clone(),
+                rmse: if n > 0 {
+                    (se / (3 * n) as f64).sqrt()
+                } else {
+                    f64::NAN
+                },
+                observations: n,
+            }
+        })
+        .collect()
+}
