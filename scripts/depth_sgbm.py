@@ -32,7 +32,8 @@ Method (two-view semi-global matching, median-fused; Hirschmueller 2008 as in Op
 5. Fusion per image. The per-pair depths of a pixel are compared with their median m:
    those within --depth-tol * m of it are averaged; a pixel needs --min-consistent of them
    (fewer when the image has fewer usable pairs). Depths outside the sparse points' depth
-   range (1st..99th percentile, widened by a factor 1.5) are dropped.
+   range (1st..99th percentile, widened by a factor 1.5) are dropped, and so are pixels
+   without texture (grey-level standard deviation over 7x7 below --min-texture).
 6. Normals. The depth map is median-filtered (5x5), back-projected to points P(col, row),
    and n = (dP/dcol x dP/drow) normalised, averaged over 5x5, oriented toward the camera.
 
@@ -349,6 +350,8 @@ def main():
     ap.add_argument("--block-size", type=int, default=5)
     ap.add_argument("--depth-tol", type=float, default=0.02)
     ap.add_argument("--min-consistent", type=int, default=2)
+    ap.add_argument("--min-texture", type=float, default=2.0,
+                    help="grey-level standard deviation (7x7) below which no depth is kept")
     args = ap.parse_args()
     cv2.setNumThreads(2)
 
@@ -395,6 +398,13 @@ def main():
                 depth[(depth < lo / 1.5) | (depth > hi * 1.5)] = np.nan
         else:
             depth = np.full((h, w), np.nan)
+        # No depth where the reference photo has no texture to match (local standard
+        # deviation over 7x7 below --min-texture grey levels): SGBM fills such regions
+        # (a black background, a blown-out sky) from its smoothness term alone.
+        g = gray[i].astype(np.float32)
+        mu = cv2.blur(g, (7, 7))
+        sd = np.sqrt(np.maximum(cv2.blur(g * g, (7, 7)) - mu * mu, 0))
+        depth[sd < args.min_texture] = np.nan
         normals, good = normals_from_depth(depth, K)
         depth = np.where(good, depth, 0).astype(np.float32)
         write_colmap_array(dense / "stereo" / "depth_maps" / f"{a['name']}.geometric.bin", depth)
