@@ -36,6 +36,7 @@ use crate::brdf::{BasisBrdf, SliceGrid, SliceTable};
 use crate::envmap::OctEnv;
 use crate::haar;
 use crate::observe::Observations;
+use crate::rotation::{Rotation, RotationForm};
 use crate::sphere::{from_local, local_frame, to_local, SphereGrid};
 use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
@@ -118,6 +119,45 @@ pub trait LocalRotation: Sync {
     fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]);
     /// `global += R_nᵀ local`.
     fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]);
+    /// `global = R_nᵀ W_l local_texels` (overwrites `global`): the transpose applied to a
+    /// texel-domain vector. The default goes through the local Haar transform; a factored
+    /// rotation can skip it.
+    fn texel_transpose(&self, normal_env: &Vec3, local_texels: &mut [f64], global: &mut [f64]) {
+        haar::forward(local_texels, self.n_local());
+        global.fill(0.0);
+        self.apply_transpose_add(normal_env, local_texels, global);
+    }
+}
+
+/// The blended precomputed rotation of Eq. 6.
+impl LocalRotation for Rotation {
+    fn n_global(&self) -> usize {
+        self.n_global
+    }
+    fn n_local(&self) -> usize {
+        self.n_local
+    }
+    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]) {
+        self.apply_blend(normal_env, global, local);
+    }
+    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]) {
+        self.apply_blend_transpose_add(normal_env, local, global);
+    }
+    fn texel_transpose(&self, normal_env: &Vec3, local_texels: &mut [f64], global: &mut [f64]) {
+        match self.form() {
+            // W_lᵀ W_l = I: R_nᵀ W_l f = W_g S_nᵀ f.
+            RotationForm::Factored => {
+                global.fill(0.0);
+                self.resample_texels_blend_transpose_add(normal_env, local_texels, global);
+                haar::forward(global, self.n_global);
+            }
+            RotationForm::Sparse { .. } => {
+                haar::forward(local_texels, self.n_local);
+                global.fill(0.0);
+                self.apply_blend_transpose_add(normal_env, local_texels, global);
+            }
+        }
+    }
 }
 
 /// A reference rotation without normal blending: `R_n = W_l S_n W_gᵀ`, where `S_n` averages
@@ -281,14 +321,13 @@ impl Scratch {
     }
 }
 
-/// `g = R_nᵀ W_l (V ⊙ Δω ⊙ slice)` into `scratch.global` (dense).
+/// `g = R_nᵀ W_l (V ⊙ Δω ⊙ slice)` into `scratch.global` (dense; `scratch.local` is
+/// clobbered).
 fn dense_row<R: LocalRotation>(ctx: &VertexContext, rot: &R, scratch: &mut Scratch) {
     for ((l, s), vw) in scratch.local.iter_mut().zip(&scratch.slice).zip(&ctx.v_dw) {
         *l = s * vw;
     }
-    haar::forward(&mut scratch.local, rot.n_local());
-    scratch.global.fill(0.0);
-    rot.apply_transpose_add(&ctx.normal, &scratch.local, &mut scratch.global);
+    rot.texel_transpose(&ctx.normal, &mut scratch.local, &mut scratch.global);
 }
 
 type Row = (Vec<u32>, Vec<f32>);

@@ -1,0 +1,138 @@
+//! The transport built with the blended precomputed rotation (Eq. 6) instead of the exact
+//! per-normal one: white furnace, and agreement with the exact rotation on a smooth light.
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use relight_cpc::brdf::BasisBrdf;
+use relight_cpc::envmap::OctEnv;
+use relight_cpc::rotation::{Rotation, RotationForm};
+use relight_cpc::sphere::SphereGrid;
+use relight_cpc::transport::{build_rows, light_haar, ExactRotation, TransportOptions};
+use relight_cpc::visibility::Visibility;
+use relight_cpc::Vec3;
+
+const NG: usize = 32;
+const NL: usize = 16;
+
+fn random_unit(rng: &mut Pcg64) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        if v.norm() > 0.2 && v.norm() <= 1.0 {
+            return v.normalize();
+        }
+    }
+}
+
+/// Build with both rotations for random normals accepted by `keep_normal`; returns the
+/// worst relative difference of the glossy and Lambert responses under a smooth light.
+fn compare(seed: u64, keep_normal: impl Fn(&Vec3) -> bool) -> f64 {
+    let opts = TransportOptions {
+        n_global: NG,
+        n_local: NL,
+        keep: 0,
+    };
+    let blended = Rotation::new(NG, NL, 16, RotationForm::Factored);
+    let exact = ExactRotation::new(NG, NL, 4);
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let nv = 6;
+    let normals: Vec<Vec3> = (0..nv)
+        .map(|_| loop {
+            let n = random_unit(&mut rng);
+            if keep_normal(&n) {
+                break n;
+            }
+        })
+        .collect();
+    let dirs: Vec<Vec3> = normals
+        .iter()
+        .map(|n| loop {
+            let d = random_unit(&mut rng);
+            if d.dot(n) > 0.4 {
+                break d;
+            }
+        })
+        .collect();
+    let obs_vertex: Vec<u32> = (0..nv as u32).collect();
+    let vis = Visibility {
+        n_local: NL,
+        rays_per_texel: 1,
+        frac: vec![255; nv * NL * NL],
+        open: vec![true; nv],
+        degenerate: 0,
+        rays_traced: 0,
+    };
+    let basis = [BasisBrdf::Lambert, BasisBrdf::Ggx { alpha: 0.3 }];
+    let tb = build_rows(&normals, &obs_vertex, &dirs, &vis, &basis, &blended, &opts).unwrap();
+    let te = build_rows(&normals, &obs_vertex, &dirs, &vis, &basis, &exact, &opts).unwrap();
+
+    // White furnace: the balanced resampling keeps a constant sky constant up to its
+    // measured row error (rotation tests), and the Lambert slice integrates to 1 (< 1e-3):
+    // allow 1%.
+    let one = light_haar(&OctEnv {
+        n: NG,
+        rgb: vec![[1.0; 3]; NG * NG],
+    });
+    for p in 0..nv {
+        let s = tb.response(p, 0, &one[0]);
+        assert!((s - 1.0).abs() < 1e-2, "obs {p}: {s}");
+    }
+
+    let lobes: Vec<(Vec3, f64)> = (0..2).map(|_| (random_unit(&mut rng), 1.5)).collect();
+    let grid = SphereGrid::full(NG);
+    let rgb = (0..grid.len())
+        .map(|t| {
+            let (num, den) = grid.sample_points(t, 4).fold((0.0, 0.0), |(a, b), (d, w)| {
+                let l: f64 = 0.3
+                    + lobes
+                        .iter()
+                        .map(|(c, a)| a * (3.0 * (c.dot(&d) - 1.0)).exp())
+                        .sum::<f64>();
+                (a + w * l, b + w)
+            });
+            [(num / den) as f32; 3]
+        })
+        .collect();
+    let light = light_haar(&OctEnv { n: NG, rgb });
+    let mut worst: f64 = 0.0;
+    for p in 0..nv {
+        for b in 0..basis.len() {
+            let sb = tb.response(p, b, &light[0]);
+            let se = te.response(p, b, &light[0]);
+            worst = worst.max((sb - se).abs() / se);
+            eprintln!(
+                "n {:?} b {b} rel {:.4}",
+                normals[p].as_slice(),
+                (sb - se) / se
+            );
+        }
+    }
+    worst
+}
+
+#[test]
+fn blended_rotation_agrees_with_exact_rotation_away_from_the_equator() {
+    // A smooth light (constant + two broad lobes e^{k(c·ω−1)}, k = 3): blending the
+    // rotations of the four nearest of 16² grid normals (spacing ≈ 11°) instead of the
+    // exact frame tilts the light by up to ~half a spacing (0.1 rad); with k = 3 that
+    // changes a response by up to ~k · 0.1 · (lobe share) ≈ a few percent. Measured ≤ 2.1%
+    // for |n_z| > 0.2 (env frame); allow 5%.
+    let worst = compare(77, |n| n.z.abs() > 0.2);
+    assert!(worst < 0.05, "worst relative difference {worst}");
+}
+
+/// KNOWN DEFECT (reported to the lead): `sphere::local_frame` (Duff et al.) flips its
+/// tangent axes by 180° across `n_z = 0`, so near the equator of the environment frame
+/// (vertical surfaces) the four blended `R_ν` live in frames rotated by 180° about the
+/// normal from each other and from the vertex's frame. Lambert survives (its slice is
+/// azimuthally symmetric), glossy lobes do not: measured 72% error at `n_z = −0.05`.
+/// Un-ignore once the frame field is continuous across the equator.
+#[test]
+#[ignore = "local_frame is discontinuous at n_z = 0; see the doc comment"]
+fn blended_rotation_agrees_with_exact_rotation_near_the_equator() {
+    let worst = compare(78, |n| n.z.abs() < 0.1);
+    assert!(worst < 0.05, "worst relative difference {worst}");
+}
