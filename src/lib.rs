@@ -53,6 +53,7 @@ pub mod qp;
 // The tool.
 pub mod report;
 pub mod stages;
+pub mod budget;
 pub mod run;
 
 pub use error::{Error, Result};

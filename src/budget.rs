@@ -1,0 +1,369 @@
+//! Up-front memory estimate of a run, checked before anything large is allocated.
+//!
+//! The large arrays of the method and their sizes (bytes), from the data structures that
+//! hold them:
+//!
+//! - observations `P` (one per vertex × photo that sees it, [`crate::observe::Observations`]):
+//!   vertex and photo ids, RGB, weight, direction — `36 P`;
+//! - visibility `V_x` (Sec. 4.2, one byte per local texel, [`crate::visibility::Visibility`]):
+//!   `V · n_local²`;
+//! - precomputed rotations `R_ν` (Eq. 6, [`crate::rotation::Rotation`], factored form): one
+//!   sparse row per local texel and grid normal, `n_normals² · n_local² · (8 + 6 e)` where a
+//!   row touches `e ≈ (n_global / (√2 n_local) + 2)²` global texels (a local texel covers
+//!   `n_global² / (2 n_local²)` global ones, plus the bilinear border; 11.7 at the defaults,
+//!   measured 11.3);
+//! - transport rows `T_x ρ_b` (Eq. 7–8, [`crate::transport::Transport`]): `P · B` rows of `keep`
+//!   (index `u32`, value `f32`) entries plus an offset — `P · B · (8 keep + 8)`;
+//! - the lighting solver (Eq. 10): per photo three channels of `n_global²` Haar coefficients
+//!   in `f64`, and about [`SOLVER_VECTORS`] such vectors of GPCG / IRLS workspace —
+//!   `photos · 3 · n_global² · 8 · SOLVER_VECTORS`.
+//!
+//! [`Budget::check`] compares the total with the available memory (a fraction
+//! [`USABLE_FRACTION`] of `MemAvailable`, leaving room for the allocator and smaller
+//! arrays) and, when it does not fit, returns [`Error::Memory`] naming the largest item and
+//! one option change (`--keep`, `--local-resolution`, `--global-resolution`,
+//! `--normal-grid`, or decimating the mesh) that would make the whole run fit.
+
+use crate::{Error, Result};
+
+/// Workspace vectors (of `3 · n_global²` f64 per photo) the lighting solver keeps: the
+/// solution, gradient, projected gradient, search direction, `Aᵀ D y`, Laplacian product,
+/// previous iterate and IRLS weights-related copy.
+pub const SOLVER_VECTORS: u64 = 8;
+
+/// Fraction of `MemAvailable` a run may plan to use.
+pub const USABLE_FRACTION: f64 = 0.8;
+
+/// Bytes per observation (`u32` vertex, `u32` photo, `[f32; 3]` rgb, `f32` weight,
+/// `[f32; 3]` direction).
+pub const OBSERVATION_BYTES: u64 = 36;
+
+/// The sizes that decide a run's memory.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sizes {
+    /// Mesh vertices `V`.
+    pub vertices: u64,
+    /// Photos used for fitting.
+    pub photos: u64,
+    /// Observations `P` (an upper bound before extraction: [`Sizes::observations_upper_bound`]).
+    pub observations: u64,
+    /// Basis BRDFs `B`.
+    pub basis: u64,
+    /// Global map side `n_global` (`--global-resolution`).
+    pub global_resolution: u64,
+    /// Local map side `n_local` (`--local-resolution`).
+    pub local_resolution: u64,
+    /// Normal-grid side of the rotation tables (`--normal-grid`).
+    pub normal_grid: u64,
+    /// Kept coefficients per transport row (`--keep`; 0 keeps all `n_global²`).
+    pub keep: u64,
+}
+
+impl Sizes {
+    /// At most every vertex in every photo, and at most one observation per pixel.
+    pub fn observations_upper_bound(vertices: u64, photos: u64, total_pixels: u64) -> u64 {
+        vertices.saturating_mul(photos).min(total_pixels)
+    }
+
+    fn kept(&self) -> u64 {
+        let full = self
+            .global_resolution
+            .saturating_mul(self.global_resolution);
+        if self.keep == 0 {
+            full
+        } else {
+            self.keep.min(full)
+        }
+    }
+}
+
+/// One line of the estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Item {
+    /// What is stored.
+    pub name: &'static str,
+    /// Estimated bytes.
+    pub bytes: u64,
+}
+
+/// The estimate: one [`Item`] per large array.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Budget {
+    /// The sizes it was computed from.
+    pub sizes: Sizes,
+    /// The items, in pipeline order.
+    pub items: Vec<Item>,
+}
+
+fn mul(xs: &[u64]) -> u64 {
+    xs.iter().fold(1u64, |a, &x| a.saturating_mul(x))
+}
+
+/// Global texels touched by one row of `S_ν` (module docs).
+fn rotation_row_entries(n_global: u64, n_local: u64) -> f64 {
+    let r = n_global as f64 / (std::f64::consts::SQRT_2 * n_local.max(1) as f64) + 2.0;
+    r * r
+}
+
+/// The memory estimate for `s` (saturating: absurd sizes give `u64::MAX`, never overflow).
+pub fn estimate(s: &Sizes) -> Budget {
+    let nl2 = mul(&[s.local_resolution, s.local_resolution]);
+    let ng2 = mul(&[s.global_resolution, s.global_resolution]);
+    let rot_row = 8.0 + 6.0 * rotation_row_entries(s.global_resolution, s.local_resolution);
+    let rot_rows = mul(&[s.normal_grid, s.normal_grid, nl2]) as f64;
+    let rotation = (rot_rows * rot_row).min(u64::MAX as f64) as u64;
+    let items = vec![
+        Item {
+            name: "observations",
+            bytes: mul(&[s.observations, OBSERVATION_BYTES]),
+        },
+        Item {
+            name: "visibility",
+            bytes: mul(&[s.vertices, nl2]),
+        },
+        Item {
+            name: "rotation tables",
+            bytes: rotation,
+        },
+        Item {
+            name: "transport rows",
+            bytes: mul(&[
+                s.observations,
+                s.basis,
+                s.kept().saturating_mul(8).saturating_add(8),
+            ]),
+        },
+        Item {
+            name: "lighting solver",
+            bytes: mul(&[s.photos, 3, ng2, 8, SOLVER_VECTORS]),
+        },
+    ];
+    Budget { sizes: *s, items }
+}
+
+impl Budget {
+    /// Sum of the items (saturating).
+    pub fn total(&self) -> u64 {
+        self.items
+            .iter()
+            .fold(0u64, |a, i| a.saturating_add(i.bytes))
+    }
+
+    /// The largest item.
+    pub fn largest(&self) -> &Item {
+        self.items
+            .iter()
+            .max_by_key(|i| i.bytes)
+            .unwrap_or(&self.items[0])
+    }
+
+    /// `Ok` when the total fits in `available_bytes`; otherwise [`Error::Memory`] naming the
+    /// largest item and one option change that would make the run fit.
+    pub fn check(&self, available_bytes: u64) -> Result<()> {
+        let total = self.total();
+        if total <= available_bytes {
+            return Ok(());
+        }
+        let largest = self.largest();
+        Err(Error::Memory {
+            what: format!(
+                "the run ({} of {} in total; {})",
+                largest.name,
+                mib(largest.bytes),
+                self.items
+                    .iter()
+                    .map(|i| format!("{} {}", i.name, mib(i.bytes)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            needed_bytes: total,
+            available_bytes,
+            hint: suggest(&self.sizes, available_bytes),
+        })
+    }
+}
+
+fn mib(b: u64) -> String {
+    format!("{:.0} MiB", b as f64 / (1024.0 * 1024.0))
+}
+
+/// The mildest single option change that makes the run fit, or the vertex count to
+/// decimate the mesh to.
+fn suggest(s: &Sizes, available: u64) -> String {
+    let fits = |t: &Sizes| estimate(t).total() <= available;
+    // Halve one option at a time, never below the CLI's minimum; report the largest value
+    // that fits, per option, and pick the option whose change is the smallest factor.
+    let mut best: Option<(u64, String)> = None;
+    let mut consider = |factor: u64, text: String| {
+        if best.as_ref().is_none_or(|(f, _)| factor < *f) {
+            best = Some((factor, text));
+        }
+    };
+    // --keep: any positive integer; largest that fits, by bisection.
+    let kept = s.kept();
+    if kept > 1 {
+        let (mut lo, mut hi) = (0u64, kept);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if fits(&Sizes { keep: mid, ..*s }) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        if lo >= 1 && fits(&Sizes { keep: lo, ..*s }) {
+            consider(kept.div_ceil(lo), format!("--keep {lo} would fit"));
+        }
+    }
+    let pow2 =
+        |name: &str, v: u64, min: u64, set: &dyn Fn(u64) -> Sizes| -> Option<(u64, String)> {
+            let mut x = v / 2;
+            while x >= min {
+                if fits(&set(x)) {
+                    return Some((v / x, format!("--{name} {x} would fit")));
+                }
+                x /= 2;
+            }
+            None
+        };
+    for (factor, text) in [
+        pow2("local-resolution", s.local_resolution, 4, &|x| Sizes {
+            local_resolution: x,
+            ..*s
+        }),
+        pow2("normal-grid", s.normal_grid, 4, &|x| Sizes {
+            normal_grid: x,
+            ..*s
+        }),
+        pow2("global-resolution", s.global_resolution, 4, &|x| Sizes {
+            global_resolution: x,
+            ..*s
+        }),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        consider(factor, text);
+    }
+    if let Some((_, text)) = best {
+        return text;
+    }
+    // Decimate: observations scale with vertices.
+    if s.vertices > 1 {
+        let (mut lo, mut hi) = (0u64, s.vertices);
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            let t = Sizes {
+                vertices: mid,
+                observations: ((s.observations as u128 * mid as u128) / s.vertices as u128) as u64,
+                ..*s
+            };
+            if fits(&t) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        if lo >= 1 {
+            return format!(
+                "no single option fits; decimate the mesh (--mesh) to about {lo} vertices"
+            );
+        }
+    }
+    "no option change fits; use fewer photos or a machine with more memory".into()
+}
+
+/// [`estimate`] checked against [`crate::stages::available_memory_bytes`] (× [`USABLE_FRACTION`]);
+/// when the available memory is unknown the check passes.
+pub fn check(s: &Sizes) -> Result<Budget> {
+    let budget = estimate(s);
+    if let Some(avail) = crate::stages::available_memory_bytes() {
+        budget.check((avail as f64 * USABLE_FRACTION) as u64)?;
+    }
+    Ok(budget)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn defaults(vertices: u64, photos: u64) -> Sizes {
+        Sizes {
+            vertices,
+            photos,
+            observations: vertices * photos,
+            basis: 3,
+            global_resolution: 64,
+            local_resolution: 32,
+            normal_grid: 32,
+            keep: 128,
+        }
+    }
+
+    #[test]
+    fn items_match_hand_counts() {
+        // Independent hand count from the module's formulas: 1000 vertices × 4 photos.
+        let b = estimate(&defaults(1000, 4));
+        let get = |n: &str| b.items.iter().find(|i| i.name == n).unwrap().bytes;
+        assert_eq!(get("observations"), 4000 * 36);
+        assert_eq!(get("visibility"), 1000 * 1024);
+        assert_eq!(get("transport rows"), 4000 * 3 * (128 * 8 + 8));
+        assert_eq!(get("lighting solver"), 4 * 3 * 4096 * 8 * 8);
+        // Rotation: the commit log measured 72 MiB at 64/32/32 (rotation.rs, c8979c3);
+        // the estimate must be within 10 % of that.
+        let rot = get("rotation tables") as f64 / (1024.0 * 1024.0);
+        assert!((rot - 72.0).abs() < 7.2, "rotation {rot} MiB");
+    }
+
+    #[test]
+    fn million_vertices_refused_with_option() {
+        // 1.2 M vertices, 4 photos: transport 4.8 M × 3 × 1032 B ≈ 14 GiB, visibility 1.2 GiB.
+        let s = defaults(1_200_000, 4);
+        let b = estimate(&s);
+        let avail = 8u64 << 30;
+        let err = b.check(avail).unwrap_err();
+        let text = err.to_string();
+        assert!(matches!(err, Error::Memory { .. }));
+        assert!(text.contains("transport rows"), "{text}");
+        assert!(text.contains("--keep"), "{text}");
+        // The suggestion is honest: the suggested keep fits, keep+1 does not.
+        let k: u64 = text
+            .split("--keep ")
+            .nth(1)
+            .and_then(|t| t.split_whitespace().next())
+            .and_then(|t| t.parse().ok())
+            .unwrap();
+        assert!(estimate(&Sizes { keep: k, ..s }).total() <= avail);
+        assert!(estimate(&Sizes { keep: k + 1, ..s }).total() > avail);
+    }
+
+    #[test]
+    fn decimation_when_no_option_fits() {
+        // 50 M vertices: visibility alone at n_local = 4 is 800 MB > 512 MiB.
+        let s = defaults(50_000_000, 2);
+        let err = estimate(&s).check(512 << 20).unwrap_err().to_string();
+        assert!(err.contains("decimate the mesh"), "{err}");
+    }
+
+    #[test]
+    fn small_run_fits_and_absurd_sizes_saturate() {
+        assert!(estimate(&defaults(2500, 4)).check(1 << 30).is_ok());
+        let huge = Sizes {
+            vertices: u64::MAX,
+            observations: u64::MAX,
+            ..defaults(1, 1)
+        };
+        let b = estimate(&huge);
+        assert_eq!(b.total(), u64::MAX);
+        assert!(b.check(u64::MAX - 1).is_err());
+    }
+
+    #[test]
+    fn observation_bound() {
+        assert_eq!(Sizes::observations_upper_bound(10, 3, 1000), 30);
+        assert_eq!(
+            Sizes::observations_upper_bound(1_000_000, 3, 64 * 64 * 3),
+            12288
+        );
+    }
+}
