@@ -127,6 +127,21 @@ pub trait LocalRotation: Sync {
         global.fill(0.0);
         self.apply_transpose_add(normal_env, local_texels, global);
     }
+    /// `local_texels = W_lᵀ R_n W_g global_texels`: the light's local texel averages, given
+    /// the global light both as texels and as Haar coefficients (`global_haar = W_g
+    /// global_texels`). The default goes through Haar; a factored rotation resamples
+    /// texels directly.
+    fn light_texels(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[f64],
+        global_haar: &[f64],
+        local_texels: &mut [f64],
+    ) {
+        let _ = global_texels;
+        self.apply(normal_env, global_haar, local_texels);
+        haar::inverse(local_texels, self.n_local());
+    }
 }
 
 /// The blended precomputed rotation of Eq. 6.
@@ -155,6 +170,23 @@ impl LocalRotation for Rotation {
                 haar::forward(local_texels, self.n_local);
                 global.fill(0.0);
                 self.apply_blend_transpose_add(normal_env, local_texels, global);
+            }
+        }
+    }
+    fn light_texels(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[f64],
+        global_haar: &[f64],
+        local_texels: &mut [f64],
+    ) {
+        match self.form() {
+            RotationForm::Factored => {
+                self.resample_texels_blend(normal_env, global_texels, local_texels)
+            }
+            RotationForm::Sparse { .. } => {
+                self.apply_blend(normal_env, global_haar, local_texels);
+                haar::inverse(local_texels, self.n_local);
             }
         }
     }
@@ -547,6 +579,7 @@ pub struct WaveletRenderer<'a, R: LocalRotation> {
     rot: &'a R,
     basis: &'a [BasisBrdf],
     light: [Vec<f64>; 3],
+    light_texels: [Vec<f64>; 3],
     grid: std::sync::Arc<SliceGrid>,
 }
 
@@ -564,6 +597,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
             rot,
             basis,
             light: light_haar(env),
+            light_texels: [0, 1, 2].map(|c| env.channel(c)),
             grid: SliceGrid::shared(rot.n_local())?,
         })
     }
@@ -589,8 +623,8 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         let nl = self.rot.n_local();
         let mut local = [0, 1, 2].map(|_| vec![0.0; nl * nl]);
         for (c, l) in local.iter_mut().enumerate() {
-            self.rot.apply(&ctx.normal, &self.light[c], l);
-            haar::inverse(l, nl);
+            self.rot
+                .light_texels(&ctx.normal, &self.light_texels[c], &self.light[c], l);
         }
         let mut slice = vec![0.0; nl * nl];
         let mut out = [0.0; 3];

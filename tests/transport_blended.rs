@@ -136,3 +136,57 @@ fn blended_rotation_agrees_with_exact_rotation_near_the_equator() {
     let worst = compare(78, |n| n.z.abs() < 0.1);
     assert!(worst < 0.05, "worst relative difference {worst}");
 }
+
+#[test]
+fn blended_renderer_matches_blended_transport() {
+    // The renderer resamples the light forward (S_n L); the transport applies the adjoint
+    // (W_g S_nᵀ f). Both describe one number per (vertex, view, basis): f32 row storage
+    // limits agreement to ~1e-6 relative; allow 1e-4. Both storage forms.
+    use relight_cpc::transport::WaveletRenderer;
+    let mut rng = Pcg64::seed_from_u64(31);
+    let normals: Vec<Vec3> = (0..3).map(|_| random_unit(&mut rng)).collect();
+    let dirs: Vec<Vec3> = normals
+        .iter()
+        .map(|n| (n + random_unit(&mut rng) * 0.5).normalize())
+        .collect();
+    let vis = Visibility {
+        n_local: NL,
+        rays_per_texel: 1,
+        frac: (0..3 * NL * NL).map(|t| (t * 53 % 256) as u8).collect(),
+        open: vec![false; 3],
+        degenerate: 0,
+        rays_traced: 0,
+    };
+    let basis = [BasisBrdf::Lambert, BasisBrdf::Phong { exponent: 40.0 }];
+    let beta = [[0.5, 0.2, 0.1], [0.1, 0.3, 0.6]];
+    let rgb: Vec<[f32; 3]> = (0..NG * NG)
+        .map(|t| [(t % 7) as f32, (t % 5) as f32 * 0.3, 1.0])
+        .collect();
+    let env = OctEnv { n: NG, rgb };
+    let light = light_haar(&env);
+    let opts = TransportOptions {
+        n_global: NG,
+        n_local: NL,
+        keep: 0,
+    };
+    for form in [
+        RotationForm::Factored,
+        RotationForm::Sparse { threshold: 0.0 },
+    ] {
+        let rot = Rotation::new(NG, NL, 8, form);
+        let t = build_rows(&normals, &[0, 1, 2], &dirs, &vis, &basis, &rot, &opts).unwrap();
+        let r = WaveletRenderer::new(&rot, &basis, &env).unwrap();
+        for p in 0..3 {
+            let rad = r.vertex_radiance(&normals[p], vis.vertex(p), &dirs[p], &beta);
+            for c in 0..3 {
+                let via: f64 = (0..2)
+                    .map(|b| beta[b][c] * t.response(p, b, &light[c]))
+                    .sum();
+                assert!(
+                    (rad[c] - via).abs() < 1e-4 * via.abs(),
+                    "{form:?} {rad:?} {via}"
+                );
+            }
+        }
+    }
+}
