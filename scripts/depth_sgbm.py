@@ -350,7 +350,7 @@ def main():
     ap.add_argument("--block-size", type=int, default=5)
     ap.add_argument("--depth-tol", type=float, default=0.02)
     ap.add_argument("--min-consistent", type=int, default=2)
-    ap.add_argument("--min-texture", type=float, default=2.0,
+    ap.add_argument("--min-texture", type=float, default=1.0,
                     help="grey-level standard deviation (7x7) below which no depth is kept")
     args = ap.parse_args()
     cv2.setNumThreads(2)
