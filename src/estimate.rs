@@ -28,7 +28,8 @@
 //!
 //! Scale: `F` is invariant under `x → s x`, `λ → λ / s` (and `w_k → t w_k`, `λ_k → λ_k / t`)
 //! up to the tiny regularisers. After the alternation the result is normalised once:
-//! every material's largest blending weight is 1, then the mean Lambertian weight
+//! every material's median blending weight over the vertices where it is the largest is 1,
+//! then the mean Lambertian weight
 //! (basis `lambert_basis`) over materials and channels equals that of the start (the initial
 //! materials' median colours), the maps taking the inverse scale. The exact rule is in
 //! [`Estimate::normalisation`]. With `fixed_materials` (Sec. 6.1) nothing is rescaled.
@@ -1167,14 +1168,28 @@ pub fn estimate(
     let normalisation = if opts.fixed_materials {
         "none: the reflectance is given, so the lights carry the absolute scale".to_string()
     } else {
+        // Per material: the median weight over the vertices where it dominates becomes 1
+        // (pure-material vertices get weight ≈ 1; robust to blends and stray large weights).
         for k in 0..kk {
-            let wmax = (0..nv).map(|x| weights[x * kk + k]).fold(0.0, f64::max);
-            if wmax > 0.0 {
+            let mut dom: Vec<f64> = (0..nv)
+                .filter(|&x| {
+                    let row = &weights[x * kk..(x + 1) * kk];
+                    row[k] > 0.0 && row.iter().all(|&v| v <= row[k])
+                })
+                .map(|x| weights[x * kk + k])
+                .collect();
+            if dom.is_empty() {
+                continue;
+            }
+            let mid = dom.len() / 2;
+            let (_, med, _) = dom.select_nth_unstable_by(mid, f64::total_cmp);
+            let scale = *med;
+            if scale > 0.0 {
                 for x in 0..nv {
-                    weights[x * kk + k] /= wmax;
+                    weights[x * kk + k] /= scale;
                 }
                 for v in lambda[k].iter_mut().flatten() {
-                    *v *= wmax;
+                    *v *= scale;
                 }
             }
         }
@@ -1214,7 +1229,7 @@ pub fn estimate(
             }
         }
         format!(
-            "every material's largest blending weight is 1; then {what} equals its initial value {target:.6e}; maps scaled inversely"
+            "every material's median blending weight over the vertices it dominates is 1; then {what} equals its initial value {target:.6e}; maps scaled inversely"
         )
     };
     Ok(Estimate {
