@@ -479,6 +479,18 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         .collect();
     let nv = scene.mesh.positions.len();
 
+    // Memory, checked with the real observation count before anything large (visibility,
+    // rotations, transport, solver) is allocated.
+    let sizes = |observations: u64| crate::budget::Sizes {
+        vertices: nv as u64,
+        photos: train.len() as u64,
+        observations,
+        basis: opts.basis.len() as u64,
+        global_resolution: opts.global_resolution as u64,
+        local_resolution: opts.local_resolution as u64,
+        normal_grid: opts.normal_grid as u64,
+        keep: opts.keep as u64,
+    };
     // 2. Observations of the training photos (held-out ones are extracted by the evaluation).
     progress.stage("observations");
     let (bvh, obs) = stages.run("observations", || {
@@ -488,6 +500,12 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         let obs = observe::extract(&scene.mesh, &bvh, &views, &ph, &ObserveOptions::default());
         (bvh, obs)
     });
+    let budget = crate::budget::check(&sizes(obs.len() as u64))?;
+    notes.push(format!(
+        "memory plan: {:.0} MiB for the large arrays (largest: {})",
+        budget.total() as f64 / (1u64 << 20) as f64,
+        budget.largest().name
+    ));
     let useful = obs.weight.iter().filter(|&&w| w > 0.0).count();
     if useful == 0 {
         return Err(Error::Numeric {
