@@ -19,8 +19,14 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use nalgebra::Matrix3;
+
+use crate::brdf::BasisBrdf;
 use crate::colmap::{Camera, Image};
+use crate::envmap::OctEnv;
 use crate::mesh::Mesh;
+use crate::transport::{LocalRotation, WaveletRenderer};
+use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 
 /// The visible surface per pixel of one camera.
@@ -335,4 +341,62 @@ pub fn view_directions(mesh: &Mesh, image: &Image) -> Vec<Vec3> {
             }
         })
         .collect()
+}
+
+/// The wavelet renderer's image of one view (the hook for comparing with the independent
+/// reference renderer): per-vertex radiance [`WaveletRenderer::vertex_radiance`] toward the
+/// camera centre, for vertices of visible faces only, interpolated across the triangles.
+/// `beta` holds `B` RGB weights per vertex (vertex-major), `normals_env` the unit vertex
+/// normals in the environment frame. Returns the raster (for the mask) and linear RGB.
+#[allow(clippy::too_many_arguments)]
+pub fn render_wavelet<R: LocalRotation>(
+    mesh: &Mesh,
+    normals_env: &[Vec3],
+    vis: &Visibility,
+    env_from_world: &Matrix3<f64>,
+    basis: &[BasisBrdf],
+    beta: &[[f64; 3]],
+    env: &OctEnv,
+    rot: &R,
+    camera: &Camera,
+    image: &Image,
+) -> Result<(Raster, Vec<[f32; 3]>)> {
+    let nv = mesh.positions.len();
+    let nb = basis.len();
+    if normals_env.len() != nv || beta.len() != nv * nb || vis.open.len() != nv {
+        return Err(Error::Config(format!(
+            "render: {nv} vertices but {} normals, {} visibility rows and {} β entries \
+             ({nb} per vertex expected)",
+            normals_env.len(),
+            vis.open.len(),
+            beta.len()
+        )));
+    }
+    let renderer = WaveletRenderer::new(rot, basis, env)?;
+    let raster = rasterize(mesh, camera, image);
+    let mut needed = vec![false; nv];
+    for &f in raster.face.iter().filter(|&&f| f != u32::MAX) {
+        for &k in &mesh.faces[f as usize] {
+            needed[k as usize] = true;
+        }
+    }
+    let dirs = view_directions(mesh, image);
+    let radiance: Vec<[f32; 3]> = (0..nv)
+        .into_par_iter()
+        .map(|x| {
+            if !needed[x] {
+                return [0.0; 3];
+            }
+            let wo = env_from_world * dirs[x];
+            let r = renderer.vertex_radiance(
+                &normals_env[x],
+                vis.vertex(x),
+                &wo,
+                &beta[x * nb..(x + 1) * nb],
+            );
+            [r[0] as f32, r[1] as f32, r[2] as f32]
+        })
+        .collect();
+    let rgb = shade_vertices(&raster, mesh, &radiance);
+    Ok((raster, rgb))
 }

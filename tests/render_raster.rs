@@ -194,3 +194,72 @@ fn png_and_exr_round_trip() {
     assert!(e.to_string().contains("a.png"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
+    // Convex octahedron (every vertex open), Lambert with RGB albedo a, constant light L:
+    // every object pixel must be a·L (DESIGN issue 4 furnace). Error sources: the Lambert
+    // slice quadrature at 8² (≈ 6e-4) and the balanced rotation's row error for a constant
+    // sky (rotation tests); allow 1%.
+    use relight_cpc::brdf::BasisBrdf;
+    use relight_cpc::envmap::OctEnv;
+    use relight_cpc::render::render_wavelet;
+    use relight_cpc::rotation::{Rotation, RotationForm};
+    use relight_cpc::trace::SceneBvh;
+    use relight_cpc::visibility;
+    let pts = vec![
+        Vec3::new(1.0, 0.0, 5.0),
+        Vec3::new(-1.0, 0.0, 5.0),
+        Vec3::new(0.0, 1.0, 5.0),
+        Vec3::new(0.0, -1.0, 5.0),
+        Vec3::new(0.0, 0.0, 6.0),
+        Vec3::new(0.0, 0.0, 4.0),
+    ];
+    let faces = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    let (mesh, _) = Mesh::from_parts(pts, faces);
+    let m = nalgebra::Matrix3::identity();
+    let vis = visibility::compute(&mesh, &SceneBvh::new(&mesh), &m, 8, 1, 0);
+    assert_eq!(vis.open_count(), 6);
+    let rot = Rotation::new(16, 8, 8, RotationForm::Factored);
+    let env = OctEnv {
+        n: 16,
+        rgb: vec![[2.0, 1.0, 0.5]; 256],
+    };
+    let a = [0.5, 0.25, 0.8];
+    let beta = vec![a; 6];
+    let (r, rgb) = render_wavelet(
+        &mesh,
+        &mesh.normals,
+        &vis,
+        &m,
+        &[BasisBrdf::Lambert],
+        &beta,
+        &env,
+        &rot,
+        &camera(),
+        &image_identity(),
+    )
+    .unwrap();
+    assert!(r.covered() > 200);
+    let want = [2.0 * 0.5, 0.25, 0.4];
+    for (k, &f) in r.face.iter().enumerate() {
+        if f != u32::MAX {
+            for c in 0..3 {
+                assert!(
+                    (rgb[k][c] as f64 - want[c]).abs() < 1e-2 * want[c],
+                    "{:?}",
+                    rgb[k]
+                );
+            }
+        }
+    }
+}
