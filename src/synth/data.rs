@@ -22,7 +22,7 @@ fn row_solid_angle(width: usize, height: usize, v: usize) -> f64 {
 
 /// Area-weighted downsampling by an integer `factor` (which must divide the height).
 pub fn downsample(map: &LatLong, factor: usize) -> Result<LatLong> {
-    if factor == 0 || map.height % factor != 0 || map.width != 2 * map.height {
+    if factor == 0 || !map.height.is_multiple_of(factor) || map.width != 2 * map.height {
         return Err(Error::Config(format!(
             "cannot downsample a {}×{} lat-long map by {factor}",
             map.width, map.height
@@ -59,33 +59,64 @@ pub fn downsample(map: &LatLong, factor: usize) -> Result<LatLong> {
 
 /// Writes a lat-long map as half-float RGB EXR with ZIP compression (compact fixtures).
 pub fn write_half_exr(map: &LatLong, path: &Path) -> Result<()> {
+    write_exr(map, path, true)
+}
+
+/// Writes a lat-long map as RGB EXR (f32, or f16 when `half`), ZIP-compressed, scan lines
+/// in increasing order and written sequentially, so the same map gives the same bytes.
+pub fn write_exr(map: &LatLong, path: &Path, half: bool) -> Result<()> {
     use crate::Error;
     use exr::prelude::*;
     let w = map.width;
-    let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
-        let p = map.rgb[pos.y() * w + pos.x()];
-        (
-            f16::from_f32(p[0]),
-            f16::from_f32(p[1]),
-            f16::from_f32(p[2]),
-        )
-    });
-    let layer = Layer::new(
-        (map.width, map.height),
-        LayerAttributes::named("rgb"),
-        Encoding::SMALL_LOSSLESS,
-        channels,
-    );
-    Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|e| match e {
-            exr::error::Error::Io(e) => Error::io(path, e),
-            other => Error::Image {
-                path: path.to_path_buf(),
-                message: other.to_string(),
-            },
-        })
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let to_err = |e: exr::error::Error| match e {
+        exr::error::Error::Io(e) => Error::io(path, e),
+        other => Error::Image {
+            path: path.to_path_buf(),
+            message: other.to_string(),
+        },
+    };
+    if half {
+        let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+            let p = map.rgb[pos.y() * w + pos.x()];
+            (
+                f16::from_f32(p[0]),
+                f16::from_f32(p[1]),
+                f16::from_f32(p[2]),
+            )
+        });
+        let layer = Layer::new(
+            (map.width, map.height),
+            LayerAttributes::named("rgb"),
+            encoding,
+            channels,
+        );
+        Image::from_layer(layer)
+            .write()
+            .non_parallel()
+            .to_file(path)
+            .map_err(to_err)
+    } else {
+        let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+            let p = map.rgb[pos.y() * w + pos.x()];
+            (p[0], p[1], p[2])
+        });
+        let layer = Layer::new(
+            (map.width, map.height),
+            LayerAttributes::named("rgb"),
+            encoding,
+            channels,
+        );
+        Image::from_layer(layer)
+            .write()
+            .non_parallel()
+            .to_file(path)
+            .map_err(to_err)
+    }
 }
 
 /// Decodes an in-memory lat-long EXR (`name` labels errors).

@@ -153,6 +153,30 @@ pub fn append(
     );
 }
 
+/// One step of flat midpoint subdivision (each triangle into four, shared edge midpoints;
+/// the surface does not change).
+pub fn subdivide(positions: &[Vec3], faces: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut pos = positions.to_vec();
+    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut out = Vec::with_capacity(faces.len() * 4);
+    let mut midpoint = |a: u32, b: u32, pos: &mut Vec<Vec3>| -> u32 {
+        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            pos.push((pos[a as usize] + pos[b as usize]) * 0.5);
+            (pos.len() - 1) as u32
+        })
+    };
+    for f in faces {
+        let ab = midpoint(f[0], f[1], &mut pos);
+        let bc = midpoint(f[1], f[2], &mut pos);
+        let ca = midpoint(f[2], f[0], &mut pos);
+        out.push([f[0], ab, ca]);
+        out.push([f[1], bc, ab]);
+        out.push([f[2], ca, bc]);
+        out.push([ab, bc, ca]);
+    }
+    (pos, out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,266 @@
+//! `synth` output read back by the project's readers (COLMAP text model, PLY, EXR, PNG):
+//! every 3D point projects onto its recorded 2D observations, the photos' silhouettes match
+//! a rasterisation of the mesh written to `dense/`, the exposure clips ~1% of the object,
+//! the truth files are complete, and the same seed gives the same bytes.
+
+use relight_cpc::colmap::Reconstruction;
+use relight_cpc::envmap::LatLong;
+use relight_cpc::mesh::Mesh;
+use relight_cpc::reference::Samples;
+use relight_cpc::synth::{build, scene_names, SynthOptions};
+use std::path::{Path, PathBuf};
+
+fn tmp(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("relight-synth-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn small(photos: usize, seed: u64) -> SynthOptions {
+    SynthOptions {
+        width: 64,
+        height: 48,
+        photos: Some(photos),
+        seed,
+        vertices: Some(600),
+        noise: 0.0,
+        white_balance: true,
+        samples: Samples {
+            per_pixel: 1,
+            light: 4,
+            seed,
+        },
+        points: 400,
+    }
+}
+
+#[test]
+fn scene_list_is_complete() {
+    let names = scene_names();
+    for n in [
+        "sphere-diffuse",
+        "sphere-glossy",
+        "sphere-specular",
+        "sphere-plane",
+        "spot-varying",
+        "spot-static",
+    ] {
+        assert!(names.contains(&n), "{n} missing from {names:?}");
+    }
+    assert!(build("no-such-scene", &tmp("none"), &small(2, 1)).is_err());
+}
+
+#[test]
+fn points_land_on_their_observations_and_silhouettes_match_the_mesh() {
+    let out = tmp("readback");
+    let summary = build("sphere-plane", &out, &small(4, 3)).unwrap();
+    let rec = Reconstruction::read_text(&out.join("sparse")).unwrap();
+    assert_eq!(rec.images.len(), 4);
+    assert!(rec.points3d.len() > 50, "{} points", rec.points3d.len());
+    assert_eq!(rec.points3d.len(), summary.points3d);
+
+    // Every track element: the 3D point projected by the COLMAP reader's camera and pose
+    // lands on the recorded keypoint. The writer prints shortest round-trip decimals and
+    // the pose goes through a quaternion: 1e-6 px is far above that round-off (~1e-12).
+    let mut n_obs = 0;
+    for p in rec.points3d.values() {
+        assert!(p.track.len() >= 2);
+        for te in &p.track {
+            let im = &rec.images[&te.image_id];
+            let kp = &im.points2d[te.point2d_idx as usize];
+            assert_eq!(kp.point3d_id, Some(p.id));
+            let xy = rec.project(te.image_id, &p.xyz).unwrap();
+            let err = ((xy[0] - kp.xy[0]).powi(2) + (xy[1] - kp.xy[1]).powi(2)).sqrt();
+            assert!(
+                err < 1e-6,
+                "point {} in image {}: {err} px",
+                p.id.0,
+                im.name
+            );
+            n_obs += 1;
+        }
+    }
+    assert_eq!(n_obs, summary.observations);
+
+    // Silhouettes: rasterise the PLY mesh with the model's cameras (point-in-triangle at
+    // pixel centres, no ray tracing) and compare with the photos' non-black pixels.
+    // Pixels whose 3×3 neighbourhood is all inside (or all outside) must agree: outside
+    // pixels are exactly black (no noise, black background); inside pixels may be black
+    // only where the radiance rounds to 0 in 8 bits (allow 1%).
+    let (mesh, _) = Mesh::read_ply(&out.join("dense/meshed-poisson.ply")).unwrap();
+    let cam = rec.cameras.values().next().unwrap();
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    for im in rec.images.values() {
+        let proj: Vec<Option<[f64; 2]>> = mesh
+            .positions
+            .iter()
+            .map(|p| cam.project(&im.world_to_cam(p)))
+            .collect();
+        let mut inside = vec![false; w * h];
+        for f in &mesh.faces {
+            let [Some(a), Some(b), Some(c)] = f.map(|v| proj[v as usize]) else {
+                continue;
+            };
+            let edge = |p: [f64; 2], q: [f64; 2], x: [f64; 2]| {
+                (q[0] - p[0]) * (x[1] - p[1]) - (q[1] - p[1]) * (x[0] - p[0])
+            };
+            let lo_x = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
+            let hi_x = (a[0].max(b[0]).max(c[0]).ceil().max(0.0) as usize).min(w);
+            let lo_y = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
+            let hi_y = (a[1].max(b[1]).max(c[1]).ceil().max(0.0) as usize).min(h);
+            for y in lo_y..hi_y {
+                for x in lo_x..hi_x {
+                    let q = [x as f64 + 0.5, y as f64 + 0.5];
+                    let (e0, e1, e2) = (edge(a, b, q), edge(b, c, q), edge(c, a, q));
+                    if (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0)
+                        || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
+                    {
+                        inside[y * w + x] = true;
+                    }
+                }
+            }
+        }
+        let photo = image::open(out.join("images").join(&im.name))
+            .unwrap()
+            .to_rgb8();
+        assert_eq!((photo.width() as usize, photo.height() as usize), (w, h));
+        let (mut dark_inside, mut n_inside, mut n_outside) = (0, 0, 0);
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let nb = |v: bool| {
+                    (0..3).all(|dy| (0..3).all(|dx| inside[(y + dy - 1) * w + x + dx - 1] == v))
+                };
+                let lit = photo.get_pixel(x as u32, y as u32).0.iter().any(|&c| c > 0);
+                if nb(true) {
+                    n_inside += 1;
+                    dark_inside += usize::from(!lit);
+                } else if nb(false) {
+                    n_outside += 1;
+                    assert!(!lit, "{}: pixel ({x}, {y}) lit outside the mesh", im.name);
+                }
+            }
+        }
+        assert!(
+            n_inside > 100 && n_outside > 20,
+            "{}: {n_inside} / {n_outside}",
+            im.name
+        );
+        assert!(
+            dark_inside * 100 <= n_inside,
+            "{}: {dark_inside} of {n_inside} dark",
+            im.name
+        );
+    }
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn truth_is_complete_and_exposure_clips_about_one_percent() {
+    let out = tmp("truth");
+    let mut opts = small(5, 9);
+    opts.width = 96;
+    opts.height = 96;
+    let s = build("spot-varying", &out, &opts).unwrap();
+    assert_eq!(s.held_out, vec!["photo_003.png".to_string()]);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("truth/manifest.json")).unwrap())
+            .unwrap();
+    assert_eq!(manifest["scene"], "spot-varying");
+    let photos = manifest["photos"].as_array().unwrap();
+    assert_eq!(photos.len(), 5);
+    // A different real map per photo; each truth map is the embedded map turned about up by
+    // whole texels, so its integral ∫L dω is unchanged (f32 sums: 1e-5 relative).
+    let mut maps = std::collections::BTreeSet::new();
+    let mut integrals = std::collections::BTreeMap::new();
+    for p in photos {
+        let name = p["map"].as_str().unwrap().to_string();
+        let (env, _) =
+            LatLong::read_exr(&out.join("truth").join(p["env"].as_str().unwrap())).unwrap();
+        let i = env.integral();
+        if let Some(prev) = integrals.get(&name) {
+            let prev: &[f64; 3] = prev;
+            for c in 0..3 {
+                assert!((prev[c] - i[c]).abs() <= 1e-5 * prev[c].abs().max(1e-9));
+            }
+        }
+        integrals.insert(name.clone(), i);
+        maps.insert(name);
+    }
+    assert_eq!(maps.len(), 5);
+    // Weights: two materials, non-negative, summing to one at every vertex (1e-6: f32).
+    let data = relight_cpc::mesh::read_ply_data(&out.join("truth/weights.ply")).unwrap();
+    let (mesh, _) = Mesh::read_ply(&out.join("dense/meshed-poisson.ply")).unwrap();
+    assert_eq!(data.positions.len(), mesh.positions.len());
+    let materials: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("truth/materials.json")).unwrap())
+            .unwrap();
+    assert_eq!(materials["materials"].as_array().unwrap().len(), 2);
+    assert_eq!(materials["photos"].as_array().unwrap().len(), 5);
+    // Exposure: the 99th percentile of the brightest channel maps to 1, so about 1% of the
+    // object's pixels (coverage > 0 in the truth mask) clip at 255; ties and the ≥ 1
+    // boundary allow 0.3%–3%.
+    for p in photos {
+        let name = p["name"].as_str().unwrap();
+        let photo = image::open(out.join("images").join(name))
+            .unwrap()
+            .to_rgb8();
+        let mask = image::open(out.join("truth/masks").join(name))
+            .unwrap()
+            .to_luma8();
+        let (mut obj, mut clipped) = (0usize, 0usize);
+        for (px, m) in photo.pixels().zip(mask.pixels()) {
+            if m.0[0] > 0 {
+                obj += 1;
+                clipped += usize::from(px.0.contains(&255));
+            }
+        }
+        let frac = clipped as f64 / obj as f64;
+        assert!(
+            obj > 200 && (0.003..=0.03).contains(&frac),
+            "{name}: {clipped}/{obj}"
+        );
+    }
+    std::fs::remove_dir_all(&out).ok();
+}
+
+fn files(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(files(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn same_seed_same_bytes() {
+    let (a, b) = (tmp("det-a"), tmp("det-b"));
+    build("sphere-glossy", &a, &small(3, 5)).unwrap();
+    build("sphere-glossy", &b, &small(3, 5)).unwrap();
+    let (fa, fb) = (files(&a), files(&b));
+    assert_eq!(fa.len(), fb.len());
+    assert!(fa.len() >= 3 + 3 + 1 + 3 * 2 + 3);
+    for (x, y) in fa.iter().zip(&fb) {
+        assert_eq!(x.strip_prefix(&a).unwrap(), y.strip_prefix(&b).unwrap());
+        assert!(
+            std::fs::read(x).unwrap() == std::fs::read(y).unwrap(),
+            "{} differs",
+            x.display()
+        );
+    }
+    // A different seed changes the photos.
+    let c = tmp("det-c");
+    build("sphere-glossy", &c, &small(3, 6)).unwrap();
+    assert!(
+        std::fs::read(a.join("images/photo_000.png")).unwrap()
+            != std::fs::read(c.join("images/photo_000.png")).unwrap()
+    );
+    for d in [a, b, c] {
+        std::fs::remove_dir_all(&d).ok();
+    }
+}
