@@ -16,6 +16,9 @@
 //! When the colours have fewer than `k` distinct features, fewer materials are returned
 //! (`albedo.len()` is the count); a cluster that k-means leaves empty is dropped likewise.
 
+// Numerical kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
 use crate::{Error, Result};
 use linfa::prelude::*;
 use linfa::DatasetBase;

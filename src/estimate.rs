@@ -37,6 +37,9 @@
 //! Deterministic: every reduction runs in a fixed order (fixed chunks reduced in sequence),
 //! so the output does not depend on the number of threads.
 
+// Numerical kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
 use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector};
@@ -734,6 +737,12 @@ fn predict_from(problem: &Problem, beta: &[[f64; 3]], s: &[[f64; 3]]) -> Vec<[f6
 /// Observations per fixed-size chunk in ordered parallel reductions.
 const CHUNK: usize = 4096;
 
+/// λ (`K × B × 3`), per-channel condition numbers, per-channel largest diagonal entries.
+pub type LambdaStep = (Vec<Vec<[f64; 3]>>, [f64; 3], [f64; 3]);
+
+/// Lights, λ and w of one outer iteration (for extrapolation).
+type State = (Vec<[Vec<f64>; 3]>, Vec<Vec<[f64; 3]>>, Vec<f64>);
+
 /// Material step, λ part: per channel, NNLS over all observations (`K·B` unknowns) with
 /// ridge `ridge[c]` (absolute). Returns λ and each channel system's condition number and
 /// largest diagonal entry (before the ridge).
@@ -745,7 +754,7 @@ pub fn lambda_step(
     dw: &[[f64; 3]],
     ridge: Option<[f64; 3]>,
     rel_ridge: f64,
-) -> Result<(Vec<Vec<[f64; 3]>>, [f64; 3], [f64; 3])> {
+) -> Result<LambdaStep> {
     let nb = problem.transport.n_basis;
     let kk = n_materials;
     let m = kk * nb;
@@ -1050,14 +1059,13 @@ pub fn estimate(
     let mut cond = Conditioning::default();
     let lap = Laplacian::new(problem.transport.n_global);
     let mut prev_obj = f64::INFINITY;
-    let mut prev_state: Option<(Vec<[Vec<f64>; 3]>, Vec<Vec<[f64; 3]>>, Vec<f64>)> = None;
-    let mut outer_it = 1usize;
+    let mut prev_state: Option<State> = None;
     let outer = if opts.fixed_materials {
         1
     } else {
         opts.max_outer.max(1)
     };
-    for _ in 0..outer {
+    for outer_it in 1..=outer {
         // 1. Lighting, photos in parallel (each photo's solve is sequential: deterministic).
         let beta = beta_per_vertex(&lambda, &weights, nv);
         let results: Vec<Result<LightingResult>> = (0..problem.n_photos)
@@ -1143,7 +1151,6 @@ pub fn estimate(
             }
             prev_state = Some((lights.clone(), lambda.clone(), weights.clone()));
         }
-        outer_it += 1;
         if !objective.is_finite() {
             return Err(Error::Numeric {
                 stage: "estimation".into(),

@@ -23,6 +23,9 @@
 //! 6–42-unknown systems the active set is faster and exact to rounding (it ends with
 //! an unconstrained solve on the identified face), so it is the one used.
 
+// Numerical kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 

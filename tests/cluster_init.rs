@@ -1,5 +1,7 @@
 //! Initial materials: k-means on hue/saturation features of colours with known clusters.
 
+#![allow(clippy::needless_range_loop)]
+
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use relight_cpc::cluster::initial_materials;
@@ -107,16 +109,16 @@ fn identical_colours_unseen_vertices_and_too_many_clusters() {
     assert_eq!(im.albedo.len(), 2);
     let kk = im.albedo.len();
     for c in 0..kk {
-        assert!(im.labels.iter().any(|&l| l == c), "cluster {c} empty");
+        assert!(im.labels.contains(&c), "cluster {c} empty");
     }
     // The unseen vertex: uniform weights, the label of the larger (red) cluster.
     assert!(im.weights[..kk].iter().all(|&w| (w - 0.5).abs() < 1e-12));
     assert_eq!(im.labels[0], im.labels[1]);
     assert!(im.weights.iter().all(|w| w.is_finite()));
     // Nothing seen, k = 0, NaN colours: errors.
-    assert!(initial_materials(&cols, &vec![false; 40], 2, 0).is_err());
-    assert!(initial_materials(&cols, &vec![true; 40], 0, 0).is_err());
+    assert!(initial_materials(&cols, &[false; 40], 2, 0).is_err());
+    assert!(initial_materials(&cols, &[true; 40], 0, 0).is_err());
     let mut bad = cols.clone();
     bad[3] = [f64::NAN, 0.0, 0.0];
-    assert!(initial_materials(&bad, &vec![true; 40], 2, 0).is_err());
+    assert!(initial_materials(&bad, &[true; 40], 2, 0).is_err());
 }

@@ -2,6 +2,8 @@
 //! and blending weights, observations generated from them (plus noise / outliers), and
 //! recovery checked against the truth.
 
+#![allow(clippy::needless_range_loop)]
+
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use relight_cpc::estimate::{

@@ -1,6 +1,8 @@
 //! The non-negative QP solvers against their defining conditions (KKT) and against an
 //! independent answer: brute-force enumeration of the active sets on tiny problems.
 
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
