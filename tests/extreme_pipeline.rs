@@ -1,0 +1,399 @@
+//! Stiff and extreme inputs through the whole pipeline (issue 8): each case builds a small
+//! known-truth workspace with `synth` (64×64 photos, a few hundred vertices, 2–4 photos),
+//! breaks one thing, runs `run::run` for 1–3 outer iterations and asserts either a stable
+//! result — every reported number and every output map finite, lighting non-negative,
+//! objective non-increasing, training error within a stated bound — or a clear error
+//! naming the file or option at fault. Never a panic, NaN or hang.
+
+use std::path::{Path, PathBuf};
+
+use relight_cpc::envmap::OctEnv;
+use relight_cpc::reference::Samples;
+use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
+use relight_cpc::synth::{self, SynthOptions};
+use relight_cpc::Error;
+
+/// A scratch folder removed on drop.
+struct Scratch(PathBuf);
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn scratch(tag: &str) -> Scratch {
+    let p = std::env::temp_dir().join(format!("relight-extreme-{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&p);
+    std::fs::create_dir_all(&p).unwrap();
+    Scratch(p)
+}
+
+/// A 64×64 synth workspace of `scene` with `photos` photos and about `vertices` vertices.
+fn workspace(dir: &Path, scene: &str, photos: usize, vertices: usize) -> PathBuf {
+    let ws = dir.join("ws");
+    let opts = SynthOptions {
+        width: 64,
+        height: 64,
+        photos: Some(photos),
+        vertices: Some(vertices),
+        samples: Samples {
+            per_pixel: 1,
+            light: 8,
+            seed: 3,
+        },
+        points: 300,
+        ..SynthOptions::default()
+    };
+    synth::build(scene, &ws, &opts).unwrap();
+    ws
+}
+
+/// Fast run options: small maps, one material, few iterations.
+fn fast(ws: &Path, out: &Path) -> RunOptions {
+    let mut o = RunOptions::new(ws.to_path_buf(), out.to_path_buf());
+    o.holdout = Holdout::None;
+    o.materials = MaterialCount::Fixed(1);
+    o.global_resolution = 16;
+    o.local_resolution = 8;
+    o.normal_grid = 8;
+    o.keep = 32;
+    o.max_iterations = 2;
+    o.irls_iterations = 1;
+    o.progress = false;
+    o.render_training = false;
+    o
+}
+
+/// The checks every successful run must pass: finite numbers, non-negative finite maps,
+/// and an objective that does not increase by more than rounding (the alternation accepts
+/// an extrapolated step only when the objective drops, so it is monotone up to the
+/// solvers' tolerances: 1e-6 relative).
+fn stable(s: &RunSummary) {
+    let r = &s.report;
+    assert!(
+        r.train_rmse.is_finite() && r.train_rmse >= 0.0,
+        "train rmse {}",
+        r.train_rmse
+    );
+    for t in &r.train {
+        assert!(t.rmse.is_finite(), "{}: rmse {}", t.image, t.rmse);
+    }
+    for (k, v) in &r.conditioning {
+        assert!(!v.is_nan(), "conditioning {k} is NaN");
+    }
+    let obj: Vec<f64> = r.timeline.iter().map(|t| t.objective).collect();
+    assert!(
+        obj.iter().all(|o| o.is_finite() && *o >= 0.0),
+        "objective {obj:?}"
+    );
+    for w in obj.windows(2) {
+        assert!(
+            w[1] <= w[0] * (1.0 + 1e-6) + 1e-12,
+            "objective rose: {obj:?}"
+        );
+    }
+    let env_dir = s.out.join("envmaps");
+    let mut maps = 0;
+    for e in std::fs::read_dir(&env_dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.to_string_lossy().ends_with(".oct.exr") {
+            let env = OctEnv::read_exr(&p).unwrap();
+            assert!(
+                env.rgb
+                    .iter()
+                    .flatten()
+                    .all(|v| v.is_finite() && *v >= -1e-6),
+                "{}: non-finite or negative light",
+                p.display()
+            );
+            maps += 1;
+        }
+    }
+    assert!(maps > 0, "no environment maps written");
+}
+
+/// Very sharp lobes at the default resolutions: Phong 500 and GGX 0.01 under-sample the
+/// 32×32 local texels; the fit must stay finite and non-negative.
+#[test]
+fn sharp_lobes_at_default_resolutions() {
+    let d = scratch("sharp");
+    let ws = workspace(&d.0, "sphere-specular", 2, 300);
+    let mut o = fast(&ws, &d.0.join("out"));
+    o.global_resolution = 64;
+    o.local_resolution = 32;
+    o.normal_grid = 8;
+    o.keep = 128;
+    o.max_iterations = 1;
+    o.basis = vec![
+        relight_cpc::brdf::BasisBrdf::Lambert,
+        relight_cpc::brdf::BasisBrdf::Phong { exponent: 500.0 },
+        relight_cpc::brdf::BasisBrdf::Ggx { alpha: 0.01 },
+    ];
+    let s = run::run(&o).unwrap();
+    stable(&s);
+}
+
+/// Either a stable run or a specific error (not an I/O failure) whose message says what
+/// is wrong; returns the run when it succeeded.
+fn stable_or_clear(r: Result<RunSummary, Error>, expect_in_error: &[&str]) -> Option<RunSummary> {
+    match r {
+        Ok(s) => {
+            stable(&s);
+            Some(s)
+        }
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(!matches!(e, Error::Io { .. }), "I/O error: {msg}");
+            assert!(
+                expect_in_error.iter().any(|w| msg.contains(w)),
+                "unclear error (wanted one of {expect_in_error:?}): {msg}"
+            );
+            None
+        }
+    }
+}
+
+/// Rewrite every photo of the workspace through `f` (8-bit RGB pixels).
+fn edit_photos(ws: &Path, f: impl Fn(&mut image::RgbImage)) {
+    for e in std::fs::read_dir(ws.join("images")).unwrap() {
+        let p = e.unwrap().path();
+        let mut im = image::open(&p).unwrap().to_rgb8();
+        f(&mut im);
+        im.save(&p).unwrap();
+    }
+}
+
+/// A sun 10⁴× the sky: the city map (peak ~34,000, mean ~1) rotated per photo, with a
+/// glossy sphere shadowing a plane.
+#[test]
+fn hdr_sun_city() {
+    let d = scratch("city");
+    let ws = workspace(&d.0, "sphere-plane", 3, 400);
+    let s = run::run(&fast(&ws, &d.0.join("out"))).unwrap();
+    stable(&s);
+    // A fit, not garbage: the training error is below the photos' own spread (RMSE of
+    // predicting every pixel by 0 would be the mean intensity, ~0.3 on these exposures).
+    assert!(
+        s.report.train_rmse < 0.3,
+        "train rmse {}",
+        s.report.train_rmse
+    );
+}
+
+/// A convex object: no cast shadows, so the lighting step sees only the cosine-blurred
+/// light (badly conditioned). The run must stay finite and report its conditioning.
+#[test]
+fn convex_sphere_without_shadows() {
+    let d = scratch("convex");
+    let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
+    let s = run::run(&fast(&ws, &d.0.join("out"))).unwrap();
+    stable(&s);
+    assert!(
+        !s.report.conditioning.is_empty(),
+        "no conditioning reported"
+    );
+    assert!(
+        s.report.train_rmse < 0.3,
+        "train rmse {}",
+        s.report.train_rmse
+    );
+}
+
+/// One photo only: the lighting and materials are fitted from a single view.
+#[test]
+fn single_photo() {
+    let d = scratch("single");
+    let ws = workspace(&d.0, "sphere-diffuse", 1, 300);
+    stable_or_clear(
+        run::run(&fast(&ws, &d.0.join("out"))),
+        &["photo", "view", "image"],
+    );
+}
+
+/// Two photos from almost the same viewpoint: the second image is a copy of the first,
+/// its pose translated by 1e-7 of the scene size.
+#[test]
+fn two_nearly_identical_viewpoints() {
+    let d = scratch("twin");
+    let ws = workspace(&d.0, "sphere-diffuse", 2, 300);
+    let images = ws.join("sparse").join("images.txt");
+    let text = std::fs::read_to_string(&images).unwrap();
+    // images.txt: comment lines, then per image a pose line and a points line.
+    let lines: Vec<&str> = text.lines().collect();
+    let data: Vec<usize> = (0..lines.len())
+        .filter(|&i| !lines[i].starts_with('#'))
+        .collect();
+    let first: Vec<&str> = lines[data[0]].split_whitespace().collect();
+    let second: Vec<&str> = lines[data[2]].split_whitespace().collect();
+    let tx: f64 = first[5].parse().unwrap();
+    let mut twin: Vec<String> = first.iter().map(|s| s.to_string()).collect();
+    twin[0] = second[0].to_string();
+    twin[5] = format!("{}", tx + 1e-7);
+    twin[9] = second[9].to_string();
+    let mut out: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+    out[data[2]] = twin.join(" ");
+    out[data[3]] = lines[data[1]].to_string();
+    std::fs::write(&images, out.join("\n") + "\n").unwrap();
+    std::fs::copy(
+        ws.join("images").join(first[9]),
+        ws.join("images").join(second[9]),
+    )
+    .unwrap();
+    stable_or_clear(run::run(&fast(&ws, &d.0.join("out"))), &["photo", "view"]);
+}
+
+/// Photos scaled to 1/40 of their brightness: a nearly black environment seen at a fixed
+/// exposure. The fit must stay finite and non-negative.
+#[test]
+fn nearly_black_environment() {
+    let d = scratch("dim");
+    let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
+    edit_photos(&ws, |im| {
+        im.pixels_mut().for_each(|p| p.0 = p.0.map(|v| v / 40))
+    });
+    stable_or_clear(
+        run::run(&fast(&ws, &d.0.join("out"))),
+        &["dark", "observation"],
+    );
+}
+
+/// Entirely black photos: nothing to fit. A run may return zero light or refuse, but not
+/// NaN.
+#[test]
+fn entirely_dark_photos() {
+    let d = scratch("dark");
+    let ws = workspace(&d.0, "sphere-diffuse", 2, 300);
+    edit_photos(&ws, |im| im.pixels_mut().for_each(|p| p.0 = [0, 0, 0]));
+    stable_or_clear(
+        run::run(&fast(&ws, &d.0.join("out"))),
+        &["dark", "observation", "zero"],
+    );
+}
+
+/// Entirely overexposed photos: every observation is clipped, so none carries
+/// information; the run must say so rather than fit clipped values.
+#[test]
+fn entirely_overexposed_photos() {
+    let d = scratch("white");
+    let ws = workspace(&d.0, "sphere-diffuse", 2, 300);
+    edit_photos(&ws, |im| {
+        im.pixels_mut().for_each(|p| p.0 = [255, 255, 255])
+    });
+    let r = run::run(&fast(&ws, &d.0.join("out")));
+    stable_or_clear(r, &["clip", "overexposed", "observation"]);
+}
+
+/// A photo of the wrong size: an error naming that photo and the size mismatch.
+#[test]
+fn photo_of_the_wrong_size() {
+    let d = scratch("size");
+    let ws = workspace(&d.0, "sphere-diffuse", 2, 300);
+    let p = std::fs::read_dir(ws.join("images"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .min()
+        .unwrap();
+    let im = image::open(&p).unwrap().to_rgb8();
+    image::imageops::resize(&im, 48, 40, image::imageops::FilterType::Triangle)
+        .save(&p)
+        .unwrap();
+    let err = run::run(&fast(&ws, &d.0.join("out"))).unwrap_err();
+    let msg = err.to_string();
+    let name = p.file_name().unwrap().to_string_lossy().to_string();
+    assert!(msg.contains(&name), "error does not name {name}: {msg}");
+    assert!(
+        msg.contains("48") && msg.contains("64"),
+        "error does not give sizes: {msg}"
+    );
+}
+
+/// Writes an ASCII PLY.
+fn write_ply(path: &Path, pos: &[[f64; 3]], faces: &[[usize; 3]]) {
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        pos.len(),
+        faces.len()
+    );
+    for p in pos {
+        s += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    for f in faces {
+        s += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// The synth mesh with degenerate triangles (repeated index, collinear), duplicated
+/// vertices (a copy of a patch, stitched in), isolated vertices, and a triangle far
+/// behind every camera that no photo sees.
+#[test]
+fn damaged_mesh() {
+    let d = scratch("mesh");
+    let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
+    let src = ws.join("dense").join("meshed-poisson.ply");
+    let data = relight_cpc::mesh::read_ply_data(&src).unwrap();
+    let mut pos: Vec<[f64; 3]> = data.positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let mut faces: Vec<[usize; 3]> = data
+        .faces
+        .iter()
+        .map(|f| [f[0] as usize, f[1] as usize, f[2] as usize])
+        .collect();
+    let n = pos.len();
+    // Degenerate: repeated index and a collinear triple (midpoint of an edge).
+    let [a, b, c] = faces[0];
+    faces.push([a, a, b]);
+    let mid = [0, 1, 2].map(|k| 0.5 * (pos[a][k] + pos[b][k]));
+    pos.push(mid);
+    faces.push([a, b, n]);
+    // Duplicated vertices: copies of a, b, c with a face on them (coincident with face 0).
+    pos.extend([pos[a], pos[b], pos[c]]);
+    faces.push([n + 1, n + 2, n + 3]);
+    // Isolated vertices.
+    pos.push([0.0, 0.0, 0.0]);
+    pos.push([1e3, 1e3, 1e3]);
+    // A triangle far away that no photo sees.
+    let m = pos.len();
+    pos.extend([[1e4, 0.0, 0.0], [1e4, 1.0, 0.0], [1e4, 0.0, 1.0]]);
+    faces.push([m, m + 1, m + 2]);
+    let mesh = d.0.join("damaged.ply");
+    write_ply(&mesh, &pos, &faces);
+    let mut o = fast(&ws, &d.0.join("out"));
+    o.mesh = Some(mesh);
+    stable_or_clear(run::run(&o), &["mesh", "vertex", "vertices"]);
+}
+
+/// A mesh of one triangle facing the cameras.
+#[test]
+fn one_triangle_mesh() {
+    let d = scratch("tri");
+    let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
+    let src =
+        relight_cpc::mesh::read_ply_data(&ws.join("dense").join("meshed-poisson.ply")).unwrap();
+    // Three vertices of the sphere's mesh spread around it: a large triangle through it.
+    let p = &src.positions;
+    let pick = |k: usize| [p[k].x, p[k].y, p[k].z];
+    let mesh = d.0.join("tri.ply");
+    write_ply(
+        &mesh,
+        &[pick(0), pick(p.len() / 3), pick(2 * p.len() / 3)],
+        &[[0, 1, 2]],
+    );
+    let mut o = fast(&ws, &d.0.join("out"));
+    o.mesh = Some(mesh);
+    stable_or_clear(
+        run::run(&o),
+        &["mesh", "vertex", "vertices", "observation", "triangle"],
+    );
+}
+
+/// More materials than the object has: a one-colour sphere fitted with 3 materials
+/// (k-means on identical colours; clusters that end up with no vertices).
+#[test]
+fn more_materials_than_colours() {
+    let d = scratch("mats");
+    let ws = workspace(&d.0, "sphere-diffuse", 2, 300);
+    let mut o = fast(&ws, &d.0.join("out"));
+    o.materials = MaterialCount::Fixed(3);
+    stable_or_clear(run::run(&o), &["material", "cluster"]);
+}
