@@ -1,0 +1,158 @@
+//! Extreme inputs to single stages (issue 8): k-means on identical colours and clusters
+//! that lose every vertex, and the up-front memory check for a mesh of over a million
+//! vertices (tested on the sizes alone: nothing that large is allocated).
+
+use relight_cpc::budget::{self, Sizes};
+use relight_cpc::cluster::initial_materials;
+use relight_cpc::Error;
+
+/// Checks the invariants of an initial clustering: labels in range, albedo finite and
+/// non-negative, each weight row non-negative and summing to one (to 1e-9: a sum of at
+/// most K numbers in [0, 1]).
+fn consistent(m: &relight_cpc::cluster::InitialMaterials, v: usize) -> usize {
+    let k = m.albedo.len();
+    assert!(k >= 1);
+    assert_eq!(m.labels.len(), v);
+    assert!(m.labels.iter().all(|&l| l < k));
+    assert!(m
+        .albedo
+        .iter()
+        .flatten()
+        .all(|a| a.is_finite() && *a >= 0.0));
+    assert_eq!(m.weights.len(), v * k);
+    for row in m.weights.chunks(k) {
+        assert!(row.iter().all(|w| w.is_finite() && *w >= 0.0));
+        assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    }
+    k
+}
+
+/// k-means asked for 4 clusters of 500 identical colours: one cluster (there is only
+/// one distinct point), its albedo that colour.
+#[test]
+fn kmeans_on_identical_colours() {
+    let rgb = vec![[0.4, 0.2, 0.1]; 500];
+    let seen = vec![true; 500];
+    let m = initial_materials(&rgb, &seen, 4, 7).unwrap();
+    let k = consistent(&m, 500);
+    assert_eq!(k, 1, "identical colours gave {k} clusters");
+    for c in 0..3 {
+        assert!((m.albedo[0][c] - rgb[0][c]).abs() < 1e-12);
+    }
+}
+
+/// Two distinct colours, asked for 5 clusters: no empty cluster survives (every cluster
+/// that is returned has vertices), and the two colours are separated.
+#[test]
+fn clusters_without_vertices_are_dropped() {
+    let mut rgb = vec![[0.8, 0.1, 0.1]; 200];
+    rgb.extend(vec![[0.1, 0.1, 0.8]; 200]);
+    // Black and unseen vertices: no hue; they must not create or break a cluster.
+    rgb.extend(vec![[0.0, 0.0, 0.0]; 10]);
+    let mut seen = vec![true; 400];
+    seen.extend(vec![false; 10]);
+    let m = initial_materials(&rgb, &seen, 5, 3).unwrap();
+    let k = consistent(&m, 410);
+    for c in 0..k {
+        assert!(
+            m.labels.iter().any(|&l| l == c),
+            "cluster {c} has no vertex"
+        );
+    }
+    assert_ne!(m.labels[0], m.labels[399], "red and blue share a cluster");
+}
+
+/// No vertex seen, or a NaN colour: a Numeric error that says so.
+#[test]
+fn kmeans_refuses_unseen_and_nan() {
+    let e = initial_materials(&[[0.1; 3]; 3], &[false; 3], 2, 1).unwrap_err();
+    assert!(
+        matches!(e, Error::Numeric { .. }) && e.to_string().contains("seen"),
+        "{e}"
+    );
+    let e = initial_materials(&[[0.1, f64::NAN, 0.1]], &[true], 1, 1).unwrap_err();
+    assert!(e.to_string().contains("non-finite"), "{e}");
+}
+
+/// A 1.5 M-vertex mesh seen by 20 photos at the default options does not fit in 16 GiB:
+/// the check refuses up front, names the largest item, and the option it suggests does
+/// fit (recomputed independently here by applying it).
+#[test]
+fn million_vertex_mesh_is_refused_up_front() {
+    let s = Sizes {
+        vertices: 1_500_000,
+        photos: 20,
+        observations: Sizes::observations_upper_bound(1_500_000, 20, 20 * 3000 * 2000),
+        basis: 3,
+        global_resolution: 64,
+        local_resolution: 32,
+        normal_grid: 32,
+        keep: 128,
+    };
+    let avail = 16u64 << 30;
+    let b = budget::estimate(&s);
+    let e = b.check(avail).unwrap_err();
+    let msg = e.to_string();
+    let Error::Memory {
+        needed_bytes,
+        available_bytes,
+        hint,
+        ..
+    } = &e
+    else {
+        panic!("not a memory error: {msg}");
+    };
+    assert_eq!(*available_bytes, avail);
+    assert!(*needed_bytes > avail);
+    // Transport: 30 M observations × 3 × 1032 B ≈ 86 GiB dominates.
+    assert!(msg.contains("transport rows"), "{msg}");
+    // Apply the hint and re-check.
+    let words: Vec<&str> = hint.split_whitespace().collect();
+    let fixed = match words.as_slice() {
+        ["--keep", v, ..] => Sizes {
+            keep: v.parse().unwrap(),
+            ..s
+        },
+        ["--local-resolution", v, ..] => Sizes {
+            local_resolution: v.parse().unwrap(),
+            ..s
+        },
+        ["--global-resolution", v, ..] => Sizes {
+            global_resolution: v.parse().unwrap(),
+            ..s
+        },
+        ["--normal-grid", v, ..] => Sizes {
+            normal_grid: v.parse().unwrap(),
+            ..s
+        },
+        _ => {
+            assert!(hint.contains("decimate"), "{hint}");
+            let v: u64 = words.iter().rev().find_map(|w| w.parse().ok()).unwrap();
+            Sizes {
+                vertices: v,
+                observations: s.observations / s.vertices * v,
+                ..s
+            }
+        }
+    };
+    assert!(
+        budget::estimate(&fixed).check(avail).is_ok(),
+        "hint {hint} does not fit"
+    );
+}
+
+/// The check against this machine: a small run passes (it is what the tests run).
+#[test]
+fn small_run_passes_on_this_machine() {
+    let s = Sizes {
+        vertices: 2500,
+        photos: 4,
+        observations: 10_000,
+        basis: 3,
+        global_resolution: 64,
+        local_resolution: 32,
+        normal_grid: 32,
+        keep: 128,
+    };
+    assert!(budget::check(&s).is_ok());
+}
