@@ -55,6 +55,7 @@ pub mod report;
 pub mod stages;
 pub mod budget;
 pub mod run;
+pub mod relight;
 
 pub use error::{Error, Result};
 

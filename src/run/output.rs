@@ -169,6 +169,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         extra.push((n.as_str(), w.as_slice()));
     }
     mesh.write_ply(&dir.join("mesh.ply"), &extra)?;
+    crate::relight::write_render_state(f, dir)?;
 
     // Training renders.
     if f.opts.render_training {
