@@ -1,0 +1,100 @@
+//! End to end: `run` on the built-in example (a known-truth workspace made by `synth` from
+//! real data, `examples/spot`), checked against the truth it carries.
+
+use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
+
+fn options(out: &std::path::Path) -> RunOptions {
+    let mut o = RunOptions::new(builtin_example(), out.to_path_buf());
+    // Small settings so the whole pipeline stays well under a minute in the test profile.
+    o.global_resolution = 32;
+    o.keep = 64;
+    o.max_iterations = 3;
+    o.materials = MaterialCount::Fixed(2);
+    o.progress = false;
+    o.render_training = false;
+    o
+}
+
+#[test]
+fn example_run_recovers_held_out_photos_under_their_true_light() {
+    let dir = std::env::temp_dir().join(format!("relight-run-example-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dir.join("spot");
+    let summary = run(&options(&out)).expect("run on the built-in example");
+    let r = &summary.report;
+
+    // Everything a user opens is there, and nothing half-written is left beside it.
+    for f in [
+        "report.json",
+        "report.md",
+        "materials.json",
+        "mesh.ply",
+        "plots/error_vs_time.png",
+        "plots/envmaps.png",
+        "plots/stages.png",
+        "plots/per_photo_rmse.png",
+    ] {
+        assert!(out.join(f).is_file(), "missing {f}");
+    }
+    assert!(!dir.join(".spot.partial").exists());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    for key in [
+        "holdout",
+        "train_rmse",
+        "timeline",
+        "stages",
+        "peak_memory_bytes",
+        "model",
+    ] {
+        assert!(json.get(key).is_some(), "report.json lacks {key}");
+    }
+
+    // The truth manifest holds out two photos; each is scored under its true light.
+    let truth: Vec<_> = r.holdout.iter().filter(|h| h.protocol == "truth").collect();
+    assert_eq!(truth.len(), 2, "{:?}", r.holdout);
+    for h in &r.holdout {
+        eprintln!(
+            "{} {}: RMSE {:.4} raw, {:.4} scaled (scale {:.3}, {} px)",
+            h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale, h.pixels
+        );
+    }
+    eprintln!("train RMSE {:.4}", r.train_rmse);
+    for h in &truth {
+        assert!(h.rmse_scaled.is_finite() && h.pixels > 1000, "{h:?}");
+        // The error of predicting nothing is the photo's own RMS over the same pixels
+        // (about 0.25–0.35 on these photos). The fitted model under the true light must
+        // explain most of it: measured 0.06–0.11 (MC noise of the reference photos, the
+        // 8-bit quantisation and the 32² map resolution of this quick run included), so
+        // 0.15 leaves room for platform rounding without admitting a broken fit.
+        assert!(h.rmse_scaled < 0.15, "{h:?}");
+    }
+    // Training fit: the model reproduces the photos it was fitted to far better than the
+    // held-out ones (measured about 0.03).
+    assert!(r.train_rmse < 0.05, "train RMSE {}", r.train_rmse);
+    // The objective never increases over outer iterations (each block step is an exact
+    // minimisation; IRLS restarts make it non-strict, so allow rounding).
+    for w in r.timeline.windows(2) {
+        assert!(
+            w[1].objective <= w[0].objective * (1.0 + 1e-6),
+            "{:?}",
+            r.timeline
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn run_rejects_a_missing_workspace_and_bad_options_with_clear_errors() {
+    let dir = std::env::temp_dir().join(format!("relight-run-bad-{}", std::process::id()));
+    let mut o = RunOptions::new(dir.join("no-such-workspace"), dir.join("out"));
+    o.progress = false;
+    let err = run(&o).unwrap_err().to_string();
+    assert!(err.contains("no-such-workspace"), "{err}");
+    assert!(!dir.join("out").exists());
+
+    let mut o = options(&dir.join("out"));
+    o.global_resolution = 48;
+    let err = run(&o).unwrap_err().to_string();
+    assert!(err.contains("--global-resolution 48"), "{err}");
+}
