@@ -152,7 +152,7 @@ impl BasisBrdf {
             }
             "ggx" | "cook-torrance" | "ct" => {
                 let alpha = number("roughness")?;
-                if !(alpha.is_finite() && alpha >= 1.0e-3 && alpha <= 1.0) {
+                if !(1.0e-3..=1.0).contains(&alpha) {
                     return Err(Error::Config(format!(
                         "basis BRDF `{s}`: the GGX roughness must lie in [0.001, 1]"
                     )));

@@ -66,7 +66,7 @@ pub fn rasterize(mesh: &Mesh, camera: &Camera, image: &Image) -> Raster {
         .par_iter()
         .map(|p| {
             let c = image.world_to_cam(p);
-            if !(c.z > 0.0) {
+            if c.z.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
             camera.project(&c).map(|px| [px[0], px[1], c.z])

@@ -122,7 +122,7 @@ pub fn compute_with(
             let x = mesh.positions[v];
             let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
             let nn = n.norm();
-            if !(nn.is_finite() && nn > 0.0) || !x.iter().all(|c| c.is_finite()) {
+            if !(nn.is_finite() && nn > 0.0 && x.iter().all(|c| c.is_finite())) {
                 return (0, 1);
             }
             let n = n / nn;

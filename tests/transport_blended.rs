@@ -98,6 +98,7 @@ fn compare(seed: u64, keep_normal: impl Fn(&Vec3) -> bool) -> f64 {
         .collect();
     let light = light_haar(&OctEnv { n: NG, rgb });
     let mut worst: f64 = 0.0;
+    #[allow(clippy::needless_range_loop)]
     for p in 0..nv {
         for b in 0..basis.len() {
             let sb = tb.response(p, b, &light[0]);
