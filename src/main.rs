@@ -69,7 +69,7 @@ enum Command {
         #[arg(long, default_value_t = 4)]
         spp: u32,
         /// MIS sample pairs (environment + BRDF) per shading point.
-        #[arg(long, default_value_t = 16)]
+        #[arg(long, default_value_t = 64)]
         light_samples: u32,
         /// Surface points sampled for points3D.txt.
         #[arg(long, default_value_t = 3000)]

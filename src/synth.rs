@@ -74,7 +74,7 @@ impl Default for SynthOptions {
             white_balance: false,
             samples: Samples {
                 per_pixel: 4,
-                light: 16,
+                light: 64,
                 seed: 1,
             },
             points: 3000,
