@@ -34,7 +34,14 @@ use nalgebra::{DMatrix, DVector};
 pub fn kkt_violation(grad: &[f64], x: &[f64]) -> f64 {
     grad.iter()
         .zip(x)
-        .map(|(&g, &xi)| ((xi - g).max(0.0) - xi).abs())
+        // For xᵢ ≥ 0, max(xᵢ − gᵢ, 0) − xᵢ = −min(gᵢ, xᵢ): the same value without rounding.
+        .map(|(&g, &xi)| {
+            if xi >= 0.0 {
+                g.min(xi).abs()
+            } else {
+                ((xi - g).max(0.0) - xi).abs()
+            }
+        })
         .fold(0.0, f64::max)
 }
 
