@@ -139,10 +139,15 @@ fn stable_or_clear(r: Result<RunSummary, Error>, expect_in_error: &[&str]) -> Op
     match r {
         Ok(s) => {
             stable(&s);
+            eprintln!(
+                "ran: train rmse {:.4}, conditioning {:?}, notes {:?}",
+                s.report.train_rmse, s.report.conditioning, s.report.notes
+            );
             Some(s)
         }
         Err(e) => {
             let msg = e.to_string();
+            eprintln!("refused: {msg}");
             assert!(!matches!(e, Error::Io { .. }), "I/O error: {msg}");
             assert!(
                 expect_in_error.iter().any(|w| msg.contains(w)),
@@ -363,22 +368,39 @@ fn damaged_mesh() {
     stable_or_clear(run::run(&o), &["mesh", "vertex", "vertices"]);
 }
 
-/// A mesh of one triangle facing the cameras.
+/// A mesh of one triangle through the object's centre, facing the first camera.
 #[test]
 fn one_triangle_mesh() {
     let d = scratch("tri");
     let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
+    let rec = relight_cpc::colmap::Reconstruction::read_text(&ws.join("sparse")).unwrap();
+    // Facing the first camera (the others see it obliquely or from behind).
+    let c = rec.images.values().next().unwrap().center();
     let src =
         relight_cpc::mesh::read_ply_data(&ws.join("dense").join("meshed-poisson.ply")).unwrap();
-    // Three vertices of the sphere's mesh spread around it: a large triangle through it.
-    let p = &src.positions;
-    let pick = |k: usize| [p[k].x, p[k].y, p[k].z];
+    let o: relight_cpc::Vec3 =
+        src.positions.iter().sum::<relight_cpc::Vec3>() / src.positions.len() as f64;
+    let r = 0.8
+        * src
+            .positions
+            .iter()
+            .map(|p| (p - o).norm())
+            .fold(0.0, f64::max);
+    let dir = (c - o).normalize();
+    let u = dir
+        .cross(&relight_cpc::Vec3::new(0.3, 0.5, 0.8))
+        .normalize();
+    let v = dir.cross(&u);
+    let mut tri = [
+        o + u * r,
+        o + (-0.5 * u + 0.866 * v) * r,
+        o + (-0.5 * u - 0.866 * v) * r,
+    ];
+    if (tri[1] - tri[0]).cross(&(tri[2] - tri[0])).dot(&dir) < 0.0 {
+        tri.swap(1, 2);
+    }
     let mesh = d.0.join("tri.ply");
-    write_ply(
-        &mesh,
-        &[pick(0), pick(p.len() / 3), pick(2 * p.len() / 3)],
-        &[[0, 1, 2]],
-    );
+    write_ply(&mesh, &tri.map(|p| [p.x, p.y, p.z]), &[[0, 1, 2]]);
     let mut o = fast(&ws, &d.0.join("out"));
     o.mesh = Some(mesh);
     stable_or_clear(
@@ -396,4 +418,20 @@ fn more_materials_than_colours() {
     let mut o = fast(&ws, &d.0.join("out"));
     o.materials = MaterialCount::Fixed(3);
     stable_or_clear(run::run(&o), &["material", "cluster"]);
+}
+
+/// Entirely black photos should be refused with a clear error: with no light reaching
+/// the camera the materials are undetermined (the run currently reports λ conditioning
+/// `inf` and writes zero light and arbitrary materials without a word).
+#[test]
+#[ignore = "run accepts all-black photos silently (λ conditioning inf); the observation stage (src/run/mod.rs) should refuse when every observation is black"]
+fn entirely_dark_photos_are_refused() {
+    let d = scratch("dark2");
+    let ws = workspace(&d.0, "sphere-diffuse", 2, 300);
+    edit_photos(&ws, |im| im.pixels_mut().for_each(|p| p.0 = [0, 0, 0]));
+    let e = run::run(&fast(&ws, &d.0.join("out"))).unwrap_err();
+    assert!(
+        e.to_string().contains("dark") || e.to_string().contains("black"),
+        "{e}"
+    );
 }
