@@ -34,6 +34,38 @@ enum Command {
         #[arg(long)]
         mesh: Option<std::path::PathBuf>,
     },
+    /// Relight a finished run (RESULT_DIR of `run`) under any lat-long environment map
+    /// (the run's environment frame, materials.json "env_frame") and/or a sun, from a
+    /// registered camera or every camera of a COLMAP text model; writes NAME.exr (linear,
+    /// alpha = mask), NAME.png (sRGB) and NAME.mask.png per camera.
+    Render {
+        /// The result folder written by `relight-cpc run`.
+        result_dir: std::path::PathBuf,
+        /// Lat-long EXR environment map.
+        #[arg(long)]
+        env: Option<std::path::PathBuf>,
+        /// One registered camera, by image name (default: every registered camera).
+        #[arg(long, conflicts_with = "cameras")]
+        camera: Option<String>,
+        /// A folder with COLMAP text cameras.txt and images.txt: render every image there.
+        #[arg(long)]
+        cameras: Option<std::path::PathBuf>,
+        /// Output folder.
+        #[arg(long)]
+        out: std::path::PathBuf,
+        /// Sun direction X,Y,Z in the environment frame (a 1° disc).
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        sun: Option<Vec<f64>>,
+        /// Sun radiance (all channels).
+        #[arg(long, default_value_t = 1000.0)]
+        sun_radiance: f64,
+        /// Linear exposure factor for the PNG.
+        #[arg(long, default_value_t = 1.0)]
+        exposure: f64,
+        /// Output width in pixels (height keeps the camera's aspect).
+        #[arg(long)]
+        resolution: Option<u32>,
+    },
     /// Write a known-truth synthetic COLMAP workspace (photos rendered by the reference
     /// renderer, ground truth in OUT_DIR/truth/).
     Synth {
@@ -74,6 +106,35 @@ enum Command {
         /// Surface points sampled for points3D.txt.
         #[arg(long, default_value_t = 3000)]
         points: usize,
+    },
+    /// Benchmark the whole pipeline on synthetic scenes: per-stage wall time, CPU time and
+    /// peak memory, growth with vertices and photos, and held-out error against run time
+    /// over the speed knobs; writes OUT/pipeline.{json,md,png}.
+    Bench {
+        /// Minimum vertex counts of the vertex-scaling runs.
+        #[arg(long, value_delimiter = ',', default_value = "10000,100000,400000")]
+        sizes: Vec<usize>,
+        /// Photo counts of the photo-scaling runs.
+        #[arg(long, value_delimiter = ',', default_value = "6,13,30")]
+        photos: Vec<usize>,
+        /// Photos of the vertex-scaling runs.
+        #[arg(long, default_value_t = 13)]
+        base_photos: usize,
+        /// Minimum vertices of the photo-scaling runs.
+        #[arg(long, default_value_t = 100000)]
+        base_vertices: usize,
+        /// The synth scene.
+        #[arg(long, default_value = "spot-varying")]
+        scene: String,
+        /// Output folder.
+        #[arg(long, default_value = "bench-results")]
+        out: std::path::PathBuf,
+        /// Small photos and maps: a smoke run of a few minutes.
+        #[arg(long)]
+        quick: bool,
+        /// Skip the error-against-time sweep.
+        #[arg(long)]
+        no_sweep: bool,
     },
 }
 
@@ -239,6 +300,55 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Render {
+            result_dir,
+            env,
+            camera,
+            cameras,
+            out,
+            sun,
+            sun_radiance,
+            exposure,
+            resolution,
+        } => {
+            use relight_cpc::relight::{self, CameraSelection, RenderOptions, Sun};
+            if let Some(d) = &sun {
+                if d.len() != 3 {
+                    anyhow::bail!("--sun takes three numbers X,Y,Z, got {}", d.len());
+                }
+            }
+            let opts = RenderOptions {
+                env,
+                sun: sun.map(|d| Sun {
+                    dir: relight_cpc::Vec3::new(d[0], d[1], d[2]),
+                    radiance: [sun_radiance; 3],
+                }),
+                cameras: match (camera, cameras) {
+                    (Some(name), _) => CameraSelection::Named(name),
+                    (None, Some(dir)) => CameraSelection::Folder(dir),
+                    (None, None) => CameraSelection::AllRegistered,
+                },
+                out,
+                exposure,
+                resolution,
+            };
+            let s = relight::render_result(&result_dir, &opts)?;
+            for v in &s.views {
+                println!(
+                    "{}: {} object pixels -> {}",
+                    v.name,
+                    v.covered,
+                    v.png.display()
+                );
+            }
+            println!(
+                "{} views rendered in {:.2} s (loading {:.2} s)",
+                s.views.len(),
+                s.render_seconds,
+                s.load_seconds
+            );
+            Ok(())
+        }
         Command::Inspect {
             workspace,
             json,
@@ -302,6 +412,35 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 s.points3d,
                 s.observations,
                 s.render_seconds
+            );
+            Ok(())
+        }
+        Command::Bench {
+            sizes,
+            photos,
+            base_photos,
+            base_vertices,
+            scene,
+            out,
+            quick,
+            no_sweep,
+        } => {
+            let opts = relight_cpc::bench::BenchOptions {
+                sizes,
+                photos,
+                base_photos,
+                base_vertices,
+                out,
+                quick,
+                scene,
+                no_sweep,
+            };
+            let r = relight_cpc::bench::bench(&opts)?;
+            println!(
+                "bench: {} runs in {:.0} s; results in {}",
+                r.vertex_runs.len() + r.photo_runs.len() + r.sweep.len(),
+                r.seconds,
+                opts.out.display()
             );
             Ok(())
         }
