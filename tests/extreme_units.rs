@@ -36,8 +36,8 @@ fn kmeans_on_identical_colours() {
     let m = initial_materials(&rgb, &seen, 4, 7).unwrap();
     let k = consistent(&m, 500);
     assert_eq!(k, 1, "identical colours gave {k} clusters");
-    for c in 0..3 {
-        assert!((m.albedo[0][c] - rgb[0][c]).abs() < 1e-12);
+    for (a, b) in m.albedo[0].iter().zip(&rgb[0]) {
+        assert!((a - b).abs() < 1e-12);
     }
 }
 
@@ -54,10 +54,7 @@ fn clusters_without_vertices_are_dropped() {
     let m = initial_materials(&rgb, &seen, 5, 3).unwrap();
     let k = consistent(&m, 410);
     for c in 0..k {
-        assert!(
-            m.labels.iter().any(|&l| l == c),
-            "cluster {c} has no vertex"
-        );
+        assert!(m.labels.contains(&c), "cluster {c} has no vertex");
     }
     assert_ne!(m.labels[0], m.labels[399], "red and blue share a cluster");
 }
