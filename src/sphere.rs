@@ -38,13 +38,22 @@
 use crate::Vec3;
 
 /// Orthonormal frame `[x, y, z]` with `z = n` (unit), right-handed (`x × y = z`).
-/// Duff et al. 2017, Listing 3.
+///
+/// The `sign = +1` branch of Duff et al. 2017, Listing 3, for every normal: the frame is
+/// the smallest rotation taking `+z` to `n`, so it varies continuously over the whole
+/// sphere except straight down (`n = −z`, where any tangent field must have a singularity:
+/// there the fixed frame `x = +x, y = −y` is used). Duff's two-branch version flips the
+/// tangents by 180° across `n_z = 0`, which the blended rotation of Eq. 6 cannot tolerate
+/// for glossy lobes (`tests/transport_blended.rs`); with this one only faces pointing
+/// almost straight down (in the environment frame) blend frames that differ much.
 pub fn local_frame(n: &Vec3) -> [Vec3; 3] {
-    let sign = 1.0_f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
+    if n.z < -1.0 + 1e-12 {
+        return [Vec3::x(), -Vec3::y(), *n];
+    }
+    let a = -1.0 / (1.0 + n.z);
     let b = n.x * n.y * a;
-    let x = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    let y = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+    let x = Vec3::new(1.0 + n.x * n.x * a, b, -n.x);
+    let y = Vec3::new(b, 1.0 + n.y * n.y * a, -n.y);
     [x, y, *n]
 }
 

@@ -132,7 +132,6 @@ fn blended_rotation_agrees_with_exact_rotation_away_from_the_equator() {
 /// azimuthally symmetric), glossy lobes do not: measured 72% error at `n_z = −0.05`.
 /// Un-ignore once the frame field is continuous across the equator.
 #[test]
-#[ignore = "local_frame is discontinuous at n_z = 0; see the doc comment"]
 fn blended_rotation_agrees_with_exact_rotation_near_the_equator() {
     let worst = compare(78, |n| n.z.abs() < 0.1);
     assert!(worst < 0.05, "worst relative difference {worst}");
