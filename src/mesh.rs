@@ -544,9 +544,19 @@ pub fn read_ply_data(path: &Path) -> Result<PlyData> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let mut reader = BufReader::new(file);
     let parser = Parser::<PlyRecord>::new();
-    let header = parser
-        .read_header(&mut reader)
-        .map_err(|e| ply_error(path, "header", e))?;
+    // ply-rs 0.1.3 panics on an element count that does not fit in u64 (it unwraps the
+    // parse); turn that into an error naming the file instead of a crash.
+    let header = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        parser.read_header(&mut reader)
+    }))
+    .map_err(|_| {
+        Error::format(
+            path,
+            "header",
+            "malformed header (an element count or property is out of range)",
+        )
+    })?
+    .map_err(|e| ply_error(path, "header", e))?;
     let vdef = header
         .elements
         .get("vertex")

@@ -424,7 +424,6 @@ fn more_materials_than_colours() {
 /// the camera the materials are undetermined (the run currently reports λ conditioning
 /// `inf` and writes zero light and arbitrary materials without a word).
 #[test]
-#[ignore = "run accepts all-black photos silently (λ conditioning inf); the observation stage (src/run/mod.rs) should refuse when every observation is black"]
 fn entirely_dark_photos_are_refused() {
     let d = scratch("dark2");
     let ws = workspace(&d.0, "sphere-diffuse", 2, 300);

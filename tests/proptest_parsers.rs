@@ -426,7 +426,6 @@ fn seeds_are_valid() {
 /// reader should turn it into a Format error naming the file, e.g. by checking element
 /// counts before ply-rs or with `std::panic::catch_unwind` around `read_header`.
 #[test]
-#[ignore = "ply-rs panics on an element count > u64::MAX (ply_grammar.rs:23); src/mesh.rs read_ply_data must guard read_header"]
 fn ply_element_count_above_u64_max() {
     let body = "ply\nformat ascii 1.0\nelement vertex 18446744073709551616\nproperty float x\n\
                 property float y\nproperty float z\nelement face 0\n\

@@ -515,6 +515,27 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
                 .into(),
         });
     }
+    // Photos with no light in them carry no information about reflectance or light: refuse
+    // rather than fit zero maps and arbitrary materials. The threshold is far below one
+    // 8-bit step (sRGB 1/255 decodes to 3e-4 linear).
+    let brightest = obs
+        .rgb
+        .iter()
+        .zip(&obs.weight)
+        .filter(|(_, &w)| w > 0.0)
+        .map(|(c, _)| c[0].max(c[1]).max(c[2]))
+        .fold(0.0f32, f32::max);
+    if !(brightest > 1e-5) {
+        return Err(Error::Numeric {
+            stage: "observations".into(),
+            message: format!(
+                "every observed pixel of the {} training photos is black (brightest {:.1e} linear): \
+                 there is no light to fit; check the photos and their exposure",
+                train.len(),
+                brightest
+            ),
+        });
+    }
     for (k, &i) in train.iter().enumerate() {
         if obs.photo_ranges[k].is_empty() {
             notes.push(format!(
