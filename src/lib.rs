@@ -56,6 +56,7 @@ pub mod stages;
 pub mod budget;
 pub mod run;
 pub mod relight;
+pub mod bench;
 
 pub use error::{Error, Result};
 

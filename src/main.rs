@@ -112,20 +112,25 @@ enum Command {
     /// over the speed knobs; writes OUT/pipeline.{json,md,png}.
     Bench {
         /// Minimum vertex counts of the vertex-scaling runs.
-        #[arg(long, value_delimiter = ',', default_value = "10000,100000,400000")]
-        sizes: Vec<usize>,
+        /// [default: 10000,100000,400000; --quick: 2000,8000,32000]
+        #[arg(long, value_delimiter = ',')]
+        sizes: Option<Vec<usize>>,
         /// Photo counts of the photo-scaling runs.
-        #[arg(long, value_delimiter = ',', default_value = "6,13,30")]
-        photos: Vec<usize>,
+        /// [default: 6,13,30; --quick: 4,8,16]
+        #[arg(long, value_delimiter = ',')]
+        photos: Option<Vec<usize>>,
         /// Photos of the vertex-scaling runs.
-        #[arg(long, default_value_t = 13)]
-        base_photos: usize,
+        /// [default: 13; --quick: 6]
+        #[arg(long)]
+        base_photos: Option<usize>,
         /// Minimum vertices of the photo-scaling runs.
-        #[arg(long, default_value_t = 100000)]
-        base_vertices: usize,
+        /// [default: 100000; --quick: 8000]
+        #[arg(long)]
+        base_vertices: Option<usize>,
         /// The synth scene.
-        #[arg(long, default_value = "spot-varying")]
-        scene: String,
+        /// [default: spot-varying; --quick: sphere-plane]
+        #[arg(long)]
+        scene: Option<String>,
         /// Output folder.
         #[arg(long, default_value = "bench-results")]
         out: std::path::PathBuf,
@@ -425,16 +430,18 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             quick,
             no_sweep,
         } => {
-            let opts = relight_cpc::bench::BenchOptions {
-                sizes,
-                photos,
-                base_photos,
-                base_vertices,
-                out,
-                quick,
-                scene,
-                no_sweep,
+            use relight_cpc::bench::BenchOptions;
+            let mut opts = if quick {
+                BenchOptions::quick(out)
+            } else {
+                BenchOptions::new(out)
             };
+            opts.sizes = sizes.unwrap_or(opts.sizes);
+            opts.photos = photos.unwrap_or(opts.photos);
+            opts.base_photos = base_photos.unwrap_or(opts.base_photos);
+            opts.base_vertices = base_vertices.unwrap_or(opts.base_vertices);
+            opts.scene = scene.unwrap_or(opts.scene);
+            opts.no_sweep = no_sweep;
             let r = relight_cpc::bench::bench(&opts)?;
             println!(
                 "bench: {} runs in {:.0} s; results in {}",
