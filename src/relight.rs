@@ -668,7 +668,7 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
         let (raster, rgb) = render_view(&model, &rot, &light, &camera, image)?;
         let mask = raster.mask();
         let stem = file_stem(&image.name);
-        let (w, h) = (camera.width as u32, camera.height as u32);
+        let (w, h) = (camera.width, camera.height);
         let exr = opts.out.join(format!("{stem}.exr"));
         let png = opts.out.join(format!("{stem}.png"));
         let mp = opts.out.join(format!("{stem}.mask.png"));
