@@ -1011,14 +1011,25 @@ fn evaluate(
     (data + smooth + rid, rmse)
 }
 
+/// The state after an outer iteration (before the final normalisation), for callers that
+/// evaluate it as it goes, e.g. the held-out error against run time.
+pub struct IterState<'a> {
+    /// Per photo and channel, the map texels.
+    pub lights: &'a [[Vec<f64>; 3]],
+    /// `lambda[k][b][c]`.
+    pub lambda: &'a [Vec<[f64; 3]>],
+    /// Row-major `V × K`.
+    pub weights: &'a [f64],
+}
+
 /// The alternation (Sec. 5): lighting steps for all photos (in parallel), then the material
 /// step, until the objective's relative decrease is below `rel_tol` or `max_outer` is reached.
-/// `on_iter` sees every outer iteration's log line.
+/// `on_iter` sees every outer iteration's log line and the state it reached.
 pub fn estimate(
     problem: &Problem,
     init: Materials0,
     opts: &EstimateOptions,
-    on_iter: &mut dyn FnMut(&Iteration),
+    on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Estimate> {
     problem.validate()?;
     let t0 = Instant::now();
@@ -1162,7 +1173,14 @@ pub fn estimate(
             objective,
             train_rmse: rmse,
         };
-        on_iter(&it);
+        on_iter(
+            &it,
+            &IterState {
+                lights: &lights,
+                lambda: &lambda,
+                weights: &weights,
+            },
+        );
         timeline.push(it);
         if prev_obj.is_finite() && (prev_obj - objective).abs() <= opts.rel_tol * prev_obj.abs() {
             break;

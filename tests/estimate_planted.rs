@@ -250,7 +250,7 @@ fn known_reflectance_recovers_the_maps() {
         lambda: p.lambda.clone(),
         weights: p.weights.clone(),
     };
-    let est = estimate(&problem(&p), init, &o, &mut |_| {}).unwrap();
+    let est = estimate(&problem(&p), init, &o, &mut |_, _| {}).unwrap();
     for i in 0..p.photos {
         for c in 0..3 {
             let (mut se, mut ss) = (0.0, 0.0);
@@ -277,9 +277,12 @@ fn joint_recovery_reaches_the_noise_level_with_non_increasing_objective() {
     let noise = 0.01;
     let p = planted(2, noise, 0.0, 300, 6);
     let mut objs = Vec::new();
-    let est = estimate(&problem(&p), start(&p), &opts(Robust::None), &mut |it| {
-        objs.push(it.objective)
-    })
+    let est = estimate(
+        &problem(&p),
+        start(&p),
+        &opts(Robust::None),
+        &mut |it, _| objs.push(it.objective),
+    )
     .unwrap();
     assert!(objs.len() >= 2);
     for w in objs.windows(2) {
@@ -344,7 +347,7 @@ fn irls_rejects_planted_outliers() {
             lambda: p.lambda.clone(),
             weights: p.weights.clone(),
         };
-        clean_error(p, &estimate(&problem(p), init, &o, &mut |_| {}).unwrap())
+        clean_error(p, &estimate(&problem(p), init, &o, &mut |_, _| {}).unwrap())
     };
     let tukey = Robust::Tukey { c: 4.685 };
     let (e_clean, e_irls, e_ls) = (
@@ -367,7 +370,7 @@ fn deterministic_across_runs_and_thread_counts() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| estimate(&problem(&p), start(&p), &o, &mut |_| {}).unwrap())
+            .install(|| estimate(&problem(&p), start(&p), &o, &mut |_, _| {}).unwrap())
     };
     let (a, b, c) = (run(1), run(2), run(2));
     for other in [&b, &c] {

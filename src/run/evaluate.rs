@@ -142,6 +142,127 @@ impl Truth {
     }
 }
 
+/// Held-out error as the estimator goes (the `timeline`'s `holdout_rmse`): the held-out
+/// photos' observations predicted with the current reflectance under their true light
+/// (protocol (a)) when the workspace has `truth/`, else under the mean of the current
+/// training maps (protocol (c)); RMSE over observations with `α > 0`, after the best
+/// global scale (the state before the final normalisation has an arbitrary scale).
+pub(crate) struct HoldoutTracker {
+    obs: Observations,
+    transport: crate::transport::Transport,
+    /// Haar coefficients of each held-out view's true light, when known (by view order).
+    truth: Option<Vec<[Vec<f64>; 3]>>,
+    n_global: usize,
+}
+
+impl HoldoutTracker {
+    /// Observations and transport of the held-out views; `None` when there are none.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn new(
+        scene: &crate::scene::Scene,
+        photos: &[Photo],
+        held: &[usize],
+        bvh: &crate::trace::SceneBvh,
+        normals_env: &[Vec3],
+        env_from_world: &Matrix3<f64>,
+        vis: &crate::visibility::Visibility,
+        basis: &[crate::brdf::BasisBrdf],
+        rot: &crate::rotation::Rotation,
+        topts: &TransportOptions,
+        truth: Option<&Truth>,
+    ) -> Result<Option<Self>> {
+        if held.is_empty() {
+            return Ok(None);
+        }
+        let views: Vec<_> = held.iter().map(|&i| scene.views[i].clone()).collect();
+        let ph: Vec<_> = held.iter().map(|&i| photos[i].clone()).collect();
+        let obs = observe::extract(&scene.mesh, bvh, &views, &ph, &ObserveOptions::default());
+        if obs.weight.iter().all(|&w| w <= 0.0) {
+            return Ok(None);
+        }
+        let transport =
+            transport::build(normals_env, &obs, env_from_world, vis, basis, rot, topts)?;
+        let truth = match truth {
+            Some(t) => {
+                let mut lights = Vec::new();
+                for v in &views {
+                    match t.light(&v.image.name, topts.n_global, env_from_world)? {
+                        Some(env) => lights.push(transport::light_haar(&env)),
+                        None => {
+                            return Ok(Some(Self {
+                                obs,
+                                transport,
+                                truth: None,
+                                n_global: topts.n_global,
+                            }))
+                        }
+                    }
+                }
+                Some(lights)
+            }
+            None => None,
+        };
+        Ok(Some(HoldoutTracker {
+            obs,
+            transport,
+            truth,
+            n_global: topts.n_global,
+        }))
+    }
+
+    /// The scaled RMSE for the estimator's current state.
+    pub(crate) fn rmse(&self, state: &estimate::IterState, n_vertices: usize) -> f64 {
+        let beta = estimate::beta_per_vertex(state.lambda, state.weights, n_vertices);
+        let mean_haar = || {
+            let n2 = self.n_global * self.n_global;
+            let k = state.lights.len().max(1) as f64;
+            [0, 1, 2].map(|c| {
+                let mut m = vec![0.0; n2];
+                for l in state.lights {
+                    for (a, b) in m.iter_mut().zip(&l[c]) {
+                        *a += b / k;
+                    }
+                }
+                crate::haar::forward(&mut m, self.n_global);
+                m
+            })
+        };
+        let mean = if self.truth.is_none() {
+            Some(mean_haar())
+        } else {
+            None
+        };
+        let nb = self.transport.n_basis;
+        let (mut syy, mut syp, mut spp, mut n) = (0.0, 0.0, 0.0, 0usize);
+        for p in 0..self.obs.len() {
+            if self.obs.weight[p] <= 0.0 {
+                continue;
+            }
+            let light = match (&self.truth, &mean) {
+                (Some(t), _) => &t[self.obs.photo[p] as usize],
+                (None, Some(m)) => m,
+                (None, None) => return f64::NAN,
+            };
+            let x = self.obs.vertex[p] as usize;
+            for c in 0..3 {
+                let pred: f64 = (0..nb)
+                    .map(|b| beta[x * nb + b][c] * self.transport.response(p, b, &light[c]))
+                    .sum();
+                let y = self.obs.rgb[p][c] as f64;
+                syy += y * y;
+                syp += y * pred;
+                spp += pred * pred;
+            }
+            n += 3;
+        }
+        if n == 0 {
+            return f64::NAN;
+        }
+        let s = if spp > 0.0 { syp / spp } else { 0.0 };
+        ((syy - 2.0 * s * syp + s * s * spp).max(0.0) / n as f64).sqrt()
+    }
+}
+
 /// What the evaluation found.
 pub(crate) struct Evaluation {
     pub holdout: Vec<HoldoutEntry>,

@@ -658,21 +658,42 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         ..EstimateOptions::default()
     };
     let materials0 = Materials0::from_initial(&init, opts.basis.len(), lambert);
+    let tracker = stages.run("transport", || {
+        evaluate::HoldoutTracker::new(
+            &scene,
+            &photos,
+            &held,
+            &bvh,
+            &normals_env,
+            &env_from_world,
+            &vis,
+            &opts.basis,
+            &rot,
+            &topts,
+            truth.as_ref(),
+        )
+    })?;
     progress.stage("estimate");
     let bar = progress.bar(opts.max_iterations as u64, "outer iterations");
     let mut timeline: Vec<TimelinePoint> = Vec::new();
     let est = stages.run("estimate", || {
-        estimate::estimate(&problem, materials0, &eopts, &mut |it| {
+        estimate::estimate(&problem, materials0, &eopts, &mut |it, state| {
             bar.inc(1);
+            let holdout_rmse = tracker
+                .as_ref()
+                .map(|t| t.rmse(state, nv))
+                .filter(|v| v.is_finite());
             bar.set_message(format!(
-                "objective {:.4e}, RMSE {:.5}",
-                it.objective, it.train_rmse
+                "objective {:.4e}, training RMSE {:.5}{}",
+                it.objective,
+                it.train_rmse,
+                holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}"))
             ));
             timeline.push(TimelinePoint {
                 seconds: it.seconds,
                 objective: it.objective,
                 train_rmse: it.train_rmse,
-                holdout_rmse: None,
+                holdout_rmse,
             });
         })
     })?;
@@ -764,8 +785,10 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         conditioning,
         ..Default::default()
     };
-    if let Some(last) = report.timeline.last_mut() {
-        last.holdout_rmse = evaluation.mean_holdout_rmse;
+    if let Some(h) = evaluation.mean_holdout_rmse {
+        report.notes.push(format!(
+            "the timeline's held-out RMSE is over the held-out photos' observations (per vertex, after the best global scale, true light when known, else the mean training map); the final per-pixel figure, mean over held-out photos, is {h:.5}"
+        ));
     }
     progress.stage("report");
     // The report's own writing is timed but cannot appear in the file it is writing.
