@@ -162,12 +162,7 @@ struct RunArgs {
     #[arg(long)]
     holdout_every: Option<usize>,
     /// World up as X,Y,Z (default: estimated from the cameras).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        num_args = 3,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     up: Option<Vec<f64>>,
     /// Number of materials, or `auto`.
     #[arg(long, default_value = "auto")]
@@ -243,7 +238,14 @@ impl RunArgs {
             (None, Some(k)) => Holdout::Every(k),
             (None, None) => Holdout::Default,
         };
-        o.up = self.up.map(|v| relight_cpc::Vec3::new(v[0], v[1], v[2]));
+        o.up = match self.up.as_deref() {
+            None => None,
+            Some([x, y, z]) => Some(relight_cpc::Vec3::new(*x, *y, *z)),
+            Some(v) => anyhow::bail!(
+                "--up: expected X,Y,Z (three numbers), got {} values",
+                v.len()
+            ),
+        };
         o.materials = match self.materials.as_str() {
             "auto" => MaterialCount::Auto,
             s => MaterialCount::Fixed(s.parse().map_err(|_| {
