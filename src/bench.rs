@@ -742,7 +742,7 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
             .sweep
             .iter()
             .filter(|r| f(&r.knobs))
-            .map(|r| (r.total_seconds, r.holdout_rmse))
+            .map(|r| (r.total_seconds.log10(), r.holdout_rmse))
             .collect();
         v.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal));
         v
@@ -752,7 +752,7 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
         .iter()
         .zip(&report.pareto)
         .filter(|(_, &on)| on)
-        .map(|(r, _)| (r.total_seconds, r.holdout_rmse))
+        .map(|(r, _)| (r.total_seconds.log10(), r.holdout_rmse))
         .collect();
     front.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal));
     let series = vec![
@@ -779,7 +779,7 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
     ];
     line_panels(
         path,
-        "wall seconds of the run",
+        "log10 of the run's wall seconds",
         &[(
             "held-out RMSE against run time",
             "held-out RMSE (scaled)",
