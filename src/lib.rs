@@ -51,12 +51,12 @@ pub mod estimate;
 pub mod qp;
 
 // The tool.
-pub mod report;
-pub mod stages;
-pub mod budget;
-pub mod run;
-pub mod relight;
 pub mod bench;
+pub mod budget;
+pub mod relight;
+pub mod report;
+pub mod run;
+pub mod stages;
 
 pub use error::{Error, Result};
 

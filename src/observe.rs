@@ -401,7 +401,13 @@ mod tests {
                 probe_px: 0.0,
                 ..Default::default()
             };
-            let obs = extract(&mesh, &bvh, &[view.clone()], &[photo.clone()], &opts);
+            let obs = extract(
+                &mesh,
+                &bvh,
+                std::slice::from_ref(&view),
+                std::slice::from_ref(&photo),
+                &opts,
+            );
             assert_eq!(obs.len(), expect, "triangle at {centre:?}");
         }
     }

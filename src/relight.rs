@@ -711,12 +711,11 @@ mod tests {
             add_sun(&mut ll, &sun).unwrap();
             let omega = 2.0 * std::f64::consts::PI * (1.0 - SUN_RADIUS_DEG.to_radians().cos());
             let e = ll.integral();
-            for c in 0..3 {
-                let want = sun.radiance[c] * omega;
+            for (c, (&got, &r)) in e.iter().zip(&sun.radiance).enumerate() {
+                let want = r * omega;
                 assert!(
-                    ((e[c] - want) / want).abs() < 1e-5,
-                    "h={h} c={c}: {} vs {want}",
-                    e[c]
+                    ((got - want) / want).abs() < 1e-5,
+                    "h={h} c={c}: {got} vs {want}"
                 );
             }
         }

@@ -134,8 +134,8 @@ impl Truth {
         let mut env = OctEnv::from_latlong(&ll, n);
         let s = p.exposure;
         for t in env.rgb.iter_mut() {
-            for c in 0..3 {
-                t[c] = (t[c] as f64 * s * p.white_balance[c]) as f32;
+            for (v, wb) in t.iter_mut().zip(p.white_balance) {
+                *v = (*v as f64 * s * wb) as f32;
             }
         }
         Ok(Some(env))
@@ -408,7 +408,8 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64) -> Result<Option<OctEnv>> {
     if left.is_empty() {
         return Ok(None);
     }
-    left.photo_ranges = vec![0..left.len()];
+    let all = 0..left.len();
+    left.photo_ranges = vec![all];
     let topts = TransportOptions {
         n_global: f.opts.global_resolution,
         n_local: f.opts.local_resolution,

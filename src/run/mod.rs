@@ -365,8 +365,8 @@ pub fn mean_colours(obs: &Observations, n_vertices: usize) -> (Vec<[f64; 3]>, Ve
         if w <= 0.0 {
             continue;
         }
-        for c in 0..3 {
-            sum[v][c] += w * obs.rgb[p][c] as f64;
+        for (s, &x) in sum[v].iter_mut().zip(&obs.rgb[p]) {
+            *s += w * x as f64;
         }
         wsum[v] += w;
     }
@@ -525,7 +525,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         .filter(|(_, &w)| w > 0.0)
         .map(|(c, _)| c[0].max(c[1]).max(c[2]))
         .fold(0.0f32, f32::max);
-    if !(brightest > 1e-5) {
+    if brightest <= 1e-5 {
         return Err(Error::Numeric {
             stage: "observations".into(),
             message: format!(
@@ -822,8 +822,8 @@ fn train_errors(
             let (mut se, mut n) = (0.0, 0usize);
             for p in obs.photo_ranges[k].clone() {
                 if obs.weight[p] > 0.0 {
-                    for c in 0..3 {
-                        se += (obs.rgb[p][c] as f64 - pred[p][c]).powi(2);
+                    for (&y, &q) in obs.rgb[p].iter().zip(&pred[p]) {
+                        se += (y as f64 - q).powi(2);
                     }
                     n += 1;
                 }
