@@ -25,11 +25,9 @@ use crate::envmap::{LatLong, OctEnv};
 use crate::mesh::Mesh;
 use crate::render::{self, Raster};
 use crate::rotation::{Rotation, RotationForm};
-use crate::transport::WaveletRenderer;
 use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -542,41 +540,18 @@ pub fn render_view(
     camera: &Camera,
     image: &Image,
 ) -> Result<(Raster, Vec<[f32; 3]>)> {
-    let mesh = &model.mesh;
-    let nv = mesh.positions.len();
-    let nb = model.basis.len();
-    let renderer = WaveletRenderer::new(rot, &model.basis, light)?;
-    let raster = render::rasterize(mesh, camera, image);
-    let mut needed = vec![false; nv];
-    for &f in raster.face.iter().filter(|&&f| f != u32::MAX) {
-        for &k in &mesh.faces[f as usize] {
-            needed[k as usize] = true;
-        }
-    }
-    let centre = image.center();
-    let radiance: Vec<[f32; 3]> = (0..nv)
-        .into_par_iter()
-        .map(|x| {
-            if !needed[x] {
-                return [0.0; 3];
-            }
-            let d = centre - mesh.positions[x];
-            let n = d.norm();
-            if n <= 0.0 {
-                return [0.0; 3];
-            }
-            let wo = model.env_from_world * (d / n);
-            let r = renderer.vertex_radiance(
-                &model.normals_env[x],
-                model.vis.vertex(x),
-                &wo,
-                &model.beta[x * nb..(x + 1) * nb],
-            );
-            [r[0] as f32, r[1] as f32, r[2] as f32]
-        })
-        .collect();
-    let rgb = render::shade_vertices(&raster, mesh, &radiance);
-    Ok((raster, rgb))
+    render::render_wavelet(
+        &model.mesh,
+        &model.normals_env,
+        &model.vis,
+        &model.env_from_world,
+        &model.basis,
+        &model.beta,
+        light,
+        rot,
+        camera,
+        image,
+    )
 }
 
 /// The (camera, image) pairs `sel` names.

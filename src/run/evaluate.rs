@@ -20,10 +20,9 @@ use crate::observe::{self, Observations, ObserveOptions};
 use crate::photo::Photo;
 use crate::render::{self, Raster};
 use crate::report::{compare, psnr, HoldoutEntry};
-use crate::transport::{self, TransportOptions, WaveletRenderer};
+use crate::transport::{self, TransportOptions};
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -275,42 +274,22 @@ pub(crate) struct RenderedView {
     pub rgb: Vec<[f32; 3]>,
 }
 
-/// Render view `v` of the scene with the fitted reflectance under `light`.
+/// Render view `v` of the scene with the fitted reflectance under `light`
+/// ([`render::render_wavelet`]).
 pub(crate) fn render_view(f: &Fitted, v: usize, light: &OctEnv) -> Result<RenderedView> {
     let view = &f.scene.views[v];
-    let mesh = &f.scene.mesh;
-    let raster = render::rasterize(mesh, &view.camera, &view.image);
-    let mut needed = vec![false; mesh.positions.len()];
-    for &face in raster.face.iter().filter(|&&x| x != u32::MAX) {
-        for &i in &mesh.faces[face as usize] {
-            needed[i as usize] = true;
-        }
-    }
-    let renderer = WaveletRenderer::new(&f.rot, &f.basis, light)?;
-    let centre = view.image.center();
-    let nb = f.basis.len();
-    let radiance: Vec<[f32; 3]> = (0..mesh.positions.len())
-        .into_par_iter()
-        .map(|x| {
-            if !needed[x] {
-                return [0.0; 3];
-            }
-            let d = centre - mesh.positions[x];
-            let n = d.norm();
-            if n <= 0.0 {
-                return [0.0; 3];
-            }
-            let wo = f.env_from_world * (d / n);
-            let r = renderer.vertex_radiance(
-                &f.normals_env[x],
-                f.vis.vertex(x),
-                &wo,
-                &f.beta[x * nb..(x + 1) * nb],
-            );
-            [r[0] as f32, r[1] as f32, r[2] as f32]
-        })
-        .collect();
-    let rgb = render::shade_vertices(&raster, mesh, &radiance);
+    let (raster, rgb) = render::render_wavelet(
+        &f.scene.mesh,
+        &f.normals_env,
+        &f.vis,
+        &f.env_from_world,
+        &f.basis,
+        &f.beta,
+        light,
+        &f.rot,
+        &view.camera,
+        &view.image,
+    )?;
     Ok(RenderedView { raster, rgb })
 }
 
@@ -454,7 +433,7 @@ pub(crate) fn evaluate(
         let view = &f.scene.views[v];
         let name = view.image.name.as_str();
         let photo = &f.photos[v];
-        let stem = super::output::file_stem(name);
+        let stem = crate::relight::file_stem(name);
 
         // (a) truth.
         let mut best: Option<(f64, String)> = None;

@@ -16,23 +16,6 @@ use crate::photo::Photo;
 use crate::{Error, Result};
 use std::path::Path;
 
-/// A file-name-safe stem of an image name (`dir/a.jpg` → `dir_a`).
-pub(crate) fn file_stem(name: &str) -> String {
-    let base = match name.rfind('.') {
-        Some(i) if i > 0 => &name[..i],
-        _ => name,
-    };
-    base.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
 /// photo | render | |difference| × 4 side by side, sRGB PNG. The render is shown after
 /// multiplying by `scale` (the best global scale), so shading differences are visible
 /// apart from the unknown overall brightness.
@@ -105,7 +88,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     std::fs::create_dir_all(&env_dir).map_err(|e| Error::io(&env_dir, e))?;
     let height = (2 * f.opts.global_resolution).clamp(32, 512);
     for (k, &v) in f.train.iter().enumerate() {
-        let stem = file_stem(&f.scene.views[v].image.name);
+        let stem = crate::relight::file_stem(&f.scene.views[v].image.name);
         let env = fitted_env(f, k);
         env.write_exr(&env_dir.join(format!("{stem}.oct.exr")))?;
         env.to_latlong(height)
@@ -178,7 +161,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         let bar = progress.bar(f.train.len() as u64, "training renders");
         for (k, &v) in f.train.iter().enumerate() {
             let r = render_view(f, v, &fitted_env(f, k))?;
-            let stem = file_stem(&f.scene.views[v].image.name);
+            let stem = crate::relight::file_stem(&f.scene.views[v].image.name);
             write_triptych(&renders.join(format!("{stem}.png")), &f.photos[v], &r, 1.0)?;
             bar.inc(1);
         }
