@@ -67,20 +67,8 @@ mkdir -p "$LOGS"
 [[ -f $TIMES ]] || printf 'step\tseconds\n' >"$TIMES"
 
 # run NAME CMD...: one step, its output in logs/NAME.log, its wall time in timings.tsv.
-run() {
-    local name=$1
-    shift
-    local t0 t1
-    t0=$(date +%s.%N)
-    echo "[$(date -u +%H:%M:%S)] $name: $*"
-    if ! "$@" >"$LOGS/$name.log" 2>&1; then
-        echo "step $name failed; see $LOGS/$name.log" >&2
-        tail -20 "$LOGS/$name.log" >&2
-        exit 1
-    fi
-    t1=$(date +%s.%N)
-    printf '%s\t%.2f\n' "$name" "$(echo "$t1 - $t0" | bc)" >>"$TIMES"
-}
+# shellcheck source=steps.sh
+source "$(dirname "$(realpath "${BASH_SOURCE[0]}")")/steps.sh"
 
 # Tools: colmap (apt), a venv with the Python packages.
 need_apt=()
