@@ -42,28 +42,41 @@ pub struct ReadStats {
     pub non_finite: usize,
 }
 
+/// Decode the first RGB(A) layer of an EXR stream as `(width, height, rgb)`.
+fn decode_exr_rgb(
+    source: impl std::io::Read + std::io::Seek,
+) -> std::result::Result<(usize, usize, Vec<[f32; 3]>), exr::error::Error> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res: Vec2<usize>, _: &RgbaChannels| {
+                (
+                    res.width(),
+                    res.height(),
+                    vec![[0f32; 3]; res.width() * res.height()],
+                )
+            },
+            |px: &mut (usize, usize, Vec<[f32; 3]>),
+             pos: Vec2<usize>,
+             (r, g, b, _a): (f32, f32, f32, f32)| {
+                let w = px.0;
+                px.2[pos.y() * w + pos.x()] = [r, g, b];
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(source)?;
+    Ok(image.layer_data.channel_data.pixels)
+}
+
 /// Read the first RGB(A) layer of an EXR file as `(width, height, rgb)`, naming the file
 /// and, when the decoder gives up, the file's compression.
 fn read_exr_rgb(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
-    use exr::prelude::*;
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |res: Vec2<usize>, _: &RgbaChannels| {
-            (
-                res.width(),
-                res.height(),
-                vec![[0f32; 3]; res.width() * res.height()],
-            )
-        },
-        |px: &mut (usize, usize, Vec<[f32; 3]>),
-         pos: Vec2<usize>,
-         (r, g, b, _a): (f32, f32, f32, f32)| {
-            let w = px.0;
-            px.2[pos.y() * w + pos.x()] = [r, g, b];
-        },
-    );
-    match image {
-        Ok(img) => Ok(img.layer_data.channel_data.pixels),
+    let file = std::fs::File::open(path).map_err(|e| crate::Error::io(path, e))?;
+    match decode_exr_rgb(std::io::BufReader::new(file)) {
+        Ok(pixels) => Ok(pixels),
         Err(exr::error::Error::Io(e)) => Err(crate::Error::io(path, e)),
         Err(e) => {
             let compression = exr::meta::MetaData::read_from_file(path, false)
@@ -123,7 +136,29 @@ impl LatLong {
     /// Read a lat-long EXR (width must be twice the height). Negative and non-finite samples
     /// are set to 0 and counted in [`ReadStats`].
     pub fn read_exr(path: &Path) -> Result<(LatLong, ReadStats)> {
-        let (width, height, mut rgb) = read_exr_rgb(path)?;
+        let (width, height, rgb) = read_exr_rgb(path)?;
+        Self::checked(path, width, height, rgb)
+    }
+
+    /// Decode a lat-long EXR held in memory (`name` labels errors), like [`read_exr`].
+    ///
+    /// [`read_exr`]: LatLong::read_exr
+    pub fn read_exr_bytes(bytes: &[u8], name: &str) -> Result<(LatLong, ReadStats)> {
+        let (width, height, rgb) =
+            decode_exr_rgb(std::io::Cursor::new(bytes)).map_err(|e| Error::Image {
+                path: name.into(),
+                message: format!("cannot decode EXR: {e}"),
+            })?;
+        Self::checked(Path::new(name), width, height, rgb)
+    }
+
+    /// The map from decoded pixels: 2H × H checked, negatives and non-finite values cleared.
+    fn checked(
+        path: &Path,
+        width: usize,
+        height: usize,
+        mut rgb: Vec<[f32; 3]>,
+    ) -> Result<(LatLong, ReadStats)> {
         if height == 0 || width != 2 * height {
             return Err(Error::Image {
                 path: path.to_path_buf(),

@@ -225,7 +225,7 @@ fn embedded_map(name: &str) -> Result<LatLong> {
         "sunset" => include_bytes!("../tests/fixtures/synth/hdri/sunset.exr"),
         other => return Err(Error::Config(format!("no embedded map named `{other}`"))),
     };
-    data::read_exr_bytes(bytes, &format!("embedded map {name}"))
+    LatLong::read_exr_bytes(bytes, &format!("embedded map {name}")).map(|(map, _)| map)
 }
 
 const SPOT_PLY: &[u8] = include_bytes!("../tests/fixtures/synth/spot.ply");

@@ -5,10 +5,11 @@
 //! the difference of the two renders (σ_pixel = std(a − b)/√2) and reported relative to the
 //! mean object radiance. Figures go to `target/reference_cost.json`.
 
+use relight_cpc::envmap::LatLong;
 use relight_cpc::mesh::Mesh;
 use relight_cpc::reference::{Environment, Lobe, Reflectance, Samples, Scene};
 use relight_cpc::sphere::env_frame;
-use relight_cpc::synth::{data::read_exr_bytes, look_at};
+use relight_cpc::synth::look_at;
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::Vec3;
 use std::path::Path;
@@ -19,7 +20,7 @@ fn reference_cost() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let (mesh, _) = Mesh::read_ply(&root.join("tests/fixtures/synth/spot.ply")).unwrap();
     let bvh = SceneBvh::new(&mesh);
-    let map = read_exr_bytes(
+    let (map, _) = LatLong::read_exr_bytes(
         &std::fs::read(root.join("tests/fixtures/synth/hdri/city.exr")).unwrap(),
         "city",
     )
