@@ -4,12 +4,13 @@
 //! standard error (5σ: a false failure once in ~1.7 million checks) plus a stated bound on
 //! the discretisation.
 
+use relight_cpc::mesh::area_weighted_normals;
 use relight_cpc::reference::{
     texel_solid_angle, BruteForce, Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene,
     Unoccluded,
 };
 use relight_cpc::sphere::env_frame;
-use relight_cpc::synth::geometry::{icosphere, plane, vertex_normals};
+use relight_cpc::synth::geometry::{icosphere, plane};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 
@@ -54,7 +55,7 @@ fn white_furnace_lambert_sphere_renders_albedo_times_radiance() {
     // the interpolated and the geometric normal is self-shadowed (icosphere level 3,
     // angle ≤ 0.04 rad: cosine-weighted measure < 2e-3), so 2e-3 relative is added.
     let (p, f) = icosphere(3);
-    let normals = vertex_normals(&p, &f, &Vec3::y());
+    let normals = area_weighted_normals(&p, &f);
     let a = [0.2, 0.5, 0.8];
     let l = [1.0f32, 2.0, 0.5];
     let refl = lambert(a, p.len());
@@ -142,7 +143,7 @@ fn lambert_sphere_under_clamped_cosine_sky_matches_closed_form() {
     // Texel quantisation of a smooth L against the smooth clamped cosine: relative error
     // O(Δθ²) ≈ (π/64)²/12 ≈ 2e-4; tolerance 5σ + 1e-3 · max radiance.
     let (p, f) = icosphere(2);
-    let normals = vertex_normals(&p, &f, &Vec3::y());
+    let normals = area_weighted_normals(&p, &f);
     let a = [0.7, 0.7, 0.7];
     let refl = lambert(a, p.len());
     let up = Vec3::new(0.2, 1.0, -0.1).normalize();
@@ -199,7 +200,7 @@ fn sphere_casts_the_expected_shadow_on_a_plane_point() {
     let mut pos = pp.clone();
     let mut faces = pf.clone();
     relight_cpc::synth::geometry::append(&mut pos, &mut faces, &sp, &sf);
-    let normals = vertex_normals(&pos, &faces, &Vec3::y());
+    let normals = area_weighted_normals(&pos, &faces);
     let a = 0.6;
     let l = 1.5f32;
     let refl = lambert([a; 3], pos.len());

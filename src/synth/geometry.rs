@@ -110,33 +110,6 @@ pub fn plane(center: &Vec3, normal: &Vec3, size: f64, cells: u32) -> (Vec<Vec3>,
     (pos, faces)
 }
 
-/// Area-weighted vertex normals (unit); a vertex with no face of non-zero area gets
-/// `fallback`.
-pub fn vertex_normals(positions: &[Vec3], faces: &[[u32; 3]], fallback: &Vec3) -> Vec<Vec3> {
-    let mut acc = vec![Vec3::zeros(); positions.len()];
-    for f in faces {
-        let (a, b, c) = (
-            positions[f[0] as usize],
-            positions[f[1] as usize],
-            positions[f[2] as usize],
-        );
-        let n = (b - a).cross(&(c - a));
-        for &v in f {
-            acc[v as usize] += n;
-        }
-    }
-    acc.into_iter()
-        .map(|n| {
-            let l = n.norm();
-            if l > 0.0 && l.is_finite() {
-                n / l
-            } else {
-                *fallback
-            }
-        })
-        .collect()
-}
-
 /// Appends part `(positions, faces)` to `(all_pos, all_faces)`, re-indexing its faces.
 pub fn append(
     all_pos: &mut Vec<Vec3>,
