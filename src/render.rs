@@ -228,18 +228,10 @@ pub fn interpolate_scalar(raster: &Raster, mesh: &Mesh, vertex_value: &[f32]) ->
         .collect()
 }
 
-/// The exact sRGB transfer curve (IEC 61966-2-1), linear `[0, 1]` → encoded `[0, 1]`.
+/// The exact sRGB transfer curve ([`crate::photo::linear_to_srgb`]), with non-finite values
+/// encoded as 0.
 pub fn srgb_encode(v: f32) -> f32 {
-    let v = if v.is_finite() {
-        v.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    if v <= 0.003_130_8 {
-        12.92 * v
-    } else {
-        1.055 * v.powf(1.0 / 2.4) - 0.055
-    }
+    crate::photo::linear_to_srgb(if v.is_finite() { v } else { 0.0 })
 }
 
 fn check_size(path: &Path, width: u32, height: u32, n: usize, mask: Option<&[bool]>) -> Result<()> {
