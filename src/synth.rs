@@ -1,9 +1,13 @@
 //! Known-truth synthetic COLMAP workspaces (`relight-cpc synth SCENE OUT_DIR`).
 //!
-//! A scene is a mesh (icosphere, sphere on a ground plane, or the real "Spot" mesh), a
-//! reflectance in the paper's model (Eq. 11: per-vertex non-negative blend `w_k(x)` of
-//! materials, each a per-channel mix `λ_kbc` of basis lobes `ρ_b`) and one real HDR map per
-//! photo (static, rotated, or a different map per photo). Each photo is rendered by the
+//! A scene is a mesh (icosphere, sphere on a ground plane, or the real "Spot" mesh, alone or
+//! on a ground plane), a reflectance in the paper's model (Eq. 11: per-vertex non-negative
+//! blend `w_k(x)` of materials, each a per-channel mix `λ_kbc` of basis lobes `ρ_b`) and one
+//! real HDR map per photo (static, rotated, or a different map per photo). In
+//! `spot-textured` the blend `w_1 = 1 − w_0` follows a procedural noise pattern
+//! ([`geometry::pattern`], blobs ~3-6% of the object's size, on a ~24K-vertex mesh), so the
+//! photos carry texture that SIFT matches (for real SfM runs, `scripts/colmap_fixture_synth.sh`)
+//! while the per-vertex model still represents the reflectance exactly. Each photo is rendered by the
 //! independent reference renderer ([`crate::reference`], Eq. 1 by MIS Monte Carlo with
 //! shadow rays), then exposed and encoded like a camera would:
 //!
@@ -112,6 +116,9 @@ enum Shape {
     SpherePlane,
     /// The Spot mesh, two materials split by a tilted plane with a blended band.
     Spot,
+    /// The Spot mesh standing on a square ground plane; on both, the two materials' weights
+    /// follow a procedural noise pattern ([`geometry::pattern`]) that SIFT can match.
+    SpotTextured,
 }
 
 /// How the illumination changes from photo to photo.
@@ -204,6 +211,18 @@ fn scene_defs() -> Vec<SceneDef> {
             lighting: Lighting::Static("forest"),
             photos: 12,
         },
+        SceneDef {
+            name: "spot-textured",
+            description: "Spot on a ground plane, two materials in a high-frequency noise pattern (texture for SfM), one real map for every photo, held-out photos",
+            shape: Shape::SpotTextured,
+            lobes: vec![Lobe::Lambert, phong(50.0), Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![
+                ("cream-ggx", vec![[0.85, 0.75, 0.55], [0.0, 0.0, 0.0], [0.15, 0.15, 0.15]]),
+                ("dark-phong", vec![[0.06, 0.05, 0.05], [0.15, 0.15, 0.15], [0.0, 0.0, 0.0]]),
+            ],
+            lighting: Lighting::Static("courtyard"),
+            photos: 24,
+        },
     ]
 }
 
@@ -275,6 +294,24 @@ fn make_geometry(shape: Shape, min_vertices: usize, out: &Path) -> Result<Geomet
             let r = p.iter().map(|q| (q - c).norm()).fold(0.0, f64::max);
             Ok((p, f, c, r))
         }
+        Shape::SpotTextured => {
+            // Spot as above (at least 2/5 of the vertices), on a plane touching its lowest
+            // point, 2.5× its largest horizontal extent on a side, the rest of the vertices.
+            let (mut p, mut f) = spot_mesh(out)?;
+            while p.len() < min_vertices * 2 / 5 {
+                let (q, g) = geometry::subdivide(&p, &f);
+                p = q;
+                f = g;
+            }
+            let (lo, hi) = crate::mesh::bounding_box(&p);
+            let c = (lo + hi) * 0.5;
+            let r = p.iter().map(|q| (q - c).norm()).fold(0.0, f64::max);
+            let side = 2.5 * (hi.x - lo.x).max(hi.z - lo.z);
+            let cells = ((min_vertices.saturating_sub(p.len()) as f64).sqrt().ceil() as u32).max(8);
+            let (pp, pf) = geometry::plane(&Vec3::new(c.x, lo.y, c.z), &Vec3::y(), side, cells);
+            geometry::append(&mut p, &mut f, &pp, &pf);
+            Ok((p, f, c, r))
+        }
     }
 }
 
@@ -308,6 +345,24 @@ fn make_weights(shape: Shape, positions: &[Vec3], k: usize) -> Vec<f64> {
             let dir = Vec3::new(1.0, 0.6, 0.3).normalize();
             for (i, p) in positions.iter().enumerate() {
                 let s = ((p - c).dot(&dir) / band + 0.5).clamp(0.0, 1.0);
+                w[i * k] = 1.0 - s;
+                w[i * k + 1] = s;
+            }
+        }
+        Shape::SpotTextured => {
+            // Noise lattice 6% of the object's size (the bounding box of everything above
+            // the ground, which is the lowest vertex's height): blobs 3-6 mesh edges across
+            // on Spot, 2-4 grid cells on the plane.
+            let floor = positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+            let above: Vec<Vec3> = positions
+                .iter()
+                .filter(|p| p.y > floor + 1e-9)
+                .copied()
+                .collect();
+            let (lo, hi) = crate::mesh::bounding_box(&above);
+            let scale = 0.06 * (hi - lo).norm();
+            for (i, p) in positions.iter().enumerate() {
+                let s = geometry::pattern(&(p / scale));
                 w[i * k] = 1.0 - s;
                 w[i * k + 1] = s;
             }
@@ -476,8 +531,16 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     })?;
 
     // Geometry, cleaned by the project's mesh code (the mesh written is the mesh rendered).
-    let (positions, faces, target, radius) =
-        make_geometry(def.shape, opts.vertices.unwrap_or(10_000), out)?;
+    let (positions, faces, target, radius) = make_geometry(
+        def.shape,
+        opts.vertices
+            .unwrap_or(if def.shape == Shape::SpotTextured {
+                24_000
+            } else {
+                10_000
+            }),
+        out,
+    )?;
     let (mesh, _) = Mesh::from_parts(positions, faces);
     let k = def.materials.len();
     let refl = Reflectance {
@@ -492,7 +555,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     let mut rng = Pcg32::new(opts.seed, 0x5eed);
     let fov: f64 = 40.0;
     let dist = radius / (fov.to_radians() / 2.0 * 0.85).sin();
-    let min_elev = if def.shape == Shape::SpherePlane {
+    let min_elev = if matches!(def.shape, Shape::SpherePlane | Shape::SpotTextured) {
         20.0
     } else {
         5.0

@@ -1,5 +1,5 @@
-//! Procedural meshes for the synthetic scenes: icospheres, ground planes, smooth vertex
-//! normals, and a merge of parts into one triangle list.
+//! Procedural meshes for the synthetic scenes: icospheres, ground planes, a merge of parts
+//! into one triangle list, and a procedural blend pattern for textured materials.
 //!
 //! The icosphere is the regular icosahedron with every edge split at its midpoint `s`
 //! times and the new vertices pushed to the unit sphere: `10·4^s + 2` vertices,
@@ -150,6 +150,49 @@ pub fn subdivide(positions: &[Vec3], faces: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32
     (pos, out)
 }
 
+/// Hash of a lattice point to `[-1, 1]` (integer mixing, fixed: the pattern never changes).
+fn lattice(i: i64, j: i64, k: i64) -> f64 {
+    let mut h = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+        ^ (j as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+        ^ (k as u64).wrapping_mul(0x1656_67b1_9e37_79f9);
+    h ^= h >> 31;
+    h = h.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    h ^= h >> 29;
+    h = h.wrapping_mul(0x94d0_49bb_1331_11eb);
+    h ^= h >> 32;
+    (h >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+/// Value noise in `[-1, 1]`: lattice values at integer points, blended with the smooth
+/// fade `t²(3 − 2t)` per axis (continuous, about one feature per unit).
+pub fn value_noise(p: &Vec3) -> f64 {
+    let f = p.map(f64::floor);
+    let t = (p - f).map(|t| t * t * (3.0 - 2.0 * t));
+    let (i, j, k) = (f.x as i64, f.y as i64, f.z as i64);
+    let mut acc = 0.0;
+    for (di, wx) in [(0, 1.0 - t.x), (1, t.x)] {
+        for (dj, wy) in [(0, 1.0 - t.y), (1, t.y)] {
+            for (dk, wz) in [(0, 1.0 - t.z), (1, t.z)] {
+                acc += wx * wy * wz * lattice(i + di, j + dj, k + dk);
+            }
+        }
+    }
+    acc
+}
+
+/// A blend weight in `[0, 1]` with blobs of half a unit to a unit across: three octaves of
+/// [`value_noise`] (`n = v(p) + v(2p + a)/2 + v(4p + b)/4`) through a steep smoothstep of
+/// `(n − 0.05)/0.16 + 1/2`, so most of the surface is 0 or 1 (about 45% at 1) and the
+/// transitions are narrow (a high-contrast texture for feature matching that per-vertex
+/// weights represent exactly).
+pub fn pattern(p: &Vec3) -> f64 {
+    let n = value_noise(p)
+        + 0.5 * value_noise(&(p * 2.0 + Vec3::new(17.3, 5.1, 9.7)))
+        + 0.25 * value_noise(&(p * 4.0 + Vec3::new(-3.7, 11.9, 2.3)));
+    let x = ((n - 0.05) / 0.16 + 0.5).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -170,6 +213,29 @@ mod tests {
                 assert!((b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0);
             }
         }
+    }
+
+    #[test]
+    fn pattern_is_a_bounded_mostly_binary_texture() {
+        // Weights in [0, 1]; on a 40³ grid over 10 units both materials cover a real share
+        // of the volume (each > 20%) and most points are pure (|w − 0.5| > 0.45 on > 50%):
+        // a texture, not a constant and not a smooth gradient.
+        let (mut ones, mut zeros, mut pure, mut n) = (0, 0, 0, 0);
+        for i in 0..40 {
+            for j in 0..40 {
+                for k in 0..40 {
+                    let p = Vec3::new(i as f64, j as f64, k as f64) * 0.25 + Vec3::repeat(0.1);
+                    let w = pattern(&p);
+                    assert!((0.0..=1.0).contains(&w), "{w}");
+                    ones += (w > 0.5) as usize;
+                    zeros += (w < 0.5) as usize;
+                    pure += ((w - 0.5).abs() > 0.45) as usize;
+                    n += 1;
+                }
+            }
+        }
+        assert!(ones * 5 > n && zeros * 5 > n, "{ones} {zeros} of {n}");
+        assert!(pure * 2 > n, "{pure} of {n}");
     }
 
     #[test]
