@@ -14,12 +14,14 @@
 #    poisson_mesher, cleaning.
 # 4. The fixture keeps what `relight-cpc run` and `inspect` need, small:
 #    colmap/      the aligned model undistorted again at 160 px (`image_undistorter
-#                 --max_image_size 160`: PNG photos + dense/sparse binary and text), the
+#                 --max_image_size 160`: PNG photos + dense/sparse, binary only: the text
+#                 copy would add 1.9 MB, mostly keypoints without a 3D point), the
 #                 cleaned mesh vertex-clustered to ~12K faces, 5,000 of the fused points,
 #                 COLMAP's logs and summary.json, and truth/ (manifest, materials, and the
-#                 held-out photos' maps: `run` reads only those)
+#                 held-out photos' maps, `run` reads only those, each distinct map once)
 #    truth/       the same scene rendered by synth at 160x120 (same seed, so the same cameras
-#                 and lights): the perfect-truth workspace (its mesh is the true surface)
+#                 and lights; 300 sparse points): the perfect-truth workspace (its mesh is
+#                 the true surface)
 set -euo pipefail
 
 REPO=$(cd "$(dirname "$0")/.." && pwd)
@@ -67,10 +69,12 @@ for t in rows:
     print(t[9], *("%.9f" % v for v in c))
 EOF
 
-# ---- 3. COLMAP.
-rm -rf "$WORK/colmap"
-"$REPO/scripts/colmap_workspace.sh" "$WORK/synth/images" "$WORK/colmap" \
-    --centres "$WORK/centres.txt"
+# ---- 3. COLMAP (REUSE=1 keeps a finished run in WORK_DIR and only redoes step 4).
+if [[ ${REUSE:-0} != 1 || ! -f $WORK/colmap/summary.json ]]; then
+    rm -rf "$WORK/colmap"
+    "$REPO/scripts/colmap_workspace.sh" "$WORK/synth/images" "$WORK/colmap" \
+        --centres "$WORK/centres.txt"
+fi
 OUT=$WORK/colmap
 
 # ---- 4. the small copy.
@@ -83,25 +87,34 @@ colmap model_converter --input_path "$WORK/small/sparse" --output_path "$WORK/sm
     --output_type TXT >/dev/null 2>&1
 rm -rf "$WORK/truth-small"
 "$BIN" synth "$SCENE" "$WORK/truth-small" --width $FIX_SIZE --height $((FIX_SIZE * 3 / 4)) \
-    "${SYNTH[@]}" --points 1000
+    "${SYNTH[@]}" --points 300
 
 rm -rf "$FIXTURE/colmap" "$FIXTURE/truth"
 C=$FIXTURE/colmap
 mkdir -p "$C/dense/images" "$C/dense/sparse" "$C/logs" "$C/truth/env"
 cp "$WORK"/small/images/*.png "$C/dense/images/"
-cp "$WORK"/small/sparse/*.bin "$WORK"/small/sparse-txt/*.txt "$C/dense/sparse/"
+cp "$WORK"/small/sparse/*.bin "$C/dense/sparse/"
 cp "$OUT"/logs/{26-model_analyzer.log,22-model_aligner.log,align_transform.txt,timings.tsv} \
     "$OUT"/logs/{mesh_stats.json,40-image_undistorter-small.log} "$OUT/summary.json" "$C/logs/"
 cp "$WORK/centres.txt" "$C/logs/"
-copy_truth() { # SRC_TRUTH DST_TRUTH: manifest, materials, the held-out photos' maps
+copy_truth() { # SRC_TRUTH DST_TRUTH: manifest, materials, the held-out photos' maps (`run`
+    # reads no other), identical maps stored once (the manifest's `env` entries then point
+    # to the one copy: with the scene's static light, all of them do).
     mkdir -p "$2/env"
-    cp "$1/manifest.json" "$1/materials.json" "$2/"
-    python3 - "$1/manifest.json" <<'EOF' | while read -r e; do cp "$1/$e" "$2/$e"; done
-import json, sys
-m = json.load(open(sys.argv[1]))
-for p in m["photos"]:
-    if p["held_out"]:
-        print(p["env"])
+    cp "$1/materials.json" "$2/"
+    python3 - "$1" "$2" <<'EOF'
+import hashlib, json, pathlib, shutil, sys
+src, dst = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+m = json.loads((src / "manifest.json").read_text())
+digest = [hashlib.sha256((src / p["env"]).read_bytes()).hexdigest() for p in m["photos"]]
+first = {}
+for p, d in zip(m["photos"], digest):
+    if d not in first and p["held_out"]:
+        first[d] = p["env"]
+        shutil.copy2(src / p["env"], dst / p["env"])
+for p, d in zip(m["photos"], digest):
+    p["env"] = first.get(d, p["env"])
+(dst / "manifest.json").write_text(json.dumps(m, indent=2, ensure_ascii=False) + "\n")
 EOF
 }
 copy_truth "$WORK/synth/truth" "$C/truth"
