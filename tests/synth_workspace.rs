@@ -44,6 +44,7 @@ fn scene_list_is_complete() {
         "sphere-plane",
         "spot-varying",
         "spot-static",
+        "spot-textured",
     ] {
         assert!(names.contains(&n), "{n} missing from {names:?}");
     }
@@ -263,4 +264,60 @@ fn same_seed_same_bytes() {
     for d in [a, b, c] {
         std::fs::remove_dir_all(&d).ok();
     }
+}
+
+#[test]
+fn spot_textured_weights_form_a_fine_pattern_on_a_fine_mesh() {
+    use ply_rs::parser::Parser;
+    use ply_rs::ply::{DefaultElement, Property};
+    let out = tmp("textured");
+    let mut o = small(2, 1);
+    o.vertices = None; // the scene's default: fine enough for the pattern
+    let s = build("spot-textured", &out, &o).unwrap();
+    assert!(s.vertices >= 20_000, "{} vertices", s.vertices);
+    // The truth weights, read by ply-rs directly.
+    let mut file = std::fs::File::open(out.join("truth/weights.ply")).unwrap();
+    let ply = Parser::<DefaultElement>::new().read_ply(&mut file).unwrap();
+    let get = |e: &DefaultElement, k: &str| match e[k] {
+        Property::Float(v) => v as f64,
+        ref p => panic!("{k}: {p:?}"),
+    };
+    let verts = &ply.payload["vertex"];
+    let w: Vec<f64> = verts.iter().map(|e| get(e, "w1")).collect();
+    for (e, w1) in verts.iter().zip(&w) {
+        // A blend of the two materials: non-negative, summing to one (f32 storage).
+        let w0 = get(e, "w0");
+        assert!(w0 >= 0.0 && *w1 >= 0.0 && (w0 + w1 - 1.0).abs() < 1e-6);
+    }
+    // Both materials cover a real share of the surface...
+    let dark = w.iter().filter(|&&x| x > 0.5).count();
+    assert!(
+        dark * 5 > w.len() && (w.len() - dark) * 5 > w.len(),
+        "{dark} of {}",
+        w.len()
+    );
+    // ...in many small patches, not one split (as in spot-varying): the dominant material
+    // changes across more than 2% of the face edges (a single boundary on this mesh would
+    // cross well under 1%: of the order of sqrt(faces) ~ 220 of the 144K face edges).
+    let faces: Vec<[usize; 3]> = ply.payload["face"]
+        .iter()
+        .map(|f| match &f["vertex_indices"] {
+            Property::ListInt(v) => [v[0] as usize, v[1] as usize, v[2] as usize],
+            Property::ListUInt(v) => [v[0] as usize, v[1] as usize, v[2] as usize],
+            p => panic!("{p:?}"),
+        })
+        .collect();
+    let (mut cut, mut edges) = (0, 0);
+    for f in &faces {
+        for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+            edges += 1;
+            cut += ((w[a] > 0.5) != (w[b] > 0.5)) as usize;
+        }
+    }
+    eprintln!("{cut} of {edges} face edges cross a material boundary");
+    assert!(
+        cut * 50 > edges,
+        "{cut} of {edges} edges cross a material boundary"
+    );
+    let _ = std::fs::remove_dir_all(&out);
 }
