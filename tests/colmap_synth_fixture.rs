@@ -17,8 +17,13 @@ use relight_cpc::points::{nearest_points, DistanceStats};
 use relight_cpc::scene::inspect;
 use relight_cpc::Vec3;
 
+/// The fixture, or a rerun of its script (`COLMAP_SYNTH_FIXTURE=DIR`, the script's
+/// `--fixture DIR`) to check that a fresh run passes the same tests.
 fn fixture() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-synth")
+    match std::env::var_os("COLMAP_SYNTH_FIXTURE") {
+        Some(dir) => PathBuf::from(dir),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-synth"),
+    }
 }
 
 /// A number after `key` in COLMAP's model_analyzer log.
