@@ -219,7 +219,7 @@ fn mesh_lies_on_the_true_surface() {
     // The same figures for the undecimated mesh of a full run, when given (README).
     if let Ok(full) = std::env::var("COLMAP_SYNTH_FULL_MESH") {
         let (m, _) = Mesh::read_ply(Path::new(&full)).unwrap();
-        distances(&m, &format!("{full}"));
+        distances(&m, &full);
     }
     // The mesh was made from SGBM depth at 640 px (a pixel is ~0.005 units on the object)
     // and Poisson-smoothed, then vertex-clustered for the fixture (cells ~0.02 units):
