@@ -150,6 +150,21 @@ pub enum Robust {
     Tukey { c: f64 },
 }
 
+/// The diagonal of the lighting system `Wᵀ Aᵀ D A W` that the Laplacian weight is measured
+/// against: `μ_{I,c} = smoothness × scale_{I,c}`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SmoothnessScale {
+    /// The largest diagonal entry in the Haar basis. Dominated by the scaling coefficient
+    /// (the map's mean), which collects a whole lobe's energy: `~n²/4` times a texel's
+    /// entry for a diffuse row, so `μ` grows with the map resolution and blurs suns.
+    HaarMax,
+    /// The largest diagonal entry in the texel basis, the one the Laplacian acts in:
+    /// `max_t Σ_p α_p ω_{p,c} ((Wᵀ e_{p,c})_t)²` (`e` the β-blended transport row).
+    TexelMax,
+    /// The mean diagonal entry, `trace / n²` (the same in both bases).
+    Mean,
+}
+
 /// Options of [`estimate`].
 #[derive(Debug, Clone)]
 pub struct EstimateOptions {
@@ -157,8 +172,10 @@ pub struct EstimateOptions {
     pub max_outer: usize,
     /// Stop when the objective's relative decrease falls below this.
     pub rel_tol: f64,
-    /// Laplacian weight relative to the largest diagonal entry of the lighting system.
+    /// Laplacian weight `μ` relative to the lighting system's scale `smoothness_scale`.
     pub smoothness: f64,
+    /// What `smoothness` is relative to (the system's "largest value").
+    pub smoothness_scale: SmoothnessScale,
     /// Robust loss of the lighting step (IRLS); its final weights carry to the materials.
     pub robust: Robust,
     /// IRLS passes per lighting step (the first one unweighted); 1 = plain weighted LS.
@@ -185,6 +202,7 @@ impl Default for EstimateOptions {
             max_outer: 12,
             rel_tol: 1e-4,
             smoothness: 1e-3,
+            smoothness_scale: SmoothnessScale::TexelMax,
             robust: Robust::Huber { k: 1.345 },
             irls_iters: 4,
             beta: 1e-8,
@@ -359,102 +377,144 @@ fn haar3(tex: &[Vec<f64>; 3], n: usize) -> Vec<[f64; 3]> {
 }
 
 /// One photo's data for the lighting step.
-struct PhotoSystem<'a> {
-    problem: &'a Problem<'a>,
-    beta: &'a [[f64; 3]],
+///
+/// With `β` fixed for the whole lighting step, an observation's `B` transport rows enter
+/// every product only through their per-channel blend `e_{p,c} = Σ_b β_{x,b,c} g_{p,b}`.
+/// [`PhotoSystem::new`] merges them once into one sparse row per observation (the union of
+/// the bases' kept indices, ascending, values `[f32; 3]`, one per channel), so a product
+/// costs one gather or scatter per merged entry instead of `B` per kept entry. The blend
+/// is summed in `f64` in basis order and rounded once to `f32` (relative error ≤ 2⁻²⁴, the
+/// precision the transport values are stored in); forward and adjoint products read the
+/// same stored values, so the Hessian stays exactly symmetric.
+struct PhotoSystem {
     range: std::ops::Range<usize>,
     n: usize,
     /// `α_p ω_{p,c}` for the range's observations.
     dw: Vec<[f64; 3]>,
+    /// Merged row `q` (range order) spans `index[offsets[q]..offsets[q + 1]]`.
+    offsets: Vec<usize>,
+    /// Haar coefficient indices of the merged rows, ascending within a row.
+    index: Vec<u32>,
+    /// `e_{p,c}` at those indices.
+    value: Vec<[f32; 3]>,
 }
 
-impl PhotoSystem<'_> {
-    /// `s_{p,c} = Σ_b β_{x,b,c} ⟨g_{p,b}, h_c⟩` for the range (`h` interleaved Haar).
-    fn forward_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
-        let t = self.problem.transport;
+impl PhotoSystem {
+    /// Merge the range's transport rows with `β` (struct docs).
+    fn new(
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        range: std::ops::Range<usize>,
+        n: usize,
+        dw: Vec<[f64; 3]>,
+    ) -> Self {
+        let t = problem.transport;
         let nb = t.n_basis;
-        for (q, p) in self.range.clone().enumerate() {
-            let x = self.problem.obs.vertex[p] as usize;
-            let mut s = [0.0; 3];
+        let n2 = n * n;
+        let mut dense = vec![[0.0_f64; 3]; n2];
+        let mut seen = vec![false; n2];
+        let mut touched: Vec<u32> = Vec::new();
+        let mut offsets = Vec::with_capacity(range.len() + 1);
+        offsets.push(0);
+        let mut index = Vec::new();
+        let mut value = Vec::new();
+        for p in range.clone() {
+            let x = problem.obs.vertex[p] as usize;
             for b in 0..nb {
-                let be = self.beta[x * nb + b];
+                let be = beta[x * nb + b];
                 if be == [0.0; 3] {
                     continue;
                 }
                 let (idx, val) = t.row(p, b);
-                let mut acc = [0.0; 3];
                 for (&m, &g) in idx.iter().zip(val) {
-                    let hm = h[m as usize];
+                    let mu = m as usize;
+                    if !seen[mu] {
+                        seen[mu] = true;
+                        touched.push(m);
+                    }
                     let g = g as f64;
-                    acc[0] += g * hm[0];
-                    acc[1] += g * hm[1];
-                    acc[2] += g * hm[2];
-                }
-                for c in 0..3 {
-                    s[c] += be[c] * acc[c];
+                    let d = &mut dense[mu];
+                    d[0] += be[0] * g;
+                    d[1] += be[1] * g;
+                    d[2] += be[2] * g;
                 }
             }
-            out[q] = s;
+            touched.sort_unstable();
+            for &m in &touched {
+                let mu = m as usize;
+                let d = dense[mu];
+                if d != [0.0; 3] {
+                    index.push(m);
+                    value.push(d.map(|v| v as f32));
+                }
+                dense[mu] = [0.0; 3];
+                seen[mu] = false;
+            }
+            touched.clear();
+            offsets.push(index.len());
+        }
+        PhotoSystem {
+            range,
+            n,
+            dw,
+            offsets,
+            index,
+            value,
+        }
+    }
+
+    /// Merged row `q` (range order): indices and per-channel values.
+    fn merged(&self, q: usize) -> (&[u32], &[[f32; 3]]) {
+        let (lo, hi) = (self.offsets[q], self.offsets[q + 1]);
+        (&self.index[lo..hi], &self.value[lo..hi])
+    }
+
+    /// `s_{p,c} = Σ_b β_{x,b,c} ⟨g_{p,b}, h_c⟩ = ⟨e_{p,c}, h_c⟩` for the range (`h`
+    /// interleaved Haar).
+    fn forward_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        debug_assert_eq!(out.len(), self.range.len());
+        for (q, o) in out.iter_mut().enumerate() {
+            let (idx, val) = self.merged(q);
+            let mut acc = [0.0_f64; 3];
+            for (&m, e) in idx.iter().zip(val) {
+                let hm = &h[m as usize];
+                acc[0] += e[0] as f64 * hm[0];
+                acc[1] += e[1] as f64 * hm[1];
+                acc[2] += e[2] as f64 * hm[2];
+            }
+            *o = acc;
         }
     }
 
     /// `out += Aᵀ u` in the Haar basis (`u` per observation of the range and channel).
     fn adjoint_rows(&self, u: &[[f64; 3]], out: &mut [[f64; 3]]) {
-        let t = self.problem.transport;
-        let nb = t.n_basis;
-        for (q, p) in self.range.clone().enumerate() {
-            if u[q] == [0.0; 3] {
+        for (q, uq) in u.iter().enumerate() {
+            if *uq == [0.0; 3] {
                 continue;
             }
-            let x = self.problem.obs.vertex[p] as usize;
-            for b in 0..nb {
-                let be = self.beta[x * nb + b];
-                let f = [be[0] * u[q][0], be[1] * u[q][1], be[2] * u[q][2]];
-                if f == [0.0; 3] {
-                    continue;
-                }
-                let (idx, val) = t.row(p, b);
-                for (&m, &g) in idx.iter().zip(val) {
-                    let o = &mut out[m as usize];
-                    let g = g as f64;
-                    o[0] += g * f[0];
-                    o[1] += g * f[1];
-                    o[2] += g * f[2];
-                }
+            let (idx, val) = self.merged(q);
+            for (&m, e) in idx.iter().zip(val) {
+                let o = &mut out[m as usize];
+                o[0] += e[0] as f64 * uq[0];
+                o[1] += e[1] as f64 * uq[1];
+                o[2] += e[2] as f64 * uq[2];
             }
         }
     }
 
-    /// Largest diagonal entry of `Aᵀ D A` per channel, in the Haar basis.
+    /// Largest diagonal entry of `Aᵀ D A` per channel, in the Haar basis:
+    /// `max_m Σ_p d_{p,c} e_{p,c,m}²`.
     fn max_diag(&self) -> [f64; 3] {
-        let t = self.problem.transport;
-        let nb = t.n_basis;
-        let n2 = self.n * self.n;
-        let mut diag = vec![[0.0; 3]; n2];
-        let mut row = vec![[0.0; 3]; n2];
-        let mut touched: Vec<usize> = Vec::new();
-        for (q, p) in self.range.clone().enumerate() {
-            let x = self.problem.obs.vertex[p] as usize;
-            for b in 0..nb {
-                let be = self.beta[x * nb + b];
-                let (idx, val) = t.row(p, b);
-                for (&m, &g) in idx.iter().zip(val) {
-                    let m = m as usize;
-                    if row[m] == [0.0; 3] {
-                        touched.push(m);
-                    }
-                    for c in 0..3 {
-                        row[m][c] += be[c] * g as f64;
-                    }
-                }
-            }
-            for &m in &touched {
+        let mut diag = vec![[0.0; 3]; self.n * self.n];
+        for (q, d) in self.dw.iter().enumerate() {
+            let (idx, val) = self.merged(q);
+            for (&m, e) in idx.iter().zip(val) {
+                let o = &mut diag[m as usize];
                 for c in 0..3 {
-                    diag[m][c] += self.dw[q][c] * row[m][c] * row[m][c];
+                    let v = e[c] as f64;
+                    o[c] += d[c] * v * v;
                 }
-                row[m] = [0.0; 3];
             }
-            touched.clear();
         }
         let mut mx = [0.0_f64; 3];
         for d in &diag {
@@ -464,6 +524,57 @@ impl PhotoSystem<'_> {
         }
         mx
     }
+}
+
+/// Largest and mean diagonal entries per channel of the unweighted-by-IRLS lighting system
+/// `Wᵀ Aᵀ D A W` in the texel basis (`D = α`): `Σ_p α_p ((Wᵀ e_{p,c})_t)²`, with
+/// `e_{p,c} = Σ_b β_{x,b,c} g_{p,b}` rebuilt densely and inverse-Haar transformed per
+/// observation (`O(n²)` each, once per photo).
+fn texel_diag(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    range: std::ops::Range<usize>,
+    alpha: &[f64],
+) -> ([f64; 3], [f64; 3]) {
+    let t = problem.transport;
+    let (n, nb) = (t.n_global, t.n_basis);
+    let n2 = n * n;
+    let mut diag = vec![[0.0_f64; 3]; n2];
+    let mut dense = [vec![0.0_f64; n2], vec![0.0; n2], vec![0.0; n2]];
+    let mut scratch = Vec::new();
+    for (q, p) in range.enumerate() {
+        let a = alpha[q];
+        if a <= 0.0 {
+            continue;
+        }
+        let x = problem.obs.vertex[p] as usize;
+        for d in dense.iter_mut() {
+            d.fill(0.0);
+        }
+        for b in 0..nb {
+            let be = beta[x * nb + b];
+            let (idx, val) = t.row(p, b);
+            for (&m, &g) in idx.iter().zip(val) {
+                for c in 0..3 {
+                    dense[c][m as usize] += be[c] * g as f64;
+                }
+            }
+        }
+        for (c, d) in dense.iter_mut().enumerate() {
+            haar::inverse_with(d, n, &mut scratch);
+            for (o, v) in diag.iter_mut().zip(d.iter()) {
+                o[c] += a * v * v;
+            }
+        }
+    }
+    let (mut mx, mut sum) = ([0.0_f64; 3], [0.0_f64; 3]);
+    for d in &diag {
+        for c in 0..3 {
+            mx[c] = mx[c].max(d[c]);
+            sum[c] += d[c];
+        }
+    }
+    (mx, sum.map(|v| v / n2 as f64))
 }
 
 /// Result of one photo's lighting step.
@@ -522,16 +633,21 @@ pub fn lighting_step_full(
     let obs = problem.obs;
     let alpha: Vec<f64> = range.clone().map(|p| obs.weight[p] as f64).collect();
     let y: Vec<[f64; 3]> = range.clone().map(|p| obs.rgb[p].map(f64::from)).collect();
-    let mut sys = PhotoSystem {
+    let mut sys = PhotoSystem::new(
         problem,
         beta,
-        range: range.clone(),
+        range.clone(),
         n,
-        dw: alpha.iter().map(|&a| [a; 3]).collect(),
-    };
+        alpha.iter().map(|&a| [a; 3]).collect(),
+    );
     let mu = match mu {
         Some(m) => m,
-        None => sys.max_diag().map(|d| opts.smoothness * d),
+        None => match opts.smoothness_scale {
+            SmoothnessScale::HaarMax => sys.max_diag(),
+            SmoothnessScale::TexelMax => texel_diag(problem, beta, range.clone(), &alpha).0,
+            SmoothnessScale::Mean => texel_diag(problem, beta, range.clone(), &alpha).1,
+        }
+        .map(|d| opts.smoothness * d),
     };
     let lap = Laplacian::new(n);
     let mut x: Vec<f64> = match start {
