@@ -51,6 +51,7 @@ pub mod estimate;
 pub mod qp;
 
 // The tool.
+pub mod adapt;
 pub mod bench;
 pub mod budget;
 pub mod relight;

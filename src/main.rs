@@ -216,6 +216,12 @@ struct RunArgs {
     /// Skip the renders of the training views.
     #[arg(long)]
     no_training_renders: bool,
+    /// `on`: a short pilot fit decides what the scene needs (materials by held-out error,
+    /// basis BRDFs that carry under 1% of the radiance dropped, map resolution and
+    /// coefficient budget from the kept lobes' width, duplicate photos skipped; the
+    /// resolutions and --keep given are upper bounds); `off`: the full model as given.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    adaptive: String,
 }
 
 impl RunArgs {
@@ -267,6 +273,7 @@ impl RunArgs {
         o.progress = !self.quiet;
         o.force = self.force;
         o.render_training = !self.no_training_renders;
+        o.adaptive = self.adaptive == "on";
         Ok(o)
     }
 }

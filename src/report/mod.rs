@@ -80,6 +80,9 @@ pub struct ModelReport {
     pub kept_coefficients: usize,
     /// One sentence per decision: what was chosen and why.
     pub reasons: Vec<String>,
+    /// The adaptive model's decisions (`--adaptive on`), each against the full model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<Vec<crate::adapt::Decision>>,
 }
 
 /// Everything `report.json` holds.
@@ -329,6 +332,24 @@ impl RunReport {
             let _ = writeln!(s, "- {r}");
         }
         let _ = writeln!(s);
+        if let Some(decisions) = &m.adaptive {
+            let _ = writeln!(
+                s,
+                "Adaptive model (`--adaptive on`; `--adaptive off` fits the full model):\n"
+            );
+            let _ = writeln!(s, "| what | full model | chosen | why |\n|---|---|---|---|");
+            for d in decisions {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} |",
+                    d.what,
+                    d.full,
+                    d.chosen,
+                    d.reason.replace('|', "/")
+                );
+            }
+            let _ = writeln!(s);
+        }
         if !self.conditioning.is_empty() {
             let _ = writeln!(s, "Condition-number estimates of the solved systems:\n");
             for (k, v) in &self.conditioning {

@@ -41,8 +41,10 @@ use std::path::{Path, PathBuf};
 /// How many materials to fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MaterialCount {
-    /// Choose from the data: the smallest count whose k-means clustering of the hue
-    /// features leaves little unexplained (see [`choose_material_count`]).
+    /// Choose from the data: with [`RunOptions::adaptive`], the smallest count within 1%
+    /// of the best held-out error of a pilot fit ([`crate::adapt`]); without it, the
+    /// smallest count whose k-means clustering of the hue features leaves little
+    /// unexplained (see [`choose_material_count`]).
     Auto,
     /// Exactly this many.
     Fixed(usize),
@@ -108,6 +110,12 @@ pub struct RunOptions {
     pub force: bool,
     /// Write renders of every view (not only held-out ones).
     pub render_training: bool,
+    /// Leave out what the scene does not need ([`crate::adapt`]): redundant photos,
+    /// basis BRDFs whose weights vanish, map resolution and coefficient budget beyond what
+    /// the kept lobes resolve; the number of materials by held-out error. The requested
+    /// resolutions and `keep` are then upper bounds. Off in [`RunOptions::new`] (the full
+    /// model, as the benchmarks' knobs assume); the CLI turns it on unless `--adaptive off`.
+    pub adaptive: bool,
 }
 
 impl RunOptions {
@@ -139,6 +147,7 @@ impl RunOptions {
             progress: true,
             force: false,
             render_training: true,
+            adaptive: false,
         }
     }
 
@@ -474,7 +483,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         None => None,
     };
     let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
-    let train: Vec<usize> = (0..scene.views.len())
+    let mut train: Vec<usize> = (0..scene.views.len())
         .filter(|i| !held.contains(i))
         .collect();
     let nv = scene.mesh.positions.len();
@@ -493,7 +502,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     };
     // 2. Observations of the training photos (held-out ones are extracted by the evaluation).
     progress.stage("observations");
-    let (bvh, obs) = stages.run("observations", || {
+    let (bvh, mut obs) = stages.run("observations", || {
         let bvh = SceneBvh::new(&scene.mesh);
         let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
         let ph: Vec<_> = train.iter().map(|&i| photos[i].clone()).collect();
@@ -544,6 +553,53 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             ));
         }
     }
+    // Photos that add no new observation (adaptive model, crate::adapt step 1).
+    let mut decisions: Vec<crate::adapt::Decision> = Vec::new();
+    if opts.adaptive {
+        let red = crate::adapt::redundant_photos(&obs, nv);
+        let n = train.len();
+        if !red.is_empty() && red.len() < n {
+            let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
+            for &(k, by) in &red {
+                notes.push(format!(
+                    "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
+                    scene.views[train[k]].image.name,
+                    scene.views[train[by]].image.name,
+                    crate::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::adapt::DUPLICATE_RGB
+                ));
+            }
+            obs = crate::adapt::drop_photos(&obs, &drop);
+            train = train
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| !drop.contains(k))
+                .map(|(_, &i)| i)
+                .collect();
+            decisions.push(crate::adapt::Decision {
+                what: "photos".into(),
+                full: n.to_string(),
+                chosen: train.len().to_string(),
+                reason: format!(
+                    "{} training photo(s) duplicate an earlier one (same view within {}°, same colour within {:.0}%): a duplicate adds a light map to estimate and no information",
+                    drop.len(),
+                    crate::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::adapt::DUPLICATE_RGB
+                ),
+            });
+        } else {
+            decisions.push(crate::adapt::Decision {
+                what: "photos".into(),
+                full: n.to_string(),
+                chosen: n.to_string(),
+                reason: format!(
+                    "every training photo adds observations: none repeats an earlier photo's view (within {}°) with the same colours (within {:.0}%); a photo from the same view under another light is new information, since every photo has its own light",
+                    crate::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::adapt::DUPLICATE_RGB
+                ),
+            });
+        }
+    }
 
     // Frames.
     let up = match opts.up {
@@ -586,13 +642,70 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         vis.rays_traced
     ));
 
+    let lambert_of = |basis: &[BasisBrdf]| {
+        basis
+            .iter()
+            .position(|b| matches!(b, BasisBrdf::Lambert))
+            .ok_or_else(|| {
+                Error::Config(
+                    "--basis: a Lambertian lobe is needed to carry the diffuse colour".into(),
+                )
+            })
+    };
+    let estimate_options = |o: &RunOptions, lambert: usize| EstimateOptions {
+        max_outer: o.max_iterations,
+        rel_tol: o.rel_tol,
+        smoothness: o.smoothness,
+        robust: if o.irls_iterations > 1 {
+            Robust::Huber { k: 1.345 }
+        } else {
+            Robust::None
+        },
+        irls_iters: o.irls_iterations,
+        lambert_basis: lambert,
+        ..EstimateOptions::default()
+    };
+    let (mean_rgb, seen) = mean_colours(&obs, nv);
+
+    // Adaptive model (crate::adapt steps 2–5): a pilot fit decides the materials, the
+    // bases, the map resolution and the coefficient budget; `eff` holds what is used.
+    let mut eff = opts.clone();
+    let mut pilot_k: Option<(usize, String)> = None;
+    if opts.adaptive {
+        progress.stage("pilot");
+        let lambert = lambert_of(&opts.basis)?;
+        let outcome = stages.run("pilot", || {
+            crate::adapt::pilot(&crate::adapt::PilotInput {
+                normals_env: &normals_env,
+                obs: &obs,
+                env_from_world: &env_from_world,
+                vis: &vis,
+                basis: &opts.basis,
+                lambert,
+                normal_grid: opts.normal_grid,
+                global_resolution: opts.global_resolution,
+                keep: opts.keep,
+                estimate: estimate_options(opts, lambert),
+                mean_rgb: &mean_rgb,
+                seen: &seen,
+                materials: match opts.materials {
+                    MaterialCount::Fixed(k) => Some(k),
+                    MaterialCount::Auto => None,
+                },
+                seed: opts.seed,
+            })
+        })?;
+        decisions.extend(adaptive_decisions(opts, &outcome, &vis, nv, &mut eff));
+        pilot_k = Some((outcome.materials, outcome.materials_reason.clone()));
+    }
+
     // 4. Rotation.
     progress.stage("rotation");
     let rot = stages.run("rotation", || {
         Rotation::new(
-            opts.global_resolution,
-            opts.local_resolution,
-            opts.normal_grid,
+            eff.global_resolution,
+            eff.local_resolution,
+            eff.normal_grid,
             RotationForm::Factored,
         )
     });
@@ -600,9 +713,9 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     // 5. Transport.
     progress.stage("transport");
     let topts = TransportOptions {
-        n_global: opts.global_resolution,
-        n_local: opts.local_resolution,
-        keep: opts.keep,
+        n_global: eff.global_resolution,
+        n_local: eff.local_resolution,
+        keep: eff.keep,
     };
     let tr: Transport = stages.run("transport", || {
         transport::build(
@@ -610,24 +723,18 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             &obs,
             &env_from_world,
             &vis,
-            &opts.basis,
+            &eff.basis,
             &rot,
             &topts,
         )
     })?;
 
     // 6. Estimate.
-    let lambert = opts
-        .basis
-        .iter()
-        .position(|b| matches!(b, BasisBrdf::Lambert))
-        .ok_or_else(|| {
-            Error::Config("--basis: a Lambertian lobe is needed to carry the diffuse colour".into())
-        })?;
-    let (mean_rgb, seen) = mean_colours(&obs, nv);
-    let (k, k_reason) = match opts.materials {
-        MaterialCount::Fixed(k) => (k, format!("materials: {k}, as given by --materials")),
-        MaterialCount::Auto => choose_material_count(&mean_rgb, &seen, opts.seed),
+    let lambert = lambert_of(&eff.basis)?;
+    let (k, k_reason) = match (pilot_k, opts.materials) {
+        (Some(p), _) => p,
+        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
+        (None, MaterialCount::Auto) => choose_material_count(&mean_rgb, &seen, opts.seed),
     };
     let init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
     let mut reasons = vec![k_reason];
@@ -644,20 +751,8 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         n_vertices: nv,
         n_photos: train.len(),
     };
-    let eopts = EstimateOptions {
-        max_outer: opts.max_iterations,
-        rel_tol: opts.rel_tol,
-        smoothness: opts.smoothness,
-        robust: if opts.irls_iterations > 1 {
-            Robust::Huber { k: 1.345 }
-        } else {
-            Robust::None
-        },
-        irls_iters: opts.irls_iterations,
-        lambert_basis: lambert,
-        ..EstimateOptions::default()
-    };
-    let materials0 = Materials0::from_initial(&init, opts.basis.len(), lambert);
+    let eopts = estimate_options(&eff, lambert);
+    let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
     let tracker = stages.run("transport", || {
         evaluate::HoldoutTracker::new(
             &scene,
@@ -667,14 +762,14 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             &normals_env,
             &env_from_world,
             &vis,
-            &opts.basis,
+            &eff.basis,
             &rot,
             &topts,
             truth.as_ref(),
         )
     })?;
     progress.stage("estimate");
-    let bar = progress.bar(opts.max_iterations as u64, "outer iterations");
+    let bar = progress.bar(eff.max_iterations as u64, "outer iterations");
     let mut timeline: Vec<TimelinePoint> = Vec::new();
     let est = stages.run("estimate", || {
         estimate::estimate(&problem, materials0, &eopts, &mut |it, state| {
@@ -710,10 +805,10 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         normals_env,
         vis,
         rot,
-        basis: opts.basis.clone(),
+        basis: eff.basis.clone(),
         est,
         beta,
-        opts,
+        opts: &eff,
         estimate_options: eopts,
         bvh,
     };
@@ -774,12 +869,13 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         timeline,
         model: ModelReport {
             materials: fitted.est.lambda.len(),
-            basis: opts.basis.iter().map(|b| b.label()).collect(),
-            global_resolution: opts.global_resolution,
-            local_resolution: opts.local_resolution,
-            normal_grid: opts.normal_grid,
-            kept_coefficients: opts.keep,
+            basis: eff.basis.iter().map(|b| b.label()).collect(),
+            global_resolution: eff.global_resolution,
+            local_resolution: eff.local_resolution,
+            normal_grid: eff.normal_grid,
+            kept_coefficients: eff.keep,
             reasons,
+            adaptive: if opts.adaptive { Some(decisions) } else { None },
         },
         notes,
         conditioning,
@@ -839,4 +935,108 @@ fn train_errors(
             }
         })
         .collect()
+}
+
+/// The adaptive model's decisions from the pilot's `outcome` (crate::adapt steps 3–5),
+/// applied to `eff`.
+fn adaptive_decisions(
+    opts: &RunOptions,
+    outcome: &crate::adapt::PilotOutcome,
+    vis: &visibility::Visibility,
+    nv: usize,
+    eff: &mut RunOptions,
+) -> Vec<crate::adapt::Decision> {
+    use crate::adapt::Decision;
+    let mut d = Vec::new();
+    let full_k = match opts.materials {
+        MaterialCount::Fixed(k) => k.to_string(),
+        MaterialCount::Auto => "auto".to_string(),
+    };
+    d.push(Decision {
+        what: "materials".into(),
+        full: full_k,
+        chosen: outcome.materials.to_string(),
+        reason: outcome.materials_reason.clone(),
+    });
+    eff.basis = outcome.kept.iter().map(|&b| opts.basis[b]).collect();
+    let labels = |b: &[BasisBrdf]| b.iter().map(|x| x.label()).collect::<Vec<_>>().join(",");
+    let shares = opts
+        .basis
+        .iter()
+        .zip(&outcome.shares)
+        .map(|(b, s)| format!("{} {:.2}%", b.label(), 100.0 * s))
+        .collect::<Vec<_>>()
+        .join(", ");
+    d.push(Decision {
+        what: "basis".into(),
+        full: labels(&opts.basis),
+        chosen: labels(&eff.basis),
+        reason: if outcome.basis_reason.is_empty() {
+            format!(
+                "every basis carries at least {:.0}% of some material's predicted radiance in the pilot (largest shares: {shares})",
+                100.0 * crate::adapt::DROP_SHARE
+            )
+        } else {
+            outcome.basis_reason.clone()
+        },
+    });
+    let shadowed = vis.open_count() < nv;
+    let (g, why) =
+        crate::adapt::global_resolution_for(&eff.basis, opts.global_resolution, shadowed);
+    eff.global_resolution = g;
+    d.push(Decision {
+        what: "global_resolution".into(),
+        full: opts.global_resolution.to_string(),
+        chosen: g.to_string(),
+        reason: why,
+    });
+    let cap = g * g;
+    let keep = if opts.keep == 0 || opts.keep > cap {
+        cap
+    } else {
+        opts.keep
+    };
+    eff.keep = keep;
+    d.push(Decision {
+        what: "keep".into(),
+        full: opts.keep.to_string(),
+        chosen: keep.to_string(),
+        reason: format!(
+            "{keep} of the {cap} Haar coefficients of a {g}² map per transport row ({:.0}%){}",
+            100.0 * keep as f64 / cap as f64,
+            if keep == opts.keep {
+                ", as requested".to_string()
+            } else {
+                ": the budget cannot exceed the map's coefficient count".to_string()
+            }
+        ),
+    });
+    // Conditioning (issue 8: use the condition numbers the solver sees). A lighting system
+    // whose condition number bound exceeds 1e10 loses all but ~6 of float64's 16 digits
+    // and the QP's relative KKT tolerance (1e-7) stops meaning anything: regularise.
+    const KAPPA_LIGHTING: f64 = 1e10;
+    if outcome.kappa_lighting > KAPPA_LIGHTING && opts.smoothness < 1e-4 {
+        eff.smoothness = 1e-4;
+        d.push(Decision {
+            what: "smoothness".into(),
+            full: format!("{:e}", opts.smoothness),
+            chosen: "1e-4".into(),
+            reason: format!(
+                "the pilot's lighting systems have condition number ≥ {:.1e} > {KAPPA_LIGHTING:.0e}: the Laplacian prior is raised to 1e-4 so the map directions the photos do not constrain are filled smoothly instead of by rounding",
+                outcome.kappa_lighting
+            ),
+        });
+    } else {
+        d.push(Decision {
+            what: "smoothness".into(),
+            full: format!("{:e}", opts.smoothness),
+            chosen: format!("{:e}", opts.smoothness),
+            reason: format!(
+                "the pilot's lighting condition number bound is {:.1e} (≤ {KAPPA_LIGHTING:.0e} or the prior is already ≥ 1e-4) and its λ systems' {:.1e}: no change",
+                outcome.kappa_lighting,
+                outcome.kappa_lambda.iter().copied().fold(0.0, f64::max)
+            ),
+        });
+    }
+    d
 }

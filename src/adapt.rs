@@ -1,0 +1,582 @@
+//! Leaving out what a scene does not need (issue 8): the adaptive model of `relight-cpc run`.
+//!
+//! The full model (paper Sec. 5: `B` basis BRDFs, `K` materials, one `n_global²` map per
+//! photo, `keep` Haar coefficients per transport row) is sized for the sharpest lobe in
+//! the basis list. Before the real solve, a cheap *pilot* fit decides what this scene
+//! needs; every decision is returned with its reason for the report.
+//!
+//! 1. **Photos that add nothing** ([`redundant_photos`]). Each photo has its own unknown
+//!    light (Eq. 9), so a photo from the same viewpoint under a different light is new
+//!    information. A training photo is *redundant* when every vertex it observes (with
+//!    `α > 0`) is observed by an earlier kept photo from within [`DUPLICATE_ANGLE_DEG`]
+//!    and with the same colour (every channel within [`DUPLICATE_RGB`] of it, relative to
+//!    the brighter of the two, plus one 8-bit step): a duplicate of the same view under the
+//!    same light. It is dropped from the fit with a note.
+//! 2. **Pilot.** The transport (Eq. 5–8) at [`PILOT_GLOBAL`]² global and at most
+//!    [`PILOT_LOCAL`]² local texels (visibility averaged down, [`downsample_visibility`]),
+//!    and [`PILOT_ITERATIONS`] outer iterations of the estimator on the observations with
+//!    every [`HELDOUT_EVERY`]-th one (a seeded hash of vertex and photo) given weight 0
+//!    ([`holdout_split`]).
+//! 3. **Number of materials** (`--materials auto`): `K = 1, 2, …` are fitted by the pilot
+//!    and scored by the held-out RMSE of step 2 (the held-out observations are predicted
+//!    with their vertex's fitted weights and their photo's fitted light). The smallest `K`
+//!    within [`MATERIAL_TOL`] of the best held-out RMSE wins; the search stops at the first
+//!    `K` that is not better than the best so far by that margin, or when k-means finds no
+//!    further distinct colour cluster. A held-out error, unlike the training error, does not
+//!    keep falling as `K` grows, so it needs no penalty term.
+//! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
+//!    and lights, the share of basis `b` in material `k`, channel `c` is
+//!    `C_{k,b,c} / Σ_b' C_{k,b',c}` with `C_{k,b,c} = Σ_p α_p w_k(x_p) λ_{k,b,c} s_{p,b,c}`
+//!    (its part of the predicted radiance). A basis whose largest share over materials and
+//!    channels is below [`DROP_SHARE`] (1%) is dropped: leaving it out changes the
+//!    predicted radiance by less than 1%, under the 8-bit quantisation of a mid-grey pixel
+//!    (0.4%) plus the photos' noise and well under the 5% error budget of issue 8. The
+//!    Lambertian basis is always kept (it carries the diffuse colour and the scale
+//!    normalisation). Comparing shares rather than raw `λ` makes the test independent of
+//!    each lobe's normalisation. If the pilot's `λ` system was near-singular
+//!    (condition number above [`KAPPA_LAMBDA`]: two lobes the photos cannot tell apart), the
+//!    kept non-Lambertian basis with the smallest share is dropped as well.
+//! 5. **Map resolution and coefficient budget** ([`global_resolution_for`]). A lobe of
+//!    angular scale `σ` ([`BasisBrdf::lobe_sigma`]) is sampled without visible aliasing when
+//!    the texel spacing is at most `σ` (for a Gaussian lobe, spacing `σ` puts the Nyquist
+//!    frequency at `π` spectral standard deviations, aliasing amplitude `e^{−π²/2}` < 1%).
+//!    An octahedral texel of an `N²` map spans about `√(4π)/N` radians, so
+//!    `N ≥ √(4π)/σ_min`, rounded up to a power of two and capped by `--global-resolution`.
+//!    Lambert is band-limited (irradiance: 99% of its energy in spherical harmonics of
+//!    order ≤ 2, Ramamoorthi and Hanrahan 2001), so a Lambert-only scene gets 16².
+//!    Measured on sphere-diffuse (Lambert basis, one material, 1000 vertices, 8 photos of
+//!    96², 8 iterations, one thread): held-out RMSE under the true light (mean of the two
+//!    held-out photos) 0.0871 at 64², 0.0874 at 32², 0.0881 at 16² (+1.1%), 0.0909 at 8²
+//!    (+4.4%, too close to the 5% budget); estimation took 171 s, 39 s, 7.0 s and 1.3 s.
+//!    The coefficient budget `keep` is capped at the map's `N²` coefficients.
+//!
+//! The transport of the kept bases is a column selection of the full one
+//! ([`select_bases`]), so a pilot transport can be reused without rebuilding.
+
+use serde::Serialize;
+
+use crate::brdf::BasisBrdf;
+use crate::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::observe::Observations;
+use crate::rotation::{Rotation, RotationForm};
+use crate::sphere::SphereGrid;
+use crate::transport::{self, Transport, TransportOptions};
+use crate::visibility::Visibility;
+use crate::{Error, Result, Vec3};
+
+/// Largest share below which a basis BRDF counts as unused (module docs, step 4).
+pub const DROP_SHARE: f64 = 0.01;
+/// Relative held-out RMSE margin of the material count (module docs, step 3).
+pub const MATERIAL_TOL: f64 = 0.01;
+/// Every this-many-th observation is held out by the pilot.
+pub const HELDOUT_EVERY: u64 = 5;
+/// Pilot global map side.
+pub const PILOT_GLOBAL: usize = 16;
+/// Pilot local map side (at most).
+pub const PILOT_LOCAL: usize = 16;
+/// Pilot outer iterations.
+pub const PILOT_ITERATIONS: usize = 2;
+/// Largest number of materials the pilot tries.
+pub const MAX_MATERIALS: usize = 6;
+/// Condition number of the λ system above which two lobes are taken as indistinguishable.
+pub const KAPPA_LAMBDA: f64 = 1e7;
+/// Viewing directions closer than this count as the same view (photo redundancy).
+pub const DUPLICATE_ANGLE_DEG: f64 = 1.0;
+/// Relative colour difference below which two observations count as the same.
+pub const DUPLICATE_RGB: f64 = 0.02;
+
+/// One decision of the adaptive model: what it concerns, the full model's value, the
+/// chosen value and why.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Decision {
+    /// `materials`, `basis`, `global_resolution`, `keep`, `photos`, `smoothness`.
+    pub what: String,
+    /// The full model's value.
+    pub full: String,
+    /// The value used.
+    pub chosen: String,
+    /// Why, in words with the figures behind it.
+    pub reason: String,
+}
+
+/// The rows of `t` for the bases `kept` (indices into its basis list, in the new order).
+pub fn select_bases(t: &Transport, kept: &[usize]) -> Result<Transport> {
+    if let Some(&b) = kept.iter().find(|&&b| b >= t.n_basis) {
+        return Err(Error::Config(format!(
+            "basis selection: index {b} out of range (the transport has {} bases)",
+            t.n_basis
+        )));
+    }
+    let mut out = Transport {
+        n_global: t.n_global,
+        n_basis: kept.len(),
+        n_obs: t.n_obs,
+        offsets: Vec::with_capacity(t.n_obs * kept.len() + 1),
+        index: Vec::new(),
+        value: Vec::new(),
+    };
+    out.offsets.push(0);
+    for p in 0..t.n_obs {
+        for &b in kept {
+            let (idx, val) = t.row(p, b);
+            out.index.extend_from_slice(idx);
+            out.value.extend_from_slice(val);
+            out.offsets.push(out.index.len());
+        }
+    }
+    Ok(out)
+}
+
+/// Visibility averaged down to `n` texels per side (solid-angle weighted over each block
+/// of the finer hemi-octahedral grid, whose texels nest 2×2 per level).
+pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
+    if n >= vis.n_local || n == 0 || vis.n_local % n != 0 {
+        return vis.clone();
+    }
+    let fine = vis.n_local;
+    let f = fine / n;
+    let sa = SphereGrid::hemi(fine).solid_angles();
+    let nv = vis.open.len();
+    let mut frac = vec![0u8; nv * n * n];
+    for v in 0..nv {
+        let src = vis.vertex(v);
+        for j in 0..n {
+            for i in 0..n {
+                let (mut num, mut den) = (0.0, 0.0);
+                for jj in 0..f {
+                    for ii in 0..f {
+                        let t = (j * f + jj) * fine + i * f + ii;
+                        num += sa[t] * src[t] as f64;
+                        den += sa[t];
+                    }
+                }
+                frac[v * n * n + j * n + i] =
+                    (num / den.max(1e-300)).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    Visibility {
+        n_local: n,
+        rays_per_texel: vis.rays_per_texel,
+        frac,
+        open: vis.open.clone(),
+        degenerate: vis.degenerate,
+        rays_traced: vis.rays_traced,
+    }
+}
+
+/// Whether observation `p` is held out by the pilot: a seeded hash of (vertex, photo), so
+/// the split does not follow the photo or vertex order.
+fn held_out(obs: &Observations, p: usize, seed: u64) -> bool {
+    let mut h = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add((obs.vertex[p] as u64) << 32 | obs.photo[p] as u64);
+    h ^= h >> 33;
+    h = h.wrapping_mul(0xFF51_AFD7_ED55_8CCD);
+    h ^= h >> 33;
+    h = h.wrapping_mul(0xC4CE_B9FE_1A85_EC53);
+    h ^= h >> 33;
+    h % HELDOUT_EVERY == 0
+}
+
+/// The observations with the pilot's held-out ones at weight 0, and the held-out indices
+/// (only observations with `α > 0`).
+pub fn holdout_split(obs: &Observations, seed: u64) -> (Observations, Vec<usize>) {
+    let mut train = obs.clone();
+    let mut held = Vec::new();
+    for p in 0..obs.len() {
+        if obs.weight[p] > 0.0 && held_out(obs, p, seed) {
+            train.weight[p] = 0.0;
+            held.push(p);
+        }
+    }
+    (train, held)
+}
+
+/// `α`-weighted RMSE of `pred` against `obs` over the observations `held`.
+pub fn heldout_rmse(obs: &Observations, held: &[usize], pred: &[[f64; 3]]) -> f64 {
+    let (mut se, mut w) = (0.0, 0.0);
+    for &p in held {
+        let a = obs.weight[p] as f64;
+        for c in 0..3 {
+            se += a * (obs.rgb[p][c] as f64 - pred[p][c]).powi(2);
+        }
+        w += 3.0 * a;
+    }
+    if w > 0.0 {
+        (se / w).sqrt()
+    } else {
+        f64::NAN
+    }
+}
+
+/// Per basis, the largest share over materials and channels of the predicted radiance
+/// (module docs, step 4).
+pub fn basis_shares(problem: &Problem, est: &estimate::Estimate) -> Vec<f64> {
+    let nb = problem.transport.n_basis;
+    let kk = est.lambda.len();
+    let s = estimate::basis_responses(problem, &est.lights);
+    // c[k][b][ch]
+    let mut contrib = vec![vec![[0.0f64; 3]; nb]; kk];
+    for p in 0..problem.obs.len() {
+        let a = problem.obs.weight[p] as f64;
+        if a <= 0.0 {
+            continue;
+        }
+        let x = problem.obs.vertex[p] as usize;
+        for k in 0..kk {
+            let w = est.weights[x * kk + k];
+            if w <= 0.0 {
+                continue;
+            }
+            for b in 0..nb {
+                for ch in 0..3 {
+                    contrib[k][b][ch] += a * w * est.lambda[k][b][ch] * s[p * nb + b][ch].max(0.0);
+                }
+            }
+        }
+    }
+    let mut share = vec![0.0f64; nb];
+    for ck in &contrib {
+        for ch in 0..3 {
+            let total: f64 = ck.iter().map(|c| c[ch]).sum();
+            if total <= 0.0 {
+                continue;
+            }
+            for b in 0..nb {
+                share[b] = share[b].max(ck[b][ch] / total);
+            }
+        }
+    }
+    share
+}
+
+/// Global map side for the bases `basis` (module docs, step 5), at most `requested`:
+/// `(side, reason)`. `shadowed` = some vertex has an occluded hemisphere.
+pub fn global_resolution_for(
+    basis: &[BasisBrdf],
+    requested: usize,
+    shadowed: bool,
+) -> (usize, String) {
+    let sigma = basis
+        .iter()
+        .map(|b| b.lobe_sigma())
+        .fold(f64::INFINITY, f64::min);
+    let (need, why) = if sigma.is_finite() {
+        let n = ((4.0 * std::f64::consts::PI).sqrt() / sigma).ceil() as usize;
+        (
+            n.next_power_of_two(),
+            format!(
+                "the sharpest kept lobe has angular scale σ = {sigma:.3} rad; texels no wider than σ need √(4π)/σ = {n} per side"
+            ),
+        )
+    } else {
+        (
+            16,
+            format!(
+                "only the Lambertian lobe is kept: diffuse transport is band-limited (irradiance: 99% of its energy in spherical harmonics of order ≤ 2){}; measured on sphere-diffuse (Lambert only, 1000 vertices, 8 photos), the held-out error at 16² is 1.1% above 64² and at 8² 4.4% above, so 16² it is",
+                if shadowed { ", cast shadows add sharper visibility edges" } else { "" }
+            ),
+        )
+    };
+    let need = need.clamp(4, 256);
+    if need >= requested {
+        (
+            requested,
+            format!(
+                "{why}; the requested {requested}² is kept{}",
+                if need > requested {
+                    format!(" (the lobe would want {need}²: it is under-sampled)")
+                } else {
+                    String::new()
+                }
+            ),
+        )
+    } else {
+        (need, format!("{why}: {need}² instead of {requested}²"))
+    }
+}
+
+/// Photos (indices into `obs.photo_ranges`) that add no new observation (module docs,
+/// step 1), each with the earlier kept photo it duplicates most.
+pub fn redundant_photos(obs: &Observations, n_vertices: usize) -> Vec<(usize, usize)> {
+    let cos_max = DUPLICATE_ANGLE_DEG.to_radians().cos();
+    // Per vertex, the kept observations (indices) so far.
+    let mut seen: Vec<Vec<usize>> = vec![Vec::new(); n_vertices];
+    let mut out = Vec::new();
+    let same = |p: usize, q: usize| -> bool {
+        let (a, b) = (obs.dir[p], obs.dir[q]);
+        let cos = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) as f64;
+        cos >= cos_max
+            && (0..3).all(|c| {
+                let (y, z) = (obs.rgb[p][c] as f64, obs.rgb[q][c] as f64);
+                (y - z).abs() <= DUPLICATE_RGB * y.max(z) + 1.0 / 255.0
+            })
+    };
+    for (i, range) in obs.photo_ranges.iter().enumerate() {
+        let useful: Vec<usize> = range.clone().filter(|&p| obs.weight[p] > 0.0).collect();
+        let mut votes: Vec<usize> = Vec::new();
+        let dup = !useful.is_empty()
+            && useful.iter().all(|&p| {
+                match seen[obs.vertex[p] as usize].iter().find(|&&q| same(p, q)) {
+                    Some(&q) => {
+                        votes.push(obs.photo[q] as usize);
+                        true
+                    }
+                    None => false,
+                }
+            });
+        if dup {
+            votes.sort_unstable();
+            let mut best = (0, votes[0]);
+            let mut run = (0, votes[0]);
+            for &v in &votes {
+                run = if v == run.1 { (run.0 + 1, v) } else { (1, v) };
+                if run.0 > best.0 {
+                    best = run;
+                }
+            }
+            out.push((i, best.1));
+        } else {
+            for &p in &useful {
+                seen[obs.vertex[p] as usize].push(p);
+            }
+        }
+    }
+    out
+}
+
+/// `obs` without the photos `drop` (indices into `photo_ranges`), photo indices renumbered.
+pub fn drop_photos(obs: &Observations, drop: &[usize]) -> Observations {
+    let mut out = Observations::default();
+    let mut new_index = 0u32;
+    for (i, range) in obs.photo_ranges.iter().enumerate() {
+        if drop.contains(&i) {
+            continue;
+        }
+        let lo = out.vertex.len();
+        for p in range.clone() {
+            out.vertex.push(obs.vertex[p]);
+            out.photo.push(new_index);
+            out.rgb.push(obs.rgb[p]);
+            out.weight.push(obs.weight[p]);
+            out.dir.push(obs.dir[p]);
+        }
+        out.photo_ranges.push(lo..out.vertex.len());
+        new_index += 1;
+    }
+    out
+}
+
+/// What the pilot needs from the run.
+pub struct PilotInput<'a> {
+    /// Env-frame vertex normals.
+    pub normals_env: &'a [Vec3],
+    /// Training observations.
+    pub obs: &'a Observations,
+    /// World → environment frame.
+    pub env_from_world: &'a nalgebra::Matrix3<f64>,
+    /// Visibility at the run's local resolution.
+    pub vis: &'a Visibility,
+    /// The full basis list.
+    pub basis: &'a [BasisBrdf],
+    /// Index of the Lambertian basis in `basis`.
+    pub lambert: usize,
+    /// Normal grid of the run's rotation.
+    pub normal_grid: usize,
+    /// Requested global resolution (the pilot uses at most this).
+    pub global_resolution: usize,
+    /// Requested coefficient budget.
+    pub keep: usize,
+    /// The run's estimator options (smoothness, ridge, …).
+    pub estimate: EstimateOptions,
+    /// Per-vertex mean colours and whether seen (for k-means).
+    pub mean_rgb: &'a [[f64; 3]],
+    /// Whether each vertex is seen.
+    pub seen: &'a [bool],
+    /// A fixed material count, or `None` to choose it.
+    pub materials: Option<usize>,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// What the pilot decided.
+#[derive(Debug, Clone)]
+pub struct PilotOutcome {
+    /// Number of materials.
+    pub materials: usize,
+    /// Why.
+    pub materials_reason: String,
+    /// Held-out RMSE per material count tried (`(K, rmse)`).
+    pub material_scores: Vec<(usize, f64)>,
+    /// Indices into the full basis list that are kept.
+    pub kept: Vec<usize>,
+    /// Each basis's largest share of the predicted radiance.
+    pub shares: Vec<f64>,
+    /// Why bases were dropped (empty when none was).
+    pub basis_reason: String,
+    /// The λ systems' condition numbers (per channel) of the chosen pilot.
+    pub kappa_lambda: [f64; 3],
+    /// Largest lighting condition lower bound of the chosen pilot.
+    pub kappa_lighting: f64,
+    /// Pilot wall time, seconds.
+    pub seconds: f64,
+}
+
+/// The pilot fit (module docs, steps 2–4).
+pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
+    let t0 = std::time::Instant::now();
+    let g = PILOT_GLOBAL.min(inp.global_resolution);
+    let l = PILOT_LOCAL.min(inp.vis.n_local);
+    let vis = downsample_visibility(inp.vis, l);
+    let rot = Rotation::new(g, l, inp.normal_grid.min(16), RotationForm::Factored);
+    let topts = TransportOptions {
+        n_global: g,
+        n_local: l,
+        keep: if inp.keep == 0 {
+            g * g / 2
+        } else {
+            inp.keep.min(g * g / 2)
+        },
+    };
+    let (split, held) = holdout_split(inp.obs, inp.seed);
+    let tr = transport::build(
+        inp.normals_env,
+        &split,
+        inp.env_from_world,
+        &vis,
+        inp.basis,
+        &rot,
+        &topts,
+    )?;
+    let problem = Problem {
+        obs: &split,
+        transport: &tr,
+        n_vertices: inp.normals_env.len(),
+        n_photos: split.photo_ranges.len(),
+    };
+    let eopts = EstimateOptions {
+        max_outer: PILOT_ITERATIONS,
+        rel_tol: 0.0,
+        robust: Robust::None,
+        irls_iters: 1,
+        lambert_basis: inp.lambert,
+        ..inp.estimate.clone()
+    };
+    // `strict`: `None` when k-means finds fewer than `k` distinct clusters.
+    let fit = |k: usize, strict: bool| -> Result<Option<(estimate::Estimate, f64)>> {
+        let init = crate::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
+        if strict && init.albedo.len() < k {
+            return Ok(None);
+        }
+        let m0 = Materials0::from_initial(&init, inp.basis.len(), inp.lambert);
+        let est = estimate::estimate(&problem, m0, &eopts, &mut |_, _| {})?;
+        let pred = estimate::predict(&problem, &est);
+        let e = heldout_rmse(inp.obs, &held, &pred);
+        Ok(Some((est, e)))
+    };
+    let mut scores = Vec::new();
+    let (materials, materials_reason, est) = match inp.materials {
+        Some(k) => {
+            let (est, e) = fit(k, false)?.ok_or_else(|| Error::Numeric {
+                stage: "adaptive pilot".into(),
+                message: format!("no fit with {k} materials"),
+            })?;
+            scores.push((k, e));
+            (k, format!("materials: {k}, as given by --materials"), est)
+        }
+        None => {
+            let mut fits: Vec<(usize, estimate::Estimate, f64)> = Vec::new();
+            let mut stop = String::new();
+            for k in 1..=MAX_MATERIALS {
+                let Some((est, e)) = fit(k, true)? else {
+                    stop = format!("k-means finds no {k}th distinct colour cluster");
+                    break;
+                };
+                scores.push((k, e));
+                let best = fits.iter().map(|f| f.2).fold(f64::INFINITY, f64::min);
+                let improved = e < (1.0 - MATERIAL_TOL) * best;
+                fits.push((k, est, e));
+                if !improved && k > 1 {
+                    stop = format!(
+                        "{k} materials do not lower the held-out RMSE by {:.0}% ({:.5} vs best {:.5})",
+                        100.0 * MATERIAL_TOL,
+                        e,
+                        best
+                    );
+                    break;
+                }
+            }
+            if stop.is_empty() {
+                stop = format!("{MAX_MATERIALS} is the cap");
+            }
+            let best = fits.iter().map(|f| f.2).fold(f64::INFINITY, f64::min);
+            let pick = fits
+                .iter()
+                .position(|f| f.2 <= (1.0 + MATERIAL_TOL) * best || !best.is_finite())
+                .unwrap_or(0);
+            let (k, est, _) = fits.swap_remove(pick);
+            let table = scores
+                .iter()
+                .map(|(k, e)| format!("K={k}: {e:.5}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            (
+                k,
+                format!(
+                    "materials: {k} (auto), the smallest count within {:.0}% of the best held-out RMSE of a {PILOT_ITERATIONS}-iteration pilot at {g}² on 1 in {HELDOUT_EVERY} observations held out ({table}); stopped because {stop}",
+                    100.0 * MATERIAL_TOL
+                ),
+                est,
+            )
+        }
+    };
+    let shares = basis_shares(&problem, &est);
+    let mut kept: Vec<usize> = (0..inp.basis.len())
+        .filter(|&b| b == inp.lambert || shares[b] >= DROP_SHARE)
+        .collect();
+    let dropped: Vec<usize> = (0..inp.basis.len()).filter(|b| !kept.contains(b)).collect();
+    let mut reasons = Vec::new();
+    if !dropped.is_empty() {
+        reasons.push(format!(
+            "dropped {}: each carries less than {:.0}% of the predicted radiance of every material and channel in the pilot (largest share {})",
+            dropped.iter().map(|&b| inp.basis[b].label()).collect::<Vec<_>>().join(", "),
+            100.0 * DROP_SHARE,
+            dropped.iter().map(|&b| format!("{} {:.2}%", inp.basis[b].label(), 100.0 * shares[b])).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    let kappa_lambda = est.conditioning.lambda;
+    let worst = kappa_lambda.iter().copied().fold(0.0, f64::max);
+    if worst > KAPPA_LAMBDA {
+        if let Some(&b) = kept
+            .iter()
+            .filter(|&&b| b != inp.lambert)
+            .min_by(|&&a, &&b| shares[a].total_cmp(&shares[b]))
+        {
+            kept.retain(|&x| x != b);
+            reasons.push(format!(
+                "dropped {} as well: the pilot's λ system has condition number {worst:.1e} > {KAPPA_LAMBDA:.0e} (lobes the photos cannot tell apart), and it has the smallest share ({:.2}%)",
+                inp.basis[b].label(),
+                100.0 * shares[b]
+            ));
+        }
+    }
+    let kappa_lighting = est
+        .conditioning
+        .lighting
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    Ok(PilotOutcome {
+        materials,
+        materials_reason,
+        material_scores: scores,
+        kept,
+        shares,
+        basis_reason: reasons.join("; "),
+        kappa_lambda,
+        kappa_lighting,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
