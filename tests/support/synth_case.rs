@@ -1,0 +1,499 @@
+//! Shared by `tests/estimate_synth.rs` and `benches/estimator.rs`: a known-truth scene made
+//! by `synth` (photos rendered by the independent reference renderer), taken through the
+//! real pipeline stages (workspace import, observations, visibility, rotation, transport)
+//! into an estimation [`Problem`], together with the truth it was rendered from: the
+//! materials `λ` (`truth/materials.json`), the blending weights (`truth/weights.ply`) and
+//! every photo's light (`truth/env/*.exr` resampled on the octahedral grid, times the
+//! photo's exposure and white balance, [`Truth::light`]).
+//!
+//! The environment frame is the truth's own (`manifest.json`), so the true maps need no
+//! re-projection; the estimator never sees the truth unless a test hands it over
+//! (`fixed_materials`).
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use relight_cpc::brdf::BasisBrdf;
+use relight_cpc::estimate::{
+    beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
+};
+use relight_cpc::observe::{self, Observations, ObserveOptions};
+use relight_cpc::reference::{Lobe, Samples};
+use relight_cpc::rotation::{Rotation, RotationForm};
+use relight_cpc::run::Truth;
+use relight_cpc::scene;
+use relight_cpc::synth::{self, SynthOptions};
+use relight_cpc::trace::SceneBvh;
+use relight_cpc::transport::{self, Transport, TransportOptions};
+use relight_cpc::workspace::Workspace;
+use relight_cpc::{haar, visibility, Vec3};
+
+/// A scratch folder removed on drop.
+pub struct Scratch(pub PathBuf);
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+pub fn scratch(tag: &str) -> Scratch {
+    let p = std::env::temp_dir().join(format!("relight-estsynth-{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&p);
+    std::fs::create_dir_all(&p).unwrap();
+    Scratch(p)
+}
+
+/// Sizes of a case.
+#[derive(Debug, Clone, Copy)]
+pub struct Sizes {
+    pub width: u32,
+    pub photos: Option<usize>,
+    pub vertices: usize,
+    pub spp: u32,
+    pub light_samples: u32,
+    pub global: usize,
+    pub local: usize,
+    pub normal_grid: usize,
+    /// Kept Haar coefficients per transport row (0 = all).
+    pub keep: usize,
+    pub rays_per_texel: usize,
+}
+
+/// One split's observations and transport.
+pub struct Split {
+    pub obs: Observations,
+    pub transport: Transport,
+    /// Per photo of the split (in its order), the true light's texels per channel.
+    pub lights: Vec<[Vec<f64>; 3]>,
+    pub names: Vec<String>,
+}
+
+impl Split {
+    pub fn problem(&self, nv: usize) -> Problem<'_> {
+        Problem {
+            obs: &self.obs,
+            transport: &self.transport,
+            n_vertices: nv,
+            n_photos: self.obs.photo_ranges.len(),
+        }
+    }
+}
+
+/// A prepared known-truth case.
+pub struct Case {
+    pub scene: String,
+    pub scratch: Scratch,
+    pub basis: Vec<BasisBrdf>,
+    pub nv: usize,
+    pub train: Split,
+    pub held: Split,
+    /// `lambda[k][b][c]`, the truth.
+    pub lambda: Vec<Vec<[f64; 3]>>,
+    /// Row-major `V × K`, the truth.
+    pub weights: Vec<f64>,
+    pub sizes: Sizes,
+    pub seconds_synth: f64,
+    pub seconds_prepare: f64,
+}
+
+fn basis_of(l: &Lobe) -> BasisBrdf {
+    match *l {
+        Lobe::Lambert => BasisBrdf::Lambert,
+        Lobe::Phong { exponent } => BasisBrdf::Phong { exponent },
+        Lobe::Ggx { alpha } => BasisBrdf::Ggx { alpha },
+    }
+}
+
+/// Per-vertex `w0 … w{K-1}` of `truth/weights.ply`, row-major `V × K`.
+fn read_weights(path: &Path, k: usize) -> Vec<f64> {
+    use ply_rs::parser::Parser;
+    use ply_rs::ply::{DefaultElement, Property};
+    let mut f = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let ply = Parser::<DefaultElement>::new().read_ply(&mut f).unwrap();
+    let verts = &ply.payload["vertex"];
+    let mut out = Vec::with_capacity(verts.len() * k);
+    for v in verts {
+        for j in 0..k {
+            let val = match &v[&format!("w{j}")] {
+                Property::Float(x) => *x as f64,
+                Property::Double(x) => *x,
+                other => panic!("{}: w{j} has type {other:?}", path.display()),
+            };
+            out.push(val);
+        }
+    }
+    out
+}
+
+/// Build `scene` with `synth`, then observations and transport of the training and
+/// held-out photos (the manifest's split).
+pub fn prepare(scene_name: &str, sizes: Sizes, seed: u64, tag: &str) -> Case {
+    let scratch = scratch(tag);
+    let ws = scratch.0.join("ws");
+    let t0 = std::time::Instant::now();
+    synth::build(
+        scene_name,
+        &ws,
+        &SynthOptions {
+            width: sizes.width,
+            height: sizes.width,
+            photos: sizes.photos,
+            vertices: Some(sizes.vertices),
+            seed,
+            samples: Samples {
+                per_pixel: sizes.spp,
+                light: sizes.light_samples,
+                seed,
+            },
+            points: 400,
+            ..SynthOptions::default()
+        },
+    )
+    .unwrap();
+    let seconds_synth = t0.elapsed().as_secs_f64();
+    let t1 = std::time::Instant::now();
+    let truth = Truth::read(&ws.join("truth")).unwrap();
+    let mats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ws.join("truth/materials.json")).unwrap())
+            .unwrap();
+    let lobes: Vec<Lobe> = serde_json::from_value(mats["lobes"].clone()).unwrap();
+    let basis: Vec<BasisBrdf> = lobes.iter().map(basis_of).collect();
+    let lambda: Vec<Vec<[f64; 3]>> = mats["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| serde_json::from_value(m["lambda"].clone()).unwrap())
+        .collect();
+    let k = lambda.len();
+
+    let wsp = Workspace::discover(&ws, None).unwrap();
+    let sc = scene::load_scene(wsp).unwrap();
+    let photos = scene::load_photos(&sc, relight_cpc::photo::DEFAULT_CLIP).unwrap();
+    let nv = sc.mesh.positions.len();
+    let weights = read_weights(&ws.join("truth/weights.ply"), k);
+    assert_eq!(
+        weights.len(),
+        nv * k,
+        "the cleaned mesh must keep synth's vertices"
+    );
+    let env_from_world = truth.env_from_world;
+    let normals_env: Vec<Vec3> = sc.mesh.normals.iter().map(|n| env_from_world * n).collect();
+    let bvh = SceneBvh::new(&sc.mesh);
+    let vis = visibility::compute(
+        &sc.mesh,
+        &bvh,
+        &env_from_world,
+        sizes.local,
+        sizes.rays_per_texel,
+        seed,
+    );
+    let rot = Rotation::new(
+        sizes.global,
+        sizes.local,
+        sizes.normal_grid,
+        RotationForm::Factored,
+    );
+    let topts = TransportOptions {
+        n_global: sizes.global,
+        n_local: sizes.local,
+        keep: sizes.keep,
+    };
+    let split = |held: bool| -> Split {
+        let idx: Vec<usize> = (0..sc.views.len())
+            .filter(|&i| truth.held_out.contains(&sc.views[i].image.name) == held)
+            .collect();
+        let views: Vec<_> = idx.iter().map(|&i| sc.views[i].clone()).collect();
+        let ph: Vec<_> = idx.iter().map(|&i| photos[i].clone()).collect();
+        let obs = observe::extract(&sc.mesh, &bvh, &views, &ph, &ObserveOptions::default());
+        let transport = transport::build(
+            &normals_env,
+            &obs,
+            &env_from_world,
+            &vis,
+            &basis,
+            &rot,
+            &topts,
+        )
+        .unwrap();
+        let lights = views
+            .iter()
+            .map(|v| {
+                let env = truth
+                    .light(&v.image.name, sizes.global, &env_from_world)
+                    .unwrap()
+                    .unwrap();
+                [0, 1, 2].map(|c| env.channel(c))
+            })
+            .collect();
+        Split {
+            obs,
+            transport,
+            lights,
+            names: views.iter().map(|v| v.image.name.clone()).collect(),
+        }
+    };
+    let train = split(false);
+    let held = split(true);
+    Case {
+        scene: scene_name.to_string(),
+        scratch,
+        basis,
+        nv,
+        train,
+        held,
+        lambda,
+        weights,
+        sizes,
+        seconds_synth,
+        seconds_prepare: t1.elapsed().as_secs_f64(),
+    }
+}
+
+/// `(relative RMSE, RMSE)` of predictions against the observations with `α > 0`, over all
+/// channels: `sqrt(Σ (y − ŷ)²) / sqrt(Σ y²)`. With `best_scale` the prediction is first
+/// multiplied by the least-squares global factor.
+pub fn rel_rmse(obs: &Observations, pred: &[[f64; 3]], best_scale: bool) -> (f64, f64) {
+    let (mut yy, mut yp, mut pp, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for p in 0..obs.len() {
+        if obs.weight[p] <= 0.0 {
+            continue;
+        }
+        for c in 0..3 {
+            let y = obs.rgb[p][c] as f64;
+            yy += y * y;
+            yp += y * pred[p][c];
+            pp += pred[p][c] * pred[p][c];
+        }
+        n += 3;
+    }
+    let s = if best_scale && pp > 0.0 { yp / pp } else { 1.0 };
+    let se = (yy - 2.0 * s * yp + s * s * pp).max(0.0);
+    ((se / yy).sqrt(), (se / n.max(1) as f64).sqrt())
+}
+
+/// Model prediction for `split`'s observations with reflectance `(lambda, weights)` under
+/// `lights` (texels, one per photo of the split).
+pub fn predict_with(
+    split: &Split,
+    nv: usize,
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    lights: &[[Vec<f64>; 3]],
+) -> Vec<[f64; 3]> {
+    let problem = split.problem(nv);
+    let est = Estimate {
+        lights: lights.to_vec(),
+        lambda: lambda.to_vec(),
+        weights: weights.to_vec(),
+        timeline: Vec::new(),
+        normalisation: String::new(),
+        mu: Vec::new(),
+        irls_weights: Vec::new(),
+        conditioning: Default::default(),
+    };
+    relight_cpc::estimate::predict(&problem, &est)
+}
+
+/// Block means of an `n × n` texel map down to `r × r` (the Haar scaling coefficients of
+/// level `log2 r`, up to a constant): the map as a BRDF of that bandwidth sees it.
+pub fn block_mean(map: &[f64], n: usize, r: usize) -> Vec<f64> {
+    let f = n / r;
+    let mut out = vec![0.0; r * r];
+    for j in 0..n {
+        for i in 0..n {
+            out[(j / f) * r + i / f] += map[j * n + i] / (f * f) as f64;
+        }
+    }
+    out
+}
+
+/// Relative error `‖T_r − s E_r‖ / ‖T_r‖` of estimated maps against the true ones at
+/// resolution `r` (block means), all photos and channels together, with `s` the one global
+/// least-squares scale at full resolution.
+pub fn map_error(est: &[[Vec<f64>; 3]], truth: &[[Vec<f64>; 3]], n: usize, r: usize) -> f64 {
+    let (mut te, mut ee) = (0.0, 0.0);
+    for (e, t) in est.iter().zip(truth) {
+        for c in 0..3 {
+            te += e[c].iter().zip(&t[c]).map(|(a, b)| a * b).sum::<f64>();
+            ee += e[c].iter().map(|a| a * a).sum::<f64>();
+        }
+    }
+    let s = if ee > 0.0 { te / ee } else { 1.0 };
+    let (mut num, mut den) = (0.0, 0.0);
+    for (e, t) in est.iter().zip(truth) {
+        for c in 0..3 {
+            let eb = block_mean(&e[c], n, r);
+            let tb = block_mean(&t[c], n, r);
+            for (a, b) in eb.iter().zip(&tb) {
+                num += (b - s * a).powi(2);
+                den += b * b;
+            }
+        }
+    }
+    (num / den).sqrt()
+}
+
+/// Estimate with the true reflectance held fixed (paper Sec. 6.1).
+pub fn fit_known_reflectance(case: &Case, opts: &EstimateOptions) -> Estimate {
+    let problem = case.train.problem(case.nv);
+    let init = Materials0 {
+        lambda: case.lambda.clone(),
+        weights: case.weights.clone(),
+    };
+    let o = EstimateOptions {
+        fixed_materials: true,
+        ..opts.clone()
+    };
+    estimate(&problem, init, &o, &mut |_, _| {}).unwrap()
+}
+
+/// Per-vertex β of the truth.
+pub fn true_beta(case: &Case) -> Vec<[f64; 3]> {
+    beta_per_vertex(&case.lambda, &case.weights, case.nv)
+}
+
+/// Haar forward of a texel map (helper for callers comparing coefficients).
+pub fn haar_of(map: &[f64], n: usize) -> Vec<f64> {
+    let mut h = map.to_vec();
+    haar::forward(&mut h, n);
+    h
+}
+
+/// Like [`rel_rmse`], with the best least-squares scale per channel (3 factors): the
+/// light-colour / albedo-colour ambiguity of Eq. 9 (`λ_c → s_c λ_c`, `x_c → x_c / s_c`
+/// leaves every photo unchanged), which no normalisation can resolve from the data.
+pub fn rel_rmse_per_channel(obs: &Observations, pred: &[[f64; 3]]) -> f64 {
+    let (mut yy, mut se) = (0.0, 0.0);
+    for c in 0..3 {
+        let (mut a, mut b, mut d) = (0.0, 0.0, 0.0);
+        for p in 0..obs.len() {
+            if obs.weight[p] <= 0.0 {
+                continue;
+            }
+            let y = obs.rgb[p][c] as f64;
+            a += y * y;
+            b += y * pred[p][c];
+            d += pred[p][c] * pred[p][c];
+        }
+        let s = if d > 0.0 { b / d } else { 1.0 };
+        yy += a;
+        se += (a - 2.0 * s * b + s * s * d).max(0.0);
+    }
+    (se / yy).sqrt()
+}
+
+/// Replace a fraction `f` of the observations with `α > 0` by bright outliers: every
+/// channel of a chosen observation gets `+ u · y99`, `u ~ U(0.5, 2)`, `y99` the 99th
+/// percentile of all observed channel values (a specular flare or a passer-by's white
+/// shirt, not in the model). Returns the corrupted observations' indices.
+pub fn corrupt(obs: &mut Observations, f: f64, seed: u64) -> Vec<usize> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut vals: Vec<f32> = obs
+        .rgb
+        .iter()
+        .zip(&obs.weight)
+        .filter(|(_, &w)| w > 0.0)
+        .flat_map(|(c, _)| c.iter().copied())
+        .collect();
+    vals.sort_by(f32::total_cmp);
+    let y99 = vals[(vals.len() * 99 / 100).min(vals.len() - 1)];
+    let mut hit = Vec::new();
+    for p in 0..obs.len() {
+        if obs.weight[p] > 0.0 && rng.random::<f64>() < f {
+            let u = rng.random_range(0.5..2.0_f32);
+            for v in obs.rgb[p].iter_mut() {
+                *v += u * y99;
+            }
+            hit.push(p);
+        }
+    }
+    hit
+}
+
+/// Figures of a joint (materials + lights) recovery against the truth.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JointFigures {
+    /// Fraction of seen vertices whose largest estimated weight is the true largest
+    /// material (best of the K! material orders).
+    pub assignment: f64,
+    /// The same over the seen vertices whose true weights are pure (max ≥ 0.95).
+    pub assignment_pure: f64,
+    /// Per channel `|r̂_c / r_c − 1|`, `r_c = λ_{0,L,c} / λ_{1,L,c}` (Lambertian weights).
+    pub ratio_errors: [f64; 3],
+    /// Training observations: relative RMSE of the fit.
+    pub train_rel: f64,
+    /// Held-out photos under their true light, best global scale.
+    pub heldout_rel_global: f64,
+    /// Held-out photos under their true light, best scale per channel.
+    pub heldout_rel_channel: f64,
+    /// Outer iterations run.
+    pub iterations: usize,
+    /// Estimation seconds.
+    pub seconds: f64,
+}
+
+/// Initial materials as `run` makes them (per-vertex mean colours, k-means, Sec. 5.2).
+pub fn initial(case: &Case, obs: &Observations, k: usize, seed: u64) -> Materials0 {
+    let (mean, seen) = relight_cpc::run::mean_colours(obs, case.nv);
+    let init = relight_cpc::cluster::initial_materials(&mean, &seen, k, seed).unwrap();
+    Materials0::from_initial(&init, case.basis.len(), 0)
+}
+
+/// Score an estimate of a two-material case against the truth. `train_obs` are the
+/// observations the fit saw (possibly corrupted); `clean` the uncorrupted ones.
+pub fn joint_figures(case: &Case, est: &Estimate, clean: &Observations, seconds: f64) -> JointFigures {
+    let k = case.lambda.len();
+    let ke = est.lambda.len();
+    assert_eq!(k, 2, "joint figures are defined for two materials");
+    assert_eq!(ke, 2);
+    let (_, seen) = relight_cpc::run::mean_colours(clean, case.nv);
+    let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
+    let mut best = (0.0, 0.0, [0usize, 1]);
+    for perm in [[0usize, 1], [1, 0]] {
+        let (mut ok, mut n, mut okp, mut np) = (0, 0, 0, 0);
+        for x in 0..case.nv {
+            if !seen[x] {
+                continue;
+            }
+            let tw = &case.weights[x * k..(x + 1) * k];
+            let ew = &est.weights[x * ke..(x + 1) * ke];
+            let t = argmax(tw);
+            let hit = perm[argmax(ew)] == t;
+            n += 1;
+            ok += usize::from(hit);
+            if tw[t] >= 0.95 {
+                np += 1;
+                okp += usize::from(hit);
+            }
+        }
+        let a = ok as f64 / n.max(1) as f64;
+        if a > best.0 {
+            best = (a, okp as f64 / np.max(1) as f64, perm);
+        }
+    }
+    let perm = best.2;
+    // est material j plays true material perm[j]; inv[t] = est index of true t.
+    let inv = if perm == [0, 1] { [0, 1] } else { [1, 0] };
+    let ratio_errors = [0, 1, 2].map(|c| {
+        let r_true = case.lambda[0][0][c] / case.lambda[1][0][c];
+        let r_est = est.lambda[inv[0]][0][c] / est.lambda[inv[1]][0][c];
+        (r_est / r_true - 1.0).abs()
+    });
+    let pred = relight_cpc::estimate::predict(&case.train.problem(case.nv), est);
+    let (train_rel, _) = rel_rmse(clean, &pred, false);
+    let hp = predict_with(&case.held, case.nv, &est.lambda, &est.weights, &case.held.lights);
+    let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
+    let heldout_rel_channel = rel_rmse_per_channel(&case.held.obs, &hp);
+    JointFigures {
+        assignment: best.0,
+        assignment_pure: best.1,
+        ratio_errors,
+        train_rel,
+        heldout_rel_global,
+        heldout_rel_channel,
+        iterations: est.timeline.len(),
+        seconds,
+    }
+}
