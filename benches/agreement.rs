@@ -78,14 +78,7 @@ fn main() {
     // Default resolution.
     let defaults = TransportOptions::default();
     let t0 = Instant::now();
-    let vis32 = visibility::compute(
-        &setup.mesh,
-        &setup.bvh,
-        &setup.env_from_world,
-        32,
-        2,
-        1,
-    );
+    let vis32 = visibility::compute(&setup.mesh, &setup.bvh, &setup.env_from_world, 32, 2, 1);
     let vis32_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
     let rot = Rotation::new(64, 32, 32, RotationForm::Factored);
@@ -138,7 +131,9 @@ fn main() {
         .collect();
     let e_all = errors(&w_all, &r1);
 
-    let mut md = String::from("# Wavelet renderer against the reference (`cargo bench --bench agreement`)\n\n");
+    let mut md = String::from(
+        "# Wavelet renderer against the reference (`cargo bench --bench agreement`)\n\n",
+    );
     md.push_str(&format!(
         "Unit sphere above a ground plane (cast shadows), {nv} vertices, {n_obs} observations \
          ((vertex, camera) pairs with the vertex seen, {cams} cameras), compared at the vertices. \
@@ -161,8 +156,10 @@ fn main() {
                 100.0 * e_all[i][m],
                 100.0 * ref_noise[i][m]
             ));
-            per_map.push(json!({"map": name, "material": mname, "rel_rmse_keep128": e_def[i][m],
-                "rel_rmse_keep_all": e_all[i][m], "reference_error": ref_noise[i][m]}));
+            per_map.push(
+                json!({"map": name, "material": mname, "rel_rmse_keep128": e_def[i][m],
+                "rel_rmse_keep_all": e_all[i][m], "reference_error": ref_noise[i][m]}),
+            );
         }
     }
     md.push('\n');
@@ -199,14 +196,7 @@ fn main() {
         settings.push((64, 32, k));
     }
     let t0 = Instant::now();
-    let vis16 = visibility::compute(
-        &setup.mesh,
-        &setup.bvh,
-        &setup.env_from_world,
-        16,
-        2,
-        1,
-    );
+    let vis16 = visibility::compute(&setup.mesh, &setup.bvh, &setup.env_from_world, 16, 2, 1);
     let vis16_s = t0.elapsed().as_secs_f64();
     let mut rots: Vec<((usize, usize), Rotation, f64)> = Vec::new();
     for (ng, nl, keep) in settings {
@@ -249,7 +239,10 @@ fn main() {
             100.0 * mm[2].1,
             rots[ri].2
         ));
-        eprintln!("{ng} {nl} {keep_s}: diffuse {:.4} / {:.4}", mm[0].0, mm[0].1);
+        eprintln!(
+            "{ng} {nl} {keep_s}: diffuse {:.4} / {:.4}",
+            mm[0].0, mm[0].1
+        );
         sweep.push(json!({"n_global": ng, "n_local": nl, "keep": keep,
             "diffuse_mean": mm[0].0, "diffuse_max": mm[0].1,
             "phong_mean": mm[1].0, "phong_max": mm[1].1,
@@ -278,4 +271,3 @@ fn main() {
     std::fs::write(out.join(format!("agreement{suffix}.md")), &md).expect("write md");
     print!("{md}");
 }
-

@@ -78,14 +78,33 @@ fn known(md: &mut String) -> Value {
         | scene | scale | μ (photo 0, R) | train rel. RMSE | map error 4² | 8² | 16² | 32² |\n|---|---|---|---|---|---|---|---|\n");
     for scene in ["sphere-diffuse", "sphere-glossy", "sphere-specular"] {
         let case = prepare(scene, s, 1, scene);
-        eprintln!("{scene}: prepared in {:.1} + {:.1} s, {} vertices, {} observations", case.seconds_synth, case.seconds_prepare, case.nv, case.train.obs.len());
+        eprintln!(
+            "{scene}: prepared in {:.1} + {:.1} s, {} vertices, {} observations",
+            case.seconds_synth,
+            case.seconds_prepare,
+            case.nv,
+            case.train.obs.len()
+        );
         let mut variants = Vec::new();
-        for scale in [SmoothnessScale::TexelMax, SmoothnessScale::HaarMax, SmoothnessScale::Mean] {
-            let opts = EstimateOptions { smoothness_scale: scale, ..EstimateOptions::default() };
+        for scale in [
+            SmoothnessScale::TexelMax,
+            SmoothnessScale::HaarMax,
+            SmoothnessScale::Mean,
+        ] {
+            let opts = EstimateOptions {
+                smoothness_scale: scale,
+                ..EstimateOptions::default()
+            };
             let t0 = Instant::now();
             let est = fit_known_reflectance(&case, &opts);
             let secs = t0.elapsed().as_secs_f64();
-            let pred = predict_with(&case.train, case.nv, &case.lambda, &case.weights, &est.lights);
+            let pred = predict_with(
+                &case.train,
+                case.nv,
+                &case.lambda,
+                &case.weights,
+                &est.lights,
+            );
             let (train_rel, train_rmse) = rel_rmse(&case.train.obs, &pred, false);
             let errs: Vec<f64> = RESOLUTIONS
                 .iter()
@@ -94,9 +113,15 @@ fn known(md: &mut String) -> Value {
             cmp.push_str(&format!(
                 "| {scene} | {scale:?} | {:.3e} | {train_rel:.4} | {} |\n",
                 est.mu[0][0],
-                errs[1..].iter().map(|e| format!("{e:.3}")).collect::<Vec<_>>().join(" | ")
+                errs[1..]
+                    .iter()
+                    .map(|e| format!("{e:.3}"))
+                    .collect::<Vec<_>>()
+                    .join(" | ")
             ));
-            eprintln!("{scene} {scale:?}: train rel {train_rel:.4}, map errors {errs:?}, {secs:.1} s");
+            eprintln!(
+                "{scene} {scale:?}: train rel {train_rel:.4}, map errors {errs:?}, {secs:.1} s"
+            );
             variants.push(json!({
                 "smoothness_scale": format!("{scale:?}"),
                 "mu": est.mu.first(),
@@ -120,13 +145,22 @@ fn known(md: &mut String) -> Value {
                 m
             });
             let held_lights = vec![mean; case.held.names.len()];
-            let hp = predict_with(&case.held, case.nv, &case.lambda, &case.weights, &held_lights);
+            let hp = predict_with(
+                &case.held,
+                case.nv,
+                &case.lambda,
+                &case.weights,
+                &held_lights,
+            );
             let (held_rel, _) = rel_rmse(&case.held.obs, &hp, true);
             md.push_str(&format!(
                 "| {scene} | {:.4} | {:.4} | {} | {:.1} / {:.1} |\n",
                 train_rel,
                 held_rel,
-                errs.iter().map(|e| format!("{e:.3}")).collect::<Vec<_>>().join(" | "),
+                errs.iter()
+                    .map(|e| format!("{e:.3}"))
+                    .collect::<Vec<_>>()
+                    .join(" | "),
                 case.seconds_synth + case.seconds_prepare,
                 secs
             ));
@@ -158,7 +192,11 @@ fn known(md: &mut String) -> Value {
 
 /// Joint fit of `case` from the clustered start; the timeline with the held-out error under
 /// the true light (per-channel scale) at every outer iteration.
-fn joint_fit(case: &Case, obs: &Observations, opts: &EstimateOptions) -> (Estimate, f64, Vec<Value>) {
+fn joint_fit(
+    case: &Case,
+    obs: &Observations,
+    opts: &EstimateOptions,
+) -> (Estimate, f64, Vec<Value>) {
     let problem = Problem {
         obs,
         transport: &case.train.transport,
@@ -261,7 +299,13 @@ fn joint(md: &mut String) -> Value {
     }
     // Reference: the held-out error of the TRUE reflectance under the true light (what the
     // renderer/transport discretisation alone costs).
-    let hp = predict_with(&case.held, case.nv, &case.lambda, &case.weights, &case.held.lights);
+    let hp = predict_with(
+        &case.held,
+        case.nv,
+        &case.lambda,
+        &case.weights,
+        &case.held.lights,
+    );
     let floor = rel_rmse(&case.held.obs, &hp, false).0;
     md.push_str(&format!(
         "\nFloor: the true reflectance under the true light predicts the held-out observations with relative RMSE {floor:.4} \
@@ -287,14 +331,29 @@ fn robust(md: &mut String) -> Value {
     let mut rows = Vec::new();
     let mut fits = Vec::new();
     for (label, obs, robust) in [
-        ("clean, Huber IRLS", &case.train.obs, Robust::Huber { k: 1.345 }),
-        ("5% outliers, Huber IRLS", &dirty, Robust::Huber { k: 1.345 }),
-        ("5% outliers, Tukey IRLS", &dirty, Robust::Tukey { c: 4.685 }),
+        (
+            "clean, Huber IRLS",
+            &case.train.obs,
+            Robust::Huber { k: 1.345 },
+        ),
+        (
+            "5% outliers, Huber IRLS",
+            &dirty,
+            Robust::Huber { k: 1.345 },
+        ),
+        (
+            "5% outliers, Tukey IRLS",
+            &dirty,
+            Robust::Tukey { c: 4.685 },
+        ),
         ("5% outliers, no IRLS", &dirty, Robust::None),
         ("clean, no IRLS", &case.train.obs, Robust::None),
     ] {
         eprintln!("robust: {label}");
-        let o = EstimateOptions { robust, ..base.clone() };
+        let o = EstimateOptions {
+            robust,
+            ..base.clone()
+        };
         let (est, secs, _) = joint_fit(&case, obs, &o);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         joint_row(md, label, &f);
@@ -353,7 +412,9 @@ fn determinism(md: &mut String) -> Value {
 fn main() {
     let parts = std::env::var("ESTIMATOR_BENCH")
         .unwrap_or_else(|_| "known,joint,robust,determinism".into());
-    let mut md = String::from("# Estimator on known-truth scenes\n\nWritten by `cargo bench --bench estimator`.\n\n");
+    let mut md = String::from(
+        "# Estimator on known-truth scenes\n\nWritten by `cargo bench --bench estimator`.\n\n",
+    );
     let mut out = serde_json::Map::new();
     if parts.contains("known") {
         out.insert("known_reflectance".into(), known(&mut md));

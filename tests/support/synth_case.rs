@@ -443,7 +443,12 @@ pub fn initial(case: &Case, obs: &Observations, k: usize, seed: u64) -> Material
 
 /// Score an estimate of a two-material case against the truth. `train_obs` are the
 /// observations the fit saw (possibly corrupted); `clean` the uncorrupted ones.
-pub fn joint_figures(case: &Case, est: &Estimate, clean: &Observations, seconds: f64) -> JointFigures {
+pub fn joint_figures(
+    case: &Case,
+    est: &Estimate,
+    clean: &Observations,
+    seconds: f64,
+) -> JointFigures {
     let k = case.lambda.len();
     let ke = est.lambda.len();
     assert_eq!(k, 2, "joint figures are defined for two materials");
@@ -483,7 +488,13 @@ pub fn joint_figures(case: &Case, est: &Estimate, clean: &Observations, seconds:
     });
     let pred = relight_cpc::estimate::predict(&case.train.problem(case.nv), est);
     let (train_rel, _) = rel_rmse(clean, &pred, false);
-    let hp = predict_with(&case.held, case.nv, &est.lambda, &est.weights, &case.held.lights);
+    let hp = predict_with(
+        &case.held,
+        case.nv,
+        &est.lambda,
+        &est.weights,
+        &case.held.lights,
+    );
     let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
     let heldout_rel_channel = rel_rmse_per_channel(&case.held.obs, &hp);
     JointFigures {
