@@ -420,8 +420,23 @@ pub struct JointFigures {
     pub assignment: f64,
     /// The same over the seen vertices whose true weights are pure (max ≥ 0.95).
     pub assignment_pure: f64,
-    /// Per channel `|r̂_c / r_c − 1|`, `r_c = λ_{0,L,c} / λ_{1,L,c}` (Lambertian weights).
+    /// Per channel `|r̂_c / r_c − 1|`, `r_c = λ_{0,L,c} / λ_{1,L,c}` (Lambertian weights of
+    /// the materials themselves). NOT invariant to the K×K non-negative remix
+    /// `w → w M⁻¹`, `λ → M λ` that leaves every vertex's reflectance β unchanged.
     pub ratio_errors: [f64; 3],
+    /// The remix-invariant version: per channel `r̂_c` = median of the estimated per-vertex
+    /// Lambertian weight `β̂_{x,L,c}` over the seen vertices that are truly pure material 0
+    /// (true weight ≥ 0.95) over the same median for material 1, against the truth's
+    /// `λ_{0,L,c} / λ_{1,L,c}`. Depends only on β̂ (what the data determine) and is
+    /// invariant to the per-channel light-colour scale too.
+    pub beta_ratio_errors: [f64; 3],
+    /// Held-out photos under their true light: the estimated reflectance's prediction
+    /// against the TRUE reflectance's prediction through the same transport (per-channel
+    /// scale): the estimator's own error, without the renderer noise and the transport's
+    /// discretisation that the observations also contain (`heldout_floor`).
+    pub heldout_rel_model: f64,
+    /// The true reflectance under the true light against the held-out observations.
+    pub heldout_floor: f64,
     /// Training observations: relative RMSE of the fit.
     pub train_rel: f64,
     /// Held-out photos under their true light, best global scale.
@@ -486,6 +501,26 @@ pub fn joint_figures(
         let r_est = est.lambda[inv[0]][0][c] / est.lambda[inv[1]][0][c];
         (r_est / r_true - 1.0).abs()
     });
+    let beta_hat = beta_per_vertex(&est.lambda, &est.weights, case.nv);
+    let nb = case.basis.len();
+    let median = |mut v: Vec<f64>| -> f64 {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let beta_ratio_errors = [0, 1, 2].map(|c| {
+        let pure = |t: usize| -> Vec<f64> {
+            (0..case.nv)
+                .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
+                .map(|x| beta_hat[x * nb][c])
+                .collect()
+        };
+        let r_true = case.lambda[0][0][c] / case.lambda[1][0][c];
+        let r_est = median(pure(0)) / median(pure(1));
+        (r_est / r_true - 1.0).abs()
+    });
     let pred = relight_cpc::estimate::predict(&case.train.problem(case.nv), est);
     let (train_rel, _) = rel_rmse(clean, &pred, false);
     let hp = predict_with(
@@ -497,14 +532,74 @@ pub fn joint_figures(
     );
     let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
     let heldout_rel_channel = rel_rmse_per_channel(&case.held.obs, &hp);
+    let hp_true = predict_with(
+        &case.held,
+        case.nv,
+        &case.lambda,
+        &case.weights,
+        &case.held.lights,
+    );
+    let mut model_obs = case.held.obs.clone();
+    for (y, t) in model_obs.rgb.iter_mut().zip(&hp_true) {
+        *y = t.map(|v| v as f32);
+    }
+    let heldout_rel_model = rel_rmse_per_channel(&model_obs, &hp);
+    let heldout_floor = rel_rmse(&case.held.obs, &hp_true, false).0;
     JointFigures {
         assignment: best.0,
         assignment_pure: best.1,
         ratio_errors,
+        beta_ratio_errors,
+        heldout_rel_model,
+        heldout_floor,
         train_rel,
         heldout_rel_global,
         heldout_rel_channel,
         iterations: est.timeline.len(),
         seconds,
     }
+}
+
+/// Per Haar level `m = 1, 2, 4, …, n/2` (nodes per side; the detail coefficients with
+/// `m ≤ max(row, col) < 2m`, [`relight_cpc::haar`]): the correlation
+/// `Σ ĥ h / sqrt(Σ ĥ² Σ h²)` of the estimated and true maps' coefficients over all photos
+/// and channels. Invariant to one global scale; 1 = that band's detail recovered up to
+/// scale, 0 = none. A BRDF of bandwidth `m` can only constrain the levels below `m`.
+pub fn level_correlation(
+    est: &[[Vec<f64>; 3]],
+    truth: &[[Vec<f64>; 3]],
+    n: usize,
+) -> Vec<(usize, f64)> {
+    let mut m = 1;
+    let mut acc = Vec::new();
+    while m < n {
+        acc.push((m, [0.0_f64; 3]));
+        m *= 2;
+    }
+    for (e, t) in est.iter().zip(truth) {
+        for c in 0..3 {
+            let he = haar_of(&e[c], n);
+            let ht = haar_of(&t[c], n);
+            for k in 1..n * n {
+                let (row, col) = (k / n, k % n);
+                let lvl = row.max(col).ilog2() as usize;
+                let a = &mut acc[lvl].1;
+                a[0] += he[k] * ht[k];
+                a[1] += he[k] * he[k];
+                a[2] += ht[k] * ht[k];
+            }
+        }
+    }
+    acc.into_iter()
+        .map(|(m, a)| {
+            (
+                m,
+                if a[1] > 0.0 && a[2] > 0.0 {
+                    a[0] / (a[1] * a[2]).sqrt()
+                } else {
+                    0.0
+                },
+            )
+        })
+        .collect()
 }
