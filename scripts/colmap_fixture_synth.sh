@@ -7,7 +7,7 @@
 #                  scratch folder to compare a rerun with the committed fixture)
 #
 # 1. `relight-cpc synth spot-textured` renders 24 photos at 640x480 (Spot on a ground plane,
-#    two materials in a noise pattern, the courtyard map rotated per photo).
+#    two materials in a noise pattern, the courtyard map, static: the same light in every photo).
 # 2. The true camera centres (C = -R^T t from the truth's images.txt) go to centres.txt.
 # 3. scripts/colmap_workspace.sh on the photos with --centres: SIFT, exhaustive matching,
 #    mapper, undistortion, model_aligner into the truth frame, SGBM depth, stereo_fusion,
