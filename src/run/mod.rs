@@ -960,25 +960,11 @@ fn adaptive_decisions(
     });
     eff.basis = outcome.kept.iter().map(|&b| opts.basis[b]).collect();
     let labels = |b: &[BasisBrdf]| b.iter().map(|x| x.label()).collect::<Vec<_>>().join(",");
-    let shares = opts
-        .basis
-        .iter()
-        .zip(&outcome.shares)
-        .map(|(b, s)| format!("{} {:.2}%", b.label(), 100.0 * s))
-        .collect::<Vec<_>>()
-        .join(", ");
     d.push(Decision {
         what: "basis".into(),
         full: labels(&opts.basis),
         chosen: labels(&eff.basis),
-        reason: if outcome.basis_reason.is_empty() {
-            format!(
-                "every basis carries at least {:.0}% of some material's predicted radiance in the pilot (largest shares: {shares})",
-                100.0 * crate::adapt::DROP_SHARE
-            )
-        } else {
-            outcome.basis_reason.clone()
-        },
+        reason: outcome.basis_reason.clone(),
     });
     let shadowed = vis.open_count() < nv;
     let (g, why) =
