@@ -61,6 +61,9 @@
 //! The transport of the kept bases is a column selection of the full one
 //! ([`select_bases`]), so a pilot transport can be reused without rebuilding.
 
+// Channel loops index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
 use serde::Serialize;
 
 use crate::brdf::BasisBrdf;
@@ -138,7 +141,7 @@ pub fn select_bases(t: &Transport, kept: &[usize]) -> Result<Transport> {
 /// Visibility averaged down to `n` texels per side (solid-angle weighted over each block
 /// of the finer hemi-octahedral grid, whose texels nest 2×2 per level).
 pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
-    if n >= vis.n_local || n == 0 || vis.n_local % n != 0 {
+    if n >= vis.n_local || n == 0 || !vis.n_local.is_multiple_of(n) {
         return vis.clone();
     }
     let fine = vis.n_local;
@@ -184,7 +187,7 @@ fn held_out(obs: &Observations, p: usize, seed: u64) -> bool {
     h ^= h >> 33;
     h = h.wrapping_mul(0xC4CE_B9FE_1A85_EC53);
     h ^= h >> 33;
-    h % HELDOUT_EVERY == 0
+    h.is_multiple_of(HELDOUT_EVERY)
 }
 
 /// The observations with the pilot's held-out ones at weight 0, and the held-out indices
