@@ -345,3 +345,54 @@ fn materials_auto_finds_the_two_materials_of_sphere_plane() {
         d.reason
     );
 }
+
+#[test]
+fn two_indistinguishable_lobes_show_in_the_condition_number_and_one_is_dropped() {
+    // Phong 50 and Phong 50.001 give the same transport rows up to ~1e-5 relative, so the
+    // λ system's two columns are parallel to that precision: its condition number is held
+    // near 1/β = 1e8 only by the ridge (β = 1e-8 of the largest diagonal entry), far above
+    // the 1e7 at which the report calls the lobes indistinguishable.
+    let dir = scratch("twin");
+    let ws = workspace(&dir.0, "sphere-glossy", 6, 300);
+    let twin = vec![
+        BasisBrdf::Lambert,
+        BasisBrdf::Phong { exponent: 50.0 },
+        BasisBrdf::Phong { exponent: 50.001 },
+    ];
+    let mut o = adaptive(&ws, &dir.0.join("full"));
+    o.adaptive = false;
+    o.materials = MaterialCount::Fixed(1);
+    o.basis = twin.clone();
+    let full = run::run(&o).unwrap();
+    let kappa = full
+        .report
+        .conditioning
+        .iter()
+        .filter(|(k, _)| k.starts_with("material weights"))
+        .map(|(_, &v)| v)
+        .fold(0.0, f64::max);
+    assert!(kappa > adapt::KAPPA_LAMBDA, "κ_λ {kappa:.3e}");
+    let lam = full
+        .report
+        .conditioning_use
+        .iter()
+        .find(|l| l.starts_with("material weights"))
+        .expect("λ line");
+    assert!(lam.contains("nearly indistinguishable"), "{lam}");
+    assert!(lam.contains("--adaptive on"), "{lam}");
+    let md = std::fs::read_to_string(dir.0.join("full/report.md")).unwrap();
+    assert!(md.contains("How the solver uses them"));
+    // The adaptive model keeps one of the twins.
+    let mut o = adaptive(&ws, &dir.0.join("adaptive"));
+    o.materials = MaterialCount::Fixed(1);
+    o.basis = twin;
+    let s = run::run(&o).unwrap();
+    let phongs = s
+        .report
+        .model
+        .basis
+        .iter()
+        .filter(|b| b.starts_with("phong"))
+        .count();
+    assert_eq!(phongs, 1, "{:#?}", s.report.model.adaptive);
+}

@@ -114,6 +114,8 @@ pub struct RunReport {
     pub notes: Vec<String>,
     /// Condition-number estimates of the systems the solver saw, by name.
     pub conditioning: BTreeMap<String, f64>,
+    /// What the solver did with each condition number (regulariser, threshold, advice).
+    pub conditioning_use: Vec<String>,
 }
 
 /// RMSE and best-scale RMSE of `pred` against `truth` (both linear RGB), over the
@@ -356,6 +358,13 @@ impl RunReport {
                 let _ = writeln!(s, "- {k}: {v:.3e}");
             }
             let _ = writeln!(s);
+            if !self.conditioning_use.is_empty() {
+                let _ = writeln!(s, "How the solver uses them:\n");
+                for line in &self.conditioning_use {
+                    let _ = writeln!(s, "- {line}");
+                }
+                let _ = writeln!(s);
+            }
         }
         let _ = writeln!(s, "## Time and memory per stage\n");
         let _ = writeln!(s, "![stages](plots/stages.png)\n");

@@ -793,6 +793,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         })
     })?;
     bar.finish_and_clear();
+    check_finite(&est, &conditioning_map(&est.conditioning))?;
     let beta = estimate::beta_per_vertex(&est.lambda, &est.weights, nv);
     let train_entries = train_errors(&scene, &train, &obs, &estimate::predict(&problem, &est));
 
@@ -823,24 +824,8 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     progress.stage("output");
     stages.run("output", || output::write_results(&fitted, dir, progress))?;
 
-    let mut conditioning = std::collections::BTreeMap::new();
     let c = &fitted.est.conditioning;
-    if let Some(max) = c
-        .lighting
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .reduce(f64::max)
-    {
-        conditioning.insert("lighting (max over photos, lower bound)".to_string(), max);
-    }
-    for (ch, v) in ["R", "G", "B"].iter().zip(c.lambda) {
-        conditioning.insert(format!("material weights λ, channel {ch}"), v);
-    }
-    conditioning.insert(
-        "blending weights w (max over vertices)".into(),
-        c.weights_max,
-    );
+    let conditioning = conditioning_map(c);
     if c.weights_singular > 0 {
         notes.push(format!(
             "{} vertices had fewer independent observations than materials (their blending weights are minimum-norm)",
@@ -854,6 +839,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         ));
     }
     notes.push(format!("scale normalisation: {}", fitted.est.normalisation));
+    let conditioning_use = conditioning_use(c, &fitted.estimate_options, opts.adaptive);
 
     let mut report = RunReport {
         version: env!("CARGO_PKG_VERSION").to_string(),
@@ -879,6 +865,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         },
         notes,
         conditioning,
+        conditioning_use,
         ..Default::default()
     };
     if let Some(h) = evaluation.mean_holdout_rmse {
@@ -997,10 +984,9 @@ fn adaptive_decisions(
             }
         ),
     });
-    // Conditioning (issue 8: use the condition numbers the solver sees). A lighting system
-    // whose condition number bound exceeds 1e10 loses all but ~6 of float64's 16 digits
-    // and the QP's relative KKT tolerance (1e-7) stops meaning anything: regularise.
-    const KAPPA_LIGHTING: f64 = 1e10;
+    // Conditioning (issue 8: use the condition numbers the solver sees): a lighting system
+    // beyond KAPPA_LIGHTING is regularised harder.
+    use crate::adapt::KAPPA_LIGHTING;
     if outcome.kappa_lighting > KAPPA_LIGHTING && opts.smoothness < 1e-4 {
         eff.smoothness = 1e-4;
         d.push(Decision {
@@ -1025,4 +1011,133 @@ fn adaptive_decisions(
         });
     }
     d
+}
+
+/// The condition numbers of the report, by name.
+fn conditioning_map(c: &estimate::Conditioning) -> std::collections::BTreeMap<String, f64> {
+    let mut conditioning = std::collections::BTreeMap::new();
+    if let Some(max) = c
+        .lighting
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .reduce(f64::max)
+    {
+        conditioning.insert("lighting (max over photos, lower bound)".to_string(), max);
+    }
+    for (ch, v) in ["R", "G", "B"].iter().zip(c.lambda) {
+        conditioning.insert(format!("material weights λ, channel {ch}"), v);
+    }
+    conditioning.insert(
+        "blending weights w (max over vertices)".into(),
+        c.weights_max,
+    );
+    conditioning
+}
+
+/// What the solver did with each condition number it saw (issue 8), in words: the figure,
+/// the digits of float64's ~16 it costs (`log₁₀ κ`), the regulariser that bounds it and,
+/// past the thresholds of [`crate::adapt`], what to change.
+fn conditioning_use(
+    c: &estimate::Conditioning,
+    eopts: &EstimateOptions,
+    adaptive: bool,
+) -> Vec<String> {
+    let digits = |k: f64| k.max(1.0).log10();
+    let mut out = Vec::new();
+    let lighting = c
+        .lighting
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    if lighting > 0.0 {
+        let mut line = format!(
+            "lighting (Eq. 10): κ ≥ {lighting:.2e} (largest over photos; a lower bound from the Ritz values of the conjugate-gradient steps), about {:.0} of 16 digits; the Laplacian prior μ = {:.0e} × the largest texel-basis diagonal regularises the directions the photos do not see, and the QP stops at a relative KKT residual of {:.0e}",
+            digits(lighting),
+            eopts.smoothness,
+            eopts.qp_rel_tol
+        );
+        if lighting > crate::adapt::KAPPA_LIGHTING {
+            line.push_str(&format!(
+                "; above {:.0e}, so the solution's unconstrained directions are set by rounding: {}",
+                crate::adapt::KAPPA_LIGHTING,
+                if adaptive && eopts.smoothness >= 1e-4 {
+                    "the adaptive model already raised the prior".to_string()
+                } else {
+                    "raise --smoothness (1e-4 or more) or run with --adaptive on".to_string()
+                }
+            ));
+        }
+        if c.qp_unconverged > 0 {
+            line.push_str(&format!(
+                "; {} lighting solves hit the iteration cap ({}) first",
+                c.qp_unconverged, eopts.qp_max_iter
+            ));
+        }
+        out.push(line);
+    }
+    let lam = c.lambda.iter().copied().fold(0.0, f64::max);
+    let mut line = format!(
+        "material weights λ (Eq. 11): κ = {lam:.2e} (exact, largest over channels), about {:.0} digits; the ridge {:.0e} × the largest diagonal entry bounds it by about {:.0e}",
+        digits(lam),
+        eopts.beta,
+        1.0 / eopts.beta.max(1e-300)
+    );
+    if lam > crate::adapt::KAPPA_LAMBDA {
+        line.push_str(&format!(
+            "; above {:.0e}: two basis lobes are nearly indistinguishable in these photos and the ridge, not the data, splits the weight between them: {}",
+            crate::adapt::KAPPA_LAMBDA,
+            if adaptive {
+                "the adaptive pilot's held-out ablation keeps only one of such lobes"
+            } else {
+                "drop one of the similar lobes from --basis or run with --adaptive on"
+            }
+        ));
+    }
+    out.push(line);
+    out.push(format!(
+        "blending weights w (Eq. 12): κ ≤ {:.2e} over the vertices with a full-rank system, about {:.0} digits; {} vertices with fewer independent observations than materials get the minimum-norm non-negative solution",
+        c.weights_max,
+        digits(c.weights_max),
+        c.weights_singular
+    ));
+    out
+}
+
+/// Stop with an explanation rather than write non-finite maps or materials.
+fn check_finite(
+    est: &estimate::Estimate,
+    conditioning: &std::collections::BTreeMap<String, f64>,
+) -> Result<()> {
+    let bad_light = est
+        .lights
+        .iter()
+        .position(|l| l.iter().any(|ch| ch.iter().any(|v| !v.is_finite())));
+    let bad_lambda = est
+        .lambda
+        .iter()
+        .flatten()
+        .flatten()
+        .any(|v| !v.is_finite());
+    let bad_w = est.weights.iter().any(|v| !v.is_finite());
+    if bad_light.is_none() && !bad_lambda && !bad_w {
+        return Ok(());
+    }
+    let what = match bad_light {
+        Some(i) => format!("the light of training photo {i}"),
+        None if bad_lambda => "the material weights λ".to_string(),
+        None => "the blending weights w".to_string(),
+    };
+    Err(Error::Numeric {
+        stage: "estimate".into(),
+        message: format!(
+            "{what} came out non-finite; the condition numbers the solver saw were {}; raise --smoothness, drop similar lobes from --basis, or use fewer --materials",
+            conditioning
+                .iter()
+                .map(|(k, v)| format!("{k} {v:.2e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    })
 }
