@@ -7,8 +7,8 @@
 //! the CLI's defaults (`lambert,phong:50,phong:500`, 64² global, 32² local, keep 128,
 //! 8 iterations, materials auto), once with `adaptive = false` (the full model; the
 //! material count from the k-means elbow) and once with `adaptive = true`
-//! (`relight_cpc::adapt`). Figures: wall time of the whole run (pilot included), the
-//! estimation time, and the error: held-out RMSE under the true light after the best
+//! (`relight_cpc::adapt`). Figures: wall and CPU time of the whole run (pilot included;
+//! CPU decides "faster", since the machine may be shared), the estimation time, and the error: held-out RMSE under the true light after the best
 //! global scale (protocol (a) of DESIGN §4, mean over the scene's held-out photos), plus
 //! the training RMSE. The bar: the adaptive run faster, its held-out error at most
 //! 5% above the full model's.
@@ -33,6 +33,7 @@ fn env_usize(name: &str, default: usize) -> usize {
 
 struct Measured {
     wall: f64,
+    cpu: f64,
     estimate: f64,
     pilot: f64,
     holdout: f64,
@@ -60,6 +61,7 @@ fn fit(ws: &Path, out: &Path, adaptive: bool) -> Measured {
         .collect();
     Measured {
         wall,
+        cpu: r.stage_details.iter().map(|st| st.cpu_seconds).sum(),
         estimate: r.stages.get("estimate").copied().unwrap_or(f64::NAN),
         pilot: r.stages.get("pilot").copied().unwrap_or(0.0),
         holdout: truth.iter().sum::<f64>() / truth.len().max(1) as f64,
@@ -76,7 +78,7 @@ fn main() {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "# Adaptive model against the full model\n\n`cargo bench --bench adaptive` (benches/adaptive.rs): synth scenes of {pixels}² photos and about {vertices} vertices, the CLI defaults (basis lambert, phong:50, phong:500; 64² global, 32² local, keep 128, 8 iterations, materials auto), `--adaptive off` against `--adaptive on`. Held-out error: RMSE under the true light after the best global scale, mean over the held-out photos. Machine: 2 cores shared with other jobs, so times are indicative.\n\n| scene | model | wall s | pilot s | estimate s | held-out RMSE | train RMSE | materials | basis | global | keep |\n|---|---|---|---|---|---|---|---|---|---|---|"
+        "# Adaptive model against the full model\n\n`cargo bench --bench adaptive` (benches/adaptive.rs): synth scenes of {pixels}² photos and about {vertices} vertices, the CLI defaults (basis lambert, phong:50, phong:500; 64² global, 32² local, keep 128, 8 iterations, materials auto), `--adaptive off` against `--adaptive on`. Held-out error: RMSE under the true light after the best global scale, mean over the held-out photos. Machine: 2 cores shared with other jobs, so wall times are indicative; CPU time (summed over the stages) decides \"faster\".\n\n| scene | model | wall s | CPU s | pilot s | estimate s | held-out RMSE | train RMSE | materials | basis | global | keep |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     let mut scenes = Vec::new();
     let mut verdicts = Vec::new();
@@ -103,8 +105,9 @@ fn main() {
         let mut row = |name: &str, m: &Measured| {
             let _ = writeln!(
                 md,
-                "| {scene} | {name} | {:.1} | {:.1} | {:.1} | {:.5} | {:.5} | {} | {} | {} | {} |",
+                "| {scene} | {name} | {:.1} | {:.1} | {:.1} | {:.1} | {:.5} | {:.5} | {} | {} | {} | {} |",
                 m.wall,
+                m.cpu,
                 m.pilot,
                 m.estimate,
                 m.holdout,
@@ -117,11 +120,14 @@ fn main() {
         };
         row("full", &full);
         row("adaptive", &adapt);
-        let speedup = full.wall / adapt.wall;
+        // CPU seconds decide "faster": the machine is shared, so wall time also counts
+        // other jobs' load; both are reported.
+        let speedup = full.cpu / adapt.cpu;
+        let wall_speedup = full.wall / adapt.wall;
         let worse = adapt.holdout / full.holdout - 1.0;
         let ok = speedup > 1.0 && worse <= 0.05;
         verdicts.push(format!(
-            "- {scene}: adaptive {speedup:.2}× faster (wall), held-out error {:+.1}% against the full model: {}",
+            "- {scene}: adaptive {speedup:.2}× faster in CPU time ({wall_speedup:.2}× in wall time), held-out error {:+.1}% against the full model: {}",
             100.0 * worse,
             if ok {
                 "meets the bar (faster, at most 5% worse)".to_string()
@@ -134,6 +140,7 @@ fn main() {
         let to_json = |m: &Measured| {
             json!({
                 "wall_seconds": m.wall,
+                "cpu_seconds": m.cpu,
                 "pilot_seconds": m.pilot,
                 "estimate_seconds": m.estimate,
                 "holdout_rmse_scaled": m.holdout,
@@ -145,7 +152,8 @@ fn main() {
             "scene": scene,
             "full": to_json(&full),
             "adaptive": to_json(&adapt),
-            "speedup": speedup,
+            "speedup_cpu": speedup,
+            "speedup_wall": wall_speedup,
             "holdout_relative_change": worse,
             "meets_bar": ok,
         }));

@@ -98,3 +98,37 @@ fn run_rejects_a_missing_workspace_and_bad_options_with_clear_errors() {
     let err = run(&o).unwrap_err().to_string();
     assert!(err.contains("--global-resolution 48"), "{err}");
 }
+
+/// The CLI's default (`--adaptive on`) on the same example: the truth has two materials and
+/// lobes Lambert, Phong 50 and GGX 0.3 (no Phong 500). The adaptive model must keep the
+/// Lambertian and Phong 50 lobes the truth uses, fit at least the two materials, map no
+/// finer than requested, and meet the same held-out and training bounds as the full model
+/// above (the same reasoning for 0.15 and 0.05 applies).
+#[test]
+fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
+    let dir = std::env::temp_dir().join(format!("relight-run-adaptive-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut o = options(&dir.join("spot"));
+    o.adaptive = true;
+    o.materials = MaterialCount::Auto;
+    let r = run(&o)
+        .expect("adaptive run on the built-in example")
+        .report;
+    let m = &r.model;
+    assert!(m.adaptive.as_ref().is_some_and(|d| !d.is_empty()));
+    assert!(
+        m.basis.iter().any(|b| b == "lambert") && m.basis.iter().any(|b| b == "phong:50"),
+        "{:#?}",
+        m.adaptive
+    );
+    assert!(m.materials >= 2, "{:#?}", m.adaptive);
+    assert!(m.global_resolution <= 32);
+    let truth: Vec<_> = r.holdout.iter().filter(|h| h.protocol == "truth").collect();
+    assert_eq!(truth.len(), 2, "{:?}", r.holdout);
+    for h in &truth {
+        eprintln!("{} truth: RMSE {:.4} scaled", h.image, h.rmse_scaled);
+        assert!(h.rmse_scaled < 0.15, "{h:?}");
+    }
+    assert!(r.train_rmse < 0.05, "train RMSE {}", r.train_rmse);
+    let _ = std::fs::remove_dir_all(&dir);
+}
