@@ -216,10 +216,11 @@ struct RunArgs {
     /// Skip the renders of the training views.
     #[arg(long)]
     no_training_renders: bool,
-    /// `on`: a short pilot fit decides what the scene needs (materials by held-out error,
-    /// basis BRDFs that carry under 1% of the radiance dropped, map resolution and
-    /// coefficient budget from the kept lobes' width, duplicate photos skipped; the
-    /// resolutions and --keep given are upper bounds); `off`: the full model as given.
+    /// `on`: a short pilot fit decides what the scene needs (materials by held-out error;
+    /// basis BRDFs dropped when they carry under 1% of the radiance or leaving them out
+    /// costs under 1% of held-out error; map resolution and coefficient budget from the
+    /// kept lobes' width; duplicate photos skipped; the resolutions and --keep given are
+    /// upper bounds); `off`: the full model as given.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     adaptive: String,
 }
