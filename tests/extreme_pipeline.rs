@@ -197,6 +197,20 @@ fn convex_sphere_without_shadows() {
         !s.report.conditioning.is_empty(),
         "no conditioning reported"
     );
+    // And says how the solver used each figure: the lighting system's prior, the λ ridge,
+    // the w systems' minimum-norm fallback.
+    let uses = &s.report.conditioning_use;
+    for (start, needs) in [
+        ("lighting", "Laplacian prior"),
+        ("material weights λ", "ridge"),
+        ("blending weights w", "minimum-norm"),
+    ] {
+        let line = uses
+            .iter()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no {start} line in {uses:#?}"));
+        assert!(line.contains(needs), "{line}");
+    }
     assert!(
         s.report.train_rmse < 0.3,
         "train rmse {}",
@@ -245,6 +259,52 @@ fn two_nearly_identical_viewpoints() {
     )
     .unwrap();
     stable_or_clear(run::run(&fast(&ws, &d.0.join("out"))), &["photo", "view"]);
+    // The adaptive model sees a copy from within 1° and skips it with a note, fitting the
+    // one photo left.
+    let mut o = fast(&ws, &d.0.join("adaptive"));
+    o.adaptive = true;
+    o.materials = MaterialCount::Auto;
+    if let Some(s) = stable_or_clear(run::run(&o), &["photo", "view"]) {
+        assert_eq!(s.report.train.len(), 1, "{:?}", s.report.notes);
+        assert!(
+            s.report
+                .notes
+                .iter()
+                .any(|n| n.contains("skipped, it adds no new observation")),
+            "{:?}",
+            s.report.notes
+        );
+    }
+}
+
+/// The adaptive model on stiff inputs: one photo (the pilot holds out observations of
+/// the only photo), a nearly black environment, and a one-colour sphere with
+/// `--materials auto` (k-means finds no second distinct cluster): a stable run or a clear
+/// error, never a panic or NaN.
+#[test]
+fn adaptive_model_on_stiff_inputs() {
+    let d = scratch("adaptive");
+    let ws = workspace(&d.0, "sphere-diffuse", 1, 300);
+    let mut o = fast(&ws, &d.0.join("one"));
+    o.adaptive = true;
+    o.materials = MaterialCount::Auto;
+    stable_or_clear(run::run(&o), &["photo", "view", "image"]);
+
+    let ws = workspace(&d.0.join("dim"), "sphere-diffuse", 3, 300);
+    edit_photos(&ws, |im| {
+        im.pixels_mut().for_each(|p| p.0 = p.0.map(|v| v / 40))
+    });
+    let mut o = fast(&ws, &d.0.join("dim-out"));
+    o.adaptive = true;
+    o.materials = MaterialCount::Auto;
+    if let Some(s) = stable_or_clear(run::run(&o), &["dark", "black", "light"]) {
+        // A one-material scene: the pilot picks 1 whatever the brightness.
+        assert_eq!(
+            s.report.model.materials, 1,
+            "{:#?}",
+            s.report.model.adaptive
+        );
+    }
 }
 
 /// Photos scaled to 1/40 of their brightness: a nearly black environment seen at a fixed
