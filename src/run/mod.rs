@@ -5,11 +5,19 @@
 //! 1. `import`: discover the workspace, read the model, the mesh and the photos;
 //! 2. `observations`: BVH, per-vertex observations in every registered photo;
 //! 3. `visibility`: per-vertex visibility over the local hemisphere (Sec. 3);
+//!    with [`RunOptions::adaptive`], `pilot`: a cheap held-out fit decides the materials,
+//!    the basis BRDFs, the map resolution and `keep` ([`crate::adapt`]; duplicate photos
+//!    are skipped after step 2), each decision written to the report with its reason;
 //! 4. `rotation`: the wavelet rotations `R_ν` (Sec. 4.2, Eq. 6);
 //! 5. `transport`: `g_{p,b} = R_nᵀ T_x ρ_b(ω_o)` per observation (Eq. 5–8);
 //! 6. `estimate`: alternating lighting (Eq. 10) and material (Eq. 11–12) steps;
 //! 7. `evaluation`: held-out photos under each protocol of DESIGN §4;
 //! 8. `output`: environment maps, materials, coloured mesh, renders, report.
+//!
+//! The condition numbers the estimator sees (lighting, Eq. 10; λ and w, Eq. 11–12) go to
+//! the report with what bounds each (the Laplacian prior, the λ ridge, the minimum-norm w
+//! fallback) and, past [`crate::adapt::KAPPA_LIGHTING`] / [`crate::adapt::KAPPA_LAMBDA`],
+//! what to change; a non-finite estimate stops the run with those figures.
 //!
 //! Everything is written into a hidden sibling `.NAME.partial/` of the output folder and
 //! renamed to `NAME/` only when complete, so an interrupted run never leaves a folder that
