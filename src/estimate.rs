@@ -21,7 +21,10 @@
 //! 2. Material step (Sec. 5.2, Eq. 11–12): with `s_{p,b,c} = ⟨g_{p,b}, W x_{I,c}⟩` fixed,
 //!    `λ` per channel from all observations jointly (`K·B` unknowns, design row
 //!    `w_k(x_p) s_{p,b,c}`, ridge `β_λ`), then `w(x)` per vertex from its observations in
-//!    all three channels (`K` unknowns, row `Σ_b λ_{k,b,c} s_{p,b,c}`). Both are small dense
+//!    all three channels (`K` unknowns, row `Σ_b λ_{k,b,c} s_{p,b,c}`). With Huber IRLS the
+//!    `w` step leaves out observations whose lighting residual exceeds `weights_reject · σ`
+//!    ([`EstimateOptions::weights_reject`]): a vertex's few observations cannot outvote a
+//!    gross outlier that Huber only down-weights. Both are small dense
 //!    NNLS problems solved exactly by the active-set [`crate::qp::nnls`], so each step
 //!    minimises `F` over its block and `F` never increases (without IRLS; with it, the
 //!    weights change between steps).
@@ -201,6 +204,16 @@ pub struct EstimateOptions {
     pub lambert_basis: usize,
     /// Extrapolate the alternation (accepted only when the objective drops).
     pub extrapolate: bool,
+    /// With Huber IRLS: observations whose last lighting residual exceeds this many robust
+    /// scales `σ` (Huber weight below `k / weights_reject`) are left out of the per-vertex
+    /// `w` step (a redescending cut there only). A vertex has a handful of observations and
+    /// `K` unknowns, so a gross outlier that Huber only down-weights is fitted exactly by
+    /// its `w`; the λ step (all observations pooled) and the lighting step keep Huber's
+    /// weights, so genuine highlights still shape the maps and the specular `λ`.
+    /// `None`: the `w` step uses the Huber weights as they are. Default 4.685 (Tukey's
+    /// cut-off): on `spot-varying` with 5% gross outliers the held-out error goes from
+    /// ×2.7 to ×1.05 of the clean fit, and the clean fit does not change measurably.
+    pub weights_reject: Option<f64>,
 }
 
 impl Default for EstimateOptions {
@@ -219,6 +232,7 @@ impl Default for EstimateOptions {
             material_sweeps: 1,
             lambert_basis: 0,
             extrapolate: true,
+            weights_reject: Some(4.685),
         }
     }
 }
@@ -1222,6 +1236,21 @@ pub fn estimate(
         let dw: Vec<[f64; 3]> = (0..np)
             .map(|p| omega[p].map(|o| o as f64 * problem.obs.weight[p] as f64))
             .collect();
+        let cut = match (opts.robust, opts.weights_reject) {
+            (Robust::Huber { k }, Some(c)) if c > 0.0 => k / c,
+            _ => 0.0,
+        };
+        let dw_w: Vec<[f64; 3]> = (0..np)
+            .map(|p| {
+                [0, 1, 2].map(|c| {
+                    if (omega[p][c] as f64) < cut {
+                        0.0
+                    } else {
+                        dw[p][c]
+                    }
+                })
+            })
+            .collect();
         let s = basis_responses(problem, &lights);
         if !opts.fixed_materials {
             for _ in 0..opts.material_sweeps.max(1) {
@@ -1231,7 +1260,7 @@ pub fn estimate(
                 }
                 lambda = l;
                 cond.lambda = c;
-                let (w, cmax, sing) = weights_step(problem, &s, &lambda, &weights, &dw)?;
+                let (w, cmax, sing) = weights_step(problem, &s, &lambda, &weights, &dw_w)?;
                 weights = w;
                 cond.weights_max = cmax;
                 cond.weights_singular = sing;
