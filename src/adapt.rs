@@ -19,11 +19,16 @@
 //!    ([`holdout_split`]).
 //! 3. **Number of materials** (`--materials auto`): `K = 1, 2, …` are fitted by the pilot
 //!    and scored by the held-out RMSE of step 2 (the held-out observations are predicted
-//!    with their vertex's fitted weights and their photo's fitted light). The smallest `K`
-//!    within [`MATERIAL_TOL`] of the best held-out RMSE wins; the search stops at the first
-//!    `K` that is not better than the best so far by that margin, or when k-means finds no
-//!    further distinct colour cluster. A held-out error, unlike the training error, does not
-//!    keep falling as `K` grows, so it needs no penalty term.
+//!    with their vertex's fitted weights and their photo's fitted light). Every `K` up to
+//!    [`MAX_MATERIALS`] is tried (until k-means finds no further distinct colour cluster)
+//!    and the smallest `K` within [`MATERIAL_TOL`] of the best held-out RMSE wins. A
+//!    held-out error, unlike the training error, does not keep falling as `K` grows, so it
+//!    needs no penalty term; but it is not convex in `K` either (each `K` starts from its
+//!    own k-means clustering): on sphere-plane (600 vertices, 96² photos) K = 2 and 3 scored
+//!    0.0618 and 0.0616 and K = 6 0.0524, so a search that stopped at the first `K` without
+//!    a 1% gain (as a first version did) kept 2 materials, dropped the Phong 50 lobe (its
+//!    share was 1.1% in the 2-material pilot, 11% in the 6-material one) and lost 12% of
+//!    held-out error against the full model.
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
 //!    and lights, the share of basis `b` in material `k`, channel `c` is
 //!    `C_{k,b,c} / Σ_b' C_{k,b',c}` with `C_{k,b,c} = Σ_p α_p w_k(x_p) λ_{k,b,c} s_{p,b,c}`
@@ -539,18 +544,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
                     break;
                 };
                 scores.push((k, e));
-                let best = fits.iter().map(|f| f.2).fold(f64::INFINITY, f64::min);
-                let improved = e < (1.0 - MATERIAL_TOL) * best;
                 fits.push((k, est, e));
-                if !improved && k > 1 {
-                    stop = format!(
-                        "{k} materials do not lower the held-out RMSE by {:.0}% ({:.5} vs best {:.5})",
-                        100.0 * MATERIAL_TOL,
-                        e,
-                        best
-                    );
-                    break;
-                }
             }
             if stop.is_empty() {
                 stop = format!("{MAX_MATERIALS} is the cap");
@@ -569,7 +563,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             (
                 k,
                 format!(
-                    "materials: {k} (auto), the smallest count within {:.0}% of the best held-out RMSE of a {PILOT_ITERATIONS}-iteration pilot at {g}² on 1 in {HELDOUT_EVERY} observations held out ({table}); stopped because {stop}",
+                    "materials: {k} (auto), the smallest count within {:.0}% of the best held-out RMSE of a {PILOT_ITERATIONS}-iteration pilot at {g}² on 1 in {HELDOUT_EVERY} observations held out ({table}); the search ends because {stop}",
                     100.0 * MATERIAL_TOL
                 ),
                 est,
