@@ -21,7 +21,8 @@
 //!    and scored by the held-out RMSE of step 2 (the held-out observations are predicted
 //!    with their vertex's fitted weights and their photo's fitted light). Every `K` up to
 //!    [`MAX_MATERIALS`] is tried (until k-means finds no further distinct colour cluster)
-//!    and the smallest `K` within [`MATERIAL_TOL`] of the best held-out RMSE wins. A
+//!    and the smallest `K` within [`MATERIAL_TOL`] (plus [`HELDOUT_FLOOR`], the photos'
+//!    quantisation) of the best held-out RMSE wins ([`as_good`]). A
 //!    held-out error, unlike the training error, does not keep falling as `K` grows, so it
 //!    needs no penalty term; but it is not convex in `K` either (each `K` starts from its
 //!    own k-means clustering): on sphere-plane (600 vertices, 96² photos) K = 2 and 3 scored
@@ -87,6 +88,16 @@ use crate::{Error, Result, Vec3};
 pub const DROP_SHARE: f64 = 0.01;
 /// Relative held-out RMSE margin of the material count (module docs, step 3).
 pub const MATERIAL_TOL: f64 = 0.01;
+/// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
+/// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains
+/// below it cannot be told from the photos' quantisation (on a nearly black scene every
+/// held-out RMSE is ~1.2e-4 and K = 1…6 differed by 1e-5).
+pub const HELDOUT_FLOOR: f64 = 0.25 / (255.0 * 12.92 * 3.464_101_615_137_754_6);
+
+/// Whether held-out RMSE `e` is as good as `best` within the margins.
+pub fn as_good(e: f64, best: f64) -> bool {
+    e <= (1.0 + MATERIAL_TOL) * best + HELDOUT_FLOOR
+}
 /// Every this-many-th observation is held out by the pilot.
 pub const HELDOUT_EVERY: u64 = 5;
 /// Pilot global map side.
@@ -552,12 +563,12 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             let best = fits.iter().map(|f| f.2).fold(f64::INFINITY, f64::min);
             let pick = fits
                 .iter()
-                .position(|f| f.2 <= (1.0 + MATERIAL_TOL) * best || !best.is_finite())
+                .position(|f| as_good(f.2, best) || !best.is_finite())
                 .unwrap_or(0);
             let (k, est, e) = fits.swap_remove(pick);
             let table = scores
                 .iter()
-                .map(|(k, e)| format!("K={k}: {e:.5}"))
+                .map(|(k, e)| format!("K={k}: {e:.4e}"))
                 .collect::<Vec<_>>()
                 .join(", ");
             (
@@ -609,9 +620,9 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         let Some((_, e)) = fit(materials, &trial, false)? else {
             continue;
         };
-        let ok = e <= (1.0 + MATERIAL_TOL) * e_full;
+        let ok = as_good(e, e_full);
         ablation.push(format!(
-            "without {} {e:.5}{}",
+            "without {} {e:.4e}{}",
             inp.basis[b].label(),
             if ok { " (dropped)" } else { " (kept)" }
         ));
@@ -633,7 +644,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     );
     if !ablation.is_empty() {
         reasons.push(format!(
-            "held-out RMSE of the pilot with every basis {e_full:.5}; {}: a basis goes when leaving it out costs at most {:.0}%",
+            "held-out RMSE of the pilot with every basis {e_full:.4e}; {}: a basis goes when leaving it out costs at most {:.0}%",
             ablation.join(", "),
             100.0 * MATERIAL_TOL
         ));
