@@ -338,6 +338,8 @@ pub fn view_directions(mesh: &Mesh, image: &Image) -> Vec<Vec3> {
 /// The wavelet renderer's image of one view (the hook for comparing with the independent
 /// reference renderer): per-vertex radiance [`WaveletRenderer::vertex_radiance`] toward the
 /// camera centre, for vertices of visible faces only, interpolated across the triangles.
+/// When more vertices are visible than the rotation has frames, the light is rotated once
+/// per frame and blended per vertex ([`WaveletRenderer::with_frames`]).
 /// `beta` holds `B` RGB weights per vertex (vertex-major), `normals_env` the unit vertex
 /// normals in the environment frame. Returns the raster (for the mask) and linear RGB.
 #[allow(clippy::too_many_arguments)]
@@ -364,13 +366,19 @@ pub fn render_wavelet<R: LocalRotation>(
             beta.len()
         )));
     }
-    let renderer = WaveletRenderer::new(rot, basis, env)?;
     let raster = rasterize(mesh, camera, image);
     let mut needed = vec![false; nv];
     for &f in raster.face.iter().filter(|&&f| f != u32::MAX) {
         for &k in &mesh.faces[f as usize] {
             needed[k as usize] = true;
         }
+    }
+    // Rotating the light once per precomputed frame costs about as much as rotating it for
+    // one vertex per frame: worth it as soon as more vertices than frames are visible.
+    let n_needed = needed.iter().filter(|&&b| b).count();
+    let mut renderer = WaveletRenderer::new(rot, basis, env)?;
+    if n_needed > rot.n_frames() {
+        renderer = renderer.with_frames();
     }
     let dirs = view_directions(mesh, image);
     let radiance: Vec<[f32; 3]> = (0..nv)

@@ -458,6 +458,22 @@ impl Rotation {
         self.resample_transpose_add(&self.blend(normal), local_texels, global_texels);
     }
 
+    /// `S_ν global_texels` for every grid normal (factored form), `n_normals² × n_local²`
+    /// (row `ν`), in parallel: row `ν` equals [`Rotation::resample_texels`]`(ν, …)` bitwise.
+    pub fn resample_texels_all(&self, global_texels: &[f64]) -> Vec<f64> {
+        assert!(
+            self.form == RotationForm::Factored,
+            "texel resampling needs the factored form"
+        );
+        assert!(global_texels.len() == self.ng2());
+        let nl2 = self.nl2();
+        let mut out = vec![0.0; self.len() * nl2];
+        out.par_chunks_mut(nl2)
+            .enumerate()
+            .for_each(|(nu, local)| self.resample_add(&[(nu, 1.0)], global_texels, local));
+        out
+    }
+
     /// `R_ν global_haar` for every grid normal, `n_normals² × n_local²` (row `ν`), in
     /// parallel.
     pub fn rotate_all(&self, global_haar: &[f64]) -> Vec<f64> {

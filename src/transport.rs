@@ -153,6 +153,24 @@ pub trait LocalRotation: Sync {
         self.apply(normal_env, global_haar, local_texels);
         haar::inverse(local_texels, self.n_local());
     }
+    /// Number of precomputed frames `ν` that [`LocalRotation::light_texels`] blends (Eq. 6),
+    /// or 0 when the rotation has no finite set of frames (then the two methods below are
+    /// never called).
+    fn n_frames(&self) -> usize {
+        0
+    }
+    /// `W_lᵀ R_ν W_g L` for every precomputed frame `ν` (frame-major, `n_local²` texels
+    /// each): the light rotated once per frame, to be blended per vertex.
+    fn light_texels_frames(&self, global_texels: &[f64], global_haar: &[f64]) -> Vec<f64> {
+        let _ = (global_texels, global_haar);
+        Vec::new()
+    }
+    /// The Eq. 6 blend weights `φ_ν(n)` of the frames for `normal_env`, in the order
+    /// [`LocalRotation::light_texels`] accumulates them.
+    fn frame_blend(&self, normal_env: &Vec3) -> [(usize, f64); 4] {
+        let _ = normal_env;
+        [(0, 0.0); 4]
+    }
 }
 
 /// The blended precomputed rotation of Eq. 6.
@@ -200,6 +218,24 @@ impl LocalRotation for Rotation {
                 haar::inverse(local_texels, self.n_local);
             }
         }
+    }
+    fn n_frames(&self) -> usize {
+        self.len()
+    }
+    fn light_texels_frames(&self, global_texels: &[f64], global_haar: &[f64]) -> Vec<f64> {
+        match self.form() {
+            RotationForm::Factored => self.resample_texels_all(global_texels),
+            RotationForm::Sparse { .. } => {
+                let mut all = self.rotate_all(global_haar);
+                let nl = self.n_local;
+                all.par_chunks_mut(nl * nl)
+                    .for_each(|c| haar::inverse(c, nl));
+                all
+            }
+        }
+    }
+    fn frame_blend(&self, normal_env: &Vec3) -> [(usize, f64); 4] {
+        self.blend(normal_env)
     }
 }
 
@@ -584,14 +620,20 @@ pub fn light_haar(env: &OctEnv) -> [Vec<f64>; 3] {
 
 /// Precomputed state for evaluating the model's radiance at arbitrary vertices and views
 /// under one environment map (the wavelet renderer, Eq. 5–8): per vertex, the light rotated
-/// into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed on first use by
-/// [`WaveletRenderer::vertex_radiance`].
+/// into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed by
+/// [`WaveletRenderer::vertex_radiance`]. After [`WaveletRenderer::with_frames`], the light is
+/// rotated once into each of the rotation's precomputed frames `ν` and a vertex only blends
+/// the four frames of its normal, `Σ_i φ_i(n) W_lᵀ R_{ν_i} L̃` (Eq. 6: the same sum the
+/// per-vertex path forms, so equal to it up to rounding) — `n_local²` × 4 multiply-adds per
+/// vertex instead of a resampling of the whole footprint.
 pub struct WaveletRenderer<'a, R: LocalRotation> {
     rot: &'a R,
     basis: &'a [BasisBrdf],
     light: [Vec<f64>; 3],
     light_texels: [Vec<f64>; 3],
     grid: std::sync::Arc<SliceGrid>,
+    /// Per channel, the light's local texels in every precomputed frame (frame-major).
+    frames: Option<[Vec<f64>; 3]>,
 }
 
 impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
@@ -610,7 +652,27 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
             light: light_haar(env),
             light_texels: [0, 1, 2].map(|c| env.channel(c)),
             grid: SliceGrid::shared(rot.n_local())?,
+            frames: None,
         })
+    }
+
+    /// Rotate the light into every precomputed frame of the rotation now (when it has
+    /// frames), so that [`WaveletRenderer::vertex_radiance`] blends instead of rotating.
+    /// Worth it when more vertices are rendered than there are frames; memory
+    /// `3 · n_frames · n_local² · 8` bytes.
+    pub fn with_frames(mut self) -> Self {
+        if self.rot.n_frames() > 0 {
+            self.frames = Some([0, 1, 2].map(|c| {
+                self.rot
+                    .light_texels_frames(&self.light_texels[c], &self.light[c])
+            }));
+        }
+        self
+    }
+
+    /// Whether [`WaveletRenderer::with_frames`] took effect.
+    pub fn has_frames(&self) -> bool {
+        self.frames.is_some()
     }
 
     /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) at a vertex with
@@ -632,10 +694,30 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
             return [0.0; 3];
         };
         let nl = self.rot.n_local();
-        let mut local = [0, 1, 2].map(|_| vec![0.0; nl * nl]);
-        for (c, l) in local.iter_mut().enumerate() {
-            self.rot
-                .light_texels(&ctx.normal, &self.light_texels[c], &self.light[c], l);
+        let nl2 = nl * nl;
+        let mut local = [0, 1, 2].map(|_| vec![0.0; nl2]);
+        match &self.frames {
+            Some(frames) => {
+                // Same accumulation order as the blended resampling (frame by frame,
+                // zero weights skipped).
+                let blend = self.rot.frame_blend(&ctx.normal);
+                for (l, f) in local.iter_mut().zip(frames) {
+                    for &(nu, w) in &blend {
+                        if w == 0.0 {
+                            continue;
+                        }
+                        for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
+                            *o += w * x;
+                        }
+                    }
+                }
+            }
+            None => {
+                for (c, l) in local.iter_mut().enumerate() {
+                    self.rot
+                        .light_texels(&ctx.normal, &self.light_texels[c], &self.light[c], l);
+                }
+            }
         }
         let mut slice = vec![0.0; nl * nl];
         let mut out = [0.0; 3];
