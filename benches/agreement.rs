@@ -1,27 +1,34 @@
 //! The two renderers agree (issue 4): `cargo bench --bench agreement` writes
 //! `bench-results/agreement.json` and `.md`.
 //!
-//! Scene: unit icosphere (642 vertices) above a 6 × 6 ground plane (33² vertices), the
-//! `sphere-plane` synth geometry (cast shadows), seen by 8 cameras; every (vertex, camera)
+//! Scene: unit icosphere (642 vertices) above a 6 × 6 ground plane (17² vertices), the
+//! `sphere-plane` synth geometry (cast shadows), seen by 6 cameras; every (vertex, camera)
 //! pair where the camera sees the vertex is one observation. Under each of the 8 embedded
-//! real maps (256 × 128), for a diffuse and two glossy materials, the wavelet path
-//! (visibility → transport rows truncated to `keep` → response, Eq. 5–8) is compared with
-//! the independent reference (`reference::quadrature_point`: Eq. 1 by stratified quadrature
-//! over the lat-long texels, 3 × 3 jittered shadow rays per texel) at the vertices; see
-//! `tests/agreement_support/mod.rs` for the error measure. The reference is computed with
-//! two seeds: their difference measures its own error.
+//! real maps (256 × 128), for a diffuse and two glossy materials, two wavelet paths are
+//! compared with the independent reference (`reference::quadrature_point`: Eq. 1 by
+//! stratified quadrature over the lat-long texels, 3 × 3 jittered shadow rays per texel) at
+//! the vertices; see `tests/agreement_support/mod.rs` for the error measure. The reference
+//! is computed with two seeds: their difference measures its own error.
 //!
-//! Tables: per map × material at the default resolutions (64² global, 32² local, keep 128,
-//! 32² rotation normals, 2 visibility rays per texel), and the error against the global /
-//! local resolution and the number of kept coefficients, with timings.
-//! `AGREEMENT_QUICK=1` runs a smaller scene and fewer settings (for trying things out).
+//! 1. The wavelet RENDERER (`WaveletRenderer::vertex_radiance`, used by `render_wavelet`
+//!    for held-out views and relighting): the light rotated into each vertex's local frame
+//!    and the untruncated triple product with visibility and BRDF slice (Eq. 5–8). Per map ×
+//!    material at the default resolutions (64² global, 32² local, 32² rotation normals, 2
+//!    visibility rays per texel), split by vertex class, and against resolution (global,
+//!    local, visibility rays, and the sub-texel `ExactRotation` instead of the factored one).
+//! 2. The ESTIMATOR's system (`transport::build_rows`, rows truncated to `keep`
+//!    coefficients, then `Transport::response`): error against resolution and kept
+//!    coefficients. Truncation concerns only the estimator's budget, not the renderer.
+//!
+//! `AGREEMENT_QUICK=1` runs a smaller scene (for trying things out).
 
 #[path = "../tests/agreement_support/mod.rs"]
 mod support;
 
 use relight_cpc::rotation::{Rotation, RotationForm};
-use relight_cpc::transport::TransportOptions;
+use relight_cpc::transport::{ExactRotation, TransportOptions};
 use relight_cpc::visibility;
+use relight_cpc::Vec3;
 use serde_json::{json, Value};
 use std::path::Path;
 use std::time::Instant;
@@ -56,13 +63,14 @@ fn mean_max(e: &[[f64; 3]], m: usize) -> (f64, f64) {
 
 fn main() {
     let quick = std::env::var("AGREEMENT_QUICK").is_ok();
-    let (subdiv, cells, cams) = if quick { (2, 16, 6) } else { (3, 32, 8) };
+    let (subdiv, cells, cams) = if quick { (2, 16, 6) } else { (3, 16, 6) };
     let setup = sphere_plane(subdiv, cells, cams);
     let nv = setup.mesh.positions.len();
     let n_obs = setup.obs_vertex.len();
     eprintln!("agreement: {nv} vertices, {n_obs} observations");
     let maps: Vec<_> = MAPS.iter().map(|m| load_map(m, 1)).collect();
     let sub = if quick { 2 } else { 3 };
+    let threads = rayon::current_num_threads();
 
     let t0 = Instant::now();
     let r1 = reference(&setup, &maps, sub, 1);
@@ -75,8 +83,7 @@ fn main() {
         .map(|e| e.map(|x| x / 2f64.sqrt()))
         .collect();
 
-    // Default resolution.
-    let defaults = TransportOptions::default();
+    // The renderer at the default resolutions.
     let t0 = Instant::now();
     let vis32 = visibility::compute(&setup.mesh, &setup.bvh, &setup.env_from_world, 32, 2, 1);
     let vis32_s = t0.elapsed().as_secs_f64();
@@ -84,52 +91,66 @@ fn main() {
     let rot = Rotation::new(64, 32, 32, RotationForm::Factored);
     let rot_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let w_def = wavelet(&setup, &maps, &vis32, &rot, &defaults);
-    let wav_s = t0.elapsed().as_secs_f64();
-    let w_all = wavelet(
-        &setup,
-        &maps,
-        &vis32,
-        &rot,
-        &TransportOptions {
-            keep: 0,
-            ..defaults
-        },
-    );
+    let w_def = renderer(&setup, &maps, &vis32, &rot);
+    let ren_s = t0.elapsed().as_secs_f64();
+    eprintln!("renderer defaults: {ren_s:.1} s");
     let e_def = errors(&w_def, &r1);
-    // Where the untruncated diffuse error is: sphere vs plane vertices, provably open vs
-    // traced (occluded) ones.
-    let on_sphere: Vec<bool> = setup
-        .obs_vertex
+
+    // Vertex classes: where the diffuse error lives.
+    let classes: [(&str, Box<dyn Fn(&Vec3) -> bool>); 4] = [
+        (
+            "sphere, upper half (y > 0: unshadowed)",
+            Box::new(|x: &Vec3| x.y > -PLANE_DROP + 1e-6 && x.y > 0.0),
+        ),
+        (
+            "sphere, lower half (facing the plane; contact below y < −0.8)",
+            Box::new(|x: &Vec3| x.y > -PLANE_DROP + 1e-6 && x.y <= 0.0),
+        ),
+        (
+            "plane under the sphere (r < 1.5: shadow and contact)",
+            Box::new(|x: &Vec3| x.y <= -PLANE_DROP + 1e-6 && (x.x * x.x + x.z * x.z).sqrt() < 1.5),
+        ),
+        (
+            "plane, r ≥ 1.5 (open or penumbra)",
+            Box::new(|x: &Vec3| x.y <= -PLANE_DROP + 1e-6 && (x.x * x.x + x.z * x.z).sqrt() >= 1.5),
+        ),
+    ];
+    let masks: Vec<Vec<bool>> = classes
         .iter()
-        .map(|&v| setup.mesh.positions[v as usize].y > -PLANE_DROP + 1e-6)
+        .map(|(_, f)| {
+            setup
+                .obs_vertex
+                .iter()
+                .map(|&v| f(&setup.mesh.positions[v as usize]))
+                .collect()
+        })
         .collect();
-    let open: Vec<bool> = setup
-        .obs_vertex
-        .iter()
-        .map(|&v| vis32.open[v as usize])
-        .collect();
-    let part = |a: &[[f64; 3]], m: &[bool], want: bool| -> Vec<[f64; 3]> {
+    let part = |a: &[[f64; 3]], m: &[bool]| -> Vec<[f64; 3]> {
         a.iter()
             .zip(m)
-            .filter(|(_, &k)| k == want)
+            .filter(|(_, &k)| k)
             .map(|(x, _)| *x)
             .collect()
     };
-    let parts: Vec<[f64; 4]> = (0..MAPS.len())
+    // Per map and class: (renderer, reference noise) diffuse error, each normalised by the
+    // class's own mean reference radiance.
+    let by_class: Vec<Vec<(f64, f64)>> = (0..MAPS.len())
         .map(|i| {
             let beta = MATERIALS[0].1;
-            let w = blend(&w_all[i], &beta);
+            let w = blend(&w_def[i], &beta);
             let r = blend(&r1[i], &beta);
-            [
-                rel_rmse(&part(&w, &on_sphere, true), &part(&r, &on_sphere, true)),
-                rel_rmse(&part(&w, &on_sphere, false), &part(&r, &on_sphere, false)),
-                rel_rmse(&part(&w, &open, true), &part(&r, &open, true)),
-                rel_rmse(&part(&w, &open, false), &part(&r, &open, false)),
-            ]
+            let r2b = blend(&r2[i], &beta);
+            masks
+                .iter()
+                .map(|m| {
+                    (
+                        rel_rmse(&part(&w, m), &part(&r, m)),
+                        rel_rmse(&part(&r2b, m), &part(&r, m)) / 2f64.sqrt(),
+                    )
+                })
+                .collect()
         })
         .collect();
-    let e_all = errors(&w_all, &r1);
 
     let mut md = String::from(
         "# Wavelet renderer against the reference (`cargo bench --bench agreement`)\n\n",
@@ -140,59 +161,144 @@ fn main() {
          Error = RMSE / mean reference radiance over observations and RGB channels, linear \
          radiance, no clipping. Reference: Eq. 1 by stratified quadrature over the 256×128 \
          lat-long texels ({sub}×{sub} jittered shadow rays per texel), {ref_s:.1} s for 8 maps; \
-         its own error (two seeds' difference / √2) is the `ref.` column. Wavelet: visibility \
-         32², 2 rays/texel ({vis32_s:.1} s), rotation 64²→32² with 32² normals ({rot_s:.1} s), \
-         transport rows for 3 lobes and response for 8 maps {wav_s:.1} s. Threads: {}.\n\n",
-        rayon::current_num_threads()
+         its own error (two seeds' difference / √2) is the `ref.` column. Threads: {threads}.\n\n\
+         The wavelet RENDERER is `WaveletRenderer::vertex_radiance` (what `render_wavelet` \
+         draws for held-out views and relighting): the light rotated into the vertex's local \
+         frame, then the untruncated triple product with the visibility row and the BRDF slice \
+         at the local resolution (Eq. 5–8). It does not truncate: `keep` is only the \
+         estimator's transport-row budget (last table). Defaults: visibility 32², 2 rays/texel \
+         ({vis32_s:.1} s), factored rotation 64²→32² with 32² normals ({rot_s:.1} s), renderer \
+         {ren_s:.1} s for 8 maps × 3 lobes × {n_obs} observations.\n\n"
     ));
-    md.push_str("## Per map, default resolutions (64² global, 32² local, keep 128)\n\n");
-    md.push_str("| map | material | rel. RMSE keep 128 | rel. RMSE keep all | ref. own error |\n|---|---|---|---|---|\n");
+    md.push_str("## The renderer per map, default resolutions (64² global, 32² local)\n\n");
+    md.push_str("| map | material | rel. RMSE | ref. own error |\n|---|---|---|---|\n");
     let mut per_map = Vec::new();
     for (i, name) in MAPS.iter().enumerate() {
         for (m, (mname, _)) in MATERIALS.iter().enumerate() {
             md.push_str(&format!(
-                "| {name} | {mname} | {:.2}% | {:.2}% | {:.2}% |\n",
+                "| {name} | {mname} | {:.2}% | {:.2}% |\n",
                 100.0 * e_def[i][m],
-                100.0 * e_all[i][m],
                 100.0 * ref_noise[i][m]
             ));
             per_map.push(
-                json!({"map": name, "material": mname, "rel_rmse_keep128": e_def[i][m],
-                "rel_rmse_keep_all": e_all[i][m], "reference_error": ref_noise[i][m]}),
+                json!({"map": name, "material": mname, "rel_rmse": e_def[i][m],
+                "reference_error": ref_noise[i][m]}),
             );
         }
     }
     md.push('\n');
-    md.push_str(&format!(
-        "## Diffuse, keep all: where the error is\n\n{} of {n_obs} observations are on the sphere, \
-         {} on provably open vertices (the upper cap: no rays traced).\n\n\
-         | map | sphere | plane | open | traced |\n|---|---|---|---|---|\n",
-        on_sphere.iter().filter(|&&x| x).count(),
-        open.iter().filter(|&&x| x).count()
-    ));
-    for (name, p) in MAPS.iter().zip(&parts) {
+    md.push_str(
+        "## Diffuse renderer error by vertex class (defaults)\n\nEach class normalised by its \
+         own mean reference radiance (so a dark shadowed class shows a larger relative error \
+         for the same absolute one); in brackets the reference's own error there.\n\n| map |",
+    );
+    for (c, m) in classes.iter().zip(&masks) {
         md.push_str(&format!(
-            "| {name} | {:.2}% | {:.2}% | {:.2}% | {:.2}% |\n",
-            100.0 * p[0],
-            100.0 * p[1],
-            100.0 * p[2],
-            100.0 * p[3]
+            " {} ({} obs.) |",
+            c.0,
+            m.iter().filter(|&&k| k).count()
         ));
+    }
+    md.push_str("\n|---|---|---|---|---|\n");
+    for (name, p) in MAPS.iter().zip(&by_class) {
+        md.push_str(&format!("| {name} |"));
+        for (e, n) in p {
+            md.push_str(&format!(" {:.2}% ({:.2}%) |", 100.0 * e, 100.0 * n));
+        }
+        md.push('\n');
     }
     md.push('\n');
 
-    // Resolution and truncation.
-    md.push_str("## Against resolution and kept coefficients\n\nMean / max over the 8 maps. Times: visibility (per local resolution), rotation build, transport build + responses for 8 maps.\n\n");
+    // The renderer against resolution.
+    md.push_str(
+        "## The renderer against resolution\n\nMean / max over the 8 maps. `rays` = visibility \
+         rays per local texel; rotation `exact` = `transport::ExactRotation` (4×4 sub-texels per \
+         local texel, nearest global texel, no normal blending) instead of the factored one. \
+         Times: visibility, rotation build, renderer for 8 maps.\n\n",
+    );
+    md.push_str("| global | local | rays | rotation | diffuse mean / max | glossy Phong mean / max | glossy GGX mean / max | vis s | rot s | render s |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut rsweep = Vec::new();
+    let rsettings: Vec<(usize, usize, usize, bool)> = vec![
+        (32, 32, 2, false),
+        (64, 16, 2, false),
+        (64, 32, 2, false),
+        (64, 32, 8, false),
+        (64, 32, 2, true),
+        (128, 32, 2, false),
+        (64, 64, 2, false),
+    ];
+    for (ng, nl, rays, exact) in rsettings {
+        let t0 = Instant::now();
+        let vis = if nl == 32 && rays == 2 {
+            None
+        } else {
+            Some(visibility::compute(
+                &setup.mesh,
+                &setup.bvh,
+                &setup.env_from_world,
+                nl,
+                rays,
+                1,
+            ))
+        };
+        let vis_s = if vis.is_some() {
+            t0.elapsed().as_secs_f64()
+        } else {
+            vis32_s
+        };
+        let vis = vis.as_ref().unwrap_or(&vis32);
+        let t0 = Instant::now();
+        let (w, rot_s_i, tr_s) = if exact {
+            let r = ExactRotation::new(ng, nl, 4);
+            let rs = t0.elapsed().as_secs_f64();
+            let t1 = Instant::now();
+            let w = renderer(&setup, &maps, vis, &r);
+            (w, rs, t1.elapsed().as_secs_f64())
+        } else if (ng, nl) == (64, 32) {
+            let t1 = Instant::now();
+            let w = renderer(&setup, &maps, vis, &rot);
+            (w, rot_s, t1.elapsed().as_secs_f64())
+        } else {
+            let r = Rotation::new(ng, nl, 32, RotationForm::Factored);
+            let rs = t0.elapsed().as_secs_f64();
+            let t1 = Instant::now();
+            let w = renderer(&setup, &maps, vis, &r);
+            (w, rs, t1.elapsed().as_secs_f64())
+        };
+        let e = errors(&w, &r1);
+        let mm: Vec<(f64, f64)> = (0..3).map(|m| mean_max(&e, m)).collect();
+        let rname = if exact { "exact" } else { "factored" };
+        md.push_str(&format!(
+            "| {ng}² | {nl}² | {rays} | {rname} | {:.2}% / {:.2}% | {:.2}% / {:.2}% | {:.2}% / {:.2}% | {vis_s:.1} | {rot_s_i:.1} | {tr_s:.1} |\n",
+            100.0 * mm[0].0, 100.0 * mm[0].1, 100.0 * mm[1].0, 100.0 * mm[1].1,
+            100.0 * mm[2].0, 100.0 * mm[2].1,
+        ));
+        eprintln!(
+            "renderer {ng} {nl} {rays} {rname}: diffuse {:.4} / {:.4}",
+            mm[0].0, mm[0].1
+        );
+        rsweep.push(json!({"n_global": ng, "n_local": nl, "rays_per_texel": rays,
+            "rotation": rname,
+            "diffuse_per_map": MAPS.iter().zip(&e).map(|(m, x)| json!({"map": m, "diffuse": x[0]})).collect::<Vec<_>>(),
+            "diffuse_mean": mm[0].0, "diffuse_max": mm[0].1,
+            "phong_mean": mm[1].0, "phong_max": mm[1].1,
+            "ggx_mean": mm[2].0, "ggx_max": mm[2].1,
+            "visibility_s": vis_s, "rotation_s": rot_s_i, "render_s": tr_s}));
+    }
+    md.push('\n');
+
+    // The estimator's truncated system.
+    md.push_str(
+        "## The estimator's transport rows against resolution and kept coefficients\n\n\
+         `transport::build_rows` truncated to `keep` coefficients per row, then \
+         `Transport::response`: the system the estimator solves, not what the renderer draws. \
+         Mean / max over the 8 maps. Times: visibility, rotation build, transport build + \
+         responses for 8 maps.\n\n",
+    );
     md.push_str("| global | local | keep | diffuse mean / max | glossy Phong mean / max | glossy GGX mean / max | vis s | rot s | transport s |\n|---|---|---|---|---|---|---|---|---|\n");
     let mut sweep = Vec::new();
-    let mut settings: Vec<(usize, usize, usize)> = Vec::new();
-    let globals: &[usize] = if quick { &[32, 64] } else { &[16, 32, 64] };
-    for &nl in &[16usize, 32] {
-        for &ng in globals {
-            settings.push((ng, nl, 128));
-        }
-    }
-    for &k in &[32usize, 64, 256, 0] {
+    let mut settings: Vec<(usize, usize, usize)> = vec![(32, 32, 128), (64, 16, 128)];
+    for &k in &[32usize, 64, 128, 256, 0] {
         settings.push((64, 32, k));
     }
     let t0 = Instant::now();
@@ -240,7 +346,7 @@ fn main() {
             rots[ri].2
         ));
         eprintln!(
-            "{ng} {nl} {keep_s}: diffuse {:.4} / {:.4}",
+            "rows {ng} {nl} {keep_s}: diffuse {:.4} / {:.4}",
             mm[0].0, mm[0].1
         );
         sweep.push(json!({"n_global": ng, "n_local": nl, "keep": keep,
@@ -257,11 +363,14 @@ fn main() {
     let json: Value = json!({
         "vertices": nv, "observations": n_obs, "cameras": cams,
         "reference": {"strata_per_texel": sub * sub, "seconds": ref_s},
-        "default": {"visibility_s": vis32_s, "rotation_s": rot_s, "wavelet_s": wav_s},
-        "per_map": per_map, "sweep": sweep,
-        "diffuse_keep_all_by_part": MAPS.iter().zip(&parts).map(|(m, p)| json!({"map": m,
-            "sphere": p[0], "plane": p[1], "open": p[2], "traced": p[3]})).collect::<Vec<_>>(),
-        "threads": rayon::current_num_threads(),
+        "renderer_default": {"visibility_s": vis32_s, "rotation_s": rot_s, "render_s": ren_s,
+            "per_map": per_map},
+        "renderer_diffuse_by_class": MAPS.iter().zip(&by_class).map(|(m, p)| json!({"map": m,
+            "classes": classes.iter().zip(p).map(|(c, (e, n))| json!({"class": c.0,
+                "rel_rmse": e, "reference_error": n})).collect::<Vec<_>>()})).collect::<Vec<_>>(),
+        "renderer_sweep": rsweep,
+        "estimator_rows_sweep": sweep,
+        "threads": threads,
     });
     std::fs::write(
         out.join(format!("agreement{suffix}.json")),

@@ -25,7 +25,9 @@ use relight_cpc::mesh::Mesh;
 use relight_cpc::reference::{quadrature_point, Environment, Lobe};
 use relight_cpc::synth::geometry;
 use relight_cpc::trace::SceneBvh;
-use relight_cpc::transport::{build_rows, light_haar, LocalRotation, TransportOptions};
+use relight_cpc::transport::{
+    build_rows, light_haar, LocalRotation, TransportOptions, WaveletRenderer,
+};
 use relight_cpc::visibility::Visibility;
 use relight_cpc::Vec3;
 use std::path::Path;
@@ -223,6 +225,42 @@ pub fn wavelet<R: LocalRotation>(
                     [0, 1, 2].map(|c| t.response(p, b, &light[c]))
                 })
                 .collect()
+        })
+        .collect()
+}
+
+/// Per map, per observation, per lobe: the wavelet RENDERER's radiance (RGB),
+/// [`WaveletRenderer::vertex_radiance`] (the light rotated into the local frame, triple
+/// product with the visibility row and the BRDF slice at the local resolution, untruncated;
+/// what `render_wavelet` shows for held-out views and relighting), one lobe at a time.
+pub fn renderer<R: LocalRotation + Sync>(
+    setup: &Setup,
+    maps: &[LatLong],
+    vis: &Visibility,
+    rot: &R,
+) -> Vec<Vec<[f64; 3]>> {
+    let (basis, _) = lobes();
+    let nb = basis.len();
+    maps.iter()
+        .map(|m| {
+            let env = OctEnv::from_latlong(m, rot.n_global());
+            let r = WaveletRenderer::new(rot, &basis, &env).expect("renderer");
+            let per_obs: Vec<Vec<[f64; 3]>> = (0..setup.obs_vertex.len())
+                .into_par_iter()
+                .map(|p| {
+                    let v = setup.obs_vertex[p] as usize;
+                    let wo = setup.env_from_world * setup.obs_dir[p];
+                    (0..nb)
+                        .map(|b| {
+                            let beta: Vec<[f64; 3]> = (0..nb)
+                                .map(|k| if k == b { [1.0; 3] } else { [0.0; 3] })
+                                .collect();
+                            r.vertex_radiance(&setup.normals_env[v], vis.vertex(v), &wo, &beta)
+                        })
+                        .collect()
+                })
+                .collect();
+            per_obs.into_iter().flatten().collect()
         })
         .collect()
 }
