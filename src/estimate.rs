@@ -145,11 +145,12 @@ impl Problem<'_> {
 /// `σ = 1.4826 · median |r|` (per photo and channel).
 ///
 /// Measured trade-off (`bench-results/estimator.md`, part 3): with 5% gross bright
-/// outliers in a joint fit, Huber's bounded but non-zero weights let the per-photo maps
-/// and per-vertex weights absorb them (held-out error ×3.0 of the clean fit) while Tukey
-/// rejects them (×1.08); but Tukey also rejects the genuine, noisier highlights of glossy
-/// surfaces (known-reflectance Phong 50 sphere: fit 0.245 against the true map's 0.144,
-/// Huber 0.124), so Huber stays the default.
+/// outliers in a joint fit, Huber alone lets the per-vertex weights absorb them (held-out
+/// error ×2.9 of the clean fit); with the default w-step cut
+/// ([`EstimateOptions::weights_reject`]) ×1.05, Tukey ×1.04. Tukey is not the default
+/// because it also rejects the genuine, noisier highlights of glossy surfaces in the
+/// lighting step (known-reflectance Phong 50 sphere, `tests/estimate_synth.rs` sizes: fit
+/// 0.245 against the true map's 0.144, Huber 0.124).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Robust {
     /// Plain least squares, no reweighting.
