@@ -29,7 +29,13 @@
 //!    0.0618 and 0.0616 and K = 6 0.0524, so a search that stopped at the first `K` without
 //!    a 1% gain (as a first version did) kept 2 materials, dropped the Phong 50 lobe (its
 //!    share was 1.1% in the 2-material pilot, 11% in the 6-material one) and lost 12% of
-//!    held-out error against the full model.
+//!    held-out error against the full model. The margin is 3%, not 1%: the pilot's scores
+//!    move by a few percent between neighbouring `K` from the k-means starts alone
+//!    (sphere-plane, 300 vertices: K = 2 0.0690, K = 3 0.0716), and on the built-in
+//!    example (`examples/spot`, two true materials) a 1% margin took K = 5 (5 is 2.4%
+//!    better than 3 in the pilot) whose full fit was 6.6% worse on the held-out photos
+//!    than the full model and no faster; 3% takes K = 3 there, still finds 4 on
+//!    sphere-plane and 1 on the one-material spheres, and stays inside issue 8's 5% budget.
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
 //!    and lights, the share of basis `b` in material `k`, channel `c` is
 //!    `C_{k,b,c} / Σ_b' C_{k,b',c}` with `C_{k,b,c} = Σ_p α_p w_k(x_p) λ_{k,b,c} s_{p,b,c}`
@@ -45,7 +51,7 @@
 //!    Lambertian one), so on a Lambertian sphere Phong 500 kept a 1.2% share. Hence a
 //!    **held-out ablation**: each kept non-Lambertian basis, smallest share first, is left
 //!    out of a refit of the pilot (same `K`, without the bases already dropped) and goes
-//!    when the held-out RMSE stays within [`MATERIAL_TOL`] of the pilot with every basis —
+//!    when the held-out RMSE stays within [`BASIS_TOL`] (1%) of the pilot with every basis —
 //!    the same Occam rule as the material count, and always against the full pilot, so
 //!    all drops together cost at most 1% of held-out error in the pilot. Two lobes the
 //!    photos cannot tell apart (the pilot's `λ` system's condition number above
@@ -87,16 +93,19 @@ use crate::{Error, Result, Vec3};
 /// Largest share below which a basis BRDF counts as unused (module docs, step 4).
 pub const DROP_SHARE: f64 = 0.01;
 /// Relative held-out RMSE margin of the material count (module docs, step 3).
-pub const MATERIAL_TOL: f64 = 0.01;
+pub const MATERIAL_TOL: f64 = 0.03;
+/// Relative held-out RMSE margin of the basis ablation (module docs, step 4).
+pub const BASIS_TOL: f64 = 0.01;
 /// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
 /// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains
 /// below it cannot be told from the photos' quantisation (on a nearly black scene every
 /// held-out RMSE is ~1.2e-4 and K = 1…6 differed by 1e-5).
 pub const HELDOUT_FLOOR: f64 = 0.25 / (255.0 * 12.92 * 3.464_101_615_137_754_6);
 
-/// Whether held-out RMSE `e` is as good as `best` within the margins.
-pub fn as_good(e: f64, best: f64) -> bool {
-    e <= (1.0 + MATERIAL_TOL) * best + HELDOUT_FLOOR
+/// Whether held-out RMSE `e` is as good as `best` within the relative margin `tol` plus
+/// [`HELDOUT_FLOOR`].
+pub fn as_good(e: f64, best: f64, tol: f64) -> bool {
+    e <= (1.0 + tol) * best + HELDOUT_FLOOR
 }
 /// Every this-many-th observation is held out by the pilot.
 pub const HELDOUT_EVERY: u64 = 5;
@@ -563,7 +572,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             let best = fits.iter().map(|f| f.2).fold(f64::INFINITY, f64::min);
             let pick = fits
                 .iter()
-                .position(|f| as_good(f.2, best) || !best.is_finite())
+                .position(|f| as_good(f.2, best, MATERIAL_TOL) || !best.is_finite())
                 .unwrap_or(0);
             let (k, est, e) = fits.swap_remove(pick);
             let table = scores
@@ -609,9 +618,9 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     // from the others (with a free light per photo, a sharp lobe can mimic the diffuse
     // shading of a single view). Each kept non-Lambertian basis, smallest share first, is
     // left out in turn; it goes when the pilot without it (and without those already
-    // dropped) predicts the held-out observations within MATERIAL_TOL of the pilot with
+    // dropped) predicts the held-out observations within BASIS_TOL of the pilot with
     // every basis. The comparison is always against that full pilot, so the drops together
-    // cost at most MATERIAL_TOL of held-out error.
+    // cost at most BASIS_TOL of held-out error.
     let mut order: Vec<usize> = kept.iter().copied().filter(|&b| b != inp.lambert).collect();
     order.sort_by(|&a, &b| shares[a].total_cmp(&shares[b]));
     let mut ablation = Vec::new();
@@ -620,7 +629,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         let Some((_, e)) = fit(materials, &trial, false)? else {
             continue;
         };
-        let ok = as_good(e, e_full);
+        let ok = as_good(e, e_full, BASIS_TOL);
         ablation.push(format!(
             "without {} {e:.4e}{}",
             inp.basis[b].label(),
@@ -646,7 +655,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         reasons.push(format!(
             "held-out RMSE of the pilot with every basis {e_full:.4e}; {}: a basis goes when leaving it out costs at most {:.0}%",
             ablation.join(", "),
-            100.0 * MATERIAL_TOL
+            100.0 * BASIS_TOL
         ));
     }
     let kappa_lighting = est
