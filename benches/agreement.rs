@@ -45,6 +45,9 @@ const MAPS: [&str; 8] = [
     "sunset",
 ];
 
+/// A vertex class: name and membership by position.
+type Class = (&'static str, fn(&Vec3) -> bool);
+
 /// Errors of every (map, material) for one wavelet result.
 fn errors(w: &[Vec<[f64; 3]>], r: &[Vec<[f64; 3]>]) -> Vec<[f64; 3]> {
     w.iter()
@@ -97,23 +100,21 @@ fn main() {
     let e_def = errors(&w_def, &r1);
 
     // Vertex classes: where the diffuse error lives.
-    let classes: [(&str, Box<dyn Fn(&Vec3) -> bool>); 4] = [
-        (
-            "sphere, upper half (y > 0: unshadowed)",
-            Box::new(|x: &Vec3| x.y > -PLANE_DROP + 1e-6 && x.y > 0.0),
-        ),
+    let classes: [Class; 4] = [
+        ("sphere, upper half (y > 0: unshadowed)", |x: &Vec3| {
+            x.y > 0.0
+        }),
         (
             "sphere, lower half (facing the plane; contact below y < −0.8)",
-            Box::new(|x: &Vec3| x.y > -PLANE_DROP + 1e-6 && x.y <= 0.0),
+            |x: &Vec3| x.y > -PLANE_DROP + 1e-6 && x.y <= 0.0,
         ),
         (
             "plane under the sphere (r < 1.5: shadow and contact)",
-            Box::new(|x: &Vec3| x.y <= -PLANE_DROP + 1e-6 && (x.x * x.x + x.z * x.z).sqrt() < 1.5),
+            |x: &Vec3| x.y <= -PLANE_DROP + 1e-6 && (x.x * x.x + x.z * x.z).sqrt() < 1.5,
         ),
-        (
-            "plane, r ≥ 1.5 (open or penumbra)",
-            Box::new(|x: &Vec3| x.y <= -PLANE_DROP + 1e-6 && (x.x * x.x + x.z * x.z).sqrt() >= 1.5),
-        ),
+        ("plane, r ≥ 1.5 (open or penumbra)", |x: &Vec3| {
+            x.y <= -PLANE_DROP + 1e-6 && (x.x * x.x + x.z * x.z).sqrt() >= 1.5
+        }),
     ];
     let masks: Vec<Vec<bool>> = classes
         .iter()
