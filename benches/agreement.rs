@@ -34,16 +34,8 @@ use std::path::Path;
 use std::time::Instant;
 use support::*;
 
-const MAPS: [&str; 8] = [
-    "city",
-    "courtyard",
-    "forest",
-    "interior",
-    "night",
-    "studio",
-    "sunrise",
-    "sunset",
-];
+/// The embedded maps (`tests/fixtures/synth/hdri/`), in their canonical order.
+const MAPS: [&str; 8] = relight_cpc::synth::data::MAP_NAMES;
 
 /// A vertex class: name and membership by position.
 type Class = (&'static str, fn(&Vec3) -> bool);

@@ -8,44 +8,21 @@
 use std::path::{Path, PathBuf};
 
 use relight_cpc::envmap::OctEnv;
-use relight_cpc::reference::Samples;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
-use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::Error;
 
-/// A scratch folder removed on drop.
-struct Scratch(PathBuf);
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+#[path = "support/scratch.rs"]
+mod scratch_support;
+use scratch_support::Scratch;
 
 fn scratch(tag: &str) -> Scratch {
-    let p = std::env::temp_dir().join(format!("relight-extreme-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&p);
-    std::fs::create_dir_all(&p).unwrap();
-    Scratch(p)
+    scratch_support::scratch("extreme", tag)
 }
 
-/// A 64×64 synth workspace of `scene` with `photos` photos and about `vertices` vertices.
+/// A 64×64 synth workspace of `scene` with `photos` photos and about `vertices` vertices
+/// (1 sample(s) per pixel, 8 light samples).
 fn workspace(dir: &Path, scene: &str, photos: usize, vertices: usize) -> PathBuf {
-    let ws = dir.join("ws");
-    let opts = SynthOptions {
-        width: 64,
-        height: 64,
-        photos: Some(photos),
-        vertices: Some(vertices),
-        samples: Samples {
-            per_pixel: 1,
-            light: 8,
-            seed: 3,
-        },
-        points: 300,
-        ..SynthOptions::default()
-    };
-    synth::build(scene, &ws, &opts).unwrap();
-    ws
+    scratch_support::workspace(dir, scene, photos, vertices, 1, 8)
 }
 
 /// Fast run options: small maps, one material, few iterations.

@@ -1,0 +1,54 @@
+//! Shared by the pipeline tests (`tests/adapt.rs`, `tests/extreme_pipeline.rs`): a scratch
+//! folder removed on drop, and a small `synth` workspace in it.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use relight_cpc::reference::Samples;
+use relight_cpc::synth::{self, SynthOptions};
+
+/// A scratch folder removed on drop.
+pub struct Scratch(pub PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A fresh, empty `relight-{prefix}-{pid}-{tag}` under the system's temporary folder.
+pub fn scratch(prefix: &str, tag: &str) -> Scratch {
+    let p = std::env::temp_dir().join(format!("relight-{prefix}-{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&p);
+    std::fs::create_dir_all(&p).unwrap();
+    Scratch(p)
+}
+
+/// A 64×64 synth workspace `dir/ws` of `scene` with `photos` photos, about `vertices`
+/// vertices, `per_pixel` samples per pixel and `light` light samples each, 300 points.
+pub fn workspace(
+    dir: &Path,
+    scene: &str,
+    photos: usize,
+    vertices: usize,
+    per_pixel: u32,
+    light: u32,
+) -> PathBuf {
+    let ws = dir.join("ws");
+    let opts = SynthOptions {
+        width: 64,
+        height: 64,
+        photos: Some(photos),
+        vertices: Some(vertices),
+        samples: Samples {
+            per_pixel,
+            light,
+            seed: 3,
+        },
+        points: 300,
+        ..SynthOptions::default()
+    };
+    synth::build(scene, &ws, &opts).unwrap();
+    ws
+}
