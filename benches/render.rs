@@ -35,18 +35,9 @@ fn cpu_seconds() -> f64 {
         * 1e-9
 }
 
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        if v.norm() > 0.2 && v.norm() <= 1.0 {
-            return v.normalize();
-        }
-    }
-}
+#[path = "../tests/support/random.rs"]
+mod random;
+use random::random_unit;
 
 fn main() {
     let (ng, nl, nn) = (64, 32, 32);

@@ -10,7 +10,7 @@
 //!   the untruncated rows under the real city map (sun kept) for several `keep`.
 
 use nalgebra::Matrix3;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use relight_cpc::brdf::{default_basis, BasisBrdf, SliceGrid, SliceTable};
 use relight_cpc::envmap::{LatLong, OctEnv};
@@ -22,18 +22,9 @@ use serde_json::{json, Value};
 use std::path::Path;
 use std::time::Instant;
 
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        if v.norm() > 0.2 && v.norm() <= 1.0 {
-            return v.normalize();
-        }
-    }
-}
+#[path = "../tests/support/random.rs"]
+mod random;
+use random::random_unit;
 
 fn random_wo(rng: &mut Pcg64) -> Vec3 {
     loop {

@@ -17,18 +17,9 @@ const NG: usize = 32;
 const NL: usize = 16;
 const NV: usize = 200;
 
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        if v.norm() > 0.2 && v.norm() <= 1.0 {
-            return v.normalize();
-        }
-    }
-}
+#[path = "support/random.rs"]
+mod random;
+use random::random_unit;
 
 #[test]
 fn frame_blend_equals_per_vertex_rotation() {

@@ -1,7 +1,7 @@
 //! The transport built with the blended precomputed rotation (Eq. 6) instead of the exact
 //! per-normal one: white furnace, and agreement with the exact rotation on a smooth light.
 
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::envmap::OctEnv;
@@ -14,18 +14,9 @@ use relight_cpc::Vec3;
 const NG: usize = 32;
 const NL: usize = 16;
 
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        if v.norm() > 0.2 && v.norm() <= 1.0 {
-            return v.normalize();
-        }
-    }
-}
+#[path = "support/random.rs"]
+mod random;
+use random::random_unit;
 
 /// Build with both rotations for random normals accepted by `keep_normal`; returns the
 /// worst relative difference of the glossy and Lambert responses under a smooth light.

@@ -27,18 +27,9 @@ fn opts(keep: usize) -> TransportOptions {
     }
 }
 
-fn random_unit(rng: &mut Pcg64) -> Vec3 {
-    loop {
-        let v = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        if v.norm() > 0.2 && v.norm() <= 1.0 {
-            return v.normalize();
-        }
-    }
-}
+#[path = "support/random.rs"]
+mod random;
+use random::random_unit;
 
 /// A direction in the upper hemisphere of `n` (angle from n below ~70°).
 fn random_view(rng: &mut Pcg64, n: &Vec3) -> Vec3 {
