@@ -26,22 +26,7 @@ use std::time::Instant;
 
 type Vec3 = Vector3<f64>;
 
-/// CPU time of this process so far (all threads), from `/proc/self/task/*/schedstat`, in
-/// seconds; 0 where that is unavailable.
-fn cpu_seconds() -> f64 {
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return 0.0;
-    };
-    dir.filter_map(|e| e.ok())
-        .filter_map(|e| std::fs::read_to_string(e.path().join("schedstat")).ok())
-        .filter_map(|t| {
-            t.split_whitespace()
-                .next()
-                .and_then(|x| x.parse::<f64>().ok())
-        })
-        .sum::<f64>()
-        * 1e-9
-}
+use relight_cpc::stages::cpu_seconds_fine as cpu_seconds;
 
 /// Timing of `f` on a machine shared with other jobs: the fastest of `reps` batches of
 /// `inner` calls (wall seconds per call: the uncontended speed), and CPU seconds per call

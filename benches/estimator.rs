@@ -435,15 +435,7 @@ fn determinism(md: &mut String) -> Value {
         max_outer: 4,
         ..EstimateOptions::default()
     };
-    let bits = |e: &Estimate| -> Vec<u64> {
-        e.lights
-            .iter()
-            .flat_map(|l| l.iter().flatten())
-            .chain(e.lambda.iter().flatten().flatten())
-            .chain(&e.weights)
-            .map(|v| v.to_bits())
-            .collect()
-    };
+    let bits = estimate_bits;
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

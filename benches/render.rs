@@ -20,20 +20,7 @@ use relight_cpc::visibility::Visibility;
 use relight_cpc::Vec3;
 use serde_json::json;
 
-fn cpu_seconds() -> f64 {
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
-        return 0.0;
-    };
-    dir.filter_map(|e| e.ok())
-        .filter_map(|e| std::fs::read_to_string(e.path().join("schedstat")).ok())
-        .filter_map(|t| {
-            t.split_whitespace()
-                .next()
-                .and_then(|x| x.parse::<f64>().ok())
-        })
-        .sum::<f64>()
-        * 1e-9
-}
+use relight_cpc::stages::cpu_seconds_fine as cpu_seconds;
 
 #[path = "../tests/support/random.rs"]
 mod random;

@@ -264,13 +264,7 @@ fn joint_recovery_is_bitwise_deterministic_across_runs_and_thread_counts() {
             .build()
             .unwrap();
         let e = pool.install(|| spot_fit(case, 2, &mut |_| {}));
-        e.lights
-            .iter()
-            .flat_map(|l| l.iter().flatten())
-            .chain(e.lambda.iter().flatten().flatten())
-            .chain(&e.weights)
-            .map(|v| v.to_bits())
-            .collect()
+        estimate_bits(&e)
     };
     let a = bits(2);
     assert_eq!(a, bits(2), "two runs on 2 threads differ");

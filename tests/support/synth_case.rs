@@ -603,3 +603,15 @@ pub fn level_correlation(
         })
         .collect()
 }
+
+/// Every number an estimate outputs (maps, `λ`, blending weights) as raw bits, for bitwise
+/// determinism checks.
+pub fn estimate_bits(e: &Estimate) -> Vec<u64> {
+    e.lights
+        .iter()
+        .flat_map(|l| l.iter().flatten())
+        .chain(e.lambda.iter().flatten().flatten())
+        .chain(&e.weights)
+        .map(|v| v.to_bits())
+        .collect()
+}
