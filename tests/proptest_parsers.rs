@@ -11,66 +11,14 @@
 
 use std::path::{Path, PathBuf};
 
-use proptest::prelude::*;
-use relight_cpc::colmap::{
-    binary, text, Camera, CameraId, CameraModel, Image, ImageId, Point2D, Point3D, Point3DId,
-    Reconstruction, TrackElement,
-};
-use relight_cpc::mesh::Mesh;
-use relight_cpc::{Error, Vec3};
+#[path = "support/colmap_model.rs"]
+mod colmap_model;
 
-/// A small model: two cameras of different models, two images with tracks, three points.
-fn model() -> Reconstruction {
-    let mut rec = Reconstruction::default();
-    for (id, m, params) in [
-        (1, CameraModel::SimpleRadial, vec![500.0, 32.0, 24.0, -0.05]),
-        (
-            4,
-            CameraModel::OpenCv,
-            vec![510.0, 505.0, 32.0, 24.0, 0.01, -0.02, 0.001, 0.0],
-        ),
-    ] {
-        let c = Camera::new(CameraId(id), m, 64, 48, params).expect("valid camera");
-        rec.cameras.insert(c.id, c);
-    }
-    let r = nalgebra::Rotation3::from_euler_angles(0.1, -0.2, 0.3);
-    for (id, cam) in [(2u32, 1u32), (5, 4)] {
-        let mut im = Image::from_pose(
-            ImageId(id),
-            format!("im{id}.png"),
-            CameraId(cam),
-            &r,
-            &Vec3::new(0.1, 0.0, 4.0),
-        );
-        im.points2d = (0..3)
-            .map(|k| Point2D {
-                xy: [10.0 + k as f64, 20.5],
-                point3d_id: Some(Point3DId(7 + k as u64)),
-            })
-            .collect();
-        rec.images.insert(im.id, im);
-    }
-    for k in 0..3u64 {
-        let p = Point3D {
-            id: Point3DId(7 + k),
-            xyz: Vec3::new(k as f64, 0.5, -1.0),
-            rgb: [10, 20, 30],
-            error: 0.5,
-            track: vec![
-                TrackElement {
-                    image_id: ImageId(2),
-                    point2d_idx: k as u32,
-                },
-                TrackElement {
-                    image_id: ImageId(5),
-                    point2d_idx: k as u32,
-                },
-            ],
-        };
-        rec.points3d.insert(p.id, p);
-    }
-    rec
-}
+use colmap_model::model;
+use proptest::prelude::*;
+use relight_cpc::colmap::{binary, text};
+use relight_cpc::mesh::Mesh;
+use relight_cpc::Error;
 
 /// The three files of `model()` in one format, as bytes.
 fn files(bin: bool) -> [Vec<u8>; 3] {
