@@ -15,6 +15,9 @@
 //!
 //! Run: `cargo bench --bench import`. Writes bench-results/import.json and import.md.
 
+#[path = "../tests/support/uv_sphere.rs"]
+mod uv_sphere;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
@@ -29,6 +32,7 @@ use relight_cpc::scene::{load_photos, load_scene};
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::workspace::Workspace;
 use relight_cpc::Vec3;
+use uv_sphere::{direction, uv_sphere};
 
 const RINGS: usize = 250;
 const SEGMENTS: usize = 400;
@@ -37,29 +41,7 @@ const SIZE: u32 = 1024;
 
 fn displaced_sphere() -> Mesh {
     let r = |th: f64, ph: f64| 1.0 + 0.12 * (6.0 * th).sin() * (5.0 * ph).cos();
-    let dir = |th: f64, ph: f64| Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
-    let mut pos = vec![Vec3::new(0.0, 0.0, 1.0)];
-    for i in 1..RINGS {
-        let th = std::f64::consts::PI * i as f64 / RINGS as f64;
-        for j in 0..SEGMENTS {
-            let ph = 2.0 * std::f64::consts::PI * j as f64 / SEGMENTS as f64;
-            pos.push(r(th, ph) * dir(th, ph));
-        }
-    }
-    pos.push(Vec3::new(0.0, 0.0, -1.0));
-    let last = (pos.len() - 1) as u32;
-    let ring = |i: usize, j: usize| (1 + (i - 1) * SEGMENTS + j % SEGMENTS) as u32;
-    let mut faces = Vec::new();
-    for j in 0..SEGMENTS {
-        faces.push([0, ring(1, j), ring(1, j + 1)]);
-        faces.push([last, ring(RINGS - 1, j + 1), ring(RINGS - 1, j)]);
-    }
-    for i in 1..RINGS - 1 {
-        for j in 0..SEGMENTS {
-            faces.push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
-            faces.push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
-        }
-    }
+    let (pos, faces) = uv_sphere(RINGS, SEGMENTS, |th, ph| r(th, ph) * direction(th, ph));
     Mesh::from_parts(pos, faces).0
 }
 

@@ -3,6 +3,11 @@
 //! `--mesh`: a UV sphere around the sparse points. The counts are checked against COLMAP's
 //! own `model_analyzer` log, not against this crate's readers.
 
+#[path = "support/scratch.rs"]
+mod scratch;
+#[path = "support/uv_sphere.rs"]
+mod uv_sphere;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -10,57 +15,16 @@ use relight_cpc::colmap::Reconstruction;
 use relight_cpc::mesh::Mesh;
 use relight_cpc::scene::inspect;
 use relight_cpc::Vec3;
+use scratch::scratch;
+use uv_sphere::{direction, uv_sphere};
 
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-buddha")
 }
 
-/// A fresh folder under the system temp dir, removed when dropped.
-struct Scratch(PathBuf);
-
-impl std::ops::Deref for Scratch {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> Scratch {
-    let d = std::env::temp_dir().join(format!("relight-inspect-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    Scratch(d)
-}
-
 /// A UV sphere (`rings` × `segments`) of radius `r` around `c`, written as PLY.
 fn sphere_ply(path: &Path, c: Vec3, r: f64, rings: usize, segments: usize) {
-    let mut pos = vec![c + Vec3::new(0.0, 0.0, r)];
-    for i in 1..rings {
-        let th = std::f64::consts::PI * i as f64 / rings as f64;
-        for j in 0..segments {
-            let ph = 2.0 * std::f64::consts::PI * j as f64 / segments as f64;
-            pos.push(c + r * Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
-        }
-    }
-    pos.push(c - Vec3::new(0.0, 0.0, r));
-    let last = (pos.len() - 1) as u32;
-    let ring = |i: usize, j: usize| (1 + (i - 1) * segments + j % segments) as u32;
-    let mut faces = Vec::new();
-    for j in 0..segments {
-        faces.push([0, ring(1, j), ring(1, j + 1)]);
-        faces.push([last, ring(rings - 1, j + 1), ring(rings - 1, j)]);
-    }
-    for i in 1..rings - 1 {
-        for j in 0..segments {
-            faces.push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
-            faces.push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
-        }
-    }
+    let (pos, faces) = uv_sphere(rings, segments, |th, ph| c + r * direction(th, ph));
     let (mesh, _) = Mesh::from_parts(pos, faces);
     mesh.write_ply(path, &[]).unwrap();
 }
@@ -83,7 +47,7 @@ fn proxy_mesh(dir: &Path) -> PathBuf {
 
 #[test]
 fn inspect_reports_what_colmap_wrote() {
-    let dir = scratch("lib");
+    let dir = scratch("inspect", "lib");
     let mesh = proxy_mesh(&dir);
     let r = inspect(&fixture(), Some(&mesh)).unwrap();
     // logs/7-model_analyzer.log: 1 camera (single_camera), 8 registered images, 434 points.
@@ -155,7 +119,7 @@ fn inspect_reports_what_colmap_wrote() {
 
 #[test]
 fn cli_json_has_the_issue_keys_and_errors_exit_nonzero() {
-    let dir = scratch("cli");
+    let dir = scratch("inspect", "cli");
     let mesh = proxy_mesh(&dir);
     let exe = env!("CARGO_BIN_EXE_relight-cpc");
     let out = Command::new(exe)

@@ -3,6 +3,9 @@
 //! are observed, their samples, directions and confidences are all computed here in closed
 //! form from the geometry, independently of `observe`.
 
+#[path = "support/uv_sphere.rs"]
+mod uv_sphere;
+
 use nalgebra::{Matrix3, Rotation3};
 use relight_cpc::colmap::{Camera, CameraId, Image, ImageId};
 use relight_cpc::mesh::Mesh;
@@ -11,6 +14,7 @@ use relight_cpc::photo::Photo;
 use relight_cpc::scene::View;
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::Vec3;
+use uv_sphere::{direction, uv_sphere};
 
 const N: usize = 20; // grid cells per cube face: vertex spacing 0.1
 const W: u32 = 200;
@@ -230,32 +234,7 @@ fn smooth_convex_surface_has_no_false_discontinuities() {
     // must not be. Curvature bends the surface off its tangent plane by ~s²/2 over the
     // probe footprint s ≈ 0.03, far below τ = 2% of the depth.
     let (rings, segs) = (60usize, 120usize);
-    let mut pos = vec![Vec3::z()];
-    for i in 1..rings {
-        let th = std::f64::consts::PI * i as f64 / rings as f64;
-        for j in 0..segs {
-            let ph = 2.0 * std::f64::consts::PI * j as f64 / segs as f64;
-            pos.push(Vec3::new(
-                th.sin() * ph.cos(),
-                th.sin() * ph.sin(),
-                th.cos(),
-            ));
-        }
-    }
-    pos.push(-Vec3::z());
-    let last = (pos.len() - 1) as u32;
-    let ring = |i: usize, j: usize| (1 + (i - 1) * segs + j % segs) as u32;
-    let mut faces = Vec::new();
-    for j in 0..segs {
-        faces.push([0, ring(1, j), ring(1, j + 1)]);
-        faces.push([last, ring(rings - 1, j + 1), ring(rings - 1, j)]);
-    }
-    for i in 1..rings - 1 {
-        for j in 0..segs {
-            faces.push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
-            faces.push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
-        }
-    }
+    let (pos, faces) = uv_sphere(rings, segs, direction);
     let (mesh, _) = Mesh::from_parts(pos, faces);
     let bvh = SceneBvh::new(&mesh);
     let c = Vec3::new(0.0, 0.0, 5.0);

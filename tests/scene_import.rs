@@ -3,8 +3,11 @@
 //! photo (errors naming the photo, and `inspect` exiting 1), and the fused point cloud
 //! carried to the mesh with known distances.
 
+#[path = "support/scratch.rs"]
+mod scratch;
+
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use image::{ImageBuffer, Rgb};
@@ -15,32 +18,10 @@ use relight_cpc::photo::DEFAULT_CLIP;
 use relight_cpc::scene::{load_photos, load_scene};
 use relight_cpc::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
+use scratch::scratch;
 
 const W: u32 = 64;
 const H: u32 = 48;
-
-/// A fresh folder under the system temp dir, removed when dropped.
-struct Scratch(PathBuf);
-
-impl std::ops::Deref for Scratch {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn scratch(name: &str) -> Scratch {
-    let d = std::env::temp_dir().join(format!("relight-scene-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    Scratch(d)
-}
 
 /// Cube [-1, 1]³ as 8 vertices and 12 outward triangles.
 fn cube() -> Mesh {
@@ -121,7 +102,7 @@ fn write_photo(path: &Path, w: u32, h: u32) {
 
 #[test]
 fn complete_workspace_imports_every_view_in_name_order() {
-    let root = scratch("complete");
+    let root = scratch("scene", "complete");
     workspace(&root);
     let scene = load_scene(Workspace::discover(&root, None).unwrap()).unwrap();
     let names: Vec<&str> = scene.views.iter().map(|v| v.image.name.as_str()).collect();
@@ -136,7 +117,7 @@ fn complete_workspace_imports_every_view_in_name_order() {
 
 #[test]
 fn missing_and_unregistered_photos_are_skipped_with_reasons() {
-    let root = scratch("skips");
+    let root = scratch("scene", "skips");
     workspace(&root);
     std::fs::remove_file(root.join("images/b.png")).unwrap();
     write_photo(&root.join("images/stray.png"), W, H);
@@ -150,7 +131,7 @@ fn missing_and_unregistered_photos_are_skipped_with_reasons() {
 
 #[test]
 fn no_photo_at_all_is_an_error() {
-    let root = scratch("none");
+    let root = scratch("scene", "none");
     workspace(&root);
     for n in ["a.png", "b.png", "c.png"] {
         std::fs::remove_file(root.join("images").join(n)).unwrap();
@@ -166,7 +147,7 @@ fn no_photo_at_all_is_an_error() {
 
 #[test]
 fn wrong_size_and_unreadable_photos_are_errors_naming_the_photo() {
-    let root = scratch("wrongsize");
+    let root = scratch("scene", "wrongsize");
     workspace(&root);
     write_photo(&root.join("images/b.png"), W + 1, H);
     let scene = load_scene(Workspace::discover(&root, None).unwrap()).unwrap();
@@ -205,7 +186,7 @@ fn fused_points_transfer_with_known_distances() {
     // Fused points at every cube vertex pushed 0.01 out along its normal and one far
     // outlier: each vertex's nearest point is its own (the others are ≥ 2 away), so every
     // distance is 0.01 and colours/normals come from that point.
-    let root = scratch("fused");
+    let root = scratch("scene", "fused");
     workspace(&root);
     let mesh = cube();
     let mut pts = Vec::new();

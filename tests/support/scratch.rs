@@ -1,5 +1,6 @@
-//! Shared by the pipeline tests (`tests/adapt.rs`, `tests/extreme_pipeline.rs`): a scratch
-//! folder removed on drop, and a small `synth` workspace in it.
+//! Shared by the tests that write files (`tests/adapt.rs`, `tests/extreme_pipeline.rs`,
+//! `tests/inspect_buddha.rs`, `tests/scene_import.rs`): a scratch folder removed on drop, and
+//! a small `synth` workspace in it.
 
 #![allow(dead_code)]
 
@@ -10,6 +11,13 @@ use relight_cpc::synth::{self, SynthOptions};
 
 /// A scratch folder removed on drop.
 pub struct Scratch(pub PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
 
 impl Drop for Scratch {
     fn drop(&mut self) {
