@@ -177,14 +177,7 @@ pub fn read_cameras(reader: impl Read, path: &Path) -> Result<BTreeMap<CameraId,
             let params = (0..model.num_params())
                 .map(|_| cur.f64("a camera parameter"))
                 .collect::<std::result::Result<Vec<_>, _>>()?;
-            let camera = Camera {
-                id,
-                model,
-                width,
-                height,
-                params,
-            };
-            camera.check()?;
+            let camera = Camera::checked(id, model, width, height, params)?;
             if cameras.contains_key(&id) {
                 return Err(format!("camera id {} appears twice", id.0));
             }

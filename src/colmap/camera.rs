@@ -190,6 +190,18 @@ impl Camera {
         height: u32,
         params: Vec<f64>,
     ) -> Result<Camera> {
+        Camera::checked(id, model, width, height, params).map_err(Error::Config)
+    }
+
+    /// The camera if [`Camera::check`] accepts it, else the reason, prefixed `camera ID: `
+    /// (the readers add the file and line or record).
+    pub(crate) fn checked(
+        id: CameraId,
+        model: CameraModel,
+        width: u32,
+        height: u32,
+        params: Vec<f64>,
+    ) -> std::result::Result<Camera, String> {
         let camera = Camera {
             id,
             model,
@@ -199,7 +211,7 @@ impl Camera {
         };
         camera
             .check()
-            .map_err(|m| Error::Config(format!("camera {}: {m}", id.0)))?;
+            .map_err(|m| format!("camera {}: {m}", id.0))?;
         Ok(camera)
     }
 

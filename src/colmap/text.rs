@@ -137,17 +137,7 @@ pub fn read_cameras(reader: impl BufRead, path: &Path) -> Result<BTreeMap<Camera
             let params = (4..tokens.len())
                 .map(|i| finite(&tokens, i, "PARAMS[]"))
                 .collect::<std::result::Result<Vec<_>, _>>()?;
-            let camera = Camera {
-                id,
-                model,
-                width,
-                height,
-                params,
-            };
-            camera
-                .check()
-                .map_err(|m| format!("camera {}: {m}", id.0))?;
-            Ok::<_, String>(camera)
+            Camera::checked(id, model, width, height, params)
         })();
         let camera = parsed.map_err(|m| lines.err(m))?;
         if cameras.contains_key(&camera.id) {
