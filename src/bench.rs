@@ -47,6 +47,63 @@ pub struct BenchOptions {
     pub scene: String,
     /// Skip the error-against-time sweep.
     pub no_sweep: bool,
+    /// Keep the synth workspaces here and reuse one whose `bench-params.json` matches
+    /// (`None`: a temporary folder, removed at the end).
+    pub work: Option<PathBuf>,
+    /// The model every run fits.
+    pub model: Model,
+    /// Also fit each vertex-scaling scene with the adaptive model (`--adaptive on`).
+    pub adaptive_rows: bool,
+    /// Per-run progress of the pipeline's stages on standard error.
+    pub progress: bool,
+}
+
+/// The model the bench's runs fit (the `run` flags `--materials`, `--basis`, `--adaptive`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Model {
+    /// Number of materials; `None` = `auto`.
+    pub materials: Option<usize>,
+    /// Basis BRDF list as `run --basis` takes it; `None` = run's default.
+    pub basis: Option<String>,
+    /// `run --adaptive`.
+    pub adaptive: bool,
+}
+
+impl Default for Model {
+    /// `run`'s defaults with the adaptive model off (the knobs are then what is measured).
+    fn default() -> Self {
+        Model {
+            materials: None,
+            basis: None,
+            adaptive: false,
+        }
+    }
+}
+
+impl Model {
+    /// The paper's Minerva configuration (Table 1): 6 materials, 7 basis BRDFs (Lambert,
+    /// four GGX roughnesses, Phong 50 and 500), the full model as given (`--adaptive off`).
+    pub fn minerva() -> Self {
+        Model {
+            materials: Some(6),
+            basis: Some("lambert,ggx:0.1,ggx:0.2,ggx:0.35,ggx:0.6,phong:50,phong:500".into()),
+            adaptive: false,
+        }
+    }
+
+    /// Short label, e.g. `K6 B7 adaptive off`.
+    pub fn label(&self) -> String {
+        let b = self
+            .basis
+            .as_deref()
+            .map_or(3, |s| s.split(',').filter(|t| !t.trim().is_empty()).count());
+        format!(
+            "K{} B{} adaptive {}",
+            self.materials.map_or("auto".into(), |k| k.to_string()),
+            b,
+            if self.adaptive { "on" } else { "off" }
+        )
+    }
 }
 
 impl BenchOptions {
@@ -62,6 +119,10 @@ impl BenchOptions {
             quick: false,
             scene: "spot-varying".into(),
             no_sweep: false,
+            work: None,
+            model: Model::default(),
+            adaptive_rows: false,
+            progress: true,
         }
     }
 
@@ -77,6 +138,10 @@ impl BenchOptions {
             quick: true,
             scene: "sphere-plane".into(),
             no_sweep: false,
+            work: None,
+            model: Model::default(),
+            adaptive_rows: false,
+            progress: false,
         }
     }
 }
@@ -128,8 +193,13 @@ pub struct BenchRun {
     pub height: u32,
     /// Knobs of the run.
     pub knobs: Knobs,
-    /// Seconds `synth` spent building the scene (not part of the run).
+    /// The model fitted.
+    pub model: Model,
+    /// Seconds the reference renderer spent on the scene's photos when it was built (not
+    /// part of the run; a reused workspace reports its original figure).
     pub synth_seconds: f64,
+    /// Whether the workspace was reused from `--work` rather than built for this run.
+    pub synth_reused: bool,
     /// Per stage, in run order.
     pub stages: Vec<StageRecord>,
     /// Sum of stage wall seconds.
@@ -167,6 +237,12 @@ pub struct Growth {
 pub struct BenchReport {
     /// Whether this was a `--quick` run.
     pub quick: bool,
+    /// Whether the benchmark finished (`false` while rows are still being written).
+    pub complete: bool,
+    /// The model of the scaling runs.
+    pub model: Model,
+    /// How the photos were rendered.
+    pub synth: String,
     /// The scene.
     pub scene: String,
     /// Vertex-scaling runs, by size.
@@ -177,6 +253,8 @@ pub struct BenchReport {
     pub vertex_growth: Vec<Growth>,
     /// Growth per stage between consecutive photo counts.
     pub photo_growth: Vec<Growth>,
+    /// The same scenes fitted with the adaptive model (`--adaptive-rows`).
+    pub adaptive_runs: Vec<BenchRun>,
     /// Sweep runs.
     pub sweep: Vec<BenchRun>,
     /// Index in `sweep` of the dense reference.
@@ -325,18 +403,107 @@ fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
     (list, idx)
 }
 
-/// Build (or reuse) a synth workspace in `work` for `(vertices, photos)`.
-fn scene(
-    opts: &BenchOptions,
-    work: &Path,
+/// What identifies a synth workspace: reused from `--work` only when all of it matches.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+struct SceneParams {
+    scene: String,
     vertices: usize,
     photos: usize,
-) -> Result<(PathBuf, synth::SynthSummary)> {
+    width: u32,
+    height: u32,
+    per_pixel: u32,
+    light: u32,
+    sample_seed: u64,
+    seed: u64,
+    /// What `synth` reported, kept so that a reused workspace reports it too.
+    summary_vertices: usize,
+    summary_photos: usize,
+    render_seconds: f64,
+}
+
+impl SceneParams {
+    fn same_scene(&self, o: &SceneParams) -> bool {
+        (
+            &self.scene,
+            self.vertices,
+            self.photos,
+            self.width,
+            self.height,
+            self.per_pixel,
+            self.light,
+            self.sample_seed,
+            self.seed,
+        ) == (
+            &o.scene,
+            o.vertices,
+            o.photos,
+            o.width,
+            o.height,
+            o.per_pixel,
+            o.light,
+            o.sample_seed,
+            o.seed,
+        )
+    }
+}
+
+/// A workspace ready to fit.
+struct BenchScene {
+    dir: PathBuf,
+    vertices: usize,
+    photos: usize,
+    render_seconds: f64,
+    reused: bool,
+}
+
+/// Build a synth workspace in `work` for `(vertices, photos)`, or reuse the one there whose
+/// `bench-params.json` (written last, so only a finished build has it) matches.
+fn scene(opts: &BenchOptions, work: &Path, vertices: usize, photos: usize) -> Result<BenchScene> {
     let (width, height, samples, _) = mode_settings(opts.quick);
-    let dir = work.join(format!("{}-v{vertices}-p{photos}", opts.scene));
+    let dir = work.join(format!(
+        "{}-v{vertices}-p{photos}-{width}x{height}",
+        opts.scene
+    ));
+    let params_path = dir.join("bench-params.json");
+    let mut want = SceneParams {
+        scene: opts.scene.clone(),
+        vertices,
+        photos,
+        width,
+        height,
+        per_pixel: samples.per_pixel,
+        light: samples.light,
+        sample_seed: samples.seed,
+        seed: 1,
+        summary_vertices: 0,
+        summary_photos: 0,
+        render_seconds: 0.0,
+    };
+    if let Ok(text) = std::fs::read_to_string(&params_path) {
+        if let Ok(have) = serde_json::from_str::<SceneParams>(&text) {
+            if have.same_scene(&want) {
+                eprintln!("bench: reusing {}", dir.display());
+                return Ok(BenchScene {
+                    dir,
+                    vertices: have.summary_vertices,
+                    photos: have.summary_photos,
+                    render_seconds: have.render_seconds,
+                    reused: true,
+                });
+            }
+        }
+    }
     if dir.exists() {
         std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     }
+    eprintln!(
+        "bench: synth {} with ≥ {vertices} vertices, {photos} photos of {width}×{height} ({} primary ray(s)/pixel, {} MIS pairs) → {}",
+        opts.scene,
+        samples.per_pixel,
+        samples.light,
+        dir.display()
+    );
+    let t0 = std::time::Instant::now();
     let s = synth::build(
         &opts.scene,
         &dir,
@@ -344,36 +511,68 @@ fn scene(
             width,
             height,
             photos: Some(photos),
-            seed: 1,
+            seed: want.seed,
             vertices: Some(vertices),
             samples,
             ..SynthOptions::default()
         },
     )?;
-    Ok((dir, s))
+    eprintln!(
+        "bench: synth done in {:.1} s ({} vertices, renderer {:.1} s)",
+        t0.elapsed().as_secs_f64(),
+        s.vertices,
+        s.render_seconds
+    );
+    want.summary_vertices = s.vertices;
+    want.summary_photos = s.photos.len();
+    want.render_seconds = s.render_seconds;
+    let text = serde_json::to_string_pretty(&want)
+        .map_err(|e| Error::Config(format!("bench: could not encode scene parameters: {e}")))?;
+    std::fs::write(&params_path, text).map_err(|e| Error::io(&params_path, e))?;
+    Ok(BenchScene {
+        dir,
+        vertices: s.vertices,
+        photos: s.photos.len(),
+        render_seconds: s.render_seconds,
+        reused: false,
+    })
 }
 
 /// Fit `ws` with `knobs` and measure it.
 fn measure(
     group: &str,
-    ws: &Path,
-    s: &synth::SynthSummary,
+    s: &BenchScene,
     knobs: Knobs,
-    quick: bool,
+    model: &Model,
+    opts: &BenchOptions,
 ) -> Result<BenchRun> {
-    let (width, height, _, _) = mode_settings(quick);
+    let (width, height, _, _) = mode_settings(opts.quick);
+    let ws = &s.dir;
     let out = ws.with_extension("fit");
     let mut o = RunOptions::new(ws.to_path_buf(), out.clone());
     o.holdout = Holdout::Default;
-    o.materials = MaterialCount::Auto;
+    o.materials = model
+        .materials
+        .map_or(MaterialCount::Auto, MaterialCount::Fixed);
+    if let Some(b) = &model.basis {
+        o.basis = crate::brdf::parse_list(b)?;
+    }
+    o.adaptive = model.adaptive;
     o.global_resolution = knobs.global_resolution;
     o.local_resolution = knobs.local_resolution;
     o.normal_grid = knobs.normal_grid;
     o.keep = knobs.keep;
     o.max_iterations = knobs.iterations;
-    o.progress = false;
+    o.progress = opts.progress;
     o.force = true;
     o.render_training = false;
+    eprintln!(
+        "bench {group}: fitting {} vertices, {} photos, {}, {} …",
+        s.vertices,
+        s.photos,
+        knobs.label(),
+        model.label()
+    );
     let summary = run::run(&o)?;
     let r = summary.report;
     let pick = |p: &str| -> Vec<f64> {
@@ -395,12 +594,14 @@ fn measure(
     let run = BenchRun {
         group: group.into(),
         vertices: s.vertices,
-        photos: s.photos.len(),
+        photos: s.photos,
         observations: r.train.iter().map(|t| t.observations).sum(),
         width,
         height,
         knobs,
+        model: model.clone(),
         synth_seconds: s.render_seconds,
+        synth_reused: s.reused,
         total_seconds: r.stage_details.iter().map(|x| x.seconds).sum(),
         total_cpu_seconds: r.stage_details.iter().map(|x| x.cpu_seconds).sum(),
         stages: r.stage_details,
@@ -410,17 +611,21 @@ fn measure(
     };
     let _ = std::fs::remove_dir_all(&out);
     eprintln!(
-        "bench {group}: {} vertices, {} photos, {}: {:.1} s, held-out RMSE {:.4}",
+        "bench {group}: {} vertices, {} photos, {}: {:.1} s wall, {:.1} s CPU, {:.0} MiB peak, held-out RMSE {:.4}",
         run.vertices,
         run.photos,
         knobs.label(),
         run.total_seconds,
+        run.total_cpu_seconds,
+        mib(run.peak_memory_bytes),
         run.holdout_rmse
     );
     Ok(run)
 }
 
-/// Run the benchmark and write `pipeline.{json,md,png}` into `opts.out`.
+/// Run the benchmark and write `pipeline.{json,md,png}` into `opts.out`, rewritten after
+/// every run (with `complete: false` until the last), so a long benchmark that is stopped
+/// keeps the rows it finished.
 pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
     if opts.sizes.is_empty() && opts.photos.is_empty() && opts.no_sweep {
         return Err(Error::Config("bench: nothing to run".into()));
@@ -430,16 +635,66 @@ pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
             "bench: sizes and photo counts must be at least 1 (2 for --base-photos)".into(),
         ));
     }
+    if let Some(b) = &opts.model.basis {
+        crate::brdf::parse_list(b)?;
+    }
     let t0 = std::time::Instant::now();
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
-    let work = std::env::temp_dir().join(format!("relight-bench-{}", std::process::id()));
+    let (work, temporary) = match &opts.work {
+        Some(w) => (w.clone(), false),
+        None => (
+            std::env::temp_dir().join(format!("relight-bench-{}", std::process::id())),
+            true,
+        ),
+    };
     std::fs::create_dir_all(&work).map_err(|e| Error::io(&work, e))?;
-    let result = bench_in(opts, &work, t0);
-    let _ = std::fs::remove_dir_all(&work);
+    let result = bench_in(opts, &work, temporary, t0);
+    if temporary {
+        let _ = std::fs::remove_dir_all(&work);
+    }
     result
 }
 
-fn bench_in(opts: &BenchOptions, work: &Path, t0: std::time::Instant) -> Result<BenchReport> {
+/// How `synth` renders the photos, for the report.
+fn synth_label(quick: bool) -> String {
+    let (w, h, s, _) = mode_settings(quick);
+    format!(
+        "{w}×{h} photos by the reference renderer (Eq. 1 by MIS Monte Carlo with shadow rays), {} primary ray(s) per pixel, {} MIS pairs per shading point",
+        s.per_pixel, s.light
+    )
+}
+
+/// Fills in growth rates and the Pareto front from the runs so far.
+fn summarise(report: &mut BenchReport) {
+    report.vertex_growth = growth_rates(
+        &report
+            .vertex_runs
+            .iter()
+            .map(|r| (r.vertices as f64, stage_seconds(r)))
+            .collect::<Vec<_>>(),
+    );
+    report.photo_growth = growth_rates(
+        &report
+            .photo_runs
+            .iter()
+            .map(|r| (r.photos as f64, stage_seconds(r)))
+            .collect::<Vec<_>>(),
+    );
+    report.pareto = pareto_front(
+        &report
+            .sweep
+            .iter()
+            .map(|r| (r.total_seconds, r.holdout_rmse))
+            .collect::<Vec<_>>(),
+    );
+}
+
+fn bench_in(
+    opts: &BenchOptions,
+    work: &Path,
+    temporary: bool,
+    t0: std::time::Instant,
+) -> Result<BenchReport> {
     let (_, _, _, base) = mode_settings(opts.quick);
     let mut sizes = opts.sizes.clone();
     sizes.sort_unstable();
@@ -447,74 +702,83 @@ fn bench_in(opts: &BenchOptions, work: &Path, t0: std::time::Instant) -> Result<
     let mut photos = opts.photos.clone();
     photos.sort_unstable();
     photos.dedup();
+    let mut report = BenchReport {
+        quick: opts.quick,
+        complete: false,
+        model: opts.model.clone(),
+        synth: synth_label(opts.quick),
+        scene: opts.scene.clone(),
+        vertex_runs: Vec::new(),
+        photo_runs: Vec::new(),
+        vertex_growth: Vec::new(),
+        photo_growth: Vec::new(),
+        adaptive_runs: Vec::new(),
+        sweep: Vec::new(),
+        reference: None,
+        pareto: Vec::new(),
+        seconds: 0.0,
+    };
+    let save = |report: &mut BenchReport| -> Result<()> {
+        summarise(report);
+        report.seconds = t0.elapsed().as_secs_f64();
+        write_outputs(report, &opts.out)
+    };
+    let done = |s: &BenchScene| -> Result<()> {
+        if temporary {
+            std::fs::remove_dir_all(&s.dir).map_err(|e| Error::io(&s.dir, e))?;
+        }
+        Ok(())
+    };
+    let adaptive = Model {
+        adaptive: true,
+        ..opts.model.clone()
+    };
 
     // Scaling in vertices, then in photos; a (vertices, photos) pair already run is reused.
-    let mut vertex_runs = Vec::new();
     for &n in &sizes {
-        let (ws, s) = scene(opts, work, n, opts.base_photos)?;
-        vertex_runs.push(measure("vertices", &ws, &s, base, opts.quick)?);
-        std::fs::remove_dir_all(&ws).map_err(|e| Error::io(&ws, e))?;
+        let s = scene(opts, work, n, opts.base_photos)?;
+        let r = measure("vertices", &s, base, &opts.model, opts)?;
+        report.vertex_runs.push(r);
+        save(&mut report)?;
+        if opts.adaptive_rows {
+            let r = measure("adaptive", &s, base, &adaptive, opts)?;
+            report.adaptive_runs.push(r);
+            save(&mut report)?;
+        }
+        done(&s)?;
     }
-    let mut photo_runs = Vec::new();
     for &p in &photos {
         if let Some(i) = sizes
             .iter()
             .position(|&n| n == opts.base_vertices && p == opts.base_photos)
         {
-            let mut r = vertex_runs[i].clone();
+            let mut r = report.vertex_runs[i].clone();
             r.group = "photos".into();
-            photo_runs.push(r);
+            report.photo_runs.push(r);
             continue;
         }
-        let (ws, s) = scene(opts, work, opts.base_vertices, p)?;
-        photo_runs.push(measure("photos", &ws, &s, base, opts.quick)?);
-        std::fs::remove_dir_all(&ws).map_err(|e| Error::io(&ws, e))?;
+        let s = scene(opts, work, opts.base_vertices, p)?;
+        let r = measure("photos", &s, base, &opts.model, opts)?;
+        report.photo_runs.push(r);
+        save(&mut report)?;
+        done(&s)?;
     }
-    let vertex_growth = growth_rates(
-        &vertex_runs
-            .iter()
-            .map(|r| (r.vertices as f64, stage_seconds(r)))
-            .collect::<Vec<_>>(),
-    );
-    let photo_growth = growth_rates(
-        &photo_runs
-            .iter()
-            .map(|r| (r.photos as f64, stage_seconds(r)))
-            .collect::<Vec<_>>(),
-    );
 
     // Error against time on the smallest scene.
-    let (mut sweep, mut reference, mut pareto) = (Vec::new(), None, Vec::new());
     if !opts.no_sweep {
         let n = sizes.first().copied().unwrap_or(opts.base_vertices);
-        let (ws, s) = scene(opts, work, n, opts.base_photos)?;
+        let s = scene(opts, work, n, opts.base_photos)?;
         let (list, idx) = sweep_knobs(base, opts.quick);
+        report.reference = Some(idx);
         for k in list {
-            sweep.push(measure("sweep", &ws, &s, k, opts.quick)?);
+            let r = measure("sweep", &s, k, &opts.model, opts)?;
+            report.sweep.push(r);
+            save(&mut report)?;
         }
-        std::fs::remove_dir_all(&ws).map_err(|e| Error::io(&ws, e))?;
-        reference = Some(idx);
-        pareto = pareto_front(
-            &sweep
-                .iter()
-                .map(|r| (r.total_seconds, r.holdout_rmse))
-                .collect::<Vec<_>>(),
-        );
+        done(&s)?;
     }
-
-    let report = BenchReport {
-        quick: opts.quick,
-        scene: opts.scene.clone(),
-        vertex_runs,
-        photo_runs,
-        vertex_growth,
-        photo_growth,
-        sweep,
-        reference,
-        pareto,
-        seconds: t0.elapsed().as_secs_f64(),
-    };
-    write_outputs(&report, &opts.out)?;
+    report.complete = true;
+    save(&mut report)?;
     Ok(report)
 }
 
@@ -525,7 +789,7 @@ fn write_outputs(report: &BenchReport, out: &Path) -> Result<()> {
     std::fs::write(&json_path, json).map_err(|e| Error::io(&json_path, e))?;
     let md_path = out.join("pipeline.md");
     std::fs::write(&md_path, markdown(report)).map_err(|e| Error::io(&md_path, e))?;
-    if !report.sweep.is_empty() {
+    if report.sweep.len() > 1 {
         plot_sweep(report, &out.join("pipeline.png"))?;
     }
     Ok(())
@@ -571,14 +835,21 @@ fn stage_table(md: &mut String, runs: &[BenchRun]) {
     }
     let _ = writeln!(
         md,
-        "\n| vertices | photos | {}² photos | training RMSE | held-out RMSE (scaled) | synth s |\n|---:|---:|---|---:|---:|---:|",
-        runs[0].width
+        "\n| vertices | photos | photo size | model | training RMSE | held-out RMSE (scaled) | synth s |\n|---:|---:|---|---|---:|---:|---:|"
     );
     for r in runs {
         let _ = writeln!(
             md,
-            "| {} | {} | {}×{} | {:.4} | {:.4} | {:.1} |",
-            r.vertices, r.photos, r.width, r.height, r.train_rmse, r.holdout_rmse, r.synth_seconds
+            "| {} | {} | {}×{} | {} | {:.4} | {:.4} | {:.1}{} |",
+            r.vertices,
+            r.photos,
+            r.width,
+            r.height,
+            r.model.label(),
+            r.train_rmse,
+            r.holdout_rmse,
+            r.synth_seconds,
+            if r.synth_reused { " (reused)" } else { "" }
         );
     }
     md.push('\n');
@@ -612,13 +883,31 @@ pub fn markdown(report: &BenchReport) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "# Pipeline benchmark{}\n\nScene `{}` built by `synth`, fitted by `run` (quiet, no training renders). \
+        "# Pipeline benchmark{}\n\nScene `{}` built by `synth`, fitted by `run` (no training renders). \
 Times are wall seconds of each stage as recorded by the run; CPU is user + system over all \
 threads; peak is the stage's own resident high-water mark. Held-out RMSE: protocol (a) (true \
 light), linear RGB, after the best global scale. Whole benchmark: {:.0} s.\n",
         if report.quick { " (--quick)" } else { "" },
         report.scene,
         report.seconds
+    );
+    let _ = writeln!(
+        md,
+        "Model fitted: {} (basis `{}`). Photos: {}; the same photos for every setting of a \
+scene, so settings compare fairly. Synth time is reported apart and is not part of a run's \
+time.{}\n",
+        report.model.label(),
+        report
+            .model
+            .basis
+            .as_deref()
+            .unwrap_or("lambert,phong:50,phong:500"),
+        report.synth,
+        if report.complete {
+            ""
+        } else {
+            " **Incomplete: the benchmark was still running (or was stopped) when this was written.**"
+        }
     );
     md.push_str(
         "Memory: all runs share one process, so a stage's peak (the high-water mark reset \
@@ -630,6 +919,10 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
         stage_table(&mut md, &report.vertex_runs);
         md.push_str("Growth between consecutive sizes (n = vertices; p = ln(t₂/t₁)/ln(n₂/n₁), 1 = linear; stages under ~0.05 s are timer noise):\n\n");
         growth_table(&mut md, "vertices", &report.vertex_growth);
+    }
+    if !report.adaptive_runs.is_empty() {
+        md.push_str("## The same scenes with the adaptive model (`--adaptive on`)\n\n");
+        stage_table(&mut md, &report.adaptive_runs);
     }
     if !report.photo_runs.is_empty() {
         md.push_str("## Scaling in photos\n\n");

@@ -140,6 +140,26 @@ enum Command {
         /// Skip the error-against-time sweep.
         #[arg(long)]
         no_sweep: bool,
+        /// Keep the synth workspaces in this folder and reuse one built with the same
+        /// parameters (default: a temporary folder, removed at the end).
+        #[arg(long)]
+        work: Option<std::path::PathBuf>,
+        /// Fit the paper's Minerva model: 6 materials, 7 basis BRDFs (lambert, ggx:0.1,
+        /// ggx:0.2, ggx:0.35, ggx:0.6, phong:50, phong:500), --adaptive off.
+        #[arg(long)]
+        minerva: bool,
+        /// Number of materials of every fit, or `auto` [default: auto; --minerva: 6].
+        #[arg(long)]
+        materials: Option<String>,
+        /// Basis BRDFs of every fit, as `run --basis` [default: run's; --minerva: 7 lobes].
+        #[arg(long)]
+        basis: Option<String>,
+        /// Also fit each vertex-scaling scene with the adaptive model (`--adaptive on`).
+        #[arg(long)]
+        adaptive_rows: bool,
+        /// No per-stage progress of the runs.
+        #[arg(long)]
+        quiet: bool,
     },
 }
 
@@ -439,6 +459,12 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             out,
             quick,
             no_sweep,
+            work,
+            minerva,
+            materials,
+            basis,
+            adaptive_rows,
+            quiet,
         } => {
             use relight_cpc::bench::BenchOptions;
             let mut opts = if quick {
@@ -452,10 +478,27 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             opts.base_vertices = base_vertices.unwrap_or(opts.base_vertices);
             opts.scene = scene.unwrap_or(opts.scene);
             opts.no_sweep = no_sweep;
+            opts.work = work;
+            if minerva {
+                opts.model = relight_cpc::bench::Model::minerva();
+            }
+            if let Some(m) = materials {
+                opts.model.materials = match m.as_str() {
+                    "auto" => None,
+                    k => Some(k.parse().map_err(|_| {
+                        anyhow::anyhow!("--materials `{k}`: a positive integer or `auto`")
+                    })?),
+                };
+            }
+            if basis.is_some() {
+                opts.model.basis = basis;
+            }
+            opts.adaptive_rows = adaptive_rows;
+            opts.progress = !quiet && !quick;
             let r = relight_cpc::bench::bench(&opts)?;
             println!(
                 "bench: {} runs in {:.0} s; results in {}",
-                r.vertex_runs.len() + r.photo_runs.len() + r.sweep.len(),
+                r.vertex_runs.len() + r.photo_runs.len() + r.adaptive_runs.len() + r.sweep.len(),
                 r.seconds,
                 opts.out.display()
             );
