@@ -238,12 +238,13 @@ pub fn keep_largest(
 
 #[cfg(test)]
 #[allow(clippy::needless_range_loop)] // index loops mirror the sums being checked
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
 
-    fn random(n: usize, seed: u64) -> Vec<f64> {
+    /// `n × n` values uniform in [−1, 1), seeded (also used by the triple-product tests).
+    pub(crate) fn random(n: usize, seed: u64) -> Vec<f64> {
         let mut rng = Pcg64::seed_from_u64(seed);
         (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect()
     }

@@ -423,14 +423,8 @@ pub fn double_product(n: usize, f: &[f64], g: &[f64], out: &mut [f64]) {
 #[allow(clippy::needless_range_loop)] // index loops mirror the sums being checked
 mod tests {
     use super::*;
+    use crate::haar::tests::random;
     use crate::haar::{basis_value, forward, inverse, keep_largest};
-    use rand::{Rng, SeedableRng};
-    use rand_pcg::Pcg64;
-
-    fn random(n: usize, seed: u64) -> Vec<f64> {
-        let mut rng = Pcg64::seed_from_u64(seed);
-        (0..n * n).map(|_| rng.random_range(-1.0..1.0)).collect()
-    }
 
     #[test]
     fn every_tripling_coefficient_of_an_8x8_basis_matches_texel_sums() {
