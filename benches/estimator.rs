@@ -28,7 +28,7 @@
 mod synth_case;
 
 use relight_cpc::estimate::{
-    estimate, Estimate, EstimateOptions, Problem, Robust, SmoothnessScale,
+    estimate, Estimate, EstimateOptions, Materials0, Problem, Robust, SmoothnessScale,
 };
 use relight_cpc::observe::Observations;
 use serde_json::{json, Value};
@@ -456,6 +456,279 @@ fn determinism(md: &mut String) -> Value {
     json!({"values": a.len(), "identical_same_threads": same_ab, "identical_1_vs_2_threads": same_ac})
 }
 
+/// The `spot-varying` case with every observation (training and held out) replaced by the
+/// TRUE reflectance under the TRUE light through the case's own transport: data the model
+/// reproduces exactly, so the floor is 0 and every remaining error is the estimator's
+/// (regularisation bias, a stalled block, the alternation's speed).
+fn noise_free(case: &mut Case) {
+    let t = predict_with(
+        &case.train,
+        case.nv,
+        &case.lambda,
+        &case.weights,
+        &case.train.lights,
+    );
+    for (y, v) in case.train.obs.rgb.iter_mut().zip(&t) {
+        *y = v.map(|a| a as f32);
+    }
+    let h = predict_with(
+        &case.held,
+        case.nv,
+        &case.lambda,
+        &case.weights,
+        &case.held.lights,
+    );
+    for (y, v) in case.held.obs.rgb.iter_mut().zip(&h) {
+        *y = v.map(|a| a as f32);
+    }
+}
+
+/// Part 5: convergence of the alternation on noise-free data (`noise_free`), per outer
+/// iteration, for option variants; written to `bench-results/estimator-convergence.*`.
+fn convergence(md: &mut String) -> Value {
+    let s = Sizes {
+        spp: 1,
+        ..sizes_joint()
+    };
+    let iters: usize = std::env::var("CONVERGENCE_ITERS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(30);
+    let mut case = prepare("spot-varying", s, 1, "convergence");
+    noise_free(&mut case);
+    md.push_str(&format!(
+        "## 5. Convergence on noise-free data\n\n`spot-varying` ({} vertices, {} training / {} held-out photos, {}², {}² global, {}² local, all coefficients) \
+         with every observation replaced by the TRUE reflectance under the TRUE light through the case's own transport: the model \
+         reproduces the data exactly, so the floor is 0 and what remains is the estimator's own error. K = 2 from the k-means start \
+         unless stated; ≤ {iters} outer iterations, `rel_tol` 0. Held-out = the held-out photos under their true light (best scale per channel).\n\n",
+        case.nv,
+        case.train.names.len(),
+        case.held.names.len(),
+        s.width,
+        s.global,
+        s.local
+    ));
+    let base = EstimateOptions {
+        max_outer: iters,
+        rel_tol: 0.0,
+        validation_fraction: 0.0,
+        ..EstimateOptions::default()
+    };
+    let none = EstimateOptions {
+        robust: Robust::None,
+        ..base.clone()
+    };
+    let variants: Vec<(&str, EstimateOptions, bool)> = vec![
+        ("default options, no early stopping", base.clone(), false),
+        (
+            "the same, started at the TRUE materials",
+            base.clone(),
+            true,
+        ),
+        ("no IRLS", none.clone(), false),
+        ("no IRLS, started at the TRUE materials", none.clone(), true),
+        (
+            "no IRLS, smoothness 1e-5",
+            EstimateOptions {
+                smoothness: 1e-5,
+                ..none.clone()
+            },
+            false,
+        ),
+        (
+            "no IRLS, no extrapolation",
+            EstimateOptions {
+                extrapolate: false,
+                ..none.clone()
+            },
+            false,
+        ),
+        (
+            "no IRLS, 3 material sweeps",
+            EstimateOptions {
+                material_sweeps: 3,
+                ..none.clone()
+            },
+            false,
+        ),
+        (
+            "no IRLS, gauge fixed every iteration",
+            EstimateOptions {
+                fix_gauge: true,
+                ..none.clone()
+            },
+            false,
+        ),
+        (
+            "Huber IRLS in the lighting step only, material step α with the 4.685σ cut",
+            EstimateOptions {
+                materials_cut_only: true,
+                ..base.clone()
+            },
+            false,
+        ),
+        (
+            "default, early stopping (10% validation, patience 3)",
+            EstimateOptions {
+                validation_fraction: 0.1,
+                ..base.clone()
+            },
+            false,
+        ),
+    ];
+    let only = std::env::var("CONVERGENCE_VARIANTS").ok();
+    md.push_str("| fit | train rel. RMSE after 1 / 5 / 10 / 20 / last | held-out rel. RMSE after 1 / 5 / 10 / 20 / last | best held-out (iteration) | seconds |\n|---|---|---|---|---|\n");
+    let mut rows = Vec::new();
+    for (vi, (label, o, from_truth)) in variants.into_iter().enumerate() {
+        if let Some(sel) = &only {
+            if !sel.split(',').any(|v| v == vi.to_string()) {
+                continue;
+            }
+        }
+        eprintln!("convergence: {label}");
+        let problem = case.train.problem(case.nv);
+        let init = if from_truth {
+            Materials0 {
+                lambda: case.lambda.clone(),
+                weights: case.weights.clone(),
+            }
+        } else {
+            initial(&case, &case.train.obs, 2, 1)
+        };
+        let mut tl: Vec<Value> = Vec::new();
+        let (mut tr, mut he) = (Vec::new(), Vec::new());
+        let t0 = Instant::now();
+        let est = estimate(&problem, init, &o, &mut |it, st| {
+            let hp = predict_with(&case.held, case.nv, st.lambda, st.weights, &case.held.lights);
+            let h = rel_rmse_per_channel(&case.held.obs, &hp);
+            let tp = predict_with(&case.train, case.nv, st.lambda, st.weights, st.lights);
+            let t = rel_rmse(&case.train.obs, &tp, false).0;
+            let lam_l: Vec<f64> = (0..3)
+                .map(|c| st.lambda.iter().map(|l| l[0][c]).sum::<f64>())
+                .collect();
+            let light_sum: f64 = st.lights.iter().flat_map(|l| l.iter().flatten()).sum();
+            eprintln!(
+                "  {label} it {}: {:.1} s, objective {:.5e}, train rel {t:.5}, held-out rel {h:.5}, Σλ_L {lam_l:.4?}, Σ light {light_sum:.4e}",
+                tl.len() + 1,
+                it.seconds,
+                it.objective
+            );
+            tr.push(t);
+            he.push(h);
+            tl.push(json!({"seconds": it.seconds, "objective": it.objective, "train_rel": t, "heldout_rel_true_light": h, "lambda_lambert_sum": lam_l, "light_sum": light_sum}));
+        })
+        .unwrap();
+        let secs = t0.elapsed().as_secs_f64();
+        let pick = |v: &[f64]| {
+            [1usize, 5, 10, 20]
+                .iter()
+                .map(|&i| v.get(i - 1).map_or("–".to_string(), |x| format!("{x:.4}")))
+                .chain(std::iter::once(format!("{:.4}", v.last().unwrap())))
+                .collect::<Vec<_>>()
+                .join(" / ")
+        };
+        let (bi, bh) =
+            he.iter().enumerate().fold(
+                (0, f64::INFINITY),
+                |a, (i, &h)| if h < a.1 { (i, h) } else { a },
+            );
+        md.push_str(&format!(
+            "| {label} | {} | {} | {bh:.4} ({}) | {secs:.1} |\n",
+            pick(&tr),
+            pick(&he),
+            bi + 1
+        ));
+        rows.push(json!({"fit": label, "options": format!("{o:?}"), "from_truth": from_truth, "timeline": tl, "seconds": secs, "iterations": est.timeline.len()}));
+    }
+    md.push('\n');
+    json!({"vertices": case.nv, "train_observations": case.train.obs.len(), "heldout_observations": case.held.obs.len(), "fits": rows})
+}
+
+/// Part 6: the floors (the TRUE reflectance under the TRUE light through the transport,
+/// against the rendered photos) against samples per pixel and transport resolution, to
+/// split the renderer's Monte-Carlo noise from the transport's discretisation; written to
+/// `bench-results/estimator-floors.*`.
+fn floors(md: &mut String) -> Value {
+    md.push_str("## 6. Floors: Monte-Carlo noise against discretisation\n\n\
+        Floor = relative RMSE of the TRUE reflectance under the TRUE light through the transport against the rendered photos \
+        (training photos; held-out photos for `spot-varying`). Photos 64², the same render reused for every transport of a row group \
+        (only the transport is rebuilt). Noise halves with 4× the samples; discretisation does not move with samples.\n\n\
+        | scene | spp × MIS pairs | global² / local² | floor (train) | floor (held out) | seconds synth / prepare |\n|---|---|---|---|---|---|\n");
+    let mut rows = Vec::new();
+    // (scene, samples per pixel, (global, local) transports).
+    type Group<'a> = (&'a str, Vec<u32>, Vec<(usize, usize)>);
+    let groups: Vec<Group> = vec![
+        ("sphere-diffuse", vec![16, 64], vec![(32, 16), (64, 32)]),
+        ("sphere-glossy", vec![16, 64], vec![(32, 16), (64, 32)]),
+        ("sphere-specular", vec![16, 64], vec![(32, 16), (64, 32)]),
+        ("spot-varying", vec![8, 32], vec![(16, 8), (32, 16)]),
+    ];
+    let only = std::env::var("FLOOR_SCENES").ok();
+    for (scene, spps, trans) in groups {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|v| v == scene))
+        {
+            continue;
+        }
+        for spp in spps {
+            let s0 = Sizes {
+                width: 64,
+                vertices: 2_500,
+                spp,
+                ..sizes_known()
+            };
+            let dir = scratch(&format!("floors-{scene}-{spp}"));
+            let secs = synthesize(scene, &dir.0.join("ws"), s0, 1);
+            for &(g, l) in &trans {
+                let s = Sizes {
+                    global: g,
+                    local: l,
+                    ..s0
+                };
+                // `prepare_in` takes ownership of a scratch guard; the real guard `dir`
+                // outlives it and removes the folder at the end of the spp loop body.
+                let case = prepare_in(scene, Scratch(dir.0.clone()), secs, s, 1);
+                let t = predict_with(
+                    &case.train,
+                    case.nv,
+                    &case.lambda,
+                    &case.weights,
+                    &case.train.lights,
+                );
+                let ft = rel_rmse(&case.train.obs, &t, false).0;
+                let h = predict_with(
+                    &case.held,
+                    case.nv,
+                    &case.lambda,
+                    &case.weights,
+                    &case.held.lights,
+                );
+                let fh = if case.held.obs.is_empty() {
+                    f64::NAN
+                } else {
+                    rel_rmse(&case.held.obs, &h, false).0
+                };
+                eprintln!("floors {scene} spp {spp} {g}/{l}: train {ft:.4}, held {fh:.4}, {secs:.1} / {:.1} s", case.seconds_prepare);
+                md.push_str(&format!(
+                    "| {scene} | {spp} × {} | {g}² / {l}² | {ft:.4} | {} | {secs:.1} / {:.1} |\n",
+                    s.light_samples,
+                    if fh.is_finite() {
+                        format!("{fh:.4}")
+                    } else {
+                        "–".into()
+                    },
+                    case.seconds_prepare
+                ));
+                rows.push(json!({"scene": scene, "spp": spp, "light_samples": s.light_samples, "global": g, "local": l, "floor_train": ft, "floor_heldout": if fh.is_finite() { json!(fh) } else { Value::Null }, "observations": case.train.obs.len(), "seconds_synth": secs, "seconds_prepare": case.seconds_prepare}));
+                std::mem::forget(case.scratch);
+            }
+        }
+    }
+    md.push('\n');
+    json!(rows)
+}
+
 fn main() {
     let parts = std::env::var("ESTIMATOR_BENCH")
         .unwrap_or_else(|_| "known,joint,robust,determinism".into());
@@ -477,6 +750,39 @@ fn main() {
     }
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bench-results");
     std::fs::create_dir_all(&dir).unwrap();
+    if parts.contains("floors") {
+        let mut fmd = String::from(
+            "# Estimator bench floors\n\nWritten by `ESTIMATOR_BENCH=floors cargo bench --bench estimator`.\n\n",
+        );
+        let v = floors(&mut fmd);
+        std::fs::write(dir.join("estimator-floors.md"), &fmd).unwrap();
+        std::fs::write(
+            dir.join("estimator-floors.json"),
+            serde_json::to_string_pretty(&v).unwrap(),
+        )
+        .unwrap();
+        println!("{fmd}");
+        if parts == "floors" {
+            return;
+        }
+    }
+    if parts.contains("convergence") {
+        // Its own files: the diagnosis of the alternation, not one of the issue's figures.
+        let mut cmd = String::from(
+            "# Estimator convergence on noise-free data\n\nWritten by `ESTIMATOR_BENCH=convergence cargo bench --bench estimator`.\n\n",
+        );
+        let v = convergence(&mut cmd);
+        std::fs::write(dir.join("estimator-convergence.md"), &cmd).unwrap();
+        std::fs::write(
+            dir.join("estimator-convergence.json"),
+            serde_json::to_string_pretty(&v).unwrap(),
+        )
+        .unwrap();
+        println!("{cmd}");
+        if parts == "convergence" {
+            return;
+        }
+    }
     std::fs::write(dir.join("estimator.md"), &md).unwrap();
     std::fs::write(
         dir.join("estimator.json"),

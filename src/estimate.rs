@@ -37,6 +37,12 @@
 //! materials' median colours), the maps taking the inverse scale. The exact rule is in
 //! [`Estimate::normalisation`]. With `fixed_materials` (Sec. 6.1) nothing is rescaled.
 //!
+//! Early stopping ([`EstimateOptions::validation_fraction`], not in the paper): a seeded
+//! fraction of the training observations is given `α = 0` for the whole alternation and
+//! scored after every outer iteration, `sqrt(Σ α (y − ŷ)²) / sqrt(Σ α y²)`; the iterate
+//! with the lowest score is returned ([`Validation`]), and the loop ends after `patience`
+//! iterations without a lower one.
+//!
 //! Deterministic: every reduction runs in a fixed order (fixed chunks reduced in sequence),
 //! so the output does not depend on the number of threads.
 
@@ -50,7 +56,7 @@ use rayon::prelude::*;
 
 use crate::haar;
 use crate::observe::Observations;
-use crate::qp::{bound_qp, nnls, NnlsOptions, QpOptions};
+use crate::qp::{bound_qp_scaled, nnls, NnlsOptions, QpOptions};
 use crate::sphere::SphereGrid;
 use crate::transport::Transport;
 use crate::{Error, Result};
@@ -215,7 +221,29 @@ pub struct EstimateOptions {
     /// cut-off): on `spot-varying` with 5% gross outliers the held-out error goes from
     /// ×2.7 to ×1.05 of the clean fit, and the clean fit does not change measurably.
     pub weights_reject: Option<f64>,
+    /// Early stopping (not in the paper): this fraction of the training observations with
+    /// `α > 0`, drawn with `validation_seed` (only at vertices keeping at least
+    /// [`VALIDATION_MIN_FIT`] fitted observations), is left out of every step and scored
+    /// after each outer iteration (relative RMSE, [`Validation`]); the iterate with the
+    /// lowest score is returned. 0 = off: every observation is fitted and the last
+    /// iterate returned. Ignored with `fixed_materials` (one lighting step, nothing to
+    /// choose). Default 0 (off) until measured.
+    pub validation_fraction: f64,
+    /// Hold the per-channel scale of the reflectance (`Σ_x Σ_b β_{x,b,c}`) at its start
+    /// value after every material step, the maps taking the inverse factor.
+    pub fix_gauge: bool,
+    /// With Huber IRLS and `weights_reject`: the material step (λ and w) weighs every
+    /// observation by `α` alone, leaving out only those beyond the cut, instead of `α ω`.
+    pub materials_cut_only: bool,
+    /// Seed of the validation draw.
+    pub validation_seed: u64,
+    /// With validation: stop after this many outer iterations without a lower score.
+    pub patience: usize,
 }
+
+/// Early stopping leaves an observation out only where its vertex keeps at least this many
+/// fitted observations (its `K` blending weights stay determined).
+pub const VALIDATION_MIN_FIT: usize = 2;
 
 impl Default for EstimateOptions {
     fn default() -> Self {
@@ -234,6 +262,11 @@ impl Default for EstimateOptions {
             lambert_basis: 0,
             extrapolate: true,
             weights_reject: Some(4.685),
+            validation_fraction: 0.0,
+            validation_seed: 1,
+            fix_gauge: false,
+            materials_cut_only: false,
+            patience: 3,
         }
     }
 }
@@ -245,8 +278,27 @@ pub struct Iteration {
     pub seconds: f64,
     /// Objective `F` (module docs) after the iteration, IRLS weights of its lighting step.
     pub objective: f64,
-    /// RMSE over observations with `α > 0` and channels, unweighted, linear RGB.
+    /// RMSE over observations with `α > 0` and channels, unweighted, linear RGB (the
+    /// fitted observations: validation ones excluded).
     pub train_rmse: f64,
+    /// Early stopping's score of this iterate ([`Validation`]), when on.
+    pub validation_rel: Option<f64>,
+}
+
+/// Early stopping's record ([`EstimateOptions::validation_fraction`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Validation {
+    /// Observations left out of the fit and scored.
+    pub observations: usize,
+    /// Fraction asked for.
+    pub fraction: f64,
+    /// Per outer iteration: `sqrt(Σ α (y − ŷ)²) / sqrt(Σ α y²)` over the validation
+    /// observations and channels.
+    pub errors: Vec<f64>,
+    /// The iterate returned (1-based outer iteration, the lowest error).
+    pub best_iteration: usize,
+    /// Whether the loop ended by patience (no lower error for `patience` iterations).
+    pub stopped_early: bool,
 }
 
 /// Starting materials: `λ` (`K × B`, per channel) and blending weights `w` (`V × K`).
@@ -321,6 +373,8 @@ pub struct Estimate {
     pub irls_weights: Vec<[f32; 3]>,
     /// Conditioning of the systems.
     pub conditioning: Conditioning,
+    /// Early stopping's record, when on.
+    pub validation: Option<Validation>,
 }
 
 /// `β_{x,b,c} = Σ_k w_k(x) λ_{k,b,c}`, row-major `V × B`.
@@ -377,6 +431,26 @@ impl Laplacian {
                 out[s] -= v;
             }
         }
+    }
+    /// The diagonal of `ΔᵀΔ`: `Σ_r Δ_{r,t}²` with row `r` of `Δ` = 4 at `r`, −1 at each
+    /// neighbour (repeated neighbours add up).
+    fn normal_diag(&self) -> Vec<f64> {
+        let mut diag = vec![0.0; self.nb.len()];
+        let mut cols: Vec<(usize, f64)> = Vec::with_capacity(5);
+        for (r, nb) in self.nb.iter().enumerate() {
+            cols.clear();
+            cols.push((r, nb.len() as f64));
+            for &s in nb {
+                match cols.iter_mut().find(|(c, _)| *c == s) {
+                    Some(e) => e.1 -= 1.0,
+                    None => cols.push((s, -1.0)),
+                }
+            }
+            for &(c, v) in &cols {
+                diag[c] += v * v;
+            }
+        }
+        diag
     }
     fn energy(&self, x: &[f64]) -> f64 {
         let mut lx = vec![0.0; x.len()];
@@ -524,6 +598,34 @@ impl PhotoSystem {
         }
     }
 
+    /// `out += Aᵀ D A h` in the Haar basis (`D = dw`), one pass over the merged rows:
+    /// each row's response is formed and scattered back at once, so the rows are read
+    /// once per product instead of twice. Same operations in the same order as
+    /// [`Self::forward_rows`], the scaling by `dw` and [`Self::adjoint_rows`], so the
+    /// result is bitwise the same.
+    fn normal_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        for (q, d) in self.dw.iter().enumerate() {
+            let (idx, val) = self.merged(q);
+            let mut acc = [0.0_f64; 3];
+            for (&m, e) in idx.iter().zip(val) {
+                let hm = &h[m as usize];
+                acc[0] += e[0] as f64 * hm[0];
+                acc[1] += e[1] as f64 * hm[1];
+                acc[2] += e[2] as f64 * hm[2];
+            }
+            let uq = [acc[0] * d[0], acc[1] * d[1], acc[2] * d[2]];
+            if uq == [0.0; 3] {
+                continue;
+            }
+            for (&m, e) in idx.iter().zip(val) {
+                let o = &mut out[m as usize];
+                o[0] += e[0] as f64 * uq[0];
+                o[1] += e[1] as f64 * uq[1];
+                o[2] += e[2] as f64 * uq[2];
+            }
+        }
+    }
+
     /// Largest diagonal entry of `Aᵀ D A` per channel, in the Haar basis:
     /// `max_m Σ_p d_{p,c} e_{p,c,m}²`.
     fn max_diag(&self) -> [f64; 3] {
@@ -558,6 +660,25 @@ fn texel_diag(
     range: std::ops::Range<usize>,
     alpha: &[f64],
 ) -> ([f64; 3], [f64; 3]) {
+    let diag = texel_diag_vec(problem, beta, range, alpha);
+    let n2 = diag.len();
+    let (mut mx, mut sum) = ([0.0_f64; 3], [0.0_f64; 3]);
+    for d in &diag {
+        for c in 0..3 {
+            mx[c] = mx[c].max(d[c]);
+            sum[c] += d[c];
+        }
+    }
+    (mx, sum.map(|v| v / n2 as f64))
+}
+
+/// The diagonal itself, per texel and channel (see [`texel_diag`]).
+fn texel_diag_vec(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    range: std::ops::Range<usize>,
+    alpha: &[f64],
+) -> Vec<[f64; 3]> {
     let t = problem.transport;
     let (n, nb) = (t.n_global, t.n_basis);
     let n2 = n * n;
@@ -589,15 +710,13 @@ fn texel_diag(
             }
         }
     }
-    let (mut mx, mut sum) = ([0.0_f64; 3], [0.0_f64; 3]);
-    for d in &diag {
-        for c in 0..3 {
-            mx[c] = mx[c].max(d[c]);
-            sum[c] += d[c];
-        }
-    }
-    (mx, sum.map(|v| v / n2 as f64))
+    diag
 }
+
+/// Whether the lighting QP is scaled by its texel-basis diagonal
+/// ([`crate::qp::bound_qp_scaled`]): `diag(Wᵀ Aᵀ α A W) + μ diag(ΔᵀΔ)` per channel, the data
+/// part without the IRLS weights. Same stopping rule, fewer products (bench-results/pipeline.md).
+const LIGHTING_JACOBI: bool = true;
 
 /// Result of one photo's lighting step.
 #[derive(Debug, Clone)]
@@ -662,16 +781,41 @@ pub fn lighting_step_full(
         n,
         alpha.iter().map(|&a| [a; 3]).collect(),
     );
+    // The texel-basis diagonal of the data term (α, without IRLS weights): the Jacobi
+    // scaling of the QP (LIGHTING_JACOBI) and, for the default smoothness scale, μ.
+    let tdiag = (LIGHTING_JACOBI
+        || (mu.is_none() && opts.smoothness_scale == SmoothnessScale::TexelMax))
+        .then(|| texel_diag_vec(problem, beta, range.clone(), &alpha));
     let mu = match mu {
         Some(m) => m,
         None => match opts.smoothness_scale {
             SmoothnessScale::HaarMax => sys.max_diag(),
-            SmoothnessScale::TexelMax => texel_diag(problem, beta, range.clone(), &alpha).0,
+            SmoothnessScale::TexelMax => match &tdiag {
+                Some(d) => d.iter().fold([0.0_f64; 3], |mut m, v| {
+                    for c in 0..3 {
+                        m[c] = m[c].max(v[c]);
+                    }
+                    m
+                }),
+                None => texel_diag(problem, beta, range.clone(), &alpha).0,
+            },
             SmoothnessScale::Mean => texel_diag(problem, beta, range.clone(), &alpha).1,
         }
         .map(|d| opts.smoothness * d),
     };
     let lap = Laplacian::new(n);
+    let jacobi: Option<Vec<f64>> = match (&tdiag, LIGHTING_JACOBI) {
+        (Some(d), true) => {
+            let ld = lap.normal_diag();
+            Some(
+                (0..3)
+                    .flat_map(|c| (0..n2).map(move |t| (c, t)))
+                    .map(|(c, t)| d[t][c] + mu[c] * ld[t])
+                    .collect(),
+            )
+        }
+        _ => None,
+    };
     let mut x: Vec<f64> = match start {
         Some(s) => s.iter().flat_map(|c| c.iter().copied()).collect(),
         None => vec![0.0; 3 * n2],
@@ -737,15 +881,8 @@ pub fn lighting_step_full(
         let lap_ref = &lap;
         let hess = |v: &[f64], out: &mut [f64]| {
             let h = haar3(&split3(v, n2), n);
-            let mut s = vec![[0.0; 3]; sys_ref.range.len()];
-            sys_ref.forward_rows(&h, &mut s);
-            for (sq, d) in s.iter_mut().zip(&sys_ref.dw) {
-                for c in 0..3 {
-                    sq[c] *= d[c];
-                }
-            }
             let mut hb = vec![[0.0; 3]; n2];
-            sys_ref.adjoint_rows(&s, &mut hb);
+            sys_ref.normal_rows(&h, &mut hb);
             let r = unhaar3(&hb, n);
             out.copy_from_slice(&r);
             for c in 0..3 {
@@ -761,10 +898,11 @@ pub fn lighting_step_full(
             max_iter: opts.qp_max_iter,
             max_cg: 100,
         };
-        let res = bound_qp(hess, &b, &x, &qp).map_err(|e| Error::Numeric {
-            stage: format!("lighting step, photo {photo}"),
-            message: e.to_string(),
-        })?;
+        let res =
+            bound_qp_scaled(hess, &b, &x, &qp, jacobi.as_deref()).map_err(|e| Error::Numeric {
+                stage: format!("lighting step, photo {photo}"),
+                message: e.to_string(),
+            })?;
         converged &= res.converged;
         matvecs += res.matvecs;
         if res.cond_lower_bound.is_finite() {
@@ -1149,6 +1287,102 @@ fn evaluate(
     (data + smooth + rid, rmse)
 }
 
+/// Per channel `Σ_x Σ_b β_{x,b,c} = Σ_k (Σ_x w_k(x)) (Σ_b λ_{k,b,c})`: the scale that
+/// [`EstimateOptions::fix_gauge`] holds fixed.
+fn gauge(lambda: &[Vec<[f64; 3]>], weights: &[f64], n_vertices: usize) -> [f64; 3] {
+    let kk = lambda.len();
+    let mut g = [0.0; 3];
+    for (k, lk) in lambda.iter().enumerate() {
+        let wsum: f64 = (0..n_vertices).map(|x| weights[x * kk + k]).sum();
+        for c in 0..3 {
+            g[c] += wsum * lk.iter().map(|v| v[c]).sum::<f64>();
+        }
+    }
+    g
+}
+
+/// Early stopping's validation observations (sorted): per vertex in order, each of its
+/// `α > 0` observations is drawn with probability `fraction` (seeded PCG), never leaving
+/// the vertex fewer than [`VALIDATION_MIN_FIT`] fitted ones.
+pub fn validation_split(
+    obs: &Observations,
+    n_vertices: usize,
+    fraction: f64,
+    seed: u64,
+) -> Vec<usize> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let (off, list) = by_vertex(obs, n_vertices);
+    let mut out = Vec::new();
+    for x in 0..n_vertices {
+        let mine: Vec<usize> = list[off[x]..off[x + 1]]
+            .iter()
+            .copied()
+            .filter(|&p| obs.weight[p] > 0.0)
+            .collect();
+        let mut left = mine.len();
+        for p in mine {
+            let u: f64 = rng.random();
+            if u < fraction && left > VALIDATION_MIN_FIT {
+                out.push(p);
+                left -= 1;
+            }
+        }
+    }
+    out.sort_unstable();
+    out
+}
+
+/// Early stopping's score: `sqrt(Σ α (y − ŷ)²) / sqrt(Σ α y²)` over the observations `idx`
+/// and channels (`α` from `obs`, the unmasked observations).
+fn validation_error(
+    problem: &Problem,
+    obs: &Observations,
+    lights: &[[Vec<f64>; 3]],
+    beta: &[[f64; 3]],
+    idx: &[usize],
+) -> f64 {
+    let t = problem.transport;
+    let (n, nb) = (t.n_global, t.n_basis);
+    let hs: Vec<Vec<[f64; 3]>> = lights.par_iter().map(|l| haar3(l, n)).collect();
+    let parts: Vec<(f64, f64)> = idx
+        .par_chunks(CHUNK)
+        .map(|ch| {
+            let (mut se, mut yy) = (0.0, 0.0);
+            for &p in ch {
+                let h = &hs[obs.photo[p] as usize];
+                let x = obs.vertex[p] as usize;
+                let mut pred = [0.0; 3];
+                for b in 0..nb {
+                    let (ix, val) = t.row(p, b);
+                    let be = beta[x * nb + b];
+                    for (&m, &g) in ix.iter().zip(val) {
+                        let hm = h[m as usize];
+                        for c in 0..3 {
+                            pred[c] += be[c] * g as f64 * hm[c];
+                        }
+                    }
+                }
+                let a = obs.weight[p] as f64;
+                for c in 0..3 {
+                    let y = obs.rgb[p][c] as f64;
+                    se += a * (y - pred[c]).powi(2);
+                    yy += a * y * y;
+                }
+            }
+            (se, yy)
+        })
+        .collect();
+    let (se, yy) = parts
+        .into_iter()
+        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    if yy > 0.0 {
+        (se / yy).sqrt()
+    } else {
+        se.sqrt()
+    }
+}
+
 /// The state after an outer iteration (before the final normalisation), for callers that
 /// evaluate it as it goes, e.g. the held-out error against run time.
 pub struct IterState<'a> {
@@ -1195,6 +1429,38 @@ pub fn estimate(
             "initial materials must be finite and non-negative".into(),
         ));
     }
+    // Early stopping: the validation observations get α = 0 in the fitted copy.
+    let val_idx = if !opts.fixed_materials && opts.validation_fraction > 0.0 && opts.max_outer > 1 {
+        validation_split(
+            problem.obs,
+            problem.n_vertices,
+            opts.validation_fraction,
+            opts.validation_seed,
+        )
+    } else {
+        Vec::new()
+    };
+    let masked;
+    let full_obs = problem.obs;
+    let problem_fit;
+    let problem = if val_idx.is_empty() {
+        problem
+    } else {
+        let mut m = full_obs.clone();
+        for &p in &val_idx {
+            m.weight[p] = 0.0;
+        }
+        masked = m;
+        problem_fit = Problem {
+            obs: &masked,
+            ..*problem
+        };
+        &problem_fit
+    };
+    let g0 = gauge(&init.lambda, &init.weights, problem.n_vertices);
+    let mut val_errors: Vec<f64> = Vec::new();
+    let mut best: Option<(usize, State, Vec<[f32; 3]>)> = None;
+    let mut stopped_early = false;
     let mut lambda = init.lambda.clone();
     let mut weights = init.weights.clone();
     let np = problem.obs.vertex.len();
@@ -1234,13 +1500,24 @@ pub fn estimate(
             cond.lighting_matvecs += r.matvecs;
         }
         // 2. Materials.
-        let dw: Vec<[f64; 3]> = (0..np)
-            .map(|p| omega[p].map(|o| o as f64 * problem.obs.weight[p] as f64))
-            .collect();
         let cut = match (opts.robust, opts.weights_reject) {
             (Robust::Huber { k }, Some(c)) if c > 0.0 => k / c,
             _ => 0.0,
         };
+        let dw: Vec<[f64; 3]> = (0..np)
+            .map(|p| {
+                let a = problem.obs.weight[p] as f64;
+                omega[p].map(|o| {
+                    if !opts.materials_cut_only || cut == 0.0 {
+                        o as f64 * a
+                    } else if (o as f64) < cut {
+                        0.0
+                    } else {
+                        a
+                    }
+                })
+            })
+            .collect();
         let dw_w: Vec<[f64; 3]> = (0..np)
             .map(|p| {
                 [0, 1, 2].map(|c| {
@@ -1252,7 +1529,7 @@ pub fn estimate(
                 })
             })
             .collect();
-        let s = basis_responses(problem, &lights);
+        let mut s = basis_responses(problem, &lights);
         if !opts.fixed_materials {
             for _ in 0..opts.material_sweeps.max(1) {
                 let (l, c, maxd) = lambda_step(problem, &s, &weights, kk, &dw, ridge, opts.beta)?;
@@ -1265,6 +1542,26 @@ pub fn estimate(
                 weights = w;
                 cond.weights_max = cmax;
                 cond.weights_singular = sing;
+            }
+            if opts.fix_gauge {
+                // Per channel, `G_c = Σ_x Σ_b β_{x,b,c}` back to its start value, the maps
+                // (and their responses `s`) taking the inverse factor: the data term is
+                // unchanged, and `μ`, fixed at the first lighting step, keeps its meaning.
+                let g_now = gauge(&lambda, &weights, nv);
+                for c in 0..3 {
+                    if g_now[c] > 0.0 && g0[c] > 0.0 {
+                        let f = g0[c] / g_now[c];
+                        for v in lambda.iter_mut().flatten() {
+                            v[c] *= f;
+                        }
+                        for l in lights.iter_mut() {
+                            l[c].iter_mut().for_each(|v| *v /= f);
+                        }
+                        for v in s.iter_mut() {
+                            v[c] /= f;
+                        }
+                    }
+                }
             }
         }
         // 3. Extrapolate (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
@@ -1321,10 +1618,26 @@ pub fn estimate(
                 message: "the objective became non-finite".into(),
             });
         }
+        let validation_rel = if val_idx.is_empty() {
+            None
+        } else {
+            let beta = beta_per_vertex(&lambda, &weights, nv);
+            let e = validation_error(problem, full_obs, &lights, &beta, &val_idx);
+            val_errors.push(e);
+            if best.as_ref().is_none_or(|b| e < val_errors[b.0 - 1]) {
+                best = Some((
+                    outer_it,
+                    (lights.clone(), lambda.clone(), weights.clone()),
+                    omega.clone(),
+                ));
+            }
+            Some(e)
+        };
         let it = Iteration {
             seconds: t0.elapsed().as_secs_f64(),
             objective,
             train_rmse: rmse,
+            validation_rel,
         };
         on_iter(
             &it,
@@ -1335,11 +1648,30 @@ pub fn estimate(
             },
         );
         timeline.push(it);
+        if let Some(b) = &best {
+            if outer_it >= b.0 + opts.patience.max(1) {
+                stopped_early = outer_it < outer;
+                break;
+            }
+        }
         if prev_obj.is_finite() && (prev_obj - objective).abs() <= opts.rel_tol * prev_obj.abs() {
             break;
         }
         prev_obj = objective;
     }
+    let validation = best.map(|(it, (l, lam, w), om)| {
+        lights = l;
+        lambda = lam;
+        weights = w;
+        omega = om;
+        Validation {
+            observations: val_idx.len(),
+            fraction: opts.validation_fraction,
+            errors: val_errors,
+            best_iteration: it,
+            stopped_early,
+        }
+    });
 
     // Normalisation (module docs).
     let mut mu: Vec<[f64; 3]> = mu.into_iter().map(|m| m.unwrap_or([0.0; 3])).collect();
@@ -1419,5 +1751,6 @@ pub fn estimate(
         mu,
         irls_weights: omega,
         conditioning: cond,
+        validation,
     })
 }

@@ -130,11 +130,16 @@ fn read_weights(path: &Path, k: usize) -> Vec<f64> {
 /// held-out photos (the manifest's split).
 pub fn prepare(scene_name: &str, sizes: Sizes, seed: u64, tag: &str) -> Case {
     let scratch = scratch(tag);
-    let ws = scratch.0.join("ws");
+    let seconds_synth = synthesize(scene_name, &scratch.0.join("ws"), sizes, seed);
+    prepare_in(scene_name, scratch, seconds_synth, sizes, seed)
+}
+
+/// Render `scene` into the workspace `ws` (photo sizes and samples from `sizes`); seconds.
+pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
     let t0 = std::time::Instant::now();
     synth::build(
         scene_name,
-        &ws,
+        ws,
         &SynthOptions {
             width: sizes.width,
             height: sizes.width,
@@ -151,7 +156,20 @@ pub fn prepare(scene_name: &str, sizes: Sizes, seed: u64, tag: &str) -> Case {
         },
     )
     .unwrap();
-    let seconds_synth = t0.elapsed().as_secs_f64();
+    t0.elapsed().as_secs_f64()
+}
+
+/// The rest of [`prepare`] on the workspace `scratch/ws` made by [`synthesize`]: the
+/// transport's sizes (`global`, `local`, `normal_grid`, `keep`, `rays_per_texel`) may
+/// differ from the render's.
+pub fn prepare_in(
+    scene_name: &str,
+    scratch: Scratch,
+    seconds_synth: f64,
+    sizes: Sizes,
+    seed: u64,
+) -> Case {
+    let ws = scratch.0.join("ws");
     let t1 = std::time::Instant::now();
     let truth = Truth::read(&ws.join("truth")).unwrap();
     let mats: serde_json::Value =
@@ -291,6 +309,7 @@ pub fn predict_with(
         mu: Vec::new(),
         irls_weights: Vec::new(),
         conditioning: Default::default(),
+        validation: None,
     };
     relight_cpc::estimate::predict(&problem, &est)
 }
