@@ -153,6 +153,19 @@ pub trait LocalRotation: Sync {
         self.apply(normal_env, global_haar, local_texels);
         haar::inverse(local_texels, self.n_local());
     }
+    /// [`LocalRotation::light_texels`] for the three colour channels at once (a rotation
+    /// that looks its footprint up per call does it once for all three).
+    fn light_texels_rgb(
+        &self,
+        normal_env: &Vec3,
+        global_texels: [&[f64]; 3],
+        global_haar: [&[f64]; 3],
+        local_texels: &mut [Vec<f64>; 3],
+    ) {
+        for (c, l) in local_texels.iter_mut().enumerate() {
+            self.light_texels(normal_env, global_texels[c], global_haar[c], l);
+        }
+    }
     /// Number of precomputed frames `ν` that [`LocalRotation::light_texels`] blends (Eq. 6),
     /// or 0 when the rotation has no finite set of frames (then the two methods below are
     /// never called).
@@ -713,10 +726,14 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 }
             }
             None => {
-                for (c, l) in local.iter_mut().enumerate() {
-                    self.rot
-                        .light_texels(&ctx.normal, &self.light_texels[c], &self.light[c], l);
-                }
+                let [t0, t1, t2] = &self.light_texels;
+                let [h0, h1, h2] = &self.light;
+                self.rot.light_texels_rgb(
+                    &ctx.normal,
+                    [t0.as_slice(), t1.as_slice(), t2.as_slice()],
+                    [h0.as_slice(), h1.as_slice(), h2.as_slice()],
+                    &mut local,
+                );
             }
         }
         let mut slice = vec![0.0; nl * nl];
