@@ -366,7 +366,46 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
     x0: &[f64],
     opts: &QpOptions,
 ) -> Result<QpResult> {
+    bound_qp_scaled(hess_mul, b, x0, opts, None)
+}
+
+/// [`bound_qp`] with a diagonal (Jacobi) scaling `M = diag(m)`, `m > 0`: the gradient
+/// projection steps follow `−M⁻¹ g` (still a descent direction, zero on the active bounds
+/// like `−g`) and the face solves are preconditioned CG with `M_FF`. The stopping rule is
+/// unchanged (the unscaled projected gradient), so the answer meets the same KKT
+/// tolerance; only the path and the number of products change. With scaling, the
+/// condition-number bound comes from Rayleigh quotients of `H` alone (the CG's Ritz
+/// values then describe `M⁻¹H`, not `H`). Entries of `m` that are not finite and positive
+/// count as 1.
+pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
+    hess_mul: H,
+    b: &[f64],
+    x0: &[f64],
+    opts: &QpOptions,
+    diag: Option<&[f64]>,
+) -> Result<QpResult> {
     let n = b.len();
+    if diag.is_some_and(|m| m.len() != n) {
+        return Err(Error::Numeric {
+            stage: "bound_qp".into(),
+            message: format!(
+                "scaling has {} entries, b has {n}",
+                diag.map_or(0, |m| m.len())
+            ),
+        });
+    }
+    let inv_m: Option<Vec<f64>> = diag.map(|m| {
+        m.iter()
+            .map(|&v| {
+                if v.is_finite() && v > 0.0 {
+                    1.0 / v
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    });
+    let scale = |i: usize| inv_m.as_ref().map_or(1.0, |w| w[i]);
     if x0.len() != n {
         return Err(Error::Numeric {
             stage: "bound_qp".into(),
@@ -395,6 +434,7 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
     let mut p = vec![0.0; n];
     let mut hp = vec![0.0; n];
     let mut r = vec![0.0; n];
+    let mut z = vec![0.0; n];
     let mut iterations = 0;
     let mut converged = false;
     let mut kkt = kkt_violation(&it.g, &it.x);
@@ -425,7 +465,7 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
                 d[i] = if it.x[i] <= 0.0 && it.g[i] > 0.0 {
                     0.0
                 } else {
-                    -it.g[i]
+                    -it.g[i] * scale(i)
                 };
             }
             let dd = dot(&d, &d);
@@ -436,7 +476,9 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
             matvecs += 1;
             let dhd = dot(&d, &hd);
             record(&mut spec, dhd / dd);
-            let alpha = if dhd > 0.0 { dd / dhd } else { 1.0 };
+            // Exact minimiser along d: −gᵀd / dᵀHd (= dᵀd / dᵀHd unscaled).
+            let gd = -dot(&it.g, &d);
+            let alpha = if dhd > 0.0 && gd > 0.0 { gd / dhd } else { 1.0 };
             let before: Vec<bool> = it.x.iter().map(|&v| v > 0.0).collect();
             let f_old = it.f;
             if !projected_search(&hess_mul, b, &mut it, &d, &hd, alpha, &mut matvecs) {
@@ -464,8 +506,13 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
         }
         let rr0 = dot(&r, &r);
         if rr0 > 0.0 {
-            p.copy_from_slice(&r);
-            let mut rr = rr0;
+            // z = M⁻¹ r (z = r unscaled); rz = rᵀz drives the (P)CG recurrences, the
+            // unscaled ‖r‖ the stopping rule.
+            for i in 0..n {
+                z[i] = r[i] * scale(i);
+            }
+            p.copy_from_slice(&z);
+            let mut rz = dot(&r, &z);
             // Forcing term: superlinear near the solution, loose far from it.
             let eta = (rr0.sqrt().sqrt()).clamp(1e-10, 0.1);
             // CG's (α, β) define the Lanczos tridiagonal whose Ritz values bound the
@@ -479,7 +526,7 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
                 if php <= 0.0 {
                     break;
                 }
-                let a = rr / php;
+                let a = rz / php;
                 for i in 0..n {
                     d[i] += a * p[i];
                     hd[i] += a * hp[i];
@@ -491,16 +538,22 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
                 if rr_new.sqrt() <= eta * rr0.sqrt() {
                     break;
                 }
-                let beta = rr_new / rr;
+                for i in 0..n {
+                    z[i] = r[i] * scale(i);
+                }
+                let rz_new = dot(&r, &z);
+                let beta = rz_new / rz;
                 lanczos.push((a, beta));
                 for i in 0..n {
-                    p[i] = r[i] + beta * p[i];
+                    p[i] = z[i] + beta * p[i];
                 }
-                rr = rr_new;
+                rz = rz_new;
             }
-            if let Some((lo, hi)) = ritz_extremes(&lanczos) {
-                record(&mut spec, lo);
-                record(&mut spec, hi);
+            if inv_m.is_none() {
+                if let Some((lo, hi)) = ritz_extremes(&lanczos) {
+                    record(&mut spec, lo);
+                    record(&mut spec, hi);
+                }
             }
             projected_search(&hess_mul, b, &mut it, &d, &hd, 1.0, &mut matvecs);
         }
