@@ -671,6 +671,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         },
         irls_iters: o.irls_iterations,
         lambert_basis: lambert,
+        validation_seed: o.seed,
         ..EstimateOptions::default()
     };
     let (mean_rgb, seen) = mean_colours(&obs, nv);
@@ -693,7 +694,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
                 normal_grid: opts.normal_grid,
                 global_resolution: opts.global_resolution,
                 keep: opts.keep,
-                estimate: estimate_options(opts, lambert),
+                // The pilot holds out its own observations: no early stopping inside it.
+                estimate: EstimateOptions {
+                    validation_fraction: 0.0,
+                    ..estimate_options(opts, lambert)
+                },
                 mean_rgb: &mean_rgb,
                 seen: &seen,
                 materials: match opts.materials {
@@ -847,6 +852,25 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         ));
     }
     notes.push(format!("scale normalisation: {}", fitted.est.normalisation));
+    if let Some(v) = &fitted.est.validation {
+        notes.push(format!(
+            "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",
+            v.observations,
+            100.0 * v.fraction,
+            v.errors
+                .iter()
+                .map(|e| format!("{e:.4}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            v.best_iteration,
+            v.errors.len(),
+            if v.stopped_early {
+                " (stopped: no lower score for the patience)"
+            } else {
+                ""
+            }
+        ));
+    }
     let conditioning_use = conditioning_use(c, &fitted.estimate_options, opts.adaptive);
 
     let mut report = RunReport {
@@ -854,10 +878,13 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         workspace: opts.workspace.display().to_string(),
         seed: opts.seed,
         holdout: evaluation.holdout,
+        // The iterate returned: early stopping's choice, else the last.
         train_rmse: fitted
             .est
-            .timeline
-            .last()
+            .validation
+            .as_ref()
+            .and_then(|v| fitted.est.timeline.get(v.best_iteration - 1))
+            .or(fitted.est.timeline.last())
             .map_or(f64::NAN, |t| t.train_rmse),
         train: train_entries,
         timeline,
