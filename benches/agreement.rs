@@ -13,21 +13,25 @@
 //! 1. The wavelet RENDERER (`WaveletRenderer::vertex_radiance`, used by `render_wavelet`
 //!    for held-out views and relighting): the light rotated into each vertex's local frame
 //!    and the untruncated triple product with visibility and BRDF slice (Eq. 5–8). Per map ×
-//!    material at the default resolutions (64² global, 32² local, 32² rotation normals, 2
-//!    visibility rays per texel), split by vertex class, and against resolution (global,
-//!    local, visibility rays, and the sub-texel `ExactRotation` instead of the factored one).
+//!    material at the run's render defaults (64² global, 64² render local map, visibility
+//!    64² × 1 ray, `SplatRotation` for the exact normal with 4 × 4 sub-texels), split by
+//!    vertex class, and against resolution, visibility rays, sub-texels and the rotation
+//!    (the estimator's blended factored rotation with 32² normals, as the renderer used
+//!    before).
 //! 2. The ESTIMATOR's system (`transport::build_rows`, rows truncated to `keep`
 //!    coefficients, then `Transport::response`): error against resolution and kept
-//!    coefficients. Truncation concerns only the estimator's budget, not the renderer.
+//!    coefficients, with the visibility the run gives it (64² × 1 ray averaged down to
+//!    32², 4 rays per texel). Truncation concerns only the estimator, not the renderer.
 //!
 //! `AGREEMENT_QUICK=1` runs a smaller scene (for trying things out).
 
 #[path = "../tests/agreement_support/mod.rs"]
 mod support;
 
-use relight_cpc::rotation::{Rotation, RotationForm};
-use relight_cpc::transport::{ExactRotation, TransportOptions};
-use relight_cpc::visibility;
+use relight_cpc::rotation::{Rotation, RotationForm, SplatRotation};
+use relight_cpc::run::visibility_at;
+use relight_cpc::transport::TransportOptions;
+use relight_cpc::visibility::{self, Visibility};
 use relight_cpc::Vec3;
 use serde_json::{json, Value};
 use std::path::Path;
@@ -78,18 +82,22 @@ fn main() {
         .map(|e| e.map(|x| x / 2f64.sqrt()))
         .collect();
 
-    // The renderer at the default resolutions.
+    // The renderer at the run's render defaults: 64² global, visibility traced at 64² with
+    // 1 ray per texel, SplatRotation 64² → 64² with 4 × 4 sub-texels.
     let t0 = Instant::now();
-    let vis32 = visibility::compute(&setup.mesh, &setup.bvh, &setup.env_from_world, 32, 2, 1);
-    let vis32_s = t0.elapsed().as_secs_f64();
+    let vis64 = visibility::compute(&setup.mesh, &setup.bvh, &setup.env_from_world, 64, 1, 1);
+    let vis64_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let rot = Rotation::new(64, 32, 32, RotationForm::Factored);
+    let splat = SplatRotation::with_default_supersample(64, 64);
+    let ss = splat.supersample();
     let rot_s = t0.elapsed().as_secs_f64();
     let t0 = Instant::now();
-    let w_def = renderer(&setup, &maps, &vis32, &rot);
+    let w_def = renderer(&setup, &maps, &vis64, &splat);
     let ren_s = t0.elapsed().as_secs_f64();
     eprintln!("renderer defaults: {ren_s:.1} s");
     let e_def = errors(&w_def, &r1);
+    // The estimator's visibility: the same trace averaged down to 32² (4 rays per texel).
+    let vis32 = visibility_at(&vis64, 32);
 
     // Vertex classes: where the diffuse error lives.
     let classes: [Class; 4] = [
@@ -159,11 +167,15 @@ fn main() {
          draws for held-out views and relighting): the light rotated into the vertex's local \
          frame, then the untruncated triple product with the visibility row and the BRDF slice \
          at the local resolution (Eq. 5–8). It does not truncate: `keep` is only the \
-         estimator's transport-row budget (last table). Defaults: visibility 32², 2 rays/texel \
-         ({vis32_s:.1} s), factored rotation 64²→32² with 32² normals ({rot_s:.1} s), renderer \
-         {ren_s:.1} s for 8 maps × 3 lobes × {n_obs} observations.\n\n"
+         estimator's transport-row budget (last table). Defaults (`run`'s renderer): \
+         visibility 64², 1 ray/texel \
+         ({vis64_s:.1} s), SplatRotation 64²→64², {ss}×{ss} sub-texels per global texel \
+         ({rot_s:.2} s to set up), renderer {ren_s:.1} s for 8 maps × 3 lobes × {n_obs} \
+         observations (one vertex_radiance call per observation and lobe).\n\n"
     ));
-    md.push_str("## The renderer per map, default resolutions (64² global, 32² local)\n\n");
+    md.push_str(
+        "## The renderer per map, run defaults (64² global, 64² render local, SplatRotation)\n\n",
+    );
     md.push_str("| map | material | rel. RMSE | ref. own error |\n|---|---|---|---|\n");
     let mut per_map = Vec::new();
     for (i, name) in MAPS.iter().enumerate() {
@@ -204,74 +216,84 @@ fn main() {
 
     // The renderer against resolution.
     md.push_str(
-        "## The renderer against resolution\n\nMean / max over the 8 maps. `rays` = visibility \
-         rays per local texel; rotation `exact` = `transport::ExactRotation` (4×4 sub-texels per \
-         local texel, nearest global texel, no normal blending) instead of the factored one. \
-         Times: visibility, rotation build, renderer for 8 maps.\n\n",
+        "## The renderer against resolution\n\nMean / max over the 8 maps. `vis` = the local \
+         grid visibility is traced at × rays per texel (averaged down when finer than the \
+         local map); rotation `splat s` = `SplatRotation` (exact normal, s × s sub-texels per \
+         global texel), `blended` = the estimator's factored rotation (Eq. 6 blend of 32² \
+         precomputed frames, bilinear footprints; the renderer before). Times: visibility, \
+         rotation build, renderer for 8 maps. First row: the renderer as it was (64² / 32², \
+         blended); **bold**: the run's default.\n\n",
     );
-    md.push_str("| global | local | rays | rotation | diffuse mean / max | glossy Phong mean / max | glossy GGX mean / max | vis s | rot s | render s |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    md.push_str("| global | local | vis | rotation | diffuse mean / max | glossy Phong mean / max | glossy GGX mean / max | vis s | rot s | render s |\n|---|---|---|---|---|---|---|---|---|---|\n");
     let mut rsweep = Vec::new();
-    let rsettings: Vec<(usize, usize, usize, bool)> = vec![
-        (32, 32, 2, false),
-        (64, 16, 2, false),
-        (64, 32, 2, false),
-        (64, 32, 8, false),
-        (64, 32, 2, true),
-        (128, 32, 2, false),
-        (64, 64, 2, false),
+    // (global, local, vis side, rays, splat sub-texels or 0 = blended factored).
+    let rsettings: Vec<(usize, usize, usize, usize, usize)> = vec![
+        (64, 32, 32, 2, 0),
+        (64, 64, 64, 1, 0),
+        (64, 32, 64, 1, 2),
+        (64, 64, 64, 1, 2),
+        (64, 64, 64, 1, ss),
+        (64, 64, 64, 2, ss),
+        (32, 64, 64, 1, SplatRotation::default_supersample(32, 64)),
     ];
-    for (ng, nl, rays, exact) in rsettings {
-        let t0 = Instant::now();
-        let vis = if nl == 32 && rays == 2 {
-            None
-        } else {
-            Some(visibility::compute(
-                &setup.mesh,
-                &setup.bvh,
-                &setup.env_from_world,
-                nl,
-                rays,
-                1,
-            ))
+    let mut traced: Vec<((usize, usize), Visibility, f64)> =
+        vec![((64, 1), vis64.clone(), vis64_s)];
+    for (ng, nl, nv_side, rays, sub) in rsettings {
+        let ti = match traced.iter().position(|t| t.0 == (nv_side, rays)) {
+            Some(i) => i,
+            None => {
+                let t0 = Instant::now();
+                let v = visibility::compute(
+                    &setup.mesh,
+                    &setup.bvh,
+                    &setup.env_from_world,
+                    nv_side,
+                    rays,
+                    1,
+                );
+                traced.push(((nv_side, rays), v, t0.elapsed().as_secs_f64()));
+                traced.len() - 1
+            }
         };
-        let vis_s = if vis.is_some() {
-            t0.elapsed().as_secs_f64()
-        } else {
-            vis32_s
-        };
-        let vis = vis.as_ref().unwrap_or(&vis32);
-        let t0 = Instant::now();
-        let (w, rot_s_i, tr_s) = if exact {
-            let r = ExactRotation::new(ng, nl, 4);
+        let vis_s = traced[ti].2;
+        let vis = visibility_at(&traced[ti].1, nl);
+        let is_default = (ng, nl, nv_side, rays, sub) == (64, 64, 64, 1, ss);
+        let (w, rot_s_i, tr_s) = if is_default {
+            (w_def.clone(), rot_s, ren_s)
+        } else if sub > 0 {
+            let t0 = Instant::now();
+            let r = SplatRotation::new(ng, nl, sub);
             let rs = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
-            let w = renderer(&setup, &maps, vis, &r);
+            let w = renderer(&setup, &maps, &vis, &r);
             (w, rs, t1.elapsed().as_secs_f64())
-        } else if (ng, nl) == (64, 32) {
-            let t1 = Instant::now();
-            let w = renderer(&setup, &maps, vis, &rot);
-            (w, rot_s, t1.elapsed().as_secs_f64())
         } else {
+            let t0 = Instant::now();
             let r = Rotation::new(ng, nl, 32, RotationForm::Factored);
             let rs = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
-            let w = renderer(&setup, &maps, vis, &r);
+            let w = renderer(&setup, &maps, &vis, &r);
             (w, rs, t1.elapsed().as_secs_f64())
         };
         let e = errors(&w, &r1);
         let mm: Vec<(f64, f64)> = (0..3).map(|m| mean_max(&e, m)).collect();
-        let rname = if exact { "exact" } else { "factored" };
+        let rname = if sub > 0 {
+            format!("splat {sub}")
+        } else {
+            "blended".to_string()
+        };
+        let b = if is_default { "**" } else { "" };
         md.push_str(&format!(
-            "| {ng}² | {nl}² | {rays} | {rname} | {:.2}% / {:.2}% | {:.2}% / {:.2}% | {:.2}% / {:.2}% | {vis_s:.1} | {rot_s_i:.1} | {tr_s:.1} |\n",
+            "| {b}{ng}²{b} | {b}{nl}²{b} | {b}{nv_side}² × {rays}{b} | {b}{rname}{b} | {b}{:.2}% / {:.2}%{b} | {:.2}% / {:.2}% | {:.2}% / {:.2}% | {vis_s:.1} | {rot_s_i:.2} | {tr_s:.1} |\n",
             100.0 * mm[0].0, 100.0 * mm[0].1, 100.0 * mm[1].0, 100.0 * mm[1].1,
             100.0 * mm[2].0, 100.0 * mm[2].1,
         ));
         eprintln!(
-            "renderer {ng} {nl} {rays} {rname}: diffuse {:.4} / {:.4}",
+            "renderer {ng} {nl} vis {nv_side}x{rays} {rname}: diffuse {:.4} / {:.4}",
             mm[0].0, mm[0].1
         );
-        rsweep.push(json!({"n_global": ng, "n_local": nl, "rays_per_texel": rays,
-            "rotation": rname,
+        rsweep.push(json!({"n_global": ng, "n_local": nl, "visibility_side": nv_side,
+            "rays_per_texel": rays, "rotation": rname, "default": is_default,
             "diffuse_per_map": MAPS.iter().zip(&e).map(|(m, x)| json!({"map": m, "diffuse": x[0]})).collect::<Vec<_>>(),
             "diffuse_mean": mm[0].0, "diffuse_max": mm[0].1,
             "phong_mean": mm[1].0, "phong_max": mm[1].1,
@@ -285,8 +307,9 @@ fn main() {
         "## The estimator's transport rows against resolution and kept coefficients\n\n\
          `transport::build_rows` truncated to `keep` coefficients per row, then \
          `Transport::response`: the system the estimator solves, not what the renderer draws. \
-         Mean / max over the 8 maps. Times: visibility, rotation build, transport build + \
-         responses for 8 maps.\n\n",
+         Mean / max over the 8 maps. Visibility as the run gives it: traced at 64² × 1 ray, \
+         averaged down to the local grid (4 rays per 32² texel). Times: visibility, rotation \
+         build, transport build + responses for 8 maps.\n\n",
     );
     md.push_str("| global | local | keep | diffuse mean / max | glossy Phong mean / max | glossy GGX mean / max | vis s | rot s | transport s |\n|---|---|---|---|---|---|---|---|---|\n");
     let mut sweep = Vec::new();
@@ -294,15 +317,13 @@ fn main() {
     for &k in &[32usize, 64, 128, 256, 0] {
         settings.push((64, 32, k));
     }
-    let t0 = Instant::now();
-    let vis16 = visibility::compute(&setup.mesh, &setup.bvh, &setup.env_from_world, 16, 2, 1);
-    let vis16_s = t0.elapsed().as_secs_f64();
+    let vis16 = visibility_at(&vis64, 16);
     let mut rots: Vec<((usize, usize), Rotation, f64)> = Vec::new();
     for (ng, nl, keep) in settings {
         let (vis, vis_s) = if nl == 16 {
-            (&vis16, vis16_s)
+            (&vis16, vis64_s)
         } else {
-            (&vis32, vis32_s)
+            (&vis32, vis64_s)
         };
         let ri = match rots.iter().position(|r| r.0 == (ng, nl)) {
             Some(i) => i,
@@ -356,7 +377,9 @@ fn main() {
     let json: Value = json!({
         "vertices": nv, "observations": n_obs, "cameras": cams,
         "reference": {"strata_per_texel": sub * sub, "seconds": ref_s},
-        "renderer_default": {"visibility_s": vis32_s, "rotation_s": rot_s, "render_s": ren_s,
+        "renderer_default": {"n_global": 64, "n_local": 64, "visibility_side": 64,
+            "rays_per_texel": 1, "supersample": ss,
+            "visibility_s": vis64_s, "rotation_s": rot_s, "render_s": ren_s,
             "per_map": per_map},
         "renderer_diffuse_by_class": MAPS.iter().zip(&by_class).map(|(m, p)| json!({"map": m,
             "classes": classes.iter().zip(p).map(|(c, (e, n))| json!({"class": c.0,

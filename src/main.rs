@@ -196,6 +196,10 @@ struct RunArgs {
     /// Local (hemi-octahedral) map side, a power of two.
     #[arg(long, default_value_t = 32)]
     local_resolution: usize,
+    /// Local map side of the renderer (held-out views, renders, `render`), a power of two;
+    /// default twice --local-resolution (64).
+    #[arg(long)]
+    render_local_resolution: Option<usize>,
     /// Normal-grid side of the precomputed rotations, a power of two.
     #[arg(long, default_value_t = 32)]
     normal_grid: usize,
@@ -282,6 +286,7 @@ impl RunArgs {
         o.basis = relight_cpc::brdf::parse_list(&self.basis)?;
         o.global_resolution = self.global_resolution;
         o.local_resolution = self.local_resolution;
+        o.render_local_resolution = self.render_local_resolution;
         o.normal_grid = self.normal_grid;
         o.keep = self.keep;
         o.rays_per_texel = self.rays_per_texel;

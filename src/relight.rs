@@ -7,9 +7,10 @@
 //! `B_c(x, ω_o) = Σ_b β_{b,c}(x) ∫_Ω ρ_b(ω, ω_o) V_x(ω) L_c(R_x ω) dω`,
 //!
 //! evaluated untruncated by [`WaveletRenderer::vertex_radiance`] (the light rotated into the
-//! vertex's local frame by the blend of the four nearest `R_ν`, Eq. 6, then the local
-//! triple product of Eq. 7–8 as a texel sum), and interpolated across the rasterised
-//! triangles. The light is a lat-long map (DESIGN §3) in the run's environment frame
+//! vertex's own local frame by [`SplatRotation`], `R_n = W_l S_n W_gᵀ` for the exact normal
+//! instead of the Eq. 6 blend of precomputed frames, then the local triple product of
+//! Eq. 7–8 as a texel sum at the run's render local resolution), and interpolated across
+//! the rasterised triangles. The light is a lat-long map (DESIGN §3) in the run's environment frame
 //! (`materials.json` → `env_frame`), optionally plus a sun: a disc of radius 1° and given
 //! radiance whose solid angle `2π(1 − cos 1°)` is preserved exactly on the lat-long grid.
 //!
@@ -17,14 +18,17 @@
 //! `model/cameras.txt` + `model/images.txt` (the registered views, COLMAP text, no 2D
 //! points), `relight.json` (basis labels, resolutions, frame, visibility parameters) and
 //! `relight.bin` (little-endian: positions, environment-frame normals, faces, `β`, and the
-//! per-vertex visibility rows, stored rather than re-traced: one byte per local texel).
+//! per-vertex visibility rows at the render local resolution, `render_local_resolution` in
+//! `relight.json`, stored rather than re-traced: one byte per texel). Results written
+//! before that key existed hold their rows at `local_resolution`.
 
 use crate::brdf::BasisBrdf;
 use crate::colmap::{text, Camera, CameraId, Image, ImageId};
 use crate::envmap::{LatLong, OctEnv};
 use crate::mesh::Mesh;
 use crate::render::{self, Raster};
-use crate::rotation::{Rotation, RotationForm};
+use crate::rotation::SplatRotation;
+use crate::transport::LocalRotation;
 use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
@@ -109,7 +113,7 @@ pub struct ResultModel {
     pub mesh: Mesh,
     /// Unit vertex normals in the environment frame.
     pub normals_env: Vec<Vec3>,
-    /// Per-vertex visibility (as the run computed it).
+    /// Per-vertex visibility at the render local resolution (as the run computed it).
     pub vis: Visibility,
     /// The basis BRDFs.
     pub basis: Vec<BasisBrdf>,
@@ -119,8 +123,10 @@ pub struct ResultModel {
     pub env_from_world: Matrix3<f64>,
     /// Global (light) octahedral side.
     pub n_global: usize,
-    /// Local (hemisphere) side.
+    /// The estimator's local (hemisphere) side.
     pub n_local: usize,
+    /// The renderer's local side: that of the stored visibility rows.
+    pub n_render_local: usize,
     /// Normal grid side of the rotation.
     pub normal_grid: usize,
     /// The registered cameras.
@@ -164,8 +170,9 @@ pub(crate) fn write_render_state(f: &crate::run::Fitted, dir: &Path) -> Result<(
         "basis": f.basis.iter().map(|b| b.label()).collect::<Vec<_>>(),
         "global_resolution": f.opts.global_resolution,
         "local_resolution": f.opts.local_resolution,
+        "render_local_resolution": f.render_vis.n_local,
         "normal_grid": f.opts.normal_grid,
-        "rays_per_texel": f.opts.rays_per_texel,
+        "rays_per_texel": f.render_vis.rays_per_texel,
         "seed": f.opts.seed,
         "env_from_world": [[m[(0,0)], m[(0,1)], m[(0,2)]], [m[(1,0)], m[(1,1)], m[(1,2)]], [m[(2,0)], m[(2,1)], m[(2,2)]]],
     });
@@ -175,7 +182,8 @@ pub(crate) fn write_render_state(f: &crate::run::Fitted, dir: &Path) -> Result<(
 
     let mesh = &f.scene.mesh;
     let nv = mesh.positions.len();
-    let t = f.vis.texels();
+    let vis = &f.render_vis;
+    let t = vis.texels();
     write_with(&dir.join("relight.bin"), |w| {
         w.write_all(MAGIC)?;
         for n in [nv, mesh.faces.len(), f.basis.len(), t] {
@@ -189,8 +197,8 @@ pub(crate) fn write_render_state(f: &crate::run::Fitted, dir: &Path) -> Result<(
             }
         }
         put_f64s(w, f.beta.iter().flat_map(|b| *b))?;
-        w.write_all(&f.vis.frac)?;
-        let open: Vec<u8> = f.vis.open.iter().map(|&o| o as u8).collect();
+        w.write_all(&vis.frac)?;
+        let open: Vec<u8> = vis.open.iter().map(|&o| o as u8).collect();
         w.write_all(&open)
     })
 }
@@ -319,9 +327,14 @@ pub fn load_result(dir: &Path) -> Result<ResultModel> {
     let n_local = json_usize(&jp, &meta, "local_resolution")?;
     let normal_grid = json_usize(&jp, &meta, "normal_grid")?;
     let rays_per_texel = json_usize(&jp, &meta, "rays_per_texel")?;
+    let n_render_local = match meta.get("render_local_resolution") {
+        Some(_) => json_usize(&jp, &meta, "render_local_resolution")?,
+        None => n_local,
+    };
     for (k, n) in [
         ("global_resolution", n_global),
         ("local_resolution", n_local),
+        ("render_local_resolution", n_render_local),
         ("normal_grid", normal_grid),
     ] {
         if !(n.is_power_of_two() && (2..=1024).contains(&n)) {
@@ -367,14 +380,14 @@ pub fn load_result(dir: &Path) -> Result<ResultModel> {
     let nf = c.u64("header")? as usize;
     let nb = c.u64("header")? as usize;
     let t = c.u64("header")? as usize;
-    if nb != basis.len() || t != n_local * n_local {
+    if nb != basis.len() || t != n_render_local * n_render_local {
         return Err(Error::format(
             &bp,
             "header",
             format!(
                 "{nb} basis BRDFs and {t} texels, but relight.json says {} and {}²",
                 basis.len(),
-                n_local
+                n_render_local
             ),
         ));
     }
@@ -422,7 +435,7 @@ pub fn load_result(dir: &Path) -> Result<ResultModel> {
         colors: None,
     };
     let vis = Visibility {
-        n_local,
+        n_local: n_render_local,
         rays_per_texel,
         frac,
         open,
@@ -447,6 +460,7 @@ pub fn load_result(dir: &Path) -> Result<ResultModel> {
         env_from_world,
         n_global,
         n_local,
+        n_render_local,
         normal_grid,
         cameras,
         images,
@@ -531,11 +545,18 @@ pub fn file_stem(name: &str) -> String {
         .collect()
 }
 
+/// The renderer's rotation for `model` ([`SplatRotation`] at its global side and the
+/// stored visibility's local side, default sub-texels).
+pub fn render_rotation(model: &ResultModel) -> SplatRotation {
+    SplatRotation::with_default_supersample(model.n_global, model.vis.n_local)
+}
+
 /// Render the model under `light` from one camera: rasterise, evaluate the per-vertex exit
-/// radiance toward the camera centre for vertices of visible faces, interpolate.
-pub fn render_view(
+/// radiance toward the camera centre for vertices of visible faces, interpolate. `rot`
+/// must rotate from the light's side to the stored visibility's ([`render_rotation`]).
+pub fn render_view<R: LocalRotation>(
     model: &ResultModel,
-    rot: &Rotation,
+    rot: &R,
     light: &OctEnv,
     camera: &Camera,
     image: &Image,
@@ -621,12 +642,7 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
     let model = load_result(result_dir)?;
     let views = select_cameras(&model, &opts.cameras)?;
     let light = load_light(opts, model.n_global)?;
-    let rot = Rotation::new(
-        model.n_global,
-        model.n_local,
-        model.normal_grid,
-        RotationForm::Factored,
-    );
+    let rot = render_rotation(&model);
     let load_seconds = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;

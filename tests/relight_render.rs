@@ -69,6 +69,11 @@ fn relit_sphere_matches_reference_under_new_map() {
     let (ws, out) = fitted(&t.0);
     let model = relight::load_result(&out).unwrap();
     assert!(!model.images.is_empty(), "run wrote no registered cameras");
+    // The renderer's visibility rows are stored at the render local resolution: by default
+    // twice the estimator's 16² (run::render_local_resolution).
+    assert_eq!((model.n_local, model.n_render_local), (16, 32));
+    assert_eq!(model.vis.n_local, 32);
+    assert_eq!(model.vis.frac.len(), model.mesh.positions.len() * 32 * 32);
 
     // A map no photo used: "city", rotated 1 rad about up (photos saw only "courtyard").
     let city = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/synth/hdri/city.exr");

@@ -74,6 +74,8 @@ pub struct ModelReport {
     pub global_resolution: usize,
     /// Local (hemi-octahedral) resolution per side.
     pub local_resolution: usize,
+    /// The renderer's local resolution per side (held-out views and renders).
+    pub render_local_resolution: usize,
     /// Normal-grid resolution of the rotation per side.
     pub normal_grid: usize,
     /// Kept Haar coefficients per transport row (0 = all).
@@ -319,13 +321,15 @@ impl RunReport {
         let m = &self.model;
         let _ = writeln!(
             s,
-            "{} material(s); basis BRDFs: {}; global map {}×{}, local map {}×{}, normal grid {}×{}, kept coefficients per row: {}.\n",
+            "{} material(s); basis BRDFs: {}; global map {}×{}, local map {}×{} (renders: {}×{}), normal grid {}×{}, kept coefficients per row: {}.\n",
             m.materials,
             m.basis.join(", "),
             m.global_resolution,
             m.global_resolution,
             m.local_resolution,
             m.local_resolution,
+            m.render_local_resolution,
+            m.render_local_resolution,
             m.normal_grid,
             m.normal_grid,
             if m.kept_coefficients == 0 { "all".to_string() } else { m.kept_coefficients.to_string() }

@@ -27,7 +27,7 @@ mod evaluate;
 mod output;
 mod progress;
 
-pub use evaluate::Truth;
+pub use evaluate::{fine_rays, render_local_resolution, visibility_at, Truth};
 pub use progress::Progress;
 
 use crate::brdf::BasisBrdf;
@@ -94,6 +94,9 @@ pub struct RunOptions {
     pub global_resolution: usize,
     /// Local hemi-octahedral map side.
     pub local_resolution: usize,
+    /// Local map side of the renderer (held-out views, renders, `relight.bin`); `None`:
+    /// twice `local_resolution`, at most 128 ([`evaluate::render_local_resolution`]).
+    pub render_local_resolution: Option<usize>,
     /// Normal-grid side of the rotation.
     pub normal_grid: usize,
     /// Haar coefficients kept per transport row (0 = all).
@@ -143,6 +146,7 @@ impl RunOptions {
             ],
             global_resolution: 64,
             local_resolution: 32,
+            render_local_resolution: None,
             normal_grid: 32,
             keep: 128,
             rays_per_texel: 2,
@@ -172,6 +176,9 @@ impl RunOptions {
         };
         pow2("global-resolution", self.global_resolution, 4, 256)?;
         pow2("local-resolution", self.local_resolution, 4, 128)?;
+        if let Some(n) = self.render_local_resolution {
+            pow2("render-local-resolution", n, 4, 128)?;
+        }
         pow2("normal-grid", self.normal_grid, 2, 128)?;
         if self.basis.is_empty() {
             return Err(Error::Config(
@@ -412,6 +419,9 @@ pub(crate) struct Fitted<'a> {
     pub normals_env: Vec<Vec3>,
     pub vis: visibility::Visibility,
     pub rot: Rotation,
+    /// The renderer's visibility and rotation ([`evaluate`] module docs).
+    pub render_vis: visibility::Visibility,
+    pub render_rot: crate::rotation::SplatRotation,
     pub basis: Vec<BasisBrdf>,
     pub est: estimate::Estimate,
     pub beta: Vec<[f64; 3]>,
@@ -633,15 +643,8 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
 
     // 3. Visibility.
     progress.stage("visibility");
-    let vis = stages.run("visibility", || {
-        visibility::compute(
-            &scene.mesh,
-            &bvh,
-            &env_from_world,
-            opts.local_resolution,
-            opts.rays_per_texel,
-            opts.seed,
-        )
+    let (vis, render_vis) = stages.run("visibility", || {
+        evaluate::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
     });
     notes.push(format!(
         "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced",
@@ -819,6 +822,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         normals_env,
         vis,
         rot,
+        render_rot: crate::rotation::SplatRotation::with_default_supersample(
+            eff.global_resolution,
+            render_vis.n_local,
+        ),
+        render_vis,
         basis: eff.basis.clone(),
         est,
         beta,
@@ -893,6 +901,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             basis: eff.basis.iter().map(|b| b.label()).collect(),
             global_resolution: eff.global_resolution,
             local_resolution: eff.local_resolution,
+            render_local_resolution: fitted.render_vis.n_local,
             normal_grid: eff.normal_grid,
             kept_coefficients: eff.keep,
             reasons,
