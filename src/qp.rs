@@ -609,6 +609,75 @@ mod tests {
         assert_eq!(kkt_violation(&[0.3, 0.0], &[2.0, 2.0]), 0.3);
     }
 
+    /// The scaled solver meets the same KKT conditions as the unscaled one on a badly
+    /// scaled problem (`H = S A Aᵀ S + 10⁻³ I`, `S` spanning 10⁻²…10², an optimum with
+    /// active bounds) and reaches the same point: `H` is positive definite, so the KKT
+    /// point is the unique minimiser. KKT tolerance 1e-10, so each answer is within about
+    /// `tol · √n / λ_min(H) ≈ 1e-10 · 6.3 / 1e-3 ≈ 6e-7` of it; they must agree to 1e-6
+    /// of the solution's norm.
+    #[test]
+    fn scaled_matches_unscaled_on_a_badly_scaled_problem() {
+        let n = 40;
+        let mut seed = 7_u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let a = DMatrix::from_fn(n, n, |_, _| rnd());
+        let sc: Vec<f64> = (0..n)
+            .map(|i| 10f64.powf(-2.0 + 4.0 * i as f64 / (n - 1) as f64))
+            .collect();
+        let mut h = &a * a.transpose();
+        for i in 0..n {
+            for j in 0..n {
+                h[(i, j)] *= sc[i] * sc[j];
+            }
+            h[(i, i)] += 1e-3;
+        }
+        let b = DVector::from_fn(n, |i, _| rnd() * sc[i]);
+        let opts = QpOptions {
+            tol: 1e-10,
+            max_iter: 5000,
+            max_cg: 200,
+        };
+        let zero = vec![0.0; n];
+        let mul = |v: &[f64], out: &mut [f64]| {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = (0..n).map(|j| h[(i, j)] * v[j]).sum();
+            }
+        };
+        let plain = bound_qp(mul, b.as_slice(), &zero, &opts).unwrap();
+        let diag: Vec<f64> = (0..n).map(|i| h[(i, i)]).collect();
+        let scaled = bound_qp_scaled(mul, b.as_slice(), &zero, &opts, Some(&diag)).unwrap();
+        assert!(plain.converged && scaled.converged, "{plain:?} {scaled:?}");
+        // KKT of the scaled answer, recomputed here from H and b.
+        let g: Vec<f64> = (0..n)
+            .map(|i| (0..n).map(|j| h[(i, j)] * scaled.x[j]).sum::<f64>() - b[i])
+            .collect();
+        assert!(kkt_violation(&g, &scaled.x) <= 1e-10);
+        assert!(scaled.x.iter().all(|&v| v >= 0.0));
+        assert!(
+            scaled.x.iter().filter(|&&v| v == 0.0).count() > 0,
+            "no active bound"
+        );
+        let norm = plain.x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let diff = plain
+            .x
+            .iter()
+            .zip(&scaled.x)
+            .map(|(p, q)| (p - q) * (p - q))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            norm >= 1.0 && diff <= 1e-6 * norm,
+            "diff {diff} norm {norm}"
+        );
+        // A wrong-length scaling is an error, not a panic.
+        assert!(bound_qp_scaled(mul, b.as_slice(), &zero, &opts, Some(&diag[1..])).is_err());
+    }
+
     #[test]
     fn nnls_one_dimensional_closed_form() {
         // min ½ a x² − c x, x ≥ 0: x = max(c/a, 0).
