@@ -6,7 +6,9 @@
 //! - observations `P` (one per vertex × photo that sees it, [`crate::observe::Observations`]):
 //!   vertex and photo ids, RGB, weight, direction — `36 P`;
 //! - visibility `V_x` (Sec. 4.2, one byte per local texel, [`crate::visibility::Visibility`]):
-//!   `V · n_local²`;
+//!   `V · n_local²`, and the renderer's finer copy `V · n_render²` when
+//!   `--render-local-resolution` differs (traced once at the finer side, averaged down for
+//!   the estimator);
 //! - precomputed rotations `R_ν` (Eq. 6, [`crate::rotation::Rotation`], factored form): one
 //!   sparse row per local texel and grid normal, `n_normals² · n_local² · (8 + 6 e)` where a
 //!   row touches `e ≈ (n_global / (√2 n_local) + 2)²` global texels (a local texel covers
@@ -53,6 +55,9 @@ pub struct Sizes {
     pub global_resolution: u64,
     /// Local map side `n_local` (`--local-resolution`).
     pub local_resolution: u64,
+    /// The renderer's local map side `n_render` (`--render-local-resolution`); equal to
+    /// `local_resolution` (or 0) when the renderer shares the estimator's visibility.
+    pub render_local_resolution: u64,
     /// Normal-grid side of the rotation tables (`--normal-grid`).
     pub normal_grid: u64,
     /// Kept coefficients per transport row (`--keep`; 0 keeps all `n_global²`).
@@ -120,6 +125,18 @@ pub fn estimate(s: &Sizes) -> Budget {
         Item {
             name: "visibility",
             bytes: mul(&[s.vertices, nl2]),
+        },
+        Item {
+            name: "render visibility",
+            bytes: if s.render_local_resolution == s.local_resolution {
+                0
+            } else {
+                mul(&[
+                    s.vertices,
+                    s.render_local_resolution,
+                    s.render_local_resolution,
+                ])
+            },
         },
         Item {
             name: "rotation tables",
@@ -231,6 +248,15 @@ fn suggest(s: &Sizes, available: u64) -> String {
             local_resolution: x,
             ..*s
         }),
+        pow2(
+            "render-local-resolution",
+            s.render_local_resolution,
+            s.local_resolution.max(4),
+            &|x| Sizes {
+                render_local_resolution: x,
+                ..*s
+            },
+        ),
         pow2("normal-grid", s.normal_grid, 4, &|x| Sizes {
             normal_grid: x,
             ..*s
@@ -295,6 +321,7 @@ mod tests {
             basis: 3,
             global_resolution: 64,
             local_resolution: 32,
+            render_local_resolution: 64,
             normal_grid: 32,
             keep: 128,
         }
@@ -307,6 +334,20 @@ mod tests {
         let get = |n: &str| b.items.iter().find(|i| i.name == n).unwrap().bytes;
         assert_eq!(get("observations"), 4000 * 36);
         assert_eq!(get("visibility"), 1000 * 1024);
+        assert_eq!(get("render visibility"), 1000 * 4096);
+        let shared = estimate(&Sizes {
+            render_local_resolution: 32,
+            ..defaults(1000, 4)
+        });
+        assert_eq!(
+            shared
+                .items
+                .iter()
+                .find(|i| i.name == "render visibility")
+                .unwrap()
+                .bytes,
+            0
+        );
         assert_eq!(get("transport rows"), 4000 * 3 * (128 * 8 + 8));
         assert_eq!(get("lighting solver"), 4 * 3 * 4096 * 8 * 8);
         // Rotation: the commit log measured 72 MiB at 64/32/32 (rotation.rs, c8979c3);

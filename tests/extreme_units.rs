@@ -83,6 +83,7 @@ fn million_vertex_mesh_is_refused_up_front() {
         basis: 3,
         global_resolution: 64,
         local_resolution: 32,
+        render_local_resolution: 64,
         normal_grid: 32,
         keep: 128,
     };
@@ -112,6 +113,10 @@ fn million_vertex_mesh_is_refused_up_front() {
         },
         ["--local-resolution", v, ..] => Sizes {
             local_resolution: v.parse().unwrap(),
+            ..s
+        },
+        ["--render-local-resolution", v, ..] => Sizes {
+            render_local_resolution: v.parse().unwrap(),
             ..s
         },
         ["--global-resolution", v, ..] => Sizes {
@@ -148,6 +153,7 @@ fn small_run_passes_on_this_machine() {
         basis: 3,
         global_resolution: 64,
         local_resolution: 32,
+        render_local_resolution: 64,
         normal_grid: 32,
         keep: 128,
     };

@@ -515,6 +515,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         basis: opts.basis.len() as u64,
         global_resolution: opts.global_resolution as u64,
         local_resolution: opts.local_resolution as u64,
+        render_local_resolution: render_local_resolution(opts) as u64,
         normal_grid: opts.normal_grid as u64,
         keep: opts.keep as u64,
     };
