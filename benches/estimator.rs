@@ -514,26 +514,10 @@ fn determinism(md: &mut String) -> Value {
 /// reproduces exactly, so the floor is 0 and every remaining error is the estimator's
 /// (regularisation bias, a stalled block, the alternation's speed).
 fn noise_free(case: &mut Case) {
-    let t = predict_with(
-        &case.train,
-        case.nv,
-        &case.lambda,
-        &case.weights,
-        &case.train.lights,
-    );
-    for (y, v) in case.train.obs.rgb.iter_mut().zip(&t) {
-        *y = v.map(|a| a as f32);
-    }
-    let h = predict_with(
-        &case.held,
-        case.nv,
-        &case.lambda,
-        &case.weights,
-        &case.held.lights,
-    );
-    for (y, v) in case.held.obs.rgb.iter_mut().zip(&h) {
-        *y = v.map(|a| a as f32);
-    }
+    let t = true_prediction(case, &case.train);
+    replace_colours(&mut case.train.obs, &t);
+    let h = true_prediction(case, &case.held);
+    replace_colours(&mut case.held.obs, &h);
 }
 
 /// Part 5: convergence of the alternation on noise-free data (`noise_free`), per outer

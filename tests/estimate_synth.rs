@@ -436,28 +436,10 @@ fn early_stopping_returns_the_validation_best_iterate() {
 #[test]
 fn early_stopping_keeps_the_truth_on_noise_free_data() {
     let case = spot();
-    let truth = predict_with(
-        &case.train,
-        case.nv,
-        &case.lambda,
-        &case.weights,
-        &case.train.lights,
-    );
     let mut obs = case.train.obs.clone();
-    for (y, t) in obs.rgb.iter_mut().zip(&truth) {
-        *y = t.map(|v| v as f32);
-    }
-    let held_truth = predict_with(
-        &case.held,
-        case.nv,
-        &case.lambda,
-        &case.weights,
-        &case.held.lights,
-    );
+    replace_colours(&mut obs, &true_prediction(case, &case.train));
     let mut held_obs = case.held.obs.clone();
-    for (y, t) in held_obs.rgb.iter_mut().zip(&held_truth) {
-        *y = t.map(|v| v as f32);
-    }
+    replace_colours(&mut held_obs, &true_prediction(case, &case.held));
     let problem = Problem {
         obs: &obs,
         transport: &case.train.transport,

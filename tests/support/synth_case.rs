@@ -314,6 +314,20 @@ pub fn predict_with(
     relight_cpc::estimate::predict(&problem, &est)
 }
 
+/// The TRUE model's prediction for `split`'s observations: the case's true reflectance
+/// under the split's true lights, through the case's own transport.
+pub fn true_prediction(case: &Case, split: &Split) -> Vec<[f64; 3]> {
+    predict_with(split, case.nv, &case.lambda, &case.weights, &split.lights)
+}
+
+/// Replace every colour of `obs` by `pred` (e.g. [`true_prediction`]: data the model
+/// reproduces exactly, so the floor is 0).
+pub fn replace_colours(obs: &mut Observations, pred: &[[f64; 3]]) {
+    for (y, v) in obs.rgb.iter_mut().zip(pred) {
+        *y = v.map(|a| a as f32);
+    }
+}
+
 /// Block means of an `n × n` texel map down to `r × r` (the Haar scaling coefficients of
 /// level `log2 r`, up to a constant): the map as a BRDF of that bandwidth sees it.
 pub fn block_mean(map: &[f64], n: usize, r: usize) -> Vec<f64> {
@@ -551,17 +565,9 @@ pub fn joint_figures(
     );
     let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
     let heldout_rel_channel = rel_rmse_per_channel(&case.held.obs, &hp);
-    let hp_true = predict_with(
-        &case.held,
-        case.nv,
-        &case.lambda,
-        &case.weights,
-        &case.held.lights,
-    );
+    let hp_true = true_prediction(case, &case.held);
     let mut model_obs = case.held.obs.clone();
-    for (y, t) in model_obs.rgb.iter_mut().zip(&hp_true) {
-        *y = t.map(|v| v as f32);
-    }
+    replace_colours(&mut model_obs, &hp_true);
     let heldout_rel_model = rel_rmse_per_channel(&model_obs, &hp);
     let heldout_floor = rel_rmse(&case.held.obs, &hp_true, false).0;
     JointFigures {
