@@ -153,6 +153,7 @@ fn known(md: &mut String) -> Value {
                 est.mu[0][0],
                 corr[2..]
                     .iter()
+                    .take(3) // m = 4, 8, 16, the table's columns (the JSON has every level)
                     .map(|e| format!("{:.3}", e.1))
                     .collect::<Vec<_>>()
                     .join(" | "),
