@@ -506,6 +506,31 @@ struct PhotoSystem {
     value: Vec<[f32; 3]>,
 }
 
+/// `⟨e_c, h_c⟩` per channel for one merged transport row (`idx`, `val`) and a light `h`
+/// (interleaved Haar): the forward half of the lighting step's products.
+#[inline]
+fn row_dot(idx: &[u32], val: &[[f32; 3]], h: &[[f64; 3]]) -> [f64; 3] {
+    let mut acc = [0.0_f64; 3];
+    for (&m, e) in idx.iter().zip(val) {
+        let hm = &h[m as usize];
+        acc[0] += e[0] as f64 * hm[0];
+        acc[1] += e[1] as f64 * hm[1];
+        acc[2] += e[2] as f64 * hm[2];
+    }
+    acc
+}
+
+/// `out_c += e_c u_c` for one merged transport row: the adjoint half.
+#[inline]
+fn row_scatter(idx: &[u32], val: &[[f32; 3]], u: [f64; 3], out: &mut [[f64; 3]]) {
+    for (&m, e) in idx.iter().zip(val) {
+        let o = &mut out[m as usize];
+        o[0] += e[0] as f64 * u[0];
+        o[1] += e[1] as f64 * u[1];
+        o[2] += e[2] as f64 * u[2];
+    }
+}
+
 impl PhotoSystem {
     /// Merge the range's transport rows with `β` (struct docs).
     fn new(
@@ -582,14 +607,7 @@ impl PhotoSystem {
         debug_assert_eq!(out.len(), self.range.len());
         for (q, o) in out.iter_mut().enumerate() {
             let (idx, val) = self.merged(q);
-            let mut acc = [0.0_f64; 3];
-            for (&m, e) in idx.iter().zip(val) {
-                let hm = &h[m as usize];
-                acc[0] += e[0] as f64 * hm[0];
-                acc[1] += e[1] as f64 * hm[1];
-                acc[2] += e[2] as f64 * hm[2];
-            }
-            *o = acc;
+            *o = row_dot(idx, val, h);
         }
     }
 
@@ -600,12 +618,7 @@ impl PhotoSystem {
                 continue;
             }
             let (idx, val) = self.merged(q);
-            for (&m, e) in idx.iter().zip(val) {
-                let o = &mut out[m as usize];
-                o[0] += e[0] as f64 * uq[0];
-                o[1] += e[1] as f64 * uq[1];
-                o[2] += e[2] as f64 * uq[2];
-            }
+            row_scatter(idx, val, *uq, out);
         }
     }
 
@@ -617,23 +630,12 @@ impl PhotoSystem {
     fn normal_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
         for (q, d) in self.dw.iter().enumerate() {
             let (idx, val) = self.merged(q);
-            let mut acc = [0.0_f64; 3];
-            for (&m, e) in idx.iter().zip(val) {
-                let hm = &h[m as usize];
-                acc[0] += e[0] as f64 * hm[0];
-                acc[1] += e[1] as f64 * hm[1];
-                acc[2] += e[2] as f64 * hm[2];
-            }
+            let acc = row_dot(idx, val, h);
             let uq = [acc[0] * d[0], acc[1] * d[1], acc[2] * d[2]];
             if uq == [0.0; 3] {
                 continue;
             }
-            for (&m, e) in idx.iter().zip(val) {
-                let o = &mut out[m as usize];
-                o[0] += e[0] as f64 * uq[0];
-                o[1] += e[1] as f64 * uq[1];
-                o[2] += e[2] as f64 * uq[2];
-            }
+            row_scatter(idx, val, uq, out);
         }
     }
 
