@@ -27,9 +27,7 @@
 #[path = "../tests/support/synth_case.rs"]
 mod synth_case;
 
-use relight_cpc::estimate::{
-    estimate, Estimate, EstimateOptions, Materials0, Problem, Robust, SmoothnessScale,
-};
+use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use relight_cpc::observe::Observations;
 use serde_json::{json, Value};
 use std::time::Instant;
@@ -245,12 +243,7 @@ fn joint_fit(
     obs: &Observations,
     opts: &EstimateOptions,
 ) -> (Estimate, f64, Vec<Value>) {
-    let problem = Problem {
-        obs,
-        transport: &case.train.transport,
-        n_vertices: case.nv,
-        n_photos: obs.photo_ranges.len(),
-    };
+    let problem = case.train_problem_with(obs);
     let init = initial(case, obs, case.lambda.len(), 1);
     let mut tl = Vec::new();
     let t0 = Instant::now();
@@ -650,10 +643,7 @@ fn convergence(md: &mut String) -> Value {
         eprintln!("convergence: {label}");
         let problem = case.train.problem(case.nv);
         let init = if from_truth {
-            Materials0 {
-                lambda: case.lambda.clone(),
-                weights: case.weights.clone(),
-            }
+            case.true_materials()
         } else {
             initial(&case, &case.train.obs, 2, 1)
         };

@@ -20,7 +20,7 @@
 #[path = "support/synth_case.rs"]
 mod synth_case;
 
-use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, IterState, Problem, Robust};
+use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, IterState, Robust};
 use synth_case::*;
 
 fn sphere_sizes() -> Sizes {
@@ -120,16 +120,8 @@ fn known_reflectance_explains_the_photos_as_well_as_the_true_light_and_resolves_
 fn irls_keeps_the_known_reflectance_fit_close_to_the_clean_one_under_5_percent_outliers() {
     let case = prepare("sphere-diffuse", sphere_sizes(), 1, "robust");
     let problem_fit = |obs: &relight_cpc::observe::Observations, robust: Robust| {
-        let problem = Problem {
-            obs,
-            transport: &case.train.transport,
-            n_vertices: case.nv,
-            n_photos: obs.photo_ranges.len(),
-        };
-        let init = relight_cpc::estimate::Materials0 {
-            lambda: case.lambda.clone(),
-            weights: case.weights.clone(),
-        };
+        let problem = case.train_problem_with(obs);
+        let init = case.true_materials();
         let o = EstimateOptions {
             fixed_materials: true,
             robust,
@@ -281,12 +273,7 @@ fn joint_recovery_keeps_gross_outliers_out_of_the_blending_weights() {
     let mut dirty = case.train.obs.clone();
     let hit = corrupt(&mut dirty, 0.05, 7);
     let held = |obs: &relight_cpc::observe::Observations, weights_reject: Option<f64>| {
-        let problem = Problem {
-            obs,
-            transport: &case.train.transport,
-            n_vertices: case.nv,
-            n_photos: obs.photo_ranges.len(),
-        };
+        let problem = case.train_problem_with(obs);
         let o = EstimateOptions {
             max_outer: 2,
             weights_reject,
@@ -440,16 +427,8 @@ fn early_stopping_keeps_the_truth_on_noise_free_data() {
     replace_colours(&mut obs, &true_prediction(case, &case.train));
     let mut held_obs = case.held.obs.clone();
     replace_colours(&mut held_obs, &true_prediction(case, &case.held));
-    let problem = Problem {
-        obs: &obs,
-        transport: &case.train.transport,
-        n_vertices: case.nv,
-        n_photos: obs.photo_ranges.len(),
-    };
-    let init = relight_cpc::estimate::Materials0 {
-        lambda: case.lambda.clone(),
-        weights: case.weights.clone(),
-    };
+    let problem = case.train_problem_with(&obs);
+    let init = case.true_materials();
     let o = EstimateOptions {
         max_outer: 8,
         rel_tol: 0.0,

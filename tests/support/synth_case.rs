@@ -97,6 +97,27 @@ pub struct Case {
     pub seconds_prepare: f64,
 }
 
+impl Case {
+    /// The true materials, as the estimator's start.
+    pub fn true_materials(&self) -> Materials0 {
+        Materials0 {
+            lambda: self.lambda.clone(),
+            weights: self.weights.clone(),
+        }
+    }
+
+    /// The training split's problem over other observations of the same photos and
+    /// vertices (`obs`: a corrupted or noise-free copy of `train.obs`).
+    pub fn train_problem_with<'a>(&'a self, obs: &'a Observations) -> Problem<'a> {
+        Problem {
+            obs,
+            transport: &self.train.transport,
+            n_vertices: self.nv,
+            n_photos: obs.photo_ranges.len(),
+        }
+    }
+}
+
 fn basis_of(l: &Lobe) -> BasisBrdf {
     match *l {
         Lobe::Lambert => BasisBrdf::Lambert,
@@ -370,10 +391,7 @@ pub fn map_error(est: &[[Vec<f64>; 3]], truth: &[[Vec<f64>; 3]], n: usize, r: us
 /// Estimate with the true reflectance held fixed (paper Sec. 6.1).
 pub fn fit_known_reflectance(case: &Case, opts: &EstimateOptions) -> Estimate {
     let problem = case.train.problem(case.nv);
-    let init = Materials0 {
-        lambda: case.lambda.clone(),
-        weights: case.weights.clone(),
-    };
+    let init = case.true_materials();
     let o = EstimateOptions {
         fixed_materials: true,
         ..opts.clone()
