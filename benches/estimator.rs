@@ -749,13 +749,7 @@ fn floors(md: &mut String) -> Value {
                     &case.train.lights,
                 );
                 let ft = rel_rmse(&case.train.obs, &t, false).0;
-                let h = predict_with(
-                    &case.held,
-                    case.nv,
-                    &case.lambda,
-                    &case.weights,
-                    &case.held.lights,
-                );
+                let h = case.predict_held(&case.lambda, &case.weights);
                 let fh = if case.held.obs.is_empty() {
                     f64::NAN
                 } else {

@@ -201,13 +201,7 @@ fn spot_fit(case: &Case, max_outer: usize, on_iter: &mut dyn FnMut(&IterState)) 
 fn joint_recovery_assigns_the_materials_and_improves_the_held_out_prediction() {
     let case = spot();
     let held_err = |st: &IterState| {
-        let hp = predict_with(
-            &case.held,
-            case.nv,
-            st.lambda,
-            st.weights,
-            &case.held.lights,
-        );
+        let hp = case.predict_held(st.lambda, st.weights);
         rel_rmse_per_channel(&case.held.obs, &hp)
     };
     let mut timeline = Vec::new();
@@ -281,13 +275,7 @@ fn joint_recovery_keeps_gross_outliers_out_of_the_blending_weights() {
         };
         let init = initial(case, obs, 2, 1);
         let est = estimate(&problem, init, &o, &mut |_, _| {}).unwrap();
-        let hp = predict_with(
-            &case.held,
-            case.nv,
-            &est.lambda,
-            &est.weights,
-            &case.held.lights,
-        );
+        let hp = case.predict_held(&est.lambda, &est.weights);
         rel_rmse_per_channel(&case.held.obs, &hp)
     };
     let cut = EstimateOptions::default().weights_reject;
@@ -363,13 +351,7 @@ fn early_stopping_returns_the_validation_best_iterate() {
     let mut held_err = Vec::new();
     let init = initial(case, obs, 2, 1);
     let est = estimate(&problem, init, &o, &mut |_, st| {
-        let hp = predict_with(
-            &case.held,
-            case.nv,
-            st.lambda,
-            st.weights,
-            &case.held.lights,
-        );
+        let hp = case.predict_held(st.lambda, st.weights);
         held_err.push(rel_rmse_per_channel(&case.held.obs, &hp));
     })
     .unwrap();
@@ -398,13 +380,7 @@ fn early_stopping_returns_the_validation_best_iterate() {
     // The returned estimate is that iterate: the held-out error with per-channel scale is
     // invariant to the final normalisation (global and per-material scales), so it must
     // match the iterate's to rounding.
-    let hp = predict_with(
-        &case.held,
-        case.nv,
-        &est.lambda,
-        &est.weights,
-        &case.held.lights,
-    );
+    let hp = case.predict_held(&est.lambda, &est.weights);
     let e = rel_rmse_per_channel(&case.held.obs, &hp);
     assert!(
         (e - held_err[argmin]).abs() <= 1e-9 * held_err[argmin].max(1e-12),
@@ -436,13 +412,7 @@ fn early_stopping_keeps_the_truth_on_noise_free_data() {
     };
     let mut held_err = Vec::new();
     let est = estimate(&problem, init, &o, &mut |_, st| {
-        let hp = predict_with(
-            &case.held,
-            case.nv,
-            st.lambda,
-            st.weights,
-            &case.held.lights,
-        );
+        let hp = case.predict_held(st.lambda, st.weights);
         held_err.push(rel_rmse_per_channel(&held_obs, &hp));
     })
     .unwrap();
@@ -450,13 +420,7 @@ fn early_stopping_keeps_the_truth_on_noise_free_data() {
         .validation
         .as_ref()
         .expect("early stopping is on by default");
-    let hp = predict_with(
-        &case.held,
-        case.nv,
-        &est.lambda,
-        &est.weights,
-        &case.held.lights,
-    );
+    let hp = case.predict_held(&est.lambda, &est.weights);
     let returned = rel_rmse_per_channel(&held_obs, &hp);
     eprintln!(
         "noise-free, from the truth: held-out per iteration {held_err:?}, validation {:?}, kept {}, returned {returned:.4}",

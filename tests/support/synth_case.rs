@@ -106,6 +106,12 @@ impl Case {
         }
     }
 
+    /// The model's prediction for the held-out observations under their TRUE lights with
+    /// reflectance `(lambda, weights)`.
+    pub fn predict_held(&self, lambda: &[Vec<[f64; 3]>], weights: &[f64]) -> Vec<[f64; 3]> {
+        predict_with(&self.held, self.nv, lambda, weights, &self.held.lights)
+    }
+
     /// The training split's problem over other observations of the same photos and
     /// vertices (`obs`: a corrupted or noise-free copy of `train.obs`).
     pub fn train_problem_with<'a>(&'a self, obs: &'a Observations) -> Problem<'a> {
@@ -574,13 +580,7 @@ pub fn joint_figures(
     });
     let pred = relight_cpc::estimate::predict(&case.train.problem(case.nv), est);
     let (train_rel, _) = rel_rmse(clean, &pred, false);
-    let hp = predict_with(
-        &case.held,
-        case.nv,
-        &est.lambda,
-        &est.weights,
-        &case.held.lights,
-    );
+    let hp = case.predict_held(&est.lambda, &est.weights);
     let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
     let heldout_rel_channel = rel_rmse_per_channel(&case.held.obs, &hp);
     let hp_true = true_prediction(case, &case.held);
