@@ -221,6 +221,10 @@ struct RunArgs {
     /// IRLS passes per lighting step (1 = plain least squares).
     #[arg(long, default_value_t = 3)]
     irls_iterations: usize,
+    /// Fraction of the training observations held back (seeded) to stop the alternation
+    /// at its best iterate; 0 turns early stopping off.
+    #[arg(long, default_value_t = 0.1)]
+    validation: f64,
     /// Overexposure threshold on the 8-bit scale: a pixel with any channel at or above it
     /// is ignored.
     #[arg(long, default_value_t = 250.0)]
@@ -294,6 +298,7 @@ impl RunArgs {
         o.rel_tol = self.tolerance;
         o.smoothness = self.smoothness;
         o.irls_iterations = self.irls_iterations;
+        o.validation = self.validation;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;
         o.progress = !self.quiet;

@@ -159,3 +159,26 @@ fn small_run_passes_on_this_machine() {
     };
     assert!(budget::check(&s).is_ok());
 }
+
+/// Early stopping's held-back fraction (`--validation`) must leave most observations to the
+/// fit: outside [0, 0.5) (or NaN) the options are refused with a message naming the flag;
+/// 0 (off) and the default pass.
+#[test]
+fn validation_fraction_outside_its_range_is_refused() {
+    use relight_cpc::run::RunOptions;
+    let base = RunOptions::new("ws".into(), "out".into());
+    assert!(base.check().is_ok());
+    for bad in [-0.1, 0.5, 0.7, f64::NAN] {
+        let o = RunOptions {
+            validation: bad,
+            ..base.clone()
+        };
+        let e = o.check().unwrap_err().to_string();
+        assert!(e.contains("--validation"), "{e}");
+    }
+    let off = RunOptions {
+        validation: 0.0,
+        ..base.clone()
+    };
+    assert!(off.check().is_ok());
+}

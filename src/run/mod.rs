@@ -111,6 +111,9 @@ pub struct RunOptions {
     pub smoothness: f64,
     /// IRLS passes per lighting step (1 = no reweighting).
     pub irls_iterations: usize,
+    /// Fraction of the training observations held back, seeded, for early stopping
+    /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
+    pub validation: f64,
     /// Overexposure threshold on the encoded [0, 1] scale.
     pub clip: f32,
     /// Seed of every random choice.
@@ -154,6 +157,7 @@ impl RunOptions {
             rel_tol: 1e-3,
             smoothness: 1e-3,
             irls_iterations: 3,
+            validation: EstimateOptions::default().validation_fraction,
             clip: crate::photo::DEFAULT_CLIP,
             seed: 1,
             progress: true,
@@ -225,6 +229,13 @@ impl RunOptions {
             return Err(Error::Config(
                 "--irls-iterations 0: at least one (plain least squares) is needed".into(),
             ));
+        }
+        if !(0.0..0.5).contains(&self.validation) {
+            return Err(Error::Config(format!(
+                "--validation {}: the held-back fraction must be in [0, 0.5) (0 turns early \
+                 stopping off)",
+                self.validation
+            )));
         }
         if let Some(up) = self.up {
             if !(up.norm() > 0.0 && up.iter().all(|v| v.is_finite())) {
@@ -676,6 +687,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         irls_iters: o.irls_iterations,
         lambert_basis: lambert,
         validation_seed: o.seed,
+        validation_fraction: o.validation,
         ..EstimateOptions::default()
     };
     let (mean_rgb, seen) = mean_colours(&obs, nv);
