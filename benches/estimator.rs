@@ -801,13 +801,7 @@ fn main() {
             "# Estimator bench floors\n\nWritten by `ESTIMATOR_BENCH=floors cargo bench --bench estimator`.\n\n",
         );
         let v = floors(&mut fmd);
-        std::fs::write(dir.join("estimator-floors.md"), &fmd).unwrap();
-        std::fs::write(
-            dir.join("estimator-floors.json"),
-            serde_json::to_string_pretty(&v).unwrap(),
-        )
-        .unwrap();
-        println!("{fmd}");
+        write_results(&dir, "estimator-floors", &fmd, &v);
         if parts == "floors" {
             return;
         }
@@ -818,21 +812,20 @@ fn main() {
             "# Estimator convergence on noise-free data\n\nWritten by `ESTIMATOR_BENCH=convergence cargo bench --bench estimator`.\n\n",
         );
         let v = convergence(&mut cmd);
-        std::fs::write(dir.join("estimator-convergence.md"), &cmd).unwrap();
-        std::fs::write(
-            dir.join("estimator-convergence.json"),
-            serde_json::to_string_pretty(&v).unwrap(),
-        )
-        .unwrap();
-        println!("{cmd}");
+        write_results(&dir, "estimator-convergence", &cmd, &v);
         if parts == "convergence" {
             return;
         }
     }
-    std::fs::write(dir.join("estimator.md"), &md).unwrap();
+    write_results(&dir, "estimator", &md, &Value::Object(out));
+}
+
+/// `dir/STEM.md` and `dir/STEM.json`, and the Markdown on standard output.
+fn write_results(dir: &std::path::Path, stem: &str, md: &str, v: &Value) {
+    std::fs::write(dir.join(format!("{stem}.md")), md).unwrap();
     std::fs::write(
-        dir.join("estimator.json"),
-        serde_json::to_string_pretty(&Value::Object(out)).unwrap(),
+        dir.join(format!("{stem}.json")),
+        serde_json::to_string_pretty(v).unwrap(),
     )
     .unwrap();
     println!("{md}");

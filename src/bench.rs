@@ -666,20 +666,16 @@ fn synth_label(quick: bool) -> String {
 
 /// Fills in growth rates and the Pareto front from the runs so far.
 fn summarise(report: &mut BenchReport) {
-    report.vertex_growth = growth_rates(
-        &report
-            .vertex_runs
-            .iter()
-            .map(|r| (r.vertices as f64, stage_seconds(r)))
-            .collect::<Vec<_>>(),
-    );
-    report.photo_growth = growth_rates(
-        &report
-            .photo_runs
-            .iter()
-            .map(|r| (r.photos as f64, stage_seconds(r)))
-            .collect::<Vec<_>>(),
-    );
+    let growth = |runs: &[BenchRun], size: fn(&BenchRun) -> usize| {
+        growth_rates(
+            &runs
+                .iter()
+                .map(|r| (size(r) as f64, stage_seconds(r)))
+                .collect::<Vec<_>>(),
+        )
+    };
+    report.vertex_growth = growth(&report.vertex_runs, |r| r.vertices);
+    report.photo_growth = growth(&report.photo_runs, |r| r.photos);
     report.pareto = pareto_front(
         &report
             .sweep

@@ -847,6 +847,17 @@ mod tests {
         m
     }
 
+    /// A seeded direction, normalised from the cube [−1, 1)³ (not uniform on the sphere;
+    /// the tests only need varied normals).
+    fn random_normal(rng: &mut Pcg64) -> Vec3 {
+        Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize()
+    }
+
     #[test]
     fn rotation_conserves_energy_and_constants() {
         let (ng, nl) = (32, 16);
@@ -856,12 +867,7 @@ mod tests {
         let om_l = gl.solid_angles();
         let mut rng = Pcg64::seed_from_u64(9);
         for _ in 0..6 {
-            let normal = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            )
-            .normalize();
+            let normal = random_normal(&mut rng);
             let rows = resampling_rows(&normal, ng, nl, DEFAULT_SUPERSAMPLE);
             let apply = |m: &[f64]| -> Vec<f64> {
                 rows.iter()
@@ -975,12 +981,7 @@ mod tests {
         let om_l = gl.solid_angles();
         let mut rng = Pcg64::seed_from_u64(11);
         for _ in 0..5 {
-            let normal = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            )
-            .normalize();
+            let normal = random_normal(&mut rng);
             let frame = local_frame(&normal);
             let mut local = vec![0.0; nl * nl];
             // A one-texel sun wholly above the horizon keeps its energy Ω_g L exactly (every
