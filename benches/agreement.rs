@@ -28,8 +28,8 @@
 #[path = "../tests/agreement_support/mod.rs"]
 mod support;
 
+use relight_cpc::adapt::downsample_visibility;
 use relight_cpc::rotation::{Rotation, RotationForm, SplatRotation};
-use relight_cpc::run::visibility_at;
 use relight_cpc::transport::TransportOptions;
 use relight_cpc::visibility::{self, Visibility};
 use relight_cpc::Vec3;
@@ -97,7 +97,7 @@ fn main() {
     eprintln!("renderer defaults: {ren_s:.1} s");
     let e_def = errors(&w_def, &r1);
     // The estimator's visibility: the same trace averaged down to 32² (4 rays per texel).
-    let vis32 = visibility_at(&vis64, 32);
+    let vis32 = downsample_visibility(&vis64, 32);
 
     // Vertex classes: where the diffuse error lives.
     let classes: [Class; 4] = [
@@ -256,7 +256,7 @@ fn main() {
             }
         };
         let vis_s = traced[ti].2;
-        let vis = visibility_at(&traced[ti].1, nl);
+        let vis = downsample_visibility(&traced[ti].1, nl);
         let is_default = (ng, nl, nv_side, rays, sub) == (64, 64, 64, 1, ss);
         let (w, rot_s_i, tr_s) = if is_default {
             (w_def.clone(), rot_s, ren_s)
@@ -317,7 +317,7 @@ fn main() {
     for &k in &[32usize, 64, 128, 256, 0] {
         settings.push((64, 32, k));
     }
-    let vis16 = visibility_at(&vis64, 16);
+    let vis16 = downsample_visibility(&vis64, 16);
     let mut rots: Vec<((usize, usize), Rotation, f64)> = Vec::new();
     for (ng, nl, keep) in settings {
         let (vis, vis_s) = if nl == 16 {

@@ -171,7 +171,8 @@ pub fn select_bases(t: &Transport, kept: &[usize]) -> Result<Transport> {
 }
 
 /// Visibility averaged down to `n` texels per side (solid-angle weighted over each block
-/// of the finer hemi-octahedral grid, whose texels nest 2×2 per level).
+/// of the finer hemi-octahedral grid, whose texels nest 2×2 per level); its rays per texel
+/// are what each coarse texel received (`rays · f²` for a block of `f × f`).
 pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
     if n >= vis.n_local || n == 0 || !vis.n_local.is_multiple_of(n) {
         return vis.clone();
@@ -200,7 +201,7 @@ pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
     }
     Visibility {
         n_local: n,
-        rays_per_texel: vis.rays_per_texel,
+        rays_per_texel: vis.rays_per_texel * f * f,
         frac,
         open: vis.open.clone(),
         degenerate: vis.degenerate,

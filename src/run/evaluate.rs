@@ -301,19 +301,6 @@ pub fn fine_rays(rays: usize, n_est: usize, n_fine: usize) -> usize {
     rays.div_ceil(ratio * ratio).max(1)
 }
 
-/// Visibility at `n` per side from a finer trace (solid-angle weighted average over the
-/// nested texels, [`crate::adapt::downsample_visibility`]); rays per texel scaled to what
-/// each coarse texel received.
-pub fn visibility_at(fine: &Visibility, n: usize) -> Visibility {
-    if n >= fine.n_local {
-        return fine.clone();
-    }
-    let f = fine.n_local / n;
-    let mut v = crate::adapt::downsample_visibility(fine, n);
-    v.rays_per_texel = fine.rays_per_texel * f * f;
-    v
-}
-
 /// Trace visibility once at the finer of the estimator's and the renderer's local
 /// resolutions (module docs) and return `(estimator's, renderer's)`.
 pub(crate) fn trace_visibility(
@@ -326,9 +313,9 @@ pub(crate) fn trace_visibility(
     let n_fine = opts.local_resolution.max(n_render);
     let rays = fine_rays(opts.rays_per_texel, opts.local_resolution, n_fine);
     let fine = crate::visibility::compute(mesh, bvh, env_from_world, n_fine, rays, opts.seed);
-    let est = visibility_at(&fine, opts.local_resolution);
+    let est = crate::adapt::downsample_visibility(&fine, opts.local_resolution);
     let render = if n_render < n_fine {
-        visibility_at(&fine, n_render)
+        crate::adapt::downsample_visibility(&fine, n_render)
     } else {
         fine
     };

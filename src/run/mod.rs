@@ -27,7 +27,7 @@ mod evaluate;
 mod output;
 mod progress;
 
-pub use evaluate::{fine_rays, render_local_resolution, visibility_at, Truth};
+pub use evaluate::{fine_rays, render_local_resolution, Truth};
 pub use progress::Progress;
 
 use crate::brdf::BasisBrdf;
