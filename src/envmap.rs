@@ -498,6 +498,7 @@ mod tests {
         assert_eq!(OctEnv::read_exr(&p2).unwrap(), oct);
         // A lat-long file is not an octahedral map.
         assert!(matches!(OctEnv::read_exr(&path), Err(Error::Image { .. })));
+        let _ = std::fs::remove_dir_all(path.parent().unwrap());
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! record and byte (binary); none panics. Each test starts from a small valid model written
 //! by our writers (checked to read back), and breaks one thing.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 #[path = "support/colmap_model.rs"]
 mod colmap_model;
@@ -11,13 +11,12 @@ use colmap_model::model;
 use relight_cpc::colmap::Reconstruction;
 use relight_cpc::Error;
 
-/// A fresh folder holding the model in both formats.
-fn setup(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "relight-colmap-errors-{}-{tag}",
-        std::process::id()
-    ));
-    std::fs::remove_dir_all(&dir).ok();
+#[path = "support/scratch.rs"]
+mod scratch_support;
+
+/// A fresh folder holding the model in both formats, removed when dropped.
+fn setup(tag: &str) -> scratch_support::Scratch {
+    let dir = scratch_support::scratch("colmap-errors", tag);
     let rec = model();
     rec.write_text(&dir).unwrap();
     rec.write_binary(&dir).unwrap();

@@ -3,15 +3,17 @@
 //! bad files: each a clear error naming the file and the element, none a panic.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use relight_cpc::mesh::Mesh;
 use relight_cpc::{Error, Vec3};
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relight-mesh-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+#[path = "support/scratch.rs"]
+mod scratch_support;
+
+/// `name` in a scratch folder of its own, removed when the returned value is dropped.
+fn scratch(name: &str) -> scratch_support::ScratchFile {
+    scratch_support::scratch_file("mesh", name)
 }
 
 /// A square pyramid: 5 vertices, 4 triangles and one quad base (6 triangles after the fan).
@@ -255,7 +257,7 @@ fn expect_format(err: Error, path: &Path, location: &str) -> String {
             location: l,
             message,
         } => {
-            assert_eq!(p, path);
+            assert_eq!(p, *path);
             assert!(
                 l.contains(location),
                 "location {l:?}, expected {location:?}"
@@ -346,7 +348,7 @@ property float y\nproperty float z\nelement face 1\nproperty list uchar int vert
     assert!(msg.contains("face"), "{msg}");
     let missing = scratch("missing.ply");
     match Mesh::read_ply(&missing).unwrap_err() {
-        Error::Io { path, .. } => assert_eq!(path, missing),
+        Error::Io { path, .. } => assert_eq!(path, *missing),
         other => panic!("{other}"),
     }
 }

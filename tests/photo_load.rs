@@ -1,16 +1,16 @@
 //! Photo decoding: 8- and 16-bit PNG, grayscale, JPEG and EXR, against the sRGB standard's
 //! formula written out here, the overexposure rule, and unreadable or missing files.
 
-use std::path::PathBuf;
-
 use image::{ImageBuffer, Luma, Rgb};
 use relight_cpc::photo::{Photo, DEFAULT_CLIP};
 use relight_cpc::Error;
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relight-photo-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+#[path = "support/scratch.rs"]
+mod scratch_support;
+
+/// `name` in a scratch folder of its own, removed when the returned value is dropped.
+fn scratch(name: &str) -> scratch_support::ScratchFile {
+    scratch_support::scratch_file("photo", name)
 }
 
 /// IEC 61966-2-1 decoding, written independently of the crate (in f64).
@@ -120,7 +120,7 @@ fn unreadable_and_missing_photos_are_errors_naming_the_file() {
     std::fs::write(&path, b"\x89PNG\r\n\x1a\n but then nothing sensible").unwrap();
     match Photo::load(&path, DEFAULT_CLIP).unwrap_err() {
         Error::Image { path: p, message } => {
-            assert_eq!(p, path);
+            assert_eq!(p, *path);
             assert!(message.contains("decode"), "{message}");
         }
         other => panic!("{other}"),
@@ -137,7 +137,7 @@ fn unreadable_and_missing_photos_are_errors_naming_the_file() {
     assert!(err.to_string().contains("broken.exr"), "{err}");
     let path = scratch("absent.png");
     match Photo::load(&path, DEFAULT_CLIP).unwrap_err() {
-        Error::Io { path: p, .. } => assert_eq!(p, path),
+        Error::Io { path: p, .. } => assert_eq!(p, *path),
         other => panic!("{other}"),
     }
 }

@@ -257,6 +257,8 @@ fn read_ply_bytes(tag: &str, case: u64, bytes: &[u8]) -> Result<bool, TestCaseEr
     std::fs::write(&path, bytes).map_err(|e| TestCaseError::fail(e.to_string()))?;
     let r = Mesh::read_ply(&path);
     let _ = std::fs::remove_file(&path);
+    // The folder goes once it is empty (cases running beside this one keep it until then).
+    let _ = std::fs::remove_dir(&dir);
     match r {
         Ok((mesh, _)) => {
             let n = mesh.positions.len();

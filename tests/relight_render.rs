@@ -17,18 +17,12 @@ use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::{Error, Vec3};
 
-struct Scratch(PathBuf);
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+#[path = "support/scratch.rs"]
+mod scratch_support;
+use scratch_support::Scratch;
 
 fn scratch(tag: &str) -> Scratch {
-    let p = std::env::temp_dir().join(format!("relight-render-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&p);
-    std::fs::create_dir_all(&p).unwrap();
-    Scratch(p)
+    scratch_support::scratch("render", tag)
 }
 
 /// Synth workspace + run; returns (workspace, result folder).

@@ -97,6 +97,7 @@ fn run_rejects_a_missing_workspace_and_bad_options_with_clear_errors() {
     o.global_resolution = 48;
     let err = run(&o).unwrap_err().to_string();
     assert!(err.contains("--global-resolution 48"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The CLI's default (`--adaptive on`) on the same example: the truth has two materials and

@@ -132,6 +132,7 @@ fn run_on_the_dense_buddha_workspace() {
         r.train_rmse
     );
     assert!(out_files_exist(&s.out));
+    let _ = std::fs::remove_dir_all(&s.out);
 }
 
 fn out_files_exist(out: &Path) -> bool {

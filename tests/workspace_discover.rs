@@ -2,7 +2,7 @@
 //! with undistorted photos, binary before text), the mesh search and its errors, and the
 //! real-COLMAP fixture.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use relight_cpc::colmap::{
     Camera, CameraId, Image, ImageId, ModelFormat, Point3D, Point3DId, Reconstruction,
@@ -10,11 +10,12 @@ use relight_cpc::colmap::{
 use relight_cpc::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
 
-fn tmp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relight-ws-{}-{tag}", std::process::id()));
-    std::fs::remove_dir_all(&d).ok();
-    std::fs::create_dir_all(&d).unwrap();
-    d
+#[path = "support/scratch.rs"]
+mod scratch_support;
+
+/// An empty scratch folder, removed when the returned value is dropped.
+fn tmp(tag: &str) -> scratch_support::Scratch {
+    scratch_support::scratch("ws", tag)
 }
 
 /// A one-camera, two-image model; `tag` goes into the image names so tests can tell which
@@ -142,7 +143,7 @@ fn mesh_override_and_missing_mesh() {
     // No mesh anywhere: a Workspace error listing where it looked.
     match Workspace::discover(&root, None) {
         Err(Error::Workspace { path, message }) => {
-            assert_eq!(path, root);
+            assert_eq!(path, *root);
             assert!(message.contains("no mesh"), "{message}");
             assert!(message.contains("dense/meshed-poisson.ply"), "{message}");
             assert!(message.contains("--mesh"), "{message}");

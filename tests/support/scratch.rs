@@ -1,6 +1,6 @@
-//! Shared by the tests that write files (`tests/adapt.rs`, `tests/extreme_pipeline.rs`,
-//! `tests/inspect_buddha.rs`, `tests/scene_import.rs`): a scratch folder removed on drop, and
-//! a small `synth` workspace in it.
+//! Shared by the tests that write files: a scratch folder (or a file in its own scratch
+//! folder) removed on drop, so a test run leaves nothing under the temporary folder, and a
+//! small `synth` workspace in it.
 
 #![allow(dead_code)]
 
@@ -19,6 +19,12 @@ impl std::ops::Deref for Scratch {
     }
 }
 
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
 impl Drop for Scratch {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
@@ -31,6 +37,33 @@ pub fn scratch(prefix: &str, tag: &str) -> Scratch {
     let _ = std::fs::remove_dir_all(&p);
     std::fs::create_dir_all(&p).unwrap();
     Scratch(p)
+}
+
+/// A file path `name` in a folder of its own, the folder removed when this is dropped.
+pub struct ScratchFile {
+    _dir: Scratch,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for ScratchFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl AsRef<Path> for ScratchFile {
+    fn as_ref(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// `relight-{prefix}-{pid}-{name}/{name}` under the system's temporary folder (the file is
+/// not created).
+pub fn scratch_file(prefix: &str, name: &str) -> ScratchFile {
+    let dir = scratch(prefix, name);
+    let path = dir.join(name);
+    ScratchFile { _dir: dir, path }
 }
 
 /// A 64×64 synth workspace `dir/ws` of `scene` with `photos` photos, about `vertices`
