@@ -64,15 +64,23 @@ fn sizes_known() -> Sizes {
     }
 }
 
+/// Parts 2, 3 and 5; `JOINT_GLOBAL`, `JOINT_LOCAL`, `JOINT_SPP`, `JOINT_VERTICES`,
+/// `JOINT_WIDTH` override the defaults (16², 8², 8 spp, 2,000, 96²).
 fn sizes_joint() -> Sizes {
+    let env = |k: &str, d: usize| -> usize {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
     Sizes {
-        width: 96,
+        width: env("JOINT_WIDTH", 96) as u32,
         photos: None,
-        vertices: 2_000,
-        spp: 8,
+        vertices: env("JOINT_VERTICES", 2_000),
+        spp: env("JOINT_SPP", 8) as u32,
         light_samples: 64,
-        global: 16,
-        local: 8,
+        global: env("JOINT_GLOBAL", 16),
+        local: env("JOINT_LOCAL", 8),
         normal_grid: 16,
         keep: 0,
         rays_per_texel: 2,
@@ -80,6 +88,82 @@ fn sizes_joint() -> Sizes {
 }
 
 const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
+
+/// One fit variant from a spec string (`JOINT_SPECS`, `ROBUST_SPECS`,
+/// `CONVERGENCE_SPECS`: `;`-separated specs): comma-separated `key=value` changes to
+/// `base`. Keys: `floor` (`robust_floor`), `irls` (`none`, `huber`, `tukey`), `k` (Huber's
+/// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `its` (`max_outer`), `val`
+/// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
+/// `truth=1` (start at the true materials), `dirty=1` (5% outliers, part 3); `base` alone
+/// = no change. The label is the spec itself.
+struct Spec {
+    label: String,
+    opts: EstimateOptions,
+    from_truth: bool,
+    dirty: bool,
+}
+
+fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
+    let mut o = base.clone();
+    let (mut from_truth, mut dirty) = (false, false);
+    for kv in spec
+        .split(',')
+        .map(str::trim)
+        .filter(|v| !v.is_empty() && *v != "base")
+    {
+        let (k, v) = kv
+            .split_once('=')
+            .unwrap_or_else(|| panic!("spec `{spec}`: `{kv}` is not key=value"));
+        let num = || -> f64 {
+            v.parse()
+                .unwrap_or_else(|_| panic!("spec `{spec}`: `{v}` is not a number"))
+        };
+        match k {
+            "floor" => o.robust_floor = num(),
+            "irls" => {
+                o.robust = match v {
+                    "none" => Robust::None,
+                    "huber" => Robust::Huber { k: 1.345 },
+                    "tukey" => Robust::Tukey { c: 4.685 },
+                    _ => panic!("spec `{spec}`: irls `{v}`"),
+                }
+            }
+            "k" => o.robust = Robust::Huber { k: num() },
+            "smooth" => o.smoothness = num(),
+            "decay" => o.smoothness_decay = num(),
+            "smin" => o.smoothness_min = num(),
+            "its" => o.max_outer = num() as usize,
+            "val" => o.validation_fraction = num(),
+            "passes" => o.irls_iters = num() as usize,
+            "cut" => o.weights_reject = (num() > 0.0).then(num),
+            "truth" => from_truth = num() > 0.0,
+            "dirty" => dirty = num() > 0.0,
+            _ => panic!("spec `{spec}`: unknown key `{k}`"),
+        }
+    }
+    Spec {
+        label: if spec.trim().is_empty() {
+            "base".into()
+        } else {
+            spec.trim().into()
+        },
+        opts: o,
+        from_truth,
+        dirty,
+    }
+}
+
+/// The specs in environment variable `var`, if set.
+fn specs_from_env(var: &str, base: &EstimateOptions) -> Option<Vec<Spec>> {
+    std::env::var(var)
+        .ok()
+        .map(|v| v.split(';').map(|s| parse_spec(s, base)).collect())
+}
+
+/// The joint parts' scene (`JOINT_SCENE`, default `spot-varying`).
+fn joint_scene() -> String {
+    std::env::var("JOINT_SCENE").unwrap_or_else(|_| "spot-varying".into())
+}
 
 fn known(md: &mut String) -> Value {
     md.push_str("## 1. Known reflectance, unknown light (paper Sec. 6.1)\n\n");
@@ -236,6 +320,33 @@ fn known(md: &mut String) -> Value {
     json!(rows)
 }
 
+/// The case's materials as text: per material its lobes with non-zero weight.
+fn materials_text(case: &Case) -> String {
+    case.lambda
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            let lobes: Vec<String> = l
+                .iter()
+                .zip(&case.basis)
+                .filter(|(v, _)| v.iter().any(|&x| x > 0.0))
+                .map(|(v, b)| format!("{b:?} {:.2}/{:.2}/{:.2}", v[0], v[1], v[2]))
+                .collect();
+            format!("material {k}: {}", lobes.join(" + "))
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// The case's basis BRDFs as text.
+fn basis_text(case: &Case) -> String {
+    case.basis
+        .iter()
+        .map(|b| format!("{b:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Joint fit of `case` from the clustered start; the timeline with the held-out error under
 /// the true light (per-channel scale) at every outer iteration.
 fn joint_fit(
@@ -288,9 +399,10 @@ const JOINT_HEADER: &str = "| fit | assigned (all seen) | assigned (pure) | diff
 
 fn joint(md: &mut String) -> Value {
     let s = sizes_joint();
-    let case = prepare("spot-varying", s, 1, "joint");
+    let scene = joint_scene();
+    let case = prepare(&scene, s, 1, "joint");
     eprintln!(
-        "spot-varying: prepared in {:.1} + {:.1} s, {} vertices, {} train / {} held-out observations",
+        "{scene}: prepared in {:.1} + {:.1} s, {} vertices, {} train / {} held-out observations",
         case.seconds_synth,
         case.seconds_prepare,
         case.nv,
@@ -298,9 +410,9 @@ fn joint(md: &mut String) -> Value {
         case.held.obs.len()
     );
     md.push_str(&format!(
-        "## 2. Joint recovery: `spot-varying`\n\nSpot ({} vertices), two blended materials (orange Lambert + GGX 0.3, blue Lambert + Phong 50), \
+        "## 2. Joint recovery: `{scene}`\n\nSpot ({} vertices), two blended materials ({}), \
          {} training and {} held-out photos ({}², {} spp × {} MIS pairs), 8 real maps cycling, each rotated; basis = the true lobes \
-         (Lambert, Phong 50, GGX 0.3); {}² global map, {}² local, {}² normal grid, all coefficients kept; K = 2 from the k-means start.\n\n\
+         ({}); {}² global map, {}² local, {}² normal grid, all coefficients kept; K = 2 from the k-means start.\n\n\
          Materials are identifiable only up to a K×K non-negative remix (`w → w M⁻¹`, `λ → M λ` leaves every vertex's reflectance \
          `β = Σ_k w_k λ_k` unchanged) and each channel only up to the light colour (`λ_c → s_c λ_c`, maps `/ s_c`). The diffuse-ratio \
          error is therefore measured on what the data determine: per channel, the median estimated Lambertian weight `β̂_{{x,L,c}}` over the \
@@ -310,11 +422,13 @@ fn joint(md: &mut String) -> Value {
          *vs true model* compares the estimated and the true reflectance's predictions through the same transport (the \
          estimator's own error, no renderer noise).\n\n",
         case.nv,
+        materials_text(&case),
         case.train.names.len(),
         case.held.names.len(),
         s.width,
         s.spp,
         s.light_samples,
+        basis_text(&case),
         s.global,
         s.local,
         s.normal_grid
@@ -327,28 +441,30 @@ fn joint(md: &mut String) -> Value {
         max_outer: 1,
         ..EstimateOptions::default()
     };
-    let variants: Vec<(&str, EstimateOptions)> = vec![
-        ("after 1 outer iteration", start),
+    let long = EstimateOptions {
+        max_outer: 30,
+        rel_tol: 1e-5,
+        ..EstimateOptions::default()
+    };
+    let from_specs: Option<Vec<(String, EstimateOptions)>> = specs_from_env("JOINT_SPECS", &long)
+        .map(|v| v.into_iter().map(|sp| (sp.label, sp.opts)).collect());
+    let variants: Vec<(String, EstimateOptions)> = from_specs.unwrap_or_else(|| vec![
+        ("after 1 outer iteration".into(), start),
         (
-            "default options (early stopping: 10% validation, patience 3), ≤ 30 outer iterations",
-            EstimateOptions {
-                max_outer: 30,
-                rel_tol: 1e-5,
-                ..EstimateOptions::default()
-            },
+            "default options (early stopping: 10% validation, patience 3), ≤ 30 outer iterations".into(),
+            long.clone(),
         ),
         (
-            "no early stopping, ≤ 30 outer iterations",
+            "no early stopping, ≤ 30 outer iterations".into(),
             EstimateOptions {
-                max_outer: 30,
-                rel_tol: 1e-5,
                 validation_fraction: 0.0,
-                ..EstimateOptions::default()
+                ..long.clone()
             },
         ),
-    ];
+    ]);
     let mut md_notes = Vec::new();
     for (label, o) in variants {
+        let label = label.as_str();
         eprintln!("joint: {label}");
         let (est, secs, tl) = joint_fit(&case, &case.train.obs, &o);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
@@ -390,11 +506,13 @@ fn joint(md: &mut String) -> Value {
 
 fn robust(md: &mut String) -> Value {
     let s = sizes_joint();
-    let case = prepare("spot-varying", s, 1, "robust");
-    md.push_str("## 3. Robustness: 5% bright outliers\n\nThe `spot-varying` case of part 2; 5% of the training observations get `+u · y99` in every channel \
+    let scene = joint_scene();
+    let case = prepare(&scene, s, 1, "robust");
+    md.push_str(&format!("## 3. Robustness: 5% bright outliers\n\nThe `{scene}` case of part 2; 5% of the training observations get `+u · y99` in every channel \
         (`u ~ U(0.5, 2)`, `y99` the 99th percentile of the observed values); ≤ 12 outer iterations each. Errors against the CLEAN data \
         and the truth; ratio = corrupted / clean (Huber IRLS). The *w-step cut* (`EstimateOptions::weights_reject`, default 4.685) \
-        leaves observations whose lighting residual exceeds 4.685 σ out of the per-vertex blending-weight step.\n\n");
+        leaves observations whose lighting residual exceeds 4.685 σ out of the per-vertex blending-weight step. \
+        With `ROBUST_SPECS` the rows are those specs (the first must be the clean reference).\n\n"));
     md.push_str(JOINT_HEADER);
     // Early stopping off: this part measures the robust loss over a fixed 12 iterations.
     let base = EstimateOptions {
@@ -408,55 +526,88 @@ fn robust(md: &mut String) -> Value {
     let mut rows = Vec::new();
     let mut fits = Vec::new();
     let cut = EstimateOptions::default().weights_reject;
+    let table: Vec<(String, &Observations, EstimateOptions)> =
+        if let Some(specs) = specs_from_env("ROBUST_SPECS", &base) {
+            specs
+                .into_iter()
+                .map(|sp| {
+                    let obs = if sp.dirty { &dirty } else { &case.train.obs };
+                    (sp.label, obs, sp.opts)
+                })
+                .collect()
+        } else {
+            default_robust_rows(&base, &case.train.obs, &dirty, cut)
+        };
+    for (label, obs, o) in table {
+        let label = label.as_str();
+        eprintln!("robust: {label}");
+        let (est, secs, _) = joint_fit(&case, obs, &o);
+        let f = joint_figures(&case, &est, &case.train.obs, secs);
+        eprintln!("{f:?}");
+        joint_row(md, label, &f);
+        fits.push((label.to_string(), f.clone()));
+        rows.push(json!({"fit": label, "options": format!("{o:?}"), "figures": f}));
+    }
+    robust_ratios(md, &fits, hit.len());
+    json!({"corrupted": hit.len(), "fits": rows})
+}
+
+/// Part 3's default rows: clean and 5% outliers under Huber (with and without the w-step
+/// cut), Tukey and plain least squares.
+fn default_robust_rows<'a>(
+    base: &EstimateOptions,
+    clean: &'a Observations,
+    dirty: &'a Observations,
+    cut: Option<f64>,
+) -> Vec<(String, &'a Observations, EstimateOptions)> {
+    let mut out = Vec::new();
     for (label, obs, robust, weights_reject) in [
         (
             "clean, Huber IRLS (default)",
-            &case.train.obs,
+            clean,
             Robust::Huber { k: 1.345 },
             cut,
         ),
         (
             "5% outliers, Huber IRLS (default)",
-            &dirty,
+            dirty,
             Robust::Huber { k: 1.345 },
             cut,
         ),
         (
             "5% outliers, Huber IRLS, no w-step cut",
-            &dirty,
+            dirty,
             Robust::Huber { k: 1.345 },
             None,
         ),
         (
             "5% outliers, Tukey IRLS",
-            &dirty,
+            dirty,
             Robust::Tukey { c: 4.685 },
             cut,
         ),
-        ("5% outliers, no IRLS", &dirty, Robust::None, cut),
-        ("clean, no IRLS", &case.train.obs, Robust::None, cut),
+        ("5% outliers, no IRLS", dirty, Robust::None, cut),
+        ("clean, no IRLS", clean, Robust::None, cut),
     ] {
-        eprintln!("robust: {label}");
         let o = EstimateOptions {
             robust,
             weights_reject,
             ..base.clone()
         };
-        let (est, secs, _) = joint_fit(&case, obs, &o);
-        let f = joint_figures(&case, &est, &case.train.obs, secs);
-        eprintln!("{f:?}");
-        joint_row(md, label, &f);
-        fits.push((label, f.clone()));
-        rows.push(json!({"fit": label, "figures": f}));
+        out.push((label.to_string(), obs, o));
     }
+    out
+}
+
+/// Part 3's ratios of every row to the first (the clean reference).
+fn robust_ratios(md: &mut String, fits: &[(String, JointFigures)], corrupted: usize) {
     let (c_ch, c_model, c_train) = (
         fits[0].1.heldout_rel_channel,
         fits[0].1.heldout_rel_model,
         fits[0].1.train_rel,
     );
     md.push_str(&format!(
-        "\n{} observations corrupted. Ratios to the clean Huber fit (held-out vs observations / held-out vs true model / train vs clean observations):\n\n",
-        hit.len()
+        "\n{corrupted} observations corrupted. Ratios to the first row (held-out vs observations / held-out vs true model / train vs clean observations):\n\n"
     ));
     for (l, f) in &fits[1..] {
         md.push_str(&format!(
@@ -467,7 +618,6 @@ fn robust(md: &mut String) -> Value {
         ));
     }
     md.push('\n');
-    json!({"corrupted": hit.len(), "fits": rows})
 }
 
 fn determinism(md: &mut String) -> Value {
@@ -525,10 +675,11 @@ fn convergence(md: &mut String) -> Value {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(30);
-    let mut case = prepare("spot-varying", s, 1, "convergence");
+    let scene = joint_scene();
+    let mut case = prepare(&scene, s, 1, "convergence");
     noise_free(&mut case);
     md.push_str(&format!(
-        "## 5. Convergence on noise-free data\n\n`spot-varying` ({} vertices, {} training / {} held-out photos, {}², {}² global, {}² local, all coefficients) \
+        "## 5. Convergence on noise-free data\n\n`{scene}` ({} vertices, {} training / {} held-out photos, {}², {}² global, {}² local, all coefficients) \
          with every observation replaced by the TRUE reflectance under the TRUE light through the case's own transport: the model \
          reproduces the data exactly, so the floor is 0 and what remains is the estimator's own error. K = 2 from the k-means start \
          unless stated; ≤ {iters} outer iterations, `rel_tol` 0. Held-out = the held-out photos under their true light (best scale per channel).\n\n",
@@ -631,8 +782,21 @@ fn convergence(md: &mut String) -> Value {
             true,
         ),
     ];
-    let only = std::env::var("CONVERGENCE_VARIANTS").ok();
-    md.push_str("| fit | train rel. RMSE after 1 / 5 / 10 / 20 / last | held-out rel. RMSE after 1 / 5 / 10 / 20 / last | best held-out (iteration) | seconds |\n|---|---|---|---|---|\n");
+    let variants: Vec<(String, EstimateOptions, bool)> =
+        match specs_from_env("CONVERGENCE_SPECS", &base) {
+            Some(specs) => specs
+                .into_iter()
+                .map(|sp| (sp.label, sp.opts, sp.from_truth))
+                .collect(),
+            None => variants
+                .into_iter()
+                .map(|(l, o, t)| (l.to_string(), o, t))
+                .collect(),
+        };
+    let only = std::env::var("CONVERGENCE_VARIANTS")
+        .ok()
+        .filter(|_| std::env::var("CONVERGENCE_SPECS").is_err());
+    md.push_str("| fit | outer its | train rel. RMSE after 1 / 5 / 10 / 20 / last | held-out rel. RMSE after 1 / 5 / 10 / 20 / last | best held-out (iteration) | returned estimate's held-out | seconds |\n|---|---|---|---|---|---|---|\n");
     let mut rows = Vec::new();
     for (vi, (label, o, from_truth)) in variants.into_iter().enumerate() {
         if let Some(sel) = &only {
@@ -684,13 +848,23 @@ fn convergence(md: &mut String) -> Value {
                 (0, f64::INFINITY),
                 |a, (i, &h)| if h < a.1 { (i, h) } else { a },
             );
+        let ret = rel_rmse_per_channel(
+            &case.held.obs,
+            &case.predict_held(&est.lambda, &est.weights),
+        );
+        let ret_it = est
+            .validation
+            .as_ref()
+            .map_or(est.timeline.len(), |v| v.best_iteration);
         md.push_str(&format!(
-            "| {label} | {} | {} | {bh:.4} ({}) | {secs:.1} |\n",
+            "| {label} | {} of ≤ {} | {} | {} | {bh:.4} ({}) | {ret:.4} (iteration {ret_it}) | {secs:.1} |\n",
+            est.timeline.len(),
+            o.max_outer,
             pick(&tr),
             pick(&he),
             bi + 1
         ));
-        rows.push(json!({"fit": label, "options": format!("{o:?}"), "from_truth": from_truth, "timeline": tl, "seconds": secs, "iterations": est.timeline.len()}));
+        rows.push(json!({"fit": label, "options": format!("{o:?}"), "from_truth": from_truth, "timeline": tl, "seconds": secs, "iterations": est.timeline.len(), "returned_heldout_rel": ret, "returned_iteration": ret_it}));
     }
     md.push('\n');
     json!({"vertices": case.nv, "train_observations": case.train.obs.len(), "heldout_observations": case.held.obs.len(), "fits": rows})
@@ -701,11 +875,16 @@ fn convergence(md: &mut String) -> Value {
 /// split the renderer's Monte-Carlo noise from the transport's discretisation; written to
 /// `bench-results/estimator-floors.*`.
 fn floors(md: &mut String) -> Value {
-    md.push_str("## 6. Floors: Monte-Carlo noise against discretisation\n\n\
+    // `FLOOR_WIDTH`: photo side (default 64); `FLOOR_SPP`: the sample counts (comma list).
+    let width: u32 = std::env::var("FLOOR_WIDTH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64);
+    md.push_str(&format!("## 6. Floors: Monte-Carlo noise against discretisation\n\n\
         Floor = relative RMSE of the TRUE reflectance under the TRUE light through the transport against the rendered photos \
-        (training and held-out photos apart). Photos 64², the same render reused for every transport of a row group \
+        (training and held-out photos apart). Photos {width}², the same render reused for every transport of a row group \
         (only the transport is rebuilt). Noise halves with 4× the samples; discretisation does not move with samples.\n\n\
-        | scene | spp × MIS pairs | global² / local² | floor (train) | floor (held out) | seconds synth / prepare |\n|---|---|---|---|---|---|\n");
+        | scene | spp × MIS pairs | global² / local² | floor (train) | floor (held out) | seconds synth / prepare |\n|---|---|---|---|---|---|\n"));
     let mut rows = Vec::new();
     // (scene, samples per pixel, (global, local) transports).
     type Group<'a> = (&'a str, Vec<u32>, Vec<(usize, usize)>);
@@ -714,7 +893,11 @@ fn floors(md: &mut String) -> Value {
         ("sphere-glossy", vec![16, 64], vec![(32, 16), (64, 32)]),
         ("sphere-specular", vec![16, 64], vec![(32, 16), (64, 32)]),
         ("spot-varying", vec![8, 32], vec![(16, 8), (32, 16)]),
+        ("spot-ggx", vec![8, 32], vec![(16, 8), (32, 16), (64, 32)]),
     ];
+    let spp_override: Option<Vec<u32>> = std::env::var("FLOOR_SPP")
+        .ok()
+        .map(|v| v.split(',').map(|x| x.trim().parse().unwrap()).collect());
     let only = std::env::var("FLOOR_SCENES").ok();
     for (scene, spps, trans) in groups {
         if only
@@ -723,14 +906,14 @@ fn floors(md: &mut String) -> Value {
         {
             continue;
         }
-        for spp in spps {
+        for spp in spp_override.clone().unwrap_or(spps) {
             let s0 = Sizes {
-                width: 64,
+                width,
                 vertices: 2_500,
                 spp,
                 ..sizes_known()
             };
-            let dir = scratch(&format!("floors-{scene}-{spp}"));
+            let dir = scratch(&format!("floors-{scene}-{spp}-{width}"));
             let secs = synthesize(scene, &dir.0.join("ws"), s0, 1);
             for &(g, l) in &trans {
                 let s = Sizes {
@@ -821,7 +1004,13 @@ fn main() {
 }
 
 /// `dir/STEM.md` and `dir/STEM.json`, and the Markdown on standard output.
+/// `RESULTS_SUFFIX=S` writes `STEM-S.*` instead (a run of a few variants, merged into the
+/// main files by hand).
 fn write_results(dir: &std::path::Path, stem: &str, md: &str, v: &Value) {
+    let stem = match std::env::var("RESULTS_SUFFIX") {
+        Ok(sfx) if !sfx.is_empty() => format!("{stem}-{sfx}"),
+        _ => stem.to_string(),
+    };
     std::fs::write(dir.join(format!("{stem}.md")), md).unwrap();
     std::fs::write(
         dir.join(format!("{stem}.json")),

@@ -200,6 +200,18 @@ fn scene_defs() -> Vec<SceneDef> {
             photos: 16,
         },
         SceneDef {
+            name: "spot-ggx",
+            description: "Spot, two blended materials with lobes the transport resolves (Lambert + GGX 0.3, Lambert), a different real map and rotation per photo, held-out photos",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert, Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![
+                ("orange-ggx", vec![[0.8, 0.45, 0.2], [0.25, 0.25, 0.25]]),
+                ("blue-lambert", vec![[0.2, 0.3, 0.6], [0.0, 0.0, 0.0]]),
+            ],
+            lighting: Lighting::Varying(ALL_MAPS),
+            photos: 16,
+        },
+        SceneDef {
             name: "spot-static",
             description: "Spot, two blended materials, one real map for every photo (static illumination)",
             shape: Shape::Spot,
