@@ -18,7 +18,13 @@
 //!    Tukey) against plain least squares, all against the clean Huber fit.
 //! 4. Determinism: bitwise comparison of two runs, on 1 and 2 threads.
 //!
-//! `ESTIMATOR_BENCH=known,joint,robust,determinism` picks parts (default: all). Sizes are
+//! `ESTIMATOR_BENCH=known,joint,robust,determinism` picks parts (default: all; `convergence`
+//! and `floors` write their own files). Variants without editing the bench:
+//! `JOINT_SPECS` / `ROBUST_SPECS` / `CONVERGENCE_SPECS` replace a part's rows by option
+//! strings ([`parse_spec`], e.g. `"floor=0.1;floor=0.1,val=0"`); `JOINT_SCENE` (default
+//! `spot-varying`) and `JOINT_GLOBAL`, `JOINT_LOCAL`, `JOINT_SPP`, `JOINT_VERTICES`,
+//! `JOINT_WIDTH` set parts 2, 3 and 5's case; `FLOOR_SCENES`, `FLOOR_WIDTH`, `FLOOR_SPP`,
+//! `FLOOR_NORMAL_GRID` part 6's; `RESULTS_SUFFIX=S` writes `STEM-S.{md,json}`. Sizes are
 //! chosen to keep the whole run near 15 CPU minutes: parts 2–4 use a 16² global and 8²
 //! local map (32² / 16² cost ~20× more per outer iteration on Spot).
 
@@ -92,7 +98,7 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// One fit variant from a spec string (`JOINT_SPECS`, `ROBUST_SPECS`,
 /// `CONVERGENCE_SPECS`: `;`-separated specs): comma-separated `key=value` changes to
 /// `base`. Keys: `floor` (`robust_floor`), `irls` (`none`, `huber`, `tukey`), `k` (Huber's
-/// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `its` (`max_outer`), `val`
+/// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
 /// `truth=1` (start at the true materials), `dirty=1` (5% outliers, part 3); `base` alone
 /// = no change. The label is the spec itself.
@@ -132,6 +138,8 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "smooth" => o.smoothness = num(),
             "decay" => o.smoothness_decay = num(),
             "smin" => o.smoothness_min = num(),
+            "patience" => o.patience = num() as usize,
+            "extrap" => o.extrapolate = num() > 0.0,
             "its" => o.max_outer = num() as usize,
             "val" => o.validation_fraction = num(),
             "passes" => o.irls_iters = num() as usize,
@@ -895,6 +903,11 @@ fn floors(md: &mut String) -> Value {
         ("spot-varying", vec![8, 32], vec![(16, 8), (32, 16)]),
         ("spot-ggx", vec![8, 32], vec![(16, 8), (32, 16), (64, 32)]),
     ];
+    // `FLOOR_NORMAL_GRID`: the rotations' normal grid side (default 16).
+    let normal_grid: usize = std::env::var("FLOOR_NORMAL_GRID")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(16);
     let spp_override: Option<Vec<u32>> = std::env::var("FLOOR_SPP")
         .ok()
         .map(|v| v.split(',').map(|x| x.trim().parse().unwrap()).collect());
@@ -919,6 +932,7 @@ fn floors(md: &mut String) -> Value {
                 let s = Sizes {
                     global: g,
                     local: l,
+                    normal_grid,
                     ..s0
                 };
                 // `prepare_in` takes ownership of a scratch guard; the real guard `dir`
