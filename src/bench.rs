@@ -7,10 +7,12 @@
 //! (wall, CPU, per-stage peak resident memory) and its report (training RMSE, held-out
 //! RMSE of protocol (a), true light, after the best global scale).
 //!
-//! Growth of a stage between two sizes `n₁ < n₂` with times `t₁, t₂` is given two ways:
-//! the ratio `(t₂/t₁) / (n₂/n₁)` (1 = linear, < 1 sub-linear) and the log-log exponent
-//! `p = ln(t₂/t₁) / ln(n₂/n₁)` of a power law `t ∝ nᵖ`. The paper's cost model (Eq. 7–12:
-//! one transport row per observation, the lighting and material steps summing over
+//! Growth of a stage between two runs with `n₁ < n₂` training observations and CPU times
+//! `t₁, t₂` (user + system: on a shared machine wall time measures the other jobs too) is
+//! given two ways: the ratio `(t₂/t₁) / (n₂/n₁)` (1 = linear, < 1 sub-linear) and the
+//! log-log exponent `p = ln(t₂/t₁) / ln(n₂/n₁)` of a power law `t ∝ nᵖ`; the run's peak
+//! resident memory gets the same two figures. The paper's cost model (Eq. 7–12: one
+//! transport row per observation, the lighting and material steps summing over
 //! observations) predicts `p ≈ 1` in the number of observations.
 //!
 //! The error-against-time sweep varies the global map resolution, the coefficient budget
@@ -39,8 +41,13 @@ pub struct BenchOptions {
     pub base_photos: usize,
     /// Minimum vertices of the photo-scaling runs.
     pub base_vertices: usize,
-    /// Output folder (`pipeline.json`, `pipeline.md`, `pipeline.png`).
+    /// Output folder (`NAME.json`, `NAME.md`, `NAME.png`).
     pub out: PathBuf,
+    /// File stem of the outputs (default `pipeline`).
+    pub name: String,
+    /// Outer iterations of the scaling runs (`None`: the run default); the sweep sets its
+    /// own.
+    pub iterations: Option<usize>,
     /// Small photos, cheap renderer and small maps: a smoke run of a few minutes.
     pub quick: bool,
     /// The `synth` scene.
@@ -116,6 +123,8 @@ impl BenchOptions {
             base_photos: 13,
             base_vertices: 100_000,
             out,
+            name: "pipeline".into(),
+            iterations: None,
             quick: false,
             scene: "spot-varying".into(),
             no_sweep: false,
@@ -135,6 +144,8 @@ impl BenchOptions {
             base_photos: 6,
             base_vertices: 8_000,
             out,
+            name: "pipeline".into(),
+            iterations: None,
             quick: true,
             scene: "sphere-plane".into(),
             no_sweep: false,
@@ -215,7 +226,7 @@ pub struct BenchRun {
     pub holdout_rmse: f64,
 }
 
-/// Growth of one stage's wall time between two consecutive sizes.
+/// Growth of one stage's CPU time (or of the peak memory) between two consecutive sizes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Growth {
     /// Stage name (`total` for the whole run).
@@ -312,14 +323,16 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<bool> {
         .collect()
 }
 
-/// Per-stage seconds of a run, with a `total` entry.
-fn stage_seconds(run: &BenchRun) -> Vec<(String, f64)> {
+/// Per-stage CPU seconds of a run, with a `total` entry, and its peak memory (MiB) as
+/// `peak memory`.
+fn stage_costs(run: &BenchRun) -> Vec<(String, f64)> {
     let mut v: Vec<(String, f64)> = run
         .stages
         .iter()
-        .map(|s| (s.name.clone(), s.seconds))
+        .map(|s| (s.name.clone(), s.cpu_seconds))
         .collect();
-    v.push(("total".into(), run.total_seconds));
+    v.push(("total".into(), run.total_cpu_seconds));
+    v.push(("peak memory".into(), mib(run.peak_memory_bytes)));
     v
 }
 
@@ -623,7 +636,7 @@ fn measure(
     Ok(run)
 }
 
-/// Run the benchmark and write `pipeline.{json,md,png}` into `opts.out`, rewritten after
+/// Run the benchmark and write `NAME.{json,md,png}` (`opts.name`) into `opts.out`, rewritten after
 /// every run (with `complete: false` until the last), so a long benchmark that is stopped
 /// keeps the rows it finished.
 pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
@@ -670,12 +683,12 @@ fn summarise(report: &mut BenchReport) {
         growth_rates(
             &runs
                 .iter()
-                .map(|r| (size(r) as f64, stage_seconds(r)))
+                .map(|r| (size(r) as f64, stage_costs(r)))
                 .collect::<Vec<_>>(),
         )
     };
-    report.vertex_growth = growth(&report.vertex_runs, |r| r.vertices);
-    report.photo_growth = growth(&report.photo_runs, |r| r.photos);
+    report.vertex_growth = growth(&report.vertex_runs, |r| r.observations);
+    report.photo_growth = growth(&report.photo_runs, |r| r.observations);
     report.pareto = pareto_front(
         &report
             .sweep
@@ -691,7 +704,11 @@ fn bench_in(
     temporary: bool,
     t0: std::time::Instant,
 ) -> Result<BenchReport> {
-    let (_, _, _, base) = mode_settings(opts.quick);
+    let (_, _, _, sweep_base) = mode_settings(opts.quick);
+    let base = Knobs {
+        iterations: opts.iterations.unwrap_or(sweep_base.iterations),
+        ..sweep_base
+    };
     let mut sizes = opts.sizes.clone();
     sizes.sort_unstable();
     sizes.dedup();
@@ -717,7 +734,7 @@ fn bench_in(
     let save = |report: &mut BenchReport| -> Result<()> {
         summarise(report);
         report.seconds = t0.elapsed().as_secs_f64();
-        write_outputs(report, &opts.out)
+        write_outputs(report, &opts.out, &opts.name)
     };
     let done = |s: &BenchScene| -> Result<()> {
         if temporary {
@@ -764,7 +781,7 @@ fn bench_in(
     if !opts.no_sweep {
         let n = sizes.first().copied().unwrap_or(opts.base_vertices);
         let s = scene(opts, work, n, opts.base_photos)?;
-        let (list, idx) = sweep_knobs(base, opts.quick);
+        let (list, idx) = sweep_knobs(sweep_base, opts.quick);
         report.reference = Some(idx);
         for k in list {
             let r = measure("sweep", &s, k, &opts.model, opts)?;
@@ -778,15 +795,15 @@ fn bench_in(
     Ok(report)
 }
 
-fn write_outputs(report: &BenchReport, out: &Path) -> Result<()> {
-    let json_path = out.join("pipeline.json");
+fn write_outputs(report: &BenchReport, out: &Path, name: &str) -> Result<()> {
+    let json_path = out.join(format!("{name}.json"));
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Config(format!("bench: could not encode the report: {e}")))?;
     std::fs::write(&json_path, json).map_err(|e| Error::io(&json_path, e))?;
-    let md_path = out.join("pipeline.md");
+    let md_path = out.join(format!("{name}.md"));
     std::fs::write(&md_path, markdown(report)).map_err(|e| Error::io(&md_path, e))?;
     if report.sweep.len() > 1 {
-        plot_sweep(report, &out.join("pipeline.png"))?;
+        plot_sweep(report, &out.join(format!("{name}.png")))?;
     }
     Ok(())
 }
@@ -857,7 +874,7 @@ fn growth_table(md: &mut String, what: &str, rows: &[Growth]) {
     }
     let _ = writeln!(
         md,
-        "| stage | {what} from → to | time ratio | (t₂/t₁)/(n₂/n₁) | exponent p |\n|---|---|---:|---:|---:|"
+        "| stage | training observations from → to ({what}) | CPU (or MiB) ratio | (t₂/t₁)/(n₂/n₁) | exponent p |\n|---|---|---:|---:|---:|"
     );
     for g in rows {
         let flag = if g.exponent > 1.25 {
@@ -913,7 +930,7 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
     if !report.vertex_runs.is_empty() {
         md.push_str("## Scaling in vertices\n\n");
         stage_table(&mut md, &report.vertex_runs);
-        md.push_str("Growth between consecutive sizes (n = vertices; p = ln(t₂/t₁)/ln(n₂/n₁), 1 = linear; stages under ~0.05 s are timer noise):\n\n");
+        md.push_str("Growth between consecutive sizes in CPU seconds (and peak MiB), against n = training observations (p = ln(t₂/t₁)/ln(n₂/n₁), 1 = linear; stages under ~0.05 s are timer noise):\n\n");
         growth_table(&mut md, "vertices", &report.vertex_growth);
     }
     if !report.adaptive_runs.is_empty() {
@@ -923,7 +940,7 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
     if !report.photo_runs.is_empty() {
         md.push_str("## Scaling in photos\n\n");
         stage_table(&mut md, &report.photo_runs);
-        md.push_str("Growth between consecutive photo counts (n = photos):\n\n");
+        md.push_str("Growth between consecutive photo counts in CPU seconds (and peak MiB), against n = training observations:\n\n");
         growth_table(&mut md, "photos", &report.photo_growth);
     }
     if !report.sweep.is_empty() {

@@ -14,8 +14,17 @@
 //!   row touches `e ≈ (n_global / (√2 n_local) + 2)²` global texels (a local texel covers
 //!   `n_global² / (2 n_local²)` global ones, plus the bilinear border; 11.7 at the defaults,
 //!   measured 11.3);
+//! - the photos, decoded at import and kept for the evaluation and the renders: linear
+//!   RGB `f32` and an overexposure flag per pixel — `13 · pixels` over all photos;
 //! - transport rows `T_x ρ_b` (Eq. 7–8, [`crate::transport::Transport`]): `P · B` rows of `keep`
-//!   (index `u32`, value `f32`) entries plus an offset — `P · B · (8 keep + 8)`;
+//!   (index `u16`, value `f32`) entries plus an offset — `P · B · (6 keep + 8)`; the same
+//!   for the held-out photos' observations (the held-out error tracked per iteration),
+//!   counted as `P · held / photos` observations before they are extracted;
+//! - the lighting step's merged rows (Eq. 10, one photo's rows merged with `β` into one
+//!   sparse row per observation: `u32` index and three `f32`): one photo per worker thread
+//!   at a time, `min(threads, photos) · (P / photos) · MERGED_FRACTION · B · keep · 16`,
+//!   where [`MERGED_FRACTION`] (the union of an observation's `B` rows over their total
+//!   length) was measured;
 //! - the lighting solver (Eq. 10): per photo three channels of `n_global²` Haar coefficients
 //!   in `f64`, and about [`SOLVER_VECTORS`] such vectors of GPCG / IRLS workspace —
 //!   `photos · 3 · n_global² · 8 · SOLVER_VECTORS`.
@@ -40,6 +49,19 @@ pub const USABLE_FRACTION: f64 = 0.8;
 /// `[f32; 3]` direction).
 pub const OBSERVATION_BYTES: u64 = 36;
 
+/// Bytes per kept transport entry (`u16` Haar index, `f32` value).
+pub const TRANSPORT_ENTRY_BYTES: u64 = 6;
+
+/// Bytes per decoded photo pixel (`[f32; 3]` linear RGB, `bool` overexposed).
+pub const PIXEL_BYTES: u64 = 13;
+
+/// Entries of an observation's merged lighting row over the `B · keep` entries of its
+/// basis rows (the rows of one vertex share most of their coarse Haar coefficients). An
+/// upper bound from the measured peaks (`bench-results/pipeline-scaling.md`): at 11,714
+/// vertices, 7 bases, keep 128, the estimate stage peaked 24 MiB above the transport
+/// stage, where 0.5 predicts 52 MiB.
+pub const MERGED_FRACTION: f64 = 0.5;
+
 /// The sizes that decide a run's memory.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sizes {
@@ -47,6 +69,12 @@ pub struct Sizes {
     pub vertices: u64,
     /// Photos used for fitting.
     pub photos: u64,
+    /// Held-out photos (their observations get transport rows too).
+    pub held_photos: u64,
+    /// Pixels of all decoded photos (training and held out).
+    pub photo_pixels: u64,
+    /// Worker threads (each merges one photo's lighting rows at a time).
+    pub threads: u64,
     /// Observations `P` (an upper bound before extraction: [`Sizes::observations_upper_bound`]).
     pub observations: u64,
     /// Basis BRDFs `B`.
@@ -143,12 +171,37 @@ pub fn estimate(s: &Sizes) -> Budget {
             bytes: rotation,
         },
         Item {
+            name: "photos",
+            bytes: mul(&[s.photo_pixels, PIXEL_BYTES]),
+        },
+        Item {
             name: "transport rows",
             bytes: mul(&[
                 s.observations,
                 s.basis,
-                s.kept().saturating_mul(8).saturating_add(8),
+                s.kept()
+                    .saturating_mul(TRANSPORT_ENTRY_BYTES)
+                    .saturating_add(8),
             ]),
+        },
+        Item {
+            name: "held-out transport rows",
+            bytes: mul(&[
+                s.observations.saturating_mul(s.held_photos) / s.photos.max(1),
+                s.basis,
+                s.kept()
+                    .saturating_mul(TRANSPORT_ENTRY_BYTES)
+                    .saturating_add(8),
+            ]),
+        },
+        Item {
+            name: "lighting merged rows",
+            bytes: {
+                let per_photo = s.observations.div_ceil(s.photos.max(1)) as f64;
+                let merged = (MERGED_FRACTION * mul(&[s.basis, s.kept()]) as f64).ceil();
+                let b = s.threads.clamp(1, s.photos.max(1)) as f64 * per_photo * merged * 16.0;
+                b.min(u64::MAX as f64) as u64
+            },
         },
         Item {
             name: "lighting solver",
@@ -317,6 +370,9 @@ mod tests {
         Sizes {
             vertices,
             photos,
+            held_photos: 1,
+            photo_pixels: (photos + 1) * 1000,
+            threads: 2,
             observations: vertices * photos,
             basis: 3,
             global_resolution: 64,
@@ -348,7 +404,13 @@ mod tests {
                 .bytes,
             0
         );
-        assert_eq!(get("transport rows"), 4000 * 3 * (128 * 8 + 8));
+        assert_eq!(get("transport rows"), 4000 * 3 * (128 * 6 + 8));
+        // One held-out photo of four training ones: a quarter of the observations.
+        assert_eq!(get("held-out transport rows"), 1000 * 3 * (128 * 6 + 8));
+        assert_eq!(get("photos"), 5000 * 13);
+        // Two threads, 1000 observations per photo, ⌈f · 3 · 128⌉ merged entries of 16 B.
+        let merged = (MERGED_FRACTION * 384.0).ceil() as u64;
+        assert_eq!(get("lighting merged rows"), 2 * 1000 * merged * 16);
         assert_eq!(get("lighting solver"), 4 * 3 * 4096 * 8 * 8);
         // Rotation: the commit log measured 72 MiB at 64/32/32 (rotation.rs, c8979c3);
         // the estimate must be within 10 % of that.
@@ -358,7 +420,7 @@ mod tests {
 
     #[test]
     fn million_vertices_refused_with_option() {
-        // 1.2 M vertices, 4 photos: transport 4.8 M × 3 × 1032 B ≈ 14 GiB, visibility 1.2 GiB.
+        // 1.2 M vertices, 4 photos: transport 4.8 M × 3 × 776 B ≈ 10.4 GiB, visibility 1.2 GiB.
         let s = defaults(1_200_000, 4);
         let b = estimate(&s);
         let avail = 8u64 << 30;

@@ -106,7 +106,7 @@ impl Problem<'_> {
             ));
         }
         let n2 = (t.n_global * t.n_global) as u32;
-        if let Some(i) = t.index.iter().position(|&m| m >= n2) {
+        if let Some(i) = t.index.iter().position(|&m| u32::from(m) >= n2) {
             return bad(format!(
                 "transport entry {i} indexes coefficient {} ≥ {n2}",
                 t.index[i]
@@ -599,7 +599,7 @@ impl PhotoSystem {
                     let mu = m as usize;
                     if !seen[mu] {
                         seen[mu] = true;
-                        touched.push(m);
+                        touched.push(u32::from(m));
                     }
                     let g = g as f64;
                     let d = &mut dense[mu];

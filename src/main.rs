@@ -109,7 +109,7 @@ enum Command {
     },
     /// Benchmark the whole pipeline on synthetic scenes: per-stage wall time, CPU time and
     /// peak memory, growth with vertices and photos, and held-out error against run time
-    /// over the speed knobs; writes OUT/pipeline.{json,md,png}.
+    /// over the speed knobs; writes OUT/NAME.{json,md,png} (NAME = --name, default pipeline).
     Bench {
         /// Minimum vertex counts of the vertex-scaling runs.
         /// [default: 10000,100000,400000; --quick: 2000,8000,32000]
@@ -160,6 +160,12 @@ enum Command {
         /// No per-stage progress of the runs.
         #[arg(long)]
         quiet: bool,
+        /// Outer iterations of the scaling runs [default: run's, 8] (the sweep sets its own).
+        #[arg(long)]
+        iterations: Option<usize>,
+        /// File stem of the outputs: OUT/NAME.{json,md,png}.
+        #[arg(long, default_value = "pipeline")]
+        name: String,
     },
 }
 
@@ -475,6 +481,8 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             basis,
             adaptive_rows,
             quiet,
+            iterations,
+            name,
         } => {
             use relight_cpc::bench::BenchOptions;
             let mut opts = if quick {
@@ -505,6 +513,14 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             }
             opts.adaptive_rows = adaptive_rows;
             opts.progress = !quiet && !quick;
+            if iterations == Some(0) {
+                anyhow::bail!("--iterations: at least 1");
+            }
+            opts.iterations = iterations;
+            if name.is_empty() || name.contains(['/', '\\']) {
+                anyhow::bail!("--name `{name}`: a file stem without path separators");
+            }
+            opts.name = name;
             let r = relight_cpc::bench::bench(&opts)?;
             println!(
                 "bench: {} runs in {:.0} s; results in {}",

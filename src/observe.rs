@@ -277,23 +277,24 @@ pub fn mean_edge_lengths(mesh: &Mesh) -> Vec<f64> {
 }
 
 /// Extracts the observations of every vertex in every view (module docs).
-/// `photos[i]` is the photo of `views[i]`; views without a photo are skipped.
-pub fn extract(
+/// `photos[i]` is the photo of `views[i]` (a `Photo` or a reference to one, so callers
+/// need not copy full-resolution images); views without a photo are skipped.
+pub fn extract<P: std::borrow::Borrow<Photo>>(
     mesh: &Mesh,
     bvh: &SceneBvh,
     views: &[View],
-    photos: &[Photo],
+    photos: &[P],
     opts: &ObserveOptions,
 ) -> Observations {
     extract_with_stats(mesh, bvh, views, photos, opts).0
 }
 
 /// [`extract`], also returning per-view counts of kept and rejected candidates.
-pub fn extract_with_stats(
+pub fn extract_with_stats<P: std::borrow::Borrow<Photo>>(
     mesh: &Mesh,
     bvh: &SceneBvh,
     views: &[View],
-    photos: &[Photo],
+    photos: &[P],
     opts: &ObserveOptions,
 ) -> (Observations, Vec<ViewStats>) {
     let mut obs = Observations::default();
@@ -301,7 +302,7 @@ pub fn extract_with_stats(
     let reach = mean_edge_lengths(mesh);
     for (i, view) in views.iter().enumerate() {
         let start = obs.len();
-        let Some(photo) = photos.get(i) else {
+        let Some(photo) = photos.get(i).map(|p| p.borrow()) else {
             obs.photo_ranges.push(start..start);
             stats.push(ViewStats::default());
             continue;

@@ -27,7 +27,11 @@
 //! `g` is then truncated to its `keep` largest-magnitude coefficients, which minimises the
 //! `ℓ²` norm of what is dropped and hence the worst-case response error `‖g_drop‖ ‖L̃‖`.
 //! The Lambert row depends only on the vertex and is computed once per vertex.
-//! Memory grows as observations × basis × `keep` (8 bytes per kept entry).
+//! Memory grows as observations × basis × `keep`: 6 bytes per kept entry (a `u16` Haar
+//! index, which addresses every map up to 256², and an `f32` value) plus an 8-byte offset
+//! per row. The rows are written by the workers straight into their slots of the final
+//! arrays and compacted in place, so the build never holds them twice; truncation selects
+//! the kept entries in a reused buffer (no allocation per row).
 //!
 //! Slices: a lobe is tabulated over a 32² grid of `ω_o` (bilinear lookup, ~2 µs) when its
 //! scale `σ` spans at least 4 table spacings, else computed on demand (adaptive, 45–105 µs
@@ -52,6 +56,12 @@ use crate::sphere::{from_local, local_frame, to_local, SphereGrid};
 use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 
+/// A Haar coefficient index of the global map (`< n_global² ≤ 256² = 65,536`).
+pub type HaarIndex = u16;
+
+/// Largest global map side whose Haar indices fit in [`HaarIndex`].
+pub const MAX_GLOBAL_SIDE: usize = 256;
+
 /// Sparse per-observation, per-basis transport vectors in the global Haar basis.
 #[derive(Debug, Clone, Default)]
 pub struct Transport {
@@ -64,15 +74,16 @@ pub struct Transport {
     pub n_obs: usize,
     /// Row `r = p * n_basis + b` spans `index[offsets[r]..offsets[r + 1]]`.
     pub offsets: Vec<usize>,
-    /// Haar coefficient indices of the kept entries.
-    pub index: Vec<u32>,
+    /// Haar coefficient indices of the kept entries (2 bytes: `n_global ≤ 256`, so every
+    /// index is below 65,536; [`build_rows`] refuses larger maps).
+    pub index: Vec<HaarIndex>,
     /// Values of the kept entries.
     pub value: Vec<f32>,
 }
 
 impl Transport {
     /// The kept entries `(indices, values)` of `g_{p,b}`.
-    pub fn row(&self, p: usize, b: usize) -> (&[u32], &[f32]) {
+    pub fn row(&self, p: usize, b: usize) -> (&[HaarIndex], &[f32]) {
         let r = p * self.n_basis + b;
         let (lo, hi) = (self.offsets[r], self.offsets[r + 1]);
         (&self.index[lo..hi], &self.value[lo..hi])
@@ -91,7 +102,7 @@ impl Transport {
     /// Bytes held by the sparse rows.
     pub fn memory_bytes(&self) -> usize {
         self.offsets.len() * std::mem::size_of::<usize>()
-            + self.index.len() * std::mem::size_of::<u32>()
+            + self.index.len() * std::mem::size_of::<HaarIndex>()
             + self.value.len() * std::mem::size_of::<f32>()
     }
 }
@@ -380,27 +391,46 @@ struct VertexContext {
 }
 
 fn vertex_context(normal_env: &Vec3, vis_row: &[u8], solid_angle: &[f64]) -> Option<VertexContext> {
+    let mut v_dw = Vec::new();
+    let (normal, frame) = vertex_frame_into(normal_env, vis_row, solid_angle, &mut v_dw)?;
+    Some(VertexContext {
+        normal,
+        frame,
+        v_dw,
+    })
+}
+
+/// The unit normal and local frame of a vertex, with `V ⊙ Δω` written into `v_dw`
+/// (reused buffer); `None` for a degenerate normal.
+fn vertex_frame_into(
+    normal_env: &Vec3,
+    vis_row: &[u8],
+    solid_angle: &[f64],
+    v_dw: &mut Vec<f64>,
+) -> Option<(Vec3, [Vec3; 3])> {
     let nn = normal_env.norm();
     if !(nn.is_finite() && nn > 0.0) {
         return None;
     }
     let normal = normal_env / nn;
-    Some(VertexContext {
-        normal,
-        frame: local_frame(&normal),
-        v_dw: vis_row
+    v_dw.clear();
+    v_dw.extend(
+        vis_row
             .iter()
             .zip(solid_angle)
-            .map(|(&v, &w)| v as f64 / 255.0 * w)
-            .collect(),
-    })
+            .map(|(&v, &w)| v as f64 / 255.0 * w),
+    );
+    Some((normal, local_frame(&normal)))
 }
 
-/// Scratch buffers for one thread.
+/// Scratch buffers for one thread (allocated once per worker, never per row).
 struct Scratch {
     slice: Vec<f64>,
     local: Vec<f64>,
     global: Vec<f64>,
+    v_dw: Vec<f64>,
+    /// `(|g_m|, m)` of the non-zero coefficients, for [`truncate_into`].
+    order: Vec<(f64, u32)>,
 }
 
 impl Scratch {
@@ -409,25 +439,62 @@ impl Scratch {
             slice: vec![0.0; n_local * n_local],
             local: vec![0.0; n_local * n_local],
             global: vec![0.0; n_global * n_global],
+            v_dw: Vec::with_capacity(n_local * n_local),
+            order: Vec::with_capacity(n_global * n_global),
         }
     }
 }
 
 /// `g = R_nᵀ W_l (V ⊙ Δω ⊙ slice)` into `scratch.global` (dense; `scratch.local` is
-/// clobbered).
-fn dense_row<R: LocalRotation>(ctx: &VertexContext, rot: &R, scratch: &mut Scratch) {
-    for ((l, s), vw) in scratch.local.iter_mut().zip(&scratch.slice).zip(&ctx.v_dw) {
+/// clobbered), for a vertex of unit normal `normal` whose `V ⊙ Δω` is in `scratch.v_dw`.
+fn dense_row<R: LocalRotation>(normal: &Vec3, rot: &R, scratch: &mut Scratch) {
+    for ((l, s), vw) in scratch
+        .local
+        .iter_mut()
+        .zip(&scratch.slice)
+        .zip(&scratch.v_dw)
+    {
         *l = s * vw;
     }
-    rot.texel_transpose(&ctx.normal, &mut scratch.local, &mut scratch.global);
+    rot.texel_transpose(normal, &mut scratch.local, &mut scratch.global);
 }
 
-type Row = (Vec<u32>, Vec<f32>);
-
-fn truncate(global: &[f64], keep: usize) -> Row {
-    let k = if keep == 0 { global.len() } else { keep };
-    let (idx, val, _) = haar::keep_largest(global, k, None);
-    (idx, val.into_iter().map(|v| v as f32).collect())
+/// The `keep` largest-magnitude non-zero coefficients of `scratch.global` (all non-zero
+/// ones for `keep == 0`) into `idx`/`val`, largest first, ties by index: the same entries
+/// in the same order as [`haar::keep_largest`], without allocating (a selection over the
+/// non-zero coefficients, then a sort of the kept part only). Returns how many were kept
+/// (`≤ idx.len()`).
+fn truncate_into(
+    scratch: &mut Scratch,
+    keep: usize,
+    idx: &mut [HaarIndex],
+    val: &mut [f32],
+) -> usize {
+    let order = &mut scratch.order;
+    order.clear();
+    order.extend(
+        scratch
+            .global
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| c != 0.0)
+            .map(|(m, &c)| (c.abs(), m as u32)),
+    );
+    let cmp = |a: &(f64, u32), b: &(f64, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
+    let k = if keep == 0 { order.len() } else { keep }
+        .min(order.len())
+        .min(idx.len());
+    if k < order.len() && k > 0 {
+        order.select_nth_unstable_by(k - 1, cmp);
+    }
+    let kept = &mut order[..k];
+    kept.sort_unstable_by(cmp);
+    for ((i, v), &(_, m)) in idx.iter_mut().zip(val.iter_mut()).zip(kept.iter()) {
+        // m < n_global² ≤ 65,536 (checked in `check_inputs`).
+        *i = m as HaarIndex;
+        *v = scratch.global[m as usize] as f32;
+    }
+    k
 }
 
 fn check_inputs<R: LocalRotation>(
@@ -439,6 +506,14 @@ fn check_inputs<R: LocalRotation>(
 ) -> Result<()> {
     if basis.is_empty() {
         return Err(Error::Config("transport: no basis BRDFs".into()));
+    }
+    if opts.n_global > MAX_GLOBAL_SIDE {
+        return Err(Error::Config(format!(
+            "transport: a {}² global map has {} Haar coefficients, more than the 65,536 that \
+             its 2-byte indices address (--global-resolution at most {MAX_GLOBAL_SIDE})",
+            opts.n_global,
+            opts.n_global * opts.n_global
+        )));
     }
     if rot.n_global() != opts.n_global || rot.n_local() != opts.n_local {
         return Err(Error::Config(format!(
@@ -501,104 +576,133 @@ pub fn build_rows<R: LocalRotation>(
         .collect::<Result<_>>()?;
     let nb = basis.len();
     let n_obs = obs_vertex.len();
-
-    // Group observations by vertex (stable order), so per-vertex work is done once.
-    let mut order: Vec<u32> = (0..n_obs as u32).collect();
-    order.sort_by_key(|&p| (obs_vertex[p as usize], p));
-    let mut groups: Vec<&[u32]> = Vec::new();
-    let mut start = 0;
-    for k in 1..=n_obs {
-        if k == n_obs || obs_vertex[order[k] as usize] != obs_vertex[order[start] as usize] {
-            groups.push(&order[start..k]);
-            start = k;
-        }
-    }
-
-    let per_group: Vec<Vec<(u32, Vec<Row>)>> = groups
-        .par_iter()
-        .map_init(
-            || Scratch::new(opts.n_local, opts.n_global),
-            |scratch, group| {
-                let v = obs_vertex[group[0] as usize] as usize;
-                let empty = || (Vec::new(), Vec::new());
-                let Some(ctx) = vertex_context(&normals_env[v], vis.vertex(v), &grid.solid_angle)
-                else {
-                    return group
-                        .iter()
-                        .map(|&p| (p, (0..nb).map(|_| empty()).collect()))
-                        .collect();
-                };
-                // View-independent rows, once per vertex.
-                let fixed: Vec<Option<Row>> = basis
-                    .iter()
-                    .zip(&sources)
-                    .map(|(b, src)| match src {
-                        SliceSource::Fixed(_) => {
-                            src.slice(b, &grid, &Vec3::z(), &mut scratch.slice);
-                            dense_row(&ctx, rot, scratch);
-                            Some(truncate(&scratch.global, opts.keep))
-                        }
-                        _ => None,
-                    })
-                    .collect();
-                group
-                    .iter()
-                    .map(|&p| {
-                        let wo = local_wo(&ctx.frame, &obs_dir_env[p as usize]);
-                        let rows = basis
-                            .iter()
-                            .zip(&sources)
-                            .zip(&fixed)
-                            .map(|((b, src), fixed)| {
-                                if let Some(r) = fixed {
-                                    return r.clone();
-                                }
-                                let Some(wo) = wo else { return empty() };
-                                src.slice(b, &grid, &wo, &mut scratch.slice);
-                                dense_row(&ctx, rot, scratch);
-                                truncate(&scratch.global, opts.keep)
-                            })
-                            .collect();
-                        (p, rows)
-                    })
-                    .collect()
-            },
-        )
+    let nv = normals_env.len();
+    let ng2 = opts.n_global * opts.n_global;
+    // Every row gets a slot of `stride` entries in the final arrays, filled in place by
+    // the workers and compacted at the end: the rows are never held twice (the old
+    // per-row vectors doubled the peak while they were concatenated).
+    let stride = if opts.keep == 0 {
+        ng2
+    } else {
+        opts.keep.min(ng2)
+    };
+    let fixed_bases: Vec<usize> = (0..nb)
+        .filter(|&b| matches!(sources[b], SliceSource::Fixed(_)))
         .collect();
+    let nf = fixed_bases.len();
 
-    // Scatter into observation order and concatenate.
-    let mut rows: Vec<Option<Vec<Row>>> = (0..n_obs).map(|_| None).collect();
-    for (p, r) in per_group.into_iter().flatten() {
-        rows[p as usize] = Some(r);
+    // View-independent (Lambert) rows depend only on the vertex: once per observed vertex.
+    let mut observed = vec![false; nv];
+    for &v in obs_vertex {
+        observed[v as usize] = true;
     }
-    let total: usize = rows
-        .iter()
-        .flatten()
-        .flat_map(|r| r.iter().map(|x| x.0.len()))
-        .sum();
-    let mut t = Transport {
+    let mut fixed_idx: Vec<HaarIndex> = vec![0; if nf > 0 { nv * nf * stride } else { 0 }];
+    let mut fixed_val = vec![0f32; fixed_idx.len()];
+    let mut fixed_len = vec![0usize; nv * nf];
+    if nf > 0 {
+        fixed_idx
+            .par_chunks_mut(nf * stride)
+            .zip(fixed_val.par_chunks_mut(nf * stride))
+            .zip(fixed_len.par_chunks_mut(nf))
+            .enumerate()
+            .with_min_len(16)
+            .for_each_init(
+                || Scratch::new(opts.n_local, opts.n_global),
+                |scratch, (v, ((fi, fv), fl))| {
+                    if !observed[v] {
+                        return;
+                    }
+                    let Some((normal, _)) = vertex_frame_into(
+                        &normals_env[v],
+                        vis.vertex(v),
+                        &grid.solid_angle,
+                        &mut scratch.v_dw,
+                    ) else {
+                        return;
+                    };
+                    for (j, &b) in fixed_bases.iter().enumerate() {
+                        sources[b].slice(&basis[b], &grid, &Vec3::z(), &mut scratch.slice);
+                        dense_row(&normal, rot, scratch);
+                        let span = j * stride..(j + 1) * stride;
+                        fl[j] =
+                            truncate_into(scratch, opts.keep, &mut fi[span.clone()], &mut fv[span]);
+                    }
+                },
+            );
+    }
+
+    // Every observation's rows, in observation order, straight into their slots.
+    let total_slots = n_obs
+        .checked_mul(nb)
+        .and_then(|r| r.checked_mul(stride))
+        .ok_or_else(|| Error::Config("transport: row storage size overflows".into()))?;
+    let mut index: Vec<HaarIndex> = vec![0; total_slots];
+    let mut value = vec![0f32; total_slots];
+    let mut lens = vec![0usize; n_obs * nb];
+    index
+        .par_chunks_mut(nb * stride)
+        .zip(value.par_chunks_mut(nb * stride))
+        .zip(lens.par_chunks_mut(nb))
+        .enumerate()
+        .with_min_len(16)
+        .for_each_init(
+            || Scratch::new(opts.n_local, opts.n_global),
+            |scratch, (p, ((oi, ov), ol))| {
+                let v = obs_vertex[p] as usize;
+                let Some((normal, frame)) = vertex_frame_into(
+                    &normals_env[v],
+                    vis.vertex(v),
+                    &grid.solid_angle,
+                    &mut scratch.v_dw,
+                ) else {
+                    return;
+                };
+                let wo = local_wo(&frame, &obs_dir_env[p]);
+                for (b, (brdf, src)) in basis.iter().zip(&sources).enumerate() {
+                    let span = b * stride..(b + 1) * stride;
+                    if let Some(j) = fixed_bases.iter().position(|&f| f == b) {
+                        let k = fixed_len[v * nf + j];
+                        let from = (v * nf + j) * stride;
+                        oi[span.start..span.start + k].copy_from_slice(&fixed_idx[from..from + k]);
+                        ov[span.start..span.start + k].copy_from_slice(&fixed_val[from..from + k]);
+                        ol[b] = k;
+                        continue;
+                    }
+                    let Some(wo) = wo else { continue };
+                    src.slice(brdf, &grid, &wo, &mut scratch.slice);
+                    dense_row(&normal, rot, scratch);
+                    ol[b] = truncate_into(scratch, opts.keep, &mut oi[span.clone()], &mut ov[span]);
+                }
+            },
+        );
+    drop((fixed_idx, fixed_val, fixed_len));
+
+    // Compact the slots in place (rows shorter than `stride` are rare at `keep ≪ n_global²`)
+    // and give the unused tail back.
+    let mut offsets = Vec::with_capacity(n_obs * nb + 1);
+    offsets.push(0usize);
+    let mut end = 0usize;
+    for (r, &k) in lens.iter().enumerate() {
+        let from = r * stride;
+        if from != end {
+            index.copy_within(from..from + k, end);
+            value.copy_within(from..from + k, end);
+        }
+        end += k;
+        offsets.push(end);
+    }
+    index.truncate(end);
+    index.shrink_to_fit();
+    value.truncate(end);
+    value.shrink_to_fit();
+    Ok(Transport {
         n_global: opts.n_global,
         n_basis: nb,
         n_obs,
-        offsets: Vec::with_capacity(n_obs * nb + 1),
-        index: Vec::with_capacity(total),
-        value: Vec::with_capacity(total),
-    };
-    t.offsets.push(0);
-    for r in rows.into_iter() {
-        for (idx, val) in r.into_iter().flatten() {
-            t.index.extend_from_slice(&idx);
-            t.value.extend_from_slice(&val);
-            t.offsets.push(t.index.len());
-        }
-    }
-    if t.offsets.len() != n_obs * nb + 1 {
-        return Err(Error::Numeric {
-            stage: "transport".into(),
-            message: "internal: row count mismatch".into(),
-        });
-    }
-    Ok(t)
+        offsets,
+        index,
+        value,
+    })
 }
 
 /// Build the transport of every observation (module docs): `normals_env` are the unit

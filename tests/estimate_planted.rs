@@ -115,7 +115,7 @@ fn planted(seed: u64, noise: f64, outlier_fraction: f64, nv: usize, photos: usiz
                 haar::forward(&mut g, N);
                 for (m, &v) in g.iter().enumerate() {
                     if v.abs() > 1e-12 {
-                        index.push(m as u32);
+                        index.push(m as u16);
                         value.push(v as f32);
                     }
                 }

@@ -35,7 +35,7 @@ fn lighting_step_at_issue_9_scale() {
                 let level = rng.random_range(1..7u32);
                 let side = 1usize << level;
                 let m = rng.random_range(0..side * side).max(1);
-                index.push(m as u32);
+                index.push(m as u16);
                 value.push((rng.random::<f32>() - 0.5) * 0.02);
             }
             offsets.push(index.len());

@@ -79,6 +79,9 @@ fn million_vertex_mesh_is_refused_up_front() {
     let s = Sizes {
         vertices: 1_500_000,
         photos: 20,
+        held_photos: 0,
+        photo_pixels: 20 * 3000 * 2000,
+        threads: 2,
         observations: Sizes::observations_upper_bound(1_500_000, 20, 20 * 3000 * 2000),
         basis: 3,
         global_resolution: 64,
@@ -102,7 +105,7 @@ fn million_vertex_mesh_is_refused_up_front() {
     };
     assert_eq!(*available_bytes, avail);
     assert!(*needed_bytes > avail);
-    // Transport: 30 M observations × 3 × 1032 B ≈ 86 GiB dominates.
+    // Transport: 30 M observations × 3 × 776 B ≈ 65 GiB dominates.
     assert!(msg.contains("transport rows"), "{msg}");
     // Apply the hint and re-check.
     let words: Vec<&str> = hint.split_whitespace().collect();
@@ -149,6 +152,9 @@ fn small_run_passes_on_this_machine() {
     let s = Sizes {
         vertices: 2500,
         photos: 4,
+        held_photos: 1,
+        photo_pixels: 5 * 640 * 480,
+        threads: 2,
         observations: 10_000,
         basis: 3,
         global_resolution: 64,

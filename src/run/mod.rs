@@ -519,9 +519,16 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
 
     // Memory, checked with the real observation count before anything large (visibility,
     // rotations, transport, solver) is allocated.
+    let photo_pixels: u64 = photos
+        .iter()
+        .map(|p| p.width as u64 * p.height as u64)
+        .sum();
     let sizes = |observations: u64| crate::budget::Sizes {
         vertices: nv as u64,
         photos: train.len() as u64,
+        held_photos: held.len() as u64,
+        photo_pixels,
+        threads: rayon::current_num_threads() as u64,
         observations,
         basis: opts.basis.len() as u64,
         global_resolution: opts.global_resolution as u64,
@@ -535,7 +542,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     let (bvh, mut obs) = stages.run("observations", || {
         let bvh = SceneBvh::new(&scene.mesh);
         let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
-        let ph: Vec<_> = train.iter().map(|&i| photos[i].clone()).collect();
+        let ph: Vec<&crate::photo::Photo> = train.iter().map(|&i| &photos[i]).collect();
         let obs = observe::extract(&scene.mesh, &bvh, &views, &ph, &ObserveOptions::default());
         (bvh, obs)
     });
@@ -825,6 +832,10 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     check_finite(&est, &conditioning_map(&est.conditioning))?;
     let beta = estimate::beta_per_vertex(&est.lambda, &est.weights, nv);
     let train_entries = train_errors(&scene, &train, &obs, &estimate::predict(&problem, &est));
+    // The transport rows (training and held-out) are the run's largest arrays and nothing
+    // after the estimate reads them: free them before the evaluation builds its own.
+    drop(tracker);
+    drop(tr);
 
     let fitted = Fitted {
         scene: &scene,
