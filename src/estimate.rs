@@ -229,6 +229,13 @@ pub struct EstimateOptions {
     pub qp_rel_tol: f64,
     /// Cap on GPCG iterations per lighting QP.
     pub qp_max_iter: usize,
+    /// Cap on GPCG iterations of each lighting QP inside the alternation, where every QP
+    /// starts from the previous iterate and the next material step changes the system
+    /// anyway (an inexact block step: GPCG never raises the QP's objective, so `F` still
+    /// does not increase). `None`: `qp_max_iter`, i.e. solved to the KKT tolerance.
+    /// Single lighting fits (fixed materials, [`fit_light_frozen`]) always use
+    /// `qp_max_iter`. Measured in `bench-results/lighting-solver.md`.
+    pub alternation_qp_iters: Option<usize>,
     /// λ / w alternations per material step.
     pub material_sweeps: usize,
     /// Index of the Lambertian basis BRDF (used by the normalisation).
@@ -305,6 +312,7 @@ impl Default for EstimateOptions {
             fixed_materials: false,
             qp_rel_tol: 1e-7,
             qp_max_iter: 300,
+            alternation_qp_iters: None,
             material_sweeps: 1,
             lambert_basis: 0,
             extrapolate: true,
@@ -398,6 +406,13 @@ pub struct Conditioning {
     pub weights_singular: usize,
     /// Lighting QPs that hit the iteration cap before the KKT tolerance.
     pub qp_unconverged: usize,
+    /// Lighting QPs (photo × IRLS pass) of the last lighting step that stopped at the
+    /// alternation's cap ([`EstimateOptions::alternation_qp_iters`]), by design.
+    pub qp_alternation_capped: usize,
+    /// Lighting QPs solved so far (photos × IRLS passes × outer iterations).
+    pub lighting_qps: usize,
+    /// Most Hessian products of one lighting QP so far.
+    pub lighting_matvecs_max: usize,
     /// Hessian products of all lighting QPs so far (the lighting step's cost unit).
     pub lighting_matvecs: usize,
 }
@@ -783,6 +798,12 @@ pub struct LightingResult {
     pub converged: bool,
     /// Hessian products used.
     pub matvecs: usize,
+    /// QPs solved (one per IRLS pass with light reaching an observation).
+    pub qps: usize,
+    /// QPs that stopped at the iteration cap.
+    pub unconverged_qps: usize,
+    /// Most Hessian products of one QP.
+    pub matvecs_max: usize,
 }
 
 fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
@@ -886,6 +907,7 @@ pub fn lighting_step_full(
     let mut cond = 0.0_f64;
     let mut converged = true;
     let mut matvecs = 0;
+    let (mut qps, mut unconverged_qps, mut matvecs_max) = (0, 0, 0);
     let mut pred = vec![[0.0; 3]; range.len()];
     for pass in 0..passes {
         // Reweight from the current residuals (the first pass: unit weights, a restart).
@@ -967,6 +989,9 @@ pub fn lighting_step_full(
             })?;
         converged &= res.converged;
         matvecs += res.matvecs;
+        qps += 1;
+        unconverged_qps += usize::from(!res.converged);
+        matvecs_max = matvecs_max.max(res.matvecs);
         if res.cond_lower_bound.is_finite() {
             cond = res.cond_lower_bound;
         }
@@ -979,6 +1004,9 @@ pub fn lighting_step_full(
         cond_lower_bound: cond,
         converged,
         matvecs,
+        qps,
+        unconverged_qps,
+        matvecs_max,
     })
 }
 
@@ -1544,6 +1572,14 @@ pub fn estimate(
     } else {
         opts.max_outer.max(1)
     };
+    // Inside the alternation the lighting QPs are inexact block steps (option docs).
+    let light_opts = EstimateOptions {
+        qp_max_iter: match (opts.fixed_materials, opts.alternation_qp_iters) {
+            (false, Some(c)) => c.clamp(1, opts.qp_max_iter.max(1)),
+            _ => opts.qp_max_iter,
+        },
+        ..opts.clone()
+    };
     for outer_it in 1..=outer {
         // 1. Lighting, photos in parallel (each photo's solve is sequential: deterministic).
         let beta = beta_per_vertex(&lambda, &weights, nv);
@@ -1559,11 +1595,12 @@ pub fn estimate(
             .into_par_iter()
             .map(|i| {
                 let m = mu_first[i].map(|m| m.map(|v| v * mu_factor));
-                lighting_step_full(problem, &beta, i, Some(&lights[i]), m, opts)
+                lighting_step_full(problem, &beta, i, Some(&lights[i]), m, &light_opts)
             })
             .collect();
         cond.lighting.clear();
         cond.qp_unconverged = 0;
+        cond.qp_alternation_capped = 0;
         for (i, r) in results.into_iter().enumerate() {
             let r = r?;
             let range = problem.obs.photo_ranges[i].clone();
@@ -1576,6 +1613,11 @@ pub fn estimate(
             cond.lighting.push(r.cond_lower_bound);
             cond.qp_unconverged += usize::from(!r.converged);
             cond.lighting_matvecs += r.matvecs;
+            cond.lighting_qps += r.qps;
+            cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(r.matvecs_max);
+            if light_opts.qp_max_iter < opts.qp_max_iter {
+                cond.qp_alternation_capped += r.unconverged_qps;
+            }
         }
         // 2. Materials.
         let cut = match (opts.robust, opts.weights_reject) {
