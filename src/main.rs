@@ -227,6 +227,10 @@ struct RunArgs {
     /// IRLS passes per lighting step (1 = plain least squares).
     #[arg(long, default_value_t = 3)]
     irls_iterations: usize,
+    /// GPCG iterations per lighting QP inside the alternation (each starts from the
+    /// previous iterate); 0 = solve every lighting QP to the KKT tolerance.
+    #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations())]
+    lighting_qp_iterations: usize,
     /// Fraction of the training observations held back (seeded) to stop the alternation
     /// at its best iterate; 0 turns early stopping off.
     #[arg(long, default_value_t = 0.1)]
@@ -304,6 +308,7 @@ impl RunArgs {
         o.rel_tol = self.tolerance;
         o.smoothness = self.smoothness;
         o.irls_iterations = self.irls_iterations;
+        o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.validation = self.validation;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;

@@ -111,6 +111,9 @@ pub struct RunOptions {
     pub smoothness: f64,
     /// IRLS passes per lighting step (1 = no reweighting).
     pub irls_iterations: usize,
+    /// GPCG iterations per lighting QP inside the alternation
+    /// ([`EstimateOptions::alternation_qp_iters`]); 0 = every QP to the KKT tolerance.
+    pub lighting_qp_iterations: usize,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -133,6 +136,11 @@ pub struct RunOptions {
 }
 
 impl RunOptions {
+    /// Default of [`RunOptions::lighting_qp_iterations`]: the estimator's
+    /// ([`EstimateOptions::alternation_qp_iters`], `None` → 0).
+    pub fn default_lighting_qp_iterations() -> usize {
+        EstimateOptions::default().alternation_qp_iters.unwrap_or(0)
+    }
     /// Defaults for a workspace (the README says why each default).
     pub fn new(workspace: PathBuf, out: PathBuf) -> Self {
         RunOptions {
@@ -157,6 +165,7 @@ impl RunOptions {
             rel_tol: 1e-3,
             smoothness: 1e-3,
             irls_iterations: 3,
+            lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             validation: EstimateOptions::default().validation_fraction,
             clip: crate::photo::DEFAULT_CLIP,
             seed: 1,
@@ -692,6 +701,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             Robust::None
         },
         irls_iters: o.irls_iterations,
+        alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
         lambert_basis: lambert,
         validation_seed: o.seed,
         validation_fraction: o.validation,
@@ -879,8 +889,10 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     }
     if c.qp_unconverged > 0 {
         notes.push(format!(
-            "{} lighting solves stopped at the iteration cap before the KKT tolerance",
-            c.qp_unconverged
+            "{} photos' lighting solves in the last outer iteration stopped at the iteration cap before the KKT tolerance ({} of the QPs, one per photo and IRLS pass, at the alternation's cap of {} GPCG iterations, by design: --lighting-qp-iterations)",
+            c.qp_unconverged,
+            c.qp_alternation_capped,
+            opts.lighting_qp_iterations
         ));
     }
     notes.push(format!("scale normalisation: {}", fitted.est.normalisation));
@@ -1139,8 +1151,11 @@ fn conditioning_use(
         }
         if c.qp_unconverged > 0 {
             line.push_str(&format!(
-                "; {} lighting solves hit the iteration cap ({}) first",
-                c.qp_unconverged, eopts.qp_max_iter
+                "; {} photos' lighting solves hit the iteration cap first ({} QPs at the alternation's cap of {} GPCG iterations, by design; otherwise {})",
+                c.qp_unconverged,
+                c.qp_alternation_capped,
+                eopts.alternation_qp_iters.unwrap_or(eopts.qp_max_iter),
+                eopts.qp_max_iter
             ));
         }
         out.push(line);
