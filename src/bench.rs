@@ -274,6 +274,8 @@ pub struct BenchReport {
     pub pareto: Vec<bool>,
     /// Wall seconds of the whole benchmark.
     pub seconds: f64,
+    /// The command line that produced this report (regenerate with it).
+    pub command: String,
 }
 
 /// Growth between consecutive entries of `series`: `(size, [(stage, seconds)])`, sorted by
@@ -730,6 +732,17 @@ fn bench_in(
         reference: None,
         pareto: Vec::new(),
         seconds: 0.0,
+        command: std::iter::once("relight-cpc".to_string())
+            .chain(std::env::args().skip(1))
+            .map(|a| {
+                if a.contains(char::is_whitespace) {
+                    format!("'{a}'")
+                } else {
+                    a
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(" "),
     };
     let save = |report: &mut BenchReport| -> Result<()> {
         summarise(report);
@@ -896,11 +909,12 @@ pub fn markdown(report: &BenchReport) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
-        "# Pipeline benchmark{}\n\nScene `{}` built by `synth`, fitted by `run` (no training renders). \
+        "# Pipeline benchmark{}\n\nRegenerate: `{}`\n\nScene `{}` built by `synth`, fitted by `run` (no training renders). \
 Times are wall seconds of each stage as recorded by the run; CPU is user + system over all \
 threads; peak is the stage's own resident high-water mark. Held-out RMSE: protocol (a) (true \
 light), linear RGB, after the best global scale. Whole benchmark: {:.0} s.\n",
         if report.quick { " (--quick)" } else { "" },
+        report.command,
         report.scene,
         report.seconds
     );
