@@ -19,7 +19,8 @@
 //! - transport rows `T_x ρ_b` (Eq. 7–8, [`crate::transport::Transport`]): `P · B` rows of `keep`
 //!   (index `u16`, value `f32`) entries plus an offset — `P · B · (6 keep + 8)`; the same
 //!   for the held-out photos' observations (the held-out error tracked per iteration),
-//!   counted as `P · held / photos` observations before they are extracted;
+//!   counted as `min(P · held / photos, HELD_OUT_TRACKED_MAX)` observations before they
+//!   are extracted (the tracker keeps at most [`HELD_OUT_TRACKED_MAX`]);
 //! - the lighting step's merged rows (Eq. 10, one photo's rows merged with `β` into one
 //!   sparse row per observation: `u32` index and three `f32`): one photo per worker thread
 //!   at a time, `min(threads, photos) · (P / photos) · MERGED_FRACTION · B · keep · 16`,
@@ -48,6 +49,9 @@ pub const USABLE_FRACTION: f64 = 0.8;
 /// Bytes per observation (`u32` vertex, `u32` photo, `[f32; 3]` rgb, `f32` weight,
 /// `[f32; 3]` direction).
 pub const OBSERVATION_BYTES: u64 = 36;
+
+/// Held-out observations the per-iteration held-out tracker keeps at most (every `k`-th).
+pub const HELD_OUT_TRACKED_MAX: u64 = 20_000;
 
 /// Bytes per kept transport entry (`u16` Haar index, `f32` value).
 pub const TRANSPORT_ENTRY_BYTES: u64 = 6;
@@ -187,7 +191,8 @@ pub fn estimate(s: &Sizes) -> Budget {
         Item {
             name: "held-out transport rows",
             bytes: mul(&[
-                s.observations.saturating_mul(s.held_photos) / s.photos.max(1),
+                (s.observations.saturating_mul(s.held_photos) / s.photos.max(1))
+                    .min(HELD_OUT_TRACKED_MAX),
                 s.basis,
                 s.kept()
                     .saturating_mul(TRANSPORT_ENTRY_BYTES)
@@ -407,6 +412,13 @@ mod tests {
         assert_eq!(get("transport rows"), 4000 * 3 * (128 * 6 + 8));
         // One held-out photo of four training ones: a quarter of the observations.
         assert_eq!(get("held-out transport rows"), 1000 * 3 * (128 * 6 + 8));
+        // … and never more than the tracker keeps (100K vertices: 100,000 would be a quarter).
+        let big = estimate(&defaults(100_000, 4));
+        let held = big
+            .items
+            .iter()
+            .find(|i| i.name == "held-out transport rows");
+        assert_eq!(held.unwrap().bytes, 20_000 * 3 * (128 * 6 + 8));
         assert_eq!(get("photos"), 5000 * 13);
         // Two threads, 1000 observations per photo, ⌈f · 3 · 128⌉ merged entries of 16 B.
         let merged = (MERGED_FRACTION * 384.0).ceil() as u64;

@@ -280,7 +280,7 @@ impl HoldoutTracker {
 }
 
 /// Observations the held-out tracker keeps at most ([`HoldoutTracker`]).
-pub(crate) const TRACKER_MAX_OBSERVATIONS: usize = 20_000;
+pub(crate) const TRACKER_MAX_OBSERVATIONS: usize = crate::budget::HELD_OUT_TRACKED_MAX as usize;
 
 /// Every `⌈len / max⌉`-th observation of `obs` (all of them when `len ≤ max`), photo
 /// ranges recomputed.
