@@ -355,6 +355,58 @@ pub fn render_wavelet<R: LocalRotation>(
     camera: &Camera,
     image: &Image,
 ) -> Result<(Raster, Vec<[f32; 3]>)> {
+    let raster = rasterize(mesh, camera, image);
+    let model = WaveletModel {
+        mesh,
+        normals_env,
+        vis,
+        env_from_world,
+        basis,
+        beta,
+    };
+    let mut rgb = shade_wavelet(&model, &raster, image, &[env], rot)?;
+    Ok((raster, rgb.pop().unwrap_or_default()))
+}
+
+/// What the wavelet renderer draws: the mesh, its normals in the environment frame, the
+/// visibility rows, the environment frame, and the reflectance (`B` RGB weights per vertex,
+/// vertex-major).
+#[derive(Clone, Copy)]
+pub struct WaveletModel<'a> {
+    /// The mesh.
+    pub mesh: &'a Mesh,
+    /// Unit vertex normals in the environment frame.
+    pub normals_env: &'a [Vec3],
+    /// Per-vertex visibility rows at the rotation's local resolution.
+    pub vis: &'a Visibility,
+    /// Rows `e_x, e_y, e_z` of the environment frame in world coordinates.
+    pub env_from_world: &'a Matrix3<f64>,
+    /// Basis BRDFs.
+    pub basis: &'a [BasisBrdf],
+    /// Per-vertex, per-basis RGB weights `β`.
+    pub beta: &'a [[f64; 3]],
+}
+
+/// Shade `raster` (a view of `image`) under each light of `envs`: one linear RGB image per
+/// light, in order. The per-vertex work that does not depend on the light (frame,
+/// `V ⊙ Δω`, BRDF slices) is done once for all lights
+/// ([`WaveletRenderer::vertex_radiance_all`]); each image equals what
+/// [`render_wavelet`] makes for that light alone, bit for bit.
+pub fn shade_wavelet<R: LocalRotation>(
+    model: &WaveletModel,
+    raster: &Raster,
+    image: &Image,
+    envs: &[&OctEnv],
+    rot: &R,
+) -> Result<Vec<Vec<[f32; 3]>>> {
+    let WaveletModel {
+        mesh,
+        normals_env,
+        vis,
+        env_from_world,
+        basis,
+        beta,
+    } = *model;
     let nv = mesh.positions.len();
     let nb = basis.len();
     if normals_env.len() != nv || beta.len() != nv * nb || vis.open.len() != nv {
@@ -366,7 +418,6 @@ pub fn render_wavelet<R: LocalRotation>(
             beta.len()
         )));
     }
-    let raster = rasterize(mesh, camera, image);
     let mut needed = vec![false; nv];
     for &f in raster.face.iter().filter(|&&f| f != u32::MAX) {
         for &k in &mesh.faces[f as usize] {
@@ -376,27 +427,35 @@ pub fn render_wavelet<R: LocalRotation>(
     // Rotating the light once per precomputed frame costs about as much as rotating it for
     // one vertex per frame: worth it as soon as more vertices than frames are visible.
     let n_needed = needed.iter().filter(|&&b| b).count();
-    let mut renderer = WaveletRenderer::new(rot, basis, env)?;
+    let mut renderer = WaveletRenderer::new_many(rot, basis, envs)?;
     if n_needed > rot.n_frames() {
         renderer = renderer.with_frames();
     }
+    let nl = envs.len();
     let dirs = view_directions(mesh, image);
+    // Vertex-major: `nl` radiances per vertex.
     let radiance: Vec<[f32; 3]> = (0..nv)
         .into_par_iter()
-        .map(|x| {
-            if !needed[x] {
-                return [0.0; 3];
+        .flat_map_iter(|x| {
+            let mut out = vec![[0.0f64; 3]; nl];
+            if needed[x] {
+                let wo = env_from_world * dirs[x];
+                renderer.vertex_radiance_all(
+                    &normals_env[x],
+                    vis.vertex(x),
+                    &wo,
+                    &beta[x * nb..(x + 1) * nb],
+                    &mut out,
+                );
             }
-            let wo = env_from_world * dirs[x];
-            let r = renderer.vertex_radiance(
-                &normals_env[x],
-                vis.vertex(x),
-                &wo,
-                &beta[x * nb..(x + 1) * nb],
-            );
-            [r[0] as f32, r[1] as f32, r[2] as f32]
+            out.into_iter()
+                .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
         })
         .collect();
-    let rgb = shade_vertices(&raster, mesh, &radiance);
-    Ok((raster, rgb))
+    Ok((0..nl)
+        .map(|l| {
+            let per_light: Vec<[f32; 3]> = (0..nv).map(|x| radiance[x * nl + l]).collect();
+            shade_vertices(raster, mesh, &per_light)
+        })
+        .collect())
 }

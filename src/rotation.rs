@@ -666,6 +666,37 @@ impl SplatRotation {
         }
     }
 
+    /// [`SplatRotation::resample_rgb`] for several lights: one walk over the footprint of
+    /// `normal` accumulates every light's three channels (light `i`: `global[i]` into
+    /// `local[i]`), each in the same order as a call for that light alone.
+    pub fn resample_rgb_many(
+        &self,
+        normal: &Vec3,
+        global: &[[&[f64]; 3]],
+        local: &mut [[Vec<f64>; 3]],
+    ) {
+        assert_eq!(global.len(), local.len(), "one output per light");
+        if let ([g], [l]) = (global, &mut *local) {
+            return self.resample_rgb(normal, *g, l);
+        }
+        for l in local.iter_mut().flatten() {
+            l.clear();
+            l.resize(self.local.len(), 0.0);
+        }
+        self.for_each_sub(normal, |g, j, w| {
+            for ([g0, g1, g2], [l0, l1, l2]) in global.iter().zip(local.iter_mut()) {
+                l0[j] += w * g0[g];
+                l1[j] += w * g1[g];
+                l2[j] += w * g2[g];
+            }
+        });
+        for l in local.iter_mut().flatten() {
+            l.iter_mut()
+                .zip(&self.inv_omega_local)
+                .for_each(|(x, iw)| *x *= iw);
+        }
+    }
+
     /// Texel domain: `local = S_n global` (one channel).
     pub fn resample(&self, normal: &Vec3, global: &[f64], local: &mut [f64]) {
         local.fill(0.0);
@@ -729,6 +760,15 @@ impl LocalRotation for SplatRotation {
         local_texels: &mut [Vec<f64>; 3],
     ) {
         self.resample_rgb(normal_env, global_texels, local_texels);
+    }
+    fn light_texels_rgb_many(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[[&[f64]; 3]],
+        _global_haar: &[[&[f64]; 3]],
+        local_texels: &mut [[Vec<f64>; 3]],
+    ) {
+        self.resample_rgb_many(normal_env, global_texels, local_texels);
     }
 }
 

@@ -177,6 +177,21 @@ pub trait LocalRotation: Sync {
             self.light_texels(normal_env, global_texels[c], global_haar[c], l);
         }
     }
+    /// [`LocalRotation::light_texels_rgb`] for several lights at once: light `i`'s channels
+    /// `global_texels[i]` / `global_haar[i]` into `local_texels[i]`. A rotation that walks a
+    /// per-normal footprint does it once for all lights; each light's values equal those
+    /// of a call for that light alone, bit for bit.
+    fn light_texels_rgb_many(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[[&[f64]; 3]],
+        global_haar: &[[&[f64]; 3]],
+        local_texels: &mut [[Vec<f64>; 3]],
+    ) {
+        for ((t, h), l) in global_texels.iter().zip(global_haar).zip(local_texels) {
+            self.light_texels_rgb(normal_env, *t, *h, l);
+        }
+    }
     /// Number of precomputed frames `ν` that [`LocalRotation::light_texels`] blends (Eq. 6),
     /// or 0 when the rotation has no finite set of frames (then the two methods below are
     /// never called).
@@ -736,27 +751,48 @@ pub fn light_haar(env: &OctEnv) -> [Vec<f64>; 3] {
 }
 
 /// Precomputed state for evaluating the model's radiance at arbitrary vertices and views
-/// under one environment map (the wavelet renderer, Eq. 5–8): per vertex, the light rotated
-/// into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed by
+/// under one or more environment maps (the wavelet renderer, Eq. 5–8): per vertex, the
+/// light rotated into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed by
 /// [`WaveletRenderer::vertex_radiance`]. After [`WaveletRenderer::with_frames`], the light is
 /// rotated once into each of the rotation's precomputed frames `ν` and a vertex only blends
 /// the four frames of its normal, `Σ_i φ_i(n) W_lᵀ R_{ν_i} L̃` (Eq. 6: the same sum the
 /// per-vertex path forms, so equal to it up to rounding) — `n_local²` × 4 multiply-adds per
 /// vertex instead of a resampling of the whole footprint.
+///
+/// With several lights ([`WaveletRenderer::new_many`], [`WaveletRenderer::vertex_radiance_all`])
+/// the parts of Eq. 8 that do not depend on the light — the vertex frame, `V ⊙ Δω` and the
+/// `B` BRDF slices `ρ_b(·, ω_o)` — are computed once per vertex and view and shared; only the
+/// rotation and the final sums are per light. Each light's sums run in the same order as a
+/// renderer of that light alone, so the results are bitwise those of separate renders.
 pub struct WaveletRenderer<'a, R: LocalRotation> {
     rot: &'a R,
     basis: &'a [BasisBrdf],
-    light: [Vec<f64>; 3],
-    light_texels: [Vec<f64>; 3],
+    lights: Vec<RendererLight>,
     grid: std::sync::Arc<SliceGrid>,
-    /// Per channel, the light's local texels in every precomputed frame (frame-major).
+}
+
+/// One light of a [`WaveletRenderer`]: Haar coefficients and texels per channel, and after
+/// [`WaveletRenderer::with_frames`] the light's local texels in every precomputed frame.
+struct RendererLight {
+    haar: [Vec<f64>; 3],
+    texels: [Vec<f64>; 3],
+    /// Per channel, frame-major.
     frames: Option<[Vec<f64>; 3]>,
 }
 
 impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
     /// A renderer for `env` (its side must equal the rotation's global side).
     pub fn new(rot: &'a R, basis: &'a [BasisBrdf], env: &OctEnv) -> Result<Self> {
-        if env.n != rot.n_global() {
+        Self::new_many(rot, basis, &[env])
+    }
+
+    /// A renderer for several lights at once (every side must equal the rotation's global
+    /// side; at least one light).
+    pub fn new_many(rot: &'a R, basis: &'a [BasisBrdf], envs: &[&OctEnv]) -> Result<Self> {
+        if envs.is_empty() {
+            return Err(Error::Config("wavelet renderer: no light to render".into()));
+        }
+        if let Some(env) = envs.iter().find(|e| e.n != rot.n_global()) {
             return Err(Error::Config(format!(
                 "wavelet renderer: environment map is {}² but the rotation expects {}²",
                 env.n,
@@ -766,37 +802,48 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         Ok(WaveletRenderer {
             rot,
             basis,
-            light: light_haar(env),
-            light_texels: [0, 1, 2].map(|c| env.channel(c)),
+            lights: envs
+                .iter()
+                .map(|env| RendererLight {
+                    haar: light_haar(env),
+                    texels: [0, 1, 2].map(|c| env.channel(c)),
+                    frames: None,
+                })
+                .collect(),
             grid: SliceGrid::shared(rot.n_local())?,
-            frames: None,
         })
     }
 
-    /// Rotate the light into every precomputed frame of the rotation now (when it has
+    /// Number of lights this renderer evaluates.
+    pub fn n_lights(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Rotate every light into every precomputed frame of the rotation now (when it has
     /// frames), so that [`WaveletRenderer::vertex_radiance`] blends instead of rotating.
     /// Worth it when more vertices are rendered than there are frames; memory
-    /// `3 · n_frames · n_local² · 8` bytes.
+    /// `3 · n_frames · n_local² · 8` bytes per light.
     pub fn with_frames(mut self) -> Self {
         if self.rot.n_frames() > 0 {
-            self.frames = Some([0, 1, 2].map(|c| {
-                self.rot
-                    .light_texels_frames(&self.light_texels[c], &self.light[c])
-            }));
+            let rot = self.rot;
+            for l in &mut self.lights {
+                l.frames =
+                    Some([0, 1, 2].map(|c| rot.light_texels_frames(&l.texels[c], &l.haar[c])));
+            }
         }
         self
     }
 
     /// Whether [`WaveletRenderer::with_frames`] took effect.
     pub fn has_frames(&self) -> bool {
-        self.frames.is_some()
+        self.lights.iter().all(|l| l.frames.is_some())
     }
 
-    /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) at a vertex with
-    /// unit normal `normal_env`, visibility row `vis_row` (`n_local²` fractions) and
-    /// outgoing direction `wo_env` (both in the environment frame), for per-basis RGB
-    /// weights `beta` (`B` entries). Untruncated: the reference the kept transport rows
-    /// approximate. Returns zero for a degenerate normal or direction.
+    /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) under the first light
+    /// at a vertex with unit normal `normal_env`, visibility row `vis_row` (`n_local²`
+    /// fractions) and outgoing direction `wo_env` (both in the environment frame), for
+    /// per-basis RGB weights `beta` (`B` entries). Untruncated: the reference the kept
+    /// transport rows approximate. Returns zero for a degenerate normal or direction.
     pub fn vertex_radiance(
         &self,
         normal_env: &Vec3,
@@ -804,59 +851,120 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         wo_env: &Vec3,
         beta: &[[f64; 3]],
     ) -> [f64; 3] {
+        let mut out = [[0.0; 3]];
+        self.radiance_into(
+            &self.lights[..1],
+            normal_env,
+            vis_row,
+            wo_env,
+            beta,
+            &mut out,
+        );
+        out[0]
+    }
+
+    /// [`WaveletRenderer::vertex_radiance`] under every light, into `out` (one RGB per
+    /// light, in the order given to [`WaveletRenderer::new_many`]): the slices are computed
+    /// once for all of them.
+    pub fn vertex_radiance_all(
+        &self,
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        wo_env: &Vec3,
+        beta: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) {
+        assert_eq!(out.len(), self.lights.len(), "one output per light");
+        self.radiance_into(&self.lights, normal_env, vis_row, wo_env, beta, out);
+    }
+
+    fn radiance_into(
+        &self,
+        lights: &[RendererLight],
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        wo_env: &Vec3,
+        beta: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) {
+        out.iter_mut().for_each(|o| *o = [0.0; 3]);
         let Some(ctx) = vertex_context(normal_env, vis_row, &self.grid.solid_angle) else {
-            return [0.0; 3];
+            return;
         };
         let Some(wo) = local_wo(&ctx.frame, wo_env) else {
-            return [0.0; 3];
+            return;
         };
         let nl = self.rot.n_local();
         let nl2 = nl * nl;
-        let mut local = [0, 1, 2].map(|_| vec![0.0; nl2]);
-        match &self.frames {
-            Some(frames) => {
-                // Same accumulation order as the blended resampling (frame by frame,
-                // zero weights skipped).
-                let blend = self.rot.frame_blend(&ctx.normal);
-                for (l, f) in local.iter_mut().zip(frames) {
-                    for &(nu, w) in &blend {
-                        if w == 0.0 {
-                            continue;
+        // The slices of the bases with a non-zero weight, once for every light.
+        let used: Vec<usize> = (0..self.basis.len().min(beta.len()))
+            .filter(|&b| beta[b].iter().any(|&x| x != 0.0))
+            .collect();
+        let mut slices = vec![0.0; used.len() * nl2];
+        for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
+            self.basis[b].slice_with(&self.grid, &wo, s);
+        }
+        // Every light rotated into the vertex's local frame: blended from the frames, or
+        // (all lights without frames) one footprint pass for all of them.
+        let mut locals: Vec<[Vec<f64>; 3]> = lights
+            .iter()
+            .map(|_| [0, 1, 2].map(|_| vec![0.0; nl2]))
+            .collect();
+        if lights.iter().all(|l| l.frames.is_none()) {
+            let texels: Vec<[&[f64]; 3]> = lights
+                .iter()
+                .map(|l| [0, 1, 2].map(|c| l.texels[c].as_slice()))
+                .collect();
+            let haar: Vec<[&[f64]; 3]> = lights
+                .iter()
+                .map(|l| [0, 1, 2].map(|c| l.haar[c].as_slice()))
+                .collect();
+            self.rot
+                .light_texels_rgb_many(&ctx.normal, &texels, &haar, &mut locals);
+        } else {
+            for (light, local) in lights.iter().zip(locals.iter_mut()) {
+                match &light.frames {
+                    Some(frames) => {
+                        // Same accumulation order as the blended resampling (frame by
+                        // frame, zero weights skipped).
+                        let blend = self.rot.frame_blend(&ctx.normal);
+                        for (l, f) in local.iter_mut().zip(frames) {
+                            for &(nu, w) in &blend {
+                                if w == 0.0 {
+                                    continue;
+                                }
+                                for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
+                                    *o += w * x;
+                                }
+                            }
                         }
-                        for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
-                            *o += w * x;
-                        }
+                    }
+                    None => {
+                        let [t0, t1, t2] = &light.texels;
+                        let [h0, h1, h2] = &light.haar;
+                        self.rot.light_texels_rgb(
+                            &ctx.normal,
+                            [t0.as_slice(), t1.as_slice(), t2.as_slice()],
+                            [h0.as_slice(), h1.as_slice(), h2.as_slice()],
+                            local,
+                        );
                     }
                 }
             }
-            None => {
-                let [t0, t1, t2] = &self.light_texels;
-                let [h0, h1, h2] = &self.light;
-                self.rot.light_texels_rgb(
-                    &ctx.normal,
-                    [t0.as_slice(), t1.as_slice(), t2.as_slice()],
-                    [h0.as_slice(), h1.as_slice(), h2.as_slice()],
-                    &mut local,
-                );
+        }
+        for (local, o) in locals.iter().zip(out.iter_mut()) {
+            for (&b, slice) in used.iter().zip(slices.chunks(nl2)) {
+                let w = &beta[b];
+                for c in 0..3 {
+                    let s: f64 = slice
+                        .iter()
+                        .zip(&ctx.v_dw)
+                        .zip(&local[c])
+                        .map(|((s, vw), l)| s * vw * l)
+                        .sum();
+                    o[c] += w[c] * s;
+                }
             }
         }
-        let mut slice = vec![0.0; nl * nl];
-        let mut out = [0.0; 3];
-        for (b, w) in self.basis.iter().zip(beta) {
-            if w.iter().all(|&x| x == 0.0) {
-                continue;
-            }
-            b.slice_with(&self.grid, &wo, &mut slice);
-            for c in 0..3 {
-                let s: f64 = slice
-                    .iter()
-                    .zip(&ctx.v_dw)
-                    .zip(&local[c])
-                    .map(|((s, vw), l)| s * vw * l)
-                    .sum();
-                out[c] += w[c] * s;
-            }
-        }
-        out
     }
 }

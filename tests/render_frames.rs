@@ -91,3 +91,94 @@ fn frame_blend_equals_per_vertex_rotation() {
         assert!(nonzero > NV, "{form:?}: only {nonzero} lit channels");
     }
 }
+
+#[test]
+fn several_lights_equal_separate_renders_bit_for_bit() {
+    // `new_many` + `vertex_radiance_all` computes each vertex's slices once for all lights
+    // (what the evaluation's truth / half / mean renders share); each light's sums run in
+    // the order of a renderer of that light alone, so the results must be bitwise equal.
+    // Checked for the renderer's SplatRotation and the blended rotation with and without
+    // frames, with a zero basis weight (skipped) and a degenerate normal (zero radiance).
+    use relight_cpc::rotation::SplatRotation;
+    use relight_cpc::transport::LocalRotation;
+    let mut rng = Pcg64::seed_from_u64(21);
+    let mut normals: Vec<Vec3> = (0..NV).map(|_| random_unit(&mut rng)).collect();
+    normals[3] = Vec3::zeros();
+    let dirs: Vec<Vec3> = normals
+        .iter()
+        .map(|n| (n + random_unit(&mut rng) * 0.7).normalize())
+        .collect();
+    let vis = Visibility {
+        n_local: NL,
+        rays_per_texel: 1,
+        frac: (0..NV * NL * NL)
+            .map(|_| rng.random_range(0..=255u8))
+            .collect(),
+        open: vec![false; NV],
+        degenerate: 0,
+        rays_traced: 0,
+    };
+    let basis = [
+        BasisBrdf::Lambert,
+        BasisBrdf::Ggx { alpha: 0.2 },
+        BasisBrdf::Phong { exponent: 500.0 },
+    ];
+    let beta = [[0.5, 0.2, 0.1], [0.0, 0.0, 0.0], [0.2, 0.0, 0.4]];
+    let envs: Vec<OctEnv> = (0..3)
+        .map(|k| {
+            let mut rgb: Vec<[f32; 3]> = (0..NG * NG)
+                .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..1.0f32)))
+                .collect();
+            rgb[(NG * NG / 3 + 5 + 97 * k) % (NG * NG)] = [1000.0, 900.0, 800.0];
+            OctEnv { n: NG, rgb }
+        })
+        .collect();
+    let refs: Vec<&OctEnv> = envs.iter().collect();
+
+    #[allow(clippy::too_many_arguments)]
+    fn check<'a, R: LocalRotation>(
+        rot: &'a R,
+        frames: bool,
+        basis: &'a [BasisBrdf],
+        beta: &[[f64; 3]],
+        envs: &[&OctEnv],
+        normals: &[Vec3],
+        dirs: &[Vec3],
+        vis: &Visibility,
+    ) {
+        let frame = |r: WaveletRenderer<'a, R>| if frames { r.with_frames() } else { r };
+        let many = frame(WaveletRenderer::new_many(rot, basis, envs).unwrap());
+        assert_eq!(many.n_lights(), envs.len());
+        let alone: Vec<_> = envs
+            .iter()
+            .map(|e| frame(WaveletRenderer::new(rot, basis, e).unwrap()))
+            .collect();
+        let mut out = vec![[0.0; 3]; envs.len()];
+        let mut lit = 0;
+        for p in 0..normals.len() {
+            many.vertex_radiance_all(&normals[p], vis.vertex(p), &dirs[p], beta, &mut out);
+            for (l, r) in alone.iter().enumerate() {
+                let want = r.vertex_radiance(&normals[p], vis.vertex(p), &dirs[p], beta);
+                for c in 0..3 {
+                    assert_eq!(
+                        out[l][c].to_bits(),
+                        want[c].to_bits(),
+                        "vertex {p} light {l} channel {c} (frames {frames})"
+                    );
+                    lit += usize::from(want[c] > 0.0);
+                }
+            }
+            if p == 3 {
+                assert_eq!(out, vec![[0.0; 3]; envs.len()], "degenerate normal");
+            }
+        }
+        assert!(lit > normals.len(), "only {lit} lit channels");
+    }
+    let splat = SplatRotation::new(NG, NL, 4);
+    check(&splat, false, &basis, &beta, &refs, &normals, &dirs, &vis);
+    let blended = Rotation::new(NG, NL, 8, RotationForm::Factored);
+    check(&blended, false, &basis, &beta, &refs, &normals, &dirs, &vis);
+    check(&blended, true, &basis, &beta, &refs, &normals, &dirs, &vis);
+    // No light is an error, not an empty render.
+    assert!(WaveletRenderer::new_many(&splat, &basis, &[]).is_err());
+}

@@ -8,11 +8,12 @@
 //! - `renders/NAME.png` for training views: photo | render | difference (×4), the render
 //!   under the photo's fitted light.
 
-use super::evaluate::{fitted_env, render_view, RenderedView};
+use super::evaluate::{fitted_env, render_view, DrawWith};
 use super::Fitted;
 use crate::brdf::BasisBrdf;
 use crate::envmap::LatLong;
 use crate::photo::Photo;
+use crate::render::Raster;
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -22,7 +23,8 @@ use std::path::Path;
 pub(crate) fn write_triptych(
     path: &Path,
     photo: &Photo,
-    r: &RenderedView,
+    raster: &Raster,
+    rgb: &[[f32; 3]],
     scale: f64,
 ) -> Result<()> {
     let (w, h) = (photo.width as usize, photo.height as usize);
@@ -35,9 +37,9 @@ pub(crate) fn write_triptych(
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let inside = r.raster.face[i] != u32::MAX;
+            let inside = raster.face[i] != u32::MAX;
             let p = photo.rgb[i];
-            let q = r.rgb[i].map(|v| v * s);
+            let q = rgb[i].map(|v| v * s);
             out[y * 3 * w + x] = p;
             out[y * 3 * w + w + x] = if inside { q } else { [0.0; 3] };
             out[y * 3 * w + 2 * w + x] = if inside {
@@ -154,15 +156,22 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     mesh.write_ply(&dir.join("mesh.ply"), &extra)?;
     crate::relight::write_render_state(f, dir)?;
 
-    // Training renders.
+    // Training renders: the model as fitted (the estimator's visibility and rotation), each
+    // photo under its own fitted map.
     if f.opts.render_training {
         let renders = dir.join("renders");
         std::fs::create_dir_all(&renders).map_err(|e| Error::io(&renders, e))?;
         let bar = progress.bar(f.train.len() as u64, "training renders");
         for (k, &v) in f.train.iter().enumerate() {
-            let r = render_view(f, v, &fitted_env(f, k))?;
+            let r = render_view(f, v, &fitted_env(f, k), DrawWith::Estimator)?;
             let stem = crate::relight::file_stem(&f.scene.views[v].image.name);
-            write_triptych(&renders.join(format!("{stem}.png")), &f.photos[v], &r, 1.0)?;
+            write_triptych(
+                &renders.join(format!("{stem}.png")),
+                &f.photos[v],
+                &r.raster,
+                &r.rgb,
+                1.0,
+            )?;
             bar.inc(1);
         }
         bar.finish_and_clear();
