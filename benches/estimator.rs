@@ -459,7 +459,10 @@ fn joint(md: &mut String) -> Value {
     let variants: Vec<(String, EstimateOptions)> = from_specs.unwrap_or_else(|| vec![
         ("after 1 outer iteration".into(), start),
         (
-            "default options (early stopping: 10% validation, patience 3), ≤ 30 outer iterations".into(),
+            format!(
+                "default options (early stopping: 10% validation, patience {}), ≤ 30 outer iterations",
+                relight_cpc::estimate::PATIENCE
+            ),
             long.clone(),
         ),
         (
@@ -761,6 +764,7 @@ fn convergence(md: &mut String) -> Value {
             "default, early stopping (10% validation, patience 3)",
             EstimateOptions {
                 validation_fraction: 0.1,
+                patience: 3,
                 ..base.clone()
             },
             false,
@@ -777,6 +781,7 @@ fn convergence(md: &mut String) -> Value {
             "no IRLS, early stopping (10% validation, patience 3)",
             EstimateOptions {
                 validation_fraction: 0.1,
+                patience: 3,
                 ..none.clone()
             },
             false,
@@ -785,6 +790,7 @@ fn convergence(md: &mut String) -> Value {
             "no IRLS, started at the TRUE materials, early stopping (10% validation, patience 3)",
             EstimateOptions {
                 validation_fraction: 0.1,
+                patience: 3,
                 ..none.clone()
             },
             true,

@@ -239,6 +239,12 @@ pub struct EstimateOptions {
     /// Single lighting fits (fixed materials, [`fit_light_frozen`]) always use
     /// `qp_max_iter`. Measured in `bench-results/lighting-solver.md`.
     pub alternation_qp_iters: Option<usize>,
+    /// Cap on conjugate-gradient steps on the free face per GPCG iteration of a lighting
+    /// QP (each step is one Hessian product).
+    pub qp_max_cg: usize,
+    /// Cap on those CG steps inside the alternation (as `alternation_qp_iters`: an inexact
+    /// block step that never raises the QP's objective). `None`: `qp_max_cg`.
+    pub alternation_cg_iters: Option<usize>,
     /// λ / w alternations per material step.
     pub material_sweeps: usize,
     /// Index of the Lambertian basis BRDF (used by the normalisation).
@@ -296,12 +302,28 @@ pub struct EstimateOptions {
     pub patience: usize,
 }
 
-/// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations (≤ ~630 Hessian
-/// products) per lighting QP. On the Minerva model (`spot-varying`, 2,930 vertices, 13
+/// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
+/// (≤ ~630 Hessian products with the old CG cap of 100, ≤ ~120 with
+/// [`ALTERNATION_CG_ITERS`]). On the Minerva model (`spot-varying`, 2,930 vertices, 13
 /// photos of 1024²) the estimate took 7.3× less CPU than solving every QP to the KKT
 /// tolerance (48.8 s against 357.9 s) with held-out error 0.0765 against 0.0791 and
 /// training error 0.0340 against 0.0331 (`bench-results/lighting-solver.md`).
 pub const ALTERNATION_QP_ITERS: usize = 5;
+
+/// Default of [`EstimateOptions::alternation_cg_iters`]: 20 conjugate-gradient steps per
+/// GPCG iteration (≤ ~120 Hessian products per lighting QP with the 5 GPCG iterations of
+/// [`ALTERNATION_QP_ITERS`]). Measured on the Minerva model (`spot-varying`, 2,930 vertices,
+/// 13 photos of 1024², `bench-results/estimator-knobs.md`): estimate 83.5 → 28.5 CPU s
+/// (×2.9) against the old cap of 100, held-out error 0.0765 → 0.0767, training 0.0340 →
+/// 0.0339; 10 steps are too few (the alternation runs 8 iterations instead of 5 and ends at
+/// 0.0782), 30 gave 0.0766 at 36.8 s.
+pub const ALTERNATION_CG_ITERS: usize = 20;
+
+/// Default of [`EstimateOptions::patience`]. With [`ALTERNATION_CG_ITERS`] on the Minerva
+/// model (`bench-results/estimator-knobs.md`): patience 3 → 2 takes the estimate from 28.5
+/// to 17.1 CPU s with the same kept iterate (2 of 4 instead of 2 of 5); 1 would stop at the
+/// first uptick of a noisy validation score (the joint bench's improves for 19 iterations).
+pub const PATIENCE: usize = 2;
 
 /// Early stopping leaves an observation out only where its vertex keeps at least this many
 /// fitted observations (its `K` blending weights stay determined).
@@ -323,6 +345,8 @@ impl Default for EstimateOptions {
             qp_rel_tol: 1e-7,
             qp_max_iter: 300,
             alternation_qp_iters: Some(ALTERNATION_QP_ITERS),
+            qp_max_cg: 100,
+            alternation_cg_iters: Some(ALTERNATION_CG_ITERS),
             material_sweeps: 1,
             lambert_basis: 0,
             extrapolate: true,
@@ -332,7 +356,7 @@ impl Default for EstimateOptions {
             robust_floor: 0.0,
             fix_gauge: false,
             materials_cut_only: false,
-            patience: 3,
+            patience: PATIENCE,
         }
     }
 }
@@ -990,7 +1014,7 @@ pub fn lighting_step_full(
         let qp = QpOptions {
             tol: opts.qp_rel_tol * bmax,
             max_iter: opts.qp_max_iter,
-            max_cg: 100,
+            max_cg: opts.qp_max_cg.max(1),
         };
         let res =
             bound_qp_scaled(hess, &b, &x, &qp, jacobi.as_deref()).map_err(|e| Error::Numeric {
@@ -1587,6 +1611,10 @@ pub fn estimate(
         qp_max_iter: match (opts.fixed_materials, opts.alternation_qp_iters) {
             (false, Some(c)) => c.clamp(1, opts.qp_max_iter.max(1)),
             _ => opts.qp_max_iter,
+        },
+        qp_max_cg: match (opts.fixed_materials, opts.alternation_cg_iters) {
+            (false, Some(c)) => c.clamp(1, opts.qp_max_cg.max(1)),
+            _ => opts.qp_max_cg,
         },
         ..opts.clone()
     };

@@ -231,6 +231,14 @@ struct RunArgs {
     /// previous iterate); 0 = solve every lighting QP to the KKT tolerance.
     #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations())]
     lighting_qp_iterations: usize,
+    /// Conjugate-gradient steps per GPCG iteration of a lighting QP inside the alternation
+    /// (each is one Hessian product); 0 = the solver's own cap.
+    #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_lighting_cg_iterations())]
+    lighting_cg_iterations: usize,
+    /// Early stopping: outer iterations without a better validation score before the
+    /// alternation stops.
+    #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_patience())]
+    patience: usize,
     /// Fraction of the training observations held back (seeded) to stop the alternation
     /// at its best iterate; 0 turns early stopping off.
     #[arg(long, default_value_t = 0.1)]
@@ -310,6 +318,8 @@ impl RunArgs {
         o.irls_iterations = self.irls_iterations;
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.validation = self.validation;
+        o.lighting_cg_iterations = self.lighting_cg_iterations;
+        o.patience = self.patience;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;
         o.progress = !self.quiet;

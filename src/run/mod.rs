@@ -114,6 +114,13 @@ pub struct RunOptions {
     /// GPCG iterations per lighting QP inside the alternation
     /// ([`EstimateOptions::alternation_qp_iters`]); 0 = every QP to the KKT tolerance.
     pub lighting_qp_iterations: usize,
+    /// Conjugate-gradient steps per GPCG iteration of a lighting QP inside the alternation
+    /// ([`EstimateOptions::alternation_cg_iters`]); 0 = the solver's own cap
+    /// ([`EstimateOptions::qp_max_cg`]).
+    pub lighting_cg_iterations: usize,
+    /// Early stopping: outer iterations without a better validation score before the
+    /// alternation stops ([`EstimateOptions::patience`]).
+    pub patience: usize,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -141,6 +148,15 @@ impl RunOptions {
     pub fn default_lighting_qp_iterations() -> usize {
         EstimateOptions::default().alternation_qp_iters.unwrap_or(0)
     }
+    /// Default of [`RunOptions::lighting_cg_iterations`]: the estimator's
+    /// ([`EstimateOptions::alternation_cg_iters`], `None` → 0).
+    pub fn default_lighting_cg_iterations() -> usize {
+        EstimateOptions::default().alternation_cg_iters.unwrap_or(0)
+    }
+    /// Default of [`RunOptions::patience`]: the estimator's ([`EstimateOptions::patience`]).
+    pub fn default_patience() -> usize {
+        EstimateOptions::default().patience
+    }
     /// Defaults for a workspace (the README says why each default).
     pub fn new(workspace: PathBuf, out: PathBuf) -> Self {
         RunOptions {
@@ -166,6 +182,8 @@ impl RunOptions {
             smoothness: 1e-3,
             irls_iterations: 3,
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
+            lighting_cg_iterations: Self::default_lighting_cg_iterations(),
+            patience: Self::default_patience(),
             validation: EstimateOptions::default().validation_fraction,
             clip: crate::photo::DEFAULT_CLIP,
             seed: 1,
@@ -237,6 +255,11 @@ impl RunOptions {
         if self.irls_iterations == 0 {
             return Err(Error::Config(
                 "--irls-iterations 0: at least one (plain least squares) is needed".into(),
+            ));
+        }
+        if self.patience == 0 {
+            return Err(Error::Config(
+                "--patience 0: at least one iteration without improvement must be allowed".into(),
             ));
         }
         if !(0.0..0.5).contains(&self.validation) {
@@ -702,6 +725,8 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         },
         irls_iters: o.irls_iterations,
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
+        alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
+        patience: o.patience,
         lambert_basis: lambert,
         validation_seed: o.seed,
         validation_fraction: o.validation,
