@@ -1074,14 +1074,17 @@ pub fn lighting_step(
 }
 
 /// Lighting with the reflectance frozen (held-out protocol (b)): `problem` holds only the
-/// fitting half's observations of the photo.
+/// fitting half's observations of the photo, solved to the KKT tolerance from `start`
+/// (`None`: zero). A warm start from the mean training map did not make the evaluation's
+/// fits cheaper (12.7 against 13.0 CPU s on the Minerva model at 2,930 vertices).
 pub fn fit_light_frozen(
     problem: &Problem,
     beta: &[[f64; 3]],
     photo: usize,
+    start: Option<&[Vec<f64>; 3]>,
     opts: &EstimateOptions,
 ) -> Result<[Vec<f64>; 3]> {
-    lighting_step(problem, beta, photo, opts)
+    Ok(lighting_step_full(problem, beta, photo, start, None, opts)?.light)
 }
 
 /// `s_{p,b,c} = ⟨g_{p,b}, W x_{I(p),c}⟩` for every observation and basis, row-major `P × B`.

@@ -34,6 +34,7 @@ use crate::transport::{self, TransportOptions};
 use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -309,6 +310,21 @@ fn every_kth(obs: Observations, max: usize) -> Observations {
 pub(crate) struct Evaluation {
     pub holdout: Vec<HoldoutEntry>,
     pub mean_holdout_rmse: Option<f64>,
+    /// Wall and CPU seconds of the held-out renders (rasterising and shading every
+    /// protocol's light).
+    pub render_seconds: [f64; 2],
+    /// Wall and CPU seconds of protocol (b)'s light fits (observations, transport and a
+    /// lighting solve to the KKT tolerance per view).
+    pub half_fit_seconds: [f64; 2],
+}
+
+/// Adds the wall and CPU seconds `f` takes to `acc`.
+fn timed<T>(acc: &mut [f64; 2], f: impl FnOnce() -> T) -> T {
+    let (t0, c0) = (std::time::Instant::now(), crate::stages::cpu_seconds());
+    let out = f();
+    acc[0] += t0.elapsed().as_secs_f64();
+    acc[1] += (crate::stages::cpu_seconds() - c0).max(0.0);
+    out
 }
 
 /// A rendered view: the raster and the linear RGB image.
@@ -525,7 +541,7 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64) -> Result<Option<OctEnv>> {
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
-    let l = estimate::fit_light_frozen(&problem, &f.beta, 0, &f.estimate_options)?;
+    let l = estimate::fit_light_frozen(&problem, &f.beta, 0, None, &f.estimate_options)?;
     Ok(Some(OctEnv::from_channels(
         f.opts.global_resolution,
         [&l[0], &l[1], &l[2]],
@@ -545,56 +561,83 @@ pub(crate) fn evaluate(
     let mean = mean_env(f);
     let bar = progress.bar(f.held.len() as u64, "held-out photos");
     let mut headline = Vec::new();
-    for &v in &f.held {
-        let view = &f.scene.views[v];
-        let name = view.image.name.as_str();
-        let photo = &f.photos[v];
-        let stem = crate::relight::file_stem(name);
-        let raster = render::rasterize(&f.scene.mesh, &view.camera, &view.image);
+    let (mut render_seconds, mut half_fit_seconds) = ([0.0; 2], [0.0; 2]);
+    // Views in chunks of one per thread: their rasters, then protocol (b)'s light fits in
+    // parallel (each fit's lighting QP is sequential, so a lone fit leaves the other cores
+    // idle; the results do not depend on the chunking), then each view's renders.
+    let chunk = rayon::current_num_threads().max(1);
+    for views in f.held.chunks(chunk) {
+        let rasters: Vec<Raster> = timed(&mut render_seconds, || {
+            views
+                .iter()
+                .map(|&v| {
+                    let view = &f.scene.views[v];
+                    render::rasterize(&f.scene.mesh, &view.camera, &view.image)
+                })
+                .collect()
+        });
+        let mids: Vec<Option<f64>> = rasters.iter().map(object_mid_x).collect();
+        let halves: Vec<Result<Option<OctEnv>>> = timed(&mut half_fit_seconds, || {
+            views
+                .par_iter()
+                .zip(&mids)
+                .map(|(&v, mid)| match mid {
+                    Some(mid) => fit_left_half(f, v, *mid),
+                    None => Ok(None),
+                })
+                .collect()
+        });
+        for ((&v, raster), (mid, half)) in
+            views.iter().zip(&rasters).zip(mids.into_iter().zip(halves))
+        {
+            let view = &f.scene.views[v];
+            let name = view.image.name.as_str();
+            let photo = &f.photos[v];
+            let stem = crate::relight::file_stem(name);
 
-        // The lights of the protocols that apply, in report order: (a) truth, (b) the
-        // left-half fit (judged on the right half), (c) the mean of the training maps.
-        let mut lights: Vec<(&str, OctEnv)> = Vec::new();
-        if let Some(t) = truth {
-            if let Some(env) = t.light(name, f.opts.global_resolution, &f.env_from_world)? {
-                lights.push(("truth", env));
+            // The lights of the protocols that apply, in report order: (a) truth, (b) the
+            // left-half fit (judged on the right half), (c) the mean of the training maps.
+            let mut lights: Vec<(&str, OctEnv)> = Vec::new();
+            if let Some(t) = truth {
+                if let Some(env) = t.light(name, f.opts.global_resolution, &f.env_from_world)? {
+                    lights.push(("truth", env));
+                }
             }
-        }
-        let mid = object_mid_x(&raster);
-        if let Some(mid) = mid {
-            if let Some(env) = fit_left_half(f, v, mid)? {
+            if let Some(env) = half? {
                 lights.push(("half", env));
             }
-        }
-        lights.push(("mean", mean.clone()));
-        let envs: Vec<&OctEnv> = lights.iter().map(|(_, e)| e).collect();
-        let rgbs = shade_view(f, v, &raster, &envs, DrawWith::Renderer)?;
+            lights.push(("mean", mean.clone()));
+            let envs: Vec<&OctEnv> = lights.iter().map(|(_, e)| e).collect();
+            let rgbs = timed(&mut render_seconds, || {
+                shade_view(f, v, raster, &envs, DrawWith::Renderer)
+            })?;
 
-        let valid = valid_mask(&raster, photo);
-        let w = raster.width as usize;
-        // The first protocol that applies is the headline (truth, else half, else mean).
-        let mut best: Option<f64> = None;
-        for ((protocol, _), rgb) in lights.iter().zip(&rgbs) {
-            let mask: Vec<bool> = match (*protocol, mid) {
-                ("half", Some(mid)) => valid
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &m)| m && (i % w) as f64 >= mid)
-                    .collect(),
-                _ => valid.clone(),
-            };
-            let e = entry(name, protocol, photo, rgb, &mask);
-            best.get_or_insert(e.rmse_scaled);
-            let path = renders.join(format!("{stem}.{protocol}.png"));
-            super::output::write_triptych(&path, photo, &raster, rgb, e.scale)?;
-            holdout.push(e);
-        }
-        if let Some(rmse) = best {
-            if rmse.is_finite() {
-                headline.push(rmse);
+            let valid = valid_mask(raster, photo);
+            let w = raster.width as usize;
+            // The first protocol that applies is the headline (truth, else half, else mean).
+            let mut best: Option<f64> = None;
+            for ((protocol, _), rgb) in lights.iter().zip(&rgbs) {
+                let mask: Vec<bool> = match (*protocol, mid) {
+                    ("half", Some(mid)) => valid
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &m)| m && (i % w) as f64 >= mid)
+                        .collect(),
+                    _ => valid.clone(),
+                };
+                let e = entry(name, protocol, photo, rgb, &mask);
+                best.get_or_insert(e.rmse_scaled);
+                let path = renders.join(format!("{stem}.{protocol}.png"));
+                super::output::write_triptych(&path, photo, raster, rgb, e.scale)?;
+                holdout.push(e);
             }
+            if let Some(rmse) = best {
+                if rmse.is_finite() {
+                    headline.push(rmse);
+                }
+            }
+            bar.inc(1);
         }
-        bar.inc(1);
     }
     bar.finish_and_clear();
     let mean_holdout_rmse =
@@ -602,6 +645,8 @@ pub(crate) fn evaluate(
     Ok(Evaluation {
         holdout,
         mean_holdout_rmse,
+        render_seconds,
+        half_fit_seconds,
     })
 }
 

@@ -973,6 +973,18 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         conditioning_use,
         ..Default::default()
     };
+    if !fitted.held.is_empty() {
+        let (r, h) = (evaluation.render_seconds, evaluation.half_fit_seconds);
+        report.notes.push(format!(
+            "evaluation of {} held-out photos: renders {:.1} s wall / {:.1} CPU s, the half \
+             protocol's light fits {:.1} s / {:.1} CPU s",
+            fitted.held.len(),
+            r[0],
+            r[1],
+            h[0],
+            h[1]
+        ));
+    }
     if let Some(h) = evaluation.mean_holdout_rmse {
         report.notes.push(format!(
             "the timeline's held-out RMSE is over the held-out photos' observations (per vertex, after the best global scale, true light when known, else the mean training map); the final per-pixel figure, mean over held-out photos, is {h:.5}"
