@@ -1074,9 +1074,8 @@ pub fn lighting_step(
 }
 
 /// Lighting with the reflectance frozen (held-out protocol (b)): `problem` holds only the
-/// fitting half's observations of the photo, solved to the KKT tolerance from `start`
-/// (`None`: zero). A warm start from the mean training map did not make the evaluation's
-/// fits cheaper (12.7 against 13.0 CPU s on the Minerva model at 2,930 vertices).
+/// fitting half's observations of the photo, from `start` (`None`: zero), to the KKT
+/// tolerance or `opts`' iteration caps.
 pub fn fit_light_frozen(
     problem: &Problem,
     beta: &[[f64; 3]],
