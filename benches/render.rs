@@ -16,7 +16,6 @@ use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::envmap::OctEnv;
 use relight_cpc::rotation::{Rotation, RotationForm};
 use relight_cpc::transport::WaveletRenderer;
-use relight_cpc::visibility::Visibility;
 use relight_cpc::Vec3;
 use serde_json::json;
 
@@ -24,7 +23,7 @@ use relight_cpc::stages::cpu_seconds_fine as cpu_seconds;
 
 #[path = "../tests/support/random.rs"]
 mod random;
-use random::random_unit;
+use random::random_vertices;
 
 fn main() {
     let (ng, nl, nn) = (64, 32, 32);
@@ -33,21 +32,7 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(6400);
     let mut rng = Pcg64::seed_from_u64(5);
-    let normals: Vec<Vec3> = (0..nv).map(|_| random_unit(&mut rng)).collect();
-    let dirs: Vec<Vec3> = normals
-        .iter()
-        .map(|n| (n + random_unit(&mut rng) * 0.7).normalize())
-        .collect();
-    let vis = Visibility {
-        n_local: nl,
-        rays_per_texel: 2,
-        frac: (0..nv * nl * nl)
-            .map(|_| rng.random_range(128..=255u8))
-            .collect(),
-        open: vec![false; nv],
-        degenerate: 0,
-        rays_traced: 0,
-    };
+    let (normals, dirs, vis) = random_vertices(&mut rng, nv, nl, 2, 128);
     let basis = [
         BasisBrdf::Lambert,
         BasisBrdf::Phong { exponent: 50.0 },

@@ -561,18 +561,15 @@ pub fn render_view<R: LocalRotation>(
     camera: &Camera,
     image: &Image,
 ) -> Result<(Raster, Vec<[f32; 3]>)> {
-    render::render_wavelet(
-        &model.mesh,
-        &model.normals_env,
-        &model.vis,
-        &model.env_from_world,
-        &model.basis,
-        &model.beta,
-        light,
-        rot,
-        camera,
-        image,
-    )
+    let wm = render::WaveletModel {
+        mesh: &model.mesh,
+        normals_env: &model.normals_env,
+        vis: &model.vis,
+        env_from_world: &model.env_from_world,
+        basis: &model.basis,
+        beta: &model.beta,
+    };
+    render::render_wavelet(&wm, light, rot, camera, image)
 }
 
 /// The (camera, image) pairs `sel` names.

@@ -340,31 +340,16 @@ pub fn view_directions(mesh: &Mesh, image: &Image) -> Vec<Vec3> {
 /// camera centre, for vertices of visible faces only, interpolated across the triangles.
 /// When more vertices are visible than the rotation has frames, the light is rotated once
 /// per frame and blended per vertex ([`WaveletRenderer::with_frames`]).
-/// `beta` holds `B` RGB weights per vertex (vertex-major), `normals_env` the unit vertex
-/// normals in the environment frame. Returns the raster (for the mask) and linear RGB.
-#[allow(clippy::too_many_arguments)]
+/// Returns the raster (for the mask) and linear RGB.
 pub fn render_wavelet<R: LocalRotation>(
-    mesh: &Mesh,
-    normals_env: &[Vec3],
-    vis: &Visibility,
-    env_from_world: &Matrix3<f64>,
-    basis: &[BasisBrdf],
-    beta: &[[f64; 3]],
+    model: &WaveletModel,
     env: &OctEnv,
     rot: &R,
     camera: &Camera,
     image: &Image,
 ) -> Result<(Raster, Vec<[f32; 3]>)> {
-    let raster = rasterize(mesh, camera, image);
-    let model = WaveletModel {
-        mesh,
-        normals_env,
-        vis,
-        env_from_world,
-        basis,
-        beta,
-    };
-    let mut rgb = shade_wavelet(&model, &raster, image, &[env], rot)?;
+    let raster = rasterize(model.mesh, camera, image);
+    let mut rgb = shade_wavelet(model, &raster, image, &[env], rot)?;
     Ok((raster, rgb.pop().unwrap_or_default()))
 }
 

@@ -19,26 +19,12 @@ const NV: usize = 200;
 
 #[path = "support/random.rs"]
 mod random;
-use random::random_unit;
+use random::random_vertices;
 
 #[test]
 fn frame_blend_equals_per_vertex_rotation() {
     let mut rng = Pcg64::seed_from_u64(9);
-    let normals: Vec<Vec3> = (0..NV).map(|_| random_unit(&mut rng)).collect();
-    let dirs: Vec<Vec3> = normals
-        .iter()
-        .map(|n| (n + random_unit(&mut rng) * 0.7).normalize())
-        .collect();
-    let vis = Visibility {
-        n_local: NL,
-        rays_per_texel: 1,
-        frac: (0..NV * NL * NL)
-            .map(|_| rng.random_range(0..=255u8))
-            .collect(),
-        open: vec![false; NV],
-        degenerate: 0,
-        rays_traced: 0,
-    };
+    let (normals, dirs, vis) = random_vertices(&mut rng, NV, NL, 1, 0);
     let basis = [
         BasisBrdf::Lambert,
         BasisBrdf::Phong { exponent: 40.0 },
@@ -102,22 +88,8 @@ fn several_lights_equal_separate_renders_bit_for_bit() {
     use relight_cpc::rotation::SplatRotation;
     use relight_cpc::transport::LocalRotation;
     let mut rng = Pcg64::seed_from_u64(21);
-    let mut normals: Vec<Vec3> = (0..NV).map(|_| random_unit(&mut rng)).collect();
+    let (mut normals, dirs, vis) = random_vertices(&mut rng, NV, NL, 1, 0);
     normals[3] = Vec3::zeros();
-    let dirs: Vec<Vec3> = normals
-        .iter()
-        .map(|n| (n + random_unit(&mut rng) * 0.7).normalize())
-        .collect();
-    let vis = Visibility {
-        n_local: NL,
-        rays_per_texel: 1,
-        frac: (0..NV * NL * NL)
-            .map(|_| rng.random_range(0..=255u8))
-            .collect(),
-        open: vec![false; NV],
-        degenerate: 0,
-        rays_traced: 0,
-    };
     let basis = [
         BasisBrdf::Lambert,
         BasisBrdf::Ggx { alpha: 0.2 },

@@ -203,7 +203,7 @@ fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
     // sky (rotation tests); allow 1%.
     use relight_cpc::brdf::BasisBrdf;
     use relight_cpc::envmap::OctEnv;
-    use relight_cpc::render::render_wavelet;
+    use relight_cpc::render::{render_wavelet, WaveletModel};
     use relight_cpc::rotation::{Rotation, RotationForm};
     use relight_cpc::trace::SceneBvh;
     use relight_cpc::visibility;
@@ -236,19 +236,15 @@ fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
     };
     let a = [0.5, 0.25, 0.8];
     let beta = vec![a; 6];
-    let (r, rgb) = render_wavelet(
-        &mesh,
-        &mesh.normals,
-        &vis,
-        &m,
-        &[BasisBrdf::Lambert],
-        &beta,
-        &env,
-        &rot,
-        &camera(),
-        &image_identity(),
-    )
-    .unwrap();
+    let model = WaveletModel {
+        mesh: &mesh,
+        normals_env: &mesh.normals,
+        vis: &vis,
+        env_from_world: &m,
+        basis: &[BasisBrdf::Lambert],
+        beta: &beta,
+    };
+    let (r, rgb) = render_wavelet(&model, &env, &rot, &camera(), &image_identity()).unwrap();
     assert!(r.covered() > 200);
     let want = [2.0 * 0.5, 0.25, 0.4];
     for (k, &f) in r.face.iter().enumerate() {
