@@ -16,7 +16,6 @@ use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::envmap::OctEnv;
 use relight_cpc::rotation::{Rotation, RotationForm};
 use relight_cpc::transport::WaveletRenderer;
-use relight_cpc::Vec3;
 use serde_json::json;
 
 use relight_cpc::stages::cpu_seconds_fine as cpu_seconds;
