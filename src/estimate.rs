@@ -21,7 +21,8 @@
 //!    every lighting step, as the paper says.
 //!    Photos are independent and solved in parallel. Inside the alternation each QP is an
 //!    inexact block step: it starts from the previous iterate and stops after
-//!    [`EstimateOptions::alternation_qp_iters`] GPCG iterations (or at the KKT tolerance);
+//!    [`EstimateOptions::alternation_qp_iters`] GPCG iterations of at most
+//!    [`EstimateOptions::alternation_cg_iters`] CG steps each (or at the KKT tolerance);
 //!    GPCG only accepts steps that lower the QP's objective, so `F` still never rises.
 //! 2. Material step (Sec. 5.2, Eq. 11–12): with `s_{p,b,c} = ⟨g_{p,b}, W x_{I,c}⟩` fixed,
 //!    `λ` per channel from all observations jointly (`K·B` unknowns, design row

@@ -6,7 +6,7 @@
 //!
 //! 1. **in front and inside**: `X_cam = R x + t` has `z > 0` and its pixel `π(X_cam)` lies in
 //!    `[m, W − m] × [m, H − m]` (`m = margin_px`), and the camera model does not fold there
-//!    ([`Camera::project_checked`]: unprojecting the pixel gives back the ray);
+//!    ([`Camera::project_checked`](crate::colmap::Camera::project_checked): unprojecting the pixel gives back the ray);
 //! 2. **facing**: `cos θ = n · ω_o > min_cos`, `ω_o = (C − x) / |C − x|`;
 //! 3. **unoccluded**: the ray from `C` toward `x` hits nothing before `|x − C| − δ_x`,
 //!    `δ_x` = the mean length of the edges at `x` (at least [`SceneBvh::ray_offset`]).

@@ -6,7 +6,7 @@
 //!
 //! `B_c(x, ω_o) = Σ_b β_{b,c}(x) ∫_Ω ρ_b(ω, ω_o) V_x(ω) L_c(R_x ω) dω`,
 //!
-//! evaluated untruncated by [`WaveletRenderer::vertex_radiance`] (the light rotated into the
+//! evaluated untruncated by [`WaveletRenderer::vertex_radiance`](crate::transport::WaveletRenderer::vertex_radiance) (the light rotated into the
 //! vertex's own local frame by [`SplatRotation`], `R_n = W_l S_n W_gᵀ` for the exact normal
 //! instead of the Eq. 6 blend of precomputed frames, then the local triple product of
 //! Eq. 7–8 as a texel sum at the run's render local resolution), and interpolated across
@@ -14,7 +14,7 @@
 //! (`materials.json` → `env_frame`), optionally plus a sun: a disc of radius 1° and given
 //! radiance whose solid angle `2π(1 − cos 1°)` is preserved exactly on the lat-long grid.
 //!
-//! `run` leaves in its result folder what this needs (written by [`write_render_state`]):
+//! `run` leaves in its result folder what this needs (written by `write_render_state`):
 //! `model/cameras.txt` + `model/images.txt` (the registered views, COLMAP text, no 2D
 //! points), `relight.json` (basis labels, resolutions, frame, visibility parameters) and
 //! `relight.bin` (little-endian: positions, environment-frame normals, faces, `β`, and the
