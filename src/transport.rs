@@ -769,6 +769,9 @@ pub struct WaveletRenderer<'a, R: LocalRotation> {
     basis: &'a [BasisBrdf],
     lights: Vec<RendererLight>,
     grid: std::sync::Arc<SliceGrid>,
+    /// Per basis, its slice when it does not depend on `ω_o` (Lambert: computed once here,
+    /// bitwise what every vertex would compute).
+    fixed: Vec<Option<Vec<f64>>>,
 }
 
 /// One light of a [`WaveletRenderer`]: Haar coefficients and texels per channel, and after
@@ -799,9 +802,21 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 rot.n_global()
             )));
         }
+        let grid = SliceGrid::shared(rot.n_local())?;
+        let fixed = basis
+            .iter()
+            .map(|b| {
+                (!b.view_dependent()).then(|| {
+                    let mut s = vec![0.0; grid.centre.len()];
+                    b.slice_with(&grid, &Vec3::z(), &mut s);
+                    s
+                })
+            })
+            .collect();
         Ok(WaveletRenderer {
             rot,
             basis,
+            fixed,
             lights: envs
                 .iter()
                 .map(|env| RendererLight {
@@ -810,7 +825,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                     frames: None,
                 })
                 .collect(),
-            grid: SliceGrid::shared(rot.n_local())?,
+            grid,
         })
     }
 
@@ -902,7 +917,10 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
             .collect();
         let mut slices = vec![0.0; used.len() * nl2];
         for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
-            self.basis[b].slice_with(&self.grid, &wo, s);
+            match &self.fixed[b] {
+                Some(f) => s.copy_from_slice(f),
+                None => self.basis[b].slice_with(&self.grid, &wo, s),
+            }
         }
         // Every light rotated into the vertex's local frame: blended from the frames, or
         // (all lights without frames) one footprint pass for all of them.

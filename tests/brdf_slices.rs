@@ -157,3 +157,35 @@ fn tabulated_slices_interpolate_smooth_lobes() {
         }
     }
 }
+
+#[test]
+fn view_independent_slices_are_bitwise_the_same_for_every_outgoing_direction() {
+    // The renderer and the transport compute a view-independent basis's slice once (at
+    // ω_o = z) and reuse it for every vertex and view: that is exact only if the slice does
+    // not depend on ω_o at all, bit for bit. A view-dependent lobe must differ.
+    for n in [16, 32, 64] {
+        let grid = SliceGrid::new(n).unwrap();
+        for b in [
+            BasisBrdf::Lambert,
+            BasisBrdf::Phong { exponent: 50.0 },
+            BasisBrdf::Ggx { alpha: 0.35 },
+        ] {
+            let mut at_z = vec![0.0; grid.centre.len()];
+            b.slice_with(&grid, &Vec3::z(), &mut at_z);
+            let mut other = vec![0.0; grid.centre.len()];
+            let mut differs = false;
+            for (t, p) in [(10.0, 0.0), (45.0, 120.0), (80.0, 250.0)] {
+                b.slice_with(&grid, &dir(t, p), &mut other);
+                let same = at_z
+                    .iter()
+                    .zip(&other)
+                    .all(|(a, o)| a.to_bits() == o.to_bits());
+                differs |= !same;
+                if !b.view_dependent() {
+                    assert!(same, "{b:?} at {n}²: slice changes with ω_o ({t}°, {p}°)");
+                }
+            }
+            assert_eq!(differs, b.view_dependent(), "{b:?} at {n}²");
+        }
+    }
+}
