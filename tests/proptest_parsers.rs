@@ -251,14 +251,19 @@ fn ply_header_line() -> impl Strategy<Value = String> {
 /// Writes `bytes` to a fresh file under the target dir and reads it as a mesh; checks the
 /// result (a consistent mesh) or the error (names the file).
 fn read_ply_bytes(tag: &str, case: u64, bytes: &[u8]) -> Result<bool, TestCaseError> {
-    let dir = std::env::temp_dir().join(format!("relight-proptest-ply-{}", std::process::id()));
+    // A folder of its own per call: tests run on several threads, and a folder shared
+    // between them could be removed by one between another's create and write.
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!(
+        "relight-proptest-ply-{}-{call}",
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).map_err(|e| TestCaseError::fail(e.to_string()))?;
     let path = dir.join(format!("{tag}-{case}.ply"));
     std::fs::write(&path, bytes).map_err(|e| TestCaseError::fail(e.to_string()))?;
     let r = Mesh::read_ply(&path);
-    let _ = std::fs::remove_file(&path);
-    // The folder goes once it is empty (cases running beside this one keep it until then).
-    let _ = std::fs::remove_dir(&dir);
+    let _ = std::fs::remove_dir_all(&dir);
     match r {
         Ok((mesh, _)) => {
             let n = mesh.positions.len();
