@@ -25,7 +25,7 @@ use crate::brdf::BasisBrdf;
 use crate::colmap::{Camera, Image};
 use crate::envmap::OctEnv;
 use crate::mesh::Mesh;
-use crate::transport::{LocalRotation, WaveletRenderer};
+use crate::transport::{LocalRotation, RadianceScratch, WaveletRenderer};
 use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 
@@ -418,25 +418,28 @@ pub fn shade_wavelet<R: LocalRotation>(
     }
     let nl = envs.len();
     let dirs = view_directions(mesh, image);
-    // Vertex-major: `nl` radiances per vertex.
-    let radiance: Vec<[f32; 3]> = (0..nv)
-        .into_par_iter()
-        .flat_map_iter(|x| {
-            let mut out = vec![[0.0f64; 3]; nl];
-            if needed[x] {
-                let wo = env_from_world * dirs[x];
-                renderer.vertex_radiance_all(
-                    &normals_env[x],
-                    vis.vertex(x),
-                    &wo,
-                    &beta[x * nb..(x + 1) * nb],
-                    &mut out,
-                );
+    // Vertex-major: `nl` radiances per vertex; one scratch per thread.
+    let mut radiance = vec![[0.0f32; 3]; nv * nl];
+    radiance.par_chunks_mut(nl).enumerate().for_each_init(
+        || (RadianceScratch::default(), vec![[0.0f64; 3]; nl]),
+        |(scratch, out), (x, rad)| {
+            if !needed[x] {
+                return;
             }
-            out.into_iter()
-                .map(|r| [r[0] as f32, r[1] as f32, r[2] as f32])
-        })
-        .collect();
+            let wo = env_from_world * dirs[x];
+            renderer.vertex_radiance_all(
+                scratch,
+                &normals_env[x],
+                vis.vertex(x),
+                &wo,
+                &beta[x * nb..(x + 1) * nb],
+                out,
+            );
+            for (r, o) in rad.iter_mut().zip(out.iter()) {
+                *r = [o[0] as f32, o[1] as f32, o[2] as f32];
+            }
+        },
+    );
     Ok((0..nl)
         .map(|l| {
             let per_light: Vec<[f32; 3]> = (0..nv).map(|x| radiance[x * nl + l]).collect();

@@ -649,26 +649,12 @@ impl SplatRotation {
 
     /// Texel domain, all channels in one pass: `local[c] = S_n global[c]` (texel averages).
     pub fn resample_rgb(&self, normal: &Vec3, global: [&[f64]; 3], local: &mut [Vec<f64>; 3]) {
-        for l in local.iter_mut() {
-            l.clear();
-            l.resize(self.local.len(), 0.0);
-        }
-        let [l0, l1, l2] = local;
-        self.for_each_sub(normal, |g, j, w| {
-            l0[j] += w * global[0][g];
-            l1[j] += w * global[1][g];
-            l2[j] += w * global[2][g];
-        });
-        for l in [l0, l1, l2] {
-            l.iter_mut()
-                .zip(&self.inv_omega_local)
-                .for_each(|(x, iw)| *x *= iw);
-        }
+        self.resample_rgb_many(normal, &[global], std::slice::from_mut(local));
     }
 
     /// [`SplatRotation::resample_rgb`] for several lights: one walk over the footprint of
     /// `normal` accumulates every light's three channels (light `i`: `global[i]` into
-    /// `local[i]`), each in the same order as a call for that light alone.
+    /// `local[i]`), each in the same order whatever the number of lights.
     pub fn resample_rgb_many(
         &self,
         normal: &Vec3,
@@ -676,9 +662,6 @@ impl SplatRotation {
         local: &mut [[Vec<f64>; 3]],
     ) {
         assert_eq!(global.len(), local.len(), "one output per light");
-        if let ([g], [l]) = (global, &mut *local) {
-            return self.resample_rgb(normal, *g, l);
-        }
         for l in local.iter_mut().flatten() {
             l.clear();
             l.resize(self.local.len(), 0.0);

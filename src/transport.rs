@@ -398,23 +398,6 @@ fn local_wo(frame: &[Vec3; 3], wo_env: &Vec3) -> Option<Vec3> {
     Some(w.normalize())
 }
 
-/// Per-vertex context: frame, `V ⊙ Δω`.
-struct VertexContext {
-    normal: Vec3,
-    frame: [Vec3; 3],
-    v_dw: Vec<f64>,
-}
-
-fn vertex_context(normal_env: &Vec3, vis_row: &[u8], solid_angle: &[f64]) -> Option<VertexContext> {
-    let mut v_dw = Vec::new();
-    let (normal, frame) = vertex_frame_into(normal_env, vis_row, solid_angle, &mut v_dw)?;
-    Some(VertexContext {
-        normal,
-        frame,
-        v_dw,
-    })
-}
-
 /// The unit normal and local frame of a vertex, with `V ⊙ Δω` written into `v_dw`
 /// (reused buffer); `None` for a degenerate normal.
 fn vertex_frame_into(
@@ -774,8 +757,20 @@ pub struct WaveletRenderer<'a, R: LocalRotation> {
     fixed: Vec<Option<Vec<f64>>>,
 }
 
+/// Reusable buffers of [`WaveletRenderer::vertex_radiance_all`], one per thread: the
+/// vertex's `V ⊙ Δω`, the bases it uses, their slices and every light's local texels, so
+/// that rendering a vertex allocates nothing.
+#[derive(Debug, Default)]
+pub struct RadianceScratch {
+    v_dw: Vec<f64>,
+    used: Vec<usize>,
+    slices: Vec<f64>,
+    locals: Vec<[Vec<f64>; 3]>,
+}
+
 /// One light of a [`WaveletRenderer`]: Haar coefficients and texels per channel, and after
-/// [`WaveletRenderer::with_frames`] the light's local texels in every precomputed frame.
+/// [`WaveletRenderer::with_frames`] the light's local texels in every precomputed frame
+/// (every light has them or none does).
 struct RendererLight {
     haar: [Vec<f64>; 3],
     texels: [Vec<f64>; 3],
@@ -851,7 +846,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
 
     /// Whether [`WaveletRenderer::with_frames`] took effect.
     pub fn has_frames(&self) -> bool {
-        self.lights.iter().all(|l| l.frames.is_some())
+        self.lights[0].frames.is_some()
     }
 
     /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) under the first light
@@ -869,6 +864,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         let mut out = [[0.0; 3]];
         self.radiance_into(
             &self.lights[..1],
+            &mut RadianceScratch::default(),
             normal_env,
             vis_row,
             wo_env,
@@ -880,9 +876,10 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
 
     /// [`WaveletRenderer::vertex_radiance`] under every light, into `out` (one RGB per
     /// light, in the order given to [`WaveletRenderer::new_many`]): the slices are computed
-    /// once for all of them.
+    /// once for all of them, in `scratch`'s buffers.
     pub fn vertex_radiance_all(
         &self,
+        scratch: &mut RadianceScratch,
         normal_env: &Vec3,
         vis_row: &[u8],
         wo_env: &Vec3,
@@ -890,12 +887,22 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         out: &mut [[f64; 3]],
     ) {
         assert_eq!(out.len(), self.lights.len(), "one output per light");
-        self.radiance_into(&self.lights, normal_env, vis_row, wo_env, beta, out);
+        self.radiance_into(
+            &self.lights,
+            scratch,
+            normal_env,
+            vis_row,
+            wo_env,
+            beta,
+            out,
+        );
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn radiance_into(
         &self,
         lights: &[RendererLight],
+        scratch: &mut RadianceScratch,
         normal_env: &Vec3,
         vis_row: &[u8],
         wo_env: &Vec3,
@@ -903,32 +910,56 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         out: &mut [[f64; 3]],
     ) {
         out.iter_mut().for_each(|o| *o = [0.0; 3]);
-        let Some(ctx) = vertex_context(normal_env, vis_row, &self.grid.solid_angle) else {
+        let RadianceScratch {
+            v_dw,
+            used,
+            slices,
+            locals,
+        } = scratch;
+        let Some((normal, frame)) =
+            vertex_frame_into(normal_env, vis_row, &self.grid.solid_angle, v_dw)
+        else {
             return;
         };
-        let Some(wo) = local_wo(&ctx.frame, wo_env) else {
+        let Some(wo) = local_wo(&frame, wo_env) else {
             return;
         };
-        let nl = self.rot.n_local();
-        let nl2 = nl * nl;
+        let nl2 = self.rot.n_local() * self.rot.n_local();
         // The slices of the bases with a non-zero weight, once for every light.
-        let used: Vec<usize> = (0..self.basis.len().min(beta.len()))
-            .filter(|&b| beta[b].iter().any(|&x| x != 0.0))
-            .collect();
-        let mut slices = vec![0.0; used.len() * nl2];
+        used.clear();
+        used.extend(
+            (0..self.basis.len().min(beta.len())).filter(|&b| beta[b].iter().any(|&x| x != 0.0)),
+        );
+        slices.resize(used.len() * nl2, 0.0);
         for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
             match &self.fixed[b] {
                 Some(f) => s.copy_from_slice(f),
                 None => self.basis[b].slice_with(&self.grid, &wo, s),
             }
         }
-        // Every light rotated into the vertex's local frame: blended from the frames, or
-        // (all lights without frames) one footprint pass for all of them.
-        let mut locals: Vec<[Vec<f64>; 3]> = lights
-            .iter()
-            .map(|_| [0, 1, 2].map(|_| vec![0.0; nl2]))
-            .collect();
-        if lights.iter().all(|l| l.frames.is_none()) {
+        // Every light rotated into the vertex's local frame: blended from the frames (every
+        // light has them or none does), or one footprint pass for all of them.
+        locals.resize_with(lights.len(), || [0, 1, 2].map(|_| vec![0.0; nl2]));
+        let locals = &mut locals[..lights.len()];
+        if lights[0].frames.is_some() {
+            // Same accumulation order as the blended resampling (frame by frame, zero
+            // weights skipped).
+            let blend = self.rot.frame_blend(&normal);
+            for (light, local) in lights.iter().zip(locals.iter_mut()) {
+                let frames = light.frames.as_ref().expect("every light has frames");
+                for (l, f) in local.iter_mut().zip(frames) {
+                    l.fill(0.0);
+                    for &(nu, w) in &blend {
+                        if w == 0.0 {
+                            continue;
+                        }
+                        for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
+                            *o += w * x;
+                        }
+                    }
+                }
+            }
+        } else {
             let texels: Vec<[&[f64]; 3]> = lights
                 .iter()
                 .map(|l| [0, 1, 2].map(|c| l.texels[c].as_slice()))
@@ -938,37 +969,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 .map(|l| [0, 1, 2].map(|c| l.haar[c].as_slice()))
                 .collect();
             self.rot
-                .light_texels_rgb_many(&ctx.normal, &texels, &haar, &mut locals);
-        } else {
-            for (light, local) in lights.iter().zip(locals.iter_mut()) {
-                match &light.frames {
-                    Some(frames) => {
-                        // Same accumulation order as the blended resampling (frame by
-                        // frame, zero weights skipped).
-                        let blend = self.rot.frame_blend(&ctx.normal);
-                        for (l, f) in local.iter_mut().zip(frames) {
-                            for &(nu, w) in &blend {
-                                if w == 0.0 {
-                                    continue;
-                                }
-                                for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
-                                    *o += w * x;
-                                }
-                            }
-                        }
-                    }
-                    None => {
-                        let [t0, t1, t2] = &light.texels;
-                        let [h0, h1, h2] = &light.haar;
-                        self.rot.light_texels_rgb(
-                            &ctx.normal,
-                            [t0.as_slice(), t1.as_slice(), t2.as_slice()],
-                            [h0.as_slice(), h1.as_slice(), h2.as_slice()],
-                            local,
-                        );
-                    }
-                }
-            }
+                .light_texels_rgb_many(&normal, &texels, &haar, locals);
         }
         for (local, o) in locals.iter().zip(out.iter_mut()) {
             for (&b, slice) in used.iter().zip(slices.chunks(nl2)) {
@@ -976,7 +977,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 for c in 0..3 {
                     let s: f64 = slice
                         .iter()
-                        .zip(&ctx.v_dw)
+                        .zip(v_dw.iter())
                         .zip(&local[c])
                         .map(|((s, vw), l)| s * vw * l)
                         .sum();

@@ -9,7 +9,7 @@ use rand_pcg::Pcg64;
 use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::envmap::OctEnv;
 use relight_cpc::rotation::{Rotation, RotationForm};
-use relight_cpc::transport::WaveletRenderer;
+use relight_cpc::transport::{RadianceScratch, WaveletRenderer};
 use relight_cpc::visibility::Visibility;
 use relight_cpc::Vec3;
 
@@ -126,9 +126,18 @@ fn several_lights_equal_separate_renders_bit_for_bit() {
             .map(|e| frame(WaveletRenderer::new(rot, basis, e).unwrap()))
             .collect();
         let mut out = vec![[0.0; 3]; envs.len()];
+        // One scratch for every vertex, as a render thread reuses it.
+        let mut scratch = RadianceScratch::default();
         let mut lit = 0;
         for p in 0..normals.len() {
-            many.vertex_radiance_all(&normals[p], vis.vertex(p), &dirs[p], beta, &mut out);
+            many.vertex_radiance_all(
+                &mut scratch,
+                &normals[p],
+                vis.vertex(p),
+                &dirs[p],
+                beta,
+                &mut out,
+            );
             for (l, r) in alone.iter().enumerate() {
                 let want = r.vertex_radiance(&normals[p], vis.vertex(p), &dirs[p], beta);
                 for c in 0..3 {
