@@ -1610,15 +1610,13 @@ pub fn estimate(
         opts.max_outer.max(1)
     };
     // Inside the alternation the lighting QPs are inexact block steps (option docs).
+    let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
+        (false, Some(c)) => c.clamp(1, max.max(1)),
+        _ => max,
+    };
     let light_opts = EstimateOptions {
-        qp_max_iter: match (opts.fixed_materials, opts.alternation_qp_iters) {
-            (false, Some(c)) => c.clamp(1, opts.qp_max_iter.max(1)),
-            _ => opts.qp_max_iter,
-        },
-        qp_max_cg: match (opts.fixed_materials, opts.alternation_cg_iters) {
-            (false, Some(c)) => c.clamp(1, opts.qp_max_cg.max(1)),
-            _ => opts.qp_max_cg,
-        },
+        qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
+        qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
         ..opts.clone()
     };
     for outer_it in 1..=outer {

@@ -314,7 +314,7 @@ pub(crate) struct Evaluation {
     /// protocol's light).
     pub render_seconds: [f64; 2],
     /// Wall and CPU seconds of protocol (b)'s light fits (observations, transport and a
-    /// lighting solve to the KKT tolerance per view).
+    /// capped lighting solve per view, [`HALF_FIT_GPCG`]).
     pub half_fit_seconds: [f64; 2],
 }
 
@@ -614,17 +614,20 @@ pub(crate) fn evaluate(
 
             // The lights of the protocols that apply, in report order: (a) truth, (b) the
             // left-half fit (judged on the right half), (c) the mean of the training maps.
-            let mut lights: Vec<(&str, OctEnv)> = Vec::new();
-            if let Some(t) = truth {
-                if let Some(env) = t.light(name, f.opts.global_resolution, &f.env_from_world)? {
-                    lights.push(("truth", env));
-                }
-            }
-            if let Some(env) = half? {
-                lights.push(("half", env));
-            }
-            lights.push(("mean", mean.clone()));
-            let envs: Vec<&OctEnv> = lights.iter().map(|(_, e)| e).collect();
+            let true_env = match truth {
+                Some(t) => t.light(name, f.opts.global_resolution, &f.env_from_world)?,
+                None => None,
+            };
+            let half_env = half?;
+            let lights: Vec<(&str, &OctEnv)> = [
+                ("truth", true_env.as_ref()),
+                ("half", half_env.as_ref()),
+                ("mean", Some(&mean)),
+            ]
+            .into_iter()
+            .filter_map(|(p, e)| e.map(|e| (p, e)))
+            .collect();
+            let envs: Vec<&OctEnv> = lights.iter().map(|&(_, e)| e).collect();
             let rgbs = timed(&mut render_seconds, || {
                 shade_view(f, v, raster, &envs, DrawWith::Renderer)
             })?;
@@ -634,15 +637,19 @@ pub(crate) fn evaluate(
             // The first protocol that applies is the headline (truth, else half, else mean).
             let mut best: Option<f64> = None;
             for ((protocol, _), rgb) in lights.iter().zip(&rgbs) {
-                let mask: Vec<bool> = match (*protocol, mid) {
-                    ("half", Some(mid)) => valid
-                        .iter()
-                        .enumerate()
-                        .map(|(i, &m)| m && (i % w) as f64 >= mid)
-                        .collect(),
-                    _ => valid.clone(),
+                let right_half: Vec<bool>;
+                let mask: &[bool] = match (*protocol, mid) {
+                    ("half", Some(mid)) => {
+                        right_half = valid
+                            .iter()
+                            .enumerate()
+                            .map(|(i, &m)| m && (i % w) as f64 >= mid)
+                            .collect();
+                        &right_half
+                    }
+                    _ => &valid,
                 };
-                let e = entry(name, protocol, photo, rgb, &mask);
+                let e = entry(name, protocol, photo, rgb, mask);
                 best.get_or_insert(e.rmse_scaled);
                 let path = renders.join(format!("{stem}.{protocol}.png"));
                 super::output::write_triptych(&path, photo, raster, rgb, e.scale)?;
