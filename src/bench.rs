@@ -57,6 +57,9 @@ pub struct BenchOptions {
     /// Keep the synth workspaces here and reuse one whose `bench-params.json` matches
     /// (`None`: a temporary folder, removed at the end).
     pub work: Option<PathBuf>,
+    /// The meshes have exactly the vertex counts asked for (`synth --exact-vertices`,
+    /// spot scenes), not the first subdivision level at or above them.
+    pub exact_vertices: bool,
     /// The model every run fits.
     pub model: Model,
     /// Also fit each vertex-scaling scene with the adaptive model (`--adaptive on`).
@@ -127,6 +130,7 @@ impl BenchOptions {
             iterations: None,
             quick: false,
             scene: "spot-varying".into(),
+            exact_vertices: true,
             no_sweep: false,
             work: None,
             model: Model::default(),
@@ -148,6 +152,7 @@ impl BenchOptions {
             iterations: None,
             quick: true,
             scene: "sphere-plane".into(),
+            exact_vertices: false,
             no_sweep: false,
             work: None,
             model: Model::default(),
@@ -430,6 +435,9 @@ struct SceneParams {
     light: u32,
     sample_seed: u64,
     seed: u64,
+    /// `synth --exact-vertices` (absent in files written before the flag: false).
+    #[serde(default)]
+    exact_vertices: bool,
     /// What `synth` reported, kept so that a reused workspace reports it too.
     summary_vertices: usize,
     summary_photos: usize,
@@ -448,6 +456,7 @@ impl SceneParams {
             self.light,
             self.sample_seed,
             self.seed,
+            self.exact_vertices,
         ) == (
             &o.scene,
             o.vertices,
@@ -458,6 +467,7 @@ impl SceneParams {
             o.light,
             o.sample_seed,
             o.seed,
+            o.exact_vertices,
         )
     }
 }
@@ -490,6 +500,7 @@ fn scene(opts: &BenchOptions, work: &Path, vertices: usize, photos: usize) -> Re
         light: samples.light,
         sample_seed: samples.seed,
         seed: 1,
+        exact_vertices: opts.exact_vertices,
         summary_vertices: 0,
         summary_photos: 0,
         render_seconds: 0.0,
@@ -512,8 +523,9 @@ fn scene(opts: &BenchOptions, work: &Path, vertices: usize, photos: usize) -> Re
         std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     }
     eprintln!(
-        "bench: synth {} with ≥ {vertices} vertices, {photos} photos of {width}×{height} ({} primary ray(s)/pixel, {} MIS pairs) → {}",
+        "bench: synth {} with {}{vertices} vertices, {photos} photos of {width}×{height} ({} primary ray(s)/pixel, {} MIS pairs) → {}",
         opts.scene,
+        if opts.exact_vertices { "" } else { "≥ " },
         samples.per_pixel,
         samples.light,
         dir.display()
@@ -528,6 +540,7 @@ fn scene(opts: &BenchOptions, work: &Path, vertices: usize, photos: usize) -> Re
             photos: Some(photos),
             seed: want.seed,
             vertices: Some(vertices),
+            exact_vertices: opts.exact_vertices,
             samples,
             ..SynthOptions::default()
         },

@@ -56,6 +56,10 @@ pub struct SynthOptions {
     /// Minimum number of mesh vertices (the mesh is subdivided until it has at least this
     /// many); `None` takes the scene's default (about 10K).
     pub vertices: Option<usize>,
+    /// Make the mesh exactly `vertices` vertices (whole subdivision steps, then a partial
+    /// one: [`geometry::refine_to`]) instead of the first subdivision level with at least
+    /// that many. Spot scenes only (`spot-varying`, `spot-ggx`, `spot-static`).
+    pub exact_vertices: bool,
     /// Standard deviation of Gaussian noise on the linear `[0, 1]` photo scale.
     pub noise: f64,
     /// Random per-photo white balance (channel gains in `[0.85, 1.15]`, green fixed at 1).
@@ -74,6 +78,7 @@ impl Default for SynthOptions {
             photos: None,
             seed: 1,
             vertices: None,
+            exact_vertices: false,
             noise: 0.0,
             white_balance: false,
             samples: Samples {
@@ -271,9 +276,14 @@ fn spot_mesh(out: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
     Ok((mesh.positions, mesh.faces))
 }
 
-/// Geometry for `shape` with at least `min_vertices` vertices (where the shape allows),
-/// and the camera target `(centre, radius)`.
-fn make_geometry(shape: Shape, min_vertices: usize, out: &Path) -> Result<Geometry> {
+/// Geometry for `shape` with at least `min_vertices` vertices (where the shape allows;
+/// exactly that many with `exact`, spot only), and the camera target `(centre, radius)`.
+fn make_geometry(shape: Shape, min_vertices: usize, exact: bool, out: &Path) -> Result<Geometry> {
+    if exact && shape != Shape::Spot {
+        return Err(Error::Config(
+            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-static): the other shapes are built from parts".into(),
+        ));
+    }
     let sphere_level = |target: usize| -> u32 {
         (0..12)
             .find(|&s| 10 * 4usize.pow(s) + 2 >= target)
@@ -296,6 +306,15 @@ fn make_geometry(shape: Shape, min_vertices: usize, out: &Path) -> Result<Geomet
         }
         Shape::Spot => {
             let (mut p, mut f) = spot_mesh(out)?;
+            if exact {
+                if p.len() > min_vertices {
+                    return Err(Error::Config(format!(
+                        "an exact vertex count of {min_vertices} is below the spot mesh's own {} vertices",
+                        p.len()
+                    )));
+                }
+                (p, f) = geometry::refine_to(&p, &f, min_vertices);
+            }
             while p.len() < min_vertices {
                 let (q, g) = geometry::subdivide(&p, &f);
                 p = q;
@@ -551,6 +570,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
             } else {
                 10_000
             }),
+        opts.exact_vertices,
         out,
     )?;
     let (mesh, _) = Mesh::from_parts(positions, faces);

@@ -33,6 +33,7 @@ fn fitted(dir: &Path) -> (PathBuf, PathBuf) {
         height: 64,
         photos: Some(4),
         vertices: Some(2500),
+        exact_vertices: false,
         samples: Samples {
             per_pixel: 4,
             light: 32,

@@ -23,6 +23,7 @@ fn small(photos: usize, seed: u64) -> SynthOptions {
         photos: Some(photos),
         seed,
         vertices: Some(600),
+        exact_vertices: false,
         noise: 0.0,
         white_balance: true,
         samples: Samples {

@@ -150,6 +150,96 @@ pub fn subdivide(positions: &[Vec3], faces: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32
     (pos, out)
 }
 
+/// Flat midpoint refinement to exactly `target` vertices (or the input, if it already has
+/// as many): whole [`subdivide`] steps while a step stays within `target`, then a partial
+/// step that splits `target − V` edges at their midpoints, and re-triangulates every face
+/// conformingly by how many of its edges were split (red–green refinement: 3 → four
+/// children, 2 → three, 1 → two; no T-junctions). Edges are taken face by face in a fixed
+/// pseudo-random face order, so the extra density is spread over the whole mesh. The
+/// surface, its orientation and every edge's two-face adjacency are unchanged; every new
+/// vertex adds one vertex, so the count is exact.
+pub fn refine_to(
+    positions: &[Vec3],
+    faces: &[[u32; 3]],
+    target: usize,
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (mut pos, mut tri) = (positions.to_vec(), faces.to_vec());
+    loop {
+        if pos.len() >= target || tri.is_empty() {
+            return (pos, tri);
+        }
+        let edges: std::collections::HashSet<(u32, u32)> = tri
+            .iter()
+            .flat_map(|f| (0..3).map(move |i| edge_key(f[i], f[(i + 1) % 3])))
+            .collect();
+        if pos.len() + edges.len() <= target {
+            (pos, tri) = subdivide(&pos, &tri);
+            continue;
+        }
+        let need = target - pos.len();
+        // A fixed face order (a seeded shuffle), so the result is deterministic.
+        let mut order: Vec<usize> = (0..tri.len()).collect();
+        {
+            use rand::seq::SliceRandom;
+            use rand::SeedableRng;
+            order.shuffle(&mut rand_pcg::Pcg32::seed_from_u64(0x5eed));
+        }
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::with_capacity(need);
+        'mark: for &fi in &order {
+            let f = tri[fi];
+            for i in 0..3 {
+                if mid.len() == need {
+                    break 'mark;
+                }
+                let key = edge_key(f[i], f[(i + 1) % 3]);
+                if !mid.contains_key(&key) {
+                    pos.push((pos[key.0 as usize] + pos[key.1 as usize]) * 0.5);
+                    mid.insert(key, (pos.len() - 1) as u32);
+                }
+            }
+        }
+        let mut out = Vec::with_capacity(tri.len() + 3 * need);
+        for f in &tri {
+            let m = [0, 1, 2].map(|i| mid.get(&edge_key(f[i], f[(i + 1) % 3])).copied());
+            match m.iter().filter(|x| x.is_some()).count() {
+                0 => out.push(*f),
+                3 => {
+                    let [ab, bc, ca] = m.map(|x| x.unwrap_or(0));
+                    out.push([f[0], ab, ca]);
+                    out.push([f[1], bc, ab]);
+                    out.push([f[2], ca, bc]);
+                    out.push([ab, bc, ca]);
+                }
+                1 => {
+                    // Split edge (a, b) at m; c opposite: (a, m, c), (m, b, c).
+                    let i = (0..3).find(|&i| m[i].is_some()).unwrap_or(0);
+                    let (a, b, c) = (f[i], f[(i + 1) % 3], f[(i + 2) % 3]);
+                    let mm = m[i].unwrap_or(0);
+                    out.push([a, mm, c]);
+                    out.push([mm, b, c]);
+                }
+                _ => {
+                    // Edges (a, b) at m1 and (b, c) at m2 split, (c, a) not:
+                    // the corner (m1, b, m2) and the quad (a, m1, m2, c) as two triangles.
+                    let i = (0..3)
+                        .find(|&i| m[i].is_some() && m[(i + 1) % 3].is_some())
+                        .unwrap_or(0);
+                    let (a, b, c) = (f[i], f[(i + 1) % 3], f[(i + 2) % 3]);
+                    let (m1, m2) = (m[i].unwrap_or(0), m[(i + 1) % 3].unwrap_or(0));
+                    out.push([m1, b, m2]);
+                    out.push([a, m1, m2]);
+                    out.push([a, m2, c]);
+                }
+            }
+        }
+        return (pos, out);
+    }
+}
+
+fn edge_key(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
 /// Hash of a lattice point to `[-1, 1]` (integer mixing, fixed: the pattern never changes).
 fn lattice(i: i64, j: i64, k: i64) -> f64 {
     let mut h = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
@@ -248,6 +338,51 @@ mod tests {
             let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
             let fnorm = (b - a).cross(&(c - a)).normalize();
             assert!((fnorm - n).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn refine_to_is_exact_conforming_and_keeps_the_surface() {
+        // Independent checks on a closed icosphere (162 vertices, 480 edges): the count is
+        // exactly the target; the surface is the same (total area and enclosed signed
+        // volume to 1e-12 relative: midpoints lie on the flat faces); the mesh stays a
+        // closed, consistently oriented 2-manifold (every directed edge appears once and
+        // its reverse once: a T-junction or a flipped child would break that); no face is
+        // degenerate; every vertex is used. 400: one partial step; 700: a full step
+        // (642) then a partial one; 100: below the input, unchanged.
+        let (p0, f0) = icosphere(2);
+        let measure = |p: &[Vec3], f: &[[u32; 3]]| {
+            f.iter().fold((0.0, 0.0), |(a, v), t| {
+                let (x, y, z) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+                (
+                    a + 0.5 * (y - x).cross(&(z - x)).norm(),
+                    v + x.dot(&y.cross(&z)) / 6.0,
+                )
+            })
+        };
+        let (area0, vol0) = measure(&p0, &f0);
+        for target in [400, 700, 100] {
+            let (p, f) = refine_to(&p0, &f0, target);
+            assert_eq!(p.len(), target.max(p0.len()), "target {target}");
+            let (area, vol) = measure(&p, &f);
+            assert!((area - area0).abs() < 1e-12 * area0, "{area} {area0}");
+            assert!((vol - vol0).abs() < 1e-12 * vol0, "{vol} {vol0}");
+            let mut directed = std::collections::HashSet::new();
+            let mut used = vec![false; p.len()];
+            for t in &f {
+                let (x, y, z) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+                assert!((y - x).cross(&(z - x)).norm() > 1e-9, "degenerate {t:?}");
+                for i in 0..3 {
+                    used[t[i] as usize] = true;
+                    assert!(directed.insert((t[i], t[(i + 1) % 3])), "edge twice {t:?}");
+                }
+            }
+            for &(a, b) in &directed {
+                assert!(directed.contains(&(b, a)), "open edge ({a}, {b})");
+            }
+            assert!(used.iter().all(|&u| u));
+            // Euler characteristic of a sphere: V − E + F = 2.
+            assert_eq!(p.len() + f.len(), directed.len() / 2 + 2);
         }
     }
 }

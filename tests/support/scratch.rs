@@ -82,6 +82,7 @@ pub fn workspace(
         height: 64,
         photos: Some(photos),
         vertices: Some(vertices),
+        exact_vertices: false,
         samples: Samples {
             per_pixel,
             light,

@@ -172,6 +172,7 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
             height: sizes.width,
             photos: sizes.photos,
             vertices: Some(sizes.vertices),
+            exact_vertices: false,
             seed,
             samples: Samples {
                 per_pixel: sizes.spp,
