@@ -320,9 +320,15 @@ impl Rotation {
                 continue;
             }
             for (j, &x) in local.iter().enumerate() {
+                // Occluded texels and a narrow lobe's far side are exact zeros: nothing to
+                // scatter (w · 0 · v adds +0.0, so skipping changes no bit of the sum).
+                if x == 0.0 {
+                    continue;
+                }
+                let wx = w * x;
                 let (idx, val) = self.rows.row(nu * self.nl2() + j);
                 for (&g, &v) in idx.iter().zip(val) {
-                    global[g as usize] += w * x * v as f64;
+                    global[g as usize] += wx * v as f64;
                 }
             }
         }
