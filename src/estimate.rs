@@ -64,7 +64,7 @@ use crate::haar;
 use crate::observe::Observations;
 use crate::qp::{bound_qp_scaled, nnls, NnlsOptions, QpOptions};
 use crate::sphere::SphereGrid;
-use crate::transport::Transport;
+use crate::transport::{HaarIndex, Transport};
 use crate::{Error, Result};
 
 /// The data of one estimation: observations, their transport, and the sizes.
@@ -587,8 +587,9 @@ struct PhotoSystem {
     dw: Vec<[f64; 3]>,
     /// Merged row `q` (range order) spans `index[offsets[q]..offsets[q + 1]]`.
     offsets: Vec<usize>,
-    /// Haar coefficient indices of the merged rows, ascending within a row.
-    index: Vec<u32>,
+    /// Haar coefficient indices of the merged rows, ascending within a row (2 bytes, the
+    /// transport's own index type: 14 bytes an entry with the values, was 16).
+    index: Vec<HaarIndex>,
     /// `e_{p,c}` at those indices.
     value: Vec<[f32; 3]>,
 }
@@ -596,7 +597,7 @@ struct PhotoSystem {
 /// `⟨e_c, h_c⟩` per channel for one merged transport row (`idx`, `val`) and a light `h`
 /// (interleaved Haar): the forward half of the lighting step's products.
 #[inline]
-fn row_dot(idx: &[u32], val: &[[f32; 3]], h: &[[f64; 3]]) -> [f64; 3] {
+fn row_dot(idx: &[HaarIndex], val: &[[f32; 3]], h: &[[f64; 3]]) -> [f64; 3] {
     let mut acc = [0.0_f64; 3];
     for (&m, e) in idx.iter().zip(val) {
         let hm = &h[m as usize];
@@ -609,7 +610,7 @@ fn row_dot(idx: &[u32], val: &[[f32; 3]], h: &[[f64; 3]]) -> [f64; 3] {
 
 /// `out_c += e_c u_c` for one merged transport row: the adjoint half.
 #[inline]
-fn row_scatter(idx: &[u32], val: &[[f32; 3]], u: [f64; 3], out: &mut [[f64; 3]]) {
+fn row_scatter(idx: &[HaarIndex], val: &[[f32; 3]], u: [f64; 3], out: &mut [[f64; 3]]) {
     for (&m, e) in idx.iter().zip(val) {
         let o = &mut out[m as usize];
         o[0] += e[0] as f64 * u[0];
@@ -632,7 +633,7 @@ impl PhotoSystem {
         let n2 = n * n;
         let mut dense = vec![[0.0_f64; 3]; n2];
         let mut seen = vec![false; n2];
-        let mut touched: Vec<u32> = Vec::new();
+        let mut touched: Vec<HaarIndex> = Vec::new();
         let mut offsets = Vec::with_capacity(range.len() + 1);
         offsets.push(0);
         let mut index = Vec::new();
@@ -649,7 +650,7 @@ impl PhotoSystem {
                     let mu = m as usize;
                     if !seen[mu] {
                         seen[mu] = true;
-                        touched.push(u32::from(m));
+                        touched.push(m);
                     }
                     let g = g as f64;
                     let d = &mut dense[mu];
@@ -683,7 +684,7 @@ impl PhotoSystem {
     }
 
     /// Merged row `q` (range order): indices and per-channel values.
-    fn merged(&self, q: usize) -> (&[u32], &[[f32; 3]]) {
+    fn merged(&self, q: usize) -> (&[HaarIndex], &[[f32; 3]]) {
         let (lo, hi) = (self.offsets[q], self.offsets[q + 1]);
         (&self.index[lo..hi], &self.value[lo..hi])
     }
