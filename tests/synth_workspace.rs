@@ -322,3 +322,36 @@ fn spot_textured_weights_form_a_fine_pattern_on_a_fine_mesh() {
     );
     let _ = std::fs::remove_dir_all(&out);
 }
+
+#[test]
+fn exact_vertex_counts_reach_the_mesh_written_and_are_refused_where_they_cannot_hold() {
+    // A spot scene with `exact_vertices` writes a mesh of exactly that many vertices (read
+    // back from dense/ by the project's PLY reader, after its own cleaning: a partial
+    // refinement that left a T-junction or an unused vertex would show up as a different
+    // count or a welded vertex); a count below the spot mesh's own, or a scene built from
+    // parts, is a clear error naming the cause.
+    let out = tmp("exact");
+    let opts = SynthOptions {
+        vertices: Some(3_333),
+        exact_vertices: true,
+        ..small(2, 5)
+    };
+    let s = build("spot-static", &out, &opts).unwrap();
+    assert_eq!(s.vertices, 3_333);
+    let (mesh, _) = Mesh::read_ply(&out.join("dense/meshed-poisson.ply")).unwrap();
+    assert_eq!(mesh.positions.len(), 3_333);
+    let _ = std::fs::remove_dir_all(&out);
+
+    let low = SynthOptions {
+        vertices: Some(100),
+        ..opts.clone()
+    };
+    let e = build("spot-static", &tmp("exact-low"), &low)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("below the spot mesh"), "{e}");
+    let e = build("sphere-plane", &tmp("exact-parts"), &opts)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("spot scene"), "{e}");
+}

@@ -192,9 +192,9 @@ pub fn refine_to(
                     break 'mark;
                 }
                 let key = edge_key(f[i], f[(i + 1) % 3]);
-                if !mid.contains_key(&key) {
+                if let std::collections::hash_map::Entry::Vacant(e) = mid.entry(key) {
                     pos.push((pos[key.0 as usize] + pos[key.1 as usize]) * 0.5);
-                    mid.insert(key, (pos.len() - 1) as u32);
+                    e.insert((pos.len() - 1) as u32);
                 }
             }
         }
