@@ -50,6 +50,9 @@ fn fitted(dir: &Path) -> (PathBuf, PathBuf) {
     o.global_resolution = 32;
     o.local_resolution = 16;
     o.normal_grid = 16;
+    // A renderer finer than the fit (the default is the fit's own side): the stored model
+    // must keep the two resolutions apart.
+    o.render_local_resolution = Some(32);
     o.keep = 128;
     o.max_iterations = 3;
     o.progress = false;
@@ -64,8 +67,8 @@ fn relit_sphere_matches_reference_under_new_map() {
     let (ws, out) = fitted(&t.0);
     let model = relight::load_result(&out).unwrap();
     assert!(!model.images.is_empty(), "run wrote no registered cameras");
-    // The renderer's visibility rows are stored at the render local resolution: by default
-    // twice the estimator's 16² (run::render_local_resolution).
+    // The renderer's visibility rows are stored at the render local resolution (32² asked
+    // for above), not at the estimator's 16².
     assert_eq!((model.n_local, model.n_render_local), (16, 32));
     assert_eq!(model.vis.n_local, 32);
     assert_eq!(model.vis.frac.len(), model.mesh.positions.len() * 32 * 32);
