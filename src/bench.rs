@@ -26,7 +26,7 @@ use crate::run::{self, Holdout, MaterialCount, RunOptions};
 use crate::stages::StageRecord;
 use crate::synth::{self, SynthOptions};
 use crate::{Error, Result};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -66,6 +66,10 @@ pub struct BenchOptions {
     pub adaptive_rows: bool,
     /// Per-run progress of the pipeline's stages on standard error.
     pub progress: bool,
+    /// Fit every run in a child process of this `relight-cpc` executable (`run` with the
+    /// same options), so that each run's peak memory is its own and not the heap an earlier,
+    /// larger run left behind; `None`: in this process (library callers, tests).
+    pub executable: Option<PathBuf>,
 }
 
 /// The model the bench's runs fit (the `run` flags `--materials`, `--basis`, `--adaptive`).
@@ -136,6 +140,7 @@ impl BenchOptions {
             model: Model::default(),
             adaptive_rows: false,
             progress: true,
+            executable: None,
         }
     }
 
@@ -158,6 +163,7 @@ impl BenchOptions {
             model: Model::default(),
             adaptive_rows: false,
             progress: false,
+            executable: None,
         }
     }
 }
@@ -229,6 +235,9 @@ pub struct BenchRun {
     /// Mean held-out RMSE after the best global scale, protocol (a) (true light) when the
     /// scene has it, else (c).
     pub holdout_rmse: f64,
+    /// The `relight-cpc run` command of a run fitted in a child process.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub command: Option<String>,
 }
 
 /// Growth of one stage's CPU time (or of the peak memory) between two consecutive sizes.
@@ -253,6 +262,8 @@ pub struct Growth {
 pub struct BenchReport {
     /// Whether this was a `--quick` run.
     pub quick: bool,
+    /// Whether every fit ran in a child process (peak memory per run exact).
+    pub isolated: bool,
     /// Whether the benchmark finished (`false` while rows are still being written).
     pub complete: bool,
     /// The model of the scaling runs.
@@ -424,7 +435,7 @@ fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
 }
 
 /// What identifies a synth workspace: reused from `--work` only when all of it matches.
-#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct SceneParams {
     scene: String,
     vertices: usize,
@@ -601,13 +612,18 @@ fn measure(
         knobs.label(),
         model.label()
     );
-    let summary = run::run(&o)?;
-    let r = summary.report;
+    let (fit, command) = match &opts.executable {
+        Some(exe) => {
+            let (fit, command) = fit_in_child(exe, &o, model)?;
+            (fit, Some(command))
+        }
+        None => (Fit::from_report(&run::run(&o)?.report), None),
+    };
     let pick = |p: &str| -> Vec<f64> {
-        r.holdout
+        fit.holdout
             .iter()
-            .filter(|h| h.protocol == p && h.rmse_scaled.is_finite())
-            .map(|h| h.rmse_scaled)
+            .filter(|h| h.protocol == p)
+            .filter_map(|h| h.rmse_scaled.filter(|x| x.is_finite()))
             .collect()
     };
     let mut held = pick("truth");
@@ -623,19 +639,20 @@ fn measure(
         group: group.into(),
         vertices: s.vertices,
         photos: s.photos,
-        observations: r.train.iter().map(|t| t.observations).sum(),
+        observations: fit.train.iter().map(|t| t.observations).sum(),
         width,
         height,
         knobs,
         model: model.clone(),
         synth_seconds: s.render_seconds,
         synth_reused: s.reused,
-        total_seconds: r.stage_details.iter().map(|x| x.seconds).sum(),
-        total_cpu_seconds: r.stage_details.iter().map(|x| x.cpu_seconds).sum(),
-        stages: r.stage_details,
-        peak_memory_bytes: r.peak_memory_bytes,
-        train_rmse: r.train_rmse,
+        total_seconds: fit.stage_details.iter().map(|x| x.seconds).sum(),
+        total_cpu_seconds: fit.stage_details.iter().map(|x| x.cpu_seconds).sum(),
+        stages: fit.stage_details,
+        peak_memory_bytes: fit.peak_memory_bytes,
+        train_rmse: fit.train_rmse.unwrap_or(f64::NAN),
         holdout_rmse,
+        command,
     };
     let _ = std::fs::remove_dir_all(&out);
     eprintln!(
@@ -649,6 +666,121 @@ fn measure(
         run.holdout_rmse
     );
     Ok(run)
+}
+
+/// What the bench reads of a run's report (`report.json` of a child run, or the
+/// in-process [`run::RunReport`]); NaN figures are `null` in the JSON, hence the options.
+#[derive(Debug, Deserialize)]
+struct Fit {
+    holdout: Vec<FitHoldout>,
+    train_rmse: Option<f64>,
+    train: Vec<FitTrain>,
+    stage_details: Vec<StageRecord>,
+    peak_memory_bytes: u64,
+}
+
+#[derive(Debug, Deserialize)]
+struct FitHoldout {
+    protocol: String,
+    rmse_scaled: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+struct FitTrain {
+    observations: usize,
+}
+
+impl Fit {
+    fn from_report(r: &crate::report::RunReport) -> Self {
+        Fit {
+            holdout: r
+                .holdout
+                .iter()
+                .map(|h| FitHoldout {
+                    protocol: h.protocol.clone(),
+                    rmse_scaled: Some(h.rmse_scaled),
+                })
+                .collect(),
+            train_rmse: Some(r.train_rmse),
+            train: r
+                .train
+                .iter()
+                .map(|t| FitTrain {
+                    observations: t.observations,
+                })
+                .collect(),
+            stage_details: r.stage_details.clone(),
+            peak_memory_bytes: r.peak_memory_bytes,
+        }
+    }
+}
+
+/// The `relight-cpc run` arguments that reproduce `o` (the bench sets only these; every
+/// other option is at its default, which the CLI and [`RunOptions::new`] share).
+fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
+    let mut a: Vec<String> = vec![
+        "run".into(),
+        o.workspace.display().to_string(),
+        "--out".into(),
+        o.out.display().to_string(),
+        "--force".into(),
+        "--no-training-renders".into(),
+        "--adaptive".into(),
+        (if o.adaptive { "on" } else { "off" }).into(),
+        "--materials".into(),
+        match o.materials {
+            MaterialCount::Auto => "auto".into(),
+            MaterialCount::Fixed(k) => k.to_string(),
+        },
+    ];
+    if let Some(b) = &model.basis {
+        a.extend(["--basis".into(), b.clone()]);
+    }
+    for (flag, v) in [
+        ("--global-resolution", o.global_resolution),
+        ("--local-resolution", o.local_resolution),
+        ("--normal-grid", o.normal_grid),
+        ("--keep", o.keep),
+        ("--iterations", o.max_iterations),
+    ] {
+        a.extend([flag.into(), v.to_string()]);
+    }
+    if !o.progress {
+        a.push("--quiet".into());
+    }
+    a
+}
+
+/// Fit in a child process `exe run …` and read its `report.json`; also returns the
+/// command line, for the report.
+fn fit_in_child(exe: &Path, o: &RunOptions, model: &Model) -> Result<(Fit, String)> {
+    let args = run_args(o, model);
+    let command = std::iter::once("relight-cpc".to_string())
+        .chain(args.iter().map(|a| {
+            if a.contains(char::is_whitespace) {
+                format!("'{a}'")
+            } else {
+                a.clone()
+            }
+        }))
+        .collect::<Vec<_>>()
+        .join(" ");
+    // The child's summary lines go to our standard error: standard output is the bench's.
+    let status = std::process::Command::new(exe)
+        .args(&args)
+        .stdout(std::io::stderr())
+        .status()
+        .map_err(|e| Error::io(exe, e))?;
+    if !status.success() {
+        return Err(Error::Config(format!(
+            "bench: `{command}` failed ({status})"
+        )));
+    }
+    let path = o.out.join("report.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let fit = serde_json::from_str(&text)
+        .map_err(|e| Error::Config(format!("{}: not a run report: {e}", path.display())))?;
+    Ok((fit, command))
 }
 
 /// Run the benchmark and write `NAME.{json,md,png}` (`opts.name`) into `opts.out`, rewritten after
@@ -732,6 +864,7 @@ fn bench_in(
     photos.dedup();
     let mut report = BenchReport {
         quick: opts.quick,
+        isolated: opts.executable.is_some(),
         complete: false,
         model: opts.model.clone(),
         synth: synth_label(opts.quick),
@@ -949,11 +1082,14 @@ time.{}\n",
             " **Incomplete: the benchmark was still running (or was stopped) when this was written.**"
         }
     );
-    md.push_str(
+    md.push_str(if report.isolated {
+        "Every fit ran in a process of its own (`relight-cpc run`, its command line in the \
+JSON), so each peak is that run's alone.\n\n"
+    } else {
         "Memory: all runs share one process, so a stage's peak (the high-water mark reset \
 before the stage) includes heap the allocator kept from earlier runs; the first run's \
-figures are exact, later ones are upper bounds. For a clean figure run one size alone.\n\n",
-    );
+figures are exact, later ones are upper bounds. For a clean figure run one size alone.\n\n"
+    });
     if !report.vertex_runs.is_empty() {
         md.push_str("## Scaling in vertices\n\n");
         stage_table(&mut md, &report.vertex_runs);

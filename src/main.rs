@@ -555,6 +555,10 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 anyhow::bail!("--name `{name}`: a file stem without path separators");
             }
             opts.name = name;
+            // Each fit in its own process: its peak memory is then its own.
+            opts.executable = Some(std::env::current_exe().map_err(|e| {
+                anyhow::anyhow!("bench: cannot find this executable to run the fits: {e}")
+            })?);
             let r = relight_cpc::bench::bench(&opts)?;
             println!(
                 "bench: {} runs in {:.0} s; results in {}",

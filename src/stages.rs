@@ -10,7 +10,7 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// One finished stage.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct StageRecord {
     /// Stage name, e.g. `import`, `visibility`, `lighting`.
     pub name: String,
