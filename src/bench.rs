@@ -54,6 +54,8 @@ pub struct BenchOptions {
     pub scene: String,
     /// Skip the error-against-time sweep.
     pub no_sweep: bool,
+    /// Only the error-against-time sweep (on the smallest of `sizes`), no scaling runs.
+    pub sweep_only: bool,
     /// Keep the synth workspaces here and reuse one whose `bench-params.json` matches
     /// (`None`: a temporary folder, removed at the end).
     pub work: Option<PathBuf>,
@@ -136,6 +138,7 @@ impl BenchOptions {
             scene: "spot-varying".into(),
             exact_vertices: true,
             no_sweep: false,
+            sweep_only: false,
             work: None,
             model: Model::default(),
             adaptive_rows: false,
@@ -159,6 +162,7 @@ impl BenchOptions {
             scene: "sphere-plane".into(),
             exact_vertices: false,
             no_sweep: false,
+            sweep_only: false,
             work: None,
             model: Model::default(),
             adaptive_rows: false,
@@ -192,8 +196,8 @@ impl Knobs {
             self.keep.to_string()
         };
         format!(
-            "g{} k{} it{}",
-            self.global_resolution, keep, self.iterations
+            "g{} k{} it{} n{}",
+            self.global_resolution, keep, self.iterations, self.normal_grid
         )
     }
 }
@@ -235,6 +239,8 @@ pub struct BenchRun {
     /// Mean held-out RMSE after the best global scale, protocol (a) (true light) when the
     /// scene has it, else (c).
     pub holdout_rmse: f64,
+    /// Outer iterations the estimator ran (early stopping may return an earlier one).
+    pub outer_iterations: usize,
     /// The `relight-cpc run` command of a run fitted in a child process.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub command: Option<String>,
@@ -397,10 +403,14 @@ fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
 
 /// The sweep's settings and the index of the dense reference among them.
 fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
-    let (resolutions, keeps, iterations): (&[usize], &[usize], &[usize]) = if quick {
-        (&[8, 16, 32], &[16, 32, 64, 0], &[1, 2, 3])
+    // The rotation's accuracy knob is its normal grid (Eq. 6: the light is rotated into
+    // `n × n` precomputed frames and blended between the four nearest); the rotation is
+    // applied in factored form, without a threshold on its entries.
+    type Lists<'a> = (&'a [usize], &'a [usize], &'a [usize], &'a [usize]);
+    let (resolutions, keeps, iterations, grids): Lists = if quick {
+        (&[8, 16, 32], &[16, 32, 64, 0], &[1, 2, 3], &[4, 8, 16])
     } else {
-        (&[16, 32, 64], &[32, 64, 128, 0], &[2, 4, 8])
+        (&[16, 32, 64], &[32, 64, 128, 0], &[2, 4, 8], &[16, 32, 64])
     };
     let top = *resolutions.last().unwrap_or(&base.global_resolution);
     let mut list: Vec<Knobs> = Vec::new();
@@ -425,6 +435,12 @@ fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
     for &it in iterations {
         push(Knobs {
             iterations: it,
+            ..at_top
+        });
+    }
+    for &n in grids {
+        push(Knobs {
+            normal_grid: n,
             ..at_top
         });
     }
@@ -652,6 +668,7 @@ fn measure(
         peak_memory_bytes: fit.peak_memory_bytes,
         train_rmse: fit.train_rmse.unwrap_or(f64::NAN),
         holdout_rmse,
+        outer_iterations: fit.timeline.len(),
         command,
     };
     let _ = std::fs::remove_dir_all(&out);
@@ -677,6 +694,8 @@ struct Fit {
     train: Vec<FitTrain>,
     stage_details: Vec<StageRecord>,
     peak_memory_bytes: u64,
+    /// One entry per outer iteration run.
+    timeline: Vec<serde::de::IgnoredAny>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -711,6 +730,7 @@ impl Fit {
                 .collect(),
             stage_details: r.stage_details.clone(),
             peak_memory_bytes: r.peak_memory_bytes,
+            timeline: vec![serde::de::IgnoredAny; r.timeline.len()],
         }
     }
 }
@@ -787,7 +807,7 @@ fn fit_in_child(exe: &Path, o: &RunOptions, model: &Model) -> Result<(Fit, Strin
 /// every run (with `complete: false` until the last), so a long benchmark that is stopped
 /// keeps the rows it finished.
 pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
-    if opts.sizes.is_empty() && opts.photos.is_empty() && opts.no_sweep {
+    if opts.no_sweep && (opts.sweep_only || (opts.sizes.is_empty() && opts.photos.is_empty())) {
         return Err(Error::Config("bench: nothing to run".into()));
     }
     if opts.sizes.iter().chain(&opts.photos).any(|&n| n == 0) || opts.base_photos < 2 {
@@ -907,7 +927,12 @@ fn bench_in(
     };
 
     // Scaling in vertices, then in photos; a (vertices, photos) pair already run is reused.
-    for &n in &sizes {
+    let (sizes_run, photos_run) = if opts.sweep_only {
+        (&[][..], &[][..])
+    } else {
+        (&sizes[..], &photos[..])
+    };
+    for &n in sizes_run {
         let s = scene(opts, work, n, opts.base_photos)?;
         let r = measure("vertices", &s, base, &opts.model, opts)?;
         report.vertex_runs.push(r);
@@ -919,7 +944,7 @@ fn bench_in(
         }
         done(&s)?;
     }
-    for &p in &photos {
+    for &p in photos_run {
         if let Some(i) = sizes
             .iter()
             .position(|&n| n == opts.base_vertices && p == opts.base_photos)
@@ -960,7 +985,7 @@ fn write_outputs(report: &BenchReport, out: &Path, name: &str) -> Result<()> {
         .map_err(|e| Error::Config(format!("bench: could not encode the report: {e}")))?;
     std::fs::write(&json_path, json).map_err(|e| Error::io(&json_path, e))?;
     let md_path = out.join(format!("{name}.md"));
-    std::fs::write(&md_path, markdown(report)).map_err(|e| Error::io(&md_path, e))?;
+    std::fs::write(&md_path, markdown(report, name)).map_err(|e| Error::io(&md_path, e))?;
     if report.sweep.len() > 1 {
         plot_sweep(report, &out.join(format!("{name}.png")))?;
     }
@@ -1007,17 +1032,18 @@ fn stage_table(md: &mut String, runs: &[BenchRun]) {
     }
     let _ = writeln!(
         md,
-        "\n| vertices | photos | photo size | model | training RMSE | held-out RMSE (scaled) | synth s |\n|---:|---:|---|---|---:|---:|---:|"
+        "\n| vertices | photos | photo size | model | outer iterations | training RMSE | held-out RMSE (scaled) | synth s |\n|---:|---:|---|---|---:|---:|---:|---:|"
     );
     for r in runs {
         let _ = writeln!(
             md,
-            "| {} | {} | {}×{} | {} | {:.4} | {:.4} | {:.1}{} |",
+            "| {} | {} | {}×{} | {} | {} | {:.4} | {:.4} | {:.1}{} |",
             r.vertices,
             r.photos,
             r.width,
             r.height,
             r.model.label(),
+            r.outer_iterations,
             r.train_rmse,
             r.holdout_rmse,
             r.synth_seconds,
@@ -1050,8 +1076,8 @@ fn growth_table(md: &mut String, what: &str, rows: &[Growth]) {
     md.push('\n');
 }
 
-/// The Markdown report.
-pub fn markdown(report: &BenchReport) -> String {
+/// The Markdown report; `name` is the file stem, for the link to the plot.
+pub fn markdown(report: &BenchReport, name: &str) -> String {
     let mut md = String::new();
     let _ = writeln!(
         md,
@@ -1116,13 +1142,13 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
             report.sweep[0].photos,
             reference.map(|r| r.knobs.label()).unwrap_or_default()
         );
-        md.push_str("| setting | global | keep | iterations | wall s | peak MiB | training RMSE | held-out RMSE | ratio | front |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+        md.push_str("| setting | global | keep | iterations | normal grid | wall s | CPU s | peak MiB | training RMSE | held-out RMSE | ratio | front |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
         let ref_err = reference.map(|r| r.holdout_rmse).unwrap_or(f64::NAN);
         for (i, r) in report.sweep.iter().enumerate() {
             let on = report.pareto.get(i).copied().unwrap_or(false);
             let _ = writeln!(
                 md,
-                "| {}{} | {} | {} | {} | {:.2} | {:.0} | {:.4} | {:.4} | {:.3} | {} |",
+                "| {}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} | {:.4} | {:.4} | {:.3} | {} |",
                 r.knobs.label(),
                 if Some(i) == report.reference {
                     " (reference)"
@@ -1132,7 +1158,9 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
                 r.knobs.global_resolution,
                 r.knobs.keep,
                 r.knobs.iterations,
+                r.knobs.normal_grid,
                 r.total_seconds,
+                r.total_cpu_seconds,
                 mib(r.peak_memory_bytes),
                 r.train_rmse,
                 r.holdout_rmse,
@@ -1193,7 +1221,10 @@ renderer noise, the model's basis), and the front is decided by time.",
                 100.0 * (hi - lo) / lo
             );
         }
-        md.push_str("\nPlot: `pipeline.png` (held-out RMSE against wall time, per knob family).\n");
+        let _ = writeln!(
+            md,
+            "\nPlot: `{name}.png` (held-out RMSE against wall time, per knob family)."
+        );
     }
     md
 }
@@ -1227,18 +1258,37 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
     let series = vec![
         Series {
             label: "global resolution",
-            points: family(&|k| k.keep == base.keep && k.iterations == base.iterations),
+            points: family(&|k| {
+                k.keep == base.keep
+                    && k.iterations == base.iterations
+                    && k.normal_grid == base.normal_grid
+            }),
             color: PALETTE[0],
         },
         Series {
             label: "keep (coefficients)",
-            points: family(&|k| k.global_resolution == top && k.iterations == base.iterations),
+            points: family(&|k| {
+                k.global_resolution == top
+                    && k.iterations == base.iterations
+                    && k.normal_grid == base.normal_grid
+            }),
             color: PALETTE[1],
         },
         Series {
             label: "iterations",
-            points: family(&|k| k.global_resolution == top && k.keep == base.keep),
+            points: family(&|k| {
+                k.global_resolution == top
+                    && k.keep == base.keep
+                    && k.normal_grid == base.normal_grid
+            }),
             color: PALETTE[2],
+        },
+        Series {
+            label: "normal grid (rotation)",
+            points: family(&|k| {
+                k.global_resolution == top && k.keep == base.keep && k.iterations == base.iterations
+            }),
+            color: PALETTE[3],
         },
         Series {
             label: "Pareto front",
@@ -1263,6 +1313,47 @@ mod tests {
 
     fn stages(v: &[(&str, f64)]) -> Vec<(String, f64)> {
         v.iter().map(|(s, t)| (s.to_string(), *t)).collect()
+    }
+
+    /// Every sweep setting differs from the default knobs (at the top resolution) in at
+    /// most one knob, each knob takes each of its listed values once, and the reference is
+    /// the untruncated model with every other knob at its default.
+    #[test]
+    fn sweep_varies_one_knob_at_a_time() {
+        for quick in [false, true] {
+            let (_, _, _, base) = mode_settings(quick);
+            let (list, idx) = sweep_knobs(base, quick);
+            let top = list.iter().map(|k| k.global_resolution).max().unwrap();
+            let at_top = Knobs {
+                global_resolution: top,
+                ..base
+            };
+            assert_eq!(list[idx], Knobs { keep: 0, ..at_top });
+            for (i, k) in list.iter().enumerate() {
+                assert!(!list[..i].contains(k), "{k:?} twice");
+                let differ = [
+                    k.global_resolution != at_top.global_resolution,
+                    k.keep != at_top.keep,
+                    k.iterations != at_top.iterations,
+                    k.normal_grid != at_top.normal_grid,
+                    k.local_resolution != at_top.local_resolution,
+                ];
+                assert!(differ.iter().filter(|&&d| d).count() <= 1, "{k:?}");
+                assert!(!differ[4], "{k:?}: the local resolution is not swept");
+            }
+            // Three values of each knob other than keep (four, with the untruncated 0).
+            let values = |f: fn(&Knobs) -> usize| {
+                let mut v: Vec<usize> = list.iter().map(f).collect();
+                v.sort_unstable();
+                v.dedup();
+                v.len()
+            };
+            assert_eq!(values(|k| k.global_resolution), 3);
+            assert_eq!(values(|k| k.keep), 4);
+            assert_eq!(values(|k| k.iterations), 3);
+            assert_eq!(values(|k| k.normal_grid), 3);
+            assert!(list.contains(&at_top), "the default knobs are a row");
+        }
     }
 
     /// Power laws t = c·nᵖ give back their exponent and ratio (n₂/n₁)^(p−1) exactly up to

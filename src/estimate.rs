@@ -839,7 +839,7 @@ fn texel_diag_vec(
 
 /// Whether the lighting QP is scaled by its texel-basis diagonal
 /// ([`crate::qp::bound_qp_scaled`]): `diag(Wᵀ Aᵀ α A W) + μ diag(ΔᵀΔ)` per channel, the data
-/// part without the IRLS weights. Same stopping rule, fewer products (bench-results/pipeline.md).
+/// part without the IRLS weights. Same stopping rule, fewer products (bench-results/pipeline-minerva.md, bench-results/lighting-solver.md).
 const LIGHTING_JACOBI: bool = true;
 
 /// Result of one photo's lighting step.

@@ -149,6 +149,9 @@ enum Command {
         /// Skip the error-against-time sweep.
         #[arg(long)]
         no_sweep: bool,
+        /// Only the error-against-time sweep, on the smallest of --sizes (no scaling runs).
+        #[arg(long, conflicts_with = "no_sweep")]
+        sweep_only: bool,
         /// Keep the synth workspaces in this folder and reuse one built with the same
         /// parameters (default: a temporary folder, removed at the end).
         #[arg(long)]
@@ -503,6 +506,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             out,
             quick,
             no_sweep,
+            sweep_only,
             work,
             minerva,
             materials,
@@ -530,6 +534,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             }
             opts.exact_vertices = exact_vertices.unwrap_or(opts.exact_vertices);
             opts.no_sweep = no_sweep;
+            opts.sweep_only = sweep_only;
             opts.work = work;
             if minerva {
                 opts.model = relight_cpc::bench::Model::minerva();
