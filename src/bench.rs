@@ -241,9 +241,26 @@ pub struct BenchRun {
     pub holdout_rmse: f64,
     /// Outer iterations the estimator ran (early stopping may return an earlier one).
     pub outer_iterations: usize,
+    /// The estimate stage's lighting and material steps, summed over its iterations.
+    pub steps: Steps,
     /// The `relight-cpc run` command of a run fitted in a child process.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub command: Option<String>,
+}
+
+/// Wall and CPU seconds of the estimator's lighting steps (Eq. 10) and material steps
+/// (Eq. 11–12), summed over the outer iterations: parts of the `estimate` stage.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Steps {
+    /// Lighting steps, wall seconds.
+    pub lighting_seconds: f64,
+    /// Lighting steps, CPU seconds over all threads.
+    pub lighting_cpu_seconds: f64,
+    /// Material steps, wall seconds.
+    pub material_seconds: f64,
+    /// Material steps, CPU seconds over all threads.
+    pub material_cpu_seconds: f64,
 }
 
 /// Growth of one stage's CPU time (or of the peak memory) between two consecutive sizes.
@@ -355,6 +372,10 @@ fn stage_costs(run: &BenchRun) -> Vec<(String, f64)> {
         .iter()
         .map(|s| (s.name.clone(), s.cpu_seconds))
         .collect();
+    if run.outer_iterations > 0 {
+        v.push(("lighting step".into(), run.steps.lighting_cpu_seconds));
+        v.push(("material step".into(), run.steps.material_cpu_seconds));
+    }
     v.push(("total".into(), run.total_cpu_seconds));
     v.push(("peak memory".into(), mib(run.peak_memory_bytes)));
     v
@@ -669,6 +690,12 @@ fn measure(
         train_rmse: fit.train_rmse.unwrap_or(f64::NAN),
         holdout_rmse,
         outer_iterations: fit.timeline.len(),
+        steps: fit.timeline.iter().fold(Steps::default(), |a, t| Steps {
+            lighting_seconds: a.lighting_seconds + t.lighting_seconds,
+            lighting_cpu_seconds: a.lighting_cpu_seconds + t.lighting_cpu_seconds,
+            material_seconds: a.material_seconds + t.material_seconds,
+            material_cpu_seconds: a.material_cpu_seconds + t.material_cpu_seconds,
+        }),
         command,
     };
     let _ = std::fs::remove_dir_all(&out);
@@ -695,7 +722,7 @@ struct Fit {
     stage_details: Vec<StageRecord>,
     peak_memory_bytes: u64,
     /// One entry per outer iteration run.
-    timeline: Vec<serde::de::IgnoredAny>,
+    timeline: Vec<Steps>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -730,7 +757,16 @@ impl Fit {
                 .collect(),
             stage_details: r.stage_details.clone(),
             peak_memory_bytes: r.peak_memory_bytes,
-            timeline: vec![serde::de::IgnoredAny; r.timeline.len()],
+            timeline: r
+                .timeline
+                .iter()
+                .map(|t| Steps {
+                    lighting_seconds: t.lighting_seconds,
+                    lighting_cpu_seconds: t.lighting_cpu_seconds,
+                    material_seconds: t.material_seconds,
+                    material_cpu_seconds: t.material_cpu_seconds,
+                })
+                .collect(),
         }
     }
 }
@@ -1018,6 +1054,26 @@ fn stage_table(md: &mut String, runs: &[BenchRun]) {
                 s.cpu_seconds,
                 mib(s.peak_memory_bytes)
             );
+            if s.name == "estimate" && r.outer_iterations > 0 {
+                for (step, wall, cpu) in [
+                    (
+                        "lighting step",
+                        r.steps.lighting_seconds,
+                        r.steps.lighting_cpu_seconds,
+                    ),
+                    (
+                        "material step",
+                        r.steps.material_seconds,
+                        r.steps.material_cpu_seconds,
+                    ),
+                ] {
+                    let _ = writeln!(
+                        md,
+                        "| {} | {} | {} | … {step} ({} iterations, within estimate) | {wall:.2} | {cpu:.2} | |",
+                        r.vertices, r.photos, r.observations, r.outer_iterations
+                    );
+                }
+            }
         }
         let _ = writeln!(
             md,
