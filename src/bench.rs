@@ -21,6 +21,7 @@
 //! when no other setting is both at least as fast and at least as accurate, and strictly
 //! better in one of the two.
 
+use crate::estimate::StepTimes;
 use crate::report::plot::{line_panels, Series, PALETTE};
 use crate::run::{self, Holdout, MaterialCount, RunOptions};
 use crate::stages::StageRecord;
@@ -242,25 +243,10 @@ pub struct BenchRun {
     /// Outer iterations the estimator ran (early stopping may return an earlier one).
     pub outer_iterations: usize,
     /// The estimate stage's lighting and material steps, summed over its iterations.
-    pub steps: Steps,
+    pub steps: StepTimes,
     /// The `relight-cpc run` command of a run fitted in a child process.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub command: Option<String>,
-}
-
-/// Wall and CPU seconds of the estimator's lighting steps (Eq. 10) and material steps
-/// (Eq. 11–12), summed over the outer iterations: parts of the `estimate` stage.
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
-#[serde(default)]
-pub struct Steps {
-    /// Lighting steps, wall seconds.
-    pub lighting_seconds: f64,
-    /// Lighting steps, CPU seconds over all threads.
-    pub lighting_cpu_seconds: f64,
-    /// Material steps, wall seconds.
-    pub material_seconds: f64,
-    /// Material steps, CPU seconds over all threads.
-    pub material_cpu_seconds: f64,
 }
 
 /// Growth of one stage's CPU time (or of the peak memory) between two consecutive sizes.
@@ -654,7 +640,7 @@ fn measure(
             let (fit, command) = fit_in_child(exe, &o, model)?;
             (fit, Some(command))
         }
-        None => (Fit::from_report(&run::run(&o)?.report), None),
+        None => (Fit::from_report(&run::run(&o)?.report)?, None),
     };
     let pick = |p: &str| -> Vec<f64> {
         fit.holdout
@@ -690,11 +676,9 @@ fn measure(
         train_rmse: fit.train_rmse.unwrap_or(f64::NAN),
         holdout_rmse,
         outer_iterations: fit.timeline.len(),
-        steps: fit.timeline.iter().fold(Steps::default(), |a, t| Steps {
-            lighting_seconds: a.lighting_seconds + t.lighting_seconds,
-            lighting_cpu_seconds: a.lighting_cpu_seconds + t.lighting_cpu_seconds,
-            material_seconds: a.material_seconds + t.material_seconds,
-            material_cpu_seconds: a.material_cpu_seconds + t.material_cpu_seconds,
+        steps: fit.timeline.iter().fold(StepTimes::default(), |mut a, &t| {
+            a += t;
+            a
         }),
         command,
     };
@@ -713,7 +697,8 @@ fn measure(
 }
 
 /// What the bench reads of a run's report (`report.json` of a child run, or the
-/// in-process [`run::RunReport`]); NaN figures are `null` in the JSON, hence the options.
+/// in-process [`run::RunReport`] through the same JSON); NaN figures are `null` in the
+/// JSON, hence the options.
 #[derive(Debug, Deserialize)]
 struct Fit {
     holdout: Vec<FitHoldout>,
@@ -722,7 +707,7 @@ struct Fit {
     stage_details: Vec<StageRecord>,
     peak_memory_bytes: u64,
     /// One entry per outer iteration run.
-    timeline: Vec<Steps>,
+    timeline: Vec<StepTimes>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -737,38 +722,31 @@ struct FitTrain {
 }
 
 impl Fit {
-    fn from_report(r: &crate::report::RunReport) -> Self {
-        Fit {
-            holdout: r
-                .holdout
-                .iter()
-                .map(|h| FitHoldout {
-                    protocol: h.protocol.clone(),
-                    rmse_scaled: Some(h.rmse_scaled),
-                })
-                .collect(),
-            train_rmse: Some(r.train_rmse),
-            train: r
-                .train
-                .iter()
-                .map(|t| FitTrain {
-                    observations: t.observations,
-                })
-                .collect(),
-            stage_details: r.stage_details.clone(),
-            peak_memory_bytes: r.peak_memory_bytes,
-            timeline: r
-                .timeline
-                .iter()
-                .map(|t| Steps {
-                    lighting_seconds: t.lighting_seconds,
-                    lighting_cpu_seconds: t.lighting_cpu_seconds,
-                    material_seconds: t.material_seconds,
-                    material_cpu_seconds: t.material_cpu_seconds,
-                })
-                .collect(),
-        }
+    fn from_report(r: &crate::report::RunReport) -> Result<Self> {
+        serde_json::to_value(r)
+            .and_then(serde_json::from_value)
+            .map_err(|e| Error::Config(format!("bench: could not read the run's report: {e}")))
     }
+
+    fn from_json(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        serde_json::from_str(&text)
+            .map_err(|e| Error::Config(format!("{}: not a run report: {e}", path.display())))
+    }
+}
+
+/// `relight-cpc` and `args` as one shell line, arguments with white space in quotes.
+fn shell_line(args: impl IntoIterator<Item = String>) -> String {
+    std::iter::once("relight-cpc".to_string())
+        .chain(args.into_iter().map(|a| {
+            if a.contains(char::is_whitespace) {
+                format!("'{a}'")
+            } else {
+                a
+            }
+        }))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// The `relight-cpc run` arguments that reproduce `o` (the bench sets only these; every
@@ -811,16 +789,7 @@ fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
 /// command line, for the report.
 fn fit_in_child(exe: &Path, o: &RunOptions, model: &Model) -> Result<(Fit, String)> {
     let args = run_args(o, model);
-    let command = std::iter::once("relight-cpc".to_string())
-        .chain(args.iter().map(|a| {
-            if a.contains(char::is_whitespace) {
-                format!("'{a}'")
-            } else {
-                a.clone()
-            }
-        }))
-        .collect::<Vec<_>>()
-        .join(" ");
+    let command = shell_line(args.iter().cloned());
     // The child's summary lines go to our standard error: standard output is the bench's.
     let status = std::process::Command::new(exe)
         .args(&args)
@@ -832,11 +801,7 @@ fn fit_in_child(exe: &Path, o: &RunOptions, model: &Model) -> Result<(Fit, Strin
             "bench: `{command}` failed ({status})"
         )));
     }
-    let path = o.out.join("report.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let fit = serde_json::from_str(&text)
-        .map_err(|e| Error::Config(format!("{}: not a run report: {e}", path.display())))?;
-    Ok((fit, command))
+    Ok((Fit::from_json(&o.out.join("report.json"))?, command))
 }
 
 /// Run the benchmark and write `NAME.{json,md,png}` (`opts.name`) into `opts.out`, rewritten after
@@ -934,17 +899,7 @@ fn bench_in(
         reference: None,
         pareto: Vec::new(),
         seconds: 0.0,
-        command: std::iter::once("relight-cpc".to_string())
-            .chain(std::env::args().skip(1))
-            .map(|a| {
-                if a.contains(char::is_whitespace) {
-                    format!("'{a}'")
-                } else {
-                    a
-                }
-            })
-            .collect::<Vec<_>>()
-            .join(" "),
+        command: shell_line(std::env::args().skip(1)),
     };
     let save = |report: &mut BenchReport| -> Result<()> {
         summarise(report);

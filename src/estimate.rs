@@ -397,16 +397,35 @@ pub struct Iteration {
     pub train_rmse: f64,
     /// Early stopping's score of this iterate ([`Validation`]), when on.
     pub validation_rel: Option<f64>,
-    /// Wall and CPU seconds (all threads, 1/100 s ticks) of this iteration's lighting step
-    /// (Eq. 10, every photo) and material step (Eq. 11–12, with the basis responses);
-    /// the rest of the iteration is the objective, extrapolation and early stopping.
+    /// What this iteration's lighting and material steps cost.
+    #[serde(flatten)]
+    pub steps: StepTimes,
+}
+
+/// Wall and CPU seconds (all threads, [`crate::stages::Stopwatch`]) of the lighting step
+/// (Eq. 10, every photo) and the material step (Eq. 11–12, with the basis responses) of
+/// one outer iteration, or summed over several; the rest of an iteration is the
+/// objective, extrapolation and early stopping.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct StepTimes {
+    /// Lighting step, wall seconds.
     pub lighting_seconds: f64,
-    /// See [`Iteration::lighting_seconds`].
+    /// Lighting step, CPU seconds.
     pub lighting_cpu_seconds: f64,
-    /// See [`Iteration::lighting_seconds`].
+    /// Material step, wall seconds.
     pub material_seconds: f64,
-    /// See [`Iteration::lighting_seconds`].
+    /// Material step, CPU seconds.
     pub material_cpu_seconds: f64,
+}
+
+impl std::ops::AddAssign for StepTimes {
+    fn add_assign(&mut self, o: Self) {
+        self.lighting_seconds += o.lighting_seconds;
+        self.lighting_cpu_seconds += o.lighting_cpu_seconds;
+        self.material_seconds += o.material_seconds;
+        self.material_cpu_seconds += o.material_cpu_seconds;
+    }
 }
 
 /// Early stopping's record ([`EstimateOptions::validation_fraction`]).
@@ -1665,7 +1684,7 @@ pub fn estimate(
                 .min(1.0)
         };
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
-        let (lighting_t0, lighting_c0) = (Instant::now(), crate::stages::cpu_seconds());
+        let watch = crate::stages::Stopwatch::start();
         let results: Vec<Result<LightingResult>> = par_largest_first(&sizes, |i| {
             let m = mu_first[i].map(|m| m.map(|v| v * mu_factor));
             lighting_step_full(problem, &beta, i, Some(&lights[i]), m, &light_opts)
@@ -1691,12 +1710,9 @@ pub fn estimate(
                 cond.qp_alternation_capped += r.unconverged_qps;
             }
         }
-        let (lighting_seconds, lighting_cpu_seconds) = (
-            lighting_t0.elapsed().as_secs_f64(),
-            crate::stages::cpu_seconds() - lighting_c0,
-        );
+        let (lighting_seconds, lighting_cpu_seconds) = watch.elapsed();
         // 2. Materials.
-        let (material_t0, material_c0) = (Instant::now(), crate::stages::cpu_seconds());
+        let watch = crate::stages::Stopwatch::start();
         let cut = match (opts.robust, opts.weights_reject) {
             (Robust::Huber { k }, Some(c)) if c > 0.0 => k / c,
             _ => 0.0,
@@ -1761,10 +1777,7 @@ pub fn estimate(
                 }
             }
         }
-        let (material_seconds, material_cpu_seconds) = (
-            material_t0.elapsed().as_secs_f64(),
-            crate::stages::cpu_seconds() - material_c0,
-        );
+        let (material_seconds, material_cpu_seconds) = watch.elapsed();
         // 3. Extrapolate (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
         //    crawls along the bilinear valley): try θ + σ(θ − θ_prev), σ = t^{1/3},
         //    projected to ≥ 0, kept only when the objective drops, so F stays monotone.
@@ -1839,10 +1852,12 @@ pub fn estimate(
             objective,
             train_rmse: rmse,
             validation_rel,
-            lighting_seconds,
-            lighting_cpu_seconds,
-            material_seconds,
-            material_cpu_seconds,
+            steps: StepTimes {
+                lighting_seconds,
+                lighting_cpu_seconds,
+                material_seconds,
+                material_cpu_seconds,
+            },
         };
         on_iter(
             &it,

@@ -24,6 +24,32 @@ pub struct StageRecord {
     pub memory_exact: bool,
 }
 
+/// Wall and CPU seconds (user + system, all threads, [`cpu_seconds`]' 1/100 s ticks) since
+/// it was started.
+#[derive(Debug, Clone, Copy)]
+pub struct Stopwatch {
+    t0: Instant,
+    cpu0: f64,
+}
+
+impl Stopwatch {
+    /// Start now.
+    pub fn start() -> Self {
+        Stopwatch {
+            t0: Instant::now(),
+            cpu0: cpu_seconds(),
+        }
+    }
+
+    /// `(wall, cpu)` seconds since [`Stopwatch::start`].
+    pub fn elapsed(&self) -> (f64, f64) {
+        (
+            self.t0.elapsed().as_secs_f64(),
+            (cpu_seconds() - self.cpu0).max(0.0),
+        )
+    }
+}
+
 /// Records stages in the order they ran.
 #[derive(Debug, Default)]
 pub struct Stages {
@@ -40,13 +66,13 @@ impl Stages {
     /// Run `f` as stage `name` and record its cost. Stages with the same name accumulate.
     pub fn run<T>(&mut self, name: &str, f: impl FnOnce() -> T) -> T {
         let exact = reset_peak_rss();
-        let cpu0 = cpu_seconds();
-        let t0 = Instant::now();
+        let watch = Stopwatch::start();
         let out = f();
+        let (seconds, cpu_seconds) = watch.elapsed();
         let record = StageRecord {
             name: name.to_string(),
-            seconds: t0.elapsed().as_secs_f64(),
-            cpu_seconds: (cpu_seconds() - cpu0).max(0.0),
+            seconds,
+            cpu_seconds,
             peak_memory_bytes: peak_rss_bytes(),
             memory_exact: exact,
         };

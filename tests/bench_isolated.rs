@@ -67,15 +67,11 @@ fn child_runs_reproduce_the_in_process_bench() {
         // The fit is deterministic (bitwise across runs and thread counts, see
         // tests/estimate_synth.rs); the JSON round trip of an f64 is exact, so the only
         // allowance is for the printing of the shortest representation: 1e-12 relative.
-        for key in ["train_rmse", "holdout_rmse"] {
-            let (a, b) = (
-                c[key].as_f64().unwrap(),
-                if key == "train_rmse" {
-                    l.train_rmse
-                } else {
-                    l.holdout_rmse
-                },
-            );
+        for (key, b) in [
+            ("train_rmse", l.train_rmse),
+            ("holdout_rmse", l.holdout_rmse),
+        ] {
+            let a = c[key].as_f64().unwrap();
             assert!(
                 a.is_finite() && (a - b).abs() <= 1e-12 * b.abs(),
                 "{key}: child {a} vs in-process {b}"

@@ -61,14 +61,9 @@ pub struct TimelinePoint {
     pub train_rmse: f64,
     /// Mean held-out RMSE (protocol (a) when available, else (c)), when evaluated.
     pub holdout_rmse: Option<f64>,
-    /// Wall seconds of the iteration's lighting step (Eq. 10, every photo).
-    pub lighting_seconds: f64,
-    /// CPU seconds (all threads) of the lighting step.
-    pub lighting_cpu_seconds: f64,
-    /// Wall seconds of the iteration's material step (Eq. 11–12).
-    pub material_seconds: f64,
-    /// CPU seconds (all threads) of the material step.
-    pub material_cpu_seconds: f64,
+    /// What the iteration's lighting and material steps cost.
+    #[serde(flatten)]
+    pub steps: crate::estimate::StepTimes,
 }
 
 /// The model that was fitted and why.
@@ -474,10 +469,12 @@ mod tests {
                 objective: 1.0 / (1.0 + i as f64),
                 train_rmse: 0.1 / (1.0 + i as f64),
                 holdout_rmse: Some(f64::NAN),
-                lighting_seconds: 0.5,
-                lighting_cpu_seconds: 1.0,
-                material_seconds: 0.25,
-                material_cpu_seconds: 0.5,
+                steps: crate::estimate::StepTimes {
+                    lighting_seconds: 0.5,
+                    lighting_cpu_seconds: 1.0,
+                    material_seconds: 0.25,
+                    material_cpu_seconds: 0.5,
+                },
             })
             .collect();
         r.holdout.push(HoldoutEntry {

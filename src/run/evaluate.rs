@@ -326,10 +326,11 @@ pub(crate) struct Evaluation {
 
 /// Adds the wall and CPU seconds `f` takes to `acc`.
 fn timed<T>(acc: &mut [f64; 2], f: impl FnOnce() -> T) -> T {
-    let (t0, c0) = (std::time::Instant::now(), crate::stages::cpu_seconds());
+    let watch = crate::stages::Stopwatch::start();
     let out = f();
-    acc[0] += t0.elapsed().as_secs_f64();
-    acc[1] += (crate::stages::cpu_seconds() - c0).max(0.0);
+    let (wall, cpu) = watch.elapsed();
+    acc[0] += wall;
+    acc[1] += cpu;
     out
 }
 

@@ -860,10 +860,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
                 objective: it.objective,
                 train_rmse: it.train_rmse,
                 holdout_rmse,
-                lighting_seconds: it.lighting_seconds,
-                lighting_cpu_seconds: it.lighting_cpu_seconds,
-                material_seconds: it.material_seconds,
-                material_cpu_seconds: it.material_cpu_seconds,
+                steps: it.steps,
             });
         })
     })?;
