@@ -644,6 +644,35 @@ struct PhotoSystem {
     index: Vec<HaarIndex>,
     /// `e_{p,c}` at those indices.
     value: Vec<[f32; 3]>,
+    /// The merged rows cut into [`PRODUCT_CHUNKS`] contiguous ranges of about equal
+    /// entries: the parallel parts of [`Self::normal_rows`].
+    chunks: Vec<std::ops::Range<usize>>,
+}
+
+/// Parts of one lighting-step product ([`PhotoSystem::normal_rows`]): each part's rows are
+/// scattered into a buffer of its own, in parallel, and the buffers summed in part order.
+/// A fixed number, not the thread count, so the sum (and every result) does not depend on
+/// the machine. Lone QPs (protocol (b)'s light fits, the last photos of a lighting step)
+/// then use every core; inside the estimate's parallel photos the parts only add a
+/// `PRODUCT_CHUNKS × n²` buffer sum to a product that reads every merged row.
+const PRODUCT_CHUNKS: usize = 4;
+
+/// `parts` contiguous ranges of `0..offsets.len() − 1` (rows), cut where the running entry
+/// count `offsets[q]` crosses `k/parts` of the total; empty ranges are dropped.
+fn entry_chunks(offsets: &[usize], parts: usize) -> Vec<std::ops::Range<usize>> {
+    let rows = offsets.len().saturating_sub(1);
+    let total = offsets.last().copied().unwrap_or(0);
+    let mut cuts = vec![0];
+    for k in 1..parts {
+        let target = total * k / parts;
+        let q = offsets.partition_point(|&o| o < target).min(rows);
+        cuts.push(q.max(*cuts.last().unwrap_or(&0)));
+    }
+    cuts.push(rows);
+    cuts.windows(2)
+        .filter(|w| w[1] > w[0])
+        .map(|w| w[0]..w[1])
+        .collect()
 }
 
 /// `⟨e_c, h_c⟩` per channel for one merged transport row (`idx`, `val`) and a light `h`
@@ -725,6 +754,7 @@ impl PhotoSystem {
             touched.clear();
             offsets.push(index.len());
         }
+        let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
         PhotoSystem {
             range,
             n,
@@ -732,6 +762,7 @@ impl PhotoSystem {
             offsets,
             index,
             value,
+            chunks,
         }
     }
 
@@ -764,18 +795,30 @@ impl PhotoSystem {
 
     /// `out += Aᵀ D A h` in the Haar basis (`D = dw`), one pass over the merged rows:
     /// each row's response is formed and scattered back at once, so the rows are read
-    /// once per product instead of twice. Same operations in the same order as
-    /// [`Self::forward_rows`], the scaling by `dw` and [`Self::adjoint_rows`], so the
-    /// result is bitwise the same.
+    /// once per product instead of twice. The rows are cut into [`PRODUCT_CHUNKS`] parts
+    /// done in parallel, each into its own buffer, then added to `out` in part order.
     fn normal_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
-        for (q, d) in self.dw.iter().enumerate() {
-            let (idx, val) = self.merged(q);
-            let acc = row_dot(idx, val, h);
-            let uq = [acc[0] * d[0], acc[1] * d[1], acc[2] * d[2]];
-            if uq == [0.0; 3] {
-                continue;
+        let part = |rows: &std::ops::Range<usize>| {
+            let mut acc = vec![[0.0_f64; 3]; out.len()];
+            for q in rows.clone() {
+                let d = self.dw[q];
+                let (idx, val) = self.merged(q);
+                let r = row_dot(idx, val, h);
+                let uq = [r[0] * d[0], r[1] * d[1], r[2] * d[2]];
+                if uq == [0.0; 3] {
+                    continue;
+                }
+                row_scatter(idx, val, uq, &mut acc);
             }
-            row_scatter(idx, val, uq, out);
+            acc
+        };
+        let parts: Vec<Vec<[f64; 3]>> = self.chunks.par_iter().map(part).collect();
+        for p in &parts {
+            for (o, v) in out.iter_mut().zip(p) {
+                o[0] += v[0];
+                o[1] += v[1];
+                o[2] += v[2];
+            }
         }
     }
 
@@ -1973,4 +2016,96 @@ pub fn estimate(
         conditioning: cond,
         validation,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn entry_chunks_cover_the_rows_in_order_and_balance_the_entries() {
+        // 1,000 rows of 0–99 entries.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut offsets = vec![0];
+        for _ in 0..1000 {
+            let len = rng.random_range(0..100);
+            offsets.push(offsets.last().unwrap() + len);
+        }
+        let chunks = entry_chunks(&offsets, 4);
+        assert_eq!(chunks.len(), 4);
+        assert_eq!(chunks[0].start, 0);
+        assert_eq!(chunks.last().unwrap().end, 1000);
+        for w in chunks.windows(2) {
+            assert_eq!(w[0].end, w[1].start);
+        }
+        let total = *offsets.last().unwrap();
+        for c in &chunks {
+            let e = offsets[c.end] - offsets[c.start];
+            // A cut lands on a row boundary, so a part is off its quarter by less than one
+            // row (< 100 entries).
+            assert!((e as i64 - total as i64 / 4).abs() < 100, "{e} of {total}");
+        }
+        // Fewer rows than parts, and no rows: no empty part.
+        assert_eq!(entry_chunks(&[0, 5, 9], 4), vec![0..1, 1..2]);
+        assert!(entry_chunks(&[0], 4).is_empty());
+    }
+
+    #[test]
+    fn the_parallel_product_is_the_forward_scale_adjoint_sequence() {
+        // Random merged rows over a 16² map; the fused, chunked `Aᵀ D A h` against the
+        // forward rows, the scaling by `D` and the adjoint rows done one after the other.
+        // Only the order of the additions differs: 1e-12 relative.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let n = 16;
+        let rows = 500;
+        let mut offsets = vec![0];
+        let (mut index, mut value) = (Vec::new(), Vec::new());
+        for _ in 0..rows {
+            let mut idx: Vec<HaarIndex> = (0..n * n)
+                .filter(|_| rng.random_bool(0.2))
+                .map(|m| m as HaarIndex)
+                .collect();
+            idx.sort_unstable();
+            for _ in &idx {
+                value.push([0, 1, 2].map(|_| rng.random_range(-1.0_f32..1.0)));
+            }
+            index.extend(idx);
+            offsets.push(index.len());
+        }
+        let dw: Vec<[f64; 3]> = (0..rows)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..2.0)))
+            .collect();
+        let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
+        let sys = PhotoSystem {
+            range: 0..rows,
+            n,
+            dw: dw.clone(),
+            offsets,
+            index,
+            value,
+            chunks,
+        };
+        let h: Vec<[f64; 3]> = (0..n * n)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+            .collect();
+        let mut fused = vec![[0.0; 3]; n * n];
+        sys.normal_rows(&h, &mut fused);
+        let mut s = vec![[0.0; 3]; rows];
+        sys.forward_rows(&h, &mut s);
+        let u: Vec<[f64; 3]> = s
+            .iter()
+            .zip(&dw)
+            .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
+            .collect();
+        let mut seq = vec![[0.0; 3]; n * n];
+        sys.adjoint_rows(&u, &mut seq);
+        let scale = seq.iter().flatten().fold(0.0_f64, |a, v| a.max(v.abs()));
+        assert!(scale > 1.0);
+        for (a, b) in fused.iter().zip(&seq) {
+            for c in 0..3 {
+                assert!((a[c] - b[c]).abs() <= 1e-12 * scale, "{} vs {}", a[c], b[c]);
+            }
+        }
+    }
 }
