@@ -384,6 +384,36 @@ pub fn shade_wavelet<R: LocalRotation>(
     envs: &[&OctEnv],
     rot: &R,
 ) -> Result<Vec<Vec<[f32; 3]>>> {
+    shade_wavelet_given(model, raster, image, envs, rot, None)
+}
+
+/// [`shade_wavelet`] under one light with the radiance of some vertices given:
+/// `given[x] = Some(rgb)` is used as vertex `x`'s radiance, and only the other vertices the
+/// raster needs are rendered. A run's training renders pass the estimator's own predictions
+/// at the photo's observations (the model as fitted, through its kept transport rows), so
+/// the renderer only fills in the visible vertices that were not observed (grazing, on a
+/// depth discontinuity). `given` has one entry per vertex.
+pub fn shade_wavelet_known<R: LocalRotation>(
+    model: &WaveletModel,
+    raster: &Raster,
+    image: &Image,
+    env: &OctEnv,
+    rot: &R,
+    given: &[Option<[f32; 3]>],
+) -> Result<Vec<[f32; 3]>> {
+    let mut rgb = shade_wavelet_given(model, raster, image, &[env], rot, Some(given))?;
+    Ok(rgb.pop().unwrap_or_default())
+}
+
+/// [`shade_wavelet`], with `given` radiance (one light only) as [`shade_wavelet_known`].
+fn shade_wavelet_given<R: LocalRotation>(
+    model: &WaveletModel,
+    raster: &Raster,
+    image: &Image,
+    envs: &[&OctEnv],
+    rot: &R,
+    given: Option<&[Option<[f32; 3]>]>,
+) -> Result<Vec<Vec<[f32; 3]>>> {
     let WaveletModel {
         mesh,
         normals_env,
@@ -409,9 +439,19 @@ pub fn shade_wavelet<R: LocalRotation>(
             needed[k as usize] = true;
         }
     }
+    if let Some(given) = given {
+        if given.len() != nv || envs.len() != 1 {
+            return Err(Error::Config(format!(
+                "render: {} given radiances for {nv} vertices under {} lights (one light)",
+                given.len(),
+                envs.len()
+            )));
+        }
+    }
+    let is_given = |x: usize| given.is_some_and(|g| g[x].is_some());
     // Rotating the light once per precomputed frame costs about as much as rotating it for
-    // one vertex per frame: worth it as soon as more vertices than frames are visible.
-    let n_needed = needed.iter().filter(|&&b| b).count();
+    // one vertex per frame: worth it as soon as more vertices than frames are rendered.
+    let n_needed = (0..nv).filter(|&x| needed[x] && !is_given(x)).count();
     let mut renderer = WaveletRenderer::new_many(rot, basis, envs)?;
     if n_needed > rot.n_frames() {
         renderer = renderer.with_frames();
@@ -424,6 +464,10 @@ pub fn shade_wavelet<R: LocalRotation>(
         || (RadianceScratch::default(), vec![[0.0f64; 3]; nl]),
         |(scratch, out), (x, rad)| {
             if !needed[x] {
+                return;
+            }
+            if let Some(rgb) = given.and_then(|g| g[x]) {
+                rad[0] = rgb;
                 return;
             }
             let wo = env_from_world * dirs[x];

@@ -195,18 +195,8 @@ fn png_and_exr_round_trip() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-#[test]
-fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
-    // Convex octahedron (every vertex open), Lambert with RGB albedo a, constant light L:
-    // every object pixel must be a·L (DESIGN issue 4 furnace). Error sources: the Lambert
-    // slice quadrature at 8² (≈ 6e-4) and the balanced rotation's row error for a constant
-    // sky (rotation tests); allow 1%.
-    use relight_cpc::brdf::BasisBrdf;
-    use relight_cpc::envmap::OctEnv;
-    use relight_cpc::render::{render_wavelet, WaveletModel};
-    use relight_cpc::rotation::{Rotation, RotationForm};
-    use relight_cpc::trace::SceneBvh;
-    use relight_cpc::visibility;
+/// The furnace octahedron of [`wavelet_render_of_a_white_furnace_is_albedo_times_radiance`].
+fn octahedron() -> Mesh {
     let pts = vec![
         Vec3::new(1.0, 0.0, 5.0),
         Vec3::new(-1.0, 0.0, 5.0),
@@ -225,7 +215,91 @@ fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
         [3, 1, 5],
         [0, 3, 5],
     ];
-    let (mesh, _) = Mesh::from_parts(pts, faces);
+    Mesh::from_parts(pts, faces).0
+}
+
+#[test]
+fn given_vertex_radiance_is_kept_and_the_other_vertices_rendered() {
+    // The furnace of the test below (every vertex's radiance is a·L within 1%), with the
+    // radiance of three vertices given (a run's training renders pass the estimator's
+    // predictions): the image must be the interpolation of those given values and a·L at the
+    // other vertices (1%, the furnace's tolerance). With nothing given the result must be
+    // the plain render, bit for bit; a `given` of the wrong length is an error.
+    use relight_cpc::brdf::BasisBrdf;
+    use relight_cpc::envmap::OctEnv;
+    use relight_cpc::render::{shade_wavelet, shade_wavelet_known, WaveletModel};
+    use relight_cpc::rotation::{Rotation, RotationForm};
+    use relight_cpc::trace::SceneBvh;
+    use relight_cpc::visibility;
+    let mesh = octahedron();
+    let m = nalgebra::Matrix3::identity();
+    let vis = visibility::compute(&mesh, &SceneBvh::new(&mesh), &m, 8, 1, 0);
+    let rot = Rotation::new(16, 8, 8, RotationForm::Factored);
+    let env = OctEnv {
+        n: 16,
+        rgb: vec![[2.0, 1.0, 0.5]; 256],
+    };
+    let a = [0.5, 0.25, 0.8];
+    let beta = vec![a; 6];
+    let model = WaveletModel {
+        mesh: &mesh,
+        normals_env: &mesh.normals,
+        vis: &vis,
+        env_from_world: &m,
+        basis: &[BasisBrdf::Lambert],
+        beta: &beta,
+    };
+    let image = image_identity();
+    let raster = rasterize(&mesh, &camera(), &image);
+    assert!(raster.covered() > 200);
+    let plain = shade_wavelet(&model, &raster, &image, &[&env], &rot)
+        .unwrap()
+        .pop()
+        .unwrap();
+    let none = shade_wavelet_known(&model, &raster, &image, &env, &rot, &[None; 6]).unwrap();
+    assert!(plain
+        .iter()
+        .zip(&none)
+        .all(|(p, q)| (0..3).all(|c| p[c].to_bits() == q[c].to_bits())));
+
+    let mark = [7.0f32, 8.0, 9.0];
+    let given: Vec<Option<[f32; 3]>> = (0..6).map(|x| (x < 3).then_some(mark)).collect();
+    let rgb = shade_wavelet_known(&model, &raster, &image, &env, &rot, &given).unwrap();
+    let furnace = [1.0f32, 0.25, 0.4];
+    let per_vertex: Vec<[f32; 3]> = (0..6).map(|x| if x < 3 { mark } else { furnace }).collect();
+    let want = shade_vertices(&raster, &mesh, &per_vertex);
+    let mut marked = 0;
+    for (k, &f) in raster.face.iter().enumerate() {
+        if f == u32::MAX {
+            continue;
+        }
+        for c in 0..3 {
+            assert!(
+                (rgb[k][c] - want[k][c]).abs() <= 1e-2 * want[k][c],
+                "pixel {k}: {:?} vs {:?}",
+                rgb[k],
+                want[k]
+            );
+        }
+        marked += usize::from(rgb[k][0] > 2.0);
+    }
+    assert!(marked > 50, "the given values reach only {marked} pixels");
+    assert!(shade_wavelet_known(&model, &raster, &image, &env, &rot, &[None; 5]).is_err());
+}
+
+#[test]
+fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
+    // Convex octahedron (every vertex open), Lambert with RGB albedo a, constant light L:
+    // every object pixel must be a·L (DESIGN issue 4 furnace). Error sources: the Lambert
+    // slice quadrature at 8² (≈ 6e-4) and the balanced rotation's row error for a constant
+    // sky (rotation tests); allow 1%.
+    use relight_cpc::brdf::BasisBrdf;
+    use relight_cpc::envmap::OctEnv;
+    use relight_cpc::render::{render_wavelet, WaveletModel};
+    use relight_cpc::rotation::{Rotation, RotationForm};
+    use relight_cpc::trace::SceneBvh;
+    use relight_cpc::visibility;
+    let mesh = octahedron();
     let m = nalgebra::Matrix3::identity();
     let vis = visibility::compute(&mesh, &SceneBvh::new(&mesh), &m, 8, 1, 0);
     assert_eq!(vis.open_count(), 6);

@@ -377,59 +377,64 @@ pub(crate) fn trace_visibility(
     (est, render)
 }
 
-/// Which visibility and rotation a view is drawn with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum DrawWith {
-    /// The renderer's (`--render-local-resolution`, [`crate::rotation::SplatRotation`]):
-    /// held-out views, where the error is measured.
-    Renderer,
-    /// The estimator's own (`--local-resolution`, the blended rotation of Eq. 6 with the
-    /// light rotated once per frame): the model exactly as it was fitted, for the training
-    /// renders. At the defaults (32² against 64²) several times cheaper per vertex.
-    Estimator,
-}
-
-/// Render view `v` of the scene with the fitted reflectance under `light`
-/// ([`render::rasterize`] and [`shade_view`]).
-pub(crate) fn render_view(
-    f: &Fitted,
-    v: usize,
-    light: &OctEnv,
-    with: DrawWith,
-) -> Result<RenderedView> {
-    let view = &f.scene.views[v];
-    let raster = render::rasterize(&f.scene.mesh, &view.camera, &view.image);
-    let mut rgb = shade_view(f, v, &raster, &[light], with)?;
-    Ok(RenderedView {
-        raster,
-        rgb: rgb.pop().unwrap_or_default(),
-    })
-}
-
-/// Shade the raster of view `v` under each of `lights` ([`render::shade_wavelet`]: the
-/// per-vertex BRDF slices are computed once for all of them).
-fn shade_view(
-    f: &Fitted,
-    v: usize,
-    raster: &Raster,
-    lights: &[&OctEnv],
-    with: DrawWith,
-) -> Result<Vec<Vec<[f32; 3]>>> {
-    let model = |vis| render::WaveletModel {
+/// The wavelet renderer's model of the fit, with visibility `vis`.
+fn wavelet_model<'a>(
+    f: &'a Fitted,
+    vis: &'a crate::visibility::Visibility,
+) -> render::WaveletModel<'a> {
+    render::WaveletModel {
         mesh: &f.scene.mesh,
         normals_env: &f.normals_env,
         vis,
         env_from_world: &f.env_from_world,
         basis: &f.basis,
         beta: &f.beta,
-    };
-    let image = &f.scene.views[v].image;
-    match with {
-        DrawWith::Renderer => {
-            render::shade_wavelet(&model(&f.render_vis), raster, image, lights, &f.render_rot)
-        }
-        DrawWith::Estimator => render::shade_wavelet(&model(&f.vis), raster, image, lights, &f.rot),
     }
+}
+
+/// Training photo `k`'s render under its fitted map: the model exactly as it was fitted.
+/// At the photo's observations the radiance is the estimator's own prediction
+/// ([`Fitted::train_predictions`], through the kept transport rows); the visible vertices
+/// that were not observed (grazing, on a depth discontinuity) are rendered with the
+/// estimator's visibility and blended rotation (Eq. 6, the light rotated once per frame)
+/// ([`render::shade_wavelet_known`]).
+pub(crate) fn render_training_view(f: &Fitted, k: usize) -> Result<RenderedView> {
+    let v = f.train[k];
+    let view = &f.scene.views[v];
+    let raster = render::rasterize(&f.scene.mesh, &view.camera, &view.image);
+    let mut given = vec![None; f.scene.mesh.positions.len()];
+    for &(x, rgb) in &f.train_predictions[k] {
+        given[x as usize] = Some(rgb);
+    }
+    let rgb = render::shade_wavelet_known(
+        &wavelet_model(f, &f.vis),
+        &raster,
+        &view.image,
+        &fitted_env(f, k),
+        &f.rot,
+        &given,
+    )?;
+    Ok(RenderedView { raster, rgb })
+}
+
+/// Shade the raster of held-out view `v` under each of `lights` with the renderer's
+/// visibility and rotation (`--render-local-resolution`,
+/// [`crate::rotation::SplatRotation`]) ([`render::shade_wavelet`]: the per-vertex BRDF
+/// slices are computed once for all of them).
+fn shade_view(
+    f: &Fitted,
+    v: usize,
+    raster: &Raster,
+    lights: &[&OctEnv],
+) -> Result<Vec<Vec<[f32; 3]>>> {
+    let image = &f.scene.views[v].image;
+    render::shade_wavelet(
+        &wavelet_model(f, &f.render_vis),
+        raster,
+        image,
+        lights,
+        &f.render_rot,
+    )
 }
 
 /// The texels of a photo's fitted map as an [`OctEnv`].
@@ -635,9 +640,7 @@ pub(crate) fn evaluate(
             .filter_map(|(p, e)| e.map(|e| (p, e)))
             .collect();
             let envs: Vec<&OctEnv> = lights.iter().map(|&(_, e)| e).collect();
-            let rgbs = timed(&mut render_seconds, || {
-                shade_view(f, v, raster, &envs, DrawWith::Renderer)
-            })?;
+            let rgbs = timed(&mut render_seconds, || shade_view(f, v, raster, &envs))?;
 
             let valid = valid_mask(raster, photo);
             let w = raster.width as usize;

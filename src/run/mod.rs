@@ -468,6 +468,9 @@ pub(crate) struct Fitted<'a> {
     pub basis: Vec<BasisBrdf>,
     pub est: estimate::Estimate,
     pub beta: Vec<[f64; 3]>,
+    /// The estimator's predictions at each training photo's observations (vertex, linear
+    /// RGB), in training order: what the training renders show where a vertex was observed.
+    pub train_predictions: Vec<Vec<(u32, [f32; 3])>>,
     pub opts: &'a RunOptions,
     pub estimate_options: EstimateOptions,
     pub bvh: SceneBvh,
@@ -867,7 +870,18 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     bar.finish_and_clear();
     check_finite(&est, &conditioning_map(&est.conditioning))?;
     let beta = estimate::beta_per_vertex(&est.lambda, &est.weights, nv);
-    let train_entries = train_errors(&scene, &train, &obs, &estimate::predict(&problem, &est));
+    let pred = estimate::predict(&problem, &est);
+    let train_entries = train_errors(&scene, &train, &obs, &pred);
+    let train_predictions: Vec<Vec<(u32, [f32; 3])>> = obs
+        .photo_ranges
+        .iter()
+        .map(|r| {
+            r.clone()
+                .map(|p| (obs.vertex[p], pred[p].map(|v| v as f32)))
+                .collect()
+        })
+        .collect();
+    drop(pred);
     // The transport rows (training and held-out) are the run's largest arrays and nothing
     // after the estimate reads them: free them before the evaluation builds its own.
     drop(tracker);
@@ -890,6 +904,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         basis: eff.basis.clone(),
         est,
         beta,
+        train_predictions,
         opts: &eff,
         estimate_options: eopts,
         bvh,

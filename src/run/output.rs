@@ -8,7 +8,7 @@
 //! - `renders/NAME.png` for training views: photo | render | difference (×4), the render
 //!   under the photo's fitted light.
 
-use super::evaluate::{fitted_env, render_view, DrawWith};
+use super::evaluate::{fitted_env, render_training_view};
 use super::Fitted;
 use crate::brdf::BasisBrdf;
 use crate::envmap::LatLong;
@@ -156,14 +156,15 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     mesh.write_ply(&dir.join("mesh.ply"), &extra)?;
     crate::relight::write_render_state(f, dir)?;
 
-    // Training renders: the model as fitted (the estimator's visibility and rotation), each
-    // photo under its own fitted map.
+    // Training renders: the model as fitted (the estimator's predictions at the
+    // observations, its visibility and rotation elsewhere), each photo under its own fitted
+    // map.
     if f.opts.render_training {
         let renders = dir.join("renders");
         std::fs::create_dir_all(&renders).map_err(|e| Error::io(&renders, e))?;
         let bar = progress.bar(f.train.len() as u64, "training renders");
         for (k, &v) in f.train.iter().enumerate() {
-            let r = render_view(f, v, &fitted_env(f, k), DrawWith::Estimator)?;
+            let r = render_training_view(f, k)?;
             let stem = crate::relight::file_stem(&f.scene.views[v].image.name);
             write_triptych(
                 &renders.join(format!("{stem}.png")),
