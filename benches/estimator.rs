@@ -100,6 +100,7 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// `base`. Keys: `floor` (`robust_floor`), `irls` (`none`, `huber`, `tukey`), `k` (Huber's
 /// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
+/// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
 /// `truth=1` (start at the true materials), `dirty=1` (5% outliers, part 3); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
@@ -143,6 +144,7 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "its" => o.max_outer = num() as usize,
             "val" => o.validation_fraction = num(),
             "passes" => o.irls_iters = num() as usize,
+            "qp" => o.alternation_qp_iters = (num() > 0.0).then(|| num() as usize),
             "cut" => o.weights_reject = (num() > 0.0).then(num),
             "truth" => from_truth = num() > 0.0,
             "dirty" => dirty = num() > 0.0,
