@@ -186,6 +186,8 @@ pub struct Knobs {
     pub keep: usize,
     /// Outer iterations at most.
     pub iterations: usize,
+    /// GPCG iterations per lighting QP inside the alternation (`--lighting-qp-iterations`).
+    pub lighting_qp: usize,
 }
 
 impl Knobs {
@@ -197,8 +199,8 @@ impl Knobs {
             self.keep.to_string()
         };
         format!(
-            "g{} k{} it{} n{}",
-            self.global_resolution, keep, self.iterations, self.normal_grid
+            "g{} k{} it{} n{} qp{}",
+            self.global_resolution, keep, self.iterations, self.normal_grid, self.lighting_qp
         )
     }
 }
@@ -384,6 +386,7 @@ fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
                 normal_grid: 8,
                 keep: 32,
                 iterations: 3,
+                lighting_qp: crate::estimate::ALTERNATION_QP_ITERS,
             },
         )
     } else {
@@ -403,6 +406,7 @@ fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
                 normal_grid: 32,
                 keep: 128,
                 iterations: 8,
+                lighting_qp: crate::estimate::ALTERNATION_QP_ITERS,
             },
         )
     }
@@ -413,11 +417,12 @@ fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
     // The rotation's accuracy knob is its normal grid (Eq. 6: the light is rotated into
     // `n × n` precomputed frames and blended between the four nearest); the rotation is
     // applied in factored form, without a threshold on its entries.
-    type Lists<'a> = (&'a [usize], &'a [usize], &'a [usize], &'a [usize]);
-    let (resolutions, keeps, iterations, grids): Lists = if quick {
-        (&[8, 16, 32], &[16, 32, 64, 0], &[1, 2, 3], &[4, 8, 16])
+    // Two iteration counts: the outer alternation's cap and each lighting QP's GPCG cap.
+    type Lists<'a> = (&'a [usize], &'a [usize], &'a [usize], &'a [usize], &'a [usize]);
+    let (resolutions, keeps, iterations, grids, qps): Lists = if quick {
+        (&[8, 16, 32], &[16, 32, 64, 0], &[1, 2, 3], &[4, 8, 16], &[2, 3, 5])
     } else {
-        (&[16, 32, 64], &[32, 64, 128, 0], &[2, 4, 8], &[16, 32, 64])
+        (&[16, 32, 64], &[32, 64, 128, 0], &[2, 4, 8], &[16, 32, 64], &[3, 4, 5])
     };
     let top = *resolutions.last().unwrap_or(&base.global_resolution);
     let mut list: Vec<Knobs> = Vec::new();
@@ -448,6 +453,12 @@ fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
     for &n in grids {
         push(Knobs {
             normal_grid: n,
+            ..at_top
+        });
+    }
+    for &q in qps {
+        push(Knobs {
+            lighting_qp: q,
             ..at_top
         });
     }
@@ -625,6 +636,7 @@ fn measure(
     o.normal_grid = knobs.normal_grid;
     o.keep = knobs.keep;
     o.max_iterations = knobs.iterations;
+    o.lighting_qp_iterations = knobs.lighting_qp;
     o.progress = opts.progress;
     o.force = true;
     o.render_training = false;
@@ -776,6 +788,7 @@ fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
         ("--normal-grid", o.normal_grid),
         ("--keep", o.keep),
         ("--iterations", o.max_iterations),
+        ("--lighting-qp-iterations", o.lighting_qp_iterations),
     ] {
         a.extend([flag.into(), v.to_string()]);
     }
@@ -1153,13 +1166,13 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
             report.sweep[0].photos,
             reference.map(|r| r.knobs.label()).unwrap_or_default()
         );
-        md.push_str("| setting | global | keep | iterations | normal grid | wall s | CPU s | peak MiB | training RMSE | held-out RMSE | ratio | front |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+        md.push_str("| setting | global | keep | iterations | normal grid | lighting QP cap | wall s | CPU s | peak MiB | training RMSE | held-out RMSE | ratio | front |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
         let ref_err = reference.map(|r| r.holdout_rmse).unwrap_or(f64::NAN);
         for (i, r) in report.sweep.iter().enumerate() {
             let on = report.pareto.get(i).copied().unwrap_or(false);
             let _ = writeln!(
                 md,
-                "| {}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} | {:.4} | {:.4} | {:.3} | {} |",
+                "| {}{} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} | {:.4} | {:.4} | {:.3} | {} |",
                 r.knobs.label(),
                 if Some(i) == report.reference {
                     " (reference)"
@@ -1170,6 +1183,7 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
                 r.knobs.keep,
                 r.knobs.iterations,
                 r.knobs.normal_grid,
+                r.knobs.lighting_qp,
                 r.total_seconds,
                 r.total_cpu_seconds,
                 mib(r.peak_memory_bytes),
@@ -1266,47 +1280,45 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
         .map(|(r, _)| (r.total_seconds.log10(), r.holdout_rmse))
         .collect();
     front.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal));
-    let series = vec![
-        Series {
-            label: "global resolution",
-            points: family(&|k| {
-                k.keep == base.keep
-                    && k.iterations == base.iterations
-                    && k.normal_grid == base.normal_grid
-            }),
-            color: PALETTE[0],
-        },
-        Series {
-            label: "keep (coefficients)",
-            points: family(&|k| {
-                k.global_resolution == top
-                    && k.iterations == base.iterations
-                    && k.normal_grid == base.normal_grid
-            }),
-            color: PALETTE[1],
-        },
-        Series {
-            label: "iterations",
-            points: family(&|k| {
-                k.global_resolution == top
-                    && k.keep == base.keep
-                    && k.normal_grid == base.normal_grid
-            }),
-            color: PALETTE[2],
-        },
-        Series {
-            label: "normal grid (rotation)",
-            points: family(&|k| {
-                k.global_resolution == top && k.keep == base.keep && k.iterations == base.iterations
-            }),
-            color: PALETTE[3],
-        },
+    // Which knob a setting changes from the defaults at the top resolution (`None`: none).
+    let at_top = Knobs {
+        global_resolution: top,
+        ..base
+    };
+    let varied = |k: &Knobs| -> Option<usize> {
+        let differ = [
+            k.global_resolution != at_top.global_resolution,
+            k.keep != at_top.keep,
+            k.iterations != at_top.iterations,
+            k.normal_grid != at_top.normal_grid,
+            k.lighting_qp != at_top.lighting_qp,
+        ];
+        differ.iter().position(|&d| d)
+    };
+    let labels = [
+        "global resolution",
+        "keep (coefficients)",
+        "iterations",
+        "normal grid (rotation)",
+        "lighting QP cap",
+    ];
+    let mut series: Vec<Series> = labels
+        .iter()
+        .enumerate()
+        .map(|(i, &label)| Series {
+            label,
+            // The family: the defaults and every setting that changes this knob alone.
+            points: family(&|k| varied(k).is_none_or(|v| v == i)),
+            color: PALETTE[i],
+        })
+        .collect();
+    series.push(
         Series {
             label: "Pareto front",
             points: front,
             color: PALETTE[5],
         },
-    ];
+    );
     line_panels(
         path,
         "log10 of the run's wall seconds",
@@ -1347,10 +1359,11 @@ mod tests {
                     k.keep != at_top.keep,
                     k.iterations != at_top.iterations,
                     k.normal_grid != at_top.normal_grid,
+                    k.lighting_qp != at_top.lighting_qp,
                     k.local_resolution != at_top.local_resolution,
                 ];
                 assert!(differ.iter().filter(|&&d| d).count() <= 1, "{k:?}");
-                assert!(!differ[4], "{k:?}: the local resolution is not swept");
+                assert!(!differ[5], "{k:?}: the local resolution is not swept");
             }
             // Three values of each knob other than keep (four, with the untruncated 0).
             let values = |f: fn(&Knobs) -> usize| {
@@ -1363,6 +1376,7 @@ mod tests {
             assert_eq!(values(|k| k.keep), 4);
             assert_eq!(values(|k| k.iterations), 3);
             assert_eq!(values(|k| k.normal_grid), 3);
+            assert_eq!(values(|k| k.lighting_qp), 3);
             assert!(list.contains(&at_top), "the default knobs are a row");
         }
     }
