@@ -101,7 +101,7 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
 /// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
-/// `truth=1` (start at the true materials), `dirty=1` (5% outliers, part 3); `base` alone
+/// `truth=1` (start at the true materials; parts 2 and 5), `dirty=1` (5% outliers, part 3); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
     label: String,
@@ -357,15 +357,21 @@ fn basis_text(case: &Case) -> String {
         .join(", ")
 }
 
-/// Joint fit of `case` from the clustered start; the timeline with the held-out error under
-/// the true light (per-channel scale) at every outer iteration.
+/// Joint fit of `case` from the clustered start (or the true materials, `from_truth`); the
+/// timeline with the held-out error under the true light (per-channel scale) at every outer
+/// iteration.
 fn joint_fit(
     case: &Case,
     obs: &Observations,
     opts: &EstimateOptions,
+    from_truth: bool,
 ) -> (Estimate, f64, Vec<Value>) {
     let problem = case.train_problem_with(obs);
-    let init = initial(case, obs, case.lambda.len(), 1);
+    let init = if from_truth {
+        case.true_materials()
+    } else {
+        initial(case, obs, case.lambda.len(), 1)
+    };
     let mut tl = Vec::new();
     let t0 = Instant::now();
     let est = estimate(&problem, init, opts, &mut |it, st| {
@@ -456,16 +462,21 @@ fn joint(md: &mut String) -> Value {
         rel_tol: 1e-5,
         ..EstimateOptions::default()
     };
-    let from_specs: Option<Vec<(String, EstimateOptions)>> = specs_from_env("JOINT_SPECS", &long)
-        .map(|v| v.into_iter().map(|sp| (sp.label, sp.opts)).collect());
-    let variants: Vec<(String, EstimateOptions)> = from_specs.unwrap_or_else(|| vec![
-        ("after 1 outer iteration".into(), start),
+    let from_specs: Option<Vec<(String, EstimateOptions, bool)>> =
+        specs_from_env("JOINT_SPECS", &long).map(|v| {
+            v.into_iter()
+                .map(|sp| (sp.label, sp.opts, sp.from_truth))
+                .collect()
+        });
+    let variants: Vec<(String, EstimateOptions, bool)> = from_specs.unwrap_or_else(|| vec![
+        ("after 1 outer iteration".into(), start, false),
         (
             format!(
                 "default options (early stopping: 10% validation, patience {}), ≤ 30 outer iterations",
                 relight_cpc::estimate::PATIENCE
             ),
             long.clone(),
+            false,
         ),
         (
             "no early stopping, ≤ 30 outer iterations".into(),
@@ -473,13 +484,14 @@ fn joint(md: &mut String) -> Value {
                 validation_fraction: 0.0,
                 ..long.clone()
             },
+            false,
         ),
     ]);
     let mut md_notes = Vec::new();
-    for (label, o) in variants {
+    for (label, o, from_truth) in variants {
         let label = label.as_str();
         eprintln!("joint: {label}");
-        let (est, secs, tl) = joint_fit(&case, &case.train.obs, &o);
+        let (est, secs, tl) = joint_fit(&case, &case.train.obs, &o, from_truth);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);
@@ -554,7 +566,7 @@ fn robust(md: &mut String) -> Value {
     for (label, obs, o) in table {
         let label = label.as_str();
         eprintln!("robust: {label}");
-        let (est, secs, _) = joint_fit(&case, obs, &o);
+        let (est, secs, _) = joint_fit(&case, obs, &o, false);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);
@@ -651,7 +663,7 @@ fn determinism(md: &mut String) -> Value {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| bits(&joint_fit(&case, &case.train.obs, &o).0))
+            .install(|| bits(&joint_fit(&case, &case.train.obs, &o, false).0))
     };
     let a = run(2);
     let b = run(2);

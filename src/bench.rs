@@ -191,6 +191,19 @@ pub struct Knobs {
 }
 
 impl Knobs {
+    /// Which knobs differ from `other`: global resolution, keep, outer iterations, normal
+    /// grid, lighting QP cap, local resolution (the sweep changes one of the first five).
+    pub fn differs_from(&self, other: &Knobs) -> [bool; 6] {
+        [
+            self.global_resolution != other.global_resolution,
+            self.keep != other.keep,
+            self.iterations != other.iterations,
+            self.normal_grid != other.normal_grid,
+            self.lighting_qp != other.lighting_qp,
+            self.local_resolution != other.local_resolution,
+        ]
+    }
+
     /// Short label, e.g. `g64 k128 it8`.
     pub fn label(&self) -> String {
         let keep = if self.keep == 0 {
@@ -418,11 +431,29 @@ fn sweep_knobs(base: Knobs, quick: bool) -> (Vec<Knobs>, usize) {
     // `n × n` precomputed frames and blended between the four nearest); the rotation is
     // applied in factored form, without a threshold on its entries.
     // Two iteration counts: the outer alternation's cap and each lighting QP's GPCG cap.
-    type Lists<'a> = (&'a [usize], &'a [usize], &'a [usize], &'a [usize], &'a [usize]);
+    type Lists<'a> = (
+        &'a [usize],
+        &'a [usize],
+        &'a [usize],
+        &'a [usize],
+        &'a [usize],
+    );
     let (resolutions, keeps, iterations, grids, qps): Lists = if quick {
-        (&[8, 16, 32], &[16, 32, 64, 0], &[1, 2, 3], &[4, 8, 16], &[2, 3, 5])
+        (
+            &[8, 16, 32],
+            &[16, 32, 64, 0],
+            &[1, 2, 3],
+            &[4, 8, 16],
+            &[2, 3, 5],
+        )
     } else {
-        (&[16, 32, 64], &[32, 64, 128, 0], &[2, 4, 8], &[16, 32, 64], &[3, 4, 5])
+        (
+            &[16, 32, 64],
+            &[32, 64, 128, 0],
+            &[2, 4, 8],
+            &[16, 32, 64],
+            &[3, 4, 5],
+        )
     };
     let top = *resolutions.last().unwrap_or(&base.global_resolution);
     let mut list: Vec<Knobs> = Vec::new();
@@ -1285,16 +1316,7 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
         global_resolution: top,
         ..base
     };
-    let varied = |k: &Knobs| -> Option<usize> {
-        let differ = [
-            k.global_resolution != at_top.global_resolution,
-            k.keep != at_top.keep,
-            k.iterations != at_top.iterations,
-            k.normal_grid != at_top.normal_grid,
-            k.lighting_qp != at_top.lighting_qp,
-        ];
-        differ.iter().position(|&d| d)
-    };
+    let varied = |k: &Knobs| -> Option<usize> { k.differs_from(&at_top).iter().position(|&d| d) };
     let labels = [
         "global resolution",
         "keep (coefficients)",
@@ -1312,13 +1334,11 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
             color: PALETTE[i],
         })
         .collect();
-    series.push(
-        Series {
-            label: "Pareto front",
-            points: front,
-            color: PALETTE[5],
-        },
-    );
+    series.push(Series {
+        label: "Pareto front",
+        points: front,
+        color: PALETTE[5],
+    });
     line_panels(
         path,
         "log10 of the run's wall seconds",
@@ -1354,14 +1374,7 @@ mod tests {
             assert_eq!(list[idx], Knobs { keep: 0, ..at_top });
             for (i, k) in list.iter().enumerate() {
                 assert!(!list[..i].contains(k), "{k:?} twice");
-                let differ = [
-                    k.global_resolution != at_top.global_resolution,
-                    k.keep != at_top.keep,
-                    k.iterations != at_top.iterations,
-                    k.normal_grid != at_top.normal_grid,
-                    k.lighting_qp != at_top.lighting_qp,
-                    k.local_resolution != at_top.local_resolution,
-                ];
+                let differ = k.differs_from(&at_top);
                 assert!(differ.iter().filter(|&&d| d).count() <= 1, "{k:?}");
                 assert!(!differ[5], "{k:?}: the local resolution is not swept");
             }

@@ -8,6 +8,10 @@ use relight_cpc::render::{
 };
 use relight_cpc::Vec3;
 
+#[path = "support/octahedron.rs"]
+mod octahedron;
+use octahedron::octahedron;
+
 const W: u32 = 80;
 const H: u32 = 60;
 const F: f64 = 70.0;
@@ -195,27 +199,51 @@ fn png_and_exr_round_trip() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// The furnace octahedron of [`wavelet_render_of_a_white_furnace_is_albedo_times_radiance`].
-fn octahedron() -> Mesh {
-    let pts = vec![
-        Vec3::new(1.0, 0.0, 5.0),
-        Vec3::new(-1.0, 0.0, 5.0),
-        Vec3::new(0.0, 1.0, 5.0),
-        Vec3::new(0.0, -1.0, 5.0),
-        Vec3::new(0.0, 0.0, 6.0),
-        Vec3::new(0.0, 0.0, 4.0),
-    ];
-    let faces = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    Mesh::from_parts(pts, faces).0
+/// The white furnace: a convex octahedron (every vertex open, 8² visibility), a constant
+/// light `L = (2, 1, 0.5)` on a 16² map, Lambert with albedo `a = (0.5, 0.25, 0.8)`; every
+/// vertex's radiance is `a·L` (up to the quadrature, well within 1%).
+struct Furnace {
+    mesh: Mesh,
+    vis: relight_cpc::visibility::Visibility,
+    rot: relight_cpc::rotation::Rotation,
+    env: relight_cpc::envmap::OctEnv,
+    beta: Vec<[f64; 3]>,
+    frame: nalgebra::Matrix3<f64>,
+}
+
+const FURNACE_ALBEDO: [f64; 3] = [0.5, 0.25, 0.8];
+const FURNACE_LIGHT: [f32; 3] = [2.0, 1.0, 0.5];
+
+impl Furnace {
+    fn new() -> Self {
+        use relight_cpc::rotation::{Rotation, RotationForm};
+        use relight_cpc::trace::SceneBvh;
+        let mesh = octahedron(Vec3::new(0.0, 0.0, 5.0), 1.0);
+        let frame = nalgebra::Matrix3::identity();
+        let vis = relight_cpc::visibility::compute(&mesh, &SceneBvh::new(&mesh), &frame, 8, 1, 0);
+        Furnace {
+            vis,
+            rot: Rotation::new(16, 8, 8, RotationForm::Factored),
+            env: relight_cpc::envmap::OctEnv {
+                n: 16,
+                rgb: vec![FURNACE_LIGHT; 256],
+            },
+            beta: vec![FURNACE_ALBEDO; mesh.positions.len()],
+            mesh,
+            frame,
+        }
+    }
+
+    fn model(&self) -> relight_cpc::render::WaveletModel<'_> {
+        relight_cpc::render::WaveletModel {
+            mesh: &self.mesh,
+            normals_env: &self.mesh.normals,
+            vis: &self.vis,
+            env_from_world: &self.frame,
+            basis: &[relight_cpc::brdf::BasisBrdf::Lambert],
+            beta: &self.beta,
+        }
+    }
 }
 
 #[test]
@@ -225,38 +253,18 @@ fn given_vertex_radiance_is_kept_and_the_other_vertices_rendered() {
     // predictions): the image must be the interpolation of those given values and a·L at the
     // other vertices (1%, the furnace's tolerance). With nothing given the result must be
     // the plain render, bit for bit; a `given` of the wrong length is an error.
-    use relight_cpc::brdf::BasisBrdf;
-    use relight_cpc::envmap::OctEnv;
-    use relight_cpc::render::{shade_wavelet, shade_wavelet_known, WaveletModel};
-    use relight_cpc::rotation::{Rotation, RotationForm};
-    use relight_cpc::trace::SceneBvh;
-    use relight_cpc::visibility;
-    let mesh = octahedron();
-    let m = nalgebra::Matrix3::identity();
-    let vis = visibility::compute(&mesh, &SceneBvh::new(&mesh), &m, 8, 1, 0);
-    let rot = Rotation::new(16, 8, 8, RotationForm::Factored);
-    let env = OctEnv {
-        n: 16,
-        rgb: vec![[2.0, 1.0, 0.5]; 256],
-    };
-    let a = [0.5, 0.25, 0.8];
-    let beta = vec![a; 6];
-    let model = WaveletModel {
-        mesh: &mesh,
-        normals_env: &mesh.normals,
-        vis: &vis,
-        env_from_world: &m,
-        basis: &[BasisBrdf::Lambert],
-        beta: &beta,
-    };
+    use relight_cpc::render::{shade_wavelet, shade_wavelet_known};
+    let f = Furnace::new();
+    let (model, env, rot) = (f.model(), &f.env, &f.rot);
+    let mesh = &f.mesh;
     let image = image_identity();
-    let raster = rasterize(&mesh, &camera(), &image);
+    let raster = rasterize(mesh, &camera(), &image);
     assert!(raster.covered() > 200);
-    let plain = shade_wavelet(&model, &raster, &image, &[&env], &rot)
+    let plain = shade_wavelet(&model, &raster, &image, &[env], rot)
         .unwrap()
         .pop()
         .unwrap();
-    let none = shade_wavelet_known(&model, &raster, &image, &env, &rot, &[None; 6]).unwrap();
+    let none = shade_wavelet_known(&model, &raster, &image, env, rot, &[None; 6]).unwrap();
     assert!(plain
         .iter()
         .zip(&none)
@@ -264,10 +272,10 @@ fn given_vertex_radiance_is_kept_and_the_other_vertices_rendered() {
 
     let mark = [7.0f32, 8.0, 9.0];
     let given: Vec<Option<[f32; 3]>> = (0..6).map(|x| (x < 3).then_some(mark)).collect();
-    let rgb = shade_wavelet_known(&model, &raster, &image, &env, &rot, &given).unwrap();
-    let furnace = [1.0f32, 0.25, 0.4];
+    let rgb = shade_wavelet_known(&model, &raster, &image, env, rot, &given).unwrap();
+    let furnace: [f32; 3] = [0, 1, 2].map(|c| FURNACE_ALBEDO[c] as f32 * FURNACE_LIGHT[c]);
     let per_vertex: Vec<[f32; 3]> = (0..6).map(|x| if x < 3 { mark } else { furnace }).collect();
-    let want = shade_vertices(&raster, &mesh, &per_vertex);
+    let want = shade_vertices(&raster, mesh, &per_vertex);
     let mut marked = 0;
     for (k, &f) in raster.face.iter().enumerate() {
         if f == u32::MAX {
@@ -284,7 +292,7 @@ fn given_vertex_radiance_is_kept_and_the_other_vertices_rendered() {
         marked += usize::from(rgb[k][0] > 2.0);
     }
     assert!(marked > 50, "the given values reach only {marked} pixels");
-    assert!(shade_wavelet_known(&model, &raster, &image, &env, &rot, &[None; 5]).is_err());
+    assert!(shade_wavelet_known(&model, &raster, &image, env, rot, &[None; 5]).is_err());
 }
 
 #[test]
@@ -293,32 +301,11 @@ fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
     // every object pixel must be a·L (DESIGN issue 4 furnace). Error sources: the Lambert
     // slice quadrature at 8² (≈ 6e-4) and the balanced rotation's row error for a constant
     // sky (rotation tests); allow 1%.
-    use relight_cpc::brdf::BasisBrdf;
-    use relight_cpc::envmap::OctEnv;
-    use relight_cpc::render::{render_wavelet, WaveletModel};
-    use relight_cpc::rotation::{Rotation, RotationForm};
-    use relight_cpc::trace::SceneBvh;
-    use relight_cpc::visibility;
-    let mesh = octahedron();
-    let m = nalgebra::Matrix3::identity();
-    let vis = visibility::compute(&mesh, &SceneBvh::new(&mesh), &m, 8, 1, 0);
-    assert_eq!(vis.open_count(), 6);
-    let rot = Rotation::new(16, 8, 8, RotationForm::Factored);
-    let env = OctEnv {
-        n: 16,
-        rgb: vec![[2.0, 1.0, 0.5]; 256],
-    };
-    let a = [0.5, 0.25, 0.8];
-    let beta = vec![a; 6];
-    let model = WaveletModel {
-        mesh: &mesh,
-        normals_env: &mesh.normals,
-        vis: &vis,
-        env_from_world: &m,
-        basis: &[BasisBrdf::Lambert],
-        beta: &beta,
-    };
-    let (r, rgb) = render_wavelet(&model, &env, &rot, &camera(), &image_identity()).unwrap();
+    use relight_cpc::render::render_wavelet;
+    let f = Furnace::new();
+    assert_eq!(f.vis.open_count(), 6);
+    let model = f.model();
+    let (r, rgb) = render_wavelet(&model, &f.env, &f.rot, &camera(), &image_identity()).unwrap();
     assert!(r.covered() > 200);
     let want = [2.0 * 0.5, 0.25, 0.4];
     for (k, &f) in r.face.iter().enumerate() {

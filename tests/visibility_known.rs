@@ -8,6 +8,10 @@ use relight_cpc::visibility::{compute, compute_with};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 
+#[path = "support/octahedron.rs"]
+mod octahedron;
+use octahedron::octahedron;
+
 /// A ground fan around vertex 0 at the origin (normal +z) and a `2a × 2a` ceiling square
 /// centred at height `h`, all moved by `rot`.
 fn ceiling_scene(a: f64, h: f64, rot: &Rotation3<f64>) -> Mesh {
@@ -109,25 +113,7 @@ fn texel_fractions_follow_the_ceiling_outline() {
 fn convex_vertices_are_proven_open_and_tracing_agrees() {
     // An octahedron: every vertex's neighbours lie 45° below its tangent plane, so all six
     // are open; tracing them anyway must find every texel fully visible.
-    let pts = vec![
-        Vec3::x(),
-        -Vec3::x(),
-        Vec3::y(),
-        -Vec3::y(),
-        Vec3::z(),
-        -Vec3::z(),
-    ];
-    let faces = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    let (mesh, _) = Mesh::from_parts(pts, faces);
+    let mesh = octahedron(Vec3::zeros(), 1.0);
     let bvh = SceneBvh::new(&mesh);
     let m = env_matrix(Vec3::new(0.3, 0.2, 1.0));
     let fast = compute(&mesh, &bvh, &m, 8, 4, 5);
