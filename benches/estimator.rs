@@ -101,18 +101,21 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
 /// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
-/// `truth=1` (start at the true materials; parts 2 and 5), `dirty=1` (5% outliers, part 3); `base` alone
+/// `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (part 2: the clustered
+/// start with every non-Lambertian basis at `f` × the material's mean Lambertian weight, grey,
+/// instead of 0), `dirty=1` (5% outliers, part 3); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
     label: String,
     opts: EstimateOptions,
     from_truth: bool,
     dirty: bool,
+    spec0: f64,
 }
 
 fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
     let mut o = base.clone();
-    let (mut from_truth, mut dirty) = (false, false);
+    let (mut from_truth, mut dirty, mut spec0) = (false, false, 0.0);
     for kv in spec
         .split(',')
         .map(str::trim)
@@ -148,6 +151,7 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "cut" => o.weights_reject = (num() > 0.0).then(num),
             "truth" => from_truth = num() > 0.0,
             "dirty" => dirty = num() > 0.0,
+            "spec0" => spec0 = num(),
             _ => panic!("spec `{spec}`: unknown key `{k}`"),
         }
     }
@@ -160,6 +164,7 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
         opts: o,
         from_truth,
         dirty,
+        spec0,
     }
 }
 
@@ -357,20 +362,37 @@ fn basis_text(case: &Case) -> String {
         .join(", ")
 }
 
-/// Joint fit of `case` from the clustered start (or the true materials, `from_truth`); the
-/// timeline with the held-out error under the true light (per-channel scale) at every outer
-/// iteration.
+/// Where a joint fit starts.
+#[derive(Clone, Copy)]
+enum Start {
+    /// The clustered start, every non-Lambertian basis at this fraction of the material's
+    /// mean Lambertian weight (0: the paper's start).
+    Clustered(f64),
+    /// The true materials.
+    Truth,
+}
+
+/// Joint fit of `case` from `start`; the timeline with the held-out error under the true
+/// light (per-channel scale) at every outer iteration.
 fn joint_fit(
     case: &Case,
     obs: &Observations,
     opts: &EstimateOptions,
-    from_truth: bool,
+    start: Start,
 ) -> (Estimate, f64, Vec<Value>) {
     let problem = case.train_problem_with(obs);
-    let init = if from_truth {
-        case.true_materials()
-    } else {
-        initial(case, obs, case.lambda.len(), 1)
+    let init = match start {
+        Start::Truth => case.true_materials(),
+        Start::Clustered(f) => {
+            let mut m = initial(case, obs, case.lambda.len(), 1);
+            for row in m.lambda.iter_mut() {
+                let grey = f * row[0].iter().sum::<f64>() / 3.0;
+                for b in row.iter_mut().skip(1) {
+                    *b = [grey; 3];
+                }
+            }
+            m
+        }
     };
     let mut tl = Vec::new();
     let t0 = Instant::now();
@@ -462,21 +484,29 @@ fn joint(md: &mut String) -> Value {
         rel_tol: 1e-5,
         ..EstimateOptions::default()
     };
-    let from_specs: Option<Vec<(String, EstimateOptions, bool)>> =
+    let from_specs: Option<Vec<(String, EstimateOptions, Start)>> =
         specs_from_env("JOINT_SPECS", &long).map(|v| {
             v.into_iter()
-                .map(|sp| (sp.label, sp.opts, sp.from_truth))
+                .map(|sp| {
+                    let from = if sp.from_truth {
+                        Start::Truth
+                    } else {
+                        Start::Clustered(sp.spec0)
+                    };
+                    (sp.label, sp.opts, from)
+                })
                 .collect()
         });
-    let variants: Vec<(String, EstimateOptions, bool)> = from_specs.unwrap_or_else(|| vec![
-        ("after 1 outer iteration".into(), start, false),
+    let paper = Start::Clustered(0.0);
+    let variants: Vec<(String, EstimateOptions, Start)> = from_specs.unwrap_or_else(|| vec![
+        ("after 1 outer iteration".into(), start, paper),
         (
             format!(
                 "default options (early stopping: 10% validation, patience {}), ≤ 30 outer iterations",
                 relight_cpc::estimate::PATIENCE
             ),
             long.clone(),
-            false,
+            paper,
         ),
         (
             "no early stopping, ≤ 30 outer iterations".into(),
@@ -484,14 +514,14 @@ fn joint(md: &mut String) -> Value {
                 validation_fraction: 0.0,
                 ..long.clone()
             },
-            false,
+            paper,
         ),
     ]);
     let mut md_notes = Vec::new();
-    for (label, o, from_truth) in variants {
+    for (label, o, from) in variants {
         let label = label.as_str();
         eprintln!("joint: {label}");
-        let (est, secs, tl) = joint_fit(&case, &case.train.obs, &o, from_truth);
+        let (est, secs, tl) = joint_fit(&case, &case.train.obs, &o, from);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);
@@ -566,7 +596,7 @@ fn robust(md: &mut String) -> Value {
     for (label, obs, o) in table {
         let label = label.as_str();
         eprintln!("robust: {label}");
-        let (est, secs, _) = joint_fit(&case, obs, &o, false);
+        let (est, secs, _) = joint_fit(&case, obs, &o, Start::Clustered(0.0));
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);
@@ -663,7 +693,7 @@ fn determinism(md: &mut String) -> Value {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| bits(&joint_fit(&case, &case.train.obs, &o, false).0))
+            .install(|| bits(&joint_fit(&case, &case.train.obs, &o, Start::Clustered(0.0)).0))
     };
     let a = run(2);
     let b = run(2);
