@@ -101,16 +101,15 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
 /// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
-/// `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (part 2: the clustered
+/// `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (parts 2 and 5: the clustered
 /// start with every non-Lambertian basis at `f` × the material's mean Lambertian weight, grey,
 /// instead of 0), `dirty=1` (5% outliers, part 3); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
     label: String,
     opts: EstimateOptions,
-    from_truth: bool,
+    start: Start,
     dirty: bool,
-    spec0: f64,
 }
 
 fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
@@ -162,9 +161,12 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             spec.trim().into()
         },
         opts: o,
-        from_truth,
+        start: if from_truth {
+            Start::Truth
+        } else {
+            Start::Clustered(spec0)
+        },
         dirty,
-        spec0,
     }
 }
 
@@ -372,6 +374,28 @@ enum Start {
     Truth,
 }
 
+/// The paper's start: the clustered materials, Lambertian only.
+const PAPER_START: Start = Start::Clustered(0.0);
+
+impl Start {
+    /// The initial materials of `case` fitted to `obs`.
+    fn materials(self, case: &Case, obs: &Observations) -> relight_cpc::estimate::Materials0 {
+        match self {
+            Start::Truth => case.true_materials(),
+            Start::Clustered(f) => {
+                let mut m = initial(case, obs, case.lambda.len(), 1);
+                for row in m.lambda.iter_mut() {
+                    let grey = f * row[0].iter().sum::<f64>() / 3.0;
+                    for b in row.iter_mut().skip(1) {
+                        *b = [grey; 3];
+                    }
+                }
+                m
+            }
+        }
+    }
+}
+
 /// Joint fit of `case` from `start`; the timeline with the held-out error under the true
 /// light (per-channel scale) at every outer iteration.
 fn joint_fit(
@@ -381,19 +405,7 @@ fn joint_fit(
     start: Start,
 ) -> (Estimate, f64, Vec<Value>) {
     let problem = case.train_problem_with(obs);
-    let init = match start {
-        Start::Truth => case.true_materials(),
-        Start::Clustered(f) => {
-            let mut m = initial(case, obs, case.lambda.len(), 1);
-            for row in m.lambda.iter_mut() {
-                let grey = f * row[0].iter().sum::<f64>() / 3.0;
-                for b in row.iter_mut().skip(1) {
-                    *b = [grey; 3];
-                }
-            }
-            m
-        }
-    };
+    let init = start.materials(case, obs);
     let mut tl = Vec::new();
     let t0 = Instant::now();
     let est = estimate(&problem, init, opts, &mut |it, st| {
@@ -487,26 +499,18 @@ fn joint(md: &mut String) -> Value {
     let from_specs: Option<Vec<(String, EstimateOptions, Start)>> =
         specs_from_env("JOINT_SPECS", &long).map(|v| {
             v.into_iter()
-                .map(|sp| {
-                    let from = if sp.from_truth {
-                        Start::Truth
-                    } else {
-                        Start::Clustered(sp.spec0)
-                    };
-                    (sp.label, sp.opts, from)
-                })
+                .map(|sp| (sp.label, sp.opts, sp.start))
                 .collect()
         });
-    let paper = Start::Clustered(0.0);
     let variants: Vec<(String, EstimateOptions, Start)> = from_specs.unwrap_or_else(|| vec![
-        ("after 1 outer iteration".into(), start, paper),
+        ("after 1 outer iteration".into(), start, PAPER_START),
         (
             format!(
                 "default options (early stopping: 10% validation, patience {}), ≤ 30 outer iterations",
                 relight_cpc::estimate::PATIENCE
             ),
             long.clone(),
-            paper,
+            PAPER_START,
         ),
         (
             "no early stopping, ≤ 30 outer iterations".into(),
@@ -514,7 +518,7 @@ fn joint(md: &mut String) -> Value {
                 validation_fraction: 0.0,
                 ..long.clone()
             },
-            paper,
+            PAPER_START,
         ),
     ]);
     let mut md_notes = Vec::new();
@@ -596,7 +600,7 @@ fn robust(md: &mut String) -> Value {
     for (label, obs, o) in table {
         let label = label.as_str();
         eprintln!("robust: {label}");
-        let (est, secs, _) = joint_fit(&case, obs, &o, Start::Clustered(0.0));
+        let (est, secs, _) = joint_fit(&case, obs, &o, PAPER_START);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);
@@ -693,7 +697,7 @@ fn determinism(md: &mut String) -> Value {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| bits(&joint_fit(&case, &case.train.obs, &o, Start::Clustered(0.0)).0))
+            .install(|| bits(&joint_fit(&case, &case.train.obs, &o, PAPER_START).0))
     };
     let a = run(2);
     let b = run(2);
@@ -755,22 +759,23 @@ fn convergence(md: &mut String) -> Value {
         robust: Robust::None,
         ..base.clone()
     };
-    let variants: Vec<(&str, EstimateOptions, bool)> = vec![
-        ("default options, no early stopping", base.clone(), false),
+    let variants: Vec<(&str, EstimateOptions, Start)> =
+        vec![
+        ("default options, no early stopping", base.clone(), PAPER_START),
         (
             "the same, started at the TRUE materials",
             base.clone(),
-            true,
+            Start::Truth,
         ),
-        ("no IRLS", none.clone(), false),
-        ("no IRLS, started at the TRUE materials", none.clone(), true),
+        ("no IRLS", none.clone(), PAPER_START),
+        ("no IRLS, started at the TRUE materials", none.clone(), Start::Truth),
         (
             "no IRLS, smoothness 1e-5",
             EstimateOptions {
                 smoothness: 1e-5,
                 ..none.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "no IRLS, no extrapolation",
@@ -778,7 +783,7 @@ fn convergence(md: &mut String) -> Value {
                 extrapolate: false,
                 ..none.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "no IRLS, 3 material sweeps",
@@ -786,7 +791,7 @@ fn convergence(md: &mut String) -> Value {
                 material_sweeps: 3,
                 ..none.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "no IRLS, gauge fixed every iteration",
@@ -794,7 +799,7 @@ fn convergence(md: &mut String) -> Value {
                 fix_gauge: true,
                 ..none.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "Huber IRLS in the lighting step only, material step α with the 4.685σ cut",
@@ -802,7 +807,7 @@ fn convergence(md: &mut String) -> Value {
                 materials_cut_only: true,
                 ..base.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "default, early stopping (10% validation, patience 3)",
@@ -811,7 +816,7 @@ fn convergence(md: &mut String) -> Value {
                 patience: 3,
                 ..base.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "Huber k = 3",
@@ -819,7 +824,7 @@ fn convergence(md: &mut String) -> Value {
                 robust: Robust::Huber { k: 3.0 },
                 ..base.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "no IRLS, early stopping (10% validation, patience 3)",
@@ -828,7 +833,7 @@ fn convergence(md: &mut String) -> Value {
                 patience: 3,
                 ..none.clone()
             },
-            false,
+            PAPER_START,
         ),
         (
             "no IRLS, started at the TRUE materials, early stopping (10% validation, patience 3)",
@@ -837,14 +842,14 @@ fn convergence(md: &mut String) -> Value {
                 patience: 3,
                 ..none.clone()
             },
-            true,
+            Start::Truth,
         ),
     ];
-    let variants: Vec<(String, EstimateOptions, bool)> =
+    let variants: Vec<(String, EstimateOptions, Start)> =
         match specs_from_env("CONVERGENCE_SPECS", &base) {
             Some(specs) => specs
                 .into_iter()
-                .map(|sp| (sp.label, sp.opts, sp.from_truth))
+                .map(|sp| (sp.label, sp.opts, sp.start))
                 .collect(),
             None => variants
                 .into_iter()
@@ -856,7 +861,7 @@ fn convergence(md: &mut String) -> Value {
         .filter(|_| std::env::var("CONVERGENCE_SPECS").is_err());
     md.push_str("| fit | outer its | train rel. RMSE after 1 / 5 / 10 / 20 / last | held-out rel. RMSE after 1 / 5 / 10 / 20 / last | best held-out (iteration) | returned estimate's held-out | seconds |\n|---|---|---|---|---|---|---|\n");
     let mut rows = Vec::new();
-    for (vi, (label, o, from_truth)) in variants.into_iter().enumerate() {
+    for (vi, (label, o, start)) in variants.into_iter().enumerate() {
         if let Some(sel) = &only {
             if !sel.split(',').any(|v| v == vi.to_string()) {
                 continue;
@@ -864,11 +869,7 @@ fn convergence(md: &mut String) -> Value {
         }
         eprintln!("convergence: {label}");
         let problem = case.train.problem(case.nv);
-        let init = if from_truth {
-            case.true_materials()
-        } else {
-            initial(&case, &case.train.obs, 2, 1)
-        };
+        let init = start.materials(&case, &case.train.obs);
         let mut tl: Vec<Value> = Vec::new();
         let (mut tr, mut he) = (Vec::new(), Vec::new());
         let t0 = Instant::now();
@@ -922,7 +923,7 @@ fn convergence(md: &mut String) -> Value {
             pick(&he),
             bi + 1
         ));
-        rows.push(json!({"fit": label, "options": format!("{o:?}"), "from_truth": from_truth, "timeline": tl, "seconds": secs, "iterations": est.timeline.len(), "returned_heldout_rel": ret, "returned_iteration": ret_it}));
+        rows.push(json!({"fit": label, "options": format!("{o:?}"), "from_truth": matches!(start, Start::Truth), "timeline": tl, "seconds": secs, "iterations": est.timeline.len(), "returned_heldout_rel": ret, "returned_iteration": ret_it}));
     }
     md.push('\n');
     json!({"vertices": case.nv, "train_observations": case.train.obs.len(), "heldout_observations": case.held.obs.len(), "fits": rows})

@@ -191,8 +191,17 @@ pub struct Knobs {
 }
 
 impl Knobs {
-    /// Which knobs differ from `other`: global resolution, keep, outer iterations, normal
-    /// grid, lighting QP cap, local resolution (the sweep changes one of the first five).
+    /// The knobs the sweep varies, in the order of [`Knobs::differs_from`].
+    pub const SWEPT: [&'static str; 5] = [
+        "global resolution",
+        "keep (coefficients)",
+        "iterations",
+        "normal grid (rotation)",
+        "lighting QP cap",
+    ];
+
+    /// Which knobs differ from `other`: the five of [`Knobs::SWEPT`], then the local
+    /// resolution (not swept).
     pub fn differs_from(&self, other: &Knobs) -> [bool; 6] {
         [
             self.global_resolution != other.global_resolution,
@@ -399,7 +408,7 @@ fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
                 normal_grid: 8,
                 keep: 32,
                 iterations: 3,
-                lighting_qp: crate::estimate::ALTERNATION_QP_ITERS,
+                lighting_qp: RunOptions::default_lighting_qp_iterations(),
             },
         )
     } else {
@@ -419,7 +428,7 @@ fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
                 normal_grid: 32,
                 keep: 128,
                 iterations: 8,
-                lighting_qp: crate::estimate::ALTERNATION_QP_ITERS,
+                lighting_qp: RunOptions::default_lighting_qp_iterations(),
             },
         )
     }
@@ -719,10 +728,7 @@ fn measure(
         train_rmse: fit.train_rmse.unwrap_or(f64::NAN),
         holdout_rmse,
         outer_iterations: fit.timeline.len(),
-        steps: fit.timeline.iter().fold(StepTimes::default(), |mut a, &t| {
-            a += t;
-            a
-        }),
+        steps: fit.timeline.iter().copied().sum(),
         command,
     };
     let _ = std::fs::remove_dir_all(&out);
@@ -1317,14 +1323,7 @@ fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
         ..base
     };
     let varied = |k: &Knobs| -> Option<usize> { k.differs_from(&at_top).iter().position(|&d| d) };
-    let labels = [
-        "global resolution",
-        "keep (coefficients)",
-        "iterations",
-        "normal grid (rotation)",
-        "lighting QP cap",
-    ];
-    let mut series: Vec<Series> = labels
+    let mut series: Vec<Series> = Knobs::SWEPT
         .iter()
         .enumerate()
         .map(|(i, &label)| Series {

@@ -428,6 +428,15 @@ impl std::ops::AddAssign for StepTimes {
     }
 }
 
+impl std::iter::Sum for StepTimes {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(StepTimes::default(), |mut a, t| {
+            a += t;
+            a
+        })
+    }
+}
+
 /// Early stopping's record ([`EstimateOptions::validation_fraction`]).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Validation {
