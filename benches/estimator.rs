@@ -35,6 +35,7 @@ mod synth_case;
 
 use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use relight_cpc::observe::Observations;
+use relight_cpc::starts::{self, estimate_best, MultiStart};
 use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
@@ -103,7 +104,8 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
 /// `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (parts 2 and 5: the clustered
 /// start with every non-Lambertian basis at `f` × the material's mean Lambertian weight, grey,
-/// instead of 0), `dirty=1` (5% outliers, part 3); `base` alone
+/// instead of 0), `start=s` (parts 2 and 5: start number `s` of `starts::variants`),
+/// `starts=n` (part 2: the best of the first `n` of them, `starts::estimate_best`), `dirty=1` (5% outliers, part 3); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
     label: String,
@@ -115,6 +117,7 @@ struct Spec {
 fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
     let mut o = base.clone();
     let (mut from_truth, mut dirty, mut spec0) = (false, false, 0.0);
+    let (mut variant, mut best) = (None, None);
     for kv in spec
         .split(',')
         .map(str::trim)
@@ -151,6 +154,8 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "truth" => from_truth = num() > 0.0,
             "dirty" => dirty = num() > 0.0,
             "spec0" => spec0 = num(),
+            "start" => variant = Some(num() as usize),
+            "starts" => best = Some(num() as usize),
             _ => panic!("spec `{spec}`: unknown key `{k}`"),
         }
     }
@@ -161,10 +166,11 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             spec.trim().into()
         },
         opts: o,
-        start: if from_truth {
-            Start::Truth
-        } else {
-            Start::Clustered(spec0)
+        start: match (from_truth, variant, best) {
+            (true, _, _) => Start::Truth,
+            (_, Some(s), _) => Start::Variant(s),
+            (_, _, Some(n)) => Start::Best(n),
+            _ => Start::Clustered(spec0),
         },
         dirty,
     }
@@ -372,57 +378,84 @@ enum Start {
     Clustered(f64),
     /// The true materials.
     Truth,
+    /// Start number `s` of [`starts::variants`] (gloss [`starts::GLOSS_FRACTION`]).
+    Variant(usize),
+    /// The first `n` of [`starts::variants`], the best kept ([`starts::estimate_best`]).
+    Best(usize),
 }
 
 /// The paper's start: the clustered materials, Lambertian only.
 const PAPER_START: Start = Start::Clustered(0.0);
 
 impl Start {
-    /// The initial materials of `case` fitted to `obs`.
-    fn materials(self, case: &Case, obs: &Observations) -> relight_cpc::estimate::Materials0 {
+    /// The starts this stands for, for `case` fitted to `obs`.
+    fn starts(self, case: &Case, obs: &Observations) -> Vec<starts::Start> {
+        let clustered = || initial(case, obs, case.lambda.len(), 1);
+        let family = || starts::variants(&clustered(), 0, starts::GLOSS_FRACTION);
+        let one = |label: &str, materials| {
+            vec![starts::Start {
+                label: label.into(),
+                materials,
+            }]
+        };
         match self {
-            Start::Truth => case.true_materials(),
+            Start::Truth => one("the true materials", case.true_materials()),
             Start::Clustered(f) => {
-                let mut m = initial(case, obs, case.lambda.len(), 1);
+                let mut m = clustered();
                 for row in m.lambda.iter_mut() {
                     let grey = f * row[0].iter().sum::<f64>() / 3.0;
                     for b in row.iter_mut().skip(1) {
                         *b = [grey; 3];
                     }
                 }
-                m
+                one(&format!("clustered, glossy lobes at {f}"), m)
             }
+            Start::Variant(s) => {
+                let mut v = family();
+                assert!(s < v.len(), "start {s} of {} variants", v.len());
+                vec![v.swap_remove(s)]
+            }
+            Start::Best(n) => family().into_iter().take(n.max(1)).collect(),
         }
+    }
+
+    /// The single start this stands for (not [`Start::Best`] of more than one).
+    fn materials(self, case: &Case, obs: &Observations) -> relight_cpc::estimate::Materials0 {
+        let mut v = self.starts(case, obs);
+        assert_eq!(v.len(), 1, "this part fits from a single start");
+        v.pop().unwrap().materials
     }
 }
 
-/// Joint fit of `case` from `start`; the timeline with the held-out error under the true
-/// light (per-channel scale) at every outer iteration.
+/// Joint fit of `case` from `start` (the best of several when it names several); the
+/// timeline with the held-out error under the true light (per-channel scale) at every outer
+/// iteration of every start.
 fn joint_fit(
     case: &Case,
     obs: &Observations,
     opts: &EstimateOptions,
     start: Start,
-) -> (Estimate, f64, Vec<Value>) {
+) -> (Estimate, f64, Vec<Value>, MultiStart) {
     let problem = case.train_problem_with(obs);
-    let init = start.materials(case, obs);
+    let tried = start.starts(case, obs);
     let mut tl = Vec::new();
     let t0 = Instant::now();
-    let est = estimate(&problem, init, opts, &mut |it, st| {
+    let (est, record) = estimate_best(&problem, tried, opts, &mut |si, it, st| {
         let hp = predict_with(&case.held, case.nv, st.lambda, st.weights, &case.held.lights);
         let h = rel_rmse_per_channel(&case.held.obs, &hp);
         eprintln!(
-            "  iteration {}: {:.1} s, objective {:.5e}, train RMSE {:.5}, held-out rel {:.4}",
+            "  start {si} iteration {}: {:.1} s, objective {:.5e}, train RMSE {:.5}, validation {:?}, held-out rel {:.4}",
             tl.len() + 1,
             it.seconds,
             it.objective,
             it.train_rmse,
+            it.validation_rel,
             h
         );
-        tl.push(json!({"seconds": it.seconds, "objective": it.objective, "train_rmse": it.train_rmse, "heldout_rel_true_light": h}));
+        tl.push(json!({"start": si, "seconds": it.seconds, "objective": it.objective, "train_rmse": it.train_rmse, "validation_rel": it.validation_rel, "heldout_rel_true_light": h}));
     })
     .unwrap();
-    (est, t0.elapsed().as_secs_f64(), tl)
+    (est, t0.elapsed().as_secs_f64(), tl, record)
 }
 
 fn joint_row(md: &mut String, label: &str, f: &JointFigures) {
@@ -525,7 +558,7 @@ fn joint(md: &mut String) -> Value {
     for (label, o, from) in variants {
         let label = label.as_str();
         eprintln!("joint: {label}");
-        let (est, secs, tl) = joint_fit(&case, &case.train.obs, &o, from);
+        let (est, secs, tl, record) = joint_fit(&case, &case.train.obs, &o, from);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);
@@ -540,7 +573,31 @@ fn joint(md: &mut String) -> Value {
                 if v.stopped_early { ", stopped by patience" } else { "" }
             ));
         }
-        rows.push(json!({"fit": label, "figures": f, "timeline": tl, "lambda": est.lambda, "normalisation": est.normalisation, "validation": est.validation}));
+        if record.starts.len() > 1 {
+            md_notes.push(format!(
+                "- {label}: kept start {} by {}; {}.\n",
+                record.chosen,
+                record.criterion,
+                record
+                    .starts
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| {
+                        let held = tl
+                            .iter()
+                            .filter(|t| t["start"] == i)
+                            .nth(r.kept_iteration - 1)
+                            .map_or(f64::NAN, |t| t["heldout_rel_true_light"].as_f64().unwrap_or(f64::NAN));
+                        format!(
+                            "start {i} ({}): score {:.4}, iteration {} of {} kept, held-out {held:.4}, {:.1} s",
+                            r.label, r.score, r.kept_iteration, r.iterations, r.seconds
+                        )
+                    })
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ));
+        }
+        rows.push(json!({"fit": label, "figures": f, "timeline": tl, "lambda": est.lambda, "normalisation": est.normalisation, "validation": est.validation, "starts": record}));
     }
     let truth_train = predict_with(
         &case.train,
@@ -600,7 +657,7 @@ fn robust(md: &mut String) -> Value {
     for (label, obs, o) in table {
         let label = label.as_str();
         eprintln!("robust: {label}");
-        let (est, secs, _) = joint_fit(&case, obs, &o, PAPER_START);
+        let (est, secs, _, _) = joint_fit(&case, obs, &o, PAPER_START);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");
         joint_row(md, label, &f);

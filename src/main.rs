@@ -252,6 +252,11 @@ struct RunArgs {
     /// alternation stops.
     #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_patience())]
     patience: usize,
+    /// Starts of the alternation to try, the best by validation score kept: 1 = the
+    /// paper's clustered start; 2 adds every glossy lobe at 0.3 × the Lambertian weight,
+    /// then one lobe per material in cyclic order. Each start costs one estimate.
+    #[arg(long, default_value_t = 1)]
+    starts: usize,
     /// Fraction of the training observations held back (seeded) to stop the alternation
     /// at its best iterate; 0 turns early stopping off.
     #[arg(long, default_value_t = 0.1)]
@@ -333,6 +338,7 @@ impl RunArgs {
         o.validation = self.validation;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.patience = self.patience;
+        o.starts = self.starts;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;
         o.progress = !self.quiet;

@@ -426,3 +426,84 @@ fn capped_lighting_steps_keep_the_objective_non_increasing() {
     assert!(err < noise, "error vs clean truth {err}, noise {noise}");
     assert!(capped.lights.iter().flatten().flatten().all(|&v| v >= 0.0));
 }
+
+#[test]
+fn the_best_of_several_starts_is_the_lowest_scoring_fit() {
+    // Three starts on a noisy planted problem: the perturbed one, the truth, and one with
+    // the materials' colours swapped against their weights. `estimate_best` must return,
+    // bit for bit, the plain `estimate` from the start whose score (early stopping's
+    // validation error at the returned iterate) is lowest, and report every start's score
+    // as the plain fits give it. Exact equality: the same deterministic computation.
+    use relight_cpc::starts::{estimate_best, Start};
+    let p = planted(5, 0.01, 0.0, 200, 4);
+    let o = EstimateOptions {
+        max_outer: 6,
+        ..opts(Robust::Huber { k: 1.345 })
+    };
+    let truth = Materials0 {
+        lambda: p.lambda.clone(),
+        weights: p.weights.clone(),
+    };
+    let swapped = Materials0 {
+        lambda: vec![p.lambda[1].clone(), p.lambda[0].clone()],
+        weights: p.weights.clone(),
+    };
+    let all = [start(&p), truth, swapped];
+    let starts: Vec<Start> = all
+        .iter()
+        .enumerate()
+        .map(|(i, m)| Start {
+            label: format!("start {i}"),
+            materials: m.clone(),
+        })
+        .collect();
+    let mut seen = Vec::new();
+    let (best, record) =
+        estimate_best(&problem(&p), starts, &o, &mut |i, _, _| seen.push(i)).unwrap();
+    let plain: Vec<Estimate> = all
+        .iter()
+        .map(|m| estimate(&problem(&p), m.clone(), &o, &mut |_, _| {}).unwrap())
+        .collect();
+    let scores: Vec<f64> = plain
+        .iter()
+        .map(|e| {
+            let v = e.validation.as_ref().unwrap();
+            v.errors[v.best_iteration - 1]
+        })
+        .collect();
+    let argmin = (0..3).fold(0, |b, i| if scores[i] < scores[b] { i } else { b });
+    assert_eq!(record.chosen, argmin, "scores {scores:?}");
+    assert_eq!(record.starts.len(), 3);
+    for (r, (s, e)) in record.starts.iter().zip(scores.iter().zip(&plain)) {
+        assert_eq!(r.score, *s);
+        assert_eq!(r.iterations, e.timeline.len());
+    }
+    // Every start's iterations were reported, in start order.
+    let counts: Vec<usize> = (0..3)
+        .map(|i| seen.iter().filter(|&&s| s == i).count())
+        .collect();
+    assert_eq!(
+        counts,
+        plain.iter().map(|e| e.timeline.len()).collect::<Vec<_>>()
+    );
+    assert!(seen.windows(2).all(|w| w[0] <= w[1]));
+    let same = |a: &Estimate, b: &Estimate| {
+        a.lambda == b.lambda && a.weights == b.weights && a.lights == b.lights
+    };
+    assert!(same(&best, &plain[argmin]));
+    // The three starts do not all end alike (else the choice would be untested).
+    assert!(scores.iter().any(|&s| s != scores[argmin]), "{scores:?}");
+    // One start: `estimate` itself.
+    let (one, r1) = estimate_best(
+        &problem(&p),
+        vec![Start {
+            label: "only".into(),
+            materials: start(&p),
+        }],
+        &o,
+        &mut |_, _, _| {},
+    )
+    .unwrap();
+    assert_eq!(r1.chosen, 0);
+    assert!(same(&one, &plain[0]));
+}

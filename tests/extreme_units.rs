@@ -188,3 +188,18 @@ fn validation_fraction_outside_its_range_is_refused() {
     };
     assert!(off.check().is_ok());
 }
+
+/// `--starts 0` would leave the alternation nothing to start from: refused, naming the flag.
+#[test]
+fn zero_starts_are_refused() {
+    use relight_cpc::run::RunOptions;
+    let base = RunOptions::new("ws".into(), "out".into());
+    let o = RunOptions {
+        starts: 0,
+        ..base.clone()
+    };
+    let e = o.check().unwrap_err().to_string();
+    assert!(e.contains("--starts"), "{e}");
+    let two = RunOptions { starts: 2, ..base };
+    assert!(two.check().is_ok());
+}

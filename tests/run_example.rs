@@ -133,3 +133,48 @@ fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
     assert!(r.train_rmse < 0.05, "train RMSE {}", r.train_rmse);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn several_starts_keep_the_lowest_validation_score() {
+    // Two starts (`--starts 2`) on the built-in example: the report names both, keeps the
+    // one with the lower validation score, and its timeline carries both starts' iterations
+    // in order on one clock.
+    let dir = std::env::temp_dir().join(format!("relight-run-starts-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut o = options(&dir.join("spot"));
+    o.max_iterations = 2;
+    o.starts = 2;
+    let summary = run(&o).expect("run with two starts");
+    let r = &summary.report;
+    let m = r.starts.as_ref().expect("a multi-start record");
+    assert_eq!(m.starts.len(), 2);
+    let best = if m.starts[1].score < m.starts[0].score {
+        1
+    } else {
+        0
+    };
+    assert_eq!(m.chosen, best, "{m:?}");
+    assert!(m
+        .starts
+        .iter()
+        .all(|s| s.score.is_finite() && s.iterations >= 1));
+    let per_start: Vec<usize> = (0..2)
+        .map(|i| r.timeline.iter().filter(|t| t.start == i).count())
+        .collect();
+    assert_eq!(
+        per_start,
+        vec![m.starts[0].iterations, m.starts[1].iterations]
+    );
+    assert!(r
+        .timeline
+        .windows(2)
+        .all(|w| w[0].start <= w[1].start && w[0].seconds < w[1].seconds));
+    assert!(
+        r.notes.iter().any(|n| n.contains("2 starts tried")),
+        "{:?}",
+        r.notes
+    );
+    let truth: Vec<_> = r.holdout.iter().filter(|h| h.protocol == "truth").collect();
+    assert!(truth.len() == 2 && truth.iter().all(|h| h.rmse_scaled.is_finite()));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -53,7 +53,9 @@ pub struct TrainEntry {
 /// One outer iteration of the estimator.
 #[derive(Debug, Clone, Serialize)]
 pub struct TimelinePoint {
-    /// Seconds since the estimator started.
+    /// Which start of the alternation ([`crate::starts`]) the iteration belongs to.
+    pub start: usize,
+    /// Seconds since the estimator started (over all starts).
     pub seconds: f64,
     /// Objective of Eq. 9 (with regularisers).
     pub objective: f64,
@@ -121,6 +123,9 @@ pub struct RunReport {
     pub conditioning: BTreeMap<String, f64>,
     /// What the solver did with each condition number (regulariser, threshold, advice).
     pub conditioning_use: Vec<String>,
+    /// With several starts ([`crate::starts`]): each one's score and the one kept.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub starts: Option<crate::starts::MultiStart>,
 }
 
 /// RMSE and best-scale RMSE of `pred` against `truth` (both linear RGB), over the
@@ -465,6 +470,7 @@ mod tests {
         };
         r.timeline = (0..4)
             .map(|i| TimelinePoint {
+                start: 0,
                 seconds: i as f64,
                 objective: 1.0 / (1.0 + i as f64),
                 train_rmse: 0.1 / (1.0 + i as f64),

@@ -38,6 +38,7 @@ use crate::report::{ModelReport, RunReport, TimelinePoint};
 use crate::rotation::{Rotation, RotationForm};
 use crate::scene::{self, Scene};
 use crate::stages::Stages;
+use crate::starts;
 use crate::trace::SceneBvh;
 use crate::transport::{self, Transport, TransportOptions};
 use crate::visibility;
@@ -121,6 +122,9 @@ pub struct RunOptions {
     /// Early stopping: outer iterations without a better validation score before the
     /// alternation stops ([`EstimateOptions::patience`]).
     pub patience: usize,
+    /// Starts of the alternation tried, the best kept ([`crate::starts`]; not in the
+    /// paper): 1 = the paper's clustered start alone. Each start costs one estimate.
+    pub starts: usize,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -184,6 +188,7 @@ impl RunOptions {
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::default_patience(),
+            starts: 1,
             validation: EstimateOptions::default().validation_fraction,
             clip: crate::photo::DEFAULT_CLIP,
             seed: 1,
@@ -255,6 +260,11 @@ impl RunOptions {
         if self.irls_iterations == 0 {
             return Err(Error::Config(
                 "--irls-iterations 0: at least one (plain least squares) is needed".into(),
+            ));
+        }
+        if self.starts == 0 {
+            return Err(Error::Config(
+                "--starts 0: the alternation needs at least one start".into(),
             ));
         }
         if self.patience == 0 {
@@ -843,23 +853,45 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         )
     })?;
     progress.stage("estimate");
-    let bar = progress.bar(eff.max_iterations as u64, "outer iterations");
+    let mut family = starts::variants(&materials0, lambert, starts::GLOSS_FRACTION);
+    if opts.starts > family.len() {
+        reasons.push(format!(
+            "--starts {}: this basis gives {} distinct starts, all tried",
+            opts.starts,
+            family.len()
+        ));
+    }
+    family.truncate(opts.starts);
+    let n_starts = family.len();
+    let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
     let mut timeline: Vec<TimelinePoint> = Vec::new();
-    let est = stages.run("estimate", || {
-        estimate::estimate(&problem, materials0, &eopts, &mut |it, state| {
+    // Seconds on one clock over all starts: each start's own clock begins at 0.
+    let (mut current, mut offset, mut last) = (0, 0.0, 0.0);
+    let (est, multi) = stages.run("estimate", || {
+        starts::estimate_best(&problem, family, &eopts, &mut |si, it, state| {
+            if si != current {
+                (current, offset) = (si, offset + last);
+            }
+            last = it.seconds;
             bar.inc(1);
             let holdout_rmse = tracker
                 .as_ref()
                 .map(|t| t.rmse(state, nv))
                 .filter(|v| v.is_finite());
             bar.set_message(format!(
-                "objective {:.4e}, training RMSE {:.5}{}",
+                "{}objective {:.4e}, training RMSE {:.5}{}",
+                if n_starts > 1 {
+                    format!("start {} of {n_starts}: ", si + 1)
+                } else {
+                    String::new()
+                },
                 it.objective,
                 it.train_rmse,
                 holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}"))
             ));
             timeline.push(TimelinePoint {
-                seconds: it.seconds,
+                start: si,
+                seconds: offset + it.seconds,
                 objective: it.objective,
                 train_rmse: it.train_rmse,
                 holdout_rmse,
@@ -936,6 +968,22 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             opts.lighting_qp_iterations
         ));
     }
+    if multi.starts.len() > 1 {
+        notes.push(format!(
+            "{} starts tried, kept start {} ({}) by the {}: {}",
+            multi.starts.len(),
+            multi.chosen + 1,
+            multi.starts[multi.chosen].label,
+            multi.criterion,
+            multi
+                .starts
+                .iter()
+                .enumerate()
+                .map(|(i, r)| format!("start {} {:.4} in {:.1} s", i + 1, r.score, r.seconds))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
     notes.push(format!("scale normalisation: {}", fitted.est.normalisation));
     if let Some(v) = &fitted.est.validation {
         notes.push(format!(
@@ -987,6 +1035,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         notes,
         conditioning,
         conditioning_use,
+        starts: (multi.starts.len() > 1).then_some(multi),
         ..Default::default()
     };
     if !fitted.held.is_empty() {
