@@ -257,6 +257,10 @@ struct RunArgs {
     /// then one lobe per material in cyclic order. Each start costs one estimate.
     #[arg(long, default_value_t = 1)]
     starts: usize,
+    /// Lower bound on IRLS's robust scale, as a fraction of each photo's RMS radiance: a
+    /// residual within 1.345 × this is never down-weighted (0 = the residuals' MAD alone).
+    #[arg(long, default_value_t = 0.0)]
+    robust_floor: f64,
     /// Fraction of the training observations held back (seeded) to stop the alternation
     /// at its best iterate; 0 turns early stopping off.
     #[arg(long, default_value_t = 0.1)]
@@ -339,6 +343,7 @@ impl RunArgs {
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.patience = self.patience;
         o.starts = self.starts;
+        o.robust_floor = self.robust_floor;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;
         o.progress = !self.quiet;

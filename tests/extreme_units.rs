@@ -203,3 +203,24 @@ fn zero_starts_are_refused() {
     let two = RunOptions { starts: 2, ..base };
     assert!(two.check().is_ok());
 }
+
+/// `--robust-floor` is a fraction of the RMS radiance: outside [0, 1) (or NaN) refused,
+/// naming the flag.
+#[test]
+fn robust_floor_outside_its_range_is_refused() {
+    use relight_cpc::run::RunOptions;
+    let base = RunOptions::new("ws".into(), "out".into());
+    for bad in [-0.1, 1.0, f64::NAN, f64::INFINITY] {
+        let o = RunOptions {
+            robust_floor: bad,
+            ..base.clone()
+        };
+        let e = o.check().unwrap_err().to_string();
+        assert!(e.contains("--robust-floor"), "{e}");
+    }
+    let on = RunOptions {
+        robust_floor: 0.1,
+        ..base
+    };
+    assert!(on.check().is_ok());
+}

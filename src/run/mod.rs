@@ -125,6 +125,9 @@ pub struct RunOptions {
     /// Starts of the alternation tried, the best kept ([`crate::starts`]; not in the
     /// paper): 1 = the paper's clustered start alone. Each start costs one estimate.
     pub starts: usize,
+    /// Lower bound on IRLS's robust scale relative to each photo's RMS radiance
+    /// ([`EstimateOptions::robust_floor`]; 0 = the residuals' MAD alone).
+    pub robust_floor: f64,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -189,6 +192,7 @@ impl RunOptions {
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::default_patience(),
             starts: 1,
+            robust_floor: EstimateOptions::default().robust_floor,
             validation: EstimateOptions::default().validation_fraction,
             clip: crate::photo::DEFAULT_CLIP,
             seed: 1,
@@ -261,6 +265,12 @@ impl RunOptions {
             return Err(Error::Config(
                 "--irls-iterations 0: at least one (plain least squares) is needed".into(),
             ));
+        }
+        if !(0.0..1.0).contains(&self.robust_floor) {
+            return Err(Error::Config(format!(
+                "--robust-floor {}: must be in [0, 1) (a fraction of the RMS radiance)",
+                self.robust_floor
+            )));
         }
         if self.starts == 0 {
             return Err(Error::Config(
@@ -737,6 +747,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             Robust::None
         },
         irls_iters: o.irls_iterations,
+        robust_floor: o.robust_floor,
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
         alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
         patience: o.patience,
