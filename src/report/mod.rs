@@ -53,7 +53,8 @@ pub struct TrainEntry {
 /// One outer iteration of the estimator.
 #[derive(Debug, Clone, Serialize)]
 pub struct TimelinePoint {
-    /// Which start of the alternation ([`crate::starts`]) the iteration belongs to.
+    /// Which start of the alternation ([`crate::starts`]) the iteration belongs to, from 0
+    /// (the paper's start).
     pub start: usize,
     /// Seconds since the estimator started (over all starts).
     pub seconds: f64,
