@@ -7,10 +7,11 @@
 //! them back into the materials. On the finer joint bench
 //! (`bench-results/estimator-joint-32-starts.md`: 12 maps of 32² texels, 36,864 light
 //! unknowns against 27,213 observed values) that start ends at 14.7% held-out error, the
-//! true materials as a start at 8.9%; the maps are not pinned down by the data, so where
-//! the fit ends depends on where it starts (without IRLS the clustered start even fits the
-//! training photos better than the truth, 0.0559 against 0.0621, and predicts the held-out
-//! ones worse, 13.5% against 9.9%).
+//! true materials as a start at 8.9%. The data do not settle how a photo's free map and
+//! the lobes share the highlights (a sharper map under a broader lobe), also at 4× the
+//! vertices, so where the fit ends depends on where it starts: without IRLS the clustered
+//! start even fits the training photos better than the truth (0.0559 against 0.0621) and
+//! predicts the held-out ones worse (13.5% against 9.9%).
 //!
 //! [`variants`] derives a fixed, ordered family of starts from the clustered one, with
 //! `γ = gloss` × the material's mean Lambertian weight (grey) on glossy lobes:
