@@ -171,8 +171,8 @@ impl Problem<'_> {
 /// misfit (highlights the current λ cannot make yet) in the lighting and material steps:
 /// training / held-out relative error 12.2% / 13.2% against 1.9% / 9.2% without IRLS,
 /// at 4× the lighting cost; `k = 3` does not close the gap (10.7% / 12.4% after 16).
-/// A floor on the scale ([`EstimateOptions::robust_floor`], off by default) removes most of
-/// it: at 0.1, 4.0% / 9.9% after 20 (0.05: 6.8% / 10.6%; 0.02: 7.2% / 11.6%).
+/// A floor on the scale ([`EstimateOptions::robust_floor`], [`ROBUST_FLOOR`] by default)
+/// removes most of it: at 0.1, 4.0% / 9.9% after 20 (0.05: 6.8% / 10.6%; 0.02: 7.2% / 11.6%).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Robust {
     /// Plain least squares, no reweighting.
@@ -286,16 +286,7 @@ pub struct EstimateOptions {
     /// residual within `k · robust_floor` of the RMS radiance is never down-weighted, so
     /// IRLS acts only on gross residuals and not on the model's own shrinking misfit (the
     /// MAD alone goes to 0 with the residuals and stalls the fit on clean data). 0 = the
-    /// MAD alone, the default. Measured at 0.1 (`bench-results/estimator-convergence.md`,
-    /// `bench-results/estimator.md` parts 2 and 3b, `spot-varying`, 16² / 8²): noise-free, 20
-    /// iterations, training / held-out 4.0% / 9.9% against 12.2% / 13.2% with the MAD alone
-    /// (no IRLS: 1.9% / 9.2%); rendered photos, 12 iterations without early stopping,
-    /// held-out vs the true model 14.2% against 15.6%; 5% gross outliers ×1.21 of that clean
-    /// fit (no IRLS ×6.5). Not the default because early stopping then returns iteration 2
-    /// (held-out 20.5% vs 18.5%): the fitted maps follow more of the training photos' misfit
-    /// and the validation observations of the same photos get worse (0.19 → 0.23–0.27) while
-    /// the held-out photos under their true light improve. 0.2 fails the outliers (×1.54): a
-    /// larger σ lets Huber's bounded influence `kσ` grow.
+    /// MAD alone. Default [`ROBUST_FLOOR`] (0.05).
     pub robust_floor: f64,
     /// Seed of the validation draw.
     pub validation_seed: u64,
@@ -330,6 +321,22 @@ pub const ALTERNATION_CG_ITERS: usize = 20;
 /// identical, 16.9 s instead of 23.6 s. The extra iterations only confirmed the best one.
 pub const PATIENCE: usize = 1;
 
+/// Default of [`EstimateOptions::robust_floor`]: IRLS's robust scale is at least 5% of the
+/// photo's RMS radiance in each channel. Against the MAD alone (0), measured on `spot-varying`
+/// (`bench-results/estimator-joint-floor.md`, `estimator-robust-floor.md`,
+/// `estimator-joint-32-starts.md`): the joint bench (16² / 8², 96² photos) 17.5% held-out
+/// against 18.3% (12 fixed iterations 17.3% / 18.3%; 5% gross outliers ×1.03 of the clean
+/// fit); the finer joint case (32² / 16², 192² photos at 32 spp) 13.2% against 14.7% in
+/// 94 s instead of 173 s; the Minerva model at 10K vertices 0.0764 against 0.0765. 0.1 did as
+/// well on the finer cases (13.2%, 100K vertices 0.0757 against 0.0763) but made early
+/// stopping return iteration 2 on the small bench (20.5%: its validation score jumps from
+/// 0.19 to 0.27 at iteration 3) and costs ×1.18 with outliers on the finer case; 0.2 fails
+/// the outliers (×1.54, a larger σ lets Huber's bounded influence `kσ` grow). Noise-free
+/// (`estimator-convergence.md`, 20 iterations) 0.1 gives training / held-out 4.0% / 9.9%
+/// against 12.2% / 13.2% with the MAD alone, which keeps down-weighting the fit's own
+/// shrinking misfit (every highlight at the clustered start).
+pub const ROBUST_FLOOR: f64 = 0.05;
+
 /// Early stopping leaves an observation out only where its vertex keeps at least this many
 /// fitted observations (its `K` blending weights stay determined).
 pub const VALIDATION_MIN_FIT: usize = 2;
@@ -358,7 +365,7 @@ impl Default for EstimateOptions {
             weights_reject: Some(4.685),
             validation_fraction: 0.1,
             validation_seed: 1,
-            robust_floor: 0.0,
+            robust_floor: ROBUST_FLOOR,
             fix_gauge: false,
             materials_cut_only: false,
             patience: PATIENCE,
