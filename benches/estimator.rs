@@ -391,7 +391,7 @@ impl Start {
     /// The starts this stands for, for `case` fitted to `obs`.
     fn starts(self, case: &Case, obs: &Observations) -> Vec<starts::Start> {
         let clustered = || initial(case, obs, case.lambda.len(), 1);
-        let family = || starts::variants(&clustered(), 0, starts::GLOSS_FRACTION);
+        let family = |n| starts::variants(clustered(), 0, starts::GLOSS_FRACTION, n);
         let one = |label: &str, materials| {
             vec![starts::Start {
                 label: label.into(),
@@ -400,22 +400,16 @@ impl Start {
         };
         match self {
             Start::Truth => one("the true materials", case.true_materials()),
-            Start::Clustered(f) => {
-                let mut m = clustered();
-                for row in m.lambda.iter_mut() {
-                    let grey = f * row[0].iter().sum::<f64>() / 3.0;
-                    for b in row.iter_mut().skip(1) {
-                        *b = [grey; 3];
-                    }
-                }
-                one(&format!("clustered, glossy lobes at {f}"), m)
-            }
+            Start::Clustered(f) => one(
+                &format!("clustered, glossy lobes at {f}"),
+                starts::uniform_gloss(&clustered(), 0, f),
+            ),
             Start::Variant(s) => {
-                let mut v = family();
-                assert!(s < v.len(), "start {s} of {} variants", v.len());
-                vec![v.swap_remove(s)]
+                let mut v = family(s + 1);
+                assert_eq!(v.len(), s + 1, "start {s} of {} variants", v.len());
+                vec![v.pop().unwrap()]
             }
-            Start::Best(n) => family().into_iter().take(n.max(1)).collect(),
+            Start::Best(n) => family(n),
         }
     }
 

@@ -55,48 +55,83 @@ pub struct Start {
     pub materials: Materials0,
 }
 
-/// The family of starts (module docs) derived from `base`, in order: 1 start when the basis
-/// has no lobe besides the Lambertian, 2 with one glossy lobe, else `2 + G`.
-pub fn variants(base: &Materials0, lambert: usize, gloss: f64) -> Vec<Start> {
-    let nb = base.lambda.first().map_or(0, |r| r.len());
-    let glossy: Vec<usize> = (0..nb).filter(|&b| b != lambert).collect();
-    let mut out = vec![Start {
-        label: "the paper's start (clustered colours, Lambertian only)".into(),
-        materials: base.clone(),
-    }];
-    if glossy.is_empty() || lambert >= nb {
-        return out;
+/// How many distinct starts [`variants`] has for `n_basis` bases: 1 when the basis has no
+/// lobe besides the Lambertian (index `lambert`), 2 with one glossy lobe, else `2 + G`.
+pub fn family_len(n_basis: usize, lambert: usize) -> usize {
+    let g = if lambert < n_basis { n_basis - 1 } else { 0 };
+    match g {
+        0 => 1,
+        1 => 2,
+        g => 2 + g,
     }
-    let grey = |row: &[[f64; 3]]| gloss * row[lambert].iter().sum::<f64>() / 3.0;
-    let with = |pick: &dyn Fn(usize) -> Vec<usize>| {
-        let mut m = base.clone();
-        for (k, row) in m.lambda.iter_mut().enumerate() {
-            let g = grey(row);
-            for b in pick(k) {
-                row[b] = [g; 3];
+}
+
+/// `base` with every non-Lambertian lobe of material `k` at `gloss` × its mean Lambertian
+/// weight (grey): start 1 of the family (module docs).
+pub fn uniform_gloss(base: &Materials0, lambert: usize, gloss: f64) -> Materials0 {
+    with_gloss(base, lambert, gloss, |_, b| b != lambert)
+}
+
+/// `base` with lobe `b` of material `k` at `gloss` × its mean Lambertian weight where
+/// `pick(k, b)`.
+fn with_gloss(
+    base: &Materials0,
+    lambert: usize,
+    gloss: f64,
+    pick: impl Fn(usize, usize) -> bool,
+) -> Materials0 {
+    let mut m = base.clone();
+    for (k, row) in m.lambda.iter_mut().enumerate() {
+        // `γ · Σ_c / 3` in this order (the results depend on the rounding).
+        let g = row
+            .get(lambert)
+            .map_or(0.0, |l| gloss * l.iter().sum::<f64>() / 3.0);
+        for (b, v) in row.iter_mut().enumerate() {
+            if pick(k, b) {
+                *v = [g; 3];
             }
         }
-        m
-    };
-    out.push(Start {
-        label: format!("every glossy lobe at {gloss} × the Lambertian weight"),
-        materials: with(&|_| glossy.clone()),
-    });
-    // With one glossy lobe the cyclic assignment is start 1 again.
+    }
+    m
+}
+
+/// The first `count` starts of the family (module docs) derived from `base`, in order
+/// (fewer when the family is smaller, [`family_len`]). `base` itself is start 0; only the
+/// starts asked for are built.
+pub fn variants(base: Materials0, lambert: usize, gloss: f64, count: usize) -> Vec<Start> {
+    let nb = base.lambda.first().map_or(0, |r| r.len());
+    let n = family_len(nb, lambert).min(count.max(1));
+    let glossy: Vec<usize> = (0..nb).filter(|&b| b != lambert).collect();
     let g = glossy.len();
-    for j in (0..g).filter(|_| g > 1) {
-        out.push(Start {
-            label: format!(
-                "one glossy lobe per material at {gloss} × the Lambertian weight, material k → lobe {}",
-                if j == 0 {
-                    "k".to_string()
-                } else {
-                    format!("k + {j}")
-                }
-            ),
-            materials: with(&|k| vec![glossy[(k + j) % g]]),
+    let mut out = Vec::with_capacity(n);
+    for i in 1..n {
+        out.push(if i == 1 {
+            Start {
+                label: format!("every glossy lobe at {gloss} × the Lambertian weight"),
+                materials: uniform_gloss(&base, lambert, gloss),
+            }
+        } else {
+            let j = i - 2;
+            Start {
+                label: format!(
+                    "one glossy lobe per material at {gloss} × the Lambertian weight, material k → lobe {}",
+                    if j == 0 {
+                        "k".to_string()
+                    } else {
+                        format!("k + {j}")
+                    }
+                ),
+                materials: with_gloss(&base, lambert, gloss, |k, b| b == glossy[(k + j) % g]),
+            }
         });
     }
+    out.insert(
+        0,
+        Start {
+            label: "the paper's start (clustered colours, Lambertian only)".into(),
+            materials: base,
+        },
+    );
     out
 }
 
@@ -141,7 +176,8 @@ fn score(est: &Estimate) -> (f64, &'static str) {
 }
 
 /// [`estimate`] from every start, the fit with the lowest score kept (module docs).
-/// `on_iter` sees the start's index with every outer iteration.
+/// `on_iter` sees the start's index with every outer iteration, whose `seconds` run on one
+/// clock over all starts (each [`Estimate`]'s own timeline starts at 0).
 pub fn estimate_best(
     problem: &Problem,
     starts: Vec<Start>,
@@ -151,8 +187,15 @@ pub fn estimate_best(
     let mut best: Option<(usize, Estimate)> = None;
     let mut records = Vec::with_capacity(starts.len());
     let mut criterion = "";
+    let mut offset = 0.0;
     for (i, s) in starts.into_iter().enumerate() {
-        let est = estimate(problem, s.materials, opts, &mut |it, st| on_iter(i, it, st))?;
+        let est = estimate(problem, s.materials, opts, &mut |it, st| {
+            let on_clock = Iteration {
+                seconds: offset + it.seconds,
+                ..*it
+            };
+            on_iter(i, &on_clock, st)
+        })?;
         let (sc, what) = score(&est);
         criterion = what;
         records.push(StartRecord {
@@ -165,6 +208,7 @@ pub fn estimate_best(
                 .map_or(est.timeline.len(), |v| v.best_iteration),
             seconds: est.timeline.last().map_or(0.0, |t| t.seconds),
         });
+        offset += records[i].seconds;
         if best.as_ref().is_none_or(|(b, _)| sc < records[*b].score) {
             best = Some((i, est));
         }
@@ -198,7 +242,7 @@ mod tests {
             ],
             weights: vec![1.0, 0.0, 0.2, 0.8],
         };
-        let v = variants(&base, 1, 0.5);
+        let v = variants(base.clone(), 1, 0.5, usize::MAX);
         assert_eq!(v.len(), 5);
         assert_eq!(v[0].materials.lambda, base.lambda);
         let g = [0.5 * 0.4, 0.5 * 0.3];
@@ -234,11 +278,11 @@ mod tests {
             lambda: vec![vec![[0.5; 3], [0.0; 3]]],
             weights: vec![1.0],
         };
-        assert_eq!(variants(&two, 0, 0.3).len(), 2);
+        assert_eq!(variants(two, 0, 0.3, usize::MAX).len(), 2);
         let one = Materials0 {
             lambda: vec![vec![[0.5; 3]]],
             weights: vec![1.0],
         };
-        assert_eq!(variants(&one, 0, 0.3).len(), 1);
+        assert_eq!(variants(one, 0, 0.3, usize::MAX).len(), 1);
     }
 }

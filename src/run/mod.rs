@@ -864,26 +864,19 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         )
     })?;
     progress.stage("estimate");
-    let mut family = starts::variants(&materials0, lambert, starts::GLOSS_FRACTION);
-    if opts.starts > family.len() {
+    let available = starts::family_len(eff.basis.len(), lambert);
+    if opts.starts > available {
         reasons.push(format!(
-            "--starts {}: this basis gives {} distinct starts, all tried",
-            opts.starts,
-            family.len()
+            "--starts {}: this basis gives {available} distinct starts, all tried",
+            opts.starts
         ));
     }
-    family.truncate(opts.starts);
+    let family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
     let n_starts = family.len();
     let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
     let mut timeline: Vec<TimelinePoint> = Vec::new();
-    // Seconds on one clock over all starts: each start's own clock begins at 0.
-    let (mut current, mut offset, mut last) = (0, 0.0, 0.0);
     let (est, multi) = stages.run("estimate", || {
         starts::estimate_best(&problem, family, &eopts, &mut |si, it, state| {
-            if si != current {
-                (current, offset) = (si, offset + last);
-            }
-            last = it.seconds;
             bar.inc(1);
             let holdout_rmse = tracker
                 .as_ref()
@@ -902,7 +895,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             ));
             timeline.push(TimelinePoint {
                 start: si,
-                seconds: offset + it.seconds,
+                seconds: it.seconds,
                 objective: it.objective,
                 train_rmse: it.train_rmse,
                 holdout_rmse,
