@@ -23,7 +23,9 @@
 //! `JOINT_SPECS` / `ROBUST_SPECS` / `CONVERGENCE_SPECS` replace a part's rows by option
 //! strings ([`parse_spec`], e.g. `"floor=0.1;floor=0.1,val=0"`); `JOINT_SCENE` (default
 //! `spot-varying`) and `JOINT_GLOBAL`, `JOINT_LOCAL`, `JOINT_SPP`, `JOINT_VERTICES`,
-//! `JOINT_WIDTH` set parts 2, 3 and 5's case; `FLOOR_SCENES`, `FLOOR_WIDTH`, `FLOOR_SPP`,
+//! `JOINT_WIDTH`, `JOINT_PHOTOS` set parts 2, 3 and 5's case; `KNOWN_SCENES`, `KNOWN_FINE=1`
+//! and `KNOWN_NOISE_FREE=1` (every observation the true map's prediction through the
+//! transport: the estimator's own error) part 1's; `FLOOR_SCENES`, `FLOOR_WIDTH`, `FLOOR_SPP`,
 //! `FLOOR_NORMAL_GRID` part 6's; `RESULTS_SUFFIX=S` writes `STEM-S.{md,json}`. Sizes are
 //! chosen to keep the whole run near 15 CPU minutes: parts 2–4 use a 16² global and 8²
 //! local map (32² / 16² cost ~20× more per outer iteration on Spot).
@@ -72,7 +74,8 @@ fn sizes_known() -> Sizes {
 }
 
 /// Parts 2, 3 and 5; `JOINT_GLOBAL`, `JOINT_LOCAL`, `JOINT_SPP`, `JOINT_VERTICES`,
-/// `JOINT_WIDTH` override the defaults (16², 8², 8 spp, 2,000, 96²).
+/// `JOINT_WIDTH`, `JOINT_PHOTOS` override the defaults (16², 8², 8 spp, 2,000, 96², the
+/// scene's 16 photos, every fourth held out).
 fn sizes_joint() -> Sizes {
     let env = |k: &str, d: usize| -> usize {
         std::env::var(k)
@@ -82,7 +85,9 @@ fn sizes_joint() -> Sizes {
     };
     Sizes {
         width: env("JOINT_WIDTH", 96) as u32,
-        photos: None,
+        photos: std::env::var("JOINT_PHOTOS")
+            .ok()
+            .and_then(|v| v.parse().ok()),
         vertices: env("JOINT_VERTICES", 2_000),
         spp: env("JOINT_SPP", 8) as u32,
         light_samples: 64,
@@ -190,7 +195,19 @@ fn joint_scene() -> String {
 
 fn known(md: &mut String) -> Value {
     md.push_str("## 1. Known reflectance, unknown light (paper Sec. 6.1)\n\n");
-    let s = sizes_known();
+    // `KNOWN_NOISE_FREE=1`: every observation replaced by the true map's prediction
+    // through the case's own transport ([`noise_free`]; 1 spp, the render is discarded),
+    // so the floor is 0 and the fit's error is the estimator's own.
+    let clean = std::env::var("KNOWN_NOISE_FREE").is_ok_and(|v| v == "1");
+    let mut s = sizes_known();
+    if clean {
+        s.spp = 1;
+        md.push_str(
+            "**Noise-free** (`KNOWN_NOISE_FREE=1`): every observation is the TRUE map's prediction through the \
+             case's own transport, so the floor is 0 and the fit error is the estimator's own (the Laplacian's \
+             bias, the QP's stopping rule); the spp below only made the discarded render.\n\n",
+        );
+    }
     md.push_str(&format!(
         "Spheres (`synth`, {}² photos, ≥{} vertices, {} spp × {} MIS pairs) under the courtyard map; \
          {}² global map, {}² local, {}² normal grid, all Haar coefficients kept; \
@@ -215,7 +232,10 @@ fn known(md: &mut String) -> Value {
         {
             continue;
         }
-        let case = prepare(scene, s, 1, scene);
+        let mut case = prepare(scene, s, 1, scene);
+        if clean {
+            noise_free(&mut case);
+        }
         eprintln!(
             "{scene}: prepared in {:.1} + {:.1} s, {} vertices, {} observations",
             case.seconds_synth,
@@ -301,8 +321,9 @@ fn known(md: &mut String) -> Value {
             );
             let (held_rel, _) = rel_rmse(&case.held.obs, &hp, true);
             md.push_str(&format!(
-                "| {scene} | {floor:.4} | {train_rel:.4} | {:.3} | {} | {} | {held_rel:.4} | {:.1} / {secs:.1} |\n",
-                train_rel / floor,
+                "| {scene} | {floor:.4} | {train_rel:.4} | {} | {} | {} | {held_rel:.4} | {:.1} / {secs:.1} |\n",
+                // Noise-free, the floor is rounding (the observations are stored in f32).
+                if clean { "–".to_string() } else { format!("{:.3}", train_rel / floor) },
                 corr.iter()
                     .take(5) // m = 1 … 16, the table's columns (the JSON has every level)
                     .map(|e| format!("{:.3}", e.1))
@@ -763,7 +784,7 @@ fn determinism(md: &mut String) -> Value {
     json!({"values": a.len(), "identical_same_threads": same_ab, "identical_1_vs_2_threads": same_ac})
 }
 
-/// The `spot-varying` case with every observation (training and held out) replaced by the
+/// A case (the joint `spot-varying` one, or a known-reflectance sphere) with every observation (training and held out) replaced by the
 /// TRUE reflectance under the TRUE light through the case's own transport: data the model
 /// reproduces exactly, so the floor is 0 and every remaining error is the estimator's
 /// (regularisation bias, a stalled block, the alternation's speed).
