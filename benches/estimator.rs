@@ -243,14 +243,7 @@ fn known(md: &mut String) -> Value {
             case.nv,
             case.train.obs.len()
         );
-        let truth_pred = predict_with(
-            &case.train,
-            case.nv,
-            &case.lambda,
-            &case.weights,
-            &case.train.lights,
-        );
-        let (floor, _) = rel_rmse(&case.train.obs, &truth_pred, false);
+        let (floor, _) = known_rel_rmse(&case, &case.train.lights);
         let mut variants = Vec::new();
         for scale in [SmoothnessScale::TexelMax, SmoothnessScale::HaarMax] {
             let opts = EstimateOptions {
@@ -260,14 +253,7 @@ fn known(md: &mut String) -> Value {
             let t0 = Instant::now();
             let est = fit_known_reflectance(&case, &opts);
             let secs = t0.elapsed().as_secs_f64();
-            let pred = predict_with(
-                &case.train,
-                case.nv,
-                &case.lambda,
-                &case.weights,
-                &est.lights,
-            );
-            let (train_rel, train_rmse) = rel_rmse(&case.train.obs, &pred, false);
+            let (train_rel, train_rmse) = known_rel_rmse(&case, &est.lights);
             let errs: Vec<f64> = RESOLUTIONS
                 .iter()
                 .map(|&r| map_error(&est.lights, &case.train.lights, s.global, r))

@@ -63,28 +63,14 @@ fn known_reflectance_explains_the_photos_as_well_as_the_true_light_and_resolves_
     let mut detail = Vec::new();
     for scene in ["sphere-diffuse", "sphere-glossy", "sphere-specular"] {
         let case = prepare(scene, sphere_sizes(), 1, scene);
-        let truth = predict_with(
-            &case.train,
-            case.nv,
-            &case.lambda,
-            &case.weights,
-            &case.train.lights,
-        );
-        let (floor, _) = rel_rmse(&case.train.obs, &truth, false);
+        let (floor, _) = known_rel_rmse(&case, &case.train.lights);
         let est = fit_known_reflectance(&case, &EstimateOptions::default());
         assert_valid(&est);
         assert_eq!(
             est.conditioning.qp_unconverged, 0,
             "{scene}: a lighting QP hit its cap"
         );
-        let pred = predict_with(
-            &case.train,
-            case.nv,
-            &case.lambda,
-            &case.weights,
-            &est.lights,
-        );
-        let (fit, _) = rel_rmse(&case.train.obs, &pred, false);
+        let (fit, _) = known_rel_rmse(&case, &est.lights);
         let d = fine_detail(&est.lights, &case.train.lights, case.sizes.global);
         eprintln!(
             "{scene}: {} observations, floor (true light) {floor:.4}, fit {fit:.4}, fine-detail correlation {d:.3}, levels {:?}",
@@ -135,14 +121,7 @@ fn known_reflectance_re_renders_noise_free_photos_within_2_percent() {
         replace_colours(&mut case.train.obs, &truth);
         let est = fit_known_reflectance(&case, &EstimateOptions::default());
         assert_valid(&est);
-        let pred = predict_with(
-            &case.train,
-            case.nv,
-            &case.lambda,
-            &case.weights,
-            &est.lights,
-        );
-        let (fit, _) = rel_rmse(&case.train.obs, &pred, false);
+        let (fit, _) = known_rel_rmse(&case, &est.lights);
         eprintln!("{scene} noise-free: fit {fit:.5}");
         assert!(
             fit < 0.02,
@@ -167,14 +146,7 @@ fn irls_keeps_the_known_reflectance_fit_close_to_the_clean_one_under_5_percent_o
         };
         let est = estimate(&problem, init, &o, &mut |_, _| {}).unwrap();
         assert_valid(&est);
-        let pred = predict_with(
-            &case.train,
-            case.nv,
-            &case.lambda,
-            &case.weights,
-            &est.lights,
-        );
-        rel_rmse(&case.train.obs, &pred, false).0
+        known_rel_rmse(&case, &est.lights).0
     };
     let huber = Robust::Huber { k: 1.345 };
     let clean = problem_fit(&case.train.obs, huber);

@@ -348,6 +348,14 @@ pub fn true_prediction(case: &Case, split: &Split) -> Vec<[f64; 3]> {
     predict_with(split, case.nv, &case.lambda, &case.weights, &split.lights)
 }
 
+/// Relative and absolute RMSE (as [`rel_rmse`], no scale fitted) of the training photos
+/// under `lights` with the case's TRUE reflectance: the known-reflectance re-render error
+/// (paper Sec. 6.1), or its floor with the true lights.
+pub fn known_rel_rmse(case: &Case, lights: &[[Vec<f64>; 3]]) -> (f64, f64) {
+    let pred = predict_with(&case.train, case.nv, &case.lambda, &case.weights, lights);
+    rel_rmse(&case.train.obs, &pred, false)
+}
+
 /// Replace every colour of `obs` by `pred` (e.g. [`true_prediction`]: data the model
 /// reproduces exactly, so the floor is 0).
 pub fn replace_colours(obs: &mut Observations, pred: &[[f64; 3]]) {
