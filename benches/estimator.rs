@@ -569,7 +569,7 @@ fn joint(md: &mut String) -> Value {
                 v.observations,
                 v.best_iteration,
                 v.errors.len(),
-                v.errors[v.best_iteration - 1],
+                v.best_error(),
                 v.errors.last().unwrap(),
                 if v.stopped_early { ", stopped by patience" } else { "" }
             ));

@@ -460,6 +460,13 @@ pub struct Validation {
     pub stopped_early: bool,
 }
 
+impl Validation {
+    /// The validation error of the iterate returned, `errors[best_iteration − 1]`.
+    pub fn best_error(&self) -> f64 {
+        self.errors[self.best_iteration - 1]
+    }
+}
+
 /// Starting materials: `λ` (`K × B`, per channel) and blending weights `w` (`V × K`).
 #[derive(Debug, Clone)]
 pub struct Materials0 {

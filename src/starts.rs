@@ -103,36 +103,34 @@ pub fn variants(base: Materials0, lambert: usize, gloss: f64, count: usize) -> V
     let n = family_len(nb, lambert).min(count.max(1));
     let glossy: Vec<usize> = (0..nb).filter(|&b| b != lambert).collect();
     let g = glossy.len();
-    let mut out = Vec::with_capacity(n);
-    for i in 1..n {
-        out.push(if i == 1 {
-            Start {
+    // Starts 1.. borrow `base`; it moves into start 0 after them.
+    let derived: Vec<Start> = (1..n)
+        .map(|i| match i {
+            1 => Start {
                 label: format!("every glossy lobe at {gloss} × the Lambertian weight"),
                 materials: uniform_gloss(&base, lambert, gloss),
+            },
+            _ => {
+                let j = i - 2;
+                Start {
+                    label: format!(
+                        "one glossy lobe per material at {gloss} × the Lambertian weight, material k → lobe {}",
+                        if j == 0 {
+                            "k".to_string()
+                        } else {
+                            format!("k + {j}")
+                        }
+                    ),
+                    materials: with_gloss(&base, lambert, gloss, |k, b| b == glossy[(k + j) % g]),
+                }
             }
-        } else {
-            let j = i - 2;
-            Start {
-                label: format!(
-                    "one glossy lobe per material at {gloss} × the Lambertian weight, material k → lobe {}",
-                    if j == 0 {
-                        "k".to_string()
-                    } else {
-                        format!("k + {j}")
-                    }
-                ),
-                materials: with_gloss(&base, lambert, gloss, |k, b| b == glossy[(k + j) % g]),
-            }
-        });
-    }
-    out.insert(
-        0,
-        Start {
-            label: "the paper's start (clustered colours, Lambertian only)".into(),
-            materials: base,
-        },
-    );
-    out
+        })
+        .collect();
+    let paper = Start {
+        label: "the paper's start (clustered colours, Lambertian only)".into(),
+        materials: base,
+    };
+    std::iter::once(paper).chain(derived).collect()
 }
 
 /// What one start gave.
@@ -165,7 +163,7 @@ pub struct MultiStart {
 fn score(est: &Estimate) -> (f64, &'static str) {
     match &est.validation {
         Some(v) => (
-            v.errors[v.best_iteration - 1],
+            v.best_error(),
             "validation rel. RMSE of the iterate returned",
         ),
         None => (
