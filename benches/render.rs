@@ -117,7 +117,7 @@ fn main() {
          | per vertex (timed on {n_pv}) | {:.1} | {:.1} | 0 | {:.2} |\n\
          | frames + blend | {:.1} | {:.1} | {:.3} ({:.1} MB) | {:.2} |\n\n\
          CPU speed-up ×{:.1}; largest relative difference between the two paths {:.1e} \
-         (factored form: bitwise equal, tests/render_frames.rs).\n",
+         (factored form: bitwise equal, tests/suite/render_frames.rs).\n",
         load.trim(),
         rot.len(),
         pv_cpu * 1e6,

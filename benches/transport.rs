@@ -109,7 +109,7 @@ fn build(md: &mut String) -> Value {
     let mut rng = Pcg64::seed_from_u64(2);
     let nv = 400;
     // Normals in the upper half (|n_z| > 0.2: away from the local-frame flip, see
-    // tests/transport_blended.rs), three views per vertex.
+    // tests/suite/transport_blended.rs), three views per vertex.
     let normals: Vec<Vec3> = (0..nv)
         .map(|_| loop {
             let n = random_unit(&mut rng);

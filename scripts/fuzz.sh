@@ -5,7 +5,7 @@
 # (stable needs RUSTC_BOOTSTRAP=1 for its -Z flags); otherwise the stable driver
 # fuzz/src/bin/mutate.rs (random mutation of the real COLMAP fixture files and PLY meshes).
 # Crashing inputs land in fuzz/artifacts/<target>/; the exit status is 1 if any was found.
-# Any crash found must become a test (tests/proptest_parsers.rs).
+# Any crash found must become a test (tests/suite/proptest_parsers.rs).
 set -euo pipefail
 SECS=${1:-60}
 SEED=${2:-1}

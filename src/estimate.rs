@@ -162,7 +162,7 @@ impl Problem<'_> {
 /// error ×2.9 of the clean fit); with the default w-step cut
 /// ([`EstimateOptions::weights_reject`]) ×1.05, Tukey ×1.04. Tukey is not the default
 /// because it also rejects the genuine, noisier highlights of glossy surfaces in the
-/// lighting step (known-reflectance Phong 50 sphere, `tests/estimate_synth.rs` sizes: fit
+/// lighting step (known-reflectance Phong 50 sphere, `tests/suite/estimate_synth.rs` sizes: fit
 /// 0.245 against the true map's 0.144, Huber 0.124).
 ///
 /// The price on clean data (`bench-results/estimator-convergence.md`, `spot-varying` with

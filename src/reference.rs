@@ -27,7 +27,7 @@
 //! sampled by the environment strategy with a bounded weight, so no fireflies: the
 //! contribution of any sample is at most `f L / p_env`, and `p_env ∝ L`.
 //!
-//! Cost and noise (`tests/reference_cost.rs`, release, 2 shared cores): Spot (2,930
+//! Cost and noise (`tests/suite/reference_cost.rs`, release, 2 shared cores): Spot (2,930
 //! vertices) at 256×256 under the city map (sun ~2,000× the mean at 256×128), Lambert +
 //! Phong 50, ~15K object pixels; per-pixel noise = std of two seeds' difference / √2,
 //! relative to the mean radiance (sun shadows and the glossy highlight dominate it):

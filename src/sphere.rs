@@ -44,7 +44,7 @@ use crate::Vec3;
 /// sphere except straight down (`n = −z`, where any tangent field must have a singularity:
 /// there the fixed frame `x = +x, y = −y` is used). Duff's two-branch version flips the
 /// tangents by 180° across `n_z = 0`, which the blended rotation of Eq. 6 cannot tolerate
-/// for glossy lobes (`tests/transport_blended.rs`); with this one only faces pointing
+/// for glossy lobes (`tests/suite/transport_blended.rs`); with this one only faces pointing
 /// almost straight down (in the environment frame) blend frames that differ much.
 pub fn local_frame(n: &Vec3) -> [Vec3; 3] {
     if n.z < -1.0 + 1e-12 {

@@ -42,7 +42,7 @@
 //! Known limit: the blended rotation (Eq. 6) is only as good as the continuity of
 //! [`crate::sphere::local_frame`] between neighbouring grid normals; that frame flips by
 //! 180° about `n` across `n_z = 0` (environment frame), which breaks glossy rows of
-//! vertices with near-horizontal normals (tests/transport_blended.rs, ignored test).
+//! vertices with near-horizontal normals (tests/suite/transport_blended.rs, ignored test).
 
 use nalgebra::Matrix3;
 use rayon::prelude::*;

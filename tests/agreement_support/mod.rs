@@ -1,4 +1,4 @@
-//! Shared by `tests/transport_agreement.rs` and `benches/agreement.rs`: the wavelet path
+//! Shared by `tests/suite/transport_agreement.rs` and `benches/agreement.rs`: the wavelet path
 //! (visibility → transport rows → response, paper Eq. 5–8) against the independent
 //! reference (`reference::quadrature_point`, Eq. 1 by stratified quadrature over the
 //! lat-long texels with shadow rays) on a unit sphere above a ground plane (the

@@ -1,4 +1,4 @@
-//! Shared by the COLMAP reader tests (`tests/colmap_errors.rs`, `tests/proptest_parsers.rs`):
+//! Shared by the COLMAP reader tests (`tests/suite/colmap_errors.rs`, `tests/suite/proptest_parsers.rs`):
 //! one small valid model that our writers turn into the files the tests break.
 
 #![allow(dead_code)]

@@ -1,4 +1,4 @@
-//! Shared by `tests/estimate_synth.rs` and `benches/estimator.rs`: a known-truth scene made
+//! Shared by `tests/suite/estimate_synth.rs` and `benches/estimator.rs`: a known-truth scene made
 //! by `synth` (photos rendered by the independent reference renderer), taken through the
 //! real pipeline stages (workspace import, observations, visibility, rotation, transport)
 //! into an estimation [`Problem`], together with the truth it was rendered from: the
@@ -10,7 +10,7 @@
 //! re-projection; the estimator never sees the truth unless a test hands it over
 //! (`fixed_materials`).
 
-#![allow(dead_code)]
+#![allow(dead_code, clippy::needless_range_loop)]
 
 use std::path::{Path, PathBuf};
 

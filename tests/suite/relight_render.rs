@@ -17,8 +17,7 @@ use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::{Error, Vec3};
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 use scratch_support::Scratch;
 
 fn scratch(tag: &str) -> Scratch {

@@ -10,8 +10,7 @@ use relight_cpc::colmap::{
 use relight_cpc::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 
 /// An empty scratch folder, removed when the returned value is dropped.
 fn tmp(tag: &str) -> scratch_support::Scratch {

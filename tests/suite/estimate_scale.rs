@@ -3,7 +3,7 @@
 //! B = 7 basis BRDFs, 64 kept Haar coefficients per transport row — timed through
 //! `lighting_step_full`. Figures go to `target/bench/estimate_scale.json`.
 //!
-//! Run: `cargo test --release --test estimate_scale -- --ignored --nocapture`.
+//! Run: `cargo test --release --test suite -- --ignored --nocapture estimate_scale::`.
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;

@@ -65,7 +65,7 @@ fn child_runs_reproduce_the_in_process_bench() {
         assert_eq!(c["photos"].as_u64().unwrap() as usize, l.photos);
         assert_eq!(c["observations"].as_u64().unwrap() as usize, l.observations);
         // The fit is deterministic (bitwise across runs and thread counts, see
-        // tests/estimate_synth.rs); the JSON round trip of an f64 is exact, so the only
+        // tests/suite/estimate_synth.rs); the JSON round trip of an f64 is exact, so the only
         // allowance is for the printing of the shortest representation: 1e-12 relative.
         for (key, b) in [
             ("train_rmse", l.train_rmse),

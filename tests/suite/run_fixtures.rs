@@ -193,7 +193,7 @@ fn run_on_the_synth_scene_through_colmap_against_its_truth() {
         colmap.1 / truth.1
     );
     // The perfect-truth workspace: MC-noisy photos at 160 px, 16² maps. As on the built-in
-    // example (tests/run_example.rs: 0.06–0.11 measured, < 0.15), the model must explain
+    // example (tests/suite/run_example.rs: 0.06–0.11 measured, < 0.15), the model must explain
     // most of each held-out photo.
     assert!(truth.1 < 0.15, "truth workspace held-out RMSE {}", truth.1);
     // Real SfM adds camera error (< 1% of the object, colmap_synth_fixture.rs), a mesh

@@ -1,5 +1,5 @@
 //! Cost and noise of the reference renderer (a benchmark, not a test: ignored by default).
-//! `cargo test --release --test reference_cost -- --ignored --nocapture`
+//! `cargo test --release --test suite -- --ignored --nocapture reference_cost::`
 //! Renders Spot (2,930 vertices) at 256×256 under the sunny city map (the stiff case) at
 //! several sample counts, twice with different seeds; the per-pixel noise is estimated from
 //! the difference of the two renders (σ_pixel = std(a − b)/√2) and reported relative to the

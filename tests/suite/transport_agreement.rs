@@ -6,8 +6,7 @@
 //! sphere above a ground plane (cast shadows) under real maps. A reduced version of
 //! `cargo bench --bench agreement` (see `bench-results/agreement.md` for the full figures).
 
-#[path = "agreement_support/mod.rs"]
-mod support;
+use crate::agreement_support as support;
 
 use relight_cpc::rotation::SplatRotation;
 use relight_cpc::visibility;

@@ -8,8 +8,7 @@ use std::path::Path;
 use relight_cpc::mesh::Mesh;
 use relight_cpc::{Error, Vec3};
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 
 /// `name` in a scratch folder of its own, removed when the returned value is dropped.
 fn scratch(name: &str) -> scratch_support::ScratchFile {

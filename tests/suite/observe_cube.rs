@@ -3,8 +3,7 @@
 //! are observed, their samples, directions and confidences are all computed here in closed
 //! form from the geometry, independently of `observe`.
 
-#[path = "support/uv_sphere.rs"]
-mod uv_sphere;
+use crate::uv_sphere;
 
 use nalgebra::{Matrix3, Rotation3};
 use relight_cpc::colmap::{Camera, CameraId, Image, ImageId};

@@ -23,8 +23,7 @@ use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::observe::Observations;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 use scratch_support::Scratch;
 
 fn scratch(tag: &str) -> Scratch {

@@ -1,6 +1,6 @@
 //! The embedded synth data: downsampling preserves a map's integral, and (ignored by
 //! default) the regeneration of `tests/fixtures/synth/` from `/work/shared/data`:
-//! `cargo test --release --test synth_data -- --ignored regenerate_fixtures`.
+//! `cargo test --release --test suite -- --ignored synth_data::regenerate_fixtures`.
 
 use relight_cpc::envmap::LatLong;
 use relight_cpc::synth::data::write_half_exr;

@@ -27,8 +27,7 @@ fn opts(keep: usize) -> TransportOptions {
     }
 }
 
-#[path = "support/random.rs"]
-mod random;
+use crate::random;
 use random::random_unit;
 
 /// A direction in the upper hemisphere of `n` (angle from n below ~70°).
@@ -63,7 +62,7 @@ fn constant_env(n: usize, value: f32) -> OctEnv {
 fn white_furnace_lambert_gives_one() {
     // Constant light L = 1, unoccluded, Lambert: s = ∫ cos/π dω = 1. The exact rotation
     // preserves constants, so the only error is the slice's quadrature (< 1e-3 at 16²,
-    // see tests/brdf_slices.rs). Truncation to 16 coefficients keeps the scaling
+    // see tests/suite/brdf_slices.rs). Truncation to 16 coefficients keeps the scaling
     // coefficient (the only non-zero one of a constant map), so it changes nothing.
     let rot = ExactRotation::new(NG, NL, 2);
     let mut rng = Pcg64::seed_from_u64(11);

@@ -14,8 +14,7 @@ use relight_cpc::Vec3;
 const NG: usize = 32;
 const NL: usize = 16;
 
-#[path = "support/random.rs"]
-mod random;
+use crate::random;
 use random::random_unit;
 
 /// Build with both rotations for random normals accepted by `keep_normal`; returns the

@@ -8,8 +8,7 @@ use relight_cpc::render::{
 };
 use relight_cpc::Vec3;
 
-#[path = "support/octahedron.rs"]
-mod octahedron;
+use crate::octahedron;
 use octahedron::octahedron;
 
 const W: u32 = 80;

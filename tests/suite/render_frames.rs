@@ -17,8 +17,7 @@ const NG: usize = 32;
 const NL: usize = 16;
 const NV: usize = 200;
 
-#[path = "support/random.rs"]
-mod random;
+use crate::random;
 use random::random_vertices;
 
 #[test]

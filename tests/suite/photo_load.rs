@@ -5,8 +5,7 @@ use image::{ImageBuffer, Luma, Rgb};
 use relight_cpc::photo::{Photo, DEFAULT_CLIP};
 use relight_cpc::Error;
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 
 /// `name` in a scratch folder of its own, removed when the returned value is dropped.
 fn scratch(name: &str) -> scratch_support::ScratchFile {

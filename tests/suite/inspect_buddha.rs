@@ -3,10 +3,8 @@
 //! `--mesh`: a UV sphere around the sparse points. The counts are checked against COLMAP's
 //! own `model_analyzer` log, not against this crate's readers.
 
-#[path = "support/scratch.rs"]
-mod scratch;
-#[path = "support/uv_sphere.rs"]
-mod uv_sphere;
+use crate::scratch;
+use crate::uv_sphere;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

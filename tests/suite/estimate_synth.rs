@@ -17,8 +17,7 @@
 
 #![allow(clippy::needless_range_loop)]
 
-#[path = "support/synth_case.rs"]
-mod synth_case;
+use crate::synth_case;
 
 use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, IterState, Robust};
 use synth_case::*;

@@ -11,8 +11,7 @@ use relight_cpc::envmap::OctEnv;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
 use relight_cpc::Error;
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 use scratch_support::Scratch;
 
 fn scratch(tag: &str) -> Scratch {

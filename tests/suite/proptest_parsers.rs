@@ -3,16 +3,15 @@
 //! the COLMAP text and binary readers and the PLY reader. Each must return a value or an
 //! error whose message names the file — never panic, hang or allocate from a count.
 //!
-//! tests/colmap_errors.rs already covers every prefix and every single-byte change of a
-//! small COLMAP model, and tests/mesh_ply.rs the byte flips of a binary PLY; this file adds
+//! tests/suite/colmap_errors.rs already covers every prefix and every single-byte change of a
+//! small COLMAP model, and tests/suite/mesh_ply.rs the byte flips of a binary PLY; this file adds
 //! random inputs, several edits at once, structural (insert/delete) edits, text grammars,
 //! ASCII PLY bodies and PLY headers. Case counts are chosen so the file runs in a few
 //! seconds in the debug profile; `scripts/fuzz.sh` runs the longer, unbounded search.
 
 use std::path::{Path, PathBuf};
 
-#[path = "support/colmap_model.rs"]
-mod colmap_model;
+use crate::colmap_model;
 
 use colmap_model::model;
 use proptest::prelude::*;

@@ -3,8 +3,7 @@
 //! photo (errors naming the photo, and `inspect` exiting 1), and the fused point cloud
 //! carried to the mesh with known distances.
 
-#[path = "support/scratch.rs"]
-mod scratch;
+use crate::scratch;
 
 use std::collections::BTreeMap;
 use std::path::Path;

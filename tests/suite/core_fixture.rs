@@ -1,5 +1,5 @@
 //! Regenerates the committed test map `tests/fixtures/hdri/city_64x32.exr` from the real
-//! map in `../shared/data/hdri/` (run with `cargo test --test core_fixture -- --ignored`),
+//! map in `../shared/data/hdri/` (run with `cargo test --test suite -- --ignored core_fixture::`),
 //! and checks the committed map against its source when the source is present.
 
 use relight_cpc::envmap::LatLong;

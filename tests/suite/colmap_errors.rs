@@ -4,15 +4,13 @@
 
 use std::path::Path;
 
-#[path = "support/colmap_model.rs"]
-mod colmap_model;
+use crate::colmap_model;
 
 use colmap_model::model;
 use relight_cpc::colmap::Reconstruction;
 use relight_cpc::Error;
 
-#[path = "support/scratch.rs"]
-mod scratch_support;
+use crate::scratch as scratch_support;
 
 /// A fresh folder holding the model in both formats, removed when dropped.
 fn setup(tag: &str) -> scratch_support::Scratch {

@@ -1,0 +1,58 @@
+//! The integration tests, built as one binary: one link instead of one per file (39 of
+//! them, each carrying its own copy of the library and its dependencies, filled CI's disk).
+//! Run one file's tests with `cargo test --test suite -- FILE::`.
+
+#[path = "../agreement_support/mod.rs"]
+mod agreement_support;
+#[path = "../support/colmap_model.rs"]
+mod colmap_model;
+#[path = "../support/octahedron.rs"]
+mod octahedron;
+#[path = "../support/random.rs"]
+mod random;
+#[path = "../support/scratch.rs"]
+mod scratch;
+#[path = "../support/synth_case.rs"]
+mod synth_case;
+#[path = "../support/uv_sphere.rs"]
+mod uv_sphere;
+
+mod adapt;
+mod bench_isolated;
+mod brdf_slices;
+mod cluster_init;
+mod colmap_camera;
+mod colmap_errors;
+mod colmap_fixture;
+mod colmap_roundtrip;
+mod colmap_synth_fixture;
+mod core_fixture;
+mod core_pipeline;
+mod estimate_planted;
+mod estimate_scale;
+mod estimate_synth;
+mod extreme_pipeline;
+mod extreme_units;
+mod inspect_buddha;
+mod inspect_dense_buddha;
+mod mesh_ply;
+mod observe_cube;
+mod photo_load;
+mod proptest_parsers;
+mod qp_kkt;
+mod reference_analytic;
+mod reference_cost;
+mod relight_render;
+mod render_frames;
+mod render_raster;
+mod run_example;
+mod run_fixtures;
+mod scene_import;
+mod synth_data;
+mod synth_workspace;
+mod transport_agreement;
+mod transport_blended;
+mod transport_furnace;
+mod visibility_known;
+mod workspace_dense_buddha;
+mod workspace_discover;
