@@ -597,3 +597,74 @@ fn main() {
         std::process::exit(1);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `run`'s flags repeat most defaults as literals beside `RunOptions::new`: parsing a
+    /// bare `run WS --out OUT` must give the library's defaults, but for the one the CLI
+    /// sets on purpose (`--adaptive on`; the library's default is the full model as given).
+    #[test]
+    fn bare_run_flags_give_the_library_defaults() {
+        let cli = Cli::try_parse_from(["relight-cpc", "run", "ws", "--out", "o"]).unwrap();
+        let Command::Run(args) = cli.command else {
+            panic!("`run` parsed as another subcommand");
+        };
+        let got = args.options().unwrap();
+        let mut want = relight_cpc::run::RunOptions::new("ws".into(), "o".into());
+        assert!(!want.adaptive, "the library's default is the full model");
+        want.adaptive = true;
+        // Debug prints every field, floats to the last bit, so this is exact equality.
+        assert_eq!(format!("{got:?}"), format!("{want:?}"));
+    }
+
+    /// The README's table of `run` flags states each default clap applies. A row's flags
+    /// and its defaults pair up in order (`--iterations N`, `--tolerance T` | 8, 1e-3);
+    /// flags without a clap default (`--threads`, `--up`, ...) are described in words.
+    #[test]
+    fn readme_flag_table_states_the_cli_defaults() {
+        use clap::CommandFactory;
+        let cli = Cli::command();
+        let run = cli.find_subcommand("run").unwrap();
+        let default_of = |flag: &str| {
+            let arg = run
+                .get_arguments()
+                .find(|a| a.get_long() == Some(flag))
+                .unwrap_or_else(|| panic!("README names --{flag}, which `run` does not have"));
+            let d = arg.get_default_values();
+            (d.len() == 1).then(|| d[0].to_string_lossy().into_owned())
+        };
+        let same = |readme: &str, clap: &str| match (readme.parse::<f64>(), clap.parse::<f64>()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => readme == clap,
+        };
+        let mut checked = 0;
+        for row in include_str!("../README.md")
+            .lines()
+            .filter(|l| l.starts_with("| `--"))
+        {
+            let cells: Vec<&str> = row.split(" | ").collect();
+            let flags: Vec<&str> = cells[0]
+                .split("`--")
+                .skip(1)
+                .map(|f| f.split([' ', '`']).next().unwrap())
+                .collect();
+            let values: Vec<&str> = cells[1].split(", ").map(|v| v.trim_matches('`')).collect();
+            for (i, flag) in flags.iter().enumerate() {
+                let Some(clap) = default_of(flag) else {
+                    continue;
+                };
+                assert_eq!(values.len(), flags.len(), "README row of --{flag}: {row}");
+                assert!(
+                    same(values[i], &clap),
+                    "README gives --{flag} the default `{}`, clap `{clap}`",
+                    values[i]
+                );
+                checked += 1;
+            }
+        }
+        // 20 flags of the table have a clap default; fewer means rows were lost.
+        assert_eq!(checked, 20, "README defaults checked");
+    }
+}
