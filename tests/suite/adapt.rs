@@ -23,17 +23,16 @@ use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::observe::Observations;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
 
-use crate::scratch as scratch_support;
-use scratch_support::Scratch;
+use crate::scratch::Scratch;
 
 fn scratch(tag: &str) -> Scratch {
-    scratch_support::scratch("adapt", tag)
+    crate::scratch::scratch("adapt", tag)
 }
 
 /// A 64×64 synth workspace of `scene` with `photos` photos and about `vertices` vertices
 /// (2 sample(s) per pixel, 16 light samples).
 fn workspace(dir: &Path, scene: &str, photos: usize, vertices: usize) -> PathBuf {
-    scratch_support::workspace(dir, scene, photos, vertices, 2, 16)
+    crate::scratch::workspace(dir, scene, photos, vertices, 2, 16)
 }
 
 /// Small adaptive run options: the CLI's basis list (lambert, phong:50, phong:500), maps

@@ -4,17 +4,13 @@
 
 use std::path::Path;
 
-use crate::colmap_model;
-
-use colmap_model::model;
+use crate::colmap_model::model;
 use relight_cpc::colmap::Reconstruction;
 use relight_cpc::Error;
 
-use crate::scratch as scratch_support;
-
 /// A fresh folder holding the model in both formats, removed when dropped.
-fn setup(tag: &str) -> scratch_support::Scratch {
-    let dir = scratch_support::scratch("colmap-errors", tag);
+fn setup(tag: &str) -> crate::scratch::Scratch {
+    let dir = crate::scratch::scratch("colmap-errors", tag);
     let rec = model();
     rec.write_text(&dir).unwrap();
     rec.write_binary(&dir).unwrap();

@@ -17,10 +17,8 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use crate::synth_case;
-
+use crate::synth_case::*;
 use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, IterState, Robust};
-use synth_case::*;
 
 fn sphere_sizes() -> Sizes {
     Sizes {

@@ -11,17 +11,16 @@ use relight_cpc::envmap::OctEnv;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
 use relight_cpc::Error;
 
-use crate::scratch as scratch_support;
-use scratch_support::Scratch;
+use crate::scratch::Scratch;
 
 fn scratch(tag: &str) -> Scratch {
-    scratch_support::scratch("extreme", tag)
+    crate::scratch::scratch("extreme", tag)
 }
 
 /// A 64×64 synth workspace of `scene` with `photos` photos and about `vertices` vertices
 /// (1 sample(s) per pixel, 8 light samples).
 fn workspace(dir: &Path, scene: &str, photos: usize, vertices: usize) -> PathBuf {
-    scratch_support::workspace(dir, scene, photos, vertices, 1, 8)
+    crate::scratch::workspace(dir, scene, photos, vertices, 1, 8)
 }
 
 /// Fast run options: small maps, one material, few iterations.

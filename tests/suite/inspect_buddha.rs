@@ -3,18 +3,15 @@
 //! `--mesh`: a UV sphere around the sparse points. The counts are checked against COLMAP's
 //! own `model_analyzer` log, not against this crate's readers.
 
-use crate::scratch;
-use crate::uv_sphere;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::scratch::scratch;
+use crate::uv_sphere::{direction, uv_sphere};
 use relight_cpc::colmap::Reconstruction;
 use relight_cpc::mesh::Mesh;
 use relight_cpc::scene::inspect;
 use relight_cpc::Vec3;
-use scratch::scratch;
-use uv_sphere::{direction, uv_sphere};
 
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-buddha")

@@ -8,11 +8,9 @@ use std::path::Path;
 use relight_cpc::mesh::Mesh;
 use relight_cpc::{Error, Vec3};
 
-use crate::scratch as scratch_support;
-
 /// `name` in a scratch folder of its own, removed when the returned value is dropped.
-fn scratch(name: &str) -> scratch_support::ScratchFile {
-    scratch_support::scratch_file("mesh", name)
+fn scratch(name: &str) -> crate::scratch::ScratchFile {
+    crate::scratch::scratch_file("mesh", name)
 }
 
 /// A square pyramid: 5 vertices, 4 triangles and one quad base (6 triangles after the fan).

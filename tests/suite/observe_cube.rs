@@ -3,8 +3,7 @@
 //! are observed, their samples, directions and confidences are all computed here in closed
 //! form from the geometry, independently of `observe`.
 
-use crate::uv_sphere;
-
+use crate::uv_sphere::{direction, uv_sphere};
 use nalgebra::{Matrix3, Rotation3};
 use relight_cpc::colmap::{Camera, CameraId, Image, ImageId};
 use relight_cpc::mesh::Mesh;
@@ -13,7 +12,6 @@ use relight_cpc::photo::Photo;
 use relight_cpc::scene::View;
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::Vec3;
-use uv_sphere::{direction, uv_sphere};
 
 const N: usize = 20; // grid cells per cube face: vertex spacing 0.1
 const W: u32 = 200;

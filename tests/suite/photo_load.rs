@@ -5,11 +5,9 @@ use image::{ImageBuffer, Luma, Rgb};
 use relight_cpc::photo::{Photo, DEFAULT_CLIP};
 use relight_cpc::Error;
 
-use crate::scratch as scratch_support;
-
 /// `name` in a scratch folder of its own, removed when the returned value is dropped.
-fn scratch(name: &str) -> scratch_support::ScratchFile {
-    scratch_support::scratch_file("photo", name)
+fn scratch(name: &str) -> crate::scratch::ScratchFile {
+    crate::scratch::scratch_file("photo", name)
 }
 
 /// IEC 61966-2-1 decoding, written independently of the crate (in f64).

@@ -11,9 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::colmap_model;
-
-use colmap_model::model;
+use crate::colmap_model::model;
 use proptest::prelude::*;
 use relight_cpc::colmap::{binary, text};
 use relight_cpc::mesh::Mesh;

@@ -17,11 +17,10 @@ use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::trace::SceneBvh;
 use relight_cpc::{Error, Vec3};
 
-use crate::scratch as scratch_support;
-use scratch_support::Scratch;
+use crate::scratch::Scratch;
 
 fn scratch(tag: &str) -> Scratch {
-    scratch_support::scratch("render", tag)
+    crate::scratch::scratch("render", tag)
 }
 
 /// Synth workspace + run; returns (workspace, result folder).

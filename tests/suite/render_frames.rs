@@ -4,6 +4,7 @@
 //! equal up to rounding, on a light with a one-texel sun (the sharpest case) and random
 //! normals, views and visibility, for both rotation storage forms.
 
+use crate::random::random_vertices;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use relight_cpc::brdf::BasisBrdf;
@@ -16,9 +17,6 @@ use relight_cpc::Vec3;
 const NG: usize = 32;
 const NL: usize = 16;
 const NV: usize = 200;
-
-use crate::random;
-use random::random_vertices;
 
 #[test]
 fn frame_blend_equals_per_vertex_rotation() {

@@ -8,8 +8,7 @@ use relight_cpc::render::{
 };
 use relight_cpc::Vec3;
 
-use crate::octahedron;
-use octahedron::octahedron;
+use crate::octahedron::octahedron;
 
 const W: u32 = 80;
 const H: u32 = 60;

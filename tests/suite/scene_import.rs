@@ -3,12 +3,11 @@
 //! photo (errors naming the photo, and `inspect` exiting 1), and the fused point cloud
 //! carried to the mesh with known distances.
 
-use crate::scratch;
-
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
 
+use crate::scratch::scratch;
 use image::{ImageBuffer, Rgb};
 use nalgebra::{Matrix3, Rotation3};
 use relight_cpc::colmap::{Camera, CameraId, Image, ImageId, Reconstruction};
@@ -17,7 +16,6 @@ use relight_cpc::photo::DEFAULT_CLIP;
 use relight_cpc::scene::{load_photos, load_scene};
 use relight_cpc::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
-use scratch::scratch;
 
 const W: u32 = 64;
 const H: u32 = 48;

@@ -6,11 +6,9 @@
 //! sphere above a ground plane (cast shadows) under real maps. A reduced version of
 //! `cargo bench --bench agreement` (see `bench-results/agreement.md` for the full figures).
 
-use crate::agreement_support as support;
-
+use crate::agreement_support::*;
 use relight_cpc::rotation::SplatRotation;
 use relight_cpc::visibility;
-use support::*;
 
 #[test]
 fn wavelet_renderer_agrees_with_the_quadrature_reference_for_diffuse_and_glossy() {

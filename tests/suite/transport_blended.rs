@@ -1,6 +1,7 @@
 //! The transport built with the blended precomputed rotation (Eq. 6) instead of the exact
 //! per-normal one: white furnace, and agreement with the exact rotation on a smooth light.
 
+use crate::random::random_unit;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use relight_cpc::brdf::BasisBrdf;
@@ -13,9 +14,6 @@ use relight_cpc::Vec3;
 
 const NG: usize = 32;
 const NL: usize = 16;
-
-use crate::random;
-use random::random_unit;
 
 /// Build with both rotations for random normals accepted by `keep_normal`; returns the
 /// worst relative difference of the glossy and Lambert responses under a smooth light.

@@ -8,8 +8,7 @@ use relight_cpc::visibility::{compute, compute_with};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 
-use crate::octahedron;
-use octahedron::octahedron;
+use crate::octahedron::octahedron;
 
 /// A ground fan around vertex 0 at the origin (normal +z) and a `2a × 2a` ceiling square
 /// centred at height `h`, all moved by `rot`.

@@ -10,11 +10,9 @@ use relight_cpc::colmap::{
 use relight_cpc::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
 
-use crate::scratch as scratch_support;
-
 /// An empty scratch folder, removed when the returned value is dropped.
-fn tmp(tag: &str) -> scratch_support::Scratch {
-    scratch_support::scratch("ws", tag)
+fn tmp(tag: &str) -> crate::scratch::Scratch {
+    crate::scratch::scratch("ws", tag)
 }
 
 /// A one-camera, two-image model; `tag` goes into the image names so tests can tell which
