@@ -7,7 +7,7 @@
 //! the CLI's defaults (`lambert,phong:50,phong:500`, 64² global, 32² local, keep 128,
 //! 8 iterations, materials auto), once with `adaptive = false` (the full model; the
 //! material count from the k-means elbow) and once with `adaptive = true`
-//! (`relight_cpc::adapt`). Figures: wall and CPU time of the whole run (pilot included;
+//! (`relight_cpc::solve::adapt`). Figures: wall and CPU time of the whole run (pilot included;
 //! CPU decides "faster", since the machine may be shared), the estimation time, and the error: held-out RMSE under the true light after the best
 //! global scale (protocol (a) of DESIGN §4, mean over the scene's held-out photos), plus
 //! the training RMSE. The bar: the adaptive run faster, its held-out error at most
@@ -19,9 +19,9 @@
 //! committed figures used `ADAPTIVE_BENCH_VERTICES=600` (642-vertex sphere) to keep the
 //! run under ~10 CPU minutes on a shared machine.
 
-use relight_cpc::reference::Samples;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions};
 use relight_cpc::synth::{self, SynthOptions};
+use relight_cpc::transport::reference::Samples;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
 use std::path::Path;

@@ -28,10 +28,10 @@
 #[path = "../tests/agreement_support/mod.rs"]
 mod support;
 
-use relight_cpc::adapt::downsample_visibility;
-use relight_cpc::rotation::{Rotation, RotationForm, SplatRotation};
+use relight_cpc::solve::adapt::downsample_visibility;
+use relight_cpc::sphere::rotation::{Rotation, RotationForm, SplatRotation};
+use relight_cpc::transport::visibility::{self, Visibility};
 use relight_cpc::transport::TransportOptions;
-use relight_cpc::visibility::{self, Visibility};
 use relight_cpc::Vec3;
 use serde_json::{json, Value};
 use std::path::Path;

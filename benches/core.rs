@@ -14,11 +14,11 @@
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::envmap::{LatLong, OctEnv};
-use relight_cpc::haar;
-use relight_cpc::rotation::{resampling_rows, Rotation, RotationForm, DEFAULT_SUPERSAMPLE};
+use relight_cpc::sphere::envmap::{LatLong, OctEnv};
+use relight_cpc::sphere::haar;
+use relight_cpc::sphere::rotation::{resampling_rows, Rotation, RotationForm, DEFAULT_SUPERSAMPLE};
+use relight_cpc::sphere::triple;
 use relight_cpc::sphere::{local_frame, to_local, SphereGrid};
-use relight_cpc::triple;
 use serde_json::{json, Value};
 use std::hint::black_box;
 use std::path::Path;

@@ -35,9 +35,9 @@
 #[path = "../tests/support/synth_case.rs"]
 mod synth_case;
 
-use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use relight_cpc::observe::Observations;
-use relight_cpc::starts::{self, estimate_best, MultiStart};
+use relight_cpc::solve::estimate::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
+use relight_cpc::solve::starts::{self, estimate_best, MultiStart};
 use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
@@ -421,7 +421,11 @@ impl Start {
     }
 
     /// The single start this stands for (not [`Start::Best`] of more than one).
-    fn materials(self, case: &Case, obs: &Observations) -> relight_cpc::estimate::Materials0 {
+    fn materials(
+        self,
+        case: &Case,
+        obs: &Observations,
+    ) -> relight_cpc::solve::estimate::Materials0 {
         let mut v = self.starts(case, obs);
         assert_eq!(v.len(), 1, "this part fits from a single start");
         v.pop().unwrap().materials
@@ -541,7 +545,7 @@ fn joint(md: &mut String) -> Value {
         (
             format!(
                 "default options (early stopping: 10% validation, patience {}), ≤ 30 outer iterations",
-                relight_cpc::estimate::PATIENCE
+                relight_cpc::solve::estimate::PATIENCE
             ),
             long.clone(),
             PAPER_START,

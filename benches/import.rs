@@ -24,13 +24,13 @@ use std::time::Instant;
 
 use image::{ImageBuffer, Rgb};
 use nalgebra::Rotation3;
-use relight_cpc::colmap::{Camera, CameraId, Image, ImageId, Reconstruction};
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::colmap::{Camera, CameraId, Image, ImageId, Reconstruction};
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::import::photo::DEFAULT_CLIP;
+use relight_cpc::import::scene::{load_photos, load_scene};
+use relight_cpc::import::workspace::Workspace;
+use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::observe::{extract_with_stats, ObserveOptions};
-use relight_cpc::photo::DEFAULT_CLIP;
-use relight_cpc::scene::{load_photos, load_scene};
-use relight_cpc::trace::SceneBvh;
-use relight_cpc::workspace::Workspace;
 use relight_cpc::Vec3;
 use uv_sphere::{direction, uv_sphere};
 

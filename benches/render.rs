@@ -12,10 +12,10 @@ use std::time::Instant;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::envmap::OctEnv;
-use relight_cpc::rotation::{Rotation, RotationForm};
-use relight_cpc::transport::WaveletRenderer;
+use relight_cpc::render::wavelet::WaveletRenderer;
+use relight_cpc::sphere::envmap::OctEnv;
+use relight_cpc::sphere::rotation::{Rotation, RotationForm};
+use relight_cpc::transport::brdf::BasisBrdf;
 use serde_json::json;
 
 use relight_cpc::stages::cpu_seconds_fine as cpu_seconds;

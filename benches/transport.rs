@@ -12,11 +12,11 @@
 use nalgebra::Matrix3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use relight_cpc::brdf::{default_basis, BasisBrdf, SliceGrid, SliceTable};
-use relight_cpc::envmap::{LatLong, OctEnv};
-use relight_cpc::rotation::{Rotation, RotationForm};
+use relight_cpc::sphere::envmap::{LatLong, OctEnv};
+use relight_cpc::sphere::rotation::{Rotation, RotationForm};
+use relight_cpc::transport::brdf::{default_basis, BasisBrdf, SliceGrid, SliceTable};
+use relight_cpc::transport::visibility::Visibility;
 use relight_cpc::transport::{build_rows, light_haar, TransportOptions};
-use relight_cpc::visibility::Visibility;
 use relight_cpc::Vec3;
 use serde_json::{json, Value};
 use std::path::Path;

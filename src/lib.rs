@@ -2,62 +2,46 @@
 //! after Haber, Fuchs, Bekaert, Seidel, Goesele and Lensch, "Relighting objects from image
 //! collections", CVPR 2009.
 //!
-//! Data flows one way, one module per concept:
+//! Data flows one way, through one folder per pipeline stage; a stage uses only the stages
+//! above it:
 //!
 //! ```text
-//! workspace ─► colmap (cameras, images, points3D) ┐
-//!           ─► mesh (PLY) ─► trace (BVH)          ├► scene ─► observe (observations)
-//!           ─► photo (linear RGB, clip mask)      ┘
-//! sphere (octahedral maps) ─► haar ─► triple (tripling coefficients) ─► rotation (R_ν)
-//! envmap (EXR in/out)       brdf (basis slices)   visibility (per-vertex V)
-//!                 └──────────────► transport (T_x ρ_b per observation, Eq. 7–8)
-//!                                      └► solve (lighting Eq. 10, materials Eq. 11–12)
-//!                                           └► render, reference, report
+//! import     workspace ─► colmap (cameras, images, points3D), mesh (PLY), photo (linear
+//!            RGB, clip mask), points (fused cloud) ─► scene
+//! observe    trace (BVH) ─► observations per vertex and photo; inspect
+//! sphere     octahedral maps ─► haar ─► triple (tripling coefficients), rotation (R_ν),
+//!            envmap (EXR in/out)
+//! transport  brdf (basis slices), visibility (per-vertex V) ─► transport (T_x ρ_b per
+//!            observation, Eq. 7–8); reference (the brute-force renderer of Eq. 1)
+//! solve      estimate (lighting Eq. 10, materials Eq. 11–12), qp, cluster, starts,
+//!            adapt, budget
+//! render     raster, wavelet renderer, relight (`render` subcommand)
+//! report     report.json, plots
+//! run        the `run` subcommand: import → observe → prepare → fit → evaluate → write
 //! ```
 //!
-//! Conventions (directions, frames, map layouts) are fixed once, in [`sphere`] and
-//! [`colmap`], and every other module uses those functions rather than restating them.
+//! `synth` (built-in synthetic scenes) and `bench` (the `bench` subcommand) sit beside the
+//! pipeline and use it. Conventions (directions, frames, map layouts) are fixed once, in
+//! [`sphere`] and [`import::colmap`], and every other module uses those functions rather
+//! than restating them.
 
 pub mod error;
 
-// Scene import.
-pub mod colmap;
-pub mod mesh;
+// Pipeline stages, in the order data flows through them.
+pub mod import;
 pub mod observe;
-pub mod photo;
-pub mod points;
-pub mod scene;
-pub mod trace;
-pub mod workspace;
-
-// The all-frequency core.
-pub mod envmap;
-pub mod haar;
-pub mod rotation;
-pub mod sphere;
-pub mod triple;
-
-// Light transport.
-pub mod brdf;
-pub mod reference;
 pub mod render;
-pub mod synth;
-pub mod transport;
-pub mod visibility;
-
-// Estimation.
-pub mod cluster;
-pub mod estimate;
-pub mod qp;
-pub mod starts;
-
-// The tool.
-pub mod adapt;
-pub mod bench;
-pub mod budget;
-pub mod relight;
 pub mod report;
 pub mod run;
+pub mod solve;
+pub mod sphere;
+pub mod transport;
+
+// Built-in scenes and the `bench` subcommand, outside the pipeline.
+pub mod bench;
+pub mod synth;
+
+// Wall time, CPU time and memory per stage.
 pub mod stages;
 
 pub use error::{Error, Result};

@@ -259,7 +259,7 @@ struct RunArgs {
     starts: usize,
     /// Lower bound on IRLS's robust scale, as a fraction of each photo's RMS radiance: a
     /// residual within 1.345 × this is never down-weighted (0 = the residuals' MAD alone).
-    #[arg(long, default_value_t = relight_cpc::estimate::ROBUST_FLOOR)]
+    #[arg(long, default_value_t = relight_cpc::solve::estimate::ROBUST_FLOOR)]
     robust_floor: f64,
     /// Fraction of the training observations held back (seeded) to stop the alternation
     /// at its best iterate; 0 turns early stopping off.
@@ -327,7 +327,7 @@ impl RunArgs {
                 anyhow::anyhow!("--materials {s}: expected a whole number or `auto`")
             })?),
         };
-        o.basis = relight_cpc::brdf::parse_list(&self.basis)?;
+        o.basis = relight_cpc::transport::brdf::parse_list(&self.basis)?;
         o.global_resolution = self.global_resolution;
         o.local_resolution = self.local_resolution;
         o.render_local_resolution = self.render_local_resolution;
@@ -401,7 +401,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             exposure,
             resolution,
         } => {
-            use relight_cpc::relight::{self, CameraSelection, RenderOptions, Sun};
+            use relight_cpc::render::relight::{self, CameraSelection, RenderOptions, Sun};
             if let Some(d) = &sun {
                 if d.len() != 3 {
                     anyhow::bail!("--sun takes three numbers X,Y,Z, got {}", d.len());
@@ -444,7 +444,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             json,
             mesh,
         } => {
-            let report = relight_cpc::scene::inspect(&workspace, mesh.as_deref())?;
+            let report = relight_cpc::observe::inspect::inspect(&workspace, mesh.as_deref())?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             } else {
@@ -486,7 +486,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 exact_vertices,
                 noise,
                 white_balance,
-                samples: relight_cpc::reference::Samples {
+                samples: relight_cpc::transport::reference::Samples {
                     per_pixel: spp,
                     light: light_samples,
                     seed,

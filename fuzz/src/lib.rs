@@ -2,8 +2,8 @@
 //! file it was read from, an `Ok` must be a consistent model. A panic (or an abort from
 //! an absurd allocation) is the failure the drivers look for.
 
-use relight_cpc::colmap::{binary, text};
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::colmap::{binary, text};
+use relight_cpc::import::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
 fn check_err(r: relight_cpc::Result<()>, path: &Path) {

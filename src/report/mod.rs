@@ -53,7 +53,7 @@ pub struct TrainEntry {
 /// One outer iteration of the estimator.
 #[derive(Debug, Clone, Serialize)]
 pub struct TimelinePoint {
-    /// Which start of the alternation ([`crate::starts`]) the iteration belongs to, from 0
+    /// Which start of the alternation ([`crate::solve::starts`]) the iteration belongs to, from 0
     /// (the paper's start).
     pub start: usize,
     /// Seconds since the estimator started (over all starts).
@@ -66,7 +66,7 @@ pub struct TimelinePoint {
     pub holdout_rmse: Option<f64>,
     /// What the iteration's lighting and material steps cost.
     #[serde(flatten)]
-    pub steps: crate::estimate::StepTimes,
+    pub steps: crate::solve::estimate::StepTimes,
 }
 
 /// The model that was fitted and why.
@@ -90,7 +90,7 @@ pub struct ModelReport {
     pub reasons: Vec<String>,
     /// The adaptive model's decisions (`--adaptive on`), each against the full model.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub adaptive: Option<Vec<crate::adapt::Decision>>,
+    pub adaptive: Option<Vec<crate::solve::adapt::Decision>>,
 }
 
 /// Everything `report.json` holds.
@@ -124,9 +124,9 @@ pub struct RunReport {
     pub conditioning: BTreeMap<String, f64>,
     /// What the solver did with each condition number (regulariser, threshold, advice).
     pub conditioning_use: Vec<String>,
-    /// With several starts ([`crate::starts`]): each one's score and the one kept.
+    /// With several starts ([`crate::solve::starts`]): each one's score and the one kept.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub starts: Option<crate::starts::MultiStart>,
+    pub starts: Option<crate::solve::starts::MultiStart>,
 }
 
 /// RMSE and best-scale RMSE of `pred` against `truth` (both linear RGB), over the
@@ -476,7 +476,7 @@ mod tests {
                 objective: 1.0 / (1.0 + i as f64),
                 train_rmse: 0.1 / (1.0 + i as f64),
                 holdout_rmse: Some(f64::NAN),
-                steps: crate::estimate::StepTimes {
+                steps: crate::solve::estimate::StepTimes {
                     lighting_seconds: 0.5,
                     lighting_cpu_seconds: 1.0,
                     material_seconds: 0.25,

@@ -15,7 +15,7 @@
 //!
 //! The renderer has its own local resolution (`--render-local-resolution`, by default the
 //! estimator's: 32² at the defaults) and its own rotation
-//! ([`crate::rotation::SplatRotation`]: the footprint of the vertex's exact normal instead
+//! ([`crate::sphere::rotation::SplatRotation`]: the footprint of the vertex's exact normal instead
 //! of the blend of four precomputed frames, Eq. 6). Visibility is traced once, at the finer
 //! of the two resolutions ([`trace_visibility`]), and averaged down for the other.
 //! Measured (`bench-results/agreement.md`, sphere over a plane under 8 real maps, a KNOWN
@@ -30,14 +30,14 @@
 //! relighting a known or very sharp model under novel light.
 
 use super::Fitted;
-use crate::envmap::{LatLong, OctEnv};
-use crate::estimate::{self, Problem};
+use crate::import::photo::Photo;
 use crate::observe::{self, Observations, ObserveOptions};
-use crate::photo::Photo;
 use crate::render::{self, Raster};
 use crate::report::{compare, psnr, HoldoutEntry};
+use crate::solve::estimate::{self, Problem};
+use crate::sphere::envmap::{LatLong, OctEnv};
+use crate::transport::visibility::Visibility;
 use crate::transport::{self, TransportOptions};
-use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
@@ -181,15 +181,15 @@ impl HoldoutTracker {
     /// Observations and transport of the held-out views; `None` when there are none.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
-        scene: &crate::scene::Scene,
+        scene: &crate::import::scene::Scene,
         photos: &[Photo],
         held: &[usize],
-        bvh: &crate::trace::SceneBvh,
+        bvh: &crate::observe::trace::SceneBvh,
         normals_env: &[Vec3],
         env_from_world: &Matrix3<f64>,
-        vis: &crate::visibility::Visibility,
-        basis: &[crate::brdf::BasisBrdf],
-        rot: &crate::rotation::Rotation,
+        vis: &crate::transport::visibility::Visibility,
+        basis: &[crate::transport::brdf::BasisBrdf],
+        rot: &crate::sphere::rotation::Rotation,
         topts: &TransportOptions,
         truth: Option<&Truth>,
     ) -> Result<Option<Self>> {
@@ -246,7 +246,7 @@ impl HoldoutTracker {
                         *a += b / k;
                     }
                 }
-                crate::haar::forward(&mut m, self.n_global);
+                crate::sphere::haar::forward(&mut m, self.n_global);
                 m
             })
         };
@@ -287,7 +287,8 @@ impl HoldoutTracker {
 }
 
 /// Observations the held-out tracker keeps at most ([`HoldoutTracker`]).
-pub(crate) const TRACKER_MAX_OBSERVATIONS: usize = crate::budget::HELD_OUT_TRACKED_MAX as usize;
+pub(crate) const TRACKER_MAX_OBSERVATIONS: usize =
+    crate::solve::budget::HELD_OUT_TRACKED_MAX as usize;
 
 /// Every `⌈len / max⌉`-th observation of `obs` (all of them when `len ≤ max`), photo
 /// ranges recomputed.
@@ -359,18 +360,19 @@ pub fn fine_rays(rays: usize, n_est: usize, n_fine: usize) -> usize {
 /// Trace visibility once at the finer of the estimator's and the renderer's local
 /// resolutions (module docs) and return `(estimator's, renderer's)`.
 pub(crate) fn trace_visibility(
-    mesh: &crate::mesh::Mesh,
-    bvh: &crate::trace::SceneBvh,
+    mesh: &crate::import::mesh::Mesh,
+    bvh: &crate::observe::trace::SceneBvh,
     env_from_world: &Matrix3<f64>,
     opts: &super::RunOptions,
 ) -> (Visibility, Visibility) {
     let n_render = render_local_resolution(opts);
     let n_fine = opts.local_resolution.max(n_render);
     let rays = fine_rays(opts.rays_per_texel, opts.local_resolution, n_fine);
-    let fine = crate::visibility::compute(mesh, bvh, env_from_world, n_fine, rays, opts.seed);
-    let est = crate::adapt::downsample_visibility(&fine, opts.local_resolution);
+    let fine =
+        crate::transport::visibility::compute(mesh, bvh, env_from_world, n_fine, rays, opts.seed);
+    let est = crate::solve::adapt::downsample_visibility(&fine, opts.local_resolution);
     let render = if n_render < n_fine {
-        crate::adapt::downsample_visibility(&fine, n_render)
+        crate::solve::adapt::downsample_visibility(&fine, n_render)
     } else {
         fine
     };
@@ -380,7 +382,7 @@ pub(crate) fn trace_visibility(
 /// The wavelet renderer's model of the fit, with visibility `vis`.
 fn wavelet_model<'a>(
     f: &'a Fitted,
-    vis: &'a crate::visibility::Visibility,
+    vis: &'a crate::transport::visibility::Visibility,
 ) -> render::WaveletModel<'a> {
     render::WaveletModel {
         mesh: &f.scene.mesh,
@@ -419,7 +421,7 @@ pub(crate) fn render_training_view(f: &Fitted, k: usize) -> Result<RenderedView>
 
 /// Shade the raster of held-out view `v` under each of `lights` with the renderer's
 /// visibility and rotation (`--render-local-resolution`,
-/// [`crate::rotation::SplatRotation`]) ([`render::shade_wavelet`]: the per-vertex BRDF
+/// [`crate::sphere::rotation::SplatRotation`]) ([`render::shade_wavelet`]: the per-vertex BRDF
 /// slices are computed once for all of them).
 fn shade_view(
     f: &Fitted,
@@ -622,7 +624,7 @@ pub(crate) fn evaluate(
             let view = &f.scene.views[v];
             let name = view.image.name.as_str();
             let photo = &f.photos[v];
-            let stem = crate::relight::file_stem(name);
+            let stem = crate::render::relight::file_stem(name);
 
             // The lights of the protocols that apply, in report order: (a) truth, (b) the
             // left-half fit (judged on the right half), (c) the mean of the training maps.

@@ -6,7 +6,7 @@
 //! 2. `observations`: BVH, per-vertex observations in every registered photo;
 //! 3. `visibility`: per-vertex visibility over the local hemisphere (Sec. 3);
 //!    with [`RunOptions::adaptive`], `pilot`: a cheap held-out fit decides the materials,
-//!    the basis BRDFs, the map resolution and `keep` ([`crate::adapt`]; duplicate photos
+//!    the basis BRDFs, the map resolution and `keep` ([`crate::solve::adapt`]; duplicate photos
 //!    are skipped after step 2), each decision written to the report with its reason;
 //! 4. `rotation`: the wavelet rotations `R_ν` (Sec. 4.2, Eq. 6);
 //! 5. `transport`: `g_{p,b} = R_nᵀ T_x ρ_b(ω_o)` per observation (Eq. 5–8);
@@ -16,7 +16,7 @@
 //!
 //! The condition numbers the estimator sees (lighting, Eq. 10; λ and w, Eq. 11–12) go to
 //! the report with what bounds each (the Laplacian prior, the λ ridge, the minimum-norm w
-//! fallback) and, past [`crate::adapt::KAPPA_LIGHTING`] / [`crate::adapt::KAPPA_LAMBDA`],
+//! fallback) and, past [`crate::solve::adapt::KAPPA_LIGHTING`] / [`crate::solve::adapt::KAPPA_LAMBDA`],
 //! what to change; a non-finite estimate stops the run with those figures.
 //!
 //! Everything is written into a hidden sibling `.NAME.partial/` of the output folder and
@@ -30,19 +30,19 @@ mod progress;
 pub use evaluate::{fine_rays, render_local_resolution, Truth};
 pub use progress::Progress;
 
-use crate::brdf::BasisBrdf;
-use crate::cluster::initial_materials;
-use crate::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::import::scene::{self, Scene};
+use crate::import::workspace::Workspace;
+use crate::observe::trace::SceneBvh;
 use crate::observe::{self, Observations, ObserveOptions};
 use crate::report::{ModelReport, RunReport, TimelinePoint};
-use crate::rotation::{Rotation, RotationForm};
-use crate::scene::{self, Scene};
+use crate::solve::cluster::initial_materials;
+use crate::solve::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::solve::starts;
+use crate::sphere::rotation::{Rotation, RotationForm};
 use crate::stages::Stages;
-use crate::starts;
-use crate::trace::SceneBvh;
+use crate::transport::brdf::BasisBrdf;
+use crate::transport::visibility;
 use crate::transport::{self, Transport, TransportOptions};
-use crate::visibility;
-use crate::workspace::Workspace;
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
 use std::path::{Path, PathBuf};
@@ -51,7 +51,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MaterialCount {
     /// Choose from the data: with [`RunOptions::adaptive`], the smallest count within 1%
-    /// of the best held-out error of a pilot fit ([`crate::adapt`]); without it, the
+    /// of the best held-out error of a pilot fit ([`crate::solve::adapt`]); without it, the
     /// smallest count whose k-means clustering of the hue features leaves little
     /// unexplained (see [`choose_material_count`]).
     Auto,
@@ -122,7 +122,7 @@ pub struct RunOptions {
     /// Early stopping: outer iterations without a better validation score before the
     /// alternation stops ([`EstimateOptions::patience`]).
     pub patience: usize,
-    /// Starts of the alternation tried, the best kept ([`crate::starts`]; not in the
+    /// Starts of the alternation tried, the best kept ([`crate::solve::starts`]; not in the
     /// paper): 1 = the paper's clustered start alone. Each start costs one estimate.
     pub starts: usize,
     /// Lower bound on IRLS's robust scale relative to each photo's RMS radiance
@@ -141,7 +141,7 @@ pub struct RunOptions {
     pub force: bool,
     /// Write renders of every view (not only held-out ones).
     pub render_training: bool,
-    /// Leave out what the scene does not need ([`crate::adapt`]): redundant photos,
+    /// Leave out what the scene does not need ([`crate::solve::adapt`]): redundant photos,
     /// basis BRDFs whose weights vanish, map resolution and coefficient budget beyond what
     /// the kept lobes resolve; the number of materials by held-out error. The requested
     /// resolutions and `keep` are then upper bounds. Off in [`RunOptions::new`] (the full
@@ -194,7 +194,7 @@ impl RunOptions {
             starts: 1,
             robust_floor: EstimateOptions::default().robust_floor,
             validation: EstimateOptions::default().validation_fraction,
-            clip: crate::photo::DEFAULT_CLIP,
+            clip: crate::import::photo::DEFAULT_CLIP,
             seed: 1,
             progress: true,
             force: false,
@@ -395,7 +395,7 @@ pub fn choose_material_count(mean_rgb: &[[f64; 3]], seen: &[bool], seed: u64) ->
         .iter()
         .zip(seen)
         .filter(|(_, &s)| s)
-        .map(|(c, _)| crate::cluster::hue_feature(*c))
+        .map(|(c, _)| crate::solve::cluster::hue_feature(*c))
         .collect();
     let inertia = |k: usize| -> Option<f64> {
         let init = initial_materials(mean_rgb, seen, k, seed).ok()?;
@@ -475,7 +475,7 @@ pub fn mean_colours(obs: &Observations, n_vertices: usize) -> (Vec<[f64; 3]>, Ve
 /// The state shared by the evaluation and output stages.
 pub(crate) struct Fitted<'a> {
     pub scene: &'a Scene,
-    pub photos: &'a [crate::photo::Photo],
+    pub photos: &'a [crate::import::photo::Photo],
     pub train: Vec<usize>,
     pub held: Vec<usize>,
     pub env_from_world: Matrix3<f64>,
@@ -484,7 +484,7 @@ pub(crate) struct Fitted<'a> {
     pub rot: Rotation,
     /// The renderer's visibility and rotation ([`evaluate`] module docs).
     pub render_vis: visibility::Visibility,
-    pub render_rot: crate::rotation::SplatRotation,
+    pub render_rot: crate::sphere::rotation::SplatRotation,
     pub basis: Vec<BasisBrdf>,
     pub est: estimate::Estimate,
     pub beta: Vec<[f64; 3]>,
@@ -578,7 +578,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         .iter()
         .map(|p| p.width as u64 * p.height as u64)
         .sum();
-    let sizes = |observations: u64| crate::budget::Sizes {
+    let sizes = |observations: u64| crate::solve::budget::Sizes {
         vertices: nv as u64,
         photos: train.len() as u64,
         held_photos: held.len() as u64,
@@ -597,11 +597,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     let (bvh, mut obs) = stages.run("observations", || {
         let bvh = SceneBvh::new(&scene.mesh);
         let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
-        let ph: Vec<&crate::photo::Photo> = train.iter().map(|&i| &photos[i]).collect();
+        let ph: Vec<&crate::import::photo::Photo> = train.iter().map(|&i| &photos[i]).collect();
         let obs = observe::extract(&scene.mesh, &bvh, &views, &ph, &ObserveOptions::default());
         (bvh, obs)
     });
-    let budget = crate::budget::check(&sizes(obs.len() as u64))?;
+    let budget = crate::solve::budget::check(&sizes(obs.len() as u64))?;
     notes.push(format!(
         "memory plan: {:.0} MiB for the large arrays (largest: {})",
         budget.total() as f64 / (1u64 << 20) as f64,
@@ -645,10 +645,10 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             ));
         }
     }
-    // Photos that add no new observation (adaptive model, crate::adapt step 1).
-    let mut decisions: Vec<crate::adapt::Decision> = Vec::new();
+    // Photos that add no new observation (adaptive model, crate::solve::adapt step 1).
+    let mut decisions: Vec<crate::solve::adapt::Decision> = Vec::new();
     if opts.adaptive {
-        let red = crate::adapt::redundant_photos(&obs, nv);
+        let red = crate::solve::adapt::redundant_photos(&obs, nv);
         let n = train.len();
         if !red.is_empty() && red.len() < n {
             let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
@@ -657,37 +657,37 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
                     "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
                     scene.views[train[k]].image.name,
                     scene.views[train[by]].image.name,
-                    crate::adapt::DUPLICATE_ANGLE_DEG,
-                    100.0 * crate::adapt::DUPLICATE_RGB
+                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::solve::adapt::DUPLICATE_RGB
                 ));
             }
-            obs = crate::adapt::drop_photos(&obs, &drop);
+            obs = crate::solve::adapt::drop_photos(&obs, &drop);
             train = train
                 .iter()
                 .enumerate()
                 .filter(|(k, _)| !drop.contains(k))
                 .map(|(_, &i)| i)
                 .collect();
-            decisions.push(crate::adapt::Decision {
+            decisions.push(crate::solve::adapt::Decision {
                 what: "photos".into(),
                 full: n.to_string(),
                 chosen: train.len().to_string(),
                 reason: format!(
                     "{} training photo(s) duplicate an earlier one (same view within {}°, same colour within {:.0}%): a duplicate adds a light map to estimate and no information",
                     drop.len(),
-                    crate::adapt::DUPLICATE_ANGLE_DEG,
-                    100.0 * crate::adapt::DUPLICATE_RGB
+                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::solve::adapt::DUPLICATE_RGB
                 ),
             });
         } else {
-            decisions.push(crate::adapt::Decision {
+            decisions.push(crate::solve::adapt::Decision {
                 what: "photos".into(),
                 full: n.to_string(),
                 chosen: n.to_string(),
                 reason: format!(
                     "every training photo adds observations: none repeats an earlier photo's view (within {}°) with the same colours (within {:.0}%); a photo from the same view under another light is new information, since every photo has its own light",
-                    crate::adapt::DUPLICATE_ANGLE_DEG,
-                    100.0 * crate::adapt::DUPLICATE_RGB
+                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::solve::adapt::DUPLICATE_RGB
                 ),
             });
         }
@@ -758,7 +758,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     };
     let (mean_rgb, seen) = mean_colours(&obs, nv);
 
-    // Adaptive model (crate::adapt steps 2–5): a pilot fit decides the materials, the
+    // Adaptive model (crate::solve::adapt steps 2–5): a pilot fit decides the materials, the
     // bases, the map resolution and the coefficient budget; `eff` holds what is used.
     let mut eff = opts.clone();
     let mut pilot_k: Option<(usize, String)> = None;
@@ -766,7 +766,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         progress.stage("pilot");
         let lambert = lambert_of(&opts.basis)?;
         let outcome = stages.run("pilot", || {
-            crate::adapt::pilot(&crate::adapt::PilotInput {
+            crate::solve::adapt::pilot(&crate::solve::adapt::PilotInput {
                 normals_env: &normals_env,
                 obs: &obs,
                 env_from_world: &env_from_world,
@@ -932,7 +932,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         normals_env,
         vis,
         rot,
-        render_rot: crate::rotation::SplatRotation::with_default_supersample(
+        render_rot: crate::sphere::rotation::SplatRotation::with_default_supersample(
             eff.global_resolution,
             render_vis.n_local,
         ),
@@ -1110,16 +1110,16 @@ fn train_errors(
         .collect()
 }
 
-/// The adaptive model's decisions from the pilot's `outcome` (crate::adapt steps 3–5),
+/// The adaptive model's decisions from the pilot's `outcome` (crate::solve::adapt steps 3–5),
 /// applied to `eff`.
 fn adaptive_decisions(
     opts: &RunOptions,
-    outcome: &crate::adapt::PilotOutcome,
+    outcome: &crate::solve::adapt::PilotOutcome,
     vis: &visibility::Visibility,
     nv: usize,
     eff: &mut RunOptions,
-) -> Vec<crate::adapt::Decision> {
-    use crate::adapt::Decision;
+) -> Vec<crate::solve::adapt::Decision> {
+    use crate::solve::adapt::Decision;
     let mut d = Vec::new();
     let full_k = match opts.materials {
         MaterialCount::Fixed(k) => k.to_string(),
@@ -1141,7 +1141,7 @@ fn adaptive_decisions(
     });
     let shadowed = vis.open_count() < nv;
     let (g, why) =
-        crate::adapt::global_resolution_for(&eff.basis, opts.global_resolution, shadowed);
+        crate::solve::adapt::global_resolution_for(&eff.basis, opts.global_resolution, shadowed);
     eff.global_resolution = g;
     d.push(Decision {
         what: "global_resolution".into(),
@@ -1172,7 +1172,7 @@ fn adaptive_decisions(
     });
     // Conditioning (issue 8: use the condition numbers the solver sees): a lighting system
     // beyond KAPPA_LIGHTING is regularised harder.
-    use crate::adapt::KAPPA_LIGHTING;
+    use crate::solve::adapt::KAPPA_LIGHTING;
     if outcome.kappa_lighting > KAPPA_LIGHTING && opts.smoothness < 1e-4 {
         eff.smoothness = 1e-4;
         d.push(Decision {
@@ -1223,7 +1223,7 @@ fn conditioning_map(c: &estimate::Conditioning) -> std::collections::BTreeMap<St
 
 /// What the solver did with each condition number it saw (issue 8), in words: the figure,
 /// the digits of float64's ~16 it costs (`log₁₀ κ`), the regulariser that bounds it and,
-/// past the thresholds of [`crate::adapt`], what to change.
+/// past the thresholds of [`crate::solve::adapt`], what to change.
 fn conditioning_use(
     c: &estimate::Conditioning,
     eopts: &EstimateOptions,
@@ -1244,10 +1244,10 @@ fn conditioning_use(
             eopts.smoothness,
             eopts.qp_rel_tol
         );
-        if lighting > crate::adapt::KAPPA_LIGHTING {
+        if lighting > crate::solve::adapt::KAPPA_LIGHTING {
             line.push_str(&format!(
                 "; above {:.0e}, so the solution's unconstrained directions are set by rounding: {}",
-                crate::adapt::KAPPA_LIGHTING,
+                crate::solve::adapt::KAPPA_LIGHTING,
                 if adaptive && eopts.smoothness >= 1e-4 {
                     "the adaptive model already raised the prior".to_string()
                 } else {
@@ -1273,10 +1273,10 @@ fn conditioning_use(
         eopts.beta,
         1.0 / eopts.beta.max(1e-300)
     );
-    if lam > crate::adapt::KAPPA_LAMBDA {
+    if lam > crate::solve::adapt::KAPPA_LAMBDA {
         line.push_str(&format!(
             "; above {:.0e}: two basis lobes are nearly indistinguishable in these photos and the ridge, not the data, splits the weight between them: {}",
-            crate::adapt::KAPPA_LAMBDA,
+            crate::solve::adapt::KAPPA_LAMBDA,
             if adaptive {
                 "the adaptive pilot's held-out ablation keeps only one of such lobes"
             } else {

@@ -10,10 +10,11 @@
 
 use super::evaluate::{fitted_env, render_training_view};
 use super::Fitted;
-use crate::brdf::BasisBrdf;
-use crate::envmap::LatLong;
-use crate::photo::Photo;
+use crate::import::photo::Photo;
+use crate::render::relight::{write_render_state, RenderState};
 use crate::render::Raster;
+use crate::sphere::envmap::LatLong;
+use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -90,7 +91,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     std::fs::create_dir_all(&env_dir).map_err(|e| Error::io(&env_dir, e))?;
     let height = (2 * f.opts.global_resolution).clamp(32, 512);
     for (k, &v) in f.train.iter().enumerate() {
-        let stem = crate::relight::file_stem(&f.scene.views[v].image.name);
+        let stem = crate::render::relight::file_stem(&f.scene.views[v].image.name);
         let env = fitted_env(f, k);
         env.write_exr(&env_dir.join(format!("{stem}.oct.exr")))?;
         env.to_latlong(height)
@@ -135,7 +136,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     mesh.colors = Some(
         albedo
             .iter()
-            .map(|a| a.map(|v| crate::photo::linear_to_srgb(v / max_albedo)))
+            .map(|a| a.map(|v| crate::import::photo::linear_to_srgb(v / max_albedo)))
             .collect(),
     );
     let channels: Vec<Vec<f32>> = (0..3)
@@ -154,7 +155,20 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         extra.push((n.as_str(), w.as_slice()));
     }
     mesh.write_ply(&dir.join("mesh.ply"), &extra)?;
-    crate::relight::write_render_state(f, dir)?;
+    let state = RenderState {
+        views: &f.scene.views,
+        mesh: &f.scene.mesh,
+        basis: &f.basis,
+        beta: &f.beta,
+        normals_env: &f.normals_env,
+        env_from_world: f.env_from_world,
+        render_vis: &f.render_vis,
+        global_resolution: f.opts.global_resolution,
+        local_resolution: f.opts.local_resolution,
+        normal_grid: f.opts.normal_grid,
+        seed: f.opts.seed,
+    };
+    write_render_state(&state, dir)?;
 
     // Training renders: the model as fitted (the estimator's predictions at the
     // observations, its visibility and rotation elsewhere), each photo under its own fitted
@@ -165,7 +179,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         let bar = progress.bar(f.train.len() as u64, "training renders");
         for (k, &v) in f.train.iter().enumerate() {
             let r = render_training_view(f, k)?;
-            let stem = crate::relight::file_stem(&f.scene.views[v].image.name);
+            let stem = crate::render::relight::file_stem(&f.scene.views[v].image.name);
             write_triptych(
                 &renders.join(format!("{stem}.png")),
                 &f.photos[v],

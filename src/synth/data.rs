@@ -7,7 +7,7 @@
 //! averages, the integral `∫ L dω` preserved) and are decoded with
 //! [`LatLong::read_exr_bytes`].
 
-use crate::envmap::LatLong;
+use crate::sphere::envmap::LatLong;
 use crate::Result;
 use std::path::Path;
 

@@ -19,16 +19,16 @@
 use nalgebra::Matrix3;
 use rand_pcg::Pcg32;
 use rayon::prelude::*;
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::envmap::{LatLong, OctEnv};
-use relight_cpc::mesh::Mesh;
-use relight_cpc::reference::{quadrature_point, Environment, Lobe};
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::observe::trace::SceneBvh;
+use relight_cpc::render::wavelet::WaveletRenderer;
+use relight_cpc::sphere::envmap::{LatLong, OctEnv};
+use relight_cpc::sphere::rotation::LocalRotation;
 use relight_cpc::synth::geometry;
-use relight_cpc::trace::SceneBvh;
-use relight_cpc::transport::{
-    build_rows, light_haar, LocalRotation, TransportOptions, WaveletRenderer,
-};
-use relight_cpc::visibility::Visibility;
+use relight_cpc::transport::brdf::BasisBrdf;
+use relight_cpc::transport::reference::{quadrature_point, Environment, Lobe};
+use relight_cpc::transport::visibility::Visibility;
+use relight_cpc::transport::{build_rows, light_haar, TransportOptions};
 use relight_cpc::Vec3;
 use std::path::Path;
 

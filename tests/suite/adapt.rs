@@ -1,4 +1,4 @@
-//! The adaptive model (issue 8, "leave out what a scene does not need", `relight_cpc::adapt`)
+//! The adaptive model (issue 8, "leave out what a scene does not need", `relight_cpc::solve::adapt`)
 //! against known truth: small `synth` workspaces whose reflectance, material count and
 //! photos are known, run through `run::run` with `adaptive = true`.
 //!
@@ -18,10 +18,10 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::adapt;
-use relight_cpc::brdf::BasisBrdf;
 use relight_cpc::observe::Observations;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
+use relight_cpc::solve::adapt;
+use relight_cpc::transport::brdf::BasisBrdf;
 
 use crate::scratch::Scratch;
 

@@ -4,7 +4,7 @@
 //! `∫ ρ(ω, ω_o) dω`; the references below integrate `eval` independently in spherical
 //! coordinates (no hemi-octahedral map involved).
 
-use relight_cpc::brdf::{default_basis, BasisBrdf, SliceGrid, SliceTable};
+use relight_cpc::transport::brdf::{default_basis, BasisBrdf, SliceGrid, SliceTable};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 

@@ -4,7 +4,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::cluster::initial_materials;
+use relight_cpc::solve::cluster::initial_materials;
 
 /// Three materials (red, green, blue-grey), each shaded by a random brightness in
 /// [0.2, 1] and jittered by 2% per channel: shading must not split a material.

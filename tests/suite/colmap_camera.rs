@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
-use relight_cpc::colmap::{Camera, CameraId, CameraModel};
+use relight_cpc::import::colmap::{Camera, CameraId, CameraModel};
 use relight_cpc::Vec3;
 
 /// Parameters for `model`: focal lengths in [300, 1500] px, principal point in [100, 900] px,

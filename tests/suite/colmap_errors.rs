@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use crate::colmap_model::model;
-use relight_cpc::colmap::Reconstruction;
+use relight_cpc::import::colmap::Reconstruction;
 use relight_cpc::Error;
 
 /// A fresh folder holding the model in both formats, removed when dropped.
@@ -355,7 +355,7 @@ fn binary_huge_inner_counts_do_not_allocate() {
 /// Parse the three files of one format from memory with the stream readers (what the
 /// path readers do, without the file system), ignoring the result.
 fn parse_all(dir: &Path, files: &[(&str, Vec<u8>)], binary: bool) -> bool {
-    use relight_cpc::colmap::{binary as b, text as t};
+    use relight_cpc::import::colmap::{binary as b, text as t};
     let mut ok = true;
     for (name, bytes) in files {
         let p = dir.join(name);

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::colmap::{CameraModel, ModelFormat, Reconstruction};
+use relight_cpc::import::colmap::{CameraModel, ModelFormat, Reconstruction};
 
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-buddha")

@@ -7,7 +7,7 @@
 use std::collections::BTreeMap;
 
 use proptest::prelude::*;
-use relight_cpc::colmap::{
+use relight_cpc::import::colmap::{
     Camera, CameraId, CameraModel, Image, ImageId, Point2D, Point3D, Point3DId, Reconstruction,
     TrackElement,
 };

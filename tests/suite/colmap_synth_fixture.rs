@@ -11,10 +11,10 @@ use std::path::{Path, PathBuf};
 
 use rand::Rng;
 use rand_pcg::Pcg32;
-use relight_cpc::colmap::Reconstruction;
-use relight_cpc::mesh::Mesh;
-use relight_cpc::points::{nearest_points, DistanceStats};
-use relight_cpc::scene::inspect;
+use relight_cpc::import::colmap::Reconstruction;
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::import::points::{nearest_points, DistanceStats};
+use relight_cpc::observe::inspect::inspect;
 use relight_cpc::Vec3;
 
 /// The fixture, or a rerun of its script (`COLMAP_SYNTH_FIXTURE=DIR`, the script's
@@ -68,7 +68,7 @@ fn truth_mesh() -> (Mesh, f64) {
         .filter(|p| p.y > floor + 1e-6)
         .copied()
         .collect();
-    let (lo, hi) = relight_cpc::mesh::bounding_box(&above);
+    let (lo, hi) = relight_cpc::import::mesh::bounding_box(&above);
     (mesh, (hi - lo).norm())
 }
 

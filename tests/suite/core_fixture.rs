@@ -2,7 +2,7 @@
 //! map in `../shared/data/hdri/` (run with `cargo test --test suite -- --ignored core_fixture::`),
 //! and checks the committed map against its source when the source is present.
 
-use relight_cpc::envmap::LatLong;
+use relight_cpc::sphere::envmap::LatLong;
 use std::path::{Path, PathBuf};
 
 fn source() -> PathBuf {

@@ -3,10 +3,10 @@
 //! product with a cosine "BRDF" and a visibility mask (Eq. 5) must equal the irradiance
 //! computed by brute force from the lat-long pixels themselves.
 
-use relight_cpc::envmap::{LatLong, OctEnv};
-use relight_cpc::rotation::{Rotation, RotationForm};
+use relight_cpc::sphere::envmap::{LatLong, OctEnv};
+use relight_cpc::sphere::rotation::{Rotation, RotationForm};
 use relight_cpc::sphere::{local_frame, to_local, SphereGrid};
-use relight_cpc::{haar, triple, Vec3};
+use relight_cpc::{sphere::haar, sphere::triple, Vec3};
 use std::f64::consts::PI;
 use std::path::Path;
 

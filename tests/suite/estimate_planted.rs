@@ -6,11 +6,11 @@
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::estimate::{
+use relight_cpc::observe::Observations;
+use relight_cpc::solve::estimate::{
     beta_per_vertex, estimate, predict, Estimate, EstimateOptions, Materials0, Problem, Robust,
 };
-use relight_cpc::haar;
-use relight_cpc::observe::Observations;
+use relight_cpc::sphere::haar;
 use relight_cpc::transport::Transport;
 
 const N: usize = 8; // map side: 64 texels per channel
@@ -434,7 +434,7 @@ fn the_best_of_several_starts_is_the_lowest_scoring_fit() {
     // bit for bit, the plain `estimate` from the start whose score (early stopping's
     // validation error at the returned iterate) is lowest, and report every start's score
     // as the plain fits give it. Exact equality: the same deterministic computation.
-    use relight_cpc::starts::{estimate_best, Start};
+    use relight_cpc::solve::starts::{estimate_best, Start};
     let p = planted(5, 0.01, 0.0, 200, 4);
     let o = EstimateOptions {
         max_outer: 6,

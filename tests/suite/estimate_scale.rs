@@ -7,8 +7,8 @@
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::estimate::{lighting_step_full, EstimateOptions, Problem, Robust};
 use relight_cpc::observe::Observations;
+use relight_cpc::solve::estimate::{lighting_step_full, EstimateOptions, Problem, Robust};
 use relight_cpc::transport::Transport;
 use std::time::Instant;
 
@@ -56,7 +56,7 @@ fn lighting_step_at_issue_9_scale() {
     for (t, v) in light.iter_mut().enumerate() {
         *v = 1.0 + ((t % n) as f64 / n as f64 * 3.0).sin().abs();
     }
-    relight_cpc::haar::forward(&mut light, n);
+    relight_cpc::sphere::haar::forward(&mut light, n);
     for p in 0..np {
         let x = obs.vertex[p] as usize;
         let mut y = [0.0; 3];

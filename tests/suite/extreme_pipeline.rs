@@ -7,8 +7,8 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::envmap::OctEnv;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions, RunSummary};
+use relight_cpc::sphere::envmap::OctEnv;
 use relight_cpc::Error;
 
 use crate::scratch::Scratch;
@@ -100,9 +100,9 @@ fn sharp_lobes_at_default_resolutions() {
     o.keep = 128;
     o.max_iterations = 1;
     o.basis = vec![
-        relight_cpc::brdf::BasisBrdf::Lambert,
-        relight_cpc::brdf::BasisBrdf::Phong { exponent: 500.0 },
-        relight_cpc::brdf::BasisBrdf::Ggx { alpha: 0.01 },
+        relight_cpc::transport::brdf::BasisBrdf::Lambert,
+        relight_cpc::transport::brdf::BasisBrdf::Phong { exponent: 500.0 },
+        relight_cpc::transport::brdf::BasisBrdf::Ggx { alpha: 0.01 },
     ];
     let s = run::run(&o).unwrap();
     stable(&s);
@@ -372,7 +372,7 @@ fn damaged_mesh() {
     let d = scratch("mesh");
     let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
     let src = ws.join("dense").join("meshed-poisson.ply");
-    let data = relight_cpc::mesh::read_ply_data(&src).unwrap();
+    let data = relight_cpc::import::mesh::read_ply_data(&src).unwrap();
     let mut pos: Vec<[f64; 3]> = data.positions.iter().map(|p| [p.x, p.y, p.z]).collect();
     let mut faces: Vec<[usize; 3]> = data
         .faces
@@ -408,11 +408,12 @@ fn damaged_mesh() {
 fn one_triangle_mesh() {
     let d = scratch("tri");
     let ws = workspace(&d.0, "sphere-diffuse", 3, 300);
-    let rec = relight_cpc::colmap::Reconstruction::read_text(&ws.join("sparse")).unwrap();
+    let rec = relight_cpc::import::colmap::Reconstruction::read_text(&ws.join("sparse")).unwrap();
     // Facing the first camera (the others see it obliquely or from behind).
     let c = rec.images.values().next().unwrap().center();
     let src =
-        relight_cpc::mesh::read_ply_data(&ws.join("dense").join("meshed-poisson.ply")).unwrap();
+        relight_cpc::import::mesh::read_ply_data(&ws.join("dense").join("meshed-poisson.ply"))
+            .unwrap();
     let o: relight_cpc::Vec3 =
         src.positions.iter().sum::<relight_cpc::Vec3>() / src.positions.len() as f64;
     let r = 0.8

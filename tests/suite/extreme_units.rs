@@ -2,14 +2,14 @@
 //! that lose every vertex, and the up-front memory check for a mesh of over a million
 //! vertices (tested on the sizes alone: nothing that large is allocated).
 
-use relight_cpc::budget::{self, Sizes};
-use relight_cpc::cluster::initial_materials;
+use relight_cpc::solve::budget::{self, Sizes};
+use relight_cpc::solve::cluster::initial_materials;
 use relight_cpc::Error;
 
 /// Checks the invariants of an initial clustering: labels in range, albedo finite and
 /// non-negative, each weight row non-negative and summing to one (to 1e-9: a sum of at
 /// most K numbers in [0, 1]).
-fn consistent(m: &relight_cpc::cluster::InitialMaterials, v: usize) -> usize {
+fn consistent(m: &relight_cpc::solve::cluster::InitialMaterials, v: usize) -> usize {
     let k = m.albedo.len();
     assert!(k >= 1);
     assert_eq!(m.labels.len(), v);

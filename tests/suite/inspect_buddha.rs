@@ -8,9 +8,9 @@ use std::process::Command;
 
 use crate::scratch::scratch;
 use crate::uv_sphere::{direction, uv_sphere};
-use relight_cpc::colmap::Reconstruction;
-use relight_cpc::mesh::Mesh;
-use relight_cpc::scene::inspect;
+use relight_cpc::import::colmap::Reconstruction;
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::observe::inspect::inspect;
 use relight_cpc::Vec3;
 
 fn fixture() -> PathBuf {

@@ -5,8 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::scene::{inspect, load_scene};
-use relight_cpc::workspace::Workspace;
+use relight_cpc::import::scene::load_scene;
+use relight_cpc::import::workspace::Workspace;
+use relight_cpc::observe::inspect::inspect;
 use relight_cpc::Vec3;
 
 fn fixture() -> PathBuf {

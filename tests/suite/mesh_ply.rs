@@ -5,7 +5,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::mesh::Mesh;
 use relight_cpc::{Error, Vec3};
 
 /// `name` in a scratch folder of its own, removed when the returned value is dropped.

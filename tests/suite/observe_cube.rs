@@ -5,12 +5,12 @@
 
 use crate::uv_sphere::{direction, uv_sphere};
 use nalgebra::{Matrix3, Rotation3};
-use relight_cpc::colmap::{Camera, CameraId, Image, ImageId};
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::colmap::{Camera, CameraId, Image, ImageId};
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::import::photo::Photo;
+use relight_cpc::import::scene::View;
+use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::observe::{extract_with_stats, ObserveOptions};
-use relight_cpc::photo::Photo;
-use relight_cpc::scene::View;
-use relight_cpc::trace::SceneBvh;
 use relight_cpc::Vec3;
 
 const N: usize = 20; // grid cells per cube face: vertex spacing 0.1

@@ -2,7 +2,7 @@
 //! formula written out here, the overexposure rule, and unreadable or missing files.
 
 use image::{ImageBuffer, Luma, Rgb};
-use relight_cpc::photo::{Photo, DEFAULT_CLIP};
+use relight_cpc::import::photo::{Photo, DEFAULT_CLIP};
 use relight_cpc::Error;
 
 /// `name` in a scratch folder of its own, removed when the returned value is dropped.

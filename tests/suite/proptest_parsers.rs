@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 
 use crate::colmap_model::model;
 use proptest::prelude::*;
-use relight_cpc::colmap::{binary, text};
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::colmap::{binary, text};
+use relight_cpc::import::mesh::Mesh;
 use relight_cpc::Error;
 
 /// The three files of `model()` in one format, as bytes.

@@ -6,7 +6,9 @@
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::qp::{bound_qp, bound_qp_dense, kkt_violation, nnls, NnlsOptions, QpOptions};
+use relight_cpc::solve::qp::{
+    bound_qp, bound_qp_dense, kkt_violation, nnls, NnlsOptions, QpOptions,
+};
 
 fn gaussian(rng: &mut Pcg64) -> f64 {
     // Box–Muller; enough for test matrices.

@@ -4,13 +4,13 @@
 //! standard error (5σ: a false failure once in ~1.7 million checks) plus a stated bound on
 //! the discretisation.
 
-use relight_cpc::mesh::area_weighted_normals;
-use relight_cpc::reference::{
+use relight_cpc::import::mesh::area_weighted_normals;
+use relight_cpc::sphere::env_frame;
+use relight_cpc::synth::geometry::{icosphere, plane};
+use relight_cpc::transport::reference::{
     texel_solid_angle, BruteForce, Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene,
     Unoccluded,
 };
-use relight_cpc::sphere::env_frame;
-use relight_cpc::synth::geometry::{icosphere, plane};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 
@@ -300,7 +300,7 @@ fn glossy_lobe_under_a_sun_matches_quadrature_without_fireflies() {
                 reference += rgb[v * w + u][0] as f64 * s / (m * m) as f64 * om;
             }
         }
-        let est = relight_cpc::reference::shade_point(
+        let est = relight_cpc::transport::reference::shade_point(
             &Vec3::zeros(),
             &n,
             &n,

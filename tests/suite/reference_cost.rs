@@ -5,12 +5,12 @@
 //! the difference of the two renders (σ_pixel = std(a − b)/√2) and reported relative to the
 //! mean object radiance. Figures go to `target/reference_cost.json`.
 
-use relight_cpc::envmap::LatLong;
-use relight_cpc::mesh::Mesh;
-use relight_cpc::reference::{Environment, Lobe, Reflectance, Samples, Scene};
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::sphere::env_frame;
+use relight_cpc::sphere::envmap::LatLong;
 use relight_cpc::synth::look_at;
-use relight_cpc::trace::SceneBvh;
+use relight_cpc::transport::reference::{Environment, Lobe, Reflectance, Samples, Scene};
 use relight_cpc::Vec3;
 use std::path::Path;
 

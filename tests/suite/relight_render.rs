@@ -7,14 +7,16 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::envmap::LatLong;
-use relight_cpc::mesh::Mesh;
-use relight_cpc::reference::{Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene};
-use relight_cpc::relight::{self, CameraSelection, RenderOptions};
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::observe::trace::SceneBvh;
+use relight_cpc::render::relight::{self, CameraSelection, RenderOptions};
 use relight_cpc::report::compare;
 use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions};
+use relight_cpc::sphere::envmap::LatLong;
 use relight_cpc::synth::{self, SynthOptions};
-use relight_cpc::trace::SceneBvh;
+use relight_cpc::transport::reference::{
+    Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene,
+};
 use relight_cpc::{Error, Vec3};
 
 use crate::scratch::Scratch;

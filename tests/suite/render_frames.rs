@@ -7,11 +7,11 @@
 use crate::random::random_vertices;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::envmap::OctEnv;
-use relight_cpc::rotation::{Rotation, RotationForm};
-use relight_cpc::transport::{RadianceScratch, WaveletRenderer};
-use relight_cpc::visibility::Visibility;
+use relight_cpc::render::wavelet::{RadianceScratch, WaveletRenderer};
+use relight_cpc::sphere::envmap::OctEnv;
+use relight_cpc::sphere::rotation::{Rotation, RotationForm};
+use relight_cpc::transport::brdf::BasisBrdf;
+use relight_cpc::transport::visibility::Visibility;
 use relight_cpc::Vec3;
 
 const NG: usize = 32;
@@ -82,8 +82,8 @@ fn several_lights_equal_separate_renders_bit_for_bit() {
     // the order of a renderer of that light alone, so the results must be bitwise equal.
     // Checked for the renderer's SplatRotation and the blended rotation with and without
     // frames, with a zero basis weight (skipped) and a degenerate normal (zero radiance).
-    use relight_cpc::rotation::SplatRotation;
-    use relight_cpc::transport::LocalRotation;
+    use relight_cpc::sphere::rotation::LocalRotation;
+    use relight_cpc::sphere::rotation::SplatRotation;
     let mut rng = Pcg64::seed_from_u64(21);
     let (mut normals, dirs, vis) = random_vertices(&mut rng, NV, NL, 1, 0);
     normals[3] = Vec3::zeros();

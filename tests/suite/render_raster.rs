@@ -1,8 +1,8 @@
 //! Rasteriser and image writers against analytic geometry (issue 4).
 
 use nalgebra::Rotation3;
-use relight_cpc::colmap::{Camera, CameraId, Image, ImageId};
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::colmap::{Camera, CameraId, Image, ImageId};
+use relight_cpc::import::mesh::Mesh;
 use relight_cpc::render::{
     interpolate_scalar, rasterize, shade_vertices, srgb_encode, write_exr, write_png,
 };
@@ -202,9 +202,9 @@ fn png_and_exr_round_trip() {
 /// vertex's radiance is `a·L` (up to the quadrature, well within 1%).
 struct Furnace {
     mesh: Mesh,
-    vis: relight_cpc::visibility::Visibility,
-    rot: relight_cpc::rotation::Rotation,
-    env: relight_cpc::envmap::OctEnv,
+    vis: relight_cpc::transport::visibility::Visibility,
+    rot: relight_cpc::sphere::rotation::Rotation,
+    env: relight_cpc::sphere::envmap::OctEnv,
     beta: Vec<[f64; 3]>,
     frame: nalgebra::Matrix3<f64>,
 }
@@ -214,15 +214,22 @@ const FURNACE_LIGHT: [f32; 3] = [2.0, 1.0, 0.5];
 
 impl Furnace {
     fn new() -> Self {
-        use relight_cpc::rotation::{Rotation, RotationForm};
-        use relight_cpc::trace::SceneBvh;
+        use relight_cpc::observe::trace::SceneBvh;
+        use relight_cpc::sphere::rotation::{Rotation, RotationForm};
         let mesh = octahedron(Vec3::new(0.0, 0.0, 5.0), 1.0);
         let frame = nalgebra::Matrix3::identity();
-        let vis = relight_cpc::visibility::compute(&mesh, &SceneBvh::new(&mesh), &frame, 8, 1, 0);
+        let vis = relight_cpc::transport::visibility::compute(
+            &mesh,
+            &SceneBvh::new(&mesh),
+            &frame,
+            8,
+            1,
+            0,
+        );
         Furnace {
             vis,
             rot: Rotation::new(16, 8, 8, RotationForm::Factored),
-            env: relight_cpc::envmap::OctEnv {
+            env: relight_cpc::sphere::envmap::OctEnv {
                 n: 16,
                 rgb: vec![FURNACE_LIGHT; 256],
             },
@@ -238,7 +245,7 @@ impl Furnace {
             normals_env: &self.mesh.normals,
             vis: &self.vis,
             env_from_world: &self.frame,
-            basis: &[relight_cpc::brdf::BasisBrdf::Lambert],
+            basis: &[relight_cpc::transport::brdf::BasisBrdf::Lambert],
             beta: &self.beta,
         }
     }

@@ -7,12 +7,12 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::photo::Photo;
+use relight_cpc::import::photo::Photo;
+use relight_cpc::import::scene::load_scene;
+use relight_cpc::import::workspace::Workspace;
 use relight_cpc::report::RunReport;
 use relight_cpc::run::{run, Holdout, MaterialCount, RunOptions};
-use relight_cpc::scene::load_scene;
-use relight_cpc::workspace::Workspace;
+use relight_cpc::transport::brdf::BasisBrdf;
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")

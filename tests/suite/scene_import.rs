@@ -10,11 +10,11 @@ use std::process::Command;
 use crate::scratch::scratch;
 use image::{ImageBuffer, Rgb};
 use nalgebra::{Matrix3, Rotation3};
-use relight_cpc::colmap::{Camera, CameraId, Image, ImageId, Reconstruction};
-use relight_cpc::mesh::Mesh;
-use relight_cpc::photo::DEFAULT_CLIP;
-use relight_cpc::scene::{load_photos, load_scene};
-use relight_cpc::workspace::Workspace;
+use relight_cpc::import::colmap::{Camera, CameraId, Image, ImageId, Reconstruction};
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::import::photo::DEFAULT_CLIP;
+use relight_cpc::import::scene::{load_photos, load_scene};
+use relight_cpc::import::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
 
 const W: u32 = 64;

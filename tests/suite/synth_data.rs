@@ -2,7 +2,7 @@
 //! default) the regeneration of `tests/fixtures/synth/` from `/work/shared/data`:
 //! `cargo test --release --test suite -- --ignored synth_data::regenerate_fixtures`.
 
-use relight_cpc::envmap::LatLong;
+use relight_cpc::sphere::envmap::LatLong;
 use relight_cpc::synth::data::write_half_exr;
 use std::path::Path;
 

@@ -3,11 +3,11 @@
 //! a rasterisation of the mesh written to `dense/`, the exposure clips ~1% of the object,
 //! the truth files are complete, and the same seed gives the same bytes.
 
-use relight_cpc::colmap::Reconstruction;
-use relight_cpc::envmap::LatLong;
-use relight_cpc::mesh::Mesh;
-use relight_cpc::reference::Samples;
+use relight_cpc::import::colmap::Reconstruction;
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::sphere::envmap::LatLong;
 use relight_cpc::synth::{build, scene_names, SynthOptions};
+use relight_cpc::transport::reference::Samples;
 use std::path::{Path, PathBuf};
 
 fn tmp(tag: &str) -> PathBuf {
@@ -190,7 +190,7 @@ fn truth_is_complete_and_exposure_clips_about_one_percent() {
     }
     assert_eq!(maps.len(), 5);
     // Weights: two materials, non-negative, summing to one at every vertex (1e-6: f32).
-    let data = relight_cpc::mesh::read_ply_data(&out.join("truth/weights.ply")).unwrap();
+    let data = relight_cpc::import::mesh::read_ply_data(&out.join("truth/weights.ply")).unwrap();
     let (mesh, _) = Mesh::read_ply(&out.join("dense/meshed-poisson.ply")).unwrap();
     assert_eq!(data.positions.len(), mesh.positions.len());
     let materials: serde_json::Value =

@@ -1,5 +1,5 @@
 //! The two renderers agree (issue 4): the wavelet renderer
-//! (`transport::WaveletRenderer::vertex_radiance`, Eq. 5–8: light rotated into the local
+//! (`render::wavelet::WaveletRenderer::vertex_radiance`, Eq. 5–8: light rotated into the local
 //! frame by `rotation::SplatRotation`, triple product with visibility and BRDF slice,
 //! untruncated; what `render_wavelet` draws for `run` and `render`) against the independent reference (`reference::quadrature_point`, Eq. 1 by
 //! stratified quadrature over the lat-long texels with shadow rays), at the vertices of a
@@ -7,8 +7,8 @@
 //! `cargo bench --bench agreement` (see `bench-results/agreement.md` for the full figures).
 
 use crate::agreement_support::*;
-use relight_cpc::rotation::SplatRotation;
-use relight_cpc::visibility;
+use relight_cpc::sphere::rotation::SplatRotation;
+use relight_cpc::transport::visibility;
 
 #[test]
 fn wavelet_renderer_agrees_with_the_quadrature_reference_for_diffuse_and_glossy() {

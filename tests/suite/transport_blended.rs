@@ -4,12 +4,13 @@
 use crate::random::random_unit;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::envmap::OctEnv;
-use relight_cpc::rotation::{Rotation, RotationForm};
+use relight_cpc::sphere::envmap::OctEnv;
+use relight_cpc::sphere::rotation::ExactRotation;
+use relight_cpc::sphere::rotation::{Rotation, RotationForm};
 use relight_cpc::sphere::SphereGrid;
-use relight_cpc::transport::{build_rows, light_haar, ExactRotation, TransportOptions};
-use relight_cpc::visibility::Visibility;
+use relight_cpc::transport::brdf::BasisBrdf;
+use relight_cpc::transport::visibility::Visibility;
+use relight_cpc::transport::{build_rows, light_haar, TransportOptions};
 use relight_cpc::Vec3;
 
 const NG: usize = 32;
@@ -130,7 +131,7 @@ fn blended_renderer_matches_blended_transport() {
     // The renderer resamples the light forward (S_n L); the transport applies the adjoint
     // (W_g S_nᵀ f). Both describe one number per (vertex, view, basis): f32 row storage
     // limits agreement to ~1e-6 relative; allow 1e-4. Both storage forms.
-    use relight_cpc::transport::WaveletRenderer;
+    use relight_cpc::render::wavelet::WaveletRenderer;
     let mut rng = Pcg64::seed_from_u64(31);
     let normals: Vec<Vec3> = (0..3).map(|_| random_unit(&mut rng)).collect();
     let dirs: Vec<Vec3> = normals

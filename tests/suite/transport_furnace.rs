@@ -7,13 +7,13 @@
 use crate::random::random_unit;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::envmap::OctEnv;
+use relight_cpc::render::wavelet::WaveletRenderer;
+use relight_cpc::sphere::envmap::OctEnv;
+use relight_cpc::sphere::rotation::{ExactRotation, LocalRotation};
 use relight_cpc::sphere::{from_local, local_frame, SphereGrid};
-use relight_cpc::transport::{
-    build_rows, light_haar, ExactRotation, LocalRotation, TransportOptions, WaveletRenderer,
-};
-use relight_cpc::visibility::Visibility;
+use relight_cpc::transport::brdf::BasisBrdf;
+use relight_cpc::transport::visibility::Visibility;
+use relight_cpc::transport::{build_rows, light_haar, TransportOptions};
 use relight_cpc::Vec3;
 
 const NG: usize = 32;

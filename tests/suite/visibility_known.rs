@@ -1,10 +1,10 @@
 //! Visibility on scenes with a known answer (issue 4).
 
 use nalgebra::{Matrix3, Rotation3};
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::sphere::{env_frame, SphereGrid};
-use relight_cpc::trace::SceneBvh;
-use relight_cpc::visibility::{compute, compute_with};
+use relight_cpc::transport::visibility::{compute, compute_with};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 
@@ -44,7 +44,7 @@ fn env_matrix(up: Vec3) -> Matrix3<f64> {
 }
 
 /// Visible solid angle `Σ_t V_t Δω_t` of vertex `v`.
-fn visible_solid_angle(vis: &relight_cpc::visibility::Visibility, v: usize) -> f64 {
+fn visible_solid_angle(vis: &relight_cpc::transport::visibility::Visibility, v: usize) -> f64 {
     let sa = SphereGrid::hemi(vis.n_local).solid_angles();
     (0..sa.len()).map(|t| vis.value(v, t) * sa[t]).sum()
 }

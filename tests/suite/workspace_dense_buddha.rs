@@ -11,10 +11,10 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix3x4};
-use relight_cpc::colmap::Reconstruction;
-use relight_cpc::mesh::Mesh;
-use relight_cpc::points::nearest_points;
-use relight_cpc::workspace::Workspace;
+use relight_cpc::import::colmap::Reconstruction;
+use relight_cpc::import::mesh::Mesh;
+use relight_cpc::import::points::nearest_points;
+use relight_cpc::import::workspace::Workspace;
 use relight_cpc::Vec3;
 
 fn fixture() -> PathBuf {
@@ -244,7 +244,7 @@ fn mesh_is_nonempty_and_fused_points_lie_on_it() {
     let (ws, _) = model();
     let (mesh, _) = Mesh::read_ply(&ws.mesh_path).expect("mesh reads");
     assert!(mesh.positions.len() > 1000 && mesh.faces.len() > 2000);
-    let fused = relight_cpc::mesh::read_ply_data(ws.fused_path.as_ref().unwrap()).unwrap();
+    let fused = relight_cpc::import::mesh::read_ply_data(ws.fused_path.as_ref().unwrap()).unwrap();
     assert!(fused.positions.len() > 1000);
 
     // Mean edge length of the (decimated) mesh: a point on the surface is within about one
@@ -271,7 +271,7 @@ fn mesh_is_nonempty_and_fused_points_lie_on_it() {
 
 #[test]
 fn inspect_observes_the_mesh_from_every_photo() {
-    let report = relight_cpc::scene::inspect(&fixture(), None).expect("inspect runs");
+    let report = relight_cpc::observe::inspect::inspect(&fixture(), None).expect("inspect runs");
     assert_eq!(report.images_registered, 11);
     assert_eq!(report.views_used, 11, "skipped: {:?}", report.skipped);
     // The mesh was built from these photos' depth maps: every fused point it stands on was

@@ -4,10 +4,10 @@
 
 use std::path::Path;
 
-use relight_cpc::colmap::{
+use relight_cpc::import::colmap::{
     Camera, CameraId, Image, ImageId, ModelFormat, Point3D, Point3DId, Reconstruction,
 };
-use relight_cpc::workspace::Workspace;
+use relight_cpc::import::workspace::Workspace;
 use relight_cpc::{Error, Vec3};
 
 /// An empty scratch folder, removed when the returned value is dropped.

@@ -3,7 +3,7 @@
 
 #![allow(dead_code)]
 
-use relight_cpc::colmap::{
+use relight_cpc::import::colmap::{
     Camera, CameraId, CameraModel, Image, ImageId, Point2D, Point3D, Point3DId, Reconstruction,
     TrackElement,
 };

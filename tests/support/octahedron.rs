@@ -3,7 +3,7 @@
 
 #![allow(dead_code)]
 
-use relight_cpc::mesh::Mesh;
+use relight_cpc::import::mesh::Mesh;
 use relight_cpc::Vec3;
 
 /// The octahedron with vertices `centre ± radius·e_i` (order +x, −x, +y, −y, +z, −z),

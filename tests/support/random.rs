@@ -30,13 +30,17 @@ pub fn random_vertices(
     n_local: usize,
     rays_per_texel: usize,
     lo: u8,
-) -> (Vec<Vec3>, Vec<Vec3>, relight_cpc::visibility::Visibility) {
+) -> (
+    Vec<Vec3>,
+    Vec<Vec3>,
+    relight_cpc::transport::visibility::Visibility,
+) {
     let normals: Vec<Vec3> = (0..n).map(|_| random_unit(rng)).collect();
     let dirs: Vec<Vec3> = normals
         .iter()
         .map(|nv| (nv + random_unit(rng) * 0.7).normalize())
         .collect();
-    let vis = relight_cpc::visibility::Visibility {
+    let vis = relight_cpc::transport::visibility::Visibility {
         n_local,
         rays_per_texel,
         frac: (0..n * n_local * n_local)

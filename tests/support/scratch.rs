@@ -6,8 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::reference::Samples;
 use relight_cpc::synth::{self, SynthOptions};
+use relight_cpc::transport::reference::Samples;
 
 /// A scratch folder removed on drop.
 pub struct Scratch(pub PathBuf);

@@ -14,20 +14,20 @@
 
 use std::path::{Path, PathBuf};
 
-use relight_cpc::brdf::BasisBrdf;
-use relight_cpc::estimate::{
+use relight_cpc::import::scene;
+use relight_cpc::import::workspace::Workspace;
+use relight_cpc::observe::trace::SceneBvh;
+use relight_cpc::observe::{self, Observations, ObserveOptions};
+use relight_cpc::run::Truth;
+use relight_cpc::solve::estimate::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
 };
-use relight_cpc::observe::{self, Observations, ObserveOptions};
-use relight_cpc::reference::{Lobe, Samples};
-use relight_cpc::rotation::{Rotation, RotationForm};
-use relight_cpc::run::Truth;
-use relight_cpc::scene;
+use relight_cpc::sphere::rotation::{Rotation, RotationForm};
 use relight_cpc::synth::{self, SynthOptions};
-use relight_cpc::trace::SceneBvh;
+use relight_cpc::transport::brdf::BasisBrdf;
+use relight_cpc::transport::reference::{Lobe, Samples};
 use relight_cpc::transport::{self, Transport, TransportOptions};
-use relight_cpc::workspace::Workspace;
-use relight_cpc::{haar, visibility, Vec3};
+use relight_cpc::{sphere::haar, transport::visibility, Vec3};
 
 /// A scratch folder removed on drop.
 pub struct Scratch(pub PathBuf);
@@ -215,7 +215,7 @@ pub fn prepare_in(
 
     let wsp = Workspace::discover(&ws, None).unwrap();
     let sc = scene::load_scene(wsp).unwrap();
-    let photos = scene::load_photos(&sc, relight_cpc::photo::DEFAULT_CLIP).unwrap();
+    let photos = scene::load_photos(&sc, relight_cpc::import::photo::DEFAULT_CLIP).unwrap();
     let nv = sc.mesh.positions.len();
     let weights = read_weights(&ws.join("truth/weights.ply"), k);
     assert_eq!(
@@ -339,7 +339,7 @@ pub fn predict_with(
         conditioning: Default::default(),
         validation: None,
     };
-    relight_cpc::estimate::predict(&problem, &est)
+    relight_cpc::solve::estimate::predict(&problem, &est)
 }
 
 /// The TRUE model's prediction for `split`'s observations: the case's true reflectance
@@ -518,7 +518,7 @@ pub struct JointFigures {
 /// Initial materials as `run` makes them (per-vertex mean colours, k-means, Sec. 5.2).
 pub fn initial(case: &Case, obs: &Observations, k: usize, seed: u64) -> Materials0 {
     let (mean, seen) = relight_cpc::run::mean_colours(obs, case.nv);
-    let init = relight_cpc::cluster::initial_materials(&mean, &seen, k, seed).unwrap();
+    let init = relight_cpc::solve::cluster::initial_materials(&mean, &seen, k, seed).unwrap();
     Materials0::from_initial(&init, case.basis.len(), 0)
 }
 
@@ -587,7 +587,7 @@ pub fn joint_figures(
         let r_est = median(pure(0)) / median(pure(1));
         (r_est / r_true - 1.0).abs()
     });
-    let pred = relight_cpc::estimate::predict(&case.train.problem(case.nv), est);
+    let pred = relight_cpc::solve::estimate::predict(&case.train.problem(case.nv), est);
     let (train_rel, _) = rel_rmse(clean, &pred, false);
     let hp = case.predict_held(&est.lambda, &est.weights);
     let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
@@ -613,7 +613,7 @@ pub fn joint_figures(
 }
 
 /// Per Haar level `m = 1, 2, 4, …, n/2` (nodes per side; the detail coefficients with
-/// `m ≤ max(row, col) < 2m`, [`relight_cpc::haar`]): the correlation
+/// `m ≤ max(row, col) < 2m`, [`relight_cpc::sphere::haar`]): the correlation
 /// `Σ ĥ h / sqrt(Σ ĥ² Σ h²)` of the estimated and true maps' coefficients over all photos
 /// and channels. Invariant to one global scale; 1 = that band's detail recovered up to
 /// scale, 0 = none. A BRDF of bandwidth `m` can only constrain the levels below `m`.

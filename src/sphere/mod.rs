@@ -35,6 +35,11 @@
 //!   exact (Van Oosterom & Strackee's triangle formula), and sum to `4π` (full) or `2π`
 //!   (hemisphere) to rounding.
 
+pub mod envmap;
+pub mod haar;
+pub mod rotation;
+pub mod triple;
+
 use crate::Vec3;
 
 /// Orthonormal frame `[x, y, z]` with `z = n` (unit), right-handed (`x × y = z`).

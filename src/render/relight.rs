@@ -6,7 +6,7 @@
 //!
 //! `B_c(x, ω_o) = Σ_b β_{b,c}(x) ∫_Ω ρ_b(ω, ω_o) V_x(ω) L_c(R_x ω) dω`,
 //!
-//! evaluated untruncated by [`WaveletRenderer::vertex_radiance`](crate::transport::WaveletRenderer::vertex_radiance) (the light rotated into the
+//! evaluated untruncated by [`WaveletRenderer::vertex_radiance`](crate::render::wavelet::WaveletRenderer::vertex_radiance) (the light rotated into the
 //! vertex's own local frame by [`SplatRotation`], `R_n = W_l S_n W_gᵀ` for the exact normal
 //! instead of the Eq. 6 blend of precomputed frames, then the local triple product of
 //! Eq. 7–8 as a texel sum at the run's render local resolution), and interpolated across
@@ -22,14 +22,15 @@
 //! `relight.json`, stored rather than re-traced: one byte per texel). Results written
 //! before that key existed hold their rows at `local_resolution`.
 
-use crate::brdf::BasisBrdf;
-use crate::colmap::{text, Camera, CameraId, Image, ImageId};
-use crate::envmap::{LatLong, OctEnv};
-use crate::mesh::Mesh;
+use crate::import::colmap::{text, Camera, CameraId, Image, ImageId};
+use crate::import::mesh::Mesh;
+use crate::import::scene::View;
 use crate::render::{self, Raster};
-use crate::rotation::SplatRotation;
-use crate::transport::LocalRotation;
-use crate::visibility::Visibility;
+use crate::sphere::envmap::{LatLong, OctEnv};
+use crate::sphere::rotation::LocalRotation;
+use crate::sphere::rotation::SplatRotation;
+use crate::transport::brdf::BasisBrdf;
+use crate::transport::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
 use std::collections::BTreeMap;
@@ -145,13 +146,39 @@ fn put_f64s(w: &mut impl Write, v: impl Iterator<Item = f64>) -> std::io::Result
     Ok(())
 }
 
+/// What `run` hands [`write_render_state`]: the fitted model's parts a render needs.
+pub struct RenderState<'a> {
+    /// The registered views the run used (cameras and poses are written, 2D points not).
+    pub views: &'a [View],
+    /// The cleaned mesh.
+    pub mesh: &'a Mesh,
+    /// The basis BRDFs.
+    pub basis: &'a [BasisBrdf],
+    /// `β`: `B` RGB weights per vertex, vertex-major.
+    pub beta: &'a [[f64; 3]],
+    /// Unit vertex normals in the environment frame.
+    pub normals_env: &'a [Vec3],
+    /// Rows `e_x, e_y, e_z` in world coordinates.
+    pub env_from_world: Matrix3<f64>,
+    /// Visibility at the render local resolution.
+    pub render_vis: &'a Visibility,
+    /// Global (light) octahedral side.
+    pub global_resolution: usize,
+    /// The estimator's local (hemisphere) side.
+    pub local_resolution: usize,
+    /// Normal grid side of the rotation.
+    pub normal_grid: usize,
+    /// The run's seed.
+    pub seed: u64,
+}
+
 /// Write `model/`, `relight.json` and `relight.bin` for the fitted run (see module docs).
-pub(crate) fn write_render_state(f: &crate::run::Fitted, dir: &Path) -> Result<()> {
+pub fn write_render_state(f: &RenderState, dir: &Path) -> Result<()> {
     let model = dir.join("model");
     std::fs::create_dir_all(&model).map_err(|e| Error::io(&model, e))?;
     let mut cameras = BTreeMap::new();
     let mut images = BTreeMap::new();
-    for v in &f.scene.views {
+    for v in f.views {
         cameras.insert(v.camera.id, v.camera.clone());
         let mut im = v.image.clone();
         im.points2d.clear();
@@ -168,21 +195,21 @@ pub(crate) fn write_render_state(f: &crate::run::Fitted, dir: &Path) -> Result<(
     let meta = serde_json::json!({
         "format": "relight.bin: magic RCPCREL1, u64 nv nf nb texels, f64 positions[nv][3], f64 normals_env[nv][3], u32 faces[nf][3], f64 beta[nv][nb][3], u8 vis[nv][texels], u8 open[nv] (little-endian)",
         "basis": f.basis.iter().map(|b| b.label()).collect::<Vec<_>>(),
-        "global_resolution": f.opts.global_resolution,
-        "local_resolution": f.opts.local_resolution,
+        "global_resolution": f.global_resolution,
+        "local_resolution": f.local_resolution,
         "render_local_resolution": f.render_vis.n_local,
-        "normal_grid": f.opts.normal_grid,
+        "normal_grid": f.normal_grid,
         "rays_per_texel": f.render_vis.rays_per_texel,
-        "seed": f.opts.seed,
+        "seed": f.seed,
         "env_from_world": [[m[(0,0)], m[(0,1)], m[(0,2)]], [m[(1,0)], m[(1,1)], m[(1,2)]], [m[(2,0)], m[(2,1)], m[(2,2)]]],
     });
     let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::Config(e.to_string()))?;
     let jp = dir.join("relight.json");
     std::fs::write(&jp, text).map_err(|e| Error::io(&jp, e))?;
 
-    let mesh = &f.scene.mesh;
+    let mesh = f.mesh;
     let nv = mesh.positions.len();
-    let vis = &f.render_vis;
+    let vis = f.render_vis;
     let t = vis.texels();
     write_with(&dir.join("relight.bin"), |w| {
         w.write_all(MAGIC)?;

@@ -23,9 +23,9 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use crate::mesh::Mesh;
+use crate::import::mesh::Mesh;
+use crate::observe::trace::SceneBvh;
 use crate::sphere::{from_local, local_frame, SphereGrid};
-use crate::trace::SceneBvh;
 use crate::Vec3;
 
 /// Per-vertex texel visibility in the local hemi-octahedral map.

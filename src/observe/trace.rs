@@ -21,7 +21,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::{Boundable, BvhBuildParams};
 
-use crate::mesh::Mesh;
+use crate::import::mesh::Mesh;
 use crate::Vec3;
 
 /// A ray–mesh intersection.

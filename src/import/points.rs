@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use crate::mesh::{read_ply_data, Mesh};
+use crate::import::mesh::{read_ply_data, Mesh};
 use crate::{Error, Result, Vec3};
 
 /// Summary of a set of distances.

@@ -18,10 +18,10 @@
 //! Building it ([`build`]): per observation, in the vertex's local hemi-octahedral map
 //! (`n_local²` texels, frame [`crate::sphere::local_frame`] of the env-frame normal), the
 //! texel product `f_t = V_t · ρ_b(ω_o)_t · Δω_t` (visibility fraction, texel-averaged slice
-//! [`crate::brdf::BasisBrdf::slice`], exact texel solid angle) so that, with `L_t` the local
+//! [`crate::transport::brdf::BasisBrdf::slice`], exact texel solid angle) so that, with `L_t` the local
 //! texel averages of the light, `s = Σ_t f_t L_t` is the midpoint-rule value of Eq. 1 (the
 //! quadrature weights `Δω` live here and nowhere else). With the orthonormal Haar matrices
-//! `W` ([`crate::haar`]) and `L_local = W_lᵀ R_n L̃` this is `s = (R_nᵀ W_l f)ᵀ L̃`, i.e.
+//! `W` ([`crate::sphere::haar`]) and `L_local = W_lᵀ R_n L̃` this is `s = (R_nᵀ W_l f)ᵀ L̃`, i.e.
 //! `g_{p,b} = R_nᵀ W_l f` — the triple product of Eq. 5/7 evaluated in the texel domain,
 //! where for piecewise-constant functions on one grid it is exact and costs `O(n_local²)`.
 //! `g` is then truncated to its `keep` largest-magnitude coefficients, which minimises the
@@ -44,16 +44,20 @@
 //! 180° about `n` across `n_z = 0` (environment frame), which breaks glossy rows of
 //! vertices with near-horizontal normals (tests/suite/transport_blended.rs, ignored test).
 
+pub mod brdf;
+pub mod reference;
+pub mod visibility;
+
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::brdf::{BasisBrdf, SliceGrid, SliceTable};
-use crate::envmap::OctEnv;
-use crate::haar;
 use crate::observe::Observations;
-use crate::rotation::{Rotation, RotationForm};
-use crate::sphere::{from_local, local_frame, to_local, SphereGrid};
-use crate::visibility::Visibility;
+use crate::sphere::envmap::OctEnv;
+use crate::sphere::haar;
+use crate::sphere::rotation::LocalRotation;
+use crate::sphere::{local_frame, to_local};
+use crate::transport::brdf::{BasisBrdf, SliceGrid, SliceTable};
+use crate::transport::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 
 /// A Haar coefficient index of the global map (`< n_global² ≤ 256² = 65,536`).
@@ -66,7 +70,7 @@ pub const MAX_GLOBAL_SIDE: usize = 256;
 #[derive(Debug, Clone, Default)]
 pub struct Transport {
     /// The global octahedral map is `n_global × n_global` texels; Haar index space
-    /// `0..n_global²` (the layout of [`crate::haar`]).
+    /// `0..n_global²` (the layout of [`crate::sphere::haar`]).
     pub n_global: usize,
     /// Number of basis BRDFs `B`.
     pub n_basis: usize,
@@ -128,226 +132,6 @@ impl Default for TransportOptions {
     }
 }
 
-/// The lighting rotation as the transport sees it: `R_n` maps the global Haar coefficients
-/// of a light (`n_global²`) to the local Haar coefficients (`n_local²`) in the frame of
-/// unit normal `n` (environment frame). Implemented for [`crate::rotation::Rotation`]
-/// (blended, Eq. 6) and for [`ExactRotation`] (a per-normal supersampled reference).
-pub trait LocalRotation: Sync {
-    /// Global map side.
-    fn n_global(&self) -> usize;
-    /// Local map side.
-    fn n_local(&self) -> usize;
-    /// `local = R_n global` (overwrites `local`).
-    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]);
-    /// `global += R_nᵀ local`.
-    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]);
-    /// `global = R_nᵀ W_l local_texels` (overwrites `global`): the transpose applied to a
-    /// texel-domain vector. The default goes through the local Haar transform; a factored
-    /// rotation can skip it.
-    fn texel_transpose(&self, normal_env: &Vec3, local_texels: &mut [f64], global: &mut [f64]) {
-        haar::forward(local_texels, self.n_local());
-        global.fill(0.0);
-        self.apply_transpose_add(normal_env, local_texels, global);
-    }
-    /// `local_texels = W_lᵀ R_n W_g global_texels`: the light's local texel averages, given
-    /// the global light both as texels and as Haar coefficients (`global_haar = W_g
-    /// global_texels`). The default goes through Haar; a factored rotation resamples
-    /// texels directly.
-    fn light_texels(
-        &self,
-        normal_env: &Vec3,
-        global_texels: &[f64],
-        global_haar: &[f64],
-        local_texels: &mut [f64],
-    ) {
-        let _ = global_texels;
-        self.apply(normal_env, global_haar, local_texels);
-        haar::inverse(local_texels, self.n_local());
-    }
-    /// [`LocalRotation::light_texels`] for the three colour channels at once (a rotation
-    /// that looks its footprint up per call does it once for all three).
-    fn light_texels_rgb(
-        &self,
-        normal_env: &Vec3,
-        global_texels: [&[f64]; 3],
-        global_haar: [&[f64]; 3],
-        local_texels: &mut [Vec<f64>; 3],
-    ) {
-        for (c, l) in local_texels.iter_mut().enumerate() {
-            self.light_texels(normal_env, global_texels[c], global_haar[c], l);
-        }
-    }
-    /// [`LocalRotation::light_texels_rgb`] for several lights at once: light `i`'s channels
-    /// `global_texels[i]` / `global_haar[i]` into `local_texels[i]`. A rotation that walks a
-    /// per-normal footprint does it once for all lights; each light's values equal those
-    /// of a call for that light alone, bit for bit.
-    fn light_texels_rgb_many(
-        &self,
-        normal_env: &Vec3,
-        global_texels: &[[&[f64]; 3]],
-        global_haar: &[[&[f64]; 3]],
-        local_texels: &mut [[Vec<f64>; 3]],
-    ) {
-        for ((t, h), l) in global_texels.iter().zip(global_haar).zip(local_texels) {
-            self.light_texels_rgb(normal_env, *t, *h, l);
-        }
-    }
-    /// Number of precomputed frames `ν` that [`LocalRotation::light_texels`] blends (Eq. 6),
-    /// or 0 when the rotation has no finite set of frames (then the two methods below are
-    /// never called).
-    fn n_frames(&self) -> usize {
-        0
-    }
-    /// `W_lᵀ R_ν W_g L` for every precomputed frame `ν` (frame-major, `n_local²` texels
-    /// each): the light rotated once per frame, to be blended per vertex.
-    fn light_texels_frames(&self, global_texels: &[f64], global_haar: &[f64]) -> Vec<f64> {
-        let _ = (global_texels, global_haar);
-        Vec::new()
-    }
-    /// The Eq. 6 blend weights `φ_ν(n)` of the frames for `normal_env`, in the order
-    /// [`LocalRotation::light_texels`] accumulates them.
-    fn frame_blend(&self, normal_env: &Vec3) -> [(usize, f64); 4] {
-        let _ = normal_env;
-        [(0, 0.0); 4]
-    }
-}
-
-/// The blended precomputed rotation of Eq. 6.
-impl LocalRotation for Rotation {
-    fn n_global(&self) -> usize {
-        self.n_global
-    }
-    fn n_local(&self) -> usize {
-        self.n_local
-    }
-    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]) {
-        self.apply_blend(normal_env, global, local);
-    }
-    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]) {
-        self.apply_blend_transpose_add(normal_env, local, global);
-    }
-    fn texel_transpose(&self, normal_env: &Vec3, local_texels: &mut [f64], global: &mut [f64]) {
-        match self.form() {
-            // W_lᵀ W_l = I: R_nᵀ W_l f = W_g S_nᵀ f.
-            RotationForm::Factored => {
-                global.fill(0.0);
-                self.resample_texels_blend_transpose_add(normal_env, local_texels, global);
-                haar::forward(global, self.n_global);
-            }
-            RotationForm::Sparse { .. } => {
-                haar::forward(local_texels, self.n_local);
-                global.fill(0.0);
-                self.apply_blend_transpose_add(normal_env, local_texels, global);
-            }
-        }
-    }
-    fn light_texels(
-        &self,
-        normal_env: &Vec3,
-        global_texels: &[f64],
-        global_haar: &[f64],
-        local_texels: &mut [f64],
-    ) {
-        match self.form() {
-            RotationForm::Factored => {
-                self.resample_texels_blend(normal_env, global_texels, local_texels)
-            }
-            RotationForm::Sparse { .. } => {
-                self.apply_blend(normal_env, global_haar, local_texels);
-                haar::inverse(local_texels, self.n_local);
-            }
-        }
-    }
-    fn n_frames(&self) -> usize {
-        self.len()
-    }
-    fn light_texels_frames(&self, global_texels: &[f64], global_haar: &[f64]) -> Vec<f64> {
-        match self.form() {
-            RotationForm::Factored => self.resample_texels_all(global_texels),
-            RotationForm::Sparse { .. } => {
-                let mut all = self.rotate_all(global_haar);
-                let nl = self.n_local;
-                all.par_chunks_mut(nl * nl)
-                    .for_each(|c| haar::inverse(c, nl));
-                all
-            }
-        }
-    }
-    fn frame_blend(&self, normal_env: &Vec3) -> [(usize, f64); 4] {
-        self.blend(normal_env)
-    }
-}
-
-/// A reference rotation without normal blending: `R_n = W_l S_n W_gᵀ`, where `S_n` averages
-/// the global texels under `s × s` sub-texels of each local texel (nearest global texel per
-/// sub-texel, weights = exact sub-texel solid angles). Slow (`n_local² s²` lookups per
-/// call): for tests and for checking the blended rotation.
-#[derive(Debug, Clone)]
-pub struct ExactRotation {
-    global: SphereGrid,
-    local: SphereGrid,
-    /// Sub-texels per local texel: local direction and weight `w / Δω_t`.
-    subs: Vec<Vec<(Vec3, f64)>>,
-}
-
-impl ExactRotation {
-    /// Sub-sampling `s × s` per local texel.
-    pub fn new(n_global: usize, n_local: usize, s: usize) -> Self {
-        let local = SphereGrid::hemi(n_local);
-        let subs = (0..local.len())
-            .map(|t| {
-                let pts: Vec<(Vec3, f64)> = local.sample_points(t, s).collect();
-                let total: f64 = pts.iter().map(|p| p.1).sum();
-                pts.into_iter().map(|(d, w)| (d, w / total)).collect()
-            })
-            .collect();
-        ExactRotation {
-            global: SphereGrid::full(n_global),
-            local,
-            subs,
-        }
-    }
-}
-
-impl LocalRotation for ExactRotation {
-    fn n_global(&self) -> usize {
-        self.global.n
-    }
-    fn n_local(&self) -> usize {
-        self.local.n
-    }
-    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]) {
-        let mut texels = global.to_vec();
-        haar::inverse(&mut texels, self.global.n);
-        let frame = local_frame(normal_env);
-        for (t, o) in local.iter_mut().enumerate() {
-            *o = self.subs[t]
-                .iter()
-                .map(|(d, w)| w * texels[self.global.texel_of(&from_local(&frame, d))])
-                .sum();
-        }
-        haar::forward(local, self.local.n);
-    }
-    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]) {
-        let mut lt = local.to_vec();
-        haar::inverse(&mut lt, self.local.n);
-        let frame = local_frame(normal_env);
-        let mut acc = vec![0.0; self.global.len()];
-        for (t, &x) in lt.iter().enumerate() {
-            if x == 0.0 {
-                continue;
-            }
-            for (d, w) in &self.subs[t] {
-                acc[self.global.texel_of(&from_local(&frame, d))] += w * x;
-            }
-        }
-        haar::forward(&mut acc, self.global.n);
-        for (g, a) in global.iter_mut().zip(&acc) {
-            *g += a;
-        }
-    }
-}
-
 /// How a basis BRDF's slices are produced for the transport: tabulated over `ω_o` and
 /// interpolated when the lobe is broad compared with the table spacing, computed on demand
 /// otherwise (see benches/transport.rs for the measurement behind the threshold).
@@ -389,7 +173,7 @@ impl SliceSource {
 }
 
 /// Outgoing direction in the local frame, kept strictly above the horizon.
-fn local_wo(frame: &[Vec3; 3], wo_env: &Vec3) -> Option<Vec3> {
+pub(crate) fn local_wo(frame: &[Vec3; 3], wo_env: &Vec3) -> Option<Vec3> {
     let mut w = to_local(frame, wo_env);
     if !w.iter().all(|c| c.is_finite()) || w.norm() == 0.0 {
         return None;
@@ -400,7 +184,7 @@ fn local_wo(frame: &[Vec3; 3], wo_env: &Vec3) -> Option<Vec3> {
 
 /// The unit normal and local frame of a vertex, with `V ⊙ Δω` written into `v_dw`
 /// (reused buffer); `None` for a degenerate normal.
-fn vertex_frame_into(
+pub(crate) fn vertex_frame_into(
     normal_env: &Vec3,
     vis_row: &[u8],
     solid_angle: &[f64],
@@ -536,7 +320,7 @@ fn check_inputs<R: LocalRotation>(
 
 /// Build the transport for observations given by their vertex and their outgoing
 /// direction in the ENVIRONMENT frame (unit, vertex → camera). The kernel behind [`build`];
-/// generic over the rotation so tests can use [`ExactRotation`].
+/// generic over the rotation so tests can use [`ExactRotation`](crate::sphere::rotation::ExactRotation).
 pub fn build_rows<R: LocalRotation>(
     normals_env: &[Vec3],
     obs_vertex: &[u32],
@@ -731,259 +515,4 @@ pub fn light_haar(env: &OctEnv) -> [Vec<f64>; 3] {
         haar::forward(&mut ch, env.n);
         ch
     })
-}
-
-/// Precomputed state for evaluating the model's radiance at arbitrary vertices and views
-/// under one or more environment maps (the wavelet renderer, Eq. 5–8): per vertex, the
-/// light rotated into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed by
-/// [`WaveletRenderer::vertex_radiance`]. After [`WaveletRenderer::with_frames`], the light is
-/// rotated once into each of the rotation's precomputed frames `ν` and a vertex only blends
-/// the four frames of its normal, `Σ_i φ_i(n) W_lᵀ R_{ν_i} L̃` (Eq. 6: the same sum the
-/// per-vertex path forms, so equal to it up to rounding) — `n_local²` × 4 multiply-adds per
-/// vertex instead of a resampling of the whole footprint.
-///
-/// With several lights ([`WaveletRenderer::new_many`], [`WaveletRenderer::vertex_radiance_all`])
-/// the parts of Eq. 8 that do not depend on the light — the vertex frame, `V ⊙ Δω` and the
-/// `B` BRDF slices `ρ_b(·, ω_o)` — are computed once per vertex and view and shared; only the
-/// rotation and the final sums are per light. Each light's sums run in the same order as a
-/// renderer of that light alone, so the results are bitwise those of separate renders.
-pub struct WaveletRenderer<'a, R: LocalRotation> {
-    rot: &'a R,
-    basis: &'a [BasisBrdf],
-    lights: Vec<RendererLight>,
-    grid: std::sync::Arc<SliceGrid>,
-    /// Per basis, its slice when it does not depend on `ω_o` (Lambert: computed once here,
-    /// bitwise what every vertex would compute).
-    fixed: Vec<Option<Vec<f64>>>,
-}
-
-/// Reusable buffers of [`WaveletRenderer::vertex_radiance_all`], one per thread: the
-/// vertex's `V ⊙ Δω`, the bases it uses, their slices and every light's local texels, so
-/// that rendering a vertex allocates nothing.
-#[derive(Debug, Default)]
-pub struct RadianceScratch {
-    v_dw: Vec<f64>,
-    used: Vec<usize>,
-    slices: Vec<f64>,
-    locals: Vec<[Vec<f64>; 3]>,
-}
-
-/// One light of a [`WaveletRenderer`]: Haar coefficients and texels per channel, and after
-/// [`WaveletRenderer::with_frames`] the light's local texels in every precomputed frame
-/// (every light has them or none does).
-struct RendererLight {
-    haar: [Vec<f64>; 3],
-    texels: [Vec<f64>; 3],
-    /// Per channel, frame-major.
-    frames: Option<[Vec<f64>; 3]>,
-}
-
-impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
-    /// A renderer for `env` (its side must equal the rotation's global side).
-    pub fn new(rot: &'a R, basis: &'a [BasisBrdf], env: &OctEnv) -> Result<Self> {
-        Self::new_many(rot, basis, &[env])
-    }
-
-    /// A renderer for several lights at once (every side must equal the rotation's global
-    /// side; at least one light).
-    pub fn new_many(rot: &'a R, basis: &'a [BasisBrdf], envs: &[&OctEnv]) -> Result<Self> {
-        if envs.is_empty() {
-            return Err(Error::Config("wavelet renderer: no light to render".into()));
-        }
-        if let Some(env) = envs.iter().find(|e| e.n != rot.n_global()) {
-            return Err(Error::Config(format!(
-                "wavelet renderer: environment map is {}² but the rotation expects {}²",
-                env.n,
-                rot.n_global()
-            )));
-        }
-        let grid = SliceGrid::shared(rot.n_local())?;
-        let fixed = basis
-            .iter()
-            .map(|b| {
-                (!b.view_dependent()).then(|| {
-                    let mut s = vec![0.0; grid.centre.len()];
-                    b.slice_with(&grid, &Vec3::z(), &mut s);
-                    s
-                })
-            })
-            .collect();
-        Ok(WaveletRenderer {
-            rot,
-            basis,
-            fixed,
-            lights: envs
-                .iter()
-                .map(|env| RendererLight {
-                    haar: light_haar(env),
-                    texels: [0, 1, 2].map(|c| env.channel(c)),
-                    frames: None,
-                })
-                .collect(),
-            grid,
-        })
-    }
-
-    /// Number of lights this renderer evaluates.
-    pub fn n_lights(&self) -> usize {
-        self.lights.len()
-    }
-
-    /// Rotate every light into every precomputed frame of the rotation now (when it has
-    /// frames), so that [`WaveletRenderer::vertex_radiance`] blends instead of rotating.
-    /// Worth it when more vertices are rendered than there are frames; memory
-    /// `3 · n_frames · n_local² · 8` bytes per light.
-    pub fn with_frames(mut self) -> Self {
-        if self.rot.n_frames() > 0 {
-            let rot = self.rot;
-            for l in &mut self.lights {
-                l.frames =
-                    Some([0, 1, 2].map(|c| rot.light_texels_frames(&l.texels[c], &l.haar[c])));
-            }
-        }
-        self
-    }
-
-    /// Whether [`WaveletRenderer::with_frames`] took effect.
-    pub fn has_frames(&self) -> bool {
-        self.lights[0].frames.is_some()
-    }
-
-    /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) under the first light
-    /// at a vertex with unit normal `normal_env`, visibility row `vis_row` (`n_local²`
-    /// fractions) and outgoing direction `wo_env` (both in the environment frame), for
-    /// per-basis RGB weights `beta` (`B` entries). Untruncated: the reference the kept
-    /// transport rows approximate. Returns zero for a degenerate normal or direction.
-    pub fn vertex_radiance(
-        &self,
-        normal_env: &Vec3,
-        vis_row: &[u8],
-        wo_env: &Vec3,
-        beta: &[[f64; 3]],
-    ) -> [f64; 3] {
-        let mut out = [[0.0; 3]];
-        self.radiance_into(
-            &self.lights[..1],
-            &mut RadianceScratch::default(),
-            normal_env,
-            vis_row,
-            wo_env,
-            beta,
-            &mut out,
-        );
-        out[0]
-    }
-
-    /// [`WaveletRenderer::vertex_radiance`] under every light, into `out` (one RGB per
-    /// light, in the order given to [`WaveletRenderer::new_many`]): the slices are computed
-    /// once for all of them, in `scratch`'s buffers.
-    pub fn vertex_radiance_all(
-        &self,
-        scratch: &mut RadianceScratch,
-        normal_env: &Vec3,
-        vis_row: &[u8],
-        wo_env: &Vec3,
-        beta: &[[f64; 3]],
-        out: &mut [[f64; 3]],
-    ) {
-        assert_eq!(out.len(), self.lights.len(), "one output per light");
-        self.radiance_into(
-            &self.lights,
-            scratch,
-            normal_env,
-            vis_row,
-            wo_env,
-            beta,
-            out,
-        );
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn radiance_into(
-        &self,
-        lights: &[RendererLight],
-        scratch: &mut RadianceScratch,
-        normal_env: &Vec3,
-        vis_row: &[u8],
-        wo_env: &Vec3,
-        beta: &[[f64; 3]],
-        out: &mut [[f64; 3]],
-    ) {
-        out.iter_mut().for_each(|o| *o = [0.0; 3]);
-        let RadianceScratch {
-            v_dw,
-            used,
-            slices,
-            locals,
-        } = scratch;
-        let Some((normal, frame)) =
-            vertex_frame_into(normal_env, vis_row, &self.grid.solid_angle, v_dw)
-        else {
-            return;
-        };
-        let Some(wo) = local_wo(&frame, wo_env) else {
-            return;
-        };
-        let nl2 = self.rot.n_local() * self.rot.n_local();
-        // The slices of the bases with a non-zero weight, once for every light.
-        used.clear();
-        used.extend(
-            (0..self.basis.len().min(beta.len())).filter(|&b| beta[b].iter().any(|&x| x != 0.0)),
-        );
-        slices.resize(used.len() * nl2, 0.0);
-        for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
-            match &self.fixed[b] {
-                Some(f) => s.copy_from_slice(f),
-                None => self.basis[b].slice_with(&self.grid, &wo, s),
-            }
-        }
-        // Every light rotated into the vertex's local frame: blended from the frames (every
-        // light has them or none does), or one footprint pass for all of them.
-        locals.resize_with(lights.len(), || [0, 1, 2].map(|_| vec![0.0; nl2]));
-        let locals = &mut locals[..lights.len()];
-        if lights[0].frames.is_some() {
-            // Same accumulation order as the blended resampling (frame by frame, zero
-            // weights skipped).
-            let blend = self.rot.frame_blend(&normal);
-            for (light, local) in lights.iter().zip(locals.iter_mut()) {
-                let frames = light.frames.as_ref().expect("every light has frames");
-                for (l, f) in local.iter_mut().zip(frames) {
-                    l.fill(0.0);
-                    for &(nu, w) in &blend {
-                        if w == 0.0 {
-                            continue;
-                        }
-                        for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
-                            *o += w * x;
-                        }
-                    }
-                }
-            }
-        } else {
-            let texels: Vec<[&[f64]; 3]> = lights
-                .iter()
-                .map(|l| [0, 1, 2].map(|c| l.texels[c].as_slice()))
-                .collect();
-            let haar: Vec<[&[f64]; 3]> = lights
-                .iter()
-                .map(|l| [0, 1, 2].map(|c| l.haar[c].as_slice()))
-                .collect();
-            self.rot
-                .light_texels_rgb_many(&normal, &texels, &haar, locals);
-        }
-        for (local, o) in locals.iter().zip(out.iter_mut()) {
-            for (&b, slice) in used.iter().zip(slices.chunks(nl2)) {
-                let w = &beta[b];
-                for c in 0..3 {
-                    let s: f64 = slice
-                        .iter()
-                        .zip(v_dw.iter())
-                        .zip(&local[c])
-                        .map(|((s, vw), l)| s * vw * l)
-                        .sum();
-                    o[c] += w[c] * s;
-                }
-            }
-        }
-    }
 }

@@ -6,7 +6,7 @@
 //!
 //! 1. **in front and inside**: `X_cam = R x + t` has `z > 0` and its pixel `π(X_cam)` lies in
 //!    `[m, W − m] × [m, H − m]` (`m = margin_px`), and the camera model does not fold there
-//!    ([`Camera::project_checked`](crate::colmap::Camera::project_checked): unprojecting the pixel gives back the ray);
+//!    ([`Camera::project_checked`](crate::import::colmap::Camera::project_checked): unprojecting the pixel gives back the ray);
 //! 2. **facing**: `cos θ = n · ω_o > min_cos`, `ω_o = (C − x) / |C − x|`;
 //! 3. **unoccluded**: the ray from `C` toward `x` hits nothing before `|x − C| − δ_x`,
 //!    `δ_x` = the mean length of the edges at `x` (at least [`SceneBvh::ray_offset`]).
@@ -32,14 +32,17 @@
 //! Output is a struct of arrays sorted by photo then vertex, identical for any thread count:
 //! each photo's vertices are processed in parallel with rayon and collected in order.
 
+pub mod inspect;
+pub mod trace;
+
 use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::photo::Photo;
-use crate::scene::View;
-use crate::trace::SceneBvh;
-use crate::{mesh::Mesh, Vec3};
+use crate::import::photo::Photo;
+use crate::import::scene::View;
+use crate::observe::trace::SceneBvh;
+use crate::{import::mesh::Mesh, Vec3};
 
 /// All observations, struct of arrays, sorted by photo then vertex.
 #[derive(Debug, Clone, Default)]
@@ -368,7 +371,7 @@ mod tests {
         // small triangle around normalized (2.5, 0) at depth 1 distorts to 2.5·(1 − 0.625)
         // = 0.9375 → pixel x ≈ 194: inside the 200-px photo, but not where it is. The same
         // triangle around (0.5, 0.2) is observed (all three corners).
-        use crate::colmap::{Camera, CameraId, CameraModel, Image, ImageId};
+        use crate::import::colmap::{Camera, CameraId, CameraModel, Image, ImageId};
         let cam = Camera::new(
             CameraId(1),
             CameraModel::SimpleRadial,

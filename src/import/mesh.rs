@@ -402,7 +402,7 @@ fn clean(
 }
 
 /// Vertex and face data read from a PLY file, before cleaning. Shared with
-/// [`crate::points`] (fused point clouds are PLY vertex lists).
+/// [`crate::import::points`] (fused point clouds are PLY vertex lists).
 #[derive(Debug, Clone, Default)]
 pub struct PlyData {
     /// Vertex positions (validated finite).

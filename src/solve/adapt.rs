@@ -81,13 +81,13 @@
 
 use serde::Serialize;
 
-use crate::brdf::BasisBrdf;
-use crate::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::observe::Observations;
-use crate::rotation::{Rotation, RotationForm};
+use crate::solve::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::sphere::rotation::{Rotation, RotationForm};
 use crate::sphere::SphereGrid;
+use crate::transport::brdf::BasisBrdf;
+use crate::transport::visibility::Visibility;
 use crate::transport::{self, Transport, TransportOptions};
-use crate::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 
 /// Largest share below which a basis BRDF counts as unused (module docs, step 4).
@@ -513,7 +513,8 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     // `k` distinct clusters.
     let fit =
         |k: usize, kept: &[usize], strict: bool| -> Result<Option<(estimate::Estimate, f64)>> {
-            let init = crate::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
+            let init =
+                crate::solve::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
             if strict && init.albedo.len() < k {
                 return Ok(None);
             }

@@ -549,9 +549,9 @@ impl RayCaster for BruteForce<'_> {
 }
 
 /// The scene BVH (the one piece of ray tracing shared with the wavelet path).
-impl RayCaster for crate::trace::SceneBvh {
+impl RayCaster for crate::observe::trace::SceneBvh {
     fn intersect(&self, o: &Vec3, d: &Vec3, tmin: f64, tmax: f64) -> Option<RayHit> {
-        crate::trace::SceneBvh::intersect(self, o, d, tmin, tmax).map(|h| RayHit {
+        crate::observe::trace::SceneBvh::intersect(self, o, d, tmin, tmax).map(|h| RayHit {
             t: h.t,
             face: h.face as usize,
             u: h.u,
@@ -559,7 +559,7 @@ impl RayCaster for crate::trace::SceneBvh {
         })
     }
     fn occluded(&self, o: &Vec3, d: &Vec3, tmin: f64, tmax: f64) -> bool {
-        crate::trace::SceneBvh::occluded(self, o, d, tmin, tmax)
+        crate::observe::trace::SceneBvh::occluded(self, o, d, tmin, tmax)
     }
 }
 

@@ -8,7 +8,7 @@
 //! ([`geometry::pattern`], blobs ~3-6% of the object's size, on a ~24K-vertex mesh), so the
 //! photos carry texture that SIFT matches (for real SfM runs, `scripts/colmap_fixture_synth.sh`)
 //! while the per-vertex model still represents the reflectance exactly. Each photo is rendered by the
-//! independent reference renderer ([`crate::reference`], Eq. 1 by MIS Monte Carlo with
+//! independent reference renderer ([`crate::transport::reference`], Eq. 1 by MIS Monte Carlo with
 //! shadow rays), then exposed and encoded like a camera would:
 //!
 //! `pixel_c = sRGB8( clamp( e_I · wb_Ic · L_c + n, 0, 1 ) )`, `n ~ N(0, σ²)`,
@@ -29,13 +29,13 @@
 pub mod data;
 pub mod geometry;
 
-use crate::colmap::{
+use crate::import::colmap::{
     Camera, CameraId, Image, ImageId, Point2D, Point3D, Point3DId, Reconstruction, TrackElement,
 };
-use crate::envmap::LatLong;
-use crate::mesh::Mesh;
-use crate::reference::{Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene};
-use crate::trace::SceneBvh;
+use crate::import::mesh::Mesh;
+use crate::observe::trace::SceneBvh;
+use crate::sphere::envmap::LatLong;
+use crate::transport::reference::{Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene};
 use crate::{Error, Result, Vec3};
 use rand::Rng;
 use rand_pcg::Pcg32;
@@ -251,20 +251,20 @@ pub fn scene_names() -> Vec<&'static str> {
 /// Embedded map `name`.
 fn embedded_map(name: &str) -> Result<LatLong> {
     let bytes: &[u8] = match name {
-        "city" => include_bytes!("../tests/fixtures/synth/hdri/city.exr"),
-        "courtyard" => include_bytes!("../tests/fixtures/synth/hdri/courtyard.exr"),
-        "forest" => include_bytes!("../tests/fixtures/synth/hdri/forest.exr"),
-        "interior" => include_bytes!("../tests/fixtures/synth/hdri/interior.exr"),
-        "night" => include_bytes!("../tests/fixtures/synth/hdri/night.exr"),
-        "studio" => include_bytes!("../tests/fixtures/synth/hdri/studio.exr"),
-        "sunrise" => include_bytes!("../tests/fixtures/synth/hdri/sunrise.exr"),
-        "sunset" => include_bytes!("../tests/fixtures/synth/hdri/sunset.exr"),
+        "city" => include_bytes!("../../tests/fixtures/synth/hdri/city.exr"),
+        "courtyard" => include_bytes!("../../tests/fixtures/synth/hdri/courtyard.exr"),
+        "forest" => include_bytes!("../../tests/fixtures/synth/hdri/forest.exr"),
+        "interior" => include_bytes!("../../tests/fixtures/synth/hdri/interior.exr"),
+        "night" => include_bytes!("../../tests/fixtures/synth/hdri/night.exr"),
+        "studio" => include_bytes!("../../tests/fixtures/synth/hdri/studio.exr"),
+        "sunrise" => include_bytes!("../../tests/fixtures/synth/hdri/sunrise.exr"),
+        "sunset" => include_bytes!("../../tests/fixtures/synth/hdri/sunset.exr"),
         other => return Err(Error::Config(format!("no embedded map named `{other}`"))),
     };
     LatLong::read_exr_bytes(bytes, &format!("embedded map {name}")).map(|(map, _)| map)
 }
 
-const SPOT_PLY: &[u8] = include_bytes!("../tests/fixtures/synth/spot.ply");
+const SPOT_PLY: &[u8] = include_bytes!("../../tests/fixtures/synth/spot.ply");
 
 /// The Spot mesh, read by the project's PLY reader from a temporary copy.
 fn spot_mesh(out: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
@@ -320,7 +320,7 @@ fn make_geometry(shape: Shape, min_vertices: usize, exact: bool, out: &Path) -> 
                 p = q;
                 f = g;
             }
-            let (lo, hi) = crate::mesh::bounding_box(&p);
+            let (lo, hi) = crate::import::mesh::bounding_box(&p);
             let c = (lo + hi) * 0.5;
             let r = p.iter().map(|q| (q - c).norm()).fold(0.0, f64::max);
             Ok((p, f, c, r))
@@ -334,7 +334,7 @@ fn make_geometry(shape: Shape, min_vertices: usize, exact: bool, out: &Path) -> 
                 p = q;
                 f = g;
             }
-            let (lo, hi) = crate::mesh::bounding_box(&p);
+            let (lo, hi) = crate::import::mesh::bounding_box(&p);
             let c = (lo + hi) * 0.5;
             let r = p.iter().map(|q| (q - c).norm()).fold(0.0, f64::max);
             let side = 2.5 * (hi.x - lo.x).max(hi.z - lo.z);
@@ -370,7 +370,7 @@ fn make_weights(shape: Shape, positions: &[Vec3], k: usize) -> Vec<f64> {
         Shape::Spot => {
             // Split by a tilted plane through the box centre; linear blend over a band of
             // 8% of the diagonal.
-            let (lo, hi) = crate::mesh::bounding_box(positions);
+            let (lo, hi) = crate::import::mesh::bounding_box(positions);
             let c = (lo + hi) * 0.5;
             let band = 0.08 * (hi - lo).norm();
             let dir = Vec3::new(1.0, 0.6, 0.3).normalize();
@@ -390,7 +390,7 @@ fn make_weights(shape: Shape, positions: &[Vec3], k: usize) -> Vec<f64> {
                 .filter(|p| p.y > floor + 1e-9)
                 .copied()
                 .collect();
-            let (lo, hi) = crate::mesh::bounding_box(&above);
+            let (lo, hi) = crate::import::mesh::bounding_box(&above);
             let scale = 0.06 * (hi - lo).norm();
             for (i, p) in positions.iter().enumerate() {
                 let s = geometry::pattern(&(p / scale));
@@ -689,7 +689,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
                 if opts.noise > 0.0 {
                     x += opts.noise * gaussian(&mut noise_rng);
                 }
-                let e = crate::photo::linear_to_srgb(x as f32);
+                let e = crate::import::photo::linear_to_srgb(x as f32);
                 bytes.push((e * 255.0).round().clamp(0.0, 255.0) as u8);
             }
         }

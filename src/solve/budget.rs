@@ -5,11 +5,11 @@
 //!
 //! - observations `P` (one per vertex × photo that sees it, [`crate::observe::Observations`]):
 //!   vertex and photo ids, RGB, weight, direction — `36 P`;
-//! - visibility `V_x` (Sec. 4.2, one byte per local texel, [`crate::visibility::Visibility`]):
+//! - visibility `V_x` (Sec. 4.2, one byte per local texel, [`crate::transport::visibility::Visibility`]):
 //!   `V · n_local²`, and the renderer's finer copy `V · n_render²` when
 //!   `--render-local-resolution` differs (traced once at the finer side, averaged down for
 //!   the estimator);
-//! - precomputed rotations `R_ν` (Eq. 6, [`crate::rotation::Rotation`], factored form): one
+//! - precomputed rotations `R_ν` (Eq. 6, [`crate::sphere::rotation::Rotation`], factored form): one
 //!   sparse row per local texel and grid normal, `n_normals² · n_local² · (8 + 6 e)` where a
 //!   row touches `e ≈ (n_global / (√2 n_local) + 2)²` global texels (a local texel covers
 //!   `n_global² / (2 n_local²)` global ones, plus the bilinear border; 11.7 at the defaults,

@@ -21,9 +21,9 @@
 //! when no other setting is both at least as fast and at least as accurate, and strictly
 //! better in one of the two.
 
-use crate::estimate::StepTimes;
 use crate::report::plot::{line_panels, Series, PALETTE};
 use crate::run::{self, Holdout, MaterialCount, RunOptions};
+use crate::solve::estimate::StepTimes;
 use crate::stages::StageRecord;
 use crate::synth::{self, SynthOptions};
 use crate::{Error, Result};
@@ -392,12 +392,12 @@ fn stage_costs(run: &BenchRun) -> Vec<(String, f64)> {
 }
 
 /// Photo size, renderer effort and default knobs for the mode.
-fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
+fn mode_settings(quick: bool) -> (u32, u32, crate::transport::reference::Samples, Knobs) {
     if quick {
         (
             192,
             192,
-            crate::reference::Samples {
+            crate::transport::reference::Samples {
                 per_pixel: 1,
                 light: 16,
                 seed: 1,
@@ -417,7 +417,7 @@ fn mode_settings(quick: bool) -> (u32, u32, crate::reference::Samples, Knobs) {
         (
             1024,
             1024,
-            crate::reference::Samples {
+            crate::transport::reference::Samples {
                 per_pixel: 1,
                 light: 16,
                 seed: 1,
@@ -668,7 +668,7 @@ fn measure(
         .materials
         .map_or(MaterialCount::Auto, MaterialCount::Fixed);
     if let Some(b) = &model.basis {
-        o.basis = crate::brdf::parse_list(b)?;
+        o.basis = crate::transport::brdf::parse_list(b)?;
     }
     o.adaptive = model.adaptive;
     o.global_resolution = knobs.global_resolution;
@@ -867,7 +867,7 @@ pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
         ));
     }
     if let Some(b) = &opts.model.basis {
-        crate::brdf::parse_list(b)?;
+        crate::transport::brdf::parse_list(b)?;
     }
     let t0 = std::time::Instant::now();
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;

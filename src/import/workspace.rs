@@ -20,7 +20,7 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-use crate::colmap::{ImageId, ModelFormat, Reconstruction};
+use crate::import::colmap::{ImageId, ModelFormat, Reconstruction};
 use crate::{Error, Result};
 
 /// The parts of a COLMAP workspace the job needs.

@@ -15,18 +15,22 @@
 //! (`12.92 v` for `v ≤ 0.0031308`, else `1.055 v^{1/2.4} − 0.055`), clamped to `[0, 1]`;
 //! EXR stores linear `f32`. With a mask, both carry an alpha channel (1 object, 0 not).
 
+pub mod relight;
+pub mod wavelet;
+
 use std::path::Path;
 
 use rayon::prelude::*;
 
 use nalgebra::Matrix3;
 
-use crate::brdf::BasisBrdf;
-use crate::colmap::{Camera, Image};
-use crate::envmap::OctEnv;
-use crate::mesh::Mesh;
-use crate::transport::{LocalRotation, RadianceScratch, WaveletRenderer};
-use crate::visibility::Visibility;
+use crate::import::colmap::{Camera, Image};
+use crate::import::mesh::Mesh;
+use crate::render::wavelet::{RadianceScratch, WaveletRenderer};
+use crate::sphere::envmap::OctEnv;
+use crate::sphere::rotation::LocalRotation;
+use crate::transport::brdf::BasisBrdf;
+use crate::transport::visibility::Visibility;
 use crate::{Error, Result, Vec3};
 
 /// The visible surface per pixel of one camera.
@@ -228,10 +232,10 @@ pub fn interpolate_scalar(raster: &Raster, mesh: &Mesh, vertex_value: &[f32]) ->
         .collect()
 }
 
-/// The exact sRGB transfer curve ([`crate::photo::linear_to_srgb`]), with non-finite values
+/// The exact sRGB transfer curve ([`crate::import::photo::linear_to_srgb`]), with non-finite values
 /// encoded as 0.
 pub fn srgb_encode(v: f32) -> f32 {
-    crate::photo::linear_to_srgb(if v.is_finite() { v } else { 0.0 })
+    crate::import::photo::linear_to_srgb(if v.is_finite() { v } else { 0.0 })
 }
 
 fn check_size(path: &Path, width: u32, height: u32, n: usize, mask: Option<&[bool]>) -> Result<()> {

@@ -5,14 +5,14 @@
 //!      + Σ_{I,c} μ_{I,c} ‖Δ x_{I,c}‖² + β_λ ‖λ‖²`,
 //!
 //! with `β_{x,b,c} = Σ_k w_k(x) λ_{k,b,c}` (Eq. 11), `x_{I,c}` the texels of photo `I`'s
-//! global octahedral map in channel `c` (`W` = [`crate::haar::forward`], orthonormal, so
+//! global octahedral map in channel `c` (`W` = [`crate::sphere::haar::forward`], orthonormal, so
 //! `⟨g, W x⟩ = ⟨Wᵀ g, x⟩`), `Δ` the 4-neighbour graph Laplacian of the map across its folded
 //! seams ([`crate::sphere::SphereGrid::neighbors`]), `ω` the IRLS weights (1 without a
 //! robust loss). Every unknown is constrained `≥ 0`: texels, `λ`, `w`.
 //!
 //! 1. Lighting step (Sec. 5.1, Eq. 10), per photo, the three channels together:
 //!    `min_x ½ xᵀ(Wᵀ Aᵀ D A W + μ ΔᵀΔ) x − (Wᵀ Aᵀ D y)ᵀ x`, `x ≥ 0`, solved matrix-free by
-//!    [`crate::qp::bound_qp`]: one product is a forward Haar, a pass over the photo's sparse
+//!    [`crate::solve::qp::bound_qp`]: one product is a forward Haar, a pass over the photo's sparse
 //!    transport rows and back (`Aᵀ`), an inverse Haar and the Laplacian twice. `μ_{I,c}` =
 //!    `smoothness` × the largest diagonal entry of `Aᵀ D A` (in the Haar basis), fixed at
 //!    the photo's first lighting step. IRLS (Huber or Tukey on residuals scaled by
@@ -31,7 +31,7 @@
 //!    `w` step leaves out observations whose lighting residual exceeds `weights_reject · σ`
 //!    ([`EstimateOptions::weights_reject`]): a vertex's few observations cannot outvote a
 //!    gross outlier that Huber only down-weights. Both are small dense
-//!    NNLS problems solved exactly by the active-set [`crate::qp::nnls`], so each step
+//!    NNLS problems solved exactly by the active-set [`crate::solve::qp::nnls`], so each step
 //!    minimises `F` over its block and `F` never increases (without IRLS; with it, the
 //!    weights change between steps).
 //!
@@ -60,9 +60,9 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
-use crate::haar;
 use crate::observe::Observations;
-use crate::qp::{bound_qp_scaled, nnls, NnlsOptions, QpOptions};
+use crate::solve::qp::{bound_qp_scaled, nnls, NnlsOptions, QpOptions};
+use crate::sphere::haar;
 use crate::sphere::SphereGrid;
 use crate::transport::{HaarIndex, Transport};
 use crate::{Error, Result};
@@ -480,7 +480,7 @@ impl Materials0 {
     /// From clustered initial materials: the median colour as the Lambertian weight
     /// (basis `lambert_basis`), every other basis 0 (paper Sec. 5.2).
     pub fn from_initial(
-        init: &crate::cluster::InitialMaterials,
+        init: &crate::solve::cluster::InitialMaterials,
         n_basis: usize,
         lambert_basis: usize,
     ) -> Self {
@@ -933,7 +933,7 @@ fn texel_diag_vec(
 }
 
 /// Whether the lighting QP is scaled by its texel-basis diagonal
-/// ([`crate::qp::bound_qp_scaled`]): `diag(Wᵀ Aᵀ α A W) + μ diag(ΔᵀΔ)` per channel, the data
+/// ([`crate::solve::qp::bound_qp_scaled`]): `diag(Wᵀ Aᵀ α A W) + μ diag(ΔᵀΔ)` per channel, the data
 /// part without the IRLS weights. Same stopping rule, fewer products (bench-results/pipeline-minerva.md, bench-results/lighting-solver.md).
 const LIGHTING_JACOBI: bool = true;
 

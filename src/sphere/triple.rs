@@ -1,7 +1,7 @@
 //! Triple products in the 2D Haar basis (paper Eq. 5 and 7; Ng, Ramamoorthi & Hanrahan,
 //! "Triple product wavelet integrals for all-frequency relighting", SIGGRAPH 2004).
 //!
-//! For texel vectors `F, G, H` (`n × n`, [`crate::haar`] coefficients `f = W F` etc.),
+//! For texel vectors `F, G, H` (`n × n`, [`crate::sphere::haar`] coefficients `f = W F` etc.),
 //! `Σ_t F_t G_t H_t = Σ_klm C_klm f_k g_l h_m` with the tripling coefficients
 //! `C_klm = Σ_t ψ_k(t) ψ_l(t) ψ_m(t)`. (The quadrature weight `Δω` is not in `C`: it lives
 //! in exactly one factor, DESIGN §3.) For the orthonormal non-standard Haar basis, `C_klm`
@@ -19,7 +19,7 @@
 //! `T_m = Σ_kl C_klm f_k g_l` (Eq. 7: visibility folded into the transport) in `O(n²)` with
 //! one more bottom-up pass for case 3 where `m` is the coarse one.
 
-use crate::haar::{coefficient, Coefficient, WaveletType};
+use crate::sphere::haar::{coefficient, Coefficient, WaveletType};
 use std::cell::RefCell;
 
 const TYPES: [WaveletType; 3] = [WaveletType::H, WaveletType::V, WaveletType::D];
@@ -323,7 +323,7 @@ pub fn double_product_at(n: usize, k: usize, g: &[f64], h: &[f64]) -> f64 {
 }
 
 /// `Σ_klm C_klm f_k g_l h_m` with `f` given sparsely (`(indices, values)`, e.g. from
-/// [`crate::haar::keep_largest`]) and `g`, `h` dense: `Σ_k f_k D_k(g, h)`
+/// [`crate::sphere::haar::keep_largest`]) and `g`, `h` dense: `Σ_k f_k D_k(g, h)`
 /// ([`double_product_at`]). Cheap for few, fine-level kept coefficients; a kept coarse
 /// wavelet costs its subtree.
 pub fn triple_product_sparse(n: usize, f: (&[u32], &[f64]), g: &[f64], h: &[f64]) -> f64 {
@@ -423,8 +423,8 @@ pub fn double_product(n: usize, f: &[f64], g: &[f64], out: &mut [f64]) {
 #[allow(clippy::needless_range_loop)] // index loops mirror the sums being checked
 mod tests {
     use super::*;
-    use crate::haar::tests::random;
-    use crate::haar::{basis_value, forward, inverse, keep_largest};
+    use crate::sphere::haar::tests::random;
+    use crate::sphere::haar::{basis_value, forward, inverse, keep_largest};
 
     #[test]
     fn every_tripling_coefficient_of_an_8x8_basis_matches_texel_sums() {

@@ -1,0 +1,9 @@
+//! Import: a COLMAP workspace's model (cameras, images, points3D), the mesh, the photos
+//! and the fused points carried to the mesh, gathered into a [`scene::Scene`].
+
+pub mod colmap;
+pub mod mesh;
+pub mod photo;
+pub mod points;
+pub mod scene;
+pub mod workspace;

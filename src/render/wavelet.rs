@@ -1,0 +1,264 @@
+//! The wavelet renderer: the model's radiance at arbitrary vertices and views under one or
+//! more environment maps, paper Eq. 5–8 evaluated per vertex (the light rotated into the
+//! vertex's local frame, then the local triple product as a texel sum).
+
+use crate::sphere::envmap::OctEnv;
+use crate::sphere::rotation::LocalRotation;
+use crate::transport::brdf::{BasisBrdf, SliceGrid};
+use crate::transport::{light_haar, local_wo, vertex_frame_into};
+use crate::{Error, Result, Vec3};
+
+/// Precomputed state for evaluating the model's radiance at arbitrary vertices and views
+/// under one or more environment maps (the wavelet renderer, Eq. 5–8): per vertex, the
+/// light rotated into its local frame (`W_lᵀ R_n L̃`, texel domain) is computed by
+/// [`WaveletRenderer::vertex_radiance`]. After [`WaveletRenderer::with_frames`], the light is
+/// rotated once into each of the rotation's precomputed frames `ν` and a vertex only blends
+/// the four frames of its normal, `Σ_i φ_i(n) W_lᵀ R_{ν_i} L̃` (Eq. 6: the same sum the
+/// per-vertex path forms, so equal to it up to rounding) — `n_local²` × 4 multiply-adds per
+/// vertex instead of a resampling of the whole footprint.
+///
+/// With several lights ([`WaveletRenderer::new_many`], [`WaveletRenderer::vertex_radiance_all`])
+/// the parts of Eq. 8 that do not depend on the light — the vertex frame, `V ⊙ Δω` and the
+/// `B` BRDF slices `ρ_b(·, ω_o)` — are computed once per vertex and view and shared; only the
+/// rotation and the final sums are per light. Each light's sums run in the same order as a
+/// renderer of that light alone, so the results are bitwise those of separate renders.
+pub struct WaveletRenderer<'a, R: LocalRotation> {
+    rot: &'a R,
+    basis: &'a [BasisBrdf],
+    lights: Vec<RendererLight>,
+    grid: std::sync::Arc<SliceGrid>,
+    /// Per basis, its slice when it does not depend on `ω_o` (Lambert: computed once here,
+    /// bitwise what every vertex would compute).
+    fixed: Vec<Option<Vec<f64>>>,
+}
+
+/// Reusable buffers of [`WaveletRenderer::vertex_radiance_all`], one per thread: the
+/// vertex's `V ⊙ Δω`, the bases it uses, their slices and every light's local texels, so
+/// that rendering a vertex allocates nothing.
+#[derive(Debug, Default)]
+pub struct RadianceScratch {
+    v_dw: Vec<f64>,
+    used: Vec<usize>,
+    slices: Vec<f64>,
+    locals: Vec<[Vec<f64>; 3]>,
+}
+
+/// One light of a [`WaveletRenderer`]: Haar coefficients and texels per channel, and after
+/// [`WaveletRenderer::with_frames`] the light's local texels in every precomputed frame
+/// (every light has them or none does).
+struct RendererLight {
+    haar: [Vec<f64>; 3],
+    texels: [Vec<f64>; 3],
+    /// Per channel, frame-major.
+    frames: Option<[Vec<f64>; 3]>,
+}
+
+impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
+    /// A renderer for `env` (its side must equal the rotation's global side).
+    pub fn new(rot: &'a R, basis: &'a [BasisBrdf], env: &OctEnv) -> Result<Self> {
+        Self::new_many(rot, basis, &[env])
+    }
+
+    /// A renderer for several lights at once (every side must equal the rotation's global
+    /// side; at least one light).
+    pub fn new_many(rot: &'a R, basis: &'a [BasisBrdf], envs: &[&OctEnv]) -> Result<Self> {
+        if envs.is_empty() {
+            return Err(Error::Config("wavelet renderer: no light to render".into()));
+        }
+        if let Some(env) = envs.iter().find(|e| e.n != rot.n_global()) {
+            return Err(Error::Config(format!(
+                "wavelet renderer: environment map is {}² but the rotation expects {}²",
+                env.n,
+                rot.n_global()
+            )));
+        }
+        let grid = SliceGrid::shared(rot.n_local())?;
+        let fixed = basis
+            .iter()
+            .map(|b| {
+                (!b.view_dependent()).then(|| {
+                    let mut s = vec![0.0; grid.centre.len()];
+                    b.slice_with(&grid, &Vec3::z(), &mut s);
+                    s
+                })
+            })
+            .collect();
+        Ok(WaveletRenderer {
+            rot,
+            basis,
+            fixed,
+            lights: envs
+                .iter()
+                .map(|env| RendererLight {
+                    haar: light_haar(env),
+                    texels: [0, 1, 2].map(|c| env.channel(c)),
+                    frames: None,
+                })
+                .collect(),
+            grid,
+        })
+    }
+
+    /// Number of lights this renderer evaluates.
+    pub fn n_lights(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Rotate every light into every precomputed frame of the rotation now (when it has
+    /// frames), so that [`WaveletRenderer::vertex_radiance`] blends instead of rotating.
+    /// Worth it when more vertices are rendered than there are frames; memory
+    /// `3 · n_frames · n_local² · 8` bytes per light.
+    pub fn with_frames(mut self) -> Self {
+        if self.rot.n_frames() > 0 {
+            let rot = self.rot;
+            for l in &mut self.lights {
+                l.frames =
+                    Some([0, 1, 2].map(|c| rot.light_texels_frames(&l.texels[c], &l.haar[c])));
+            }
+        }
+        self
+    }
+
+    /// Whether [`WaveletRenderer::with_frames`] took effect.
+    pub fn has_frames(&self) -> bool {
+        self.lights[0].frames.is_some()
+    }
+
+    /// Radiance `Σ_b β_{b,c} ∫ ρ_b(ω, ω_o) V(ω) L_c(ω) dω` (linear RGB) under the first light
+    /// at a vertex with unit normal `normal_env`, visibility row `vis_row` (`n_local²`
+    /// fractions) and outgoing direction `wo_env` (both in the environment frame), for
+    /// per-basis RGB weights `beta` (`B` entries). Untruncated: the reference the kept
+    /// transport rows approximate. Returns zero for a degenerate normal or direction.
+    pub fn vertex_radiance(
+        &self,
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        wo_env: &Vec3,
+        beta: &[[f64; 3]],
+    ) -> [f64; 3] {
+        let mut out = [[0.0; 3]];
+        self.radiance_into(
+            &self.lights[..1],
+            &mut RadianceScratch::default(),
+            normal_env,
+            vis_row,
+            wo_env,
+            beta,
+            &mut out,
+        );
+        out[0]
+    }
+
+    /// [`WaveletRenderer::vertex_radiance`] under every light, into `out` (one RGB per
+    /// light, in the order given to [`WaveletRenderer::new_many`]): the slices are computed
+    /// once for all of them, in `scratch`'s buffers.
+    pub fn vertex_radiance_all(
+        &self,
+        scratch: &mut RadianceScratch,
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        wo_env: &Vec3,
+        beta: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) {
+        assert_eq!(out.len(), self.lights.len(), "one output per light");
+        self.radiance_into(
+            &self.lights,
+            scratch,
+            normal_env,
+            vis_row,
+            wo_env,
+            beta,
+            out,
+        );
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn radiance_into(
+        &self,
+        lights: &[RendererLight],
+        scratch: &mut RadianceScratch,
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        wo_env: &Vec3,
+        beta: &[[f64; 3]],
+        out: &mut [[f64; 3]],
+    ) {
+        out.iter_mut().for_each(|o| *o = [0.0; 3]);
+        let RadianceScratch {
+            v_dw,
+            used,
+            slices,
+            locals,
+        } = scratch;
+        let Some((normal, frame)) =
+            vertex_frame_into(normal_env, vis_row, &self.grid.solid_angle, v_dw)
+        else {
+            return;
+        };
+        let Some(wo) = local_wo(&frame, wo_env) else {
+            return;
+        };
+        let nl2 = self.rot.n_local() * self.rot.n_local();
+        // The slices of the bases with a non-zero weight, once for every light.
+        used.clear();
+        used.extend(
+            (0..self.basis.len().min(beta.len())).filter(|&b| beta[b].iter().any(|&x| x != 0.0)),
+        );
+        slices.resize(used.len() * nl2, 0.0);
+        for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
+            match &self.fixed[b] {
+                Some(f) => s.copy_from_slice(f),
+                None => self.basis[b].slice_with(&self.grid, &wo, s),
+            }
+        }
+        // Every light rotated into the vertex's local frame: blended from the frames (every
+        // light has them or none does), or one footprint pass for all of them.
+        locals.resize_with(lights.len(), || [0, 1, 2].map(|_| vec![0.0; nl2]));
+        let locals = &mut locals[..lights.len()];
+        if lights[0].frames.is_some() {
+            // Same accumulation order as the blended resampling (frame by frame, zero
+            // weights skipped).
+            let blend = self.rot.frame_blend(&normal);
+            for (light, local) in lights.iter().zip(locals.iter_mut()) {
+                let frames = light.frames.as_ref().expect("every light has frames");
+                for (l, f) in local.iter_mut().zip(frames) {
+                    l.fill(0.0);
+                    for &(nu, w) in &blend {
+                        if w == 0.0 {
+                            continue;
+                        }
+                        for (o, x) in l.iter_mut().zip(&f[nu * nl2..(nu + 1) * nl2]) {
+                            *o += w * x;
+                        }
+                    }
+                }
+            }
+        } else {
+            let texels: Vec<[&[f64]; 3]> = lights
+                .iter()
+                .map(|l| [0, 1, 2].map(|c| l.texels[c].as_slice()))
+                .collect();
+            let haar: Vec<[&[f64]; 3]> = lights
+                .iter()
+                .map(|l| [0, 1, 2].map(|c| l.haar[c].as_slice()))
+                .collect();
+            self.rot
+                .light_texels_rgb_many(&normal, &texels, &haar, locals);
+        }
+        for (local, o) in locals.iter().zip(out.iter_mut()) {
+            for (&b, slice) in used.iter().zip(slices.chunks(nl2)) {
+                let w = &beta[b];
+                for c in 0..3 {
+                    let s: f64 = slice
+                        .iter()
+                        .zip(v_dw.iter())
+                        .zip(&local[c])
+                        .map(|((s, vw), l)| s * vw * l)
+                        .sum();
+                    o[c] += w[c] * s;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,604 @@
+//! The blended precomputed rotation (paper Eq. 6): `R_ν = W_l S_ν W_gᵀ` for the normals of
+//! a full octahedral grid, blended bilinearly per normal (module docs of
+//! [`crate::sphere::rotation`] give the construction and the balancing).
+
+use super::LocalRotation;
+use crate::sphere::haar;
+use crate::sphere::{from_local, local_frame, SphereGrid};
+use crate::Vec3;
+use rayon::prelude::*;
+
+/// How [`Rotation`] stores its operators.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RotationForm {
+    /// Sparse texel resampling `S_ν`, applied between an inverse and a forward Haar transform.
+    Factored,
+    /// `R_ν = W_l S_ν W_gᵀ` as a sparse matrix, entries with `|R_ab| ≤ threshold` dropped.
+    Sparse {
+        /// Absolute threshold on the entries of `R_ν`.
+        threshold: f64,
+    },
+}
+
+/// Compressed rows, concatenated over all normals.
+#[derive(Debug, Clone, Default)]
+struct Csr {
+    offsets: Vec<usize>,
+    index: Vec<u16>,
+    value: Vec<f32>,
+}
+
+impl Csr {
+    fn row(&self, r: usize) -> (&[u16], &[f32]) {
+        let (lo, hi) = (self.offsets[r], self.offsets[r + 1]);
+        (&self.index[lo..hi], &self.value[lo..hi])
+    }
+
+    fn append(&mut self, rows: Vec<Vec<(u32, f32)>>) {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        for row in rows {
+            for (i, v) in row {
+                self.index.push(i as u16);
+                self.value.push(v);
+            }
+            self.offsets.push(self.index.len());
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        self.offsets.len() * 8 + self.index.len() * 2 + self.value.len() * 4
+    }
+}
+
+/// Default sub-texels per side of a local texel when building `S_ν`.
+pub const DEFAULT_SUPERSAMPLE: usize = 4;
+/// Sinkhorn iterations balancing rows and columns of `S_ν`.
+const BALANCE_ITERATIONS: usize = 12;
+
+/// The resampling `S` for one exact normal, as rows `(global texel, weight)` per local texel
+/// (each row a weighted average: weights sum to ~1). Module docs give the construction.
+pub fn resampling_rows(
+    normal: &Vec3,
+    n_global: usize,
+    n_local: usize,
+    supersample: usize,
+) -> Vec<Vec<(u32, f32)>> {
+    let gg = SphereGrid::full(n_global);
+    let gl = SphereGrid::hemi(n_local);
+    let frame = local_frame(&normal.normalize());
+    let omega_g = gg.solid_angles();
+    let omega_l = gl.solid_angles();
+    // Gather: overlap areas A[j][g] from sub-texel samples and bilinear taps.
+    let mut acc = vec![0.0f64; gg.len()];
+    let mut touched: Vec<usize> = Vec::new();
+    let mut rows: Vec<Vec<(u32, f64)>> = Vec::with_capacity(gl.len());
+    for j in 0..gl.len() {
+        for (dl, w) in gl.sample_points(j, supersample) {
+            let de = from_local(&frame, &dl);
+            for (t, bw) in gg.bilinear(&de) {
+                if bw == 0.0 {
+                    continue;
+                }
+                if acc[t] == 0.0 {
+                    touched.push(t);
+                }
+                acc[t] += w * bw;
+            }
+        }
+        touched.sort_unstable();
+        rows.push(touched.iter().map(|&t| (t as u32, acc[t])).collect());
+        for &t in &touched {
+            acc[t] = 0.0;
+        }
+        touched.clear();
+    }
+    // Global texels whose bilinear footprint (centres of the 3×3 block around them) is above
+    // the local horizon: their columns must carry exactly Ω_g.
+    let up = |t: usize| gg.texel_dir(t).dot(&frame[2]) > 0.0;
+    let interior: Vec<bool> = (0..gg.len())
+        .map(|t| {
+            up(t)
+                && gg
+                    .neighbors(t)
+                    .iter()
+                    .all(|&nb| up(nb) && gg.neighbors(nb).iter().all(|&nn| up(nn)))
+        })
+        .collect();
+    // Sinkhorn balancing, ending with the columns.
+    let mut col = vec![0.0f64; gg.len()];
+    for it in 0..BALANCE_ITERATIONS {
+        if it > 0 {
+            for (j, row) in rows.iter_mut().enumerate() {
+                let s: f64 = row.iter().map(|e| e.1).sum();
+                if s > 0.0 {
+                    let k = omega_l[j] / s;
+                    row.iter_mut().for_each(|e| e.1 *= k);
+                }
+            }
+        }
+        col.iter_mut().for_each(|c| *c = 0.0);
+        for row in &rows {
+            for &(t, a) in row {
+                col[t as usize] += a;
+            }
+        }
+        for (t, c) in col.iter_mut().enumerate() {
+            *c = if interior[t] && *c > 0.0 {
+                omega_g[t] / *c
+            } else {
+                1.0
+            };
+        }
+        for row in rows.iter_mut() {
+            row.iter_mut().for_each(|e| e.1 *= col[e.0 as usize]);
+        }
+    }
+    rows.into_iter()
+        .enumerate()
+        .map(|(j, row)| {
+            row.into_iter()
+                .map(|(t, a)| (t, (a / omega_l[j]) as f32))
+                .collect()
+        })
+        .collect()
+}
+
+/// Precomputed rotations `R_ν` for a grid of normals (module docs).
+#[derive(Debug, Clone)]
+pub struct Rotation {
+    /// Global octahedral map side (environment frame).
+    pub n_global: usize,
+    /// Local hemi-octahedral map side.
+    pub n_local: usize,
+    /// Normal grid side: `n_normals²` normals at the full octahedral texel centres.
+    pub n_normals: usize,
+    /// Sub-texels per side used to build `S_ν`.
+    pub supersample: usize,
+    form: RotationForm,
+    /// `S_ν` rows (factored form) or `R_ν` rows (sparse form); row `ν · n_local² + j`.
+    rows: Csr,
+}
+
+thread_local! {
+    static BUF: std::cell::RefCell<(Vec<f64>, Vec<f64>, Vec<f64>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new(), Vec::new())) };
+}
+
+impl Rotation {
+    /// Build all `R_ν` (in parallel). Sizes must be powers of two `≥ 2`, `n_global ≤ 256`
+    /// (entries are stored with 16-bit indices).
+    pub fn new(n_global: usize, n_local: usize, n_normals: usize, form: RotationForm) -> Rotation {
+        Self::with_supersample(n_global, n_local, n_normals, form, DEFAULT_SUPERSAMPLE)
+    }
+
+    /// [`Rotation::new`] with a chosen number of sub-texels per side.
+    pub fn with_supersample(
+        n_global: usize,
+        n_local: usize,
+        n_normals: usize,
+        form: RotationForm,
+        supersample: usize,
+    ) -> Rotation {
+        assert!(
+            n_global <= 256,
+            "global map side {n_global} > 256: rotation indices are 16-bit"
+        );
+        let gn = SphereGrid::full(n_normals);
+        let per: Vec<Vec<Vec<(u32, f32)>>> = (0..gn.len())
+            .into_par_iter()
+            .map(|nu| {
+                let s = resampling_rows(&gn.texel_dir(nu), n_global, n_local, supersample);
+                match form {
+                    RotationForm::Factored => s,
+                    RotationForm::Sparse { threshold } => {
+                        wavelet_matrix(&s, n_global, n_local, threshold)
+                    }
+                }
+            })
+            .collect();
+        let mut rows = Csr::default();
+        for p in per {
+            rows.append(p);
+        }
+        Rotation {
+            n_global,
+            n_local,
+            n_normals,
+            supersample,
+            form,
+            rows,
+        }
+    }
+
+    /// Approximate bytes [`Rotation::new`] will hold in the factored form, before building
+    /// it (for a memory check): `n_normals² · n_local²` rows of about 11 entries (measured
+    /// with the default 4×4 sub-texels; 6 bytes each) plus an 8-byte offset per row.
+    pub fn estimate_memory_bytes(n_local: usize, n_normals: usize) -> usize {
+        let rows = n_normals * n_normals * n_local * n_local;
+        rows * (11 * 6 + 8)
+    }
+
+    /// The storage form.
+    pub fn form(&self) -> RotationForm {
+        self.form
+    }
+
+    /// Number of normals `n_normals²`.
+    pub fn len(&self) -> usize {
+        self.n_normals * self.n_normals
+    }
+
+    /// Always `false`.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Normal `ν` (unit, environment frame).
+    pub fn normal_dir(&self, nu: usize) -> Vec3 {
+        SphereGrid::full(self.n_normals).texel_dir(nu)
+    }
+
+    /// Eq. 6 weights `φ_ν(n)` of the four grid normals nearest to `normal` (sum 1).
+    pub fn blend(&self, normal: &Vec3) -> [(usize, f64); 4] {
+        SphereGrid::full(self.n_normals).bilinear(normal)
+    }
+
+    fn nl2(&self) -> usize {
+        self.n_local * self.n_local
+    }
+
+    fn ng2(&self) -> usize {
+        self.n_global * self.n_global
+    }
+
+    /// Texel domain: `local += Σ_i w_i S_{ν_i} global` (factored form only).
+    fn resample_add(&self, nus: &[(usize, f64)], global: &[f64], local: &mut [f64]) {
+        for &(nu, w) in nus {
+            if w == 0.0 {
+                continue;
+            }
+            for (j, out) in local.iter_mut().enumerate() {
+                let (idx, val) = self.rows.row(nu * self.nl2() + j);
+                let s: f64 = idx
+                    .iter()
+                    .zip(val)
+                    .map(|(&g, &v)| v as f64 * global[g as usize])
+                    .sum();
+                *out += w * s;
+            }
+        }
+    }
+
+    /// Texel domain: `global += Σ_i w_i S_{ν_i}ᵀ local` (factored form only).
+    fn resample_transpose_add(&self, nus: &[(usize, f64)], local: &[f64], global: &mut [f64]) {
+        for &(nu, w) in nus {
+            if w == 0.0 {
+                continue;
+            }
+            for (j, &x) in local.iter().enumerate() {
+                // Occluded texels and a narrow lobe's far side are exact zeros: nothing to
+                // scatter (w · 0 · v adds +0.0, so skipping changes no bit of the sum).
+                if x == 0.0 {
+                    continue;
+                }
+                let wx = w * x;
+                let (idx, val) = self.rows.row(nu * self.nl2() + j);
+                for (&g, &v) in idx.iter().zip(val) {
+                    global[g as usize] += wx * v as f64;
+                }
+            }
+        }
+    }
+
+    /// Wavelet domain, sparse form: `local += Σ_i w_i R_{ν_i} global`.
+    fn sparse_add(&self, nus: &[(usize, f64)], global: &[f64], local: &mut [f64]) {
+        for &(nu, w) in nus {
+            for (a, out) in local.iter_mut().enumerate() {
+                let (idx, val) = self.rows.row(nu * self.nl2() + a);
+                let s: f64 = idx
+                    .iter()
+                    .zip(val)
+                    .map(|(&b, &v)| v as f64 * global[b as usize])
+                    .sum();
+                *out += w * s;
+            }
+        }
+    }
+
+    /// Wavelet domain, sparse form: `global += Σ_i w_i R_{ν_i}ᵀ local`.
+    fn sparse_transpose_add(&self, nus: &[(usize, f64)], local: &[f64], global: &mut [f64]) {
+        for &(nu, w) in nus {
+            for (a, &x) in local.iter().enumerate() {
+                let (idx, val) = self.rows.row(nu * self.nl2() + a);
+                for (&b, &v) in idx.iter().zip(val) {
+                    global[b as usize] += w * x * v as f64;
+                }
+            }
+        }
+    }
+
+    /// `local = Σ_i w_i R_{ν_i} global` in the wavelet domain.
+    fn apply_weighted(&self, nus: &[(usize, f64)], global_haar: &[f64], local_haar: &mut [f64]) {
+        assert!(global_haar.len() == self.ng2() && local_haar.len() == self.nl2());
+        local_haar.iter_mut().for_each(|x| *x = 0.0);
+        match self.form {
+            RotationForm::Sparse { .. } => self.sparse_add(nus, global_haar, local_haar),
+            RotationForm::Factored => BUF.with(|b| {
+                let (g, _, scratch) = &mut *b.borrow_mut();
+                g.clear();
+                g.extend_from_slice(global_haar);
+                haar::inverse_with(g, self.n_global, scratch);
+                self.resample_add(nus, g, local_haar);
+                haar::forward_with(local_haar, self.n_local, scratch);
+            }),
+        }
+    }
+
+    /// `global += Σ_i w_i R_{ν_i}ᵀ local` in the wavelet domain.
+    fn apply_weighted_transpose_add(
+        &self,
+        nus: &[(usize, f64)],
+        local_haar: &[f64],
+        global_haar: &mut [f64],
+    ) {
+        assert!(global_haar.len() == self.ng2() && local_haar.len() == self.nl2());
+        match self.form {
+            RotationForm::Sparse { .. } => self.sparse_transpose_add(nus, local_haar, global_haar),
+            RotationForm::Factored => BUF.with(|b| {
+                let (l, g, scratch) = &mut *b.borrow_mut();
+                l.clear();
+                l.extend_from_slice(local_haar);
+                haar::inverse_with(l, self.n_local, scratch);
+                g.clear();
+                g.resize(self.ng2(), 0.0);
+                self.resample_transpose_add(nus, l, g);
+                haar::forward_with(g, self.n_global, scratch);
+                global_haar
+                    .iter_mut()
+                    .zip(g.iter())
+                    .for_each(|(o, x)| *o += x);
+            }),
+        }
+    }
+
+    /// `local_haar = R_ν global_haar` for grid normal `nu`.
+    pub fn apply(&self, nu: usize, global_haar: &[f64], local_haar: &mut [f64]) {
+        self.apply_weighted(&[(nu, 1.0)], global_haar, local_haar);
+    }
+
+    /// `global_haar += R_νᵀ local_haar`.
+    pub fn apply_transpose_add(&self, nu: usize, local_haar: &[f64], global_haar: &mut [f64]) {
+        self.apply_weighted_transpose_add(&[(nu, 1.0)], local_haar, global_haar);
+    }
+
+    /// `local_haar = Σ_i φ_i(n) R_{ν_i} global_haar` (Eq. 6).
+    pub fn apply_blend(&self, normal: &Vec3, global_haar: &[f64], local_haar: &mut [f64]) {
+        self.apply_weighted(&self.blend(normal), global_haar, local_haar);
+    }
+
+    /// `global_haar += (Σ_i φ_i(n) R_{ν_i})ᵀ local_haar`.
+    pub fn apply_blend_transpose_add(
+        &self,
+        normal: &Vec3,
+        local_haar: &[f64],
+        global_haar: &mut [f64],
+    ) {
+        self.apply_weighted_transpose_add(&self.blend(normal), local_haar, global_haar);
+    }
+
+    /// Texel domain (factored form): `local_texels = S_ν global_texels` (texel averages).
+    /// Panics on the sparse form, which does not keep `S_ν`.
+    pub fn resample_texels(&self, nu: usize, global_texels: &[f64], local_texels: &mut [f64]) {
+        assert!(
+            self.form == RotationForm::Factored,
+            "texel resampling needs the factored form"
+        );
+        local_texels.iter_mut().for_each(|x| *x = 0.0);
+        self.resample_add(&[(nu, 1.0)], global_texels, local_texels);
+    }
+
+    /// Texel domain (factored form): `global_texels += S_νᵀ local_texels`.
+    pub fn resample_texels_transpose_add(
+        &self,
+        nu: usize,
+        local_texels: &[f64],
+        global_texels: &mut [f64],
+    ) {
+        assert!(
+            self.form == RotationForm::Factored,
+            "texel resampling needs the factored form"
+        );
+        self.resample_transpose_add(&[(nu, 1.0)], local_texels, global_texels);
+    }
+
+    /// Texel domain (factored form), blended over the four nearest normals (Eq. 6).
+    pub fn resample_texels_blend(
+        &self,
+        normal: &Vec3,
+        global_texels: &[f64],
+        local_texels: &mut [f64],
+    ) {
+        assert!(
+            self.form == RotationForm::Factored,
+            "texel resampling needs the factored form"
+        );
+        local_texels.iter_mut().for_each(|x| *x = 0.0);
+        self.resample_add(&self.blend(normal), global_texels, local_texels);
+    }
+
+    /// Texel domain (factored form): `global_texels += (Σ_i φ_i S_{ν_i})ᵀ local_texels`.
+    pub fn resample_texels_blend_transpose_add(
+        &self,
+        normal: &Vec3,
+        local_texels: &[f64],
+        global_texels: &mut [f64],
+    ) {
+        assert!(
+            self.form == RotationForm::Factored,
+            "texel resampling needs the factored form"
+        );
+        self.resample_transpose_add(&self.blend(normal), local_texels, global_texels);
+    }
+
+    /// `S_ν global_texels` for every grid normal (factored form), `n_normals² × n_local²`
+    /// (row `ν`), in parallel: row `ν` equals [`Rotation::resample_texels`]`(ν, …)` bitwise.
+    pub fn resample_texels_all(&self, global_texels: &[f64]) -> Vec<f64> {
+        assert!(
+            self.form == RotationForm::Factored,
+            "texel resampling needs the factored form"
+        );
+        assert!(global_texels.len() == self.ng2());
+        let nl2 = self.nl2();
+        let mut out = vec![0.0; self.len() * nl2];
+        out.par_chunks_mut(nl2)
+            .enumerate()
+            .for_each(|(nu, local)| self.resample_add(&[(nu, 1.0)], global_texels, local));
+        out
+    }
+
+    /// `R_ν global_haar` for every grid normal, `n_normals² × n_local²` (row `ν`), in
+    /// parallel.
+    pub fn rotate_all(&self, global_haar: &[f64]) -> Vec<f64> {
+        assert!(global_haar.len() == self.ng2());
+        let nl2 = self.nl2();
+        let mut out = vec![0.0; self.len() * nl2];
+        match self.form {
+            RotationForm::Sparse { .. } => {
+                out.par_chunks_mut(nl2)
+                    .enumerate()
+                    .for_each(|(nu, local)| self.sparse_add(&[(nu, 1.0)], global_haar, local));
+            }
+            RotationForm::Factored => {
+                let mut g = global_haar.to_vec();
+                haar::inverse(&mut g, self.n_global);
+                out.par_chunks_mut(nl2).enumerate().for_each_init(
+                    Vec::new,
+                    |scratch, (nu, local)| {
+                        self.resample_add(&[(nu, 1.0)], &g, local);
+                        haar::forward_with(local, self.n_local, scratch);
+                    },
+                );
+            }
+        }
+        out
+    }
+
+    /// Number of stored matrix entries.
+    pub fn nnz(&self) -> usize {
+        self.rows.index.len()
+    }
+
+    /// Bytes held by the stored operators.
+    pub fn memory_bytes(&self) -> usize {
+        self.rows.bytes()
+    }
+}
+
+/// `R = W_l S W_gᵀ` from the rows of `S`, thresholded: rows per local coefficient.
+fn wavelet_matrix(
+    s: &[Vec<(u32, f32)>],
+    n_global: usize,
+    n_local: usize,
+    threshold: f64,
+) -> Vec<Vec<(u32, f32)>> {
+    let (ng2, nl2) = (n_global * n_global, n_local * n_local);
+    // M = S W_gᵀ: row j is W_g applied to row j of S.
+    let mut m = vec![0.0f64; nl2 * ng2];
+    let mut scratch = Vec::new();
+    for (j, row) in s.iter().enumerate() {
+        let r = &mut m[j * ng2..(j + 1) * ng2];
+        for &(g, v) in row {
+            r[g as usize] = v as f64;
+        }
+        haar::forward_with(r, n_global, &mut scratch);
+    }
+    // R = W_l M: transform every column.
+    let mut colbuf = vec![0.0f64; nl2];
+    for b in 0..ng2 {
+        for a in 0..nl2 {
+            colbuf[a] = m[a * ng2 + b];
+        }
+        haar::forward_with(&mut colbuf, n_local, &mut scratch);
+        for a in 0..nl2 {
+            m[a * ng2 + b] = colbuf[a];
+        }
+    }
+    (0..nl2)
+        .map(|a| {
+            m[a * ng2..(a + 1) * ng2]
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| v.abs() > threshold)
+                .map(|(b, &v)| (b as u32, v as f32))
+                .collect()
+        })
+        .collect()
+}
+
+/// The blended precomputed rotation of Eq. 6.
+impl LocalRotation for Rotation {
+    fn n_global(&self) -> usize {
+        self.n_global
+    }
+    fn n_local(&self) -> usize {
+        self.n_local
+    }
+    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]) {
+        self.apply_blend(normal_env, global, local);
+    }
+    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]) {
+        self.apply_blend_transpose_add(normal_env, local, global);
+    }
+    fn texel_transpose(&self, normal_env: &Vec3, local_texels: &mut [f64], global: &mut [f64]) {
+        match self.form() {
+            // W_lᵀ W_l = I: R_nᵀ W_l f = W_g S_nᵀ f.
+            RotationForm::Factored => {
+                global.fill(0.0);
+                self.resample_texels_blend_transpose_add(normal_env, local_texels, global);
+                haar::forward(global, self.n_global);
+            }
+            RotationForm::Sparse { .. } => {
+                haar::forward(local_texels, self.n_local);
+                global.fill(0.0);
+                self.apply_blend_transpose_add(normal_env, local_texels, global);
+            }
+        }
+    }
+    fn light_texels(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[f64],
+        global_haar: &[f64],
+        local_texels: &mut [f64],
+    ) {
+        match self.form() {
+            RotationForm::Factored => {
+                self.resample_texels_blend(normal_env, global_texels, local_texels)
+            }
+            RotationForm::Sparse { .. } => {
+                self.apply_blend(normal_env, global_haar, local_texels);
+                haar::inverse(local_texels, self.n_local);
+            }
+        }
+    }
+    fn n_frames(&self) -> usize {
+        self.len()
+    }
+    fn light_texels_frames(&self, global_texels: &[f64], global_haar: &[f64]) -> Vec<f64> {
+        match self.form() {
+            RotationForm::Factored => self.resample_texels_all(global_texels),
+            RotationForm::Sparse { .. } => {
+                let mut all = self.rotate_all(global_haar);
+                let nl = self.n_local;
+                all.par_chunks_mut(nl * nl)
+                    .for_each(|c| haar::inverse(c, nl));
+                all
+            }
+        }
+    }
+    fn frame_blend(&self, normal_env: &Vec3) -> [(usize, f64); 4] {
+        self.blend(normal_env)
+    }
+}

@@ -1,0 +1,246 @@
+//! The renderer's rotation ([`SplatRotation`]) builds `S_n` for the vertex's own normal
+//! `n` at every call instead of blending precomputed ones: with the global texel `g` cut
+//! into `s × s` sub-texels `k` (exact solid angles `ω_k`, `Σ_k ω_k = Ω_g`, centres `d_k`),
+//!
+//! `(S_n L̄)_j = (1/Ω_j) Σ_g L̄_g Σ_{k ∈ g : R_nᵀ d_k ∈ texel j, z > 0} ω_k`,
+//!
+//! i.e. the overlap area `|texel_j ∩ R_n texel_g|` measured by the sub-texels of `g` that
+//! land in local texel `j` (a splat: each sub-texel goes to exactly one local texel). Every
+//! column sums to the part of `Ω_g` above the horizon, so a one-texel sun keeps exactly
+//! its energy `Ω_g L̄_g` and lands where its sub-texels point, with no bilinear spread and
+//! no blend of four neighbouring frames (Eq. 6 moves a light by up to the normal grid's
+//! spacing, about two 64² local texels at the default 32² normal grid). Rows sum to `Ω_j`
+//! up to the sub-texel quantisation (a constant sky stays constant on average over a few
+//! texels, not per texel). Cost per vertex: about `n_global² s² / 2` lookups (the upper
+//! half), no precomputed matrices. Measured (`bench-results/agreement.md`, sphere over a
+//! plane, 8 real maps, diffuse error against the Eq. 1 reference, mean / max over maps):
+//! 0.93% / 1.47% at 64² global / 64² local, against 1.11% / 1.97% for the blended factored
+//! rotation at the same resolutions (which also needs 31 s and ~300 MB of tables there).
+
+use super::LocalRotation;
+use crate::sphere::haar;
+use crate::sphere::{local_frame, SphereGrid};
+use crate::Vec3;
+
+/// The renderer's per-normal rotation (module docs, "The renderer's rotation"): `S_n` by
+/// splatting the sub-texels of every global texel into the local texels of the exact frame
+/// [`local_frame`]`(n)`. Holds only the sub-texel directions and solid angles of the
+/// global grid (`n_global² s²` of them), no per-normal matrices.
+#[derive(Debug, Clone)]
+pub struct SplatRotation {
+    n_global: usize,
+    local: SphereGrid,
+    /// Sub-texels per side of a global texel.
+    supersample: usize,
+    /// `1 / Ω_j` per local texel.
+    inv_omega_local: Vec<f64>,
+    /// Per global texel: its sub-texels `lo..hi` in `dirs` / `weights`.
+    ranges: Vec<(u32, u32)>,
+    /// Per global texel: centre direction and the sine of its angular radius (a texel
+    /// whose centre is more than that below the horizon has no sub-texel above it).
+    centres: Vec<(Vec3, f64)>,
+    /// Sub-texel centre directions (environment frame).
+    dirs: Vec<Vec3>,
+    /// Sub-texel solid angles `ω_k`.
+    weights: Vec<f64>,
+}
+
+impl SplatRotation {
+    /// `s × s` sub-texels per global texel (`supersample`, at least 1).
+    /// [`SplatRotation::default_supersample`] picks one for the two resolutions.
+    pub fn new(n_global: usize, n_local: usize, supersample: usize) -> Self {
+        let s = supersample.max(1);
+        let gg = SphereGrid::full(n_global);
+        let local = SphereGrid::hemi(n_local);
+        let inv_omega_local = local.solid_angles().iter().map(|w| 1.0 / w).collect();
+        let mut ranges = Vec::with_capacity(gg.len());
+        let mut centres = Vec::with_capacity(gg.len());
+        let mut dirs = Vec::with_capacity(gg.len() * s * s);
+        let mut weights = Vec::with_capacity(gg.len() * s * s);
+        for g in 0..gg.len() {
+            let c = gg.texel_dir(g);
+            let lo = dirs.len() as u32;
+            // Corners bound the texel's angular radius; sub-texel centres lie inside.
+            let nf = n_global as f64;
+            let (i, j) = ((g % n_global) as f64, (g / n_global) as f64);
+            let radius = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+                .iter()
+                .map(|(a, b)| gg.decode([(i + a) / nf, (j + b) / nf]).angle(&c))
+                .fold(0.0, f64::max);
+            for (d, w) in gg.sample_points(g, s) {
+                dirs.push(d);
+                weights.push(w);
+            }
+            ranges.push((lo, dirs.len() as u32));
+            centres.push((c, (radius * 1.01).min(std::f64::consts::FRAC_PI_2).sin()));
+        }
+        SplatRotation {
+            n_global,
+            local,
+            supersample: s,
+            inv_omega_local,
+            ranges,
+            centres,
+            dirs,
+            weights,
+        }
+    }
+
+    /// [`SplatRotation::new`] with [`SplatRotation::default_supersample`] sub-texels.
+    pub fn with_default_supersample(n_global: usize, n_local: usize) -> Self {
+        Self::new(
+            n_global,
+            n_local,
+            Self::default_supersample(n_global, n_local),
+        )
+    }
+
+    /// Sub-texels per side: a global texel is `√2 n_local / n_global` local texels wide
+    /// (full sphere `4π` over `n_global²` texels, hemisphere `2π` over `n_local²`);
+    /// `s = max(2, ⌈4 n_local / n_global⌉)` makes a sub-texel at most `√2/4 ≈ 0.35` of a
+    /// local texel wide, and the number of sub-texels `16 n_local²` whatever the global
+    /// side (4 at 64² / 64²). Measured at 64² / 64² (`bench-results/agreement.md`, diffuse,
+    /// max over 8 maps): s = 2: 2.52%, 4: 1.47%; s = 8 gave 1.39% at 4× the cost of 4 (one
+    /// run outside the committed table).
+    pub fn default_supersample(n_global: usize, n_local: usize) -> usize {
+        (4 * n_local).div_ceil(n_global.max(1)).max(2)
+    }
+
+    /// Sub-texels per side of a global texel.
+    pub fn supersample(&self) -> usize {
+        self.supersample
+    }
+
+    /// Bytes held (sub-texel directions and weights, per-texel ranges and centres).
+    pub fn memory_bytes(&self) -> usize {
+        self.dirs.len() * (24 + 8) + self.ranges.len() * (8 + 32) + self.inv_omega_local.len() * 8
+    }
+
+    /// Visit every sub-texel above the horizon of `normal`'s frame: `f(global texel, local
+    /// texel, ω_k)`.
+    fn for_each_sub(&self, normal: &Vec3, mut f: impl FnMut(usize, usize, f64)) {
+        let frame = local_frame(normal);
+        let [x, y, z] = frame;
+        for (g, ((lo, hi), (c, sin_r))) in self.ranges.iter().zip(&self.centres).enumerate() {
+            if c.dot(&z) < -sin_r {
+                continue;
+            }
+            for k in *lo as usize..*hi as usize {
+                let d = &self.dirs[k];
+                let lz = d.dot(&z);
+                if lz <= 0.0 {
+                    continue;
+                }
+                let l = Vec3::new(d.dot(&x), d.dot(&y), lz);
+                f(g, self.local.texel_of(&l), self.weights[k]);
+            }
+        }
+    }
+
+    /// Texel domain, all channels in one pass: `local[c] = S_n global[c]` (texel averages).
+    pub fn resample_rgb(&self, normal: &Vec3, global: [&[f64]; 3], local: &mut [Vec<f64>; 3]) {
+        self.resample_rgb_many(normal, &[global], std::slice::from_mut(local));
+    }
+
+    /// [`SplatRotation::resample_rgb`] for several lights: one walk over the footprint of
+    /// `normal` accumulates every light's three channels (light `i`: `global[i]` into
+    /// `local[i]`), each in the same order whatever the number of lights.
+    pub fn resample_rgb_many(
+        &self,
+        normal: &Vec3,
+        global: &[[&[f64]; 3]],
+        local: &mut [[Vec<f64>; 3]],
+    ) {
+        assert_eq!(global.len(), local.len(), "one output per light");
+        for l in local.iter_mut().flatten() {
+            l.clear();
+            l.resize(self.local.len(), 0.0);
+        }
+        self.for_each_sub(normal, |g, j, w| {
+            for ([g0, g1, g2], [l0, l1, l2]) in global.iter().zip(local.iter_mut()) {
+                l0[j] += w * g0[g];
+                l1[j] += w * g1[g];
+                l2[j] += w * g2[g];
+            }
+        });
+        for l in local.iter_mut().flatten() {
+            l.iter_mut()
+                .zip(&self.inv_omega_local)
+                .for_each(|(x, iw)| *x *= iw);
+        }
+    }
+
+    /// Texel domain: `local = S_n global` (one channel).
+    pub fn resample(&self, normal: &Vec3, global: &[f64], local: &mut [f64]) {
+        local.fill(0.0);
+        self.for_each_sub(normal, |g, j, w| local[j] += w * global[g]);
+        local
+            .iter_mut()
+            .zip(&self.inv_omega_local)
+            .for_each(|(x, iw)| *x *= iw);
+    }
+
+    /// Texel domain: `global += S_nᵀ local`.
+    pub fn resample_transpose_add(&self, normal: &Vec3, local: &[f64], global: &mut [f64]) {
+        self.for_each_sub(normal, |g, j, w| {
+            global[g] += w * self.inv_omega_local[j] * local[j]
+        });
+    }
+}
+
+/// `R_n = W_l S_n W_gᵀ` for the exact normal (no blending, no frames).
+impl LocalRotation for SplatRotation {
+    fn n_global(&self) -> usize {
+        self.n_global
+    }
+    fn n_local(&self) -> usize {
+        self.local.n
+    }
+    fn apply(&self, normal_env: &Vec3, global: &[f64], local: &mut [f64]) {
+        let mut g = global.to_vec();
+        haar::inverse(&mut g, self.n_global);
+        self.resample(normal_env, &g, local);
+        haar::forward(local, self.local.n);
+    }
+    fn apply_transpose_add(&self, normal_env: &Vec3, local: &[f64], global: &mut [f64]) {
+        let mut l = local.to_vec();
+        haar::inverse(&mut l, self.local.n);
+        let mut acc = vec![0.0; self.n_global * self.n_global];
+        self.resample_transpose_add(normal_env, &l, &mut acc);
+        haar::forward(&mut acc, self.n_global);
+        global.iter_mut().zip(&acc).for_each(|(o, a)| *o += a);
+    }
+    fn texel_transpose(&self, normal_env: &Vec3, local_texels: &mut [f64], global: &mut [f64]) {
+        // W_lᵀ W_l = I: R_nᵀ W_l f = W_g S_nᵀ f.
+        global.fill(0.0);
+        self.resample_transpose_add(normal_env, local_texels, global);
+        haar::forward(global, self.n_global);
+    }
+    fn light_texels(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[f64],
+        _global_haar: &[f64],
+        local_texels: &mut [f64],
+    ) {
+        self.resample(normal_env, global_texels, local_texels);
+    }
+    fn light_texels_rgb(
+        &self,
+        normal_env: &Vec3,
+        global_texels: [&[f64]; 3],
+        _global_haar: [&[f64]; 3],
+        local_texels: &mut [Vec<f64>; 3],
+    ) {
+        self.resample_rgb(normal_env, global_texels, local_texels);
+    }
+    fn light_texels_rgb_many(
+        &self,
+        normal_env: &Vec3,
+        global_texels: &[[&[f64]; 3]],
+        _global_haar: &[[&[f64]; 3]],
+        local_texels: &mut [[Vec<f64>; 3]],
+    ) {
+        self.resample_rgb_many(normal_env, global_texels, local_texels);
+    }
+}
