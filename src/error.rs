@@ -36,6 +36,11 @@ pub enum Error {
     /// A user option or a combination of options is invalid.
     #[error("invalid option: {0}")]
     Config(String),
+    /// An internal invariant does not hold: data handed between the library's own stages
+    /// (or by a library caller) is inconsistent, e.g. sizes that disagree. A bug, not a
+    /// user's mistake; the message names the inconsistency.
+    #[error("internal error: {0}")]
+    Internal(String),
     /// The job would need more memory than the machine has.
     #[error("not enough memory: {what} needs about {needed_bytes} bytes but {available_bytes} are available; {hint}")]
     Memory {

@@ -640,7 +640,7 @@ fn scene(opts: &BenchOptions, work: &Path, vertices: usize, photos: usize) -> Re
     want.summary_photos = s.photos.len();
     want.render_seconds = s.render_seconds;
     let text = serde_json::to_string_pretty(&want)
-        .map_err(|e| Error::Config(format!("bench: could not encode scene parameters: {e}")))?;
+        .map_err(|e| Error::Internal(format!("bench: could not encode scene parameters: {e}")))?;
     std::fs::write(&params_path, text).map_err(|e| Error::io(&params_path, e))?;
     Ok(BenchScene {
         dir,
@@ -774,13 +774,13 @@ impl Fit {
     fn from_report(r: &crate::report::RunReport) -> Result<Self> {
         serde_json::to_value(r)
             .and_then(serde_json::from_value)
-            .map_err(|e| Error::Config(format!("bench: could not read the run's report: {e}")))
+            .map_err(|e| Error::Internal(format!("bench: could not read the run's report: {e}")))
     }
 
     fn from_json(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         serde_json::from_str(&text)
-            .map_err(|e| Error::Config(format!("{}: not a run report: {e}", path.display())))
+            .map_err(|e| Error::Internal(format!("{}: not a run report: {e}", path.display())))
     }
 }
 
@@ -1023,7 +1023,7 @@ fn bench_in(
 fn write_outputs(report: &BenchReport, out: &Path, name: &str) -> Result<()> {
     let json_path = out.join(format!("{name}.json"));
     let json = serde_json::to_string_pretty(report)
-        .map_err(|e| Error::Config(format!("bench: could not encode the report: {e}")))?;
+        .map_err(|e| Error::Internal(format!("bench: could not encode the report: {e}")))?;
     std::fs::write(&json_path, json).map_err(|e| Error::io(&json_path, e))?;
     let md_path = out.join(format!("{name}.md"));
     std::fs::write(&md_path, markdown(report, name)).map_err(|e| Error::io(&md_path, e))?;

@@ -135,13 +135,13 @@ impl Mesh {
         let n = self.positions.len();
         for (name, values) in extra {
             if values.len() != n {
-                return Err(Error::Config(format!(
+                return Err(Error::Internal(format!(
                     "extra PLY property `{name}` has {} values for {n} vertices",
                     values.len()
                 )));
             }
             if name.is_empty() || name.chars().any(char::is_whitespace) {
-                return Err(Error::Config(format!(
+                return Err(Error::Internal(format!(
                     "extra PLY property name `{name}` must be one word"
                 )));
             }

@@ -1,7 +1,7 @@
 //! Photos as linear RGB with an overexposure mask: the observations `y_p` of the paper's
 //! objective (Eq. 9) are samples of these, and overexposed pixels get confidence `α_p = 0`.
 //!
-//! Decoding (DESIGN §3):
+//! Decoding (docs/conventions.md):
 //! - 8- and 16-bit PNG and JPEG (the `image` crate) are sRGB-encoded. Each channel value
 //!   `c ∈ [0, 1]` (code / 255 or code / 65535) is decoded with the exact piecewise curve of
 //!   IEC 61966-2-1: `c / 12.92` for `c ≤ 0.04045`, else `((c + 0.055) / 1.055)^2.4`.

@@ -312,7 +312,7 @@ pub fn extract_with_stats<P: std::borrow::Borrow<Photo>>(
         };
         let cam = &view.camera;
         let geo = ViewGeometry {
-            rot: *view.image.rotation().matrix(),
+            rot: *view.image.cam_from_world_rotation().matrix(),
             t: Vec3::from(view.image.tvec),
             center: view.image.center(),
             view,

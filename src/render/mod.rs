@@ -2,7 +2,7 @@
 //! per-vertex values (radiance from the wavelet renderer, Eq. 8, or anything else) across
 //! the triangles, and write PNG (sRGB) or EXR (linear) with an object mask.
 //!
-//! Rasterisation: every vertex is taken to camera coordinates (`X_cam = R X + t`, DESIGN §3)
+//! Rasterisation: every vertex is taken to camera coordinates (`X_cam = R X + t`, docs/conventions.md)
 //! and projected with [`Camera::project`] (lens distortion applied per vertex, so straight
 //! edges stay straight: fine for triangles small in the image). A pixel `(x, y)` is covered
 //! when its centre `(x + ½, y + ½)` lies inside the projected triangle (edge functions,
@@ -69,7 +69,7 @@ pub fn rasterize(mesh: &Mesh, camera: &Camera, image: &Image) -> Raster {
         .positions
         .par_iter()
         .map(|p| {
-            let c = image.world_to_cam(p);
+            let c = image.cam_from_world_point(p);
             if c.z.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
@@ -429,7 +429,7 @@ fn shade_wavelet_given<R: LocalRotation>(
     let nv = mesh.positions.len();
     let nb = basis.len();
     if normals_env.len() != nv || beta.len() != nv * nb || vis.open.len() != nv {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "render: {nv} vertices but {} normals, {} visibility rows and {} β entries \
              ({nb} per vertex expected)",
             normals_env.len(),
@@ -445,7 +445,7 @@ fn shade_wavelet_given<R: LocalRotation>(
     }
     if let Some(given) = given {
         if given.len() != nv || envs.len() != 1 {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "render: {} given radiances for {nv} vertices under {} lights (one light)",
                 given.len(),
                 envs.len()

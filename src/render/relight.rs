@@ -10,7 +10,7 @@
 //! vertex's own local frame by [`SplatRotation`], `R_n = W_l S_n W_gᵀ` for the exact normal
 //! instead of the Eq. 6 blend of precomputed frames, then the local triple product of
 //! Eq. 7–8 as a texel sum at the run's render local resolution), and interpolated across
-//! the rasterised triangles. The light is a lat-long map (DESIGN §3) in the run's environment frame
+//! the rasterised triangles. The light is a lat-long map (docs/conventions.md) in the run's environment frame
 //! (`materials.json` → `env_frame`), optionally plus a sun: a disc of radius 1° and given
 //! radiance whose solid angle `2π(1 − cos 1°)` is preserved exactly on the lat-long grid.
 //!
@@ -203,7 +203,7 @@ pub fn write_render_state(f: &RenderState, dir: &Path) -> Result<()> {
         "seed": f.seed,
         "env_from_world": [[m[(0,0)], m[(0,1)], m[(0,2)]], [m[(1,0)], m[(1,1)], m[(1,2)]], [m[(2,0)], m[(2,1)], m[(2,2)]]],
     });
-    let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::Config(e.to_string()))?;
+    let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::Internal(e.to_string()))?;
     let jp = dir.join("relight.json");
     std::fs::write(&jp, text).map_err(|e| Error::io(&jp, e))?;
 

@@ -63,10 +63,12 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
     /// side; at least one light).
     pub fn new_many(rot: &'a R, basis: &'a [BasisBrdf], envs: &[&OctEnv]) -> Result<Self> {
         if envs.is_empty() {
-            return Err(Error::Config("wavelet renderer: no light to render".into()));
+            return Err(Error::Internal(
+                "wavelet renderer: no light to render".into(),
+            ));
         }
         if let Some(env) = envs.iter().find(|e| e.n != rot.n_global()) {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "wavelet renderer: environment map is {}² but the rotation expects {}²",
                 env.n,
                 rot.n_global()

@@ -1,6 +1,6 @@
 //! The run report: `report.json` for machines, `report.md` plus PNG figures for people.
 //!
-//! Figures in the report (DESIGN §4, issue 6):
+//! Figures in the report (docs/method.md, "Held-out evaluation"; issue 6):
 //! - held-out RMSE and PSNR in linear RGB on the photo's [0, 1] scale over object pixels
 //!   that are not overexposed, per protocol: (a) `truth` light, (b) `half` light fitted with
 //!   frozen reflectance on the left half of the object, measured on the right half,
@@ -25,7 +25,7 @@ use std::path::Path;
 pub struct HoldoutEntry {
     /// Image name as in `images.txt`.
     pub image: String,
-    /// `truth`, `half` or `mean` (DESIGN §4 (a), (b), (c)).
+    /// `truth`, `half` or `mean` (docs/method.md, "Held-out evaluation", (a), (b), (c)).
     pub protocol: String,
     /// Raw RMSE, linear RGB, [0, 1] photo scale.
     pub rmse: f64,
@@ -172,7 +172,7 @@ impl RunReport {
         let plots = dir.join("plots");
         std::fs::create_dir_all(&plots).map_err(|e| Error::io(&plots, e))?;
         let json = serde_json::to_string_pretty(&json_safe(self))
-            .map_err(|e| Error::Config(e.to_string()))?;
+            .map_err(|e| Error::Internal(e.to_string()))?;
         let path = dir.join("report.json");
         std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
 
@@ -277,7 +277,7 @@ impl RunReport {
             let _ = writeln!(
                 s,
                 "RMSE in linear RGB on the photo's [0, 1] scale over object pixels that are not \
-                 overexposed. Protocols (DESIGN §4): `truth` = the true light, `half` = light fitted \
+                 overexposed. Protocols (docs/method.md, \"Held-out evaluation\"): `truth` = the true light, `half` = light fitted \
                  on the left half of the object with the reflectance frozen, measured on the right \
                  half, `mean` = the mean of the training maps. *raw* is the figure as rendered, \
                  *scaled* after the best global scale (shown).\n"
@@ -322,7 +322,7 @@ impl RunReport {
             let _ = writeln!(s, "## Environment maps\n");
             let _ = writeln!(
                 s,
-                "Lat-long, sky up (DESIGN §3), tone-mapped with one shared exposure. Linear EXR files are in `envmaps/`.\n"
+                "Lat-long, sky up (docs/conventions.md), tone-mapped with one shared exposure. Linear EXR files are in `envmaps/`.\n"
             );
             let _ = writeln!(s, "![environment maps](plots/envmaps.png)\n");
         }

@@ -1,4 +1,4 @@
-//! Held-out evaluation (DESIGN §4) and view rendering with the fitted model.
+//! Held-out evaluation (docs/method.md, "Held-out evaluation") and view rendering with the fitted model.
 //!
 //! A held-out photo was not used to fit the reflectance; its light is unknown, so each
 //! protocol that applies is reported:
@@ -529,7 +529,7 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
     let mut left = Observations::default();
     for p in 0..obs.len() {
         let x = obs.vertex[p] as usize;
-        let cam = view.image.world_to_cam(&f.scene.mesh.positions[x]);
+        let cam = view.image.cam_from_world_point(&f.scene.mesh.positions[x]);
         let Some(px) = view.camera.project(&cam) else {
             continue;
         };

@@ -1,5 +1,5 @@
 //! The files a run leaves behind (besides the report):
-//! - `envmaps/NAME.latlong.exr` (lat-long, DESIGN §3: sky up, width 2H) and
+//! - `envmaps/NAME.latlong.exr` (lat-long, docs/conventions.md: sky up, width 2H) and
 //!   `envmaps/NAME.oct.exr` (the solver's own octahedral texels) per training photo;
 //! - `materials.json`: the basis BRDFs with their formulas, `λ[k][b][c]`, the scale
 //!   normalisation, the environment frame;
@@ -54,7 +54,7 @@ pub(crate) fn write_triptych(
 }
 
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| Error::Config(e.to_string()))?;
+    let text = serde_json::to_string_pretty(value).map_err(|e| Error::Internal(e.to_string()))?;
     std::fs::write(path, text).map_err(|e| Error::io(path, e))
 }
 
@@ -106,7 +106,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         "lambda": f.est.lambda,
         "normalisation": f.est.normalisation,
         "env_frame": {
-            "description": "rows e_x, e_y, e_z in world coordinates; environment maps are indexed by directions in this frame (DESIGN §3)",
+            "description": "rows e_x, e_y, e_z in world coordinates; environment maps are indexed by directions in this frame (docs/conventions.md)",
             "rows": [[frame[(0,0)], frame[(0,1)], frame[(0,2)]], [frame[(1,0)], frame[(1,1)], frame[(1,2)]], [frame[(2,0)], frame[(2,1)], frame[(2,2)]]],
         },
         "resolutions": {"global": f.opts.global_resolution, "local": f.opts.local_resolution, "normal_grid": f.opts.normal_grid, "kept_coefficients": f.opts.keep},

@@ -145,7 +145,7 @@ pub struct Decision {
 /// The rows of `t` for the bases `kept` (indices into its basis list, in the new order).
 pub fn select_bases(t: &Transport, kept: &[usize]) -> Result<Transport> {
     if let Some(&b) = kept.iter().find(|&&b| b >= t.n_basis) {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "basis selection: index {b} out of range (the transport has {} bases)",
             t.n_basis
         )));

@@ -119,12 +119,12 @@ pub fn initial_materials(
     seed: u64,
 ) -> Result<InitialMaterials> {
     if k == 0 {
-        return Err(Error::Config(
+        return Err(Error::Internal(
             "the number of materials must be at least 1".into(),
         ));
     }
     if mean_rgb.len() != seen.len() {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "{} vertex colours but {} seen flags",
             mean_rgb.len(),
             seen.len()

@@ -81,11 +81,11 @@ pub struct Problem<'a> {
 }
 
 impl Problem<'_> {
-    /// Checks sizes and indices; `Error::Config` naming the first inconsistency.
+    /// Checks sizes and indices; `Error::Internal` naming the first inconsistency.
     pub fn validate(&self) -> Result<()> {
         let o = self.obs;
         let p = o.vertex.len();
-        let bad = |m: String| Err(Error::Config(format!("estimation problem: {m}")));
+        let bad = |m: String| Err(Error::Internal(format!("estimation problem: {m}")));
         if o.photo.len() != p || o.rgb.len() != p || o.weight.len() != p {
             return bad(format!(
                 "observation arrays differ in length (vertex {p}, photo {}, rgb {}, weight {})",
@@ -1046,7 +1046,7 @@ pub fn lighting_step_full(
         None => vec![0.0; 3 * n2],
     };
     if x.len() != 3 * n2 {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "lighting start has {} texels, expected {}",
             x.len(),
             3 * n2
@@ -1656,7 +1656,7 @@ pub fn estimate(
     let kk = init.lambda.len();
     let nv = problem.n_vertices;
     if kk == 0 || init.lambda.iter().any(|l| l.len() != nb) || init.weights.len() != nv * kk {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "initial materials: {kk} materials with {:?} bases and {} weights, expected B = {nb}, V·K = {}",
             init.lambda.iter().map(|l| l.len()).collect::<Vec<_>>(),
             init.weights.len(),
@@ -1671,7 +1671,7 @@ pub fn estimate(
         .chain(&init.weights)
         .any(|v| !v.is_finite() || *v < 0.0)
     {
-        return Err(Error::Config(
+        return Err(Error::Internal(
             "initial materials must be finite and non-negative".into(),
         ));
     }

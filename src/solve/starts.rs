@@ -212,7 +212,7 @@ pub fn estimate_best(
         }
     }
     let (chosen, est) =
-        best.ok_or_else(|| Error::Config("no starting materials to estimate from".into()))?;
+        best.ok_or_else(|| Error::Internal("no starting materials to estimate from".into()))?;
     Ok((
         est,
         MultiStart {

@@ -1,7 +1,7 @@
 //! Environment maps in and out: lat-long EXR files and the solver's octahedral maps.
 //!
 //! Radiance `L̃(ω)` arriving from direction `ω`, in environment-frame coordinates
-//! (DESIGN §3, [`crate::sphere::env_frame`]). Two forms:
+//! (docs/conventions.md, [`crate::sphere::env_frame`]). Two forms:
 //!
 //! - [`LatLong`]: width `2H`, height `H`, pixel `(u, v)` (`v = 0` the top row) centred at
 //!   polar angle `θ = π (v + ½) / H` from `e_z` (up) and azimuth `φ = 2π (u + ½) / 2H` from
@@ -266,7 +266,7 @@ impl LatLong {
     /// area, so `∫ L̃ dω` is conserved (a sun keeps its energy).
     pub fn downsample(&self, factor: usize) -> Result<LatLong> {
         if factor == 0 || !self.height.is_multiple_of(factor) {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "cannot downsample a lat-long map of height {} by {factor}",
                 self.height
             )));

@@ -1,5 +1,5 @@
 //! Directions, frames and spherical maps: the one place where the geometric conventions of
-//! DESIGN §3 live. Every other module calls these functions instead of restating them.
+//! docs/conventions.md live. Every other module calls these functions instead of restating them.
 //!
 //! Frames:
 //! - the environment frame `(e_x, e_y, e_z)`: `e_z` = world up, `e_x` = world +X made

@@ -4,7 +4,7 @@
 //! For texel vectors `F, G, H` (`n × n`, [`crate::sphere::haar`] coefficients `f = W F` etc.),
 //! `Σ_t F_t G_t H_t = Σ_klm C_klm f_k g_l h_m` with the tripling coefficients
 //! `C_klm = Σ_t ψ_k(t) ψ_l(t) ψ_m(t)`. (The quadrature weight `Δω` is not in `C`: it lives
-//! in exactly one factor, DESIGN §3.) For the orthonormal non-standard Haar basis, `C_klm`
+//! in exactly one factor, docs/conventions.md.) For the orthonormal non-standard Haar basis, `C_klm`
 //! is non-zero only in three cases (Ng et al. 2004, Sec. 4):
 //!
 //! 1. all three are the scaling function: `C = 1/n`;

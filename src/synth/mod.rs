@@ -18,7 +18,7 @@
 //! `sparse/{cameras,images,points3D}.txt` (PINHOLE camera; points sampled on the surface
 //! by area and observed in every photo that sees them unoccluded and front-facing, with
 //! their exact projections), `images/*.png`, `dense/meshed-poisson.ply`; and `truth/`:
-//! `env/<photo>.exr` (the map each photo was rendered with, lat-long in the DESIGN §3
+//! `env/<photo>.exr` (the map each photo was rendered with, lat-long in the docs/conventions.md
 //! convention, environment frame from the scene's up vector), `materials.json` (lobes, λ,
 //! per-photo exposure and white balance), `weights.ply` (the mesh with per-vertex weights
 //! `w0 … w{K-1}`), `masks/<photo>.png` (object coverage) and `manifest.json` (scene, up,
@@ -259,7 +259,7 @@ fn embedded_map(name: &str) -> Result<LatLong> {
         "studio" => include_bytes!("../../tests/fixtures/synth/hdri/studio.exr"),
         "sunrise" => include_bytes!("../../tests/fixtures/synth/hdri/sunrise.exr"),
         "sunset" => include_bytes!("../../tests/fixtures/synth/hdri/sunset.exr"),
-        other => return Err(Error::Config(format!("no embedded map named `{other}`"))),
+        other => return Err(Error::Internal(format!("no embedded map named `{other}`"))),
     };
     LatLong::read_exr_bytes(bytes, &format!("embedded map {name}")).map(|(map, _)| map)
 }
@@ -502,7 +502,7 @@ struct PhotoScale<'a> {
 
 fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     let text = serde_json::to_string_pretty(value)
-        .map_err(|e| Error::Config(format!("cannot serialise {}: {e}", path.display())))?;
+        .map_err(|e| Error::Internal(format!("cannot serialise {}: {e}", path.display())))?;
     std::fs::write(path, text + "\n").map_err(|e| Error::io(path, e))
 }
 

@@ -20,7 +20,7 @@
 //! holds `∫_texel ρ dω / Δω_texel`, computed by solid-angle-weighted supersampling that
 //! refines adaptively where the lobe is sharp, so a lobe narrower than a texel still
 //! integrates to its albedo. The quadrature weights `Δω` are not in the slice (they live in
-//! the transport, DESIGN §3).
+//! the transport, docs/conventions.md).
 
 use crate::sphere::SphereGrid;
 use crate::{Error, Result, Vec3};
@@ -323,7 +323,7 @@ impl SliceGrid {
     /// Build the sample tables for an `n × n` hemi-octahedral grid (`n` a power of two ≥ 2).
     pub fn new(n: usize) -> Result<Self> {
         if n < 2 || !n.is_power_of_two() {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "local map size {n} is not a power of two >= 2"
             )));
         }
@@ -488,7 +488,7 @@ impl SliceTable {
     /// Tabulate `brdf` over an `n_out × n_out` grid of outgoing directions.
     pub fn new(brdf: &BasisBrdf, grid: &SliceGrid, n_out: usize) -> Result<Self> {
         if n_out < 2 || !n_out.is_power_of_two() {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "slice table size {n_out} is not a power of two >= 2"
             )));
         }

@@ -287,7 +287,7 @@ fn check_inputs<R: LocalRotation>(
     opts: &TransportOptions,
 ) -> Result<()> {
     if basis.is_empty() {
-        return Err(Error::Config("transport: no basis BRDFs".into()));
+        return Err(Error::Internal("transport: no basis BRDFs".into()));
     }
     if opts.n_global > MAX_GLOBAL_SIDE {
         return Err(Error::Config(format!(
@@ -298,7 +298,7 @@ fn check_inputs<R: LocalRotation>(
         )));
     }
     if rot.n_global() != opts.n_global || rot.n_local() != opts.n_local {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "transport: the rotation is {}→{} texels per side but the options ask for {}→{}",
             rot.n_global(),
             rot.n_local(),
@@ -307,7 +307,7 @@ fn check_inputs<R: LocalRotation>(
         )));
     }
     if vis.n_local != opts.n_local || vis.frac.len() != n_vertices * opts.n_local * opts.n_local {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "transport: visibility holds {} vertices at {}² texels, expected {} vertices at {}²",
             vis.frac.len() / (vis.n_local * vis.n_local).max(1),
             vis.n_local,
@@ -332,7 +332,7 @@ pub fn build_rows<R: LocalRotation>(
 ) -> Result<Transport> {
     check_inputs(normals_env.len(), vis, basis, rot, opts)?;
     if obs_vertex.len() != obs_dir_env.len() {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "transport: {} observation vertices but {} directions",
             obs_vertex.len(),
             obs_dir_env.len()
@@ -417,7 +417,7 @@ pub fn build_rows<R: LocalRotation>(
     let total_slots = n_obs
         .checked_mul(nb)
         .and_then(|r| r.checked_mul(stride))
-        .ok_or_else(|| Error::Config("transport: row storage size overflows".into()))?;
+        .ok_or_else(|| Error::Internal("transport: row storage size overflows".into()))?;
     let mut index: Vec<HaarIndex> = vec![0; total_slots];
     let mut value = vec![0f32; total_slots];
     let mut lens = vec![0usize; n_obs * nb];

@@ -8,7 +8,7 @@
 //! `r` rays (stratified-jittered in the texel's `uv` square when `r` is a perfect square,
 //! uniformly jittered otherwise; seeded per vertex, so results do not depend on the thread
 //! count), from `x + ε n` with `t_min = ε` (`ε` = [`SceneBvh::ray_offset`]); the stored value
-//! is the visible fraction `V_t ≈ (1/Δω_t) ∫_texel V dω` (the texel average, DESIGN §3),
+//! is the visible fraction `V_t ≈ (1/Δω_t) ∫_texel V dω` (the texel average, docs/conventions.md),
 //! quantised to `u8` (`255` = fully visible, error ≤ 1/510).
 //!
 //! Provably open vertices skip the rays: if no mesh vertex lies above the tangent plane,

@@ -167,13 +167,16 @@ fn undistorted_model_reprojects_onto_colmap_keypoints() {
         for te in &p.track {
             let im_d = &dist.images[&te.image_id];
             let cam_d = &dist.cameras[&im_d.camera_id];
-            if cam_d.project_checked(&im_d.world_to_cam(&p.xyz)).is_none() {
+            if cam_d
+                .project_checked(&im_d.cam_from_world_point(&p.xyz))
+                .is_none()
+            {
                 folded += 1;
                 continue;
             }
             let im = &und.images[&te.image_id];
             let px = und.cameras[&im.camera_id]
-                .project(&im.world_to_cam(&p.xyz))
+                .project(&im.cam_from_world_point(&p.xyz))
                 .unwrap();
             let obs = im.points2d[te.point2d_idx as usize].xy;
             let e = ((px[0] - obs[0]).powi(2) + (px[1] - obs[1]).powi(2)).sqrt();

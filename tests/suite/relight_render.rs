@@ -153,7 +153,7 @@ fn relit_sphere_matches_reference_under_new_map() {
         fy: cam.params[1],
         cx: cam.params[2],
         cy: cam.params[3],
-        rotation: im.rotation().into_inner(),
+        rotation: im.cam_from_world_rotation().into_inner(),
         translation: Vec3::from(im.tvec),
     };
     let truth = scene.render(

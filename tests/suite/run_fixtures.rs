@@ -55,7 +55,7 @@ fn no_model_rmse(workspace: &Path, held_out: &[String]) -> f64 {
             if nrm.dot(&(centre - x)) <= 0.0 {
                 continue;
             }
-            let Some(px) = v.camera.project(&v.image.world_to_cam(x)) else {
+            let Some(px) = v.camera.project(&v.image.cam_from_world_point(x)) else {
                 continue;
             };
             if let Some((rgb, _)) = photo.sample(px) {

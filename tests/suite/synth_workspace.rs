@@ -96,7 +96,7 @@ fn points_land_on_their_observations_and_silhouettes_match_the_mesh() {
         let proj: Vec<Option<[f64; 2]>> = mesh
             .positions
             .iter()
-            .map(|p| cam.project(&im.world_to_cam(p)))
+            .map(|p| cam.project(&im.cam_from_world_point(p)))
             .collect();
         let mut inside = vec![false; w * h];
         for f in &mesh.faces {

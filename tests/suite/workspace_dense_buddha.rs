@@ -212,7 +212,7 @@ fn depth_map_agrees_with_the_sparse_points() {
     let mut rel = Vec::new();
     for p2 in &im.points2d {
         let Some(id) = p2.point3d_id else { continue };
-        let x = im.world_to_cam(&rec.points3d[&id].xyz);
+        let x = im.cam_from_world_point(&rec.points3d[&id].xyz);
         let (col, row) = (p2.xy[0].round() as usize, p2.xy[1].round() as usize);
         if col >= w || row >= h {
             continue;

@@ -322,7 +322,7 @@ impl Camera {
         if self.params.len() != self.model.num_params() {
             return None;
         }
-        let px = self.world_to_image([p_cam.x / p_cam.z, p_cam.y / p_cam.z]);
+        let px = self.img_from_cam([p_cam.x / p_cam.z, p_cam.y / p_cam.z]);
         (px[0].is_finite() && px[1].is_finite()).then_some(px)
     }
 
@@ -341,7 +341,7 @@ impl Camera {
             return Some(px);
         }
         let (u, v) = (p_cam.x / p_cam.z, p_cam.y / p_cam.z);
-        let [ub, vb] = self.image_to_world(px);
+        let [ub, vb] = self.cam_from_img(px);
         let tol = 1e-6 * (1.0 + (u * u + v * v).sqrt());
         ((ub - u).abs() <= tol && (vb - v).abs() <= tol).then_some(px)
     }
@@ -352,13 +352,13 @@ impl Camera {
         if self.params.len() != self.model.num_params() {
             return None;
         }
-        let [u, v] = self.image_to_world(pixel);
+        let [u, v] = self.cam_from_img(pixel);
         (u.is_finite() && v.is_finite()).then(|| Vec3::new(u, v, 1.0))
     }
 
-    /// COLMAP's `WorldToImage`: normalized-plane point `(u, v)` → pixel. The camera must
+    /// COLMAP's `ImgFromCam` (`WorldToImage` in older releases): normalized-plane point `(u, v)` → pixel. The camera must
     /// have `model.num_params()` parameters (as [`Camera::new`] and the readers ensure).
-    pub fn world_to_image(&self, uv: [f64; 2]) -> [f64; 2] {
+    pub fn img_from_cam(&self, uv: [f64; 2]) -> [f64; 2] {
         let (fx, fy) = self.focal();
         let (cx, cy) = self.principal_point();
         let extra = &self.params[self.model.extra_start()..];
@@ -379,9 +379,9 @@ impl Camera {
         [fx * xd + cx, fy * yd + cy]
     }
 
-    /// COLMAP's `ImageToWorld`: pixel → normalized-plane point `(u, v)`. The camera must
+    /// COLMAP's `CamFromImg` (`ImageToWorld` in older releases): pixel → normalized-plane point `(u, v)`. The camera must
     /// have `model.num_params()` parameters (as [`Camera::new`] and the readers ensure).
-    pub fn image_to_world(&self, pixel: [f64; 2]) -> [f64; 2] {
+    pub fn cam_from_img(&self, pixel: [f64; 2]) -> [f64; 2] {
         let (fx, fy) = self.focal();
         let (cx, cy) = self.principal_point();
         let extra = &self.params[self.model.extra_start()..];

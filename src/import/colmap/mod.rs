@@ -1,7 +1,7 @@
 //! COLMAP sparse models: cameras, registered images with their 2D points, and 3D points with
 //! their tracks, read from and written to COLMAP's text and binary formats.
 //!
-//! Geometry (DESIGN §3): an image stores the world-to-camera pose as a unit quaternion
+//! Geometry (docs/conventions.md): an image stores the world-to-camera pose as a unit quaternion
 //! `q = (w, x, y, z)` and a translation `t`, so `X_cam = R(q) X_world + t` and the camera
 //! centre is `C = −Rᵀ t`. The camera looks down +z with x right and y down; [`Camera`]
 //! maps camera coordinates to pixels with the model's distortion ([`camera`]), pixel
@@ -95,8 +95,8 @@ pub struct Image {
 }
 
 impl Image {
-    /// The world-to-camera rotation `R`.
-    pub fn rotation(&self) -> Rotation3<f64> {
+    /// The rotation `R` of [`Image::cam_from_world`].
+    pub fn cam_from_world_rotation(&self) -> Rotation3<f64> {
         let [w, x, y, z] = self.qvec;
         UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)).to_rotation_matrix()
     }
@@ -111,18 +111,18 @@ impl Image {
     }
 
     /// `R p + t`: a world point in this image's camera coordinates.
-    pub fn world_to_cam(&self, p: &Vec3) -> Vec3 {
-        self.rotation() * p + Vec3::from(self.tvec)
+    pub fn cam_from_world_point(&self, p: &Vec3) -> Vec3 {
+        self.cam_from_world_rotation() * p + Vec3::from(self.tvec)
     }
 
     /// The camera centre in world coordinates, `C = −Rᵀ t`.
     pub fn center(&self) -> Vec3 {
-        -(self.rotation().transpose() * Vec3::from(self.tvec))
+        -(self.cam_from_world_rotation().transpose() * Vec3::from(self.tvec))
     }
 
     /// The camera's viewing direction (+z of the camera) in world coordinates, `Rᵀ e_z`.
     pub fn view_direction(&self) -> Vec3 {
-        self.rotation().transpose() * Vec3::z()
+        self.cam_from_world_rotation().transpose() * Vec3::z()
     }
 
     /// An image with pose `X_cam = rotation · X_world + t` and no keypoints.
@@ -249,7 +249,8 @@ impl Reconstruction {
     /// camera is unknown or the point is behind the camera.
     pub fn project(&self, image_id: ImageId, x: &Vec3) -> Option<[f64; 2]> {
         let image = self.images.get(&image_id)?;
-        self.camera_of(image)?.project(&image.world_to_cam(x))
+        self.camera_of(image)?
+            .project(&image.cam_from_world_point(x))
     }
 
     /// Reprojection error in pixels of every observation (track element) of every 3D point,
@@ -272,7 +273,7 @@ impl Reconstruction {
         let obs = image.points2d.get(te.point2d_idx as usize)?;
         let px = self
             .camera_of(image)?
-            .project(&image.world_to_cam(&p.xyz))?;
+            .project(&image.cam_from_world_point(&p.xyz))?;
         Some(((px[0] - obs.xy[0]).powi(2) + (px[1] - obs.xy[1]).powi(2)).sqrt())
     }
 
@@ -317,7 +318,7 @@ impl Reconstruction {
             let Some(p3) = p2.point3d_id.and_then(|pid| self.points3d.get(&pid)) else {
                 continue;
             };
-            if let Some(px) = camera.project(&image.world_to_cam(&p3.xyz)) {
+            if let Some(px) = camera.project(&image.cam_from_world_point(&p3.xyz)) {
                 sum += ((px[0] - p2.xy[0]).powi(2) + (px[1] - p2.xy[1]).powi(2)).sqrt();
                 n += 1;
             }
@@ -435,13 +436,15 @@ mod tests {
         let t = -(r * c);
         let im = Image::from_pose(ImageId(4), "a.jpg", CameraId(1), &r, &t);
         assert!((im.center() - c).norm() < 1e-12);
-        assert!(im.world_to_cam(&c).norm() < 1e-12);
+        assert!(im.cam_from_world_point(&c).norm() < 1e-12);
         // A point 5 units below the camera is 5 units in front of it.
-        let p = im.world_to_cam(&Vec3::new(1.0, 2.0, -2.0));
+        let p = im.cam_from_world_point(&Vec3::new(1.0, 2.0, -2.0));
         assert!((p - Vec3::new(0.0, 0.0, 5.0)).norm() < 1e-12);
         assert!((im.view_direction() - Vec3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
         let iso = im.cam_from_world();
         let q = Vec3::new(0.3, -0.2, 0.9);
-        assert!((iso.transform_point(&q.into()).coords - im.world_to_cam(&q)).norm() < 1e-12);
+        assert!(
+            (iso.transform_point(&q.into()).coords - im.cam_from_world_point(&q)).norm() < 1e-12
+        );
     }
 }

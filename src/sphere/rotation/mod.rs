@@ -14,7 +14,7 @@
 //! balanced (Sinkhorn iterations) so that its rows sum to `Ω_j` (a constant sky stays
 //! constant) and, for every global texel whose bilinear footprint lies above the horizon,
 //! its column sums to `Ω_g` — so the energy `Σ_j Ω_j (S_ν L̄)_j` of a one-texel sun is exactly
-//! `Ω_g L̄_g`: rotation conserves energy, as DESIGN §2 requires. The balancing ends with
+//! `Ω_g L̄_g`: rotation conserves energy, as docs/method.md requires. The balancing ends with
 //! the columns; the remaining row error is measured in the tests.
 //!
 //! Normals `ν` are the texel centres of the full octahedral grid `SphereGrid::full(n_normals)`

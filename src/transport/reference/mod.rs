@@ -17,7 +17,7 @@
 //! the scene BVH and, for tests, by brute force).
 //!
 //! The environment is piecewise constant: the radiance from direction ω is the texel of the
-//! lat-long map (DESIGN §3 layout, env-frame coordinates) that contains ω. The estimator
+//! lat-long map (docs/conventions.md layout, env-frame coordinates) that contains ω. The estimator
 //! draws, per shading point, `n` pairs of samples — one from the environment (texel chosen
 //! with probability ∝ luminance × solid angle, then uniform in (φ, cos θ) inside the texel,
 //! so the density w.r.t. solid angle is `P_texel / Ω_texel`) and one from the BRDF (lobe
@@ -209,7 +209,7 @@ impl Lobe {
             Lobe::Lambert => Ok(()),
             Lobe::Phong { exponent } if exponent.is_finite() && exponent >= 0.0 => Ok(()),
             Lobe::Ggx { alpha } if alpha.is_finite() && alpha > 0.0 && alpha <= 1.0 => Ok(()),
-            other => Err(Error::Config(format!("invalid basis lobe {other:?}"))),
+            other => Err(Error::Internal(format!("invalid basis lobe {other:?}"))),
         }
     }
 }
@@ -241,30 +241,30 @@ impl Reflectance {
         }
         let k = self.lambda.len();
         if k == 0 {
-            return Err(Error::Config("reflectance has no material".into()));
+            return Err(Error::Internal("reflectance has no material".into()));
         }
         for (i, m) in self.lambda.iter().enumerate() {
             if m.len() != self.lobes.len() {
-                return Err(Error::Config(format!(
+                return Err(Error::Internal(format!(
                     "material {i} has {} lobe weights, expected {}",
                     m.len(),
                     self.lobes.len()
                 )));
             }
             if m.iter().flatten().any(|x| !x.is_finite() || *x < 0.0) {
-                return Err(Error::Config(format!(
+                return Err(Error::Internal(format!(
                     "material {i} has a negative or non-finite weight"
                 )));
             }
         }
         if self.weights.len() != n_vertices * k {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "{} blending weights for {n_vertices} vertices × {k} materials",
                 self.weights.len()
             )));
         }
         if self.weights.iter().any(|x| !x.is_finite() || *x < 0.0) {
-            return Err(Error::Config(
+            return Err(Error::Internal(
                 "negative or non-finite blending weight".into(),
             ));
         }
@@ -297,7 +297,7 @@ impl Reflectance {
 // ---------------------------------------------------------------------------------------
 // The environment: piecewise-constant lat-long map with an importance-sampling CDF.
 
-/// A lat-long environment map (DESIGN §3) prepared for lookup and importance sampling.
+/// A lat-long environment map (docs/conventions.md) prepared for lookup and importance sampling.
 #[derive(Debug, Clone)]
 pub struct Environment {
     width: usize,
@@ -326,7 +326,7 @@ impl Environment {
     /// [`crate::sphere::env_frame`]). Negative values (lossy EXR) are clamped to zero.
     pub fn new(width: usize, height: usize, rgb: &[[f32; 3]], frame: [Vec3; 3]) -> Result<Self> {
         if width == 0 || height == 0 || rgb.len() != width * height {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "environment map {width}×{height} with {} texels",
                 rgb.len()
             )));
@@ -764,7 +764,7 @@ pub fn quadrature_point<C: RayCaster + ?Sized>(
         .iter()
         .position(|e| e.width != w || e.height != h || e.frame != frame)
     {
-        return Err(Error::Config(format!(
+        return Err(Error::Internal(format!(
             "quadrature: environment {e} is {}×{} (or has another frame), environment 0 is {w}×{h}",
             envs[e].width, envs[e].height
         )));
@@ -852,7 +852,7 @@ impl<C: RayCaster + ?Sized> Scene<'_, C> {
     /// Checks array shapes and the reflectance against the mesh.
     pub fn validate(&self) -> Result<()> {
         if self.normals.len() != self.positions.len() {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "{} normals for {} vertices",
                 self.normals.len(),
                 self.positions.len()
@@ -865,7 +865,7 @@ impl<C: RayCaster + ?Sized> Scene<'_, C> {
             .enumerate()
             .find(|(_, f)| f.iter().any(|&v| v as usize >= nv))
         {
-            return Err(Error::Config(format!(
+            return Err(Error::Internal(format!(
                 "face {i} {f:?} indexes past {nv} vertices"
             )));
         }
