@@ -259,7 +259,7 @@ struct RunArgs {
     starts: usize,
     /// Lower bound on IRLS's robust scale, as a fraction of each photo's RMS radiance: a
     /// residual within 1.345 × this is never down-weighted (0 = the residuals' MAD alone).
-    #[arg(long, default_value_t = relight_cpc::solve::estimate::ROBUST_FLOOR)]
+    #[arg(long, default_value_t = relight_cpc::solve::ROBUST_FLOOR)]
     robust_floor: f64,
     /// Fraction of the training observations held back (seeded) to stop the alternation
     /// at its best iterate; 0 turns early stopping off.

@@ -23,7 +23,7 @@
 
 use crate::report::plot::{line_panels, Series, PALETTE};
 use crate::run::{self, Holdout, MaterialCount, RunOptions};
-use crate::solve::estimate::StepTimes;
+use crate::solve::StepTimes;
 use crate::stages::StageRecord;
 use crate::synth::{self, SynthOptions};
 use crate::{Error, Result};

@@ -66,7 +66,7 @@ pub struct TimelinePoint {
     pub holdout_rmse: Option<f64>,
     /// What the iteration's lighting and material steps cost.
     #[serde(flatten)]
-    pub steps: crate::solve::estimate::StepTimes,
+    pub steps: crate::solve::StepTimes,
 }
 
 /// The model that was fitted and why.
@@ -476,7 +476,7 @@ mod tests {
                 objective: 1.0 / (1.0 + i as f64),
                 train_rmse: 0.1 / (1.0 + i as f64),
                 holdout_rmse: Some(f64::NAN),
-                steps: crate::solve::estimate::StepTimes {
+                steps: crate::solve::StepTimes {
                     lighting_seconds: 0.5,
                     lighting_cpu_seconds: 1.0,
                     material_seconds: 0.25,

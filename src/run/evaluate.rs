@@ -34,7 +34,7 @@ use crate::import::photo::Photo;
 use crate::observe::{self, Observations, ObserveOptions};
 use crate::render::{self, Raster};
 use crate::report::{compare, psnr, HoldoutEntry};
-use crate::solve::estimate::{self, Problem};
+use crate::solve::{self, Problem};
 use crate::sphere::envmap::{LatLong, OctEnv};
 use crate::transport::visibility::Visibility;
 use crate::transport::{self, TransportOptions};
@@ -234,8 +234,8 @@ impl HoldoutTracker {
     }
 
     /// The scaled RMSE for the estimator's current state.
-    pub(crate) fn rmse(&self, state: &estimate::IterState, n_vertices: usize) -> f64 {
-        let beta = estimate::beta_per_vertex(state.lambda, state.weights, n_vertices);
+    pub(crate) fn rmse(&self, state: &solve::IterState, n_vertices: usize) -> f64 {
+        let beta = solve::beta_per_vertex(state.lambda, state.weights, n_vertices);
         let mean_haar = || {
             let n2 = self.n_global * self.n_global;
             let k = state.lights.len().max(1) as f64;
@@ -566,13 +566,13 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
-    let opts = estimate::EstimateOptions {
+    let opts = solve::EstimateOptions {
         qp_max_iter: HALF_FIT_GPCG,
         qp_max_cg: HALF_FIT_CG,
         ..f.estimate_options.clone()
     };
     let start = [0, 1, 2].map(|c| start.channel(c));
-    let l = estimate::fit_light_frozen(&problem, &f.beta, 0, Some(&start), &opts)?;
+    let l = solve::fit_light_frozen(&problem, &f.beta, 0, Some(&start), &opts)?;
     Ok(Some(OctEnv::from_channels(
         f.opts.global_resolution,
         [&l[0], &l[1], &l[2]],

@@ -36,8 +36,8 @@ use crate::observe::trace::SceneBvh;
 use crate::observe::{self, Observations, ObserveOptions};
 use crate::report::{ModelReport, RunReport, TimelinePoint};
 use crate::solve::cluster::initial_materials;
-use crate::solve::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::solve::starts;
+use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::sphere::rotation::{Rotation, RotationForm};
 use crate::stages::Stages;
 use crate::transport::brdf::BasisBrdf;
@@ -492,7 +492,7 @@ pub(crate) struct Fitted<'a> {
     pub render_vis: visibility::Visibility,
     pub render_rot: crate::sphere::rotation::SplatRotation,
     pub basis: Vec<BasisBrdf>,
-    pub est: estimate::Estimate,
+    pub est: solve::Estimate,
     pub beta: Vec<[f64; 3]>,
     /// The estimator's predictions at each training photo's observations (vertex, linear
     /// RGB), in training order: what the training renders show where a vertex was observed.
@@ -911,8 +911,8 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     })?;
     bar.finish_and_clear();
     check_finite(&est, &conditioning_map(&est.conditioning))?;
-    let beta = estimate::beta_per_vertex(&est.lambda, &est.weights, nv);
-    let pred = estimate::predict(&problem, &est);
+    let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
+    let pred = solve::predict(&problem, &est);
     let train_entries = train_errors(&scene, &train, &obs, &pred);
     let train_predictions: Vec<Vec<(u32, [f32; 3])>> = obs
         .photo_ranges
@@ -1206,7 +1206,7 @@ fn adaptive_decisions(
 }
 
 /// The condition numbers of the report, by name.
-fn conditioning_map(c: &estimate::Conditioning) -> std::collections::BTreeMap<String, f64> {
+fn conditioning_map(c: &solve::Conditioning) -> std::collections::BTreeMap<String, f64> {
     let mut conditioning = std::collections::BTreeMap::new();
     if let Some(max) = c
         .lighting
@@ -1231,7 +1231,7 @@ fn conditioning_map(c: &estimate::Conditioning) -> std::collections::BTreeMap<St
 /// the digits of float64's ~16 it costs (`log₁₀ κ`), the regulariser that bounds it and,
 /// past the thresholds of [`crate::solve::adapt`], what to change.
 fn conditioning_use(
-    c: &estimate::Conditioning,
+    c: &solve::Conditioning,
     eopts: &EstimateOptions,
     adaptive: bool,
 ) -> Vec<String> {
@@ -1302,7 +1302,7 @@ fn conditioning_use(
 
 /// Stop with an explanation rather than write non-finite maps or materials.
 fn check_finite(
-    est: &estimate::Estimate,
+    est: &solve::Estimate,
     conditioning: &std::collections::BTreeMap<String, f64>,
 ) -> Result<()> {
     let bad_light = est

@@ -82,7 +82,7 @@
 use serde::Serialize;
 
 use crate::observe::Observations;
-use crate::solve::estimate::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::sphere::rotation::{Rotation, RotationForm};
 use crate::sphere::SphereGrid;
 use crate::transport::brdf::BasisBrdf;
@@ -256,10 +256,10 @@ pub fn heldout_rmse(obs: &Observations, held: &[usize], pred: &[[f64; 3]]) -> f6
 
 /// Per basis, the largest share over materials and channels of the predicted radiance
 /// (module docs, step 4).
-pub fn basis_shares(problem: &Problem, est: &estimate::Estimate) -> Vec<f64> {
+pub fn basis_shares(problem: &Problem, est: &solve::Estimate) -> Vec<f64> {
     let nb = problem.transport.n_basis;
     let kk = est.lambda.len();
-    let s = estimate::basis_responses(problem, &est.lights);
+    let s = solve::basis_responses(problem, &est.lights);
     // c[k][b][ch]
     let mut contrib = vec![vec![[0.0f64; 3]; nb]; kk];
     for p in 0..problem.obs.len() {
@@ -511,37 +511,35 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     // The pilot fit with `k` materials on the bases `kept` (indices into `inp.basis`):
     // the estimate and its held-out RMSE. `strict`: `None` when k-means finds fewer than
     // `k` distinct clusters.
-    let fit =
-        |k: usize, kept: &[usize], strict: bool| -> Result<Option<(estimate::Estimate, f64)>> {
-            let init =
-                crate::solve::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
-            if strict && init.albedo.len() < k {
-                return Ok(None);
+    let fit = |k: usize, kept: &[usize], strict: bool| -> Result<Option<(solve::Estimate, f64)>> {
+        let init = crate::solve::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
+        if strict && init.albedo.len() < k {
+            return Ok(None);
+        }
+        let sub;
+        let problem = if kept.len() == inp.basis.len() {
+            problem
+        } else {
+            sub = select_bases(&tr, kept)?;
+            Problem {
+                transport: &sub,
+                ..problem
             }
-            let sub;
-            let problem = if kept.len() == inp.basis.len() {
-                problem
-            } else {
-                sub = select_bases(&tr, kept)?;
-                Problem {
-                    transport: &sub,
-                    ..problem
-                }
-            };
-            let lambert = kept
-                .iter()
-                .position(|&b| b == inp.lambert)
-                .unwrap_or(usize::MAX);
-            let m0 = Materials0::from_initial(&init, kept.len(), lambert);
-            let opts = EstimateOptions {
-                lambert_basis: lambert,
-                ..eopts.clone()
-            };
-            let est = estimate::estimate(&problem, m0, &opts, &mut |_, _| {})?;
-            let pred = estimate::predict(&problem, &est);
-            let e = heldout_rmse(inp.obs, &held, &pred);
-            Ok(Some((est, e)))
         };
+        let lambert = kept
+            .iter()
+            .position(|&b| b == inp.lambert)
+            .unwrap_or(usize::MAX);
+        let m0 = Materials0::from_initial(&init, kept.len(), lambert);
+        let opts = EstimateOptions {
+            lambert_basis: lambert,
+            ..eopts.clone()
+        };
+        let est = solve::estimate(&problem, m0, &opts, &mut |_, _| {})?;
+        let pred = solve::predict(&problem, &est);
+        let e = heldout_rmse(inp.obs, &held, &pred);
+        Ok(Some((est, e)))
+    };
     let mut scores = Vec::new();
     let (materials, materials_reason, est, e_full) = match inp.materials {
         Some(k) => {
@@ -558,7 +556,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             )
         }
         None => {
-            let mut fits: Vec<(usize, estimate::Estimate, f64)> = Vec::new();
+            let mut fits: Vec<(usize, solve::Estimate, f64)> = Vec::new();
             let mut stop = String::new();
             for k in 1..=MAX_MATERIALS {
                 let Some((est, e)) = fit(k, &all, true)? else {

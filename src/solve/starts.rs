@@ -23,7 +23,7 @@
 //!
 //! [`estimate_best`] runs the whole alternation (with its early stopping) from each start
 //! and keeps the fit with the lowest score: the validation error of the iterate it returns
-//! ([`crate::solve::estimate::Validation`]) when early stopping is on, else the training RMSE of
+//! ([`crate::solve::Validation`]) when early stopping is on, else the training RMSE of
 //! the last iterate. Ties keep the earlier start, so the paper's start wins unless another
 //! one is strictly better; with one start the result is [`estimate`]'s, bit for bit. Each
 //! start costs one fit.
@@ -36,7 +36,7 @@
 
 use serde::Serialize;
 
-use crate::solve::estimate::{
+use crate::solve::{
     estimate, Estimate, EstimateOptions, IterState, Iteration, Materials0, Problem,
 };
 use crate::{Error, Result};

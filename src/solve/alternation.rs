@@ -1,0 +1,377 @@
+//! The alternation (paper Sec. 5): lighting steps for all photos, then the material step,
+//! until the objective's relative decrease is below `rel_tol`, `max_outer` is reached or
+//! early stopping ends it; then the scale normalisation ([`crate::solve::normalise`]).
+//!
+//! One outer iteration ([`Alternation::iteration`]):
+//! 1. lighting: the light model's [`LightModel::fit`] with `β` fixed;
+//! 2. materials: `λ` then `w` ([`crate::solve::materials`]), `material_sweeps` times, then
+//!    the gauge `Σ_x Σ_b β_{x,b,c}` back to its start value (`fix_gauge`);
+//! 3. extrapolation (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
+//!    crawls along the bilinear valley): `θ + σ(θ − θ_prev)`, `σ = t^{1/3}`, projected to
+//!    `≥ 0`, kept only when `F` drops, so `F` stays monotone;
+//! 4. validation: the held-back observations scored, the best iterate kept
+//!    ([`crate::solve::validation`]).
+
+use std::time::Instant;
+
+use crate::solve::light::paper::PaperLight;
+use crate::solve::light::{LightModel, LightingInput, LightingOutput};
+use crate::solve::materials::{data_weights, lambda_step, weights_step};
+use crate::solve::normalise::normalise;
+use crate::solve::objective::{evaluate, gauge, Objective, Point};
+use crate::solve::options::EstimateOptions;
+use crate::solve::problem::{basis_responses, beta_per_vertex, Problem};
+use crate::solve::result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes};
+use crate::solve::validation::{EarlyStop, HeldBack};
+use crate::stages::Stopwatch;
+use crate::{Error, Result};
+
+/// The alternation with the paper's light model ([`PaperLight`]). `on_iter` sees every
+/// outer iteration's log line and the state it reached.
+pub fn estimate(
+    problem: &Problem,
+    init: Materials0,
+    opts: &EstimateOptions,
+    on_iter: &mut dyn FnMut(&Iteration, &IterState),
+) -> Result<Estimate> {
+    let light = PaperLight::new(problem, opts);
+    estimate_with(problem, init, opts, light, on_iter)
+}
+
+/// The alternation with any light model, starting from `light`'s parameters.
+pub fn estimate_with<M: LightModel>(
+    problem: &Problem,
+    init: Materials0,
+    opts: &EstimateOptions,
+    light: M,
+    on_iter: &mut dyn FnMut(&Iteration, &IterState),
+) -> Result<Estimate> {
+    problem.validate()?;
+    let t0 = Instant::now();
+    check_start(problem, &init)?;
+    // Early stopping: the validation observations get α = 0 in the fitted copy.
+    let held = HeldBack::new(problem, opts);
+    let fit_problem = held.fit_problem(problem);
+    let mut alt = Alternation::new(&fit_problem, opts, light, &init);
+    let mut stop = EarlyStop::new(&held, problem.obs, opts.validation_fraction);
+    let outer = if opts.fixed_materials {
+        1
+    } else {
+        opts.max_outer.max(1)
+    };
+    let mut timeline = Vec::new();
+    let mut prev_obj = f64::INFINITY;
+    for outer_it in 1..=outer {
+        let it = alt.iteration(outer_it, &mut stop, t0)?;
+        let maps = alt.light.maps(alt.light.params());
+        let state = IterState {
+            lights: &maps,
+            lambda: &alt.lambda,
+            weights: &alt.weights,
+        };
+        on_iter(&it, &state);
+        timeline.push(it);
+        if stop.patience_over(outer_it, opts.patience) {
+            stop.stopped_early = outer_it < outer;
+            break;
+        }
+        let objective = it.objective;
+        if prev_obj.is_finite() && (prev_obj - objective).abs() <= opts.rel_tol * prev_obj.abs() {
+            break;
+        }
+        prev_obj = objective;
+    }
+    let validation = stop.finish(&mut alt);
+    alt.finish(&init, timeline, validation)
+}
+
+/// The starting materials must have `K ≥ 1` materials of `B` bases, `V·K` weights, all
+/// finite and `≥ 0`.
+fn check_start(problem: &Problem, init: &Materials0) -> Result<()> {
+    let nb = problem.transport.n_basis;
+    let kk = init.lambda.len();
+    let nv = problem.n_vertices;
+    if kk == 0 || init.lambda.iter().any(|l| l.len() != nb) || init.weights.len() != nv * kk {
+        return Err(Error::Internal(format!(
+            "initial materials: {kk} materials with {:?} bases and {} weights, expected B = {nb}, V·K = {}",
+            init.lambda.iter().map(|l| l.len()).collect::<Vec<_>>(),
+            init.weights.len(),
+            nv * kk
+        )));
+    }
+    if init
+        .lambda
+        .iter()
+        .flatten()
+        .flatten()
+        .chain(&init.weights)
+        .any(|v| !v.is_finite() || *v < 0.0)
+    {
+        return Err(Error::Internal(
+            "initial materials must be finite and non-negative".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Light parameters and materials at one point of the alternation (the previous iterate
+/// for extrapolation, the best one for early stopping).
+#[derive(Clone)]
+pub(crate) struct Snapshot<P> {
+    pub(crate) light: P,
+    pub(crate) lambda: Vec<Vec<[f64; 3]>>,
+    pub(crate) weights: Vec<f64>,
+}
+
+/// The state the alternation carries from one step to the next.
+pub(crate) struct Alternation<'a, M: LightModel> {
+    pub(crate) problem: &'a Problem<'a>,
+    opts: &'a EstimateOptions,
+    pub(crate) light: M,
+    /// `lambda[k][b][c]`.
+    pub(crate) lambda: Vec<Vec<[f64; 3]>>,
+    /// Row-major `V × K`.
+    pub(crate) weights: Vec<f64>,
+    /// IRLS weights of the last lighting step, per observation and channel.
+    pub(crate) omega: Vec<[f32; 3]>,
+    /// The λ ridge per channel, fixed at the first material step.
+    ridge: Option<[f64; 3]>,
+    cond: Conditioning,
+    /// The gauge of the start ([`gauge`]).
+    gauge0: [f64; 3],
+    /// The previous iterate, for extrapolation.
+    prev: Option<Snapshot<M::Params>>,
+}
+
+impl<'a, M: LightModel> Alternation<'a, M> {
+    fn new(
+        problem: &'a Problem<'a>,
+        opts: &'a EstimateOptions,
+        light: M,
+        init: &Materials0,
+    ) -> Self {
+        Alternation {
+            problem,
+            opts,
+            light,
+            lambda: init.lambda.clone(),
+            weights: init.weights.clone(),
+            omega: vec![[1.0_f32; 3]; problem.obs.vertex.len()],
+            ridge: None,
+            cond: Conditioning::default(),
+            gauge0: gauge(&init.lambda, &init.weights, problem.n_vertices),
+            prev: None,
+        }
+    }
+
+    /// One outer iteration (module docs), its log line.
+    fn iteration(
+        &mut self,
+        outer_it: usize,
+        stop: &mut EarlyStop<M::Params>,
+        t0: Instant,
+    ) -> Result<Iteration> {
+        let (lighting_seconds, lighting_cpu_seconds) = self.lighting(outer_it)?;
+        let watch = Stopwatch::start();
+        let s = self.materials()?;
+        let (material_seconds, material_cpu_seconds) = watch.elapsed();
+        let mut obj = self.objective(Some(&s));
+        if !self.opts.fixed_materials && self.opts.extrapolate {
+            obj = self.extrapolate(outer_it, obj);
+        }
+        if !obj.value.is_finite() {
+            return Err(Error::Numeric {
+                stage: "estimation".into(),
+                message: "the objective became non-finite".into(),
+            });
+        }
+        let validation_rel = stop.score(self, outer_it);
+        Ok(Iteration {
+            seconds: t0.elapsed().as_secs_f64(),
+            objective: obj.value,
+            train_rmse: obj.train_rmse,
+            validation_rel,
+            steps: StepTimes {
+                lighting_seconds,
+                lighting_cpu_seconds,
+                material_seconds,
+                material_cpu_seconds,
+            },
+        })
+    }
+
+    /// The lighting step; its wall and CPU seconds.
+    fn lighting(&mut self, outer_it: usize) -> Result<(f64, f64)> {
+        let beta = beta_per_vertex(&self.lambda, &self.weights, self.problem.n_vertices);
+        let watch = Stopwatch::start();
+        let input = LightingInput {
+            problem: self.problem,
+            beta: &beta,
+            outer_iteration: outer_it,
+        };
+        let mut out = LightingOutput {
+            irls_weights: &mut self.omega,
+            conditioning: &mut self.cond,
+        };
+        self.light.fit(&input, &mut out)?;
+        Ok(watch.elapsed())
+    }
+
+    /// The material step (module docs); the basis responses `s` of the lights it ends with.
+    fn materials(&mut self) -> Result<Vec<[f64; 3]>> {
+        let (problem, opts) = (self.problem, self.opts);
+        let dw = data_weights(problem, &self.omega, opts);
+        let mut s = basis_responses(problem, &self.light.maps(self.light.params()));
+        if opts.fixed_materials {
+            return Ok(s);
+        }
+        let kk = self.lambda.len();
+        for _ in 0..opts.material_sweeps.max(1) {
+            let l = lambda_step(
+                problem,
+                &s,
+                &self.weights,
+                kk,
+                &dw.lambda,
+                self.ridge,
+                opts.beta,
+            )?;
+            if self.ridge.is_none() {
+                self.ridge = Some(l.max_diag.map(|d| opts.beta * d));
+            }
+            self.lambda = l.lambda;
+            self.cond.lambda = l.cond;
+            let w = weights_step(problem, &s, &self.lambda, &self.weights, &dw.weights)?;
+            self.weights = w.weights;
+            self.cond.weights_max = w.cond_max;
+            self.cond.weights_singular = w.singular;
+        }
+        if opts.fix_gauge {
+            self.fix_gauge(&mut s);
+        }
+        Ok(s)
+    }
+
+    /// Per channel, `G_c = Σ_x Σ_b β_{x,b,c}` back to its start value, the lights (and
+    /// their responses `s`) taking the inverse factor: the data term is unchanged, and the
+    /// prior's weights, fixed at the first lighting step, keep their meaning.
+    fn fix_gauge(&mut self, s: &mut [[f64; 3]]) {
+        let g_now = gauge(&self.lambda, &self.weights, self.problem.n_vertices);
+        for c in 0..3 {
+            if g_now[c] > 0.0 && self.gauge0[c] > 0.0 {
+                let f = self.gauge0[c] / g_now[c];
+                for v in self.lambda.iter_mut().flatten() {
+                    v[c] *= f;
+                }
+                self.light.divide_channel(c, f);
+                for v in s.iter_mut() {
+                    v[c] /= f;
+                }
+            }
+        }
+    }
+
+    /// `F` and the train RMSE of the current state (`s`: its basis responses, if known).
+    fn objective(&self, s: Option<&[[f64; 3]]>) -> Objective {
+        let params = self.light.params();
+        let maps = self.light.maps(params);
+        let at = Point {
+            maps: &maps,
+            lambda: &self.lambda,
+            weights: &self.weights,
+            prior: self.light.penalty(params),
+        };
+        evaluate(self.problem, &at, self.ridge, &self.omega, s)
+    }
+
+    /// Tries the extrapolated state (module docs), keeps it when `F` drops; records the
+    /// iterate for the next call. Returns the objective of the state kept.
+    fn extrapolate(&mut self, outer_it: usize, current: Objective) -> Objective {
+        let mut kept = current;
+        if let Some(prev) = self.prev.take() {
+            let sig = (outer_it as f64).cbrt();
+            let ext = |a: f64, b: f64| (a + sig * (a - b)).max(0.0);
+            let cl = self
+                .light
+                .extrapolate(self.light.params(), &prev.light, sig);
+            let clam: Vec<Vec<[f64; 3]>> = self
+                .lambda
+                .iter()
+                .zip(&prev.lambda)
+                .map(|(l, q)| {
+                    l.iter()
+                        .zip(q)
+                        .map(|(a, b)| [0, 1, 2].map(|c| ext(a[c], b[c])))
+                        .collect()
+                })
+                .collect();
+            let cw: Vec<f64> = self
+                .weights
+                .iter()
+                .zip(&prev.weights)
+                .map(|(&a, &b)| ext(a, b))
+                .collect();
+            let cand = {
+                let maps = self.light.maps(&cl);
+                let at = Point {
+                    maps: &maps,
+                    lambda: &clam,
+                    weights: &cw,
+                    prior: self.light.penalty(&cl),
+                };
+                evaluate(self.problem, &at, self.ridge, &self.omega, None)
+            };
+            if cand.value < current.value {
+                self.light.set_params(cl);
+                self.lambda = clam;
+                self.weights = cw;
+                kept = cand;
+            }
+        }
+        self.prev = Some(self.snapshot());
+        kept
+    }
+
+    /// A copy of the light parameters and materials.
+    pub(crate) fn snapshot(&self) -> Snapshot<M::Params> {
+        Snapshot {
+            light: self.light.params().clone(),
+            lambda: self.lambda.clone(),
+            weights: self.weights.clone(),
+        }
+    }
+
+    /// Back to a snapshot (the light model's prior weights stay).
+    pub(crate) fn restore(&mut self, s: Snapshot<M::Params>) {
+        self.light.set_params(s.light);
+        self.lambda = s.lambda;
+        self.weights = s.weights;
+    }
+
+    /// The normalisation (module docs of [`crate::solve`]) and the result.
+    fn finish(
+        mut self,
+        init: &Materials0,
+        timeline: Vec<Iteration>,
+        validation: Option<crate::solve::result::Validation>,
+    ) -> Result<Estimate> {
+        let normalisation = normalise(
+            &mut self.light,
+            &mut self.lambda,
+            &mut self.weights,
+            init,
+            self.opts,
+        );
+        Ok(Estimate {
+            mu: self.light.prior_weights(),
+            lights: self.light.into_maps(),
+            lambda: self.lambda,
+            weights: self.weights,
+            timeline,
+            normalisation,
+            irls_weights: self.omega,
+            conditioning: self.cond,
+            validation,
+        })
+    }
+}

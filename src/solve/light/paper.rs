@@ -1,0 +1,194 @@
+//! The paper's light model (Sec. 5.1, Eq. 10): per photo a free, non-negative global
+//! octahedral map (`n_global²` texels per channel), with the smoothness prior
+//! `μ_{I,c} ‖Δ x_{I,c}‖²` of the map's graph Laplacian ([`Laplacian`]).
+//!
+//! `μ_{I,c}` = `smoothness` × the largest diagonal entry of the photo's system (the scale
+//! [`crate::solve::SmoothnessScale`]), fixed at the photo's first lighting step, then
+//! optionally decayed per outer iteration (`smoothness_decay`, floored at
+//! `smoothness_min`). Photos are independent and solved in parallel, largest first
+//! ([`crate::solve::par_largest_first`]); each solve is sequential, so the result does
+//! not depend on the thread count. Inside the alternation each QP is an inexact block
+//! step from the previous iterate, capped at
+//! [`EstimateOptions::alternation_qp_iters`] GPCG iterations of at most
+//! [`EstimateOptions::alternation_cg_iters`] CG steps.
+
+use std::borrow::Cow;
+
+use crate::solve::light::laplacian::Laplacian;
+use crate::solve::light::photo::{lighting_step_full, LightingResult};
+use crate::solve::light::{LightModel, LightingInput, LightingOutput};
+use crate::solve::options::EstimateOptions;
+use crate::solve::problem::{par_largest_first, Problem};
+use crate::Result;
+
+/// Per photo and channel, a map's texels.
+pub type Maps = Vec<[Vec<f64>; 3]>;
+
+/// The paper's free wavelet map per photo (module docs).
+#[derive(Clone)]
+pub struct PaperLight {
+    lights: Maps,
+    /// `μ` of each photo's latest lighting step (`None` before its first).
+    mu: Vec<Option<[f64; 3]>>,
+    /// `μ` of each photo's first lighting step, the schedule's `μ_1`.
+    mu_first: Vec<Option<[f64; 3]>>,
+    opts: EstimateOptions,
+    /// `opts` with the alternation's QP caps applied.
+    light_opts: EstimateOptions,
+    lap: Laplacian,
+}
+
+impl PaperLight {
+    /// Zero maps for every photo of `problem`.
+    pub fn new(problem: &Problem, opts: &EstimateOptions) -> Self {
+        let n = problem.transport.n_global;
+        let n2 = n * n;
+        // Inside the alternation the lighting QPs are inexact block steps (option docs).
+        let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
+            (false, Some(c)) => c.clamp(1, max.max(1)),
+            _ => max,
+        };
+        let light_opts = EstimateOptions {
+            qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
+            qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
+            ..opts.clone()
+        };
+        PaperLight {
+            lights: (0..problem.n_photos)
+                .map(|_| [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]])
+                .collect(),
+            mu: vec![None; problem.n_photos],
+            mu_first: vec![None; problem.n_photos],
+            opts: opts.clone(),
+            light_opts,
+            lap: Laplacian::new(n),
+        }
+    }
+
+    /// The factor on `μ_1` at outer iteration `outer_it` (module docs).
+    fn mu_factor(&self, outer_it: usize) -> f64 {
+        let o = &self.opts;
+        if o.smoothness_decay == 1.0 || o.smoothness <= 0.0 {
+            1.0
+        } else {
+            o.smoothness_decay
+                .powi(outer_it as i32 - 1)
+                .max(o.smoothness_min / o.smoothness)
+                .min(1.0)
+        }
+    }
+
+    /// Takes one photo's lighting result into the state and the outputs.
+    fn absorb(&mut self, problem: &Problem, i: usize, r: LightingResult, out: &mut LightingOutput) {
+        let range = problem.obs.photo_ranges[i].clone();
+        out.irls_weights[range].copy_from_slice(&r.irls_weights);
+        self.lights[i] = r.light;
+        if self.mu_first[i].is_none() {
+            self.mu_first[i] = Some(r.mu);
+        }
+        self.mu[i] = Some(r.mu);
+        let cond = &mut *out.conditioning;
+        cond.lighting.push(r.cond_lower_bound);
+        cond.qp_unconverged += usize::from(!r.converged);
+        cond.lighting_matvecs += r.matvecs;
+        cond.lighting_qps += r.qps;
+        cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(r.matvecs_max);
+        if self.light_opts.qp_max_iter < self.opts.qp_max_iter {
+            cond.qp_alternation_capped += r.unconverged_qps;
+        }
+    }
+}
+
+impl LightModel for PaperLight {
+    type Params = Maps;
+
+    fn name(&self) -> &'static str {
+        "paper: free wavelet map per photo, Laplacian prior"
+    }
+
+    fn parameter_count(&self) -> usize {
+        self.lights
+            .iter()
+            .map(|l| l.iter().map(Vec::len).sum::<usize>())
+            .sum()
+    }
+
+    fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
+        let problem = input.problem;
+        let mu_factor = self.mu_factor(input.outer_iteration);
+        let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
+        let results: Vec<Result<LightingResult>> = par_largest_first(&sizes, |i| {
+            let m = self.mu_first[i].map(|m| m.map(|v| v * mu_factor));
+            let start = Some(&self.lights[i]);
+            lighting_step_full(problem, input.beta, i, start, m, &self.light_opts)
+        });
+        out.conditioning.lighting.clear();
+        out.conditioning.qp_unconverged = 0;
+        out.conditioning.qp_alternation_capped = 0;
+        for (i, r) in results.into_iter().enumerate() {
+            self.absorb(problem, i, r?, out);
+        }
+        Ok(())
+    }
+
+    fn params(&self) -> &Maps {
+        &self.lights
+    }
+
+    fn set_params(&mut self, params: Maps) {
+        self.lights = params;
+    }
+
+    fn maps<'a>(&'a self, params: &'a Maps) -> Cow<'a, [[Vec<f64>; 3]]> {
+        Cow::Borrowed(params)
+    }
+
+    fn penalty(&self, params: &Maps) -> f64 {
+        params
+            .iter()
+            .zip(&self.mu)
+            .map(|(l, m)| {
+                let m = m.unwrap_or([0.0; 3]);
+                (0..3).map(|c| m[c] * self.lap.energy(&l[c])).sum::<f64>()
+            })
+            .sum()
+    }
+
+    fn extrapolate(&self, params: &Maps, prev: &Maps, sigma: f64) -> Maps {
+        let ext = |a: f64, b: f64| (a + sigma * (a - b)).max(0.0);
+        params
+            .iter()
+            .zip(prev)
+            .map(|(l, q)| {
+                [0, 1, 2].map(|c| l[c].iter().zip(&q[c]).map(|(&a, &b)| ext(a, b)).collect())
+            })
+            .collect()
+    }
+
+    fn divide_channel(&mut self, c: usize, f: f64) {
+        for l in self.lights.iter_mut() {
+            l[c].iter_mut().for_each(|v| *v /= f);
+        }
+    }
+
+    fn normalise(&mut self, s: f64) {
+        for l in self.lights.iter_mut() {
+            for v in l.iter_mut().flatten() {
+                *v /= s;
+            }
+        }
+        for m in self.mu.iter_mut().flatten() {
+            for v in m.iter_mut() {
+                *v *= s * s;
+            }
+        }
+    }
+
+    fn prior_weights(&self) -> Vec<[f64; 3]> {
+        self.mu.iter().map(|m| m.unwrap_or([0.0; 3])).collect()
+    }
+
+    fn into_maps(self) -> Maps {
+        self.lights
+    }
+}

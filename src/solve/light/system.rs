@@ -1,0 +1,410 @@
+//! One photo's lighting system in the Haar basis (Eq. 10): the observations' transport rows
+//! blended with `β` into one sparse row per observation, and the products `A h`, `Aᵀ u`
+//! and `Aᵀ D A h` the matrix-free QP needs; plus the texel-basis diagonal of `Wᵀ Aᵀ D A W`
+//! that scales the QP and sets the smoothness weight `μ`.
+
+// Numerical kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
+use rayon::prelude::*;
+
+use crate::solve::problem::Problem;
+use crate::sphere::haar;
+use crate::transport::HaarIndex;
+
+/// One photo's data for the lighting step.
+///
+/// With `β` fixed for the whole lighting step, an observation's `B` transport rows enter
+/// every product only through their per-channel blend `e_{p,c} = Σ_b β_{x,b,c} g_{p,b}`.
+/// [`PhotoSystem::new`] merges them once into one sparse row per observation (the union of
+/// the bases' kept indices, ascending, values `[f32; 3]`, one per channel), so a product
+/// costs one gather or scatter per merged entry instead of `B` per kept entry. The blend
+/// is summed in `f64` in basis order and rounded once to `f32` (relative error ≤ 2⁻²⁴, the
+/// precision the transport values are stored in); forward and adjoint products read the
+/// same stored values, so the Hessian stays exactly symmetric.
+pub(crate) struct PhotoSystem {
+    pub(crate) range: std::ops::Range<usize>,
+    pub(crate) n: usize,
+    /// `α_p ω_{p,c}` for the range's observations.
+    pub(crate) dw: Vec<[f64; 3]>,
+    /// Merged row `q` (range order) spans `index[offsets[q]..offsets[q + 1]]`.
+    pub(crate) offsets: Vec<usize>,
+    /// Haar coefficient indices of the merged rows, ascending within a row (2 bytes, the
+    /// transport's own index type: 14 bytes an entry with the values, was 16).
+    pub(crate) index: Vec<HaarIndex>,
+    /// `e_{p,c}` at those indices.
+    pub(crate) value: Vec<[f32; 3]>,
+    /// The merged rows cut into [`PRODUCT_CHUNKS`] contiguous ranges of about equal
+    /// entries: the parallel parts of [`Self::normal_rows`].
+    pub(crate) chunks: Vec<std::ops::Range<usize>>,
+}
+
+/// Parts of one lighting-step product ([`PhotoSystem::normal_rows`]): each part's rows are
+/// scattered into a buffer of its own, in parallel, and the buffers summed in part order.
+/// A fixed number, not the thread count, so the sum (and every result) does not depend on
+/// the machine. Lone QPs (protocol (b)'s light fits, the last photos of a lighting step)
+/// then use every core; inside the estimate's parallel photos the parts only add a
+/// `PRODUCT_CHUNKS × n²` buffer sum to a product that reads every merged row.
+pub(crate) const PRODUCT_CHUNKS: usize = 4;
+
+/// `parts` contiguous ranges of `0..offsets.len() − 1` (rows), cut where the running entry
+/// count `offsets[q]` crosses `k/parts` of the total; empty ranges are dropped.
+pub(crate) fn entry_chunks(offsets: &[usize], parts: usize) -> Vec<std::ops::Range<usize>> {
+    let rows = offsets.len().saturating_sub(1);
+    let total = offsets.last().copied().unwrap_or(0);
+    let mut cuts = vec![0];
+    for k in 1..parts {
+        let target = total * k / parts;
+        let q = offsets.partition_point(|&o| o < target).min(rows);
+        cuts.push(q.max(*cuts.last().unwrap_or(&0)));
+    }
+    cuts.push(rows);
+    cuts.windows(2)
+        .filter(|w| w[1] > w[0])
+        .map(|w| w[0]..w[1])
+        .collect()
+}
+
+/// `⟨e_c, h_c⟩` per channel for one merged transport row (`idx`, `val`) and a light `h`
+/// (interleaved Haar): the forward half of the lighting step's products.
+#[inline]
+pub(crate) fn row_dot(idx: &[HaarIndex], val: &[[f32; 3]], h: &[[f64; 3]]) -> [f64; 3] {
+    let mut acc = [0.0_f64; 3];
+    for (&m, e) in idx.iter().zip(val) {
+        let hm = &h[m as usize];
+        acc[0] += e[0] as f64 * hm[0];
+        acc[1] += e[1] as f64 * hm[1];
+        acc[2] += e[2] as f64 * hm[2];
+    }
+    acc
+}
+
+/// `out_c += e_c u_c` for one merged transport row: the adjoint half.
+#[inline]
+pub(crate) fn row_scatter(idx: &[HaarIndex], val: &[[f32; 3]], u: [f64; 3], out: &mut [[f64; 3]]) {
+    for (&m, e) in idx.iter().zip(val) {
+        let o = &mut out[m as usize];
+        o[0] += e[0] as f64 * u[0];
+        o[1] += e[1] as f64 * u[1];
+        o[2] += e[2] as f64 * u[2];
+    }
+}
+
+impl PhotoSystem {
+    /// Merge the range's transport rows with `β` (struct docs).
+    pub(crate) fn new(
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        range: std::ops::Range<usize>,
+        n: usize,
+        dw: Vec<[f64; 3]>,
+    ) -> Self {
+        let t = problem.transport;
+        let nb = t.n_basis;
+        let n2 = n * n;
+        let mut dense = vec![[0.0_f64; 3]; n2];
+        let mut seen = vec![false; n2];
+        let mut touched: Vec<HaarIndex> = Vec::new();
+        let mut offsets = Vec::with_capacity(range.len() + 1);
+        offsets.push(0);
+        let mut index = Vec::new();
+        let mut value = Vec::new();
+        for p in range.clone() {
+            let x = problem.obs.vertex[p] as usize;
+            for b in 0..nb {
+                let be = beta[x * nb + b];
+                if be == [0.0; 3] {
+                    continue;
+                }
+                let (idx, val) = t.row(p, b);
+                for (&m, &g) in idx.iter().zip(val) {
+                    let mu = m as usize;
+                    if !seen[mu] {
+                        seen[mu] = true;
+                        touched.push(m);
+                    }
+                    let g = g as f64;
+                    let d = &mut dense[mu];
+                    d[0] += be[0] * g;
+                    d[1] += be[1] * g;
+                    d[2] += be[2] * g;
+                }
+            }
+            touched.sort_unstable();
+            for &m in &touched {
+                let mu = m as usize;
+                let d = dense[mu];
+                if d != [0.0; 3] {
+                    index.push(m);
+                    value.push(d.map(|v| v as f32));
+                }
+                dense[mu] = [0.0; 3];
+                seen[mu] = false;
+            }
+            touched.clear();
+            offsets.push(index.len());
+        }
+        let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
+        PhotoSystem {
+            range,
+            n,
+            dw,
+            offsets,
+            index,
+            value,
+            chunks,
+        }
+    }
+
+    /// Merged row `q` (range order): indices and per-channel values.
+    pub(crate) fn merged(&self, q: usize) -> (&[HaarIndex], &[[f32; 3]]) {
+        let (lo, hi) = (self.offsets[q], self.offsets[q + 1]);
+        (&self.index[lo..hi], &self.value[lo..hi])
+    }
+
+    /// `s_{p,c} = Σ_b β_{x,b,c} ⟨g_{p,b}, h_c⟩ = ⟨e_{p,c}, h_c⟩` for the range (`h`
+    /// interleaved Haar).
+    pub(crate) fn forward_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        debug_assert_eq!(out.len(), self.range.len());
+        for (q, o) in out.iter_mut().enumerate() {
+            let (idx, val) = self.merged(q);
+            *o = row_dot(idx, val, h);
+        }
+    }
+
+    /// `out += Aᵀ u` in the Haar basis (`u` per observation of the range and channel).
+    pub(crate) fn adjoint_rows(&self, u: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        for (q, uq) in u.iter().enumerate() {
+            if *uq == [0.0; 3] {
+                continue;
+            }
+            let (idx, val) = self.merged(q);
+            row_scatter(idx, val, *uq, out);
+        }
+    }
+
+    /// `out += Aᵀ D A h` in the Haar basis (`D = dw`), one pass over the merged rows:
+    /// each row's response is formed and scattered back at once, so the rows are read
+    /// once per product instead of twice. The rows are cut into [`PRODUCT_CHUNKS`] parts
+    /// done in parallel, each into its own buffer, then added to `out` in part order.
+    pub(crate) fn normal_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        let part = |rows: &std::ops::Range<usize>| {
+            let mut acc = vec![[0.0_f64; 3]; out.len()];
+            for q in rows.clone() {
+                let d = self.dw[q];
+                let (idx, val) = self.merged(q);
+                let r = row_dot(idx, val, h);
+                let uq = [r[0] * d[0], r[1] * d[1], r[2] * d[2]];
+                if uq == [0.0; 3] {
+                    continue;
+                }
+                row_scatter(idx, val, uq, &mut acc);
+            }
+            acc
+        };
+        let parts: Vec<Vec<[f64; 3]>> = self.chunks.par_iter().map(part).collect();
+        for p in &parts {
+            for (o, v) in out.iter_mut().zip(p) {
+                o[0] += v[0];
+                o[1] += v[1];
+                o[2] += v[2];
+            }
+        }
+    }
+
+    /// Largest diagonal entry of `Aᵀ D A` per channel, in the Haar basis:
+    /// `max_m Σ_p d_{p,c} e_{p,c,m}²`.
+    pub(crate) fn max_diag(&self) -> [f64; 3] {
+        let mut diag = vec![[0.0; 3]; self.n * self.n];
+        for (q, d) in self.dw.iter().enumerate() {
+            let (idx, val) = self.merged(q);
+            for (&m, e) in idx.iter().zip(val) {
+                let o = &mut diag[m as usize];
+                for c in 0..3 {
+                    let v = e[c] as f64;
+                    o[c] += d[c] * v * v;
+                }
+            }
+        }
+        let mut mx = [0.0_f64; 3];
+        for d in &diag {
+            for c in 0..3 {
+                mx[c] = mx[c].max(d[c]);
+            }
+        }
+        mx
+    }
+}
+
+/// Largest and mean diagonal entries per channel of the unweighted-by-IRLS lighting system
+/// `Wᵀ Aᵀ D A W` in the texel basis (`D = α`): `Σ_p α_p ((Wᵀ e_{p,c})_t)²`, with
+/// `e_{p,c} = Σ_b β_{x,b,c} g_{p,b}` rebuilt densely and inverse-Haar transformed per
+/// observation (`O(n²)` each, once per photo).
+pub(crate) fn texel_diag(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    range: std::ops::Range<usize>,
+    alpha: &[f64],
+) -> ([f64; 3], [f64; 3]) {
+    let diag = texel_diag_vec(problem, beta, range, alpha);
+    let n2 = diag.len();
+    let (mut mx, mut sum) = ([0.0_f64; 3], [0.0_f64; 3]);
+    for d in &diag {
+        for c in 0..3 {
+            mx[c] = mx[c].max(d[c]);
+            sum[c] += d[c];
+        }
+    }
+    (mx, sum.map(|v| v / n2 as f64))
+}
+
+/// The diagonal itself, per texel and channel (see [`texel_diag`]).
+pub(crate) fn texel_diag_vec(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    range: std::ops::Range<usize>,
+    alpha: &[f64],
+) -> Vec<[f64; 3]> {
+    let t = problem.transport;
+    let (n, nb) = (t.n_global, t.n_basis);
+    let n2 = n * n;
+    let mut diag = vec![[0.0_f64; 3]; n2];
+    let mut dense = [vec![0.0_f64; n2], vec![0.0; n2], vec![0.0; n2]];
+    let mut scratch = Vec::new();
+    for (q, p) in range.enumerate() {
+        let a = alpha[q];
+        if a <= 0.0 {
+            continue;
+        }
+        let x = problem.obs.vertex[p] as usize;
+        for d in dense.iter_mut() {
+            d.fill(0.0);
+        }
+        for b in 0..nb {
+            let be = beta[x * nb + b];
+            let (idx, val) = t.row(p, b);
+            for (&m, &g) in idx.iter().zip(val) {
+                for c in 0..3 {
+                    dense[c][m as usize] += be[c] * g as f64;
+                }
+            }
+        }
+        for (c, d) in dense.iter_mut().enumerate() {
+            haar::inverse_with(d, n, &mut scratch);
+            for (o, v) in diag.iter_mut().zip(d.iter()) {
+                o[c] += a * v * v;
+            }
+        }
+    }
+    diag
+}
+
+pub(crate) fn split3(x: &[f64], n2: usize) -> [Vec<f64>; 3] {
+    [0, 1, 2].map(|c| x[c * n2..(c + 1) * n2].to_vec())
+}
+
+/// Channel-major texels `Wᵀ h` of interleaved Haar coefficients.
+pub(crate) fn unhaar3(h: &[[f64; 3]], n: usize) -> Vec<f64> {
+    let n2 = n * n;
+    let mut out = vec![0.0; 3 * n2];
+    for c in 0..3 {
+        let ch = &mut out[c * n2..(c + 1) * n2];
+        for (o, v) in ch.iter_mut().zip(h) {
+            *o = v[c];
+        }
+        haar::inverse(ch, n);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn entry_chunks_cover_the_rows_in_order_and_balance_the_entries() {
+        // 1,000 rows of 0–99 entries.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut offsets = vec![0];
+        for _ in 0..1000 {
+            let len = rng.random_range(0..100);
+            offsets.push(offsets.last().unwrap() + len);
+        }
+        let chunks = entry_chunks(&offsets, 4);
+        assert_eq!(chunks.len(), 4);
+        assert_eq!(chunks[0].start, 0);
+        assert_eq!(chunks.last().unwrap().end, 1000);
+        for w in chunks.windows(2) {
+            assert_eq!(w[0].end, w[1].start);
+        }
+        let total = *offsets.last().unwrap();
+        for c in &chunks {
+            let e = offsets[c.end] - offsets[c.start];
+            // A cut lands on a row boundary, so a part is off its quarter by less than one
+            // row (< 100 entries).
+            assert!((e as i64 - total as i64 / 4).abs() < 100, "{e} of {total}");
+        }
+        // Fewer rows than parts, and no rows: no empty part.
+        assert_eq!(entry_chunks(&[0, 5, 9], 4), vec![0..1, 1..2]);
+        assert!(entry_chunks(&[0], 4).is_empty());
+    }
+
+    #[test]
+    fn the_parallel_product_is_the_forward_scale_adjoint_sequence() {
+        // Random merged rows over a 16² map; the fused, chunked `Aᵀ D A h` against the
+        // forward rows, the scaling by `D` and the adjoint rows done one after the other.
+        // Only the order of the additions differs: 1e-12 relative.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let n = 16;
+        let rows = 500;
+        let mut offsets = vec![0];
+        let (mut index, mut value) = (Vec::new(), Vec::new());
+        for _ in 0..rows {
+            let mut idx: Vec<HaarIndex> = (0..n * n)
+                .filter(|_| rng.random_bool(0.2))
+                .map(|m| m as HaarIndex)
+                .collect();
+            idx.sort_unstable();
+            for _ in &idx {
+                value.push([0, 1, 2].map(|_| rng.random_range(-1.0_f32..1.0)));
+            }
+            index.extend(idx);
+            offsets.push(index.len());
+        }
+        let dw: Vec<[f64; 3]> = (0..rows)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..2.0)))
+            .collect();
+        let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
+        let sys = PhotoSystem {
+            range: 0..rows,
+            n,
+            dw: dw.clone(),
+            offsets,
+            index,
+            value,
+            chunks,
+        };
+        let h: Vec<[f64; 3]> = (0..n * n)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+            .collect();
+        let mut fused = vec![[0.0; 3]; n * n];
+        sys.normal_rows(&h, &mut fused);
+        let mut s = vec![[0.0; 3]; rows];
+        sys.forward_rows(&h, &mut s);
+        let u: Vec<[f64; 3]> = s
+            .iter()
+            .zip(&dw)
+            .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
+            .collect();
+        let mut seq = vec![[0.0; 3]; n * n];
+        sys.adjoint_rows(&u, &mut seq);
+        let scale = seq.iter().flatten().fold(0.0_f64, |a, v| a.max(v.abs()));
+        assert!(scale > 1.0);
+        for (a, b) in fused.iter().zip(&seq) {
+            for c in 0..3 {
+                assert!((a[c] - b[c]).abs() <= 1e-12 * scale, "{} vs {}", a[c], b[c]);
+            }
+        }
+    }
+}

@@ -1,0 +1,105 @@
+//! The scale normalisation after the alternation.
+//!
+//! `F` is invariant under `x → s x`, `λ → λ / s` (and `w_k → t w_k`, `λ_k → λ_k / t`) up to
+//! the tiny regularisers. The result is normalised once: every material's median blending
+//! weight over the vertices where it is the largest becomes 1 (pure-material vertices get
+//! weight ≈ 1; robust to blends and stray large weights), then the mean Lambertian weight
+//! (basis `lambert_basis`) over materials and channels equals that of the start (the
+//! initial materials' median colours; the mean of all `λ` when either is 0), the lights
+//! taking the inverse scale. With `fixed_materials` (Sec. 6.1) nothing is rescaled.
+
+use crate::solve::light::LightModel;
+use crate::solve::options::EstimateOptions;
+use crate::solve::result::Materials0;
+
+/// Normalises `lambda`, `weights` and the light (module docs); the rule applied, in words
+/// ([`crate::solve::Estimate::normalisation`]).
+pub(crate) fn normalise<M: LightModel>(
+    light: &mut M,
+    lambda: &mut [Vec<[f64; 3]>],
+    weights: &mut [f64],
+    init: &Materials0,
+    opts: &EstimateOptions,
+) -> String {
+    if opts.fixed_materials {
+        return "none: the reflectance is given, so the lights carry the absolute scale"
+            .to_string();
+    }
+    median_weights_to_one(lambda, weights);
+    let nb = lambda.first().map_or(0, |l| l.len());
+    let lb = opts.lambert_basis.min(nb - 1);
+    let scale = InitialScale::of(&init.lambda, lambda, lb);
+    if scale.target > 0.0 && scale.now > 0.0 {
+        let s = scale.target / scale.now;
+        for v in lambda.iter_mut().flatten().flatten() {
+            *v *= s;
+        }
+        light.normalise(s);
+    }
+    format!(
+        "every material's median blending weight over the vertices it dominates is 1; then {} equals its initial value {:.6e}; maps scaled inversely",
+        scale.what, scale.target
+    )
+}
+
+/// Per material, the median weight over the vertices where it dominates becomes 1, its
+/// `λ` taking the inverse factor.
+fn median_weights_to_one(lambda: &mut [Vec<[f64; 3]>], weights: &mut [f64]) {
+    let kk = lambda.len();
+    let nv = weights.len() / kk.max(1);
+    for k in 0..kk {
+        let mut dom: Vec<f64> = (0..nv)
+            .filter(|&x| {
+                let row = &weights[x * kk..(x + 1) * kk];
+                row[k] > 0.0 && row.iter().all(|&v| v <= row[k])
+            })
+            .map(|x| weights[x * kk + k])
+            .collect();
+        if dom.is_empty() {
+            continue;
+        }
+        let mid = dom.len() / 2;
+        let (_, med, _) = dom.select_nth_unstable_by(mid, f64::total_cmp);
+        let scale = *med;
+        if scale > 0.0 {
+            for x in 0..nv {
+                weights[x * kk + k] /= scale;
+            }
+            for v in lambda[k].iter_mut().flatten() {
+                *v *= scale;
+            }
+        }
+    }
+}
+
+/// The figure the final scale matches: its start value, its value now, and its name.
+struct InitialScale {
+    target: f64,
+    now: f64,
+    what: String,
+}
+
+impl InitialScale {
+    fn of(init: &[Vec<[f64; 3]>], lambda: &[Vec<[f64; 3]>], lb: usize) -> Self {
+        let kk = lambda.len();
+        let nb = lambda.first().map_or(0, |l| l.len());
+        let mean_l = |l: &[Vec<[f64; 3]>]| {
+            l.iter().map(|r| r[lb].iter().sum::<f64>()).sum::<f64>() / (3 * kk) as f64
+        };
+        let mean_all =
+            |l: &[Vec<[f64; 3]>]| l.iter().flatten().flatten().sum::<f64>() / (3 * kk * nb) as f64;
+        if mean_l(init) > 0.0 && mean_l(lambda) > 0.0 {
+            InitialScale {
+                target: mean_l(init),
+                now: mean_l(lambda),
+                what: format!("the mean Lambertian weight λ_k,{lb},c over materials and channels"),
+            }
+        } else {
+            InitialScale {
+                target: mean_all(init),
+                now: mean_all(lambda),
+                what: "the mean of all λ_k,b,c".to_string(),
+            }
+        }
+    }
+}

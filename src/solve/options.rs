@@ -1,0 +1,222 @@
+//! The estimator's options ([`EstimateOptions`]) and their defaults, each with the
+//! measurement or the paper passage behind it.
+
+/// Robust loss for IRLS, thresholds in units of the residuals' robust scale
+/// `σ = max(1.4826 · median |r|, robust_floor · rms(y))` (per photo and channel,
+/// [`EstimateOptions::robust_floor`]).
+///
+/// Measured trade-off (`bench-results/estimator.md`, part 3): with 5% gross bright
+/// outliers in a joint fit, Huber alone lets the per-vertex weights absorb them (held-out
+/// error ×2.9 of the clean fit); with the default w-step cut
+/// ([`EstimateOptions::weights_reject`]) ×1.05, Tukey ×1.04. Tukey is not the default
+/// because it also rejects the genuine, noisier highlights of glossy surfaces in the
+/// lighting step (known-reflectance Phong 50 sphere, `tests/suite/estimate_synth.rs` sizes: fit
+/// 0.245 against the true map's 0.144, Huber 0.124).
+///
+/// The price on clean data (`bench-results/estimator-convergence.md`, `spot-varying` with
+/// photos made by the true model through its own transport, 20 outer iterations): the
+/// MAD scale shrinks with the residuals, so Huber keeps down-weighting the model's own
+/// misfit (highlights the current λ cannot make yet) in the lighting and material steps:
+/// training / held-out relative error 12.2% / 13.2% against 1.9% / 9.2% without IRLS,
+/// at 4× the lighting cost; `k = 3` does not close the gap (10.7% / 12.4% after 16).
+/// A floor on the scale ([`EstimateOptions::robust_floor`], [`ROBUST_FLOOR`] by default)
+/// removes most of it: at 0.1, 4.0% / 9.9% after 20 (0.05: 6.8% / 10.6%; 0.02: 7.2% / 11.6%).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Robust {
+    /// Plain least squares, no reweighting.
+    None,
+    /// Huber: weight `min(1, kσ / |r|)` (k = 1.345 is 95% efficient on Gaussian noise).
+    Huber { k: f64 },
+    /// Tukey's biweight: weight `(1 − (r / cσ)²)²` inside `|r| < cσ`, 0 outside (c = 4.685).
+    Tukey { c: f64 },
+}
+
+/// The diagonal of the lighting system `Wᵀ Aᵀ D A W` that the Laplacian weight is measured
+/// against: `μ_{I,c} = smoothness × scale_{I,c}`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SmoothnessScale {
+    /// The largest diagonal entry in the Haar basis. Dominated by the scaling coefficient
+    /// (the map's mean), which collects a whole lobe's energy: `~n²/4` times a texel's
+    /// entry for a diffuse row, so `μ` grows with the map resolution and blurs suns.
+    HaarMax,
+    /// The largest diagonal entry in the texel basis, the one the Laplacian acts in:
+    /// `max_t Σ_p α_p ω_{p,c} ((Wᵀ e_{p,c})_t)²` (`e` the β-blended transport row).
+    TexelMax,
+    /// The mean diagonal entry, `trace / n²` (the same in both bases).
+    Mean,
+}
+
+/// Options of [`estimate`].
+#[derive(Debug, Clone)]
+pub struct EstimateOptions {
+    /// Cap on outer (lighting + materials) iterations.
+    pub max_outer: usize,
+    /// Stop when the objective's relative decrease falls below this.
+    pub rel_tol: f64,
+    /// Laplacian weight `μ` relative to the lighting system's scale `smoothness_scale`.
+    pub smoothness: f64,
+    /// What `smoothness` is relative to (the system's "largest value").
+    pub smoothness_scale: SmoothnessScale,
+    /// Laplacian schedule over the outer iterations: iteration `t` (1-based) uses
+    /// `μ_t = μ_1 · max(smoothness_decay^(t−1), smoothness_min / smoothness)`, `μ_1` fixed
+    /// at the photo's first lighting step. 1 = the same `μ` throughout. A smooth start
+    /// keeps the first maps stable while the materials are far off; a weaker Laplacian
+    /// later removes its bias from the minimiser. Default 1 (off): on noise-free
+    /// `spot-varying` (`bench-results/estimator-convergence.md`) 0.7 down to 10⁻⁵ keeps a
+    /// start at the true materials at 2.3% held-out after 20 iterations (constant: drifts
+    /// to 7.4%), but from the clustered start gives 10.1% against 9.9% at ~5× the wall time
+    /// (the weaker Laplacian conditions the lighting QP worse).
+    pub smoothness_decay: f64,
+    /// The smallest relative Laplacian weight the schedule reaches (see `smoothness_decay`).
+    pub smoothness_min: f64,
+    /// Robust loss of the lighting step (IRLS); its final weights carry to the materials.
+    pub robust: Robust,
+    /// IRLS passes per lighting step (the first one unweighted); 1 = plain weighted LS.
+    pub irls_iters: usize,
+    /// Ridge on λ, relative to the largest diagonal entry of the first λ system.
+    pub beta: f64,
+    /// Known reflectance (Sec. 6.1): only the lighting is estimated.
+    pub fixed_materials: bool,
+    /// Lighting QP stopping rule: projected gradient ≤ `qp_rel_tol · ‖Wᵀ Aᵀ D y‖∞`.
+    pub qp_rel_tol: f64,
+    /// Cap on GPCG iterations per lighting QP.
+    pub qp_max_iter: usize,
+    /// Cap on GPCG iterations of each lighting QP inside the alternation, where every QP
+    /// starts from the previous iterate and the next material step changes the system
+    /// anyway (an inexact block step: GPCG never raises the QP's objective, so `F` still
+    /// does not increase). `None`: `qp_max_iter`, i.e. solved to the KKT tolerance.
+    /// Single lighting fits (fixed materials, [`fit_light_frozen`]) always use
+    /// `qp_max_iter`. Measured in `bench-results/lighting-solver.md`.
+    pub alternation_qp_iters: Option<usize>,
+    /// Cap on conjugate-gradient steps on the free face per GPCG iteration of a lighting
+    /// QP (each step is one Hessian product).
+    pub qp_max_cg: usize,
+    /// Cap on those CG steps inside the alternation (as `alternation_qp_iters`: an inexact
+    /// block step that never raises the QP's objective). `None`: `qp_max_cg`.
+    pub alternation_cg_iters: Option<usize>,
+    /// λ / w alternations per material step.
+    pub material_sweeps: usize,
+    /// Index of the Lambertian basis BRDF (used by the normalisation).
+    pub lambert_basis: usize,
+    /// Extrapolate the alternation (accepted only when the objective drops).
+    pub extrapolate: bool,
+    /// With Huber IRLS: observations whose last lighting residual exceeds this many robust
+    /// scales `σ` (Huber weight below `k / weights_reject`) are left out of the per-vertex
+    /// `w` step (a redescending cut there only). A vertex has a handful of observations and
+    /// `K` unknowns, so a gross outlier that Huber only down-weights is fitted exactly by
+    /// its `w`; the λ step (all observations pooled) and the lighting step keep Huber's
+    /// weights, so genuine highlights still shape the maps and the specular `λ`.
+    /// `None`: the `w` step uses the Huber weights as they are. Default 4.685 (Tukey's
+    /// cut-off): on `spot-varying` with 5% gross outliers the held-out error goes from
+    /// ×2.7 to ×1.05 of the clean fit, and the clean fit does not change measurably.
+    pub weights_reject: Option<f64>,
+    /// Early stopping (not in the paper): this fraction of the training observations with
+    /// `α > 0`, drawn with `validation_seed` (only at vertices keeping at least
+    /// [`VALIDATION_MIN_FIT`] fitted observations), is left out of every step and scored
+    /// after each outer iteration (relative RMSE, [`Validation`]); the iterate with the
+    /// lowest score is returned. 0 = off: every observation is fitted and the last
+    /// iterate returned. Ignored with `fixed_materials` (one lighting step, nothing to
+    /// choose). Default 0.1.
+    pub validation_fraction: f64,
+    /// Hold the per-channel scale of the reflectance (`Σ_x Σ_b β_{x,b,c}`) at its start
+    /// value after every material step, the maps taking the inverse factor. Default off:
+    /// on noise-free `spot-varying` it changed the held-out error after 20 iterations
+    /// from 13.2% to 12.8% (`bench-results/estimator-convergence.md`).
+    pub fix_gauge: bool,
+    /// With Huber IRLS and `weights_reject`: the material step (λ and w) weighs every
+    /// observation by `α` alone, leaving out only those beyond the cut, instead of `α ω`.
+    /// Default off: on noise-free `spot-varying` 12.6% held-out against 13.2% after 20
+    /// iterations, far from the 9.2% without IRLS (`bench-results/estimator-convergence.md`).
+    pub materials_cut_only: bool,
+    /// Lower bound on IRLS's robust scale, relative to the observed radiance: per photo
+    /// and channel `σ = max(1.4826 · median |r|, robust_floor · rms(y))`, `rms(y)` over the
+    /// photo's fitted observations in that channel. The floor is a stated noise level: a
+    /// residual within `k · robust_floor` of the RMS radiance is never down-weighted, so
+    /// IRLS acts only on gross residuals and not on the model's own shrinking misfit (the
+    /// MAD alone goes to 0 with the residuals and stalls the fit on clean data). 0 = the
+    /// MAD alone. Default [`ROBUST_FLOOR`] (0.05).
+    pub robust_floor: f64,
+    /// Seed of the validation draw.
+    pub validation_seed: u64,
+    /// With validation: stop after this many outer iterations without a lower score.
+    pub patience: usize,
+}
+
+/// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
+/// (≤ ~630 Hessian products with the old CG cap of 100, ≤ ~120 with
+/// [`ALTERNATION_CG_ITERS`]). On the Minerva model (`spot-varying`, 2,930 vertices, 13
+/// photos of 1024²) the estimate took 7.3× less CPU than solving every QP to the KKT
+/// tolerance (48.8 s against 357.9 s) with held-out error 0.0765 against 0.0791 and
+/// training error 0.0340 against 0.0331 (`bench-results/lighting-solver.md`).
+pub const ALTERNATION_QP_ITERS: usize = 5;
+
+/// Default of [`EstimateOptions::alternation_cg_iters`]: 20 conjugate-gradient steps per
+/// GPCG iteration (≤ ~120 Hessian products per lighting QP with the 5 GPCG iterations of
+/// [`ALTERNATION_QP_ITERS`]). Measured on the Minerva model (`spot-varying`, 2,930 vertices,
+/// 13 photos of 1024², `bench-results/estimator-knobs.md`): estimate 83.5 → 28.5 CPU s
+/// (×2.9) against the old cap of 100, held-out error 0.0765 → 0.0767, training 0.0340 →
+/// 0.0339; 10 steps are too few (the alternation runs 8 iterations instead of 5 and ends at
+/// 0.0782), 30 gave 0.0766 at 36.8 s.
+pub const ALTERNATION_CG_ITERS: usize = 20;
+
+/// Default of [`EstimateOptions::patience`]: stop at the first outer iteration whose
+/// validation score is not a new best. Measured with [`ALTERNATION_CG_ITERS`] on the Minerva
+/// model (`bench-results/estimator-knobs.md`, then `spot-varying` at 1 MP): every scene
+/// kept the same iterate with 1 as with 2 or 3 — 2,930 vertices (2 of 3 instead of 2 of 4),
+/// 11,714 (3 of 4 / 3 of 5: estimate 87.4 → 75.3 CPU s), 100,000 (4 of 5 / 4 of 6) — and the
+/// joint bench (`ESTIMATOR_BENCH=joint`: 566 validation observations, its score improving
+/// for 23 iterations) kept iteration 23 of 24 instead of 23 of 25 with every figure
+/// identical, 16.9 s instead of 23.6 s. The extra iterations only confirmed the best one.
+pub const PATIENCE: usize = 1;
+
+/// Default of [`EstimateOptions::robust_floor`]: IRLS's robust scale is at least 5% of the
+/// photo's RMS radiance in each channel. Against the MAD alone (0), measured on `spot-varying`
+/// (`bench-results/estimator-joint-floor.md`, `estimator-robust-floor.md`,
+/// `estimator-joint-32-starts.md`): the joint bench (16² / 8², 96² photos) 17.5% held-out
+/// against 18.3% (12 fixed iterations 17.3% / 18.3%; 5% gross outliers ×1.03 of the clean
+/// fit); the finer joint case (32² / 16², 192² photos at 32 spp) 13.2% against 14.7% in
+/// 94 s instead of 173 s; the Minerva model at 10K vertices 0.0764 against 0.0765. 0.1 did as
+/// well on the finer cases (13.2%, 100K vertices 0.0757 against 0.0763) but made early
+/// stopping return iteration 2 on the small bench (20.5%: its validation score jumps from
+/// 0.19 to 0.27 at iteration 3) and costs ×1.18 with outliers on the finer case; 0.2 fails
+/// the outliers (×1.54, a larger σ lets Huber's bounded influence `kσ` grow). Noise-free
+/// (`estimator-convergence.md`, 20 iterations) 0.1 gives training / held-out 4.0% / 9.9%
+/// against 12.2% / 13.2% with the MAD alone, which keeps down-weighting the fit's own
+/// shrinking misfit (every highlight at the clustered start).
+pub const ROBUST_FLOOR: f64 = 0.05;
+
+/// Early stopping leaves an observation out only where its vertex keeps at least this many
+/// fitted observations (its `K` blending weights stay determined).
+pub const VALIDATION_MIN_FIT: usize = 2;
+
+impl Default for EstimateOptions {
+    fn default() -> Self {
+        EstimateOptions {
+            max_outer: 12,
+            rel_tol: 1e-4,
+            smoothness: 1e-3,
+            smoothness_scale: SmoothnessScale::TexelMax,
+            smoothness_decay: 1.0,
+            smoothness_min: 0.0,
+            robust: Robust::Huber { k: 1.345 },
+            irls_iters: 4,
+            beta: 1e-8,
+            fixed_materials: false,
+            qp_rel_tol: 1e-7,
+            qp_max_iter: 300,
+            alternation_qp_iters: Some(ALTERNATION_QP_ITERS),
+            qp_max_cg: 100,
+            alternation_cg_iters: Some(ALTERNATION_CG_ITERS),
+            material_sweeps: 1,
+            lambert_basis: 0,
+            extrapolate: true,
+            weights_reject: Some(4.685),
+            validation_fraction: 0.1,
+            validation_seed: 1,
+            robust_floor: ROBUST_FLOOR,
+            fix_gauge: false,
+            materials_cut_only: false,
+            patience: PATIENCE,
+        }
+    }
+}
