@@ -29,135 +29,20 @@
 //! the default renders at the fit's resolution; `--render-local-resolution 64` is for
 //! relighting a known or very sharp model under novel light.
 
+use super::truth::Truth;
 use super::Fitted;
 use crate::import::photo::Photo;
 use crate::observe::{self, Observations, ObserveOptions};
 use crate::render::{self, Raster};
 use crate::report::{compare, psnr, HoldoutEntry};
 use crate::solve::{self, Problem};
-use crate::sphere::envmap::{LatLong, OctEnv};
+use crate::sphere::envmap::OctEnv;
 use crate::transport::visibility::Visibility;
 use crate::transport::{self, TransportOptions};
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-
-/// One photo's entry in `truth/manifest.json`.
-#[derive(Debug, Clone)]
-pub struct TruthPhoto {
-    /// Lat-long map the photo was rendered with.
-    pub env: PathBuf,
-    /// Linear exposure factor applied to the rendering.
-    pub exposure: f64,
-    /// Per-channel white-balance gains.
-    pub white_balance: [f64; 3],
-}
-
-/// The ground truth of a synthetic workspace (`truth/manifest.json`, written by `synth`).
-#[derive(Debug, Clone)]
-pub struct Truth {
-    /// The `truth/` folder.
-    pub dir: PathBuf,
-    /// Held-out photo names.
-    pub held_out: Vec<String>,
-    /// Rows `e_x, e_y, e_z` of the truth maps' environment frame (world coordinates).
-    pub env_from_world: Matrix3<f64>,
-    /// Per photo name.
-    pub photos: BTreeMap<String, TruthPhoto>,
-}
-
-impl Truth {
-    /// Read `dir/manifest.json`.
-    pub fn read(dir: &Path) -> Result<Truth> {
-        let path = dir.join("manifest.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        let json: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| Error::format(&path, format!("line {}", e.line()), e.to_string()))?;
-        let bad = |what: &str| Error::format(&path, what.to_string(), "missing or malformed");
-        let held_out = json["held_out"]
-            .as_array()
-            .ok_or_else(|| bad("held_out"))?
-            .iter()
-            .map(|v| {
-                v.as_str()
-                    .map(str::to_string)
-                    .ok_or_else(|| bad("held_out"))
-            })
-            .collect::<Result<Vec<_>>>()?;
-        let frame = json["env_frame"]
-            .as_array()
-            .ok_or_else(|| bad("env_frame"))?;
-        let mut rows = [[0.0f64; 3]; 3];
-        for (r, row) in frame.iter().take(3).enumerate() {
-            for c in 0..3 {
-                rows[r][c] = row[c].as_f64().ok_or_else(|| bad("env_frame"))?;
-            }
-        }
-        let env_from_world = Matrix3::from_row_slice(&rows.concat());
-        let mut photos = BTreeMap::new();
-        for p in json["photos"].as_array().ok_or_else(|| bad("photos"))? {
-            let name = p["name"].as_str().ok_or_else(|| bad("photos[].name"))?;
-            let env = p["env"].as_str().ok_or_else(|| bad("photos[].env"))?;
-            let wb = &p["white_balance"];
-            photos.insert(
-                name.to_string(),
-                TruthPhoto {
-                    env: dir.join(env),
-                    exposure: p["exposure"].as_f64().unwrap_or(1.0),
-                    white_balance: [0, 1, 2].map(|c| wb[c].as_f64().unwrap_or(1.0)),
-                },
-            );
-        }
-        Ok(Truth {
-            dir: dir.to_path_buf(),
-            held_out,
-            env_from_world,
-            photos,
-        })
-    }
-
-    /// The light photo `name` was taken under, as this run's model sees it: the truth map
-    /// resampled into the run's environment frame (`env_from_world`) on an `n × n`
-    /// octahedral map, times the photo's exposure and white balance. `None` when the
-    /// manifest does not list the photo.
-    pub fn light(
-        &self,
-        name: &str,
-        n: usize,
-        env_from_world: &Matrix3<f64>,
-    ) -> Result<Option<OctEnv>> {
-        let Some(p) = self.photos.get(name) else {
-            return Ok(None);
-        };
-        let (ll, _) = LatLong::read_exr(&p.env)?;
-        // Same frame: resample directly (exact energy); otherwise re-express each lat-long
-        // pixel's direction in the truth frame and look it up there.
-        let same = (env_from_world - self.env_from_world).abs().max() < 1e-9;
-        let ll = if same {
-            ll
-        } else {
-            let to_truth = self.env_from_world * env_from_world.transpose();
-            let mut out = LatLong::black(ll.height);
-            for v in 0..out.height {
-                for u in 0..out.width {
-                    let d: Vec3 = to_truth * out.dir(u, v);
-                    out.rgb[v * out.width + u] = ll.lookup(&d);
-                }
-            }
-            out
-        };
-        let mut env = OctEnv::from_latlong(&ll, n);
-        let s = p.exposure;
-        for t in env.rgb.iter_mut() {
-            for (v, wb) in t.iter_mut().zip(p.white_balance) {
-                *v = (*v as f64 * s * wb) as f32;
-            }
-        }
-        Ok(Some(env))
-    }
-}
+use std::path::Path;
 
 /// Held-out error as the estimator goes (the `timeline`'s `holdout_rmse`): the held-out
 /// photos' observations predicted with the current reflectance under their true light

@@ -1,0 +1,222 @@
+//! Stage 6 of `run`: the estimate. Initial materials (clustering or the pilot's count),
+//! the starts, the alternation with the held-out tracker, then the fitted model
+//! ([`Fitted`]) that the evaluation and the outputs read.
+
+use super::evaluate::{self};
+use super::pipeline::{Imported, Observed, Prepared, RunLog};
+use super::{
+    check_finite, choose_material_count, conditioning_map, train_errors, Fitted, MaterialCount,
+    Progress, RunOptions,
+};
+use crate::report::{TimelinePoint, TrainEntry};
+use crate::solve::adapt::Decision;
+use crate::solve::cluster::initial_materials;
+use crate::solve::starts::{self, MultiStart};
+use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
+use crate::transport::brdf::BasisBrdf;
+use crate::{Error, Result};
+
+/// After the fit: the fitted model and what the report needs of the fit.
+pub(crate) struct Fit<'a> {
+    pub(crate) fitted: Fitted<'a>,
+    pub(crate) train_entries: Vec<TrainEntry>,
+    pub(crate) timeline: Vec<TimelinePoint>,
+    pub(crate) multi: MultiStart,
+    /// Why the model has its size (materials).
+    pub(crate) reasons: Vec<String>,
+    pub(crate) decisions: Vec<Decision>,
+}
+
+/// The index of the Lambertian basis BRDF, which carries the diffuse colour.
+pub(crate) fn lambert_of(basis: &[BasisBrdf]) -> Result<usize> {
+    basis
+        .iter()
+        .position(|b| matches!(b, BasisBrdf::Lambert))
+        .ok_or_else(|| {
+            Error::Config("--basis: a Lambertian lobe is needed to carry the diffuse colour".into())
+        })
+}
+
+/// The estimator's options from the run's.
+pub(crate) fn estimate_options(o: &RunOptions, lambert: usize) -> EstimateOptions {
+    EstimateOptions {
+        max_outer: o.max_iterations,
+        rel_tol: o.rel_tol,
+        smoothness: o.smoothness,
+        robust: if o.irls_iterations > 1 {
+            Robust::Huber { k: 1.345 }
+        } else {
+            Robust::None
+        },
+        irls_iters: o.irls_iterations,
+        robust_floor: o.robust_floor,
+        alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
+        alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
+        patience: o.patience,
+        lambert_basis: lambert,
+        validation_seed: o.seed,
+        validation_fraction: o.validation,
+        ..EstimateOptions::default()
+    }
+}
+
+/// Stage 6, the estimate: initial materials, the starts, the alternation; the fitted model.
+pub(crate) fn fit<'a>(
+    opts: &RunOptions,
+    im: &'a Imported,
+    observed: Observed,
+    prepared: Prepared,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<Fit<'a>> {
+    let (scene, photos, held, truth) = (&im.scene, &im.photos, im.held.clone(), &im.truth);
+    let Observed {
+        bvh,
+        obs,
+        train,
+        decisions,
+    } = observed;
+    let Prepared {
+        env_from_world,
+        normals_env,
+        vis,
+        render_vis,
+        eff,
+        pilot_k,
+        mean_rgb,
+        seen,
+        rot,
+        topts,
+        tr,
+    } = prepared;
+    let nv = scene.mesh.positions.len();
+    // 6. Estimate.
+    let lambert = lambert_of(&eff.basis)?;
+    let (k, k_reason) = match (pilot_k, opts.materials) {
+        (Some(p), _) => p,
+        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
+        (None, MaterialCount::Auto) => choose_material_count(&mean_rgb, &seen, opts.seed),
+    };
+    let init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
+    let mut reasons = vec![k_reason];
+    if init.albedo.len() < k {
+        reasons.push(format!(
+            "only {} distinct colour clusters exist, so {} materials are fitted",
+            init.albedo.len(),
+            init.albedo.len()
+        ));
+    }
+    let problem = Problem {
+        obs: &obs,
+        transport: &tr,
+        n_vertices: nv,
+        n_photos: train.len(),
+    };
+    let eopts = estimate_options(&eff, lambert);
+    let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+    let tracker = log.stages.run("transport", || {
+        evaluate::HoldoutTracker::new(
+            scene,
+            photos,
+            &held,
+            &bvh,
+            &normals_env,
+            &env_from_world,
+            &vis,
+            &eff.basis,
+            &rot,
+            &topts,
+            truth.as_ref(),
+        )
+    })?;
+    progress.stage("estimate");
+    let available = starts::family_len(eff.basis.len(), lambert);
+    if opts.starts > available {
+        reasons.push(format!(
+            "--starts {}: this basis gives {available} distinct starts, all tried",
+            opts.starts
+        ));
+    }
+    let family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
+    let n_starts = family.len();
+    let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
+    let mut timeline: Vec<TimelinePoint> = Vec::new();
+    let (est, multi) = log.stages.run("estimate", || {
+        starts::estimate_best(&problem, family, &eopts, &mut |si, it, state| {
+            bar.inc(1);
+            let holdout_rmse = tracker
+                .as_ref()
+                .map(|t| t.rmse(state, nv))
+                .filter(|v| v.is_finite());
+            bar.set_message(format!(
+                "{}objective {:.4e}, training RMSE {:.5}{}",
+                if n_starts > 1 {
+                    format!("start {} of {n_starts}: ", si + 1)
+                } else {
+                    String::new()
+                },
+                it.objective,
+                it.train_rmse,
+                holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}"))
+            ));
+            timeline.push(TimelinePoint {
+                start: si,
+                seconds: it.seconds,
+                objective: it.objective,
+                train_rmse: it.train_rmse,
+                holdout_rmse,
+                steps: it.steps,
+            });
+        })
+    })?;
+    bar.finish_and_clear();
+    check_finite(&est, &conditioning_map(&est.conditioning))?;
+    let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
+    let pred = solve::predict(&problem, &est);
+    let train_entries = train_errors(scene, &train, &obs, &pred);
+    let train_predictions: Vec<Vec<(u32, [f32; 3])>> = obs
+        .photo_ranges
+        .iter()
+        .map(|r| {
+            r.clone()
+                .map(|p| (obs.vertex[p], pred[p].map(|v| v as f32)))
+                .collect()
+        })
+        .collect();
+    drop(pred);
+    // The transport rows (training and held-out) are the run's largest arrays and nothing
+    // after the estimate reads them: free them before the evaluation builds its own.
+    drop(tracker);
+    drop(tr);
+
+    let fitted = Fitted {
+        scene,
+        photos,
+        train,
+        held,
+        env_from_world,
+        normals_env,
+        vis,
+        rot,
+        render_rot: crate::sphere::rotation::SplatRotation::with_default_supersample(
+            eff.global_resolution,
+            render_vis.n_local,
+        ),
+        render_vis,
+        basis: eff.basis.clone(),
+        est,
+        beta,
+        train_predictions,
+        opts: eff.clone(),
+        estimate_options: eopts,
+        bvh,
+    };
+    Ok(Fit {
+        fitted,
+        train_entries,
+        timeline,
+        multi,
+        reasons,
+        decisions,
+    })
+}

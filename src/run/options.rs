@@ -1,0 +1,273 @@
+//! The options of `run` ([`RunOptions`]), their defaults and their checks (each a plain
+//! [`Error::Config`] naming the flag).
+
+use crate::solve::EstimateOptions;
+use crate::transport::brdf::BasisBrdf;
+use crate::{Error, Result, Vec3};
+use std::path::{Path, PathBuf};
+
+/// How many materials to fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MaterialCount {
+    /// Choose from the data: with [`RunOptions::adaptive`], the smallest count within 1%
+    /// of the best held-out error of a pilot fit ([`crate::solve::adapt`]); without it, the
+    /// smallest count whose k-means clustering of the hue features leaves little
+    /// unexplained (see [`choose_material_count`]).
+    Auto,
+    /// Exactly this many.
+    Fixed(usize),
+}
+
+/// Which photos are held out.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Holdout {
+    /// The workspace's `truth/manifest.json` list when present, else none.
+    #[default]
+    Default,
+    /// No photo.
+    None,
+    /// These image names.
+    Names(Vec<String>),
+    /// Every N-th registered photo (by name order), starting with the N-th.
+    Every(usize),
+}
+
+/// Checked options of a run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// The COLMAP workspace.
+    pub workspace: PathBuf,
+    /// Output folder.
+    pub out: PathBuf,
+    /// A mesh to use instead of the workspace's.
+    pub mesh: Option<PathBuf>,
+    /// Held-out photos.
+    pub holdout: Holdout,
+    /// World up; estimated from the cameras when `None`.
+    pub up: Option<Vec3>,
+    /// Number of materials.
+    pub materials: MaterialCount,
+    /// Basis BRDF specifications (`lambert`, `phong:50`, `ggx:0.2`); the first Lambertian
+    /// one carries the diffuse colour.
+    pub basis: Vec<BasisBrdf>,
+    /// Global octahedral map side.
+    pub global_resolution: usize,
+    /// Local hemi-octahedral map side.
+    pub local_resolution: usize,
+    /// Local map side of the renderer (held-out views, renders, `relight.bin`); `None`:
+    /// `local_resolution` ([`evaluate::render_local_resolution`]).
+    pub render_local_resolution: Option<usize>,
+    /// Normal-grid side of the rotation.
+    pub normal_grid: usize,
+    /// Haar coefficients kept per transport row (0 = all).
+    pub keep: usize,
+    /// Visibility rays per local texel.
+    pub rays_per_texel: usize,
+    /// Outer iterations at most.
+    pub max_iterations: usize,
+    /// Stop when the objective improves by less than this fraction.
+    pub rel_tol: f64,
+    /// Laplacian smoothness, as a fraction of the largest system value.
+    pub smoothness: f64,
+    /// IRLS passes per lighting step (1 = no reweighting).
+    pub irls_iterations: usize,
+    /// GPCG iterations per lighting QP inside the alternation
+    /// ([`EstimateOptions::alternation_qp_iters`]); 0 = every QP to the KKT tolerance.
+    pub lighting_qp_iterations: usize,
+    /// Conjugate-gradient steps per GPCG iteration of a lighting QP inside the alternation
+    /// ([`EstimateOptions::alternation_cg_iters`]); 0 = the solver's own cap
+    /// ([`EstimateOptions::qp_max_cg`]).
+    pub lighting_cg_iterations: usize,
+    /// Early stopping: outer iterations without a better validation score before the
+    /// alternation stops ([`EstimateOptions::patience`]).
+    pub patience: usize,
+    /// Starts of the alternation tried, the best kept ([`crate::solve::starts`]; not in the
+    /// paper): 1 = the paper's clustered start alone. Each start costs one estimate.
+    pub starts: usize,
+    /// Lower bound on IRLS's robust scale relative to each photo's RMS radiance
+    /// ([`EstimateOptions::robust_floor`]; 0 = the residuals' MAD alone).
+    pub robust_floor: f64,
+    /// Fraction of the training observations held back, seeded, for early stopping
+    /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
+    pub validation: f64,
+    /// Overexposure threshold on the encoded [0, 1] scale.
+    pub clip: f32,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Progress bars on standard error.
+    pub progress: bool,
+    /// Replace an existing output folder.
+    pub force: bool,
+    /// Write renders of every view (not only held-out ones).
+    pub render_training: bool,
+    /// Leave out what the scene does not need ([`crate::solve::adapt`]): redundant photos,
+    /// basis BRDFs whose weights vanish, map resolution and coefficient budget beyond what
+    /// the kept lobes resolve; the number of materials by held-out error. The requested
+    /// resolutions and `keep` are then upper bounds. Off in [`RunOptions::new`] (the full
+    /// model, as the benchmarks' knobs assume); the CLI turns it on unless `--adaptive off`.
+    pub adaptive: bool,
+}
+
+impl RunOptions {
+    /// Default of [`RunOptions::lighting_qp_iterations`]: the estimator's
+    /// ([`EstimateOptions::alternation_qp_iters`], `None` → 0).
+    pub fn default_lighting_qp_iterations() -> usize {
+        EstimateOptions::default().alternation_qp_iters.unwrap_or(0)
+    }
+    /// Default of [`RunOptions::lighting_cg_iterations`]: the estimator's
+    /// ([`EstimateOptions::alternation_cg_iters`], `None` → 0).
+    pub fn default_lighting_cg_iterations() -> usize {
+        EstimateOptions::default().alternation_cg_iters.unwrap_or(0)
+    }
+    /// Default of [`RunOptions::patience`]: the estimator's ([`EstimateOptions::patience`]).
+    pub fn default_patience() -> usize {
+        EstimateOptions::default().patience
+    }
+    /// Defaults for a workspace (the README says why each default).
+    pub fn new(workspace: PathBuf, out: PathBuf) -> Self {
+        RunOptions {
+            workspace,
+            out,
+            mesh: None,
+            holdout: Holdout::Default,
+            up: None,
+            materials: MaterialCount::Auto,
+            basis: vec![
+                BasisBrdf::Lambert,
+                BasisBrdf::Phong { exponent: 50.0 },
+                BasisBrdf::Phong { exponent: 500.0 },
+            ],
+            global_resolution: 64,
+            local_resolution: 32,
+            render_local_resolution: None,
+            normal_grid: 32,
+            keep: 128,
+            rays_per_texel: 2,
+            max_iterations: 8,
+            rel_tol: 1e-3,
+            smoothness: 1e-3,
+            irls_iterations: 3,
+            lighting_qp_iterations: Self::default_lighting_qp_iterations(),
+            lighting_cg_iterations: Self::default_lighting_cg_iterations(),
+            patience: Self::default_patience(),
+            starts: 1,
+            robust_floor: EstimateOptions::default().robust_floor,
+            validation: EstimateOptions::default().validation_fraction,
+            clip: crate::import::photo::DEFAULT_CLIP,
+            seed: 1,
+            progress: true,
+            force: false,
+            render_training: true,
+            adaptive: false,
+        }
+    }
+
+    /// Reject impossible values with a message naming the option.
+    pub fn check(&self) -> Result<()> {
+        let pow2 = |name: &str, v: usize, lo: usize, hi: usize| {
+            if v.is_power_of_two() && (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(Error::Config(format!(
+                    "--{name} {v}: must be a power of two from {lo} to {hi}"
+                )))
+            }
+        };
+        pow2("global-resolution", self.global_resolution, 4, 256)?;
+        pow2("local-resolution", self.local_resolution, 4, 128)?;
+        if let Some(n) = self.render_local_resolution {
+            pow2("render-local-resolution", n, 4, 128)?;
+        }
+        pow2("normal-grid", self.normal_grid, 2, 128)?;
+        if self.basis.is_empty() {
+            return Err(Error::Config(
+                "--basis: at least one basis BRDF is needed".into(),
+            ));
+        }
+        if let MaterialCount::Fixed(k) = self.materials {
+            if k == 0 || k > 32 {
+                return Err(Error::Config(format!(
+                    "--materials {k}: must be from 1 to 32, or auto"
+                )));
+            }
+        }
+        if !(self.clip > 0.0 && self.clip <= 1.0) {
+            return Err(Error::Config(format!(
+                "--clip {}: must be in (0, 1]",
+                self.clip
+            )));
+        }
+        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
+            return Err(Error::Config(format!(
+                "--smoothness {}: must be a finite number ≥ 0",
+                self.smoothness
+            )));
+        }
+        if !(self.rel_tol >= 0.0 && self.rel_tol.is_finite()) {
+            return Err(Error::Config(format!(
+                "--tolerance {}: must be a finite number ≥ 0",
+                self.rel_tol
+            )));
+        }
+        if self.rays_per_texel == 0 || self.rays_per_texel > 64 {
+            return Err(Error::Config(format!(
+                "--rays-per-texel {}: must be from 1 to 64",
+                self.rays_per_texel
+            )));
+        }
+        if self.max_iterations == 0 {
+            return Err(Error::Config(
+                "--iterations 0: at least one is needed".into(),
+            ));
+        }
+        if self.irls_iterations == 0 {
+            return Err(Error::Config(
+                "--irls-iterations 0: at least one (plain least squares) is needed".into(),
+            ));
+        }
+        if !(0.0..1.0).contains(&self.robust_floor) {
+            return Err(Error::Config(format!(
+                "--robust-floor {}: must be in [0, 1) (a fraction of the RMS radiance)",
+                self.robust_floor
+            )));
+        }
+        if self.starts == 0 {
+            return Err(Error::Config(
+                "--starts 0: the alternation needs at least one start".into(),
+            ));
+        }
+        if self.patience == 0 {
+            return Err(Error::Config(
+                "--patience 0: at least one iteration without improvement must be allowed".into(),
+            ));
+        }
+        if !(0.0..0.5).contains(&self.validation) {
+            return Err(Error::Config(format!(
+                "--validation {}: the held-back fraction must be in [0, 0.5) (0 turns early \
+                 stopping off)",
+                self.validation
+            )));
+        }
+        if let Some(up) = self.up {
+            if !(up.norm() > 0.0 && up.iter().all(|v| v.is_finite())) {
+                return Err(Error::Config(
+                    "--up: must be a non-zero finite vector".into(),
+                ));
+            }
+        }
+        if let Holdout::Every(0) = self.holdout {
+            return Err(Error::Config(
+                "--holdout-every 0: must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Where the built-in example lives: a small `synth` workspace made from real data (the
+/// Spot mesh and real HDR maps; see `examples/README.md`).
+pub fn builtin_example() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join("spot")
+}

@@ -1,0 +1,546 @@
+//! The stages of `run` as functions with typed inputs and outputs:
+//! [`import`] → [`Imported`] → [`observe`] → [`Observed`] → [`prepare`] → [`Prepared`] →
+//! [`fit`] → [`Fit`] (holding the [`Fitted`] model) → `evaluate` → [`write`] (the
+//! result folder and the [`RunReport`]). Each stage is timed by [`Stages`] and adds its
+//! notes to the report through [`RunLog`].
+
+use std::path::Path;
+
+use nalgebra::Matrix3;
+
+use super::evaluate::{self, render_local_resolution, Evaluation};
+use super::fit::{estimate_options, lambert_of, Fit};
+use super::truth::Truth;
+use super::{
+    adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
+    holdout_views, mean_colours, output, MaterialCount, Progress, RunOptions,
+};
+use crate::import::photo::Photo;
+use crate::import::scene::{self, Scene};
+use crate::import::workspace::Workspace;
+use crate::observe::trace::SceneBvh;
+use crate::observe::{self, Observations, ObserveOptions};
+use crate::report::{ModelReport, RunReport};
+use crate::solve::adapt::Decision;
+use crate::solve::EstimateOptions;
+use crate::sphere::rotation::{Rotation, RotationForm};
+use crate::stages::Stages;
+use crate::transport::visibility::Visibility;
+use crate::transport::{self, Transport, TransportOptions};
+use crate::{Error, Result, Vec3};
+
+/// What every stage adds to: the stage records and the report's notes.
+pub(crate) struct RunLog {
+    pub(crate) stages: Stages,
+    pub(crate) notes: Vec<String>,
+}
+
+/// After import: the scene, its decoded photos, the truth (synthetic workspaces) and the
+/// split into training and held-out views.
+pub(crate) struct Imported {
+    pub(crate) scene: Scene,
+    pub(crate) photos: Vec<Photo>,
+    pub(crate) truth: Option<Truth>,
+    /// Held-out views (indices into `scene.views`).
+    pub(crate) held: Vec<usize>,
+    /// Training views.
+    pub(crate) train: Vec<usize>,
+}
+
+/// After observation extraction: the BVH, the training photos' observations, the training
+/// views kept (duplicates dropped by the adaptive model) and the adaptive decisions so far.
+pub(crate) struct Observed {
+    pub(crate) bvh: SceneBvh,
+    pub(crate) obs: Observations,
+    pub(crate) train: Vec<usize>,
+    pub(crate) decisions: Vec<Decision>,
+}
+
+/// After preparation: frames, visibility, the effective options (the adaptive pilot's
+/// choices), the rotation and the transport rows.
+pub(crate) struct Prepared {
+    pub(crate) env_from_world: Matrix3<f64>,
+    pub(crate) normals_env: Vec<Vec3>,
+    pub(crate) vis: Visibility,
+    pub(crate) render_vis: Visibility,
+    /// The options in effect: `opts` with the pilot's decisions.
+    pub(crate) eff: RunOptions,
+    /// The pilot's material count and its reason.
+    pub(crate) pilot_k: Option<(usize, String)>,
+    pub(crate) mean_rgb: Vec<[f64; 3]>,
+    pub(crate) seen: Vec<bool>,
+    pub(crate) rot: Rotation,
+    pub(crate) topts: TransportOptions,
+    pub(crate) tr: Transport,
+}
+
+/// The pipeline into `dir` (module docs).
+pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunReport> {
+    let mut log = RunLog {
+        stages: Stages::new(),
+        notes: Vec::new(),
+    };
+    let imported = import(opts, &mut log, progress)?;
+    let observed = observe_training(opts, &imported, &mut log, progress)?;
+    let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
+    let fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
+    // 7. Evaluation of held-out photos, and per-photo training error.
+    progress.stage("evaluation");
+    let evaluation = log.stages.run("evaluation", || {
+        evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)
+    })?;
+    write(opts, fit, evaluation, &mut log, dir, progress)
+}
+
+/// Stage 1, import: the workspace, the model, the mesh and the photos; the held-out split.
+fn import(opts: &RunOptions, log: &mut RunLog, progress: &Progress) -> Result<Imported> {
+    // 1. Import.
+    progress.stage("import");
+    let (scene, photos) = log.stages.run("import", || -> Result<_> {
+        let ws = Workspace::discover(&opts.workspace, opts.mesh.as_deref())?;
+        let scene = scene::load_scene(ws)?;
+        let photos = scene::load_photos(&scene, opts.clip)?;
+        Ok((scene, photos))
+    })?;
+    log.notes.extend(scene.workspace.notes.iter().cloned());
+    log.notes
+        .extend(scene.skipped.iter().map(|s| format!("skipped {s}")));
+    let truth = match &scene.workspace.truth_dir {
+        Some(t) => Some(Truth::read(t)?),
+        None => None,
+    };
+    let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
+    let train: Vec<usize> = (0..scene.views.len())
+        .filter(|i| !held.contains(i))
+        .collect();
+    Ok(Imported {
+        scene,
+        photos,
+        truth,
+        held,
+        train,
+    })
+}
+
+/// Stage 2, the observations of the training photos (held-out ones are extracted by the
+/// evaluation), checked against the memory budget; duplicate photos dropped by the
+/// adaptive model.
+fn observe_training(
+    opts: &RunOptions,
+    im: &Imported,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<Observed> {
+    let (scene, photos, held) = (&im.scene, &im.photos, &im.held);
+    let mut train = im.train.clone();
+    let nv = scene.mesh.positions.len();
+    // Memory, checked with the real observation count before anything large (visibility,
+    // rotations, transport, solver) is allocated.
+    let photo_pixels: u64 = photos
+        .iter()
+        .map(|p| p.width as u64 * p.height as u64)
+        .sum();
+    let sizes = |observations: u64| crate::solve::budget::Sizes {
+        vertices: nv as u64,
+        photos: train.len() as u64,
+        held_photos: held.len() as u64,
+        photo_pixels,
+        threads: rayon::current_num_threads() as u64,
+        observations,
+        basis: opts.basis.len() as u64,
+        global_resolution: opts.global_resolution as u64,
+        local_resolution: opts.local_resolution as u64,
+        render_local_resolution: render_local_resolution(opts) as u64,
+        normal_grid: opts.normal_grid as u64,
+        keep: opts.keep as u64,
+    };
+    progress.stage("observations");
+    let (bvh, mut obs) = log.stages.run("observations", || {
+        let bvh = SceneBvh::new(&scene.mesh);
+        let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
+        let ph: Vec<&crate::import::photo::Photo> = train.iter().map(|&i| &photos[i]).collect();
+        let obs = observe::extract(&scene.mesh, &bvh, &views, &ph, &ObserveOptions::default());
+        (bvh, obs)
+    });
+    let budget = crate::solve::budget::check(&sizes(obs.len() as u64))?;
+    log.notes.push(format!(
+        "memory plan: {:.0} MiB for the large arrays (largest: {})",
+        budget.total() as f64 / (1u64 << 20) as f64,
+        budget.largest().name
+    ));
+    let useful = obs.weight.iter().filter(|&&w| w > 0.0).count();
+    if useful == 0 {
+        return Err(Error::Numeric {
+            stage: "observations".into(),
+            message: "no vertex is seen un-clipped in any training photo: check the mesh \
+                      against the cameras (`relight-cpc inspect`) and the --clip threshold"
+                .into(),
+        });
+    }
+    // Photos with no light in them carry no information about reflectance or light: refuse
+    // rather than fit zero maps and arbitrary materials. The threshold is far below one
+    // 8-bit step (sRGB 1/255 decodes to 3e-4 linear).
+    let brightest = obs
+        .rgb
+        .iter()
+        .zip(&obs.weight)
+        .filter(|(_, &w)| w > 0.0)
+        .map(|(c, _)| c[0].max(c[1]).max(c[2]))
+        .fold(0.0f32, f32::max);
+    if brightest <= 1e-5 {
+        return Err(Error::Numeric {
+            stage: "observations".into(),
+            message: format!(
+                "every observed pixel of the {} training photos is black (brightest {:.1e} linear): \
+                 there is no light to fit; check the photos and their exposure",
+                train.len(),
+                brightest
+            ),
+        });
+    }
+    for (k, &i) in train.iter().enumerate() {
+        if obs.photo_ranges[k].is_empty() {
+            log.notes.push(format!(
+                "{}: no vertex observed in it; its map stays black",
+                scene.views[i].image.name
+            ));
+        }
+    }
+    // Photos that add no new observation (adaptive model, crate::solve::adapt step 1).
+    let mut decisions: Vec<crate::solve::adapt::Decision> = Vec::new();
+    if opts.adaptive {
+        let red = crate::solve::adapt::redundant_photos(&obs, nv);
+        let n = train.len();
+        if !red.is_empty() && red.len() < n {
+            let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
+            for &(k, by) in &red {
+                log.notes.push(format!(
+                    "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
+                    scene.views[train[k]].image.name,
+                    scene.views[train[by]].image.name,
+                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::solve::adapt::DUPLICATE_RGB
+                ));
+            }
+            obs = crate::solve::adapt::drop_photos(&obs, &drop);
+            train = train
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| !drop.contains(k))
+                .map(|(_, &i)| i)
+                .collect();
+            decisions.push(crate::solve::adapt::Decision {
+                what: "photos".into(),
+                full: n.to_string(),
+                chosen: train.len().to_string(),
+                reason: format!(
+                    "{} training photo(s) duplicate an earlier one (same view within {}°, same colour within {:.0}%): a duplicate adds a light map to estimate and no information",
+                    drop.len(),
+                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::solve::adapt::DUPLICATE_RGB
+                ),
+            });
+        } else {
+            decisions.push(crate::solve::adapt::Decision {
+                what: "photos".into(),
+                full: n.to_string(),
+                chosen: n.to_string(),
+                reason: format!(
+                    "every training photo adds observations: none repeats an earlier photo's view (within {}°) with the same colours (within {:.0}%); a photo from the same view under another light is new information, since every photo has its own light",
+                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                    100.0 * crate::solve::adapt::DUPLICATE_RGB
+                ),
+            });
+        }
+    }
+    Ok(Observed {
+        bvh,
+        obs,
+        train,
+        decisions,
+    })
+}
+
+/// Stages 3–5: frames, visibility, the adaptive pilot, the rotation and the transport rows.
+fn prepare(
+    opts: &RunOptions,
+    im: &Imported,
+    observed: Observed,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<(Observed, Prepared)> {
+    let scene = &im.scene;
+    let Observed {
+        bvh,
+        obs,
+        train,
+        mut decisions,
+    } = observed;
+    let nv = scene.mesh.positions.len();
+    // Frames.
+    let up = match opts.up {
+        Some(u) => u.normalize(),
+        None => {
+            let u = estimate_up(&scene.views).ok_or_else(|| {
+                Error::Config("cannot estimate world up from the cameras (their −y axes cancel out); give --up X,Y,Z".into())
+            })?;
+            log.notes.push(format!(
+                "world up estimated from the cameras' −y axes: ({:.4}, {:.4}, {:.4})",
+                u.x, u.y, u.z
+            ));
+            u
+        }
+    };
+    let env_from_world = env_from_world(&up)?;
+    let normals_env: Vec<Vec3> = scene
+        .mesh
+        .normals
+        .iter()
+        .map(|n| env_from_world * n)
+        .collect();
+
+    // 3. Visibility.
+    progress.stage("visibility");
+    let (vis, render_vis) = log.stages.run("visibility", || {
+        evaluate::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
+    });
+    log.notes.push(format!(
+        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced",
+        vis.open_count(),
+        nv,
+        vis.rays_traced
+    ));
+    let (mean_rgb, seen) = mean_colours(&obs, nv);
+
+    // Adaptive model (crate::solve::adapt steps 2–5): a pilot fit decides the materials, the
+    // bases, the map resolution and the coefficient budget; `eff` holds what is used.
+    let mut eff = opts.clone();
+    let mut pilot_k: Option<(usize, String)> = None;
+    if opts.adaptive {
+        progress.stage("pilot");
+        let lambert = lambert_of(&opts.basis)?;
+        let outcome = log.stages.run("pilot", || {
+            crate::solve::adapt::pilot(&crate::solve::adapt::PilotInput {
+                normals_env: &normals_env,
+                obs: &obs,
+                env_from_world: &env_from_world,
+                vis: &vis,
+                basis: &opts.basis,
+                lambert,
+                normal_grid: opts.normal_grid,
+                global_resolution: opts.global_resolution,
+                keep: opts.keep,
+                // The pilot holds out its own observations: no early stopping inside it.
+                estimate: EstimateOptions {
+                    validation_fraction: 0.0,
+                    ..estimate_options(opts, lambert)
+                },
+                mean_rgb: &mean_rgb,
+                seen: &seen,
+                materials: match opts.materials {
+                    MaterialCount::Fixed(k) => Some(k),
+                    MaterialCount::Auto => None,
+                },
+                seed: opts.seed,
+            })
+        })?;
+        decisions.extend(adaptive_decisions(opts, &outcome, &vis, nv, &mut eff));
+        pilot_k = Some((outcome.materials, outcome.materials_reason.clone()));
+    }
+
+    // 4. Rotation.
+    progress.stage("rotation");
+    let rot = log.stages.run("rotation", || {
+        Rotation::new(
+            eff.global_resolution,
+            eff.local_resolution,
+            eff.normal_grid,
+            RotationForm::Factored,
+        )
+    });
+
+    // 5. Transport.
+    progress.stage("transport");
+    let topts = TransportOptions {
+        n_global: eff.global_resolution,
+        n_local: eff.local_resolution,
+        keep: eff.keep,
+    };
+    let tr: Transport = log.stages.run("transport", || {
+        transport::build(
+            &normals_env,
+            &obs,
+            &env_from_world,
+            &vis,
+            &eff.basis,
+            &rot,
+            &topts,
+        )
+    })?;
+    Ok((
+        Observed {
+            bvh,
+            obs,
+            train,
+            decisions,
+        },
+        Prepared {
+            env_from_world,
+            normals_env,
+            vis,
+            render_vis,
+            eff,
+            pilot_k,
+            mean_rgb,
+            seen,
+            rot,
+            topts,
+            tr,
+        },
+    ))
+}
+
+/// Stage 8, outputs and the report.
+fn write(
+    opts: &RunOptions,
+    fit: Fit,
+    evaluation: Evaluation,
+    log: &mut RunLog,
+    dir: &Path,
+    progress: &Progress,
+) -> Result<RunReport> {
+    let Fit {
+        fitted,
+        train_entries,
+        timeline,
+        multi,
+        reasons,
+        decisions,
+    } = fit;
+    let eff = &fitted.opts;
+    // 8. Outputs.
+    progress.stage("output");
+    log.stages
+        .run("output", || output::write_results(&fitted, dir, progress))?;
+
+    let c = &fitted.est.conditioning;
+    let conditioning = conditioning_map(c);
+    if c.weights_singular > 0 {
+        log.notes.push(format!(
+            "{} vertices had fewer independent observations than materials (their blending weights are minimum-norm)",
+            c.weights_singular
+        ));
+    }
+    if c.qp_unconverged > 0 {
+        log.notes.push(format!(
+            "{} photos' lighting solves in the last outer iteration stopped at the iteration cap before the KKT tolerance ({} of the QPs, one per photo and IRLS pass, at the alternation's cap of {} GPCG iterations, by design: --lighting-qp-iterations)",
+            c.qp_unconverged,
+            c.qp_alternation_capped,
+            opts.lighting_qp_iterations
+        ));
+    }
+    if multi.starts.len() > 1 {
+        log.notes.push(format!(
+            "{} starts tried, kept start {} ({}) by the {}: {}",
+            multi.starts.len(),
+            multi.chosen + 1,
+            multi.starts[multi.chosen].label,
+            multi.criterion,
+            multi
+                .starts
+                .iter()
+                .enumerate()
+                .map(|(i, r)| format!("start {} {:.4} in {:.1} s", i + 1, r.score, r.seconds))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    log.notes
+        .push(format!("scale normalisation: {}", fitted.est.normalisation));
+    if let Some(v) = &fitted.est.validation {
+        log.notes.push(format!(
+            "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",
+            v.observations,
+            100.0 * v.fraction,
+            v.errors
+                .iter()
+                .map(|e| format!("{e:.4}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            v.best_iteration,
+            v.errors.len(),
+            if v.stopped_early {
+                " (stopped: no lower score for the patience)"
+            } else {
+                ""
+            }
+        ));
+    }
+    let conditioning_use = conditioning_use(c, &fitted.estimate_options, opts.adaptive);
+
+    let mut report = RunReport {
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        workspace: opts.workspace.display().to_string(),
+        seed: opts.seed,
+        holdout: evaluation.holdout,
+        // The iterate returned: early stopping's choice, else the last.
+        train_rmse: fitted
+            .est
+            .validation
+            .as_ref()
+            .and_then(|v| fitted.est.timeline.get(v.best_iteration - 1))
+            .or(fitted.est.timeline.last())
+            .map_or(f64::NAN, |t| t.train_rmse),
+        train: train_entries,
+        timeline,
+        model: ModelReport {
+            materials: fitted.est.lambda.len(),
+            basis: eff.basis.iter().map(|b| b.label()).collect(),
+            global_resolution: eff.global_resolution,
+            local_resolution: eff.local_resolution,
+            render_local_resolution: fitted.render_vis.n_local,
+            normal_grid: eff.normal_grid,
+            kept_coefficients: eff.keep,
+            reasons,
+            adaptive: if opts.adaptive { Some(decisions) } else { None },
+        },
+        notes: std::mem::take(&mut log.notes),
+        conditioning,
+        conditioning_use,
+        starts: (multi.starts.len() > 1).then_some(multi),
+        ..Default::default()
+    };
+    if !fitted.held.is_empty() {
+        let (r, h) = (evaluation.render_seconds, evaluation.half_fit_seconds);
+        report.notes.push(format!(
+            "evaluation of {} held-out photos: renders {:.1} s wall / {:.1} CPU s, the half \
+             protocol's light fits {:.1} s / {:.1} CPU s",
+            fitted.held.len(),
+            r[0],
+            r[1],
+            h[0],
+            h[1]
+        ));
+    }
+    if let Some(h) = evaluation.mean_holdout_rmse {
+        report.notes.push(format!(
+            "the timeline's held-out RMSE is over the held-out photos' observations (per vertex, after the best global scale, true light when known, else the mean training map); the final per-pixel figure, mean over held-out photos, is {h:.5}"
+        ));
+    }
+    progress.stage("report");
+    // The report's own writing is timed but cannot appear in the file it is writing.
+    report.stage_details = log.stages.records.clone();
+    report.stages = report
+        .stage_details
+        .iter()
+        .map(|s| (s.name.clone(), s.seconds))
+        .collect();
+    report.peak_memory_bytes = log.stages.peak_memory_bytes();
+    let maps = output::gallery_maps(&fitted);
+    let refs: Vec<(String, usize, usize, &[[f32; 3]])> = maps
+        .iter()
+        .map(|(n, ll)| (n.clone(), ll.width, ll.height, ll.rgb.as_slice()))
+        .collect();
+    report.write(dir, &refs)?;
+    Ok(report)
+}
