@@ -36,8 +36,8 @@
 mod synth_case;
 
 use relight_cpc::observe::Observations;
-use relight_cpc::solve::estimate::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use relight_cpc::solve::starts::{self, estimate_best, MultiStart};
+use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
@@ -421,11 +421,7 @@ impl Start {
     }
 
     /// The single start this stands for (not [`Start::Best`] of more than one).
-    fn materials(
-        self,
-        case: &Case,
-        obs: &Observations,
-    ) -> relight_cpc::solve::estimate::Materials0 {
+    fn materials(self, case: &Case, obs: &Observations) -> relight_cpc::solve::Materials0 {
         let mut v = self.starts(case, obs);
         assert_eq!(v.len(), 1, "this part fits from a single start");
         v.pop().unwrap().materials
@@ -545,7 +541,7 @@ fn joint(md: &mut String) -> Value {
         (
             format!(
                 "default options (early stopping: 10% validation, patience {}), ≤ 30 outer iterations",
-                relight_cpc::solve::estimate::PATIENCE
+                relight_cpc::solve::PATIENCE
             ),
             long.clone(),
             PAPER_START,

@@ -35,7 +35,9 @@ use crate::import::colmap::{
 use crate::import::mesh::Mesh;
 use crate::observe::trace::SceneBvh;
 use crate::sphere::envmap::LatLong;
-use crate::transport::reference::{Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene};
+use crate::transport::reference::{
+    Environment, Lobe, PinholeCamera, ReferenceScene, Reflectance, Samples,
+};
 use crate::{Error, Result, Vec3};
 use rand::Rng;
 use rand_pcg::Pcg32;
@@ -638,7 +640,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
         let env_rel = format!("env/{stem}.exr");
         data::write_exr(&env_map, &out.join("truth").join(&env_rel), false)?;
         let env = Environment::new(env_map.width, env_map.height, &env_map.rgb, frame)?;
-        let scene = Scene {
+        let scene = ReferenceScene {
             positions: &mesh.positions,
             normals: &mesh.normals,
             faces: &mesh.faces,

@@ -7,7 +7,7 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use relight_cpc::observe::Observations;
-use relight_cpc::solve::estimate::{
+use relight_cpc::solve::{
     beta_per_vertex, estimate, predict, Estimate, EstimateOptions, Materials0, Problem, Robust,
 };
 use relight_cpc::sphere::haar;

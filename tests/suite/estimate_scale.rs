@@ -8,7 +8,7 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use relight_cpc::observe::Observations;
-use relight_cpc::solve::estimate::{lighting_step_full, EstimateOptions, Problem, Robust};
+use relight_cpc::solve::{lighting_step_full, EstimateOptions, Problem, Robust};
 use relight_cpc::transport::Transport;
 use std::time::Instant;
 

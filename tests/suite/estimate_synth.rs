@@ -18,7 +18,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::synth_case::*;
-use relight_cpc::solve::estimate::{estimate, Estimate, EstimateOptions, IterState, Robust};
+use relight_cpc::solve::{estimate, Estimate, EstimateOptions, IterState, Robust};
 
 fn sphere_sizes() -> Sizes {
     Sizes {
@@ -314,7 +314,7 @@ fn joint_recovery_keeps_gross_outliers_out_of_the_blending_weights() {
 fn early_stopping_returns_the_validation_best_iterate() {
     let case = spot();
     let obs = &case.train.obs;
-    let val = relight_cpc::solve::estimate::validation_split(obs, case.nv, 0.1, 1);
+    let val = relight_cpc::solve::validation_split(obs, case.nv, 0.1, 1);
     let mut fitted = vec![0usize; case.nv];
     let mut held = vec![0usize; case.nv];
     let mut total = 0usize;
@@ -332,7 +332,7 @@ fn early_stopping_returns_the_validation_best_iterate() {
     for x in 0..case.nv {
         if held[x] > 0 {
             assert!(
-                fitted[x] >= relight_cpc::solve::estimate::VALIDATION_MIN_FIT,
+                fitted[x] >= relight_cpc::solve::VALIDATION_MIN_FIT,
                 "vertex {x} keeps {} fitted observations",
                 fitted[x]
             );

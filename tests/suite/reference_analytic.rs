@@ -8,8 +8,8 @@ use relight_cpc::import::mesh::area_weighted_normals;
 use relight_cpc::sphere::env_frame;
 use relight_cpc::synth::geometry::{icosphere, plane};
 use relight_cpc::transport::reference::{
-    texel_solid_angle, BruteForce, Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene,
-    Unoccluded,
+    texel_solid_angle, BruteForce, Environment, Lobe, PinholeCamera, ReferenceScene, Reflectance,
+    Samples, Unoccluded,
 };
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
@@ -65,7 +65,7 @@ fn white_furnace_lambert_sphere_renders_albedo_times_radiance() {
         positions: &p,
         faces: &f,
     };
-    let scene = Scene {
+    let scene = ReferenceScene {
         positions: &p,
         normals: &normals,
         faces: &f,
@@ -153,7 +153,7 @@ fn lambert_sphere_under_clamped_cosine_sky_matches_closed_form() {
         positions: &p,
         faces: &f,
     };
-    let scene = Scene {
+    let scene = ReferenceScene {
         positions: &p,
         normals: &normals,
         faces: &f,
@@ -209,7 +209,7 @@ fn sphere_casts_the_expected_shadow_on_a_plane_point() {
         positions: &pos,
         faces: &faces,
     };
-    let scene = Scene {
+    let scene = ReferenceScene {
         positions: &pos,
         normals: &normals,
         faces: &faces,
@@ -227,7 +227,7 @@ fn sphere_casts_the_expected_shadow_on_a_plane_point() {
         est.mean[0]
     );
     // And without the sphere the point sees the whole sky: a·L.
-    let open = Scene {
+    let open = ReferenceScene {
         positions: &pos,
         normals: &normals,
         faces: &faces,

@@ -10,7 +10,7 @@ use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::sphere::env_frame;
 use relight_cpc::sphere::envmap::LatLong;
 use relight_cpc::synth::look_at;
-use relight_cpc::transport::reference::{Environment, Lobe, Reflectance, Samples, Scene};
+use relight_cpc::transport::reference::{Environment, Lobe, ReferenceScene, Reflectance, Samples};
 use relight_cpc::Vec3;
 use std::path::Path;
 
@@ -37,7 +37,7 @@ fn reference_cost() {
         lambda: vec![vec![[0.6, 0.4, 0.3], [0.3, 0.3, 0.3]]],
         weights: vec![1.0; mesh.positions.len()],
     };
-    let scene = Scene {
+    let scene = ReferenceScene {
         positions: &mesh.positions,
         normals: &mesh.normals,
         faces: &mesh.faces,

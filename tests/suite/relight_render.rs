@@ -15,7 +15,7 @@ use relight_cpc::run::{self, Holdout, MaterialCount, RunOptions};
 use relight_cpc::sphere::envmap::LatLong;
 use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::transport::reference::{
-    Environment, Lobe, PinholeCamera, Reflectance, Samples, Scene,
+    Environment, Lobe, PinholeCamera, ReferenceScene, Reflectance, Samples,
 };
 use relight_cpc::{Error, Vec3};
 
@@ -135,7 +135,7 @@ fn relit_sphere_matches_reference_under_new_map() {
     let frame = [0, 1, 2].map(|i| Vec3::new(m[(i, 0)], m[(i, 1)], m[(i, 2)]));
     let env = Environment::new(ll.width, ll.height, &ll.rgb, frame).unwrap();
     let bvh = SceneBvh::new(&mesh);
-    let scene = Scene {
+    let scene = ReferenceScene {
         positions: &mesh.positions,
         normals: &mesh.normals,
         faces: &mesh.faces,

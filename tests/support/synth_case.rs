@@ -19,7 +19,7 @@ use relight_cpc::import::workspace::Workspace;
 use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::observe::{self, Observations, ObserveOptions};
 use relight_cpc::run::Truth;
-use relight_cpc::solve::estimate::{
+use relight_cpc::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
 };
 use relight_cpc::sphere::rotation::{Rotation, RotationForm};
@@ -339,7 +339,7 @@ pub fn predict_with(
         conditioning: Default::default(),
         validation: None,
     };
-    relight_cpc::solve::estimate::predict(&problem, &est)
+    relight_cpc::solve::predict(&problem, &est)
 }
 
 /// The TRUE model's prediction for `split`'s observations: the case's true reflectance
@@ -587,7 +587,7 @@ pub fn joint_figures(
         let r_est = median(pure(0)) / median(pure(1));
         (r_est / r_true - 1.0).abs()
     });
-    let pred = relight_cpc::solve::estimate::predict(&case.train.problem(case.nv), est);
+    let pred = relight_cpc::solve::predict(&case.train.problem(case.nv), est);
     let (train_rel, _) = rel_rmse(clean, &pred, false);
     let hp = case.predict_held(&est.lambda, &est.weights);
     let (heldout_rel_global, _) = rel_rmse(&case.held.obs, &hp, true);
