@@ -11,6 +11,7 @@
 //! - wall time, CPU time and peak memory per stage;
 //! - the model chosen (materials, basis, resolutions) and the reason for each choice.
 
+pub mod html;
 pub mod plot;
 
 use crate::stages::StageRecord;

@@ -89,6 +89,7 @@ fn relit_sphere_matches_reference_under_new_map() {
             out: render_out.clone(),
             exposure: 1.0,
             resolution: None,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -239,6 +240,7 @@ fn bad_inputs_give_clear_errors() {
         out: t.0.join("out"),
         exposure: 1.0,
         resolution: None,
+        ..Default::default()
     };
     // Missing result folder.
     let e = relight::render_result(
@@ -270,6 +272,7 @@ fn bad_camera_and_map_on_a_real_result(dir: &Path, out: &Path) {
         out: dir.join("out"),
         exposure: 1.0,
         resolution: Some(32),
+        ..Default::default()
     };
     let e = relight::render_result(
         &out,

@@ -1,0 +1,121 @@
+//! `relight-cpc export`: a finished run in formats other tools open.
+//!
+//! - [`gltf`]: the mesh as binary glTF with per-vertex base colour and a metallic-roughness
+//!   approximation of the fitted BRDF mixture;
+//! - [`envmap`]: the recovered environment maps as lat-long EXR and Radiance `.hdr` in
+//!   Blender's world-texture convention.
+
+pub mod envmap;
+pub mod gltf;
+
+use crate::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// What to export.
+#[derive(Debug, Clone, Default)]
+pub struct ExportOptions {
+    /// Write the mesh here as `.glb`.
+    pub gltf: Option<PathBuf>,
+    /// Write every recovered environment map into this folder (Blender convention).
+    pub envmaps: Option<PathBuf>,
+    /// Replace files that exist.
+    pub force: bool,
+}
+
+/// What [`export_result`] wrote.
+#[derive(Debug, Clone, Default)]
+pub struct ExportSummary {
+    /// The `.glb` and its figures.
+    pub gltf: Option<(PathBuf, gltf::GltfSummary)>,
+    /// The environment maps written (EXR and HDR per map).
+    pub envmaps: Vec<PathBuf>,
+}
+
+/// Write `bytes` to `path` through a temporary sibling file renamed into place, so an
+/// interrupted write never leaves a file that looks complete.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::Config(format!("{}: needs a file name", path.display())))?;
+    let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
+    std::fs::write(&tmp, bytes).map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })
+}
+
+/// Refuse to overwrite a file unless `force`.
+fn check_new(path: &Path, force: bool) -> Result<()> {
+    if path.exists() && !force {
+        return Err(Error::Config(format!(
+            "{} exists; choose another name or pass --force",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Export the result in `result_dir` as `opts` asks.
+pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSummary> {
+    if opts.gltf.is_none() && opts.envmaps.is_none() {
+        return Err(Error::Config(
+            "export: nothing to do; give --gltf FILE.glb and/or --envmaps DIR".into(),
+        ));
+    }
+    let mut summary = ExportSummary::default();
+    if let Some(path) = &opts.gltf {
+        check_new(path, opts.force)?;
+        let m = crate::relight::load_result(result_dir)?;
+        let mesh = gltf::gltf_mesh(
+            &m.mesh.positions,
+            &m.normals_env,
+            &m.mesh.faces,
+            &m.env_from_world,
+            &m.basis,
+            &m.beta,
+        )?;
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+        }
+        let name = result_dir
+            .canonicalize()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "relight-cpc".into());
+        let s = gltf::write_glb(path, &mesh, &name)?;
+        summary.gltf = Some((path.clone(), s));
+    }
+    if let Some(dir) = &opts.envmaps {
+        let src = result_dir.join("envmaps");
+        let mut maps: Vec<PathBuf> = std::fs::read_dir(&src)
+            .map_err(|e| Error::io(&src, e))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.to_string_lossy().ends_with(".latlong.exr"))
+            .collect();
+        maps.sort();
+        if maps.is_empty() {
+            return Err(Error::Workspace {
+                path: src,
+                message: "no NAME.latlong.exr map in the result".into(),
+            });
+        }
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        for p in maps {
+            let file = p.file_name().map(|n| n.to_string_lossy().into_owned());
+            let stem = file
+                .as_deref()
+                .and_then(|n| n.strip_suffix(".latlong.exr"))
+                .unwrap_or("map")
+                .to_string();
+            for ext in ["exr", "hdr"] {
+                check_new(&dir.join(format!("{stem}.{ext}")), opts.force)?;
+            }
+            let ll = crate::envmap::LatLong::read_exr(&p)?.0;
+            summary
+                .envmaps
+                .extend(envmap::export_blender(&ll, dir, &stem)?);
+        }
+    }
+    Ok(summary)
+}
