@@ -239,6 +239,7 @@ impl RunReport {
         plot::bars(path, "RMSE per photo", "RMSE (linear RGB)", &rows, &|v| {
             format!("{v:.4}")
         })
+        .map(drop)
     }
 
     fn plot_stages(&self, path: &Path) -> Result<()> {
@@ -260,6 +261,7 @@ impl RunReport {
             &rows,
             &|v| format!("{v:.2} s"),
         )
+        .map(drop)
     }
 
     /// The Markdown report.
