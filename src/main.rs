@@ -20,7 +20,7 @@ enum Command {
     // Each subcommand: one variant here, one arm in `dispatch`.
     /// Fit reflectance and per-photo illumination to a COLMAP workspace, evaluate held-out
     /// photos, and write maps, materials, renders and a report. Without WORKSPACE it runs
-    /// on the built-in example (examples/spot).
+    /// on the built-in example (a small synthetic scene carried inside the program).
     Run(RunArgs),
     /// Show what a COLMAP workspace holds: what was found and picked, counts, and per photo
     /// the observed vertices, overexposure, confidence and reprojection error.
@@ -287,13 +287,14 @@ struct RunArgs {
     smoothness: f64,
     /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least
     /// squares).
-    #[arg(long, default_value_t = 3, help_heading = "Solver")]
+    #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
     irls_iterations: usize,
     /// Solver steps per lighting fit inside each round (each continues from the last);
     /// 0 = solve each lighting fit to convergence.
     #[arg(
         long,
         default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations(),
+        value_name = "N",
         help_heading = "Solver"
     )]
     lighting_qp_iterations: usize,
@@ -301,6 +302,7 @@ struct RunArgs {
     #[arg(
         long,
         default_value_t = relight_cpc::run::RunOptions::default_lighting_cg_iterations(),
+        value_name = "N",
         help_heading = "Solver"
     )]
     lighting_cg_iterations: usize,
@@ -766,7 +768,9 @@ mod tests {
             assert!(!words.into_iter().any(|w| w == jargon), "{jargon} in help");
         }
         for arg in run.get_arguments() {
-            if arg.get_default_values().len() == 1 && !arg.is_hide_default_value_set() {
+            // Switches (--force, ...) have the default `false`, which clap does not show.
+            let switch = !arg.get_action().takes_values();
+            if arg.get_default_values().len() == 1 && !arg.is_hide_default_value_set() && !switch {
                 let d = arg.get_default_values()[0].to_string_lossy().into_owned();
                 assert!(
                     help.contains(&format!("[default: {d}]")),

@@ -150,7 +150,8 @@ pub fn bars(
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(200)
-        .build_cartesian_2d(0.0..vmax * 1.3, (0..n - 1).into_segmented())
+        // One row would make the discrete range empty (0..0): give it a second, empty slot.
+        .build_cartesian_2d(0.0..vmax * 1.3, (0..(n - 1).max(1)).into_segmented())
         .map_err(|e| plot_err(path, e))?;
     let labelled = std::cell::RefCell::new(Vec::new());
     let label_of = |v: &SegmentValue<usize>| match v {
@@ -362,7 +363,12 @@ mod tests {
             for l in &labels {
                 let row = rows.iter().find(|r| r.0 == l.text).unwrap();
                 let px = img.get_pixel(x, l.y_px as u32).0;
-                assert_eq!(px, [row.2 .0, row.2 .1, row.2 .2], "n={n}: label {:?}", l.text);
+                assert_eq!(
+                    px,
+                    [row.2 .0, row.2 .1, row.2 .2],
+                    "n={n}: label {:?}",
+                    l.text
+                );
             }
         }
         let _ = std::fs::remove_dir_all(&dir);

@@ -227,17 +227,18 @@ mod tests {
         assert_eq!(total, ["total", "4.75", "8.00", "40.0"]);
     }
 
-    /// `tick` advances the stage bar while it lives and nothing after it is dropped.
+    /// `tick` advances the stage bar while it lives and nothing after it is dropped (other
+    /// tests' kernels may tick concurrently, hence `>=` while the bar is live).
     #[test]
     fn tick_advances_only_the_live_stage_bar() {
         let p = Progress::new(true);
         let sb = p.stage_bar(10, "test");
-        // Hidden draw target in tests is not guaranteed; the position is what counts.
         tick(3);
         let bar = sb.bar().clone();
-        assert_eq!(bar.position(), 3);
+        assert!(bar.position() >= 3);
         drop(sb);
+        let after = bar.position();
         tick(4);
-        assert_eq!(bar.position(), 3);
+        assert_eq!(bar.position(), after);
     }
 }

@@ -31,7 +31,9 @@ fn must_run(tools: &[&str], what: &str) -> bool {
 }
 
 fn script(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scripts")
+        .join(name)
 }
 
 #[test]
@@ -66,8 +68,14 @@ fn report_html_export_and_render_of_the_example() {
             .unwrap();
         let text = String::from_utf8_lossy(&o.stdout);
         eprintln!("{text}{}", String::from_utf8_lossy(&o.stderr));
-        assert!(o.status.success(), "chromium: not every image loaded: {text}");
-        assert!(text.contains(&format!("images: {0}/{0}", srcs.len())), "{text}");
+        assert!(
+            o.status.success(),
+            "chromium: not every image loaded: {text}"
+        );
+        assert!(
+            text.contains(&format!("images: {0}/{0}", srcs.len())),
+            "{text}"
+        );
     }
 
     // export --gltf: every mesh vertex, colours and materials; the validator accepts it.
