@@ -1048,11 +1048,7 @@ fn is_bench_report(path: &Path) -> bool {
 }
 
 /// Writes `NAME.{json,md,png}`, each atomically (temporary file, then rename).
-fn write_outputs(
-    report: &BenchReport,
-    files: &crate::out_dir::OutFiles,
-    name: &str,
-) -> Result<()> {
+fn write_outputs(report: &BenchReport, files: &crate::out_dir::OutFiles, name: &str) -> Result<()> {
     let [json_name, md_name, png_name] = output_names(name);
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Config(format!("bench: could not encode the report: {e}")))?;

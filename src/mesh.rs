@@ -671,7 +671,7 @@ fn check_header(path: &Path, header: &ply_rs::ply::Header) -> Result<()> {
 /// A header ply-rs refused, in plain words: the offending line as the file has it.
 fn header_error(path: &Path, bytes: &[u8], e: &std::io::Error) -> Error {
     let msg = e.to_string();
-    // ply-rs reports "Line N: ..." with N counted from 0 after the magic line.
+    // ply-rs reports "Line N: ..." with N the file's line number (from 1).
     let line_no = msg
         .strip_prefix("Line ")
         .and_then(|r| r.split(':').next())
@@ -687,17 +687,19 @@ fn header_error(path: &Path, bytes: &[u8], e: &std::io::Error) -> Error {
                     `element NAME COUNT`, `property TYPE NAME`, `property list TYPE TYPE NAME`, \
                     `comment ...` or `end_header`";
     match (e.kind(), line_no) {
-        (std::io::ErrorKind::UnexpectedEof, _) => Error::format(
-            path,
-            "header",
-            "the file ends before `end_header`",
-        ),
+        (std::io::ErrorKind::UnexpectedEof, _) => {
+            Error::format(path, "header", "the file ends before `end_header`")
+        }
         (_, Some(n)) => Error::format(
             path,
-            format!("line {}", n + 1),
-            format!("{expected}; found `{}`", text(n)),
+            format!("line {n}"),
+            format!("{expected}; found `{}`", text(n.saturating_sub(1))),
         ),
-        _ => Error::format(path, "header", format!("not a valid PLY header: {expected}")),
+        _ => Error::format(
+            path,
+            "header",
+            format!("not a valid PLY header: {expected}"),
+        ),
     }
 }
 
@@ -794,7 +796,10 @@ impl RecordReader<'_> {
         Error::format(
             self.path,
             format!("`{}` record {k} (byte {at})", def.name),
-            format!("expected the values {}, which cannot be read there", property_list(def)),
+            format!(
+                "expected the values {}, which cannot be read there",
+                property_list(def)
+            ),
         )
     }
 }

@@ -54,6 +54,15 @@ pub fn classify(path: &Path) -> Result<Existing> {
     let meta = match std::fs::symlink_metadata(path) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Existing::Absent),
+        Err(e) if e.raw_os_error() == Some(20) => {
+            return Err(refuse(
+                path,
+                format!(
+                    "cannot be created: {} is a file, not a folder",
+                    first_file(path).display()
+                ),
+            ))
+        }
         Err(e) => return Err(Error::io(path, e)),
     };
     if !meta.is_dir() {
@@ -130,7 +139,10 @@ pub fn resolve(path: &Path) -> Result<PathBuf> {
 pub fn check_not_protected(out: &Path, inputs: &[&Path]) -> Result<()> {
     let target = resolve(out)?;
     if target.parent().is_none() {
-        return Err(refuse(out, "is the file system's root folder; choose a new folder"));
+        return Err(refuse(
+            out,
+            "is the file system's root folder; choose a new folder",
+        ));
     }
     if let Some(home) = std::env::var_os("HOME").filter(|h| !h.is_empty()) {
         if resolve(Path::new(&home)).ok().as_deref() == Some(target.as_path()) {
@@ -227,7 +239,8 @@ fn remove_stale(target: &Path) {
         };
         let pid = rest.rsplit('.').next().unwrap_or("");
         let alive = Path::new("/proc").join(pid).exists() || !Path::new("/proc/self").exists();
-        let ours = entry.path().join(STAGING_MARKER).is_file() || entry.path().join(STAMP).is_file();
+        let ours =
+            entry.path().join(STAGING_MARKER).is_file() || entry.path().join(STAMP).is_file();
         if !alive && ours && rest.starts_with("staging.") {
             let _ = std::fs::remove_dir_all(entry.path());
         }
@@ -266,11 +279,8 @@ impl OutDir {
             std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         }
         std::fs::create_dir(&staging).map_err(|e| unwritable(out, parent, e))?;
-        std::fs::write(
-            staging.join(STAGING_MARKER),
-            std::process::id().to_string(),
-        )
-        .map_err(|e| unwritable(out, &staging, e))?;
+        std::fs::write(staging.join(STAGING_MARKER), std::process::id().to_string())
+            .map_err(|e| unwritable(out, &staging, e))?;
         lock_staging().push(staging.clone());
         Ok(OutDir {
             shown: out.to_path_buf(),
@@ -400,7 +410,10 @@ impl OutFiles {
     ) -> Result<OutFiles> {
         check_not_protected(folder, inputs)?;
         if folder.exists() && !folder.is_dir() {
-            return Err(refuse(folder, "is a file, not a folder; choose a new folder"));
+            return Err(refuse(
+                folder,
+                "is a file, not a folder; choose a new folder",
+            ));
         }
         let present: Vec<PathBuf> = names
             .iter()
@@ -461,9 +474,10 @@ impl OutFiles {
             .map(|e| format!(".{}", e.to_string_lossy()))
             .unwrap_or_default();
         // The extension stays last: some writers pick the format from it.
-        let tmp = self
-            .folder
-            .join(format!(".{name}.relight-cpc-staging.{}{ext}", std::process::id()));
+        let tmp = self.folder.join(format!(
+            ".{name}.relight-cpc-staging.{}{ext}",
+            std::process::id()
+        ));
         if let Err(e) = write(&tmp) {
             let _ = std::fs::remove_file(&tmp);
             return Err(e);
@@ -538,7 +552,9 @@ mod tests {
         assert!(!out.exists(), "nothing at the target before the commit");
         c.commit().unwrap();
         assert!(out.join(STAMP).is_file());
-        let again = OutDir::claim(&out, false, &[], "test").unwrap_err().to_string();
+        let again = OutDir::claim(&out, false, &[], "test")
+            .unwrap_err()
+            .to_string();
         assert!(again.contains("--force"), "{again}");
         let c = OutDir::claim(&out, true, &[], "test").unwrap();
         std::fs::write(c.path().join("b.txt"), "2").unwrap();

@@ -344,13 +344,18 @@ impl Reconstruction {
     /// keypoints at 3D points, tracks at images and keypoints. `files` are the cameras,
     /// images and points3D files the model was read from, named in errors.
     pub fn check_references(&self, files: &[&Path; 3]) -> Result<()> {
-        let [_, images_file, points_file] = *files;
+        let [cameras_file, images_file, points_file] = *files;
         for im in self.images.values() {
             if !self.cameras.contains_key(&im.camera_id) {
                 return Err(Error::format(
                     images_file,
                     format!("image id {}", im.id.0),
-                    format!("camera id {} is not in the cameras file", im.camera_id.0),
+                    format!(
+                        "expected a camera id of {} ({}), found camera id {}",
+                        cameras_file.display(),
+                        id_list(self.cameras.keys().map(|c| c.0 as u64)),
+                        im.camera_id.0
+                    ),
                 ));
             }
             for (k, p2) in im.points2d.iter().enumerate() {
@@ -392,6 +397,20 @@ impl Reconstruction {
             }
         }
         Ok(())
+    }
+}
+
+/// Up to ten ids, comma-separated, for an error message.
+fn id_list(ids: impl Iterator<Item = u64>) -> String {
+    let all: Vec<u64> = ids.collect();
+    let mut s: Vec<String> = all.iter().take(10).map(|i| i.to_string()).collect();
+    if all.len() > 10 {
+        s.push(format!("… {} in all", all.len()));
+    }
+    if s.is_empty() {
+        "it has none".into()
+    } else {
+        format!("ids {}", s.join(", "))
     }
 }
 
