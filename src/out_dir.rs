@@ -253,9 +253,9 @@ fn remove_stale(target: &Path) {
 #[derive(Debug)]
 pub struct OutDir {
     /// The folder as the user named it.
-    shown: PathBuf,
-    /// The same folder, resolved.
     target: PathBuf,
+    /// The same folder, resolved.
+    resolved: PathBuf,
     staging: PathBuf,
     force: bool,
     command: String,
@@ -283,8 +283,8 @@ impl OutDir {
             .map_err(|e| unwritable(out, &staging, e))?;
         lock_staging().push(staging.clone());
         Ok(OutDir {
-            shown: out.to_path_buf(),
-            target,
+            target: out.to_path_buf(),
+            resolved: target,
             staging,
             force,
             command: command.to_string(),
@@ -299,7 +299,7 @@ impl OutDir {
 
     /// The final folder, as the user named it.
     pub fn target(&self) -> &Path {
-        &self.shown
+        &self.target
     }
 
     /// Writes the stamp (last) and moves the result into place, replacing a previous
@@ -320,29 +320,29 @@ impl OutDir {
         write_synced(&stamp_path, format!("{stamp:#}\n").as_bytes())?;
         let mut staging = lock_staging();
         // Checked again: the folder may have changed while the command ran.
-        let state = classify(&self.target)?;
-        check_existing(&self.shown, &state, self.force)?;
+        let state = classify(&self.resolved)?;
+        check_existing(&self.target, &state, self.force)?;
         match state {
             Existing::Result(_) => {
-                let old = sibling(&self.target, "old")?;
-                std::fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
-                if let Err(e) = std::fs::rename(&self.staging, &self.target) {
-                    let _ = std::fs::rename(&old, &self.target);
-                    return Err(Error::io(&self.target, e));
+                let old = sibling(&self.resolved, "old")?;
+                std::fs::rename(&self.resolved, &old).map_err(|e| Error::io(&self.resolved, e))?;
+                if let Err(e) = std::fs::rename(&self.staging, &self.resolved) {
+                    let _ = std::fs::rename(&old, &self.resolved);
+                    return Err(Error::io(&self.resolved, e));
                 }
                 std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
             }
             Existing::Empty => {
-                std::fs::remove_dir(&self.target).map_err(|e| Error::io(&self.target, e))?;
-                std::fs::rename(&self.staging, &self.target)
-                    .map_err(|e| Error::io(&self.target, e))?;
+                std::fs::remove_dir(&self.resolved).map_err(|e| Error::io(&self.resolved, e))?;
+                std::fs::rename(&self.staging, &self.resolved)
+                    .map_err(|e| Error::io(&self.resolved, e))?;
             }
-            _ => std::fs::rename(&self.staging, &self.target)
-                .map_err(|e| Error::io(&self.target, e))?,
+            _ => std::fs::rename(&self.staging, &self.resolved)
+                .map_err(|e| Error::io(&self.resolved, e))?,
         }
         staging.retain(|p| p != &self.staging);
         self.committed = true;
-        Ok(self.shown.clone())
+        Ok(self.target.clone())
     }
 }
 
