@@ -202,7 +202,8 @@ struct RunArgs {
     #[arg(long)]
     mesh: Option<std::path::PathBuf>,
     /// Hold out these photos (image names, comma-separated); `none` holds out nothing.
-    /// Default: the workspace's truth/manifest.json list, if any.
+    /// Default: the workspace's truth/manifest.json list, else every 5th photo (at least
+    /// one).
     #[arg(long, value_delimiter = ',', conflicts_with = "holdout_every")]
     holdout: Option<Vec<String>>,
     /// Hold out every N-th photo in name order.
@@ -394,6 +395,12 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                     println!(
                         "held out {} ({}): RMSE {:.5} raw, {:.5} after scale {:.3}",
                         h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale
+                    );
+                }
+                if let Some(h) = &r.headline_detail {
+                    println!(
+                        "headline: held-out error / baseline error = {:.3} (half {:.5}, baseline {:.5}, {} photo(s))",
+                        h.ratio, h.method_rmse, h.baseline_rmse, h.photos
                     );
                 }
             }

@@ -23,11 +23,15 @@
 //! staging sibling and moved into place, stamp last, only when complete, so an interrupted
 //! run never leaves a folder that looks finished.
 
+mod baseline;
 mod evaluate;
+mod holdout;
 mod output;
 mod progress;
+mod truth_check;
 
 pub use evaluate::{fine_rays, render_local_resolution, Truth};
+pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use progress::Progress;
 
 use crate::brdf::BasisBrdf;
@@ -62,7 +66,8 @@ pub enum MaterialCount {
 /// Which photos are held out.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Holdout {
-    /// The workspace's `truth/manifest.json` list when present, else none.
+    /// The workspace's `truth/manifest.json` list when present, else every 5th registered
+    /// photo, at least one ([`default_holdout`]).
     #[default]
     Default,
     /// No photo.
@@ -348,7 +353,13 @@ pub fn env_from_world(up: &Vec3) -> Result<Matrix3<f64>> {
 fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Result<Vec<usize>> {
     let names: Vec<String> = match holdout {
         Holdout::None => Vec::new(),
-        Holdout::Default => truth.map(|t| t.held_out.clone()).unwrap_or_default(),
+        Holdout::Default => match truth {
+            Some(t) => t.held_out.clone(),
+            None => default_holdout(scene.views.len())
+                .into_iter()
+                .map(|i| scene.views[i].image.name.clone())
+                .collect(),
+        },
         Holdout::Names(n) => n.clone(),
         Holdout::Every(k) => scene
             .views
@@ -385,6 +396,30 @@ fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Res
         )));
     }
     Ok(idx)
+}
+
+/// How the held-out photos `held` were chosen, in words (console and report).
+fn holdout_rule(scene: &Scene, holdout: &Holdout, has_truth: bool, held: &[usize]) -> String {
+    let names = held
+        .iter()
+        .map(|&i| scene.views[i].image.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let n = format!("{} of {} photos", held.len(), scene.views.len());
+    match holdout {
+        Holdout::Default if has_truth => {
+            format!("{n}, the workspace's truth/manifest.json list ({names})")
+        }
+        Holdout::Default if held.is_empty() => {
+            format!("none: the workspace has {} photo(s) and the fit needs one", scene.views.len())
+        }
+        Holdout::Default => format!(
+            "{n} held out by default (every {DEFAULT_HOLDOUT_EVERY}th in name order, at least one): {names}; they are not used for the fit and are scored against the fit's renders (pass --holdout none to fit on every photo)"
+        ),
+        Holdout::None => "none (--holdout none)".into(),
+        Holdout::Names(_) => format!("{n}, named with --holdout ({names})"),
+        Holdout::Every(k) => format!("{n}, every {k}th (--holdout-every {k}): {names}"),
+    }
 }
 
 /// Choose the number of materials from the per-vertex mean colours: the smallest K in
@@ -494,6 +529,8 @@ pub(crate) struct Fitted<'a> {
     pub opts: &'a RunOptions,
     pub estimate_options: EstimateOptions,
     pub bvh: SceneBvh,
+    /// The naive baseline's per-vertex colours ([`baseline`]).
+    pub baseline: baseline::VertexMedians,
 }
 
 /// Run the pipeline with `opts`, reporting progress to `progress`. The output folder is
@@ -531,6 +568,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         None => None,
     };
     let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
+    let holdout_rule = holdout_rule(&scene, &opts.holdout, truth.is_some(), &held);
+    if matches!(opts.holdout, Holdout::Default) && truth.is_none() && !held.is_empty() {
+        progress.note(&holdout_rule);
+    }
+    notes.push(format!("held-out photos: {holdout_rule}"));
     let mut train: Vec<usize> = (0..scene.views.len())
         .filter(|i| !held.contains(i))
         .collect();
@@ -908,12 +950,18 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         opts: &eff,
         estimate_options: eopts,
         bvh,
+        baseline: baseline::VertexMedians::from_observations(&obs, nv),
     };
 
     // 7. Evaluation of held-out photos, and per-photo training error.
     progress.stage("evaluation");
-    let evaluation = stages.run("evaluation", || {
-        evaluate::evaluate(&fitted, truth.as_ref(), dir, progress)
+    let (evaluation, truth_check) = stages.run("evaluation", || -> Result<_> {
+        let e = evaluate::evaluate(&fitted, truth.as_ref(), dir, progress)?;
+        let t = match &truth {
+            Some(t) => truth_check::truth_check(&fitted, t)?,
+            None => Vec::new(),
+        };
+        Ok((e, t))
     })?;
 
     // 8. Outputs.
@@ -1006,6 +1054,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         starts: (multi.starts.len() > 1).then_some(multi),
         ..Default::default()
     };
+    report.headline = evaluation.headline.map(|h| h.ratio);
+    report.headline_detail = evaluation.headline;
+    report.metrics = evaluation.metrics;
+    report.truth_check = truth_check;
+    report.holdout_rule = holdout_rule;
     if !fitted.held.is_empty() {
         let (r, h) = (evaluation.render_seconds, evaluation.half_fit_seconds);
         report.notes.push(format!(
@@ -1016,6 +1069,13 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             r[1],
             h[0],
             h[1]
+        ));
+    }
+    if fitted.baseline.unseen > 0 && !fitted.held.is_empty() {
+        report.notes.push(format!(
+            "baseline: {} of {} vertices are in no training photo; they take the median of the other vertices' medians",
+            fitted.baseline.unseen,
+            nv
         ));
     }
     if let Some(h) = evaluation.mean_holdout_rmse {
