@@ -3,7 +3,8 @@
 #
 # Usage: scripts/colmap_dense.sh OUT_DIR [--poisson-depth D] [--min-num-pixels N]
 #                                [--max-normal-error DEG] [--trim-factor F] [--min-component F]
-#                                [--neighbours K] [--max-angle DEG] [--venv DIR]
+#                                [--neighbours K] [--max-angle DEG] [--clahe C] [--geom-views N]
+#                                [--min-views F] [--venv DIR]
 #
 # OUT_DIR is a project folder that scripts/colmap_sparse.sh (or colmap_workspace.sh) made:
 # OUT_DIR/dense/{images,sparse,stereo} from `colmap image_undistorter --output_type COLMAP`.
@@ -37,6 +38,9 @@ TRIM_FACTOR=6
 MIN_COMPONENT=0.05
 NEIGHBOURS=4
 MAX_ANGLE=45
+CLAHE=0
+GEOM_VIEWS=0
+MIN_VIEWS=0
 VENV=${RELIGHT_VENV:-$HOME/.cache/relight-cpc/venv}
 while [[ $# -gt 0 ]]; do
     [[ $# -ge 2 ]] || usage
@@ -48,6 +52,9 @@ while [[ $# -gt 0 ]]; do
     --min-component) MIN_COMPONENT=$2 ;;
     --neighbours) NEIGHBOURS=$2 ;;
     --max-angle) MAX_ANGLE=$2 ;;
+    --clahe) CLAHE=$2 ;;
+    --geom-views) GEOM_VIEWS=$2 ;;
+    --min-views) MIN_VIEWS=$2 ;;
     --venv) VENV=$2 ;;
     *) usage ;;
     esac
@@ -90,7 +97,8 @@ fi
 # 30. Depth and normal maps on the CPU.
 rm -f "$DENSE"/stereo/depth_maps/*.bin "$DENSE"/stereo/normal_maps/*.bin
 run 30-depth_sgbm "$PY" "$SCRIPTS/depth_sgbm.py" "$DENSE" \
-    --neighbours "$NEIGHBOURS" --max-angle "$MAX_ANGLE" --min-consistent 1
+    --neighbours "$NEIGHBOURS" --max-angle "$MAX_ANGLE" --min-consistent 1 \
+    --clahe "$CLAHE" --geom-views "$GEOM_VIEWS"
 
 # 31. COLMAP's own fusion of the geometric maps.
 run 31-stereo_fusion colmap stereo_fusion \
@@ -106,10 +114,12 @@ run 32-poisson_mesher colmap poisson_mesher \
     --PoissonMeshing.depth "$POISSON_DEPTH" --PoissonMeshing.trim 0 \
     --PoissonMeshing.num_threads 2
 
-# 33. Trim far from the points, drop floating components.
+# 33. Trim far from the points, crop to the shared view, drop floating components.
+CROP=()
+[[ $MIN_VIEWS != 0 ]] && CROP=(--workspace "$DENSE" --min-views "$MIN_VIEWS")
 run 33-mesh_clean "$PY" "$SCRIPTS/depth_mesh_clean.py" \
     "$DENSE/meshed-poisson-raw.ply" "$DENSE/meshed-poisson.ply" --points "$DENSE/fused.ply" \
-    --trim-factor "$TRIM_FACTOR" --min-component "$MIN_COMPONENT"
+    --trim-factor "$TRIM_FACTOR" --min-component "$MIN_COMPONENT" "${CROP[@]}"
 
 tail -n 1 "$LOGS/33-mesh_clean.log" >"$LOGS/mesh_stats.json"
 echo "dense done: $DENSE/fused.ply, $DENSE/meshed-poisson.ply"
