@@ -12,6 +12,9 @@ DENSE/sparse in binary form, PINHOLE or SIMPLE_PINHOLE cameras) and writes
 so that `colmap stereo_fusion --input_type geometric` and `poisson_mesher` can follow.
 
 Method (two-view semi-global matching, median-fused; Hirschmueller 2008 as in OpenCV):
+0. (--clahe C > 0) Each photo's grey image is equalised by contrast-limited adaptive
+   histogram equalisation (Zuiderveld 1994, OpenCV's CLAHE, 8x8 tiles, clip limit C) before
+   matching, so that photos under different light and exposure compare by local structure.
 1. Neighbours. For reference image i, the sparse points i sees that project inside image j
    (in front of it) are j's covisible points (shared tracks alone are too few when the views
    are far apart). j qualifies with at least --min-shared of them, a median triangulation
@@ -34,7 +37,10 @@ Method (two-view semi-global matching, median-fused; Hirschmueller 2008 as in Op
    (fewer when the image has fewer usable pairs). Depths outside the sparse points' depth
    range (1st..99th percentile, widened by a factor 1.5) are dropped, and so are pixels
    without texture (grey-level standard deviation over 7x7 below --min-texture).
-6. Normals. The depth map is median-filtered (5x5), back-projected to points P(col, row),
+6. (--geom-views N > 0) Multi-view agreement: a pixel is kept only when the depth maps of at
+   least N other views agree with its depth (see geometric_consistency; COLMAP's fusion
+   checks the same again with --StereoFusion.min_num_pixels).
+7. Normals. The depth map is median-filtered (5x5), back-projected to points P(col, row),
    and n = (dP/dcol x dP/drow) normalised, averaged over 5x5, oriented toward the camera.
 
 COLMAP array format (src/mvs/mat.h, Mat<float>::Write): the text header

@@ -63,7 +63,7 @@ while [[ $# -gt 0 ]]; do
         [[ $FROM == sparse || $FROM == dense || $FROM == run ]] || usage
         ;;
     --poisson-depth | --min-num-pixels | --max-normal-error | --trim-factor | --min-component | \
-        --neighbours | --max-angle | --clahe | --geom-views | --min-views | --venv)
+        --neighbours | --max-angle | --clahe | --geom-views | --min-views | --target-faces | --venv)
         DENSE_ARGS+=("$1" "$2")
         ;;
     *) usage ;;
