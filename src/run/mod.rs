@@ -19,9 +19,9 @@
 //! fallback) and, past [`crate::adapt::KAPPA_LIGHTING`] / [`crate::adapt::KAPPA_LAMBDA`],
 //! what to change; a non-finite estimate stops the run with those figures.
 //!
-//! Everything is written into a hidden sibling `.NAME.partial/` of the output folder and
-//! renamed to `NAME/` only when complete, so an interrupted run never leaves a folder that
-//! looks finished.
+//! The output folder follows [`crate::out_dir`]: everything is written into a hidden
+//! staging sibling and moved into place, stamp last, only when complete, so an interrupted
+//! run never leaves a folder that looks finished.
 
 mod baseline;
 mod evaluate;
@@ -533,56 +533,20 @@ pub(crate) struct Fitted<'a> {
     pub baseline: baseline::VertexMedians,
 }
 
-/// Run the pipeline with `opts`, reporting progress to `progress`.
+/// Run the pipeline with `opts`, reporting progress to `progress`. The output folder is
+/// claimed before any work ([`crate::out_dir`]): results are written into a staging folder
+/// and moved into place, stamp last, only when complete.
 pub fn run(opts: &RunOptions) -> Result<RunSummary> {
     opts.check()?;
     let progress = Progress::new(opts.progress);
-    let partial = partial_dir(&opts.out)?;
-    let result = run_into(opts, &partial, &progress);
-    match result {
-        Ok(report) => {
-            finish_dir(&partial, &opts.out, opts.force)?;
-            progress.finish(&format!("results in {}", opts.out.display()));
-            Ok(RunSummary {
-                out: opts.out.clone(),
-                report,
-            })
-        }
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&partial);
-            Err(e)
-        }
-    }
-}
-
-fn partial_dir(out: &Path) -> Result<PathBuf> {
-    let name = out
-        .file_name()
-        .ok_or_else(|| Error::Config(format!("--out {}: needs a folder name", out.display())))?;
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
-    let partial = parent.join(format!(".{}.partial", name.to_string_lossy()));
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    }
-    std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    Ok(partial)
-}
-
-fn finish_dir(partial: &Path, out: &Path, force: bool) -> Result<()> {
-    if out.exists() {
-        if !force && !out.join("report.json").exists() {
-            return Err(Error::Config(format!(
-                "--out {}: exists and is not a relight-cpc result; choose another folder or pass --force",
-                out.display()
-            )));
-        }
-        std::fs::remove_dir_all(out).map_err(|e| Error::io(out, e))?;
-    }
-    std::fs::rename(partial, out).map_err(|e| Error::io(out, e))
+    let inputs: Vec<&Path> = std::iter::once(opts.workspace.as_path())
+        .chain(opts.mesh.as_deref())
+        .collect();
+    let out = crate::out_dir::OutDir::claim(&opts.out, opts.force, &inputs, "run")?;
+    let report = run_into(opts, out.path(), &progress)?;
+    let out = out.commit()?;
+    progress.finish(&format!("results in {}", out.display()));
+    Ok(RunSummary { out, report })
 }
 
 fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunReport> {

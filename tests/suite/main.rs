@@ -35,6 +35,7 @@ mod extreme_pipeline;
 mod extreme_units;
 mod inspect_buddha;
 mod inspect_dense_buddha;
+mod malformed_inputs;
 mod mesh_ply;
 mod observe_cube;
 mod photo_load;
