@@ -414,7 +414,7 @@ fn holdout_rule(scene: &Scene, holdout: &Holdout, has_truth: bool, held: &[usize
             format!("none: the workspace has {} photo(s) and the fit needs one", scene.views.len())
         }
         Holdout::Default => format!(
-            "{n} held out by default (every {DEFAULT_HOLDOUT_EVERY}th in name order, at least one): {names}; they are not used for the fit and are scored against the fit's renders (pass --holdout none to fit on every photo)"
+            "{n}, chosen by default (every {DEFAULT_HOLDOUT_EVERY}th in name order, at least one): {names}; the fit does not use them, they score its renders (--holdout none fits on every photo)"
         ),
         Holdout::None => "none (--holdout none)".into(),
         Holdout::Names(_) => format!("{n}, named with --holdout ({names})"),
@@ -570,7 +570,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
     let holdout_rule = holdout_rule(&scene, &opts.holdout, truth.is_some(), &held);
     if matches!(opts.holdout, Holdout::Default) && truth.is_none() && !held.is_empty() {
-        progress.note(&holdout_rule);
+        progress.note(&format!("held out: {holdout_rule}"));
     }
     notes.push(format!("held-out photos: {holdout_rule}"));
     let mut train: Vec<usize> = (0..scene.views.len())
