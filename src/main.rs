@@ -82,6 +82,9 @@ enum Command {
         /// Output width in pixels (height keeps the camera's aspect).
         #[arg(long)]
         resolution: Option<u32>,
+        /// Replace a previous result in --out.
+        #[arg(long)]
+        force: bool,
     },
     /// Export a finished run (RESULT_DIR of `run`) for other tools: the mesh as binary glTF
     /// with per-vertex base colour and roughness approximating the fitted materials, and/or
@@ -95,7 +98,7 @@ enum Command {
         /// Write every recovered environment map into this folder (NAME.exr, NAME.hdr).
         #[arg(long)]
         envmaps: Option<std::path::PathBuf>,
-        /// Replace files that exist.
+        /// Replace a previous export (never anything else).
         #[arg(long)]
         force: bool,
     },
@@ -143,6 +146,9 @@ enum Command {
         /// Surface points sampled for points3D.txt.
         #[arg(long, default_value_t = 3000)]
         points: usize,
+        /// Replace a previous result in OUT_DIR.
+        #[arg(long)]
+        force: bool,
     },
     /// Benchmark the whole pipeline on synthetic scenes: per-stage wall time, CPU time and
     /// peak memory, growth with vertices and photos, and held-out error against run time
@@ -211,6 +217,9 @@ enum Command {
         /// File stem of the outputs: OUT/NAME.{json,md,png}.
         #[arg(long, default_value = "pipeline")]
         name: String,
+        /// Replace a previous result of the same --name in --out.
+        #[arg(long)]
+        force: bool,
     },
 }
 
@@ -335,7 +344,8 @@ struct RunArgs {
     seed: u64,
 
     /// Hold out these photos (image names, comma-separated) to score the result; `none`
-    /// holds out nothing. Default: the workspace's truth/manifest.json list, if any.
+    /// holds out nothing. Default: the workspace's truth/manifest.json list, else every 5th
+    /// photo (at least one).
     #[arg(
         long,
         value_delimiter = ',',
@@ -353,7 +363,7 @@ struct RunArgs {
     /// Output folder (default: out/NAME, NAME = the workspace's folder name).
     #[arg(long, help_heading = "Output")]
     out: Option<std::path::PathBuf>,
-    /// Replace the output folder if it exists.
+    /// Replace a previous result in the output folder (never anything else).
     #[arg(long, help_heading = "Output")]
     force: bool,
     /// Print only warnings, errors and the final one-line summary.
@@ -472,6 +482,12 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                         h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale
                     );
                 }
+                if let Some(h) = &r.headline_detail {
+                    println!(
+                        "headline: held-out error / baseline error = {:.3} (half {:.5}, baseline {:.5}, {} photo(s))",
+                        h.ratio, h.method_rmse, h.baseline_rmse, h.photos
+                    );
+                }
             }
             Ok(())
         }
@@ -488,6 +504,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             rotate,
             turntable,
             background,
+            force,
         } => {
             use relight_cpc::relight::{self, CameraSelection, RenderOptions, Sun};
             if let Some(d) = &sun {
@@ -507,6 +524,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                     (None, None) => CameraSelection::AllRegistered,
                 },
                 out,
+                force,
                 exposure,
                 resolution,
                 rotate_deg: rotate,
@@ -593,6 +611,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             spp,
             light_samples,
             points,
+            force,
         } => {
             if list {
                 for name in relight_cpc::synth::scene_names() {
@@ -619,7 +638,9 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 },
                 points,
             };
-            let s = relight_cpc::synth::build(&scene, &out_dir, &opts)?;
+            let claim = relight_cpc::out_dir::OutDir::claim(&out_dir, force, &[], "synth")?;
+            let s = relight_cpc::synth::build(&scene, claim.path(), &opts)?;
+            claim.commit()?;
             println!(
                 "{}: {} photos ({} held out), {} vertices, {} faces, {} points3D, {} observations, rendering {:.1} s",
                 s.scene,
@@ -652,6 +673,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             quiet,
             iterations,
             name,
+            force,
         } => {
             use relight_cpc::bench::BenchOptions;
             let mut opts = if quick {
@@ -697,6 +719,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 anyhow::bail!("--name `{name}`: a file stem without path separators");
             }
             opts.name = name;
+            opts.force = force;
             // Each fit in its own process: its peak memory is then its own.
             opts.executable = Some(std::env::current_exe().map_err(|e| {
                 anyhow::anyhow!("bench: cannot find this executable to run the fits: {e}")
@@ -714,6 +737,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
 }
 
 fn main() {
+    relight_cpc::out_dir::install_interrupt_cleanup();
     let cli = Cli::parse();
     if let Err(err) = dispatch(cli.command) {
         eprintln!("error: {err}");

@@ -74,8 +74,10 @@ pub struct RenderOptions {
     pub sun: Option<Sun>,
     /// The cameras.
     pub cameras: CameraSelection,
-    /// Output folder (created).
+    /// Output folder, claimed under [`crate::out_dir`]'s contract.
     pub out: PathBuf,
+    /// Replace a previous result in `out`.
+    pub force: bool,
     /// Linear factor applied before sRGB encoding of the PNG (the EXR stays unscaled).
     pub exposure: f64,
     /// Output width in pixels (height keeps the aspect); `None`: the camera's size.
@@ -101,6 +103,7 @@ impl Default for RenderOptions {
             rotate_deg: 0.0,
             turntable: None,
             background: Background::Transparent,
+            force: false,
         }
     }
 }
@@ -681,6 +684,12 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
             "render: --turntable must be at least 1 frame".into(),
         ));
     }
+    let mut inputs = vec![result_dir];
+    inputs.extend(opts.env.as_deref());
+    if let CameraSelection::Folder(d) = &opts.cameras {
+        inputs.push(d);
+    }
+    let claim = crate::out_dir::OutDir::claim(&opts.out, opts.force, &inputs, "render")?;
     let t0 = std::time::Instant::now();
     let model = load_result(result_dir)?;
     let views = select_cameras(&model, &opts.cameras)?;
@@ -689,7 +698,7 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
     let rot = render_rotation(&model);
     let load_seconds = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
-    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    let dir = claim.path();
     let light_name = views::light_name(opts.env.as_deref(), opts.sun.is_some(), opts.rotate_deg);
     let up = model.env_from_world.row(2).transpose();
     let centre = mesh_centre(&model.mesh);
@@ -719,21 +728,22 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
                 light: &light,
                 light_ll: &light_ll,
             };
-            let (file, png) = render_one(&view, opts, &camera, pose, &stem)?;
+            let (file, png) = render_one(&view, opts, dir, &camera, pose, &stem)?;
             pngs.extend(png);
             out.push(file);
         }
         if opts.turntable.is_some() {
             let prefix = views::output_stem(&light_name, &image.name, None);
-            let gif = opts.out.join(format!("{prefix}_turntable.gif"));
-            views::write_gif(&gif, &pngs, 12)?;
-            animations.push(gif);
-            let mp4 = opts.out.join(format!("{prefix}_turntable.mp4"));
-            if views::write_video(&opts.out, &prefix, &mp4, 12)? {
-                animations.push(mp4);
+            let gif = format!("{prefix}_turntable.gif");
+            views::write_gif(&dir.join(&gif), &pngs, 12)?;
+            animations.push(opts.out.join(gif));
+            let mp4 = format!("{prefix}_turntable.mp4");
+            if views::write_video(dir, &prefix, &dir.join(&mp4), 12)? {
+                animations.push(opts.out.join(mp4));
             }
         }
     }
+    claim.commit()?;
     Ok(RenderSummary {
         views: out,
         load_seconds,
@@ -770,6 +780,7 @@ struct ViewLight<'a> {
 fn render_one(
     view: &ViewLight,
     opts: &RenderOptions,
+    dir: &Path,
     camera: &Camera,
     image: &Image,
     stem: &str,
@@ -777,9 +788,9 @@ fn render_one(
     let (raster, mut rgb) = render_view(view.model, view.rot, view.light, camera, image)?;
     let mask = raster.mask();
     let (w, h) = (camera.width, camera.height);
-    let exr = opts.out.join(format!("{stem}.exr"));
-    let png = opts.out.join(format!("{stem}.png"));
-    let mp = opts.out.join(format!("{stem}.mask.png"));
+    let exr = dir.join(format!("{stem}.exr"));
+    let png = dir.join(format!("{stem}.png"));
+    let mp = dir.join(format!("{stem}.mask.png"));
     let alpha = views::fill_background(
         &mut rgb,
         &mask,
@@ -808,11 +819,12 @@ fn render_one(
         None => None,
     };
     Ok((
+        // Where the files will be once the output folder is committed.
         RenderedFile {
             name: image.name.clone(),
-            exr,
-            png,
-            mask: mp,
+            exr: opts.out.join(exr.file_name().unwrap_or_default()),
+            png: opts.out.join(png.file_name().unwrap_or_default()),
+            mask: opts.out.join(mp.file_name().unwrap_or_default()),
             covered: raster.covered(),
         },
         pixels,

@@ -36,7 +36,6 @@ use json::validation::{Checked, USize64};
 use nalgebra::Matrix3;
 use std::borrow::Cow;
 use std::collections::BTreeMap;
-use std::path::Path;
 
 /// Roughness levels the faces are grouped into (one material each).
 pub const ROUGHNESS_LEVELS: usize = 8;
@@ -421,14 +420,6 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
         bytes: bytes.len(),
     };
     Ok((bytes, summary))
-}
-
-/// Write `mesh` to `path` as GLB (to a temporary file beside it, then renamed, so a failed
-/// write never leaves a file that looks complete).
-pub fn write_glb(path: &Path, mesh: &GltfMesh, name: &str) -> Result<GltfSummary> {
-    let (bytes, summary) = glb_bytes(mesh, name)?;
-    crate::export::write_atomic(path, &bytes)?;
-    Ok(summary)
 }
 
 #[cfg(test)]

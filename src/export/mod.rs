@@ -18,7 +18,7 @@ pub struct ExportOptions {
     pub gltf: Option<PathBuf>,
     /// Write every recovered environment map into this folder (Blender convention).
     pub envmaps: Option<PathBuf>,
-    /// Replace files that exist.
+    /// Replace a previous export (never anything else; the output-folder contract).
     pub force: bool,
 }
 
@@ -45,15 +45,11 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
-/// Refuse to overwrite a file unless `force`.
-fn check_new(path: &Path, force: bool) -> Result<()> {
-    if path.exists() && !force {
-        return Err(Error::Config(format!(
-            "{} exists; choose another name or pass --force",
-            path.display()
-        )));
-    }
-    Ok(())
+/// Whether `path` is a GLB this tool wrote (magic `glTF` and our generator string).
+fn is_our_glb(path: &Path) -> bool {
+    std::fs::read(path).is_ok_and(|b| {
+        b.starts_with(b"glTF") && b.windows(11).take(4096).any(|w| w == b"relight-cpc")
+    })
 }
 
 /// Export the result in `result_dir` as `opts` asks.
@@ -65,7 +61,23 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
     }
     let mut summary = ExportSummary::default();
     if let Some(path) = &opts.gltf {
-        check_new(path, opts.force)?;
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .ok_or_else(|| {
+                Error::Config(format!("--gltf {}: needs a file name", path.display()))
+            })?;
+        let folder = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let files = crate::out_dir::OutFiles::claim(
+            folder,
+            &[&name],
+            opts.force,
+            &[result_dir],
+            is_our_glb,
+        )?;
         let m = crate::relight::load_result(result_dir)?;
         let mesh = gltf::gltf_mesh(
             &m.mesh.positions,
@@ -75,16 +87,14 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
             &m.basis,
             &m.beta,
         )?;
-        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
-        }
-        let name = result_dir
+        let label = result_dir
             .canonicalize()
             .ok()
             .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .unwrap_or_else(|| "relight-cpc".into());
-        let s = gltf::write_glb(path, &mesh, &name)?;
-        summary.gltf = Some((path.clone(), s));
+        let (bytes, s) = gltf::glb_bytes(&mesh, &label)?;
+        let written = files.write(&name, &bytes)?;
+        summary.gltf = Some((written, s));
     }
     if let Some(dir) = &opts.envmaps {
         let src = result_dir.join("envmaps");
@@ -100,7 +110,7 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
                 message: "no NAME.latlong.exr map in the result".into(),
             });
         }
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let claim = crate::out_dir::OutDir::claim(dir, opts.force, &[result_dir], "export")?;
         for p in maps {
             let file = p.file_name().map(|n| n.to_string_lossy().into_owned());
             let stem = file
@@ -108,14 +118,14 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
                 .and_then(|n| n.strip_suffix(".latlong.exr"))
                 .unwrap_or("map")
                 .to_string();
-            for ext in ["exr", "hdr"] {
-                check_new(&dir.join(format!("{stem}.{ext}")), opts.force)?;
-            }
             let ll = crate::envmap::LatLong::read_exr(&p)?.0;
-            summary
-                .envmaps
-                .extend(envmap::export_blender(&ll, dir, &stem)?);
+            for written in envmap::export_blender(&ll, claim.path(), &stem)? {
+                summary
+                    .envmaps
+                    .push(dir.join(written.file_name().unwrap_or_default()));
+            }
         }
+        claim.commit()?;
     }
     Ok(summary)
 }

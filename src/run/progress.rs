@@ -127,6 +127,13 @@ impl Progress {
         self.styled(bar, BAR_TEMPLATE, what)
     }
 
+    /// A line of information worth a user's attention (a default chosen for them).
+    pub fn note(&self, msg: &str) {
+        if self.enabled {
+            eprintln!("{} {msg}", self.stamp());
+        }
+    }
+
     /// A bar of `len` steps that the library's kernels advance through [`tick`] until the
     /// returned guard is dropped.
     pub fn stage_bar(&self, len: u64, what: &str) -> StageBar {
