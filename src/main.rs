@@ -252,6 +252,11 @@ struct RunArgs {
     /// alternation stops.
     #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_patience())]
     patience: usize,
+    /// At most this many observations per photo in its lighting step, a stratified sample
+    /// (by normal, open sky and material, weighted to keep the sums' expected value);
+    /// 0 = every observation.
+    #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHTING_SAMPLE)]
+    lighting_sample: usize,
     /// Starts of the alternation to try, the best by validation score kept: 1 = the
     /// paper's clustered start; 2 adds every glossy lobe at 0.3 × the Lambertian weight,
     /// then one lobe per material in cyclic order. Each start costs one estimate.
@@ -341,6 +346,7 @@ impl RunArgs {
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.validation = self.validation;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
+        o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;
         o.starts = self.starts;
         o.robust_floor = self.robust_floor;
