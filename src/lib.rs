@@ -19,6 +19,7 @@
 //! [`colmap`], and every other module uses those functions rather than restating them.
 
 pub mod error;
+pub mod out_dir;
 
 // Scene import.
 pub mod colmap;

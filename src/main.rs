@@ -65,6 +65,9 @@ enum Command {
         /// Output width in pixels (height keeps the camera's aspect).
         #[arg(long)]
         resolution: Option<u32>,
+        /// Replace a previous result in --out.
+        #[arg(long)]
+        force: bool,
     },
     /// Write a known-truth synthetic COLMAP workspace (photos rendered by the reference
     /// renderer, ground truth in OUT_DIR/truth/).
@@ -110,6 +113,9 @@ enum Command {
         /// Surface points sampled for points3D.txt.
         #[arg(long, default_value_t = 3000)]
         points: usize,
+        /// Replace a previous result in OUT_DIR.
+        #[arg(long)]
+        force: bool,
     },
     /// Benchmark the whole pipeline on synthetic scenes: per-stage wall time, CPU time and
     /// peak memory, growth with vertices and photos, and held-out error against run time
@@ -178,6 +184,9 @@ enum Command {
         /// File stem of the outputs: OUT/NAME.{json,md,png}.
         #[arg(long, default_value = "pipeline")]
         name: String,
+        /// Replace a previous result of the same --name in --out.
+        #[arg(long)]
+        force: bool,
     },
 }
 
@@ -193,7 +202,8 @@ struct RunArgs {
     #[arg(long)]
     mesh: Option<std::path::PathBuf>,
     /// Hold out these photos (image names, comma-separated); `none` holds out nothing.
-    /// Default: the workspace's truth/manifest.json list, if any.
+    /// Default: the workspace's truth/manifest.json list, else every 5th photo (at least
+    /// one).
     #[arg(long, value_delimiter = ',', conflicts_with = "holdout_every")]
     holdout: Option<Vec<String>>,
     /// Hold out every N-th photo in name order.
@@ -283,7 +293,7 @@ struct RunArgs {
     /// No progress output.
     #[arg(long)]
     quiet: bool,
-    /// Replace the output folder if it exists.
+    /// Replace a previous result in the output folder (never anything else).
     #[arg(long)]
     force: bool,
     /// Skip the renders of the training views.
@@ -393,6 +403,12 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                         h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale
                     );
                 }
+                if let Some(h) = &r.headline_detail {
+                    println!(
+                        "headline: held-out error / baseline error = {:.3} (half {:.5}, baseline {:.5}, {} photo(s))",
+                        h.ratio, h.method_rmse, h.baseline_rmse, h.photos
+                    );
+                }
             }
             Ok(())
         }
@@ -406,6 +422,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             sun_radiance,
             exposure,
             resolution,
+            force,
         } => {
             use relight_cpc::relight::{self, CameraSelection, RenderOptions, Sun};
             if let Some(d) = &sun {
@@ -425,6 +442,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                     (None, None) => CameraSelection::AllRegistered,
                 },
                 out,
+                force,
                 exposure,
                 resolution,
             };
@@ -473,6 +491,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             spp,
             light_samples,
             points,
+            force,
         } => {
             if list {
                 for name in relight_cpc::synth::scene_names() {
@@ -499,7 +518,9 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 },
                 points,
             };
-            let s = relight_cpc::synth::build(&scene, &out_dir, &opts)?;
+            let claim = relight_cpc::out_dir::OutDir::claim(&out_dir, force, &[], "synth")?;
+            let s = relight_cpc::synth::build(&scene, claim.path(), &opts)?;
+            claim.commit()?;
             println!(
                 "{}: {} photos ({} held out), {} vertices, {} faces, {} points3D, {} observations, rendering {:.1} s",
                 s.scene,
@@ -532,6 +553,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             quiet,
             iterations,
             name,
+            force,
         } => {
             use relight_cpc::bench::BenchOptions;
             let mut opts = if quick {
@@ -577,6 +599,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 anyhow::bail!("--name `{name}`: a file stem without path separators");
             }
             opts.name = name;
+            opts.force = force;
             // Each fit in its own process: its peak memory is then its own.
             opts.executable = Some(std::env::current_exe().map_err(|e| {
                 anyhow::anyhow!("bench: cannot find this executable to run the fits: {e}")
@@ -594,6 +617,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
 }
 
 fn main() {
+    relight_cpc::out_dir::install_interrupt_cleanup();
     let cli = Cli::parse();
     if let Err(err) = dispatch(cli.command) {
         eprintln!("error: {err}");

@@ -73,8 +73,10 @@ pub struct RenderOptions {
     pub sun: Option<Sun>,
     /// The cameras.
     pub cameras: CameraSelection,
-    /// Output folder (created).
+    /// Output folder, claimed under [`crate::out_dir`]'s contract.
     pub out: PathBuf,
+    /// Replace a previous result in `out`.
+    pub force: bool,
     /// Linear factor applied before sRGB encoding of the PNG (the EXR stays unscaled).
     pub exposure: f64,
     /// Output width in pixels (height keeps the aspect); `None`: the camera's size.
@@ -635,6 +637,12 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
     if opts.resolution == Some(0) {
         return Err(Error::Config("render: --resolution must be > 0".into()));
     }
+    let mut inputs = vec![result_dir];
+    inputs.extend(opts.env.as_deref());
+    if let CameraSelection::Folder(d) = &opts.cameras {
+        inputs.push(d);
+    }
+    let claim = crate::out_dir::OutDir::claim(&opts.out, opts.force, &inputs, "render")?;
     let t0 = std::time::Instant::now();
     let model = load_result(result_dir)?;
     let views = select_cameras(&model, &opts.cameras)?;
@@ -642,7 +650,7 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
     let rot = render_rotation(&model);
     let load_seconds = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
-    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    let dir = claim.path();
     let mut out = Vec::with_capacity(views.len());
     for (camera, image) in &views {
         let camera = match opts.resolution {
@@ -657,9 +665,9 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
         let mask = raster.mask();
         let stem = file_stem(&image.name);
         let (w, h) = (camera.width, camera.height);
-        let exr = opts.out.join(format!("{stem}.exr"));
-        let png = opts.out.join(format!("{stem}.png"));
-        let mp = opts.out.join(format!("{stem}.mask.png"));
+        let exr = dir.join(format!("{stem}.exr"));
+        let png = dir.join(format!("{stem}.png"));
+        let mp = dir.join(format!("{stem}.mask.png"));
         render::write_exr(&exr, w, h, &rgb, Some(&mask))?;
         render::write_png(&png, w, h, &rgb, Some(&mask), opts.exposure as f32)?;
         let grey: Vec<u8> = mask.iter().map(|&m| if m { 255 } else { 0 }).collect();
@@ -669,12 +677,13 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
         })?;
         out.push(RenderedFile {
             name: image.name.clone(),
-            exr,
-            png,
-            mask: mp,
+            exr: opts.out.join(exr.file_name().unwrap_or_default()),
+            png: opts.out.join(png.file_name().unwrap_or_default()),
+            mask: opts.out.join(mp.file_name().unwrap_or_default()),
             covered: raster.covered(),
         });
     }
+    claim.commit()?;
     Ok(RenderSummary {
         views: out,
         load_seconds,

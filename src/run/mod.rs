@@ -19,15 +19,19 @@
 //! fallback) and, past [`crate::adapt::KAPPA_LIGHTING`] / [`crate::adapt::KAPPA_LAMBDA`],
 //! what to change; a non-finite estimate stops the run with those figures.
 //!
-//! Everything is written into a hidden sibling `.NAME.partial/` of the output folder and
-//! renamed to `NAME/` only when complete, so an interrupted run never leaves a folder that
-//! looks finished.
+//! The output folder follows [`crate::out_dir`]: everything is written into a hidden
+//! staging sibling and moved into place, stamp last, only when complete, so an interrupted
+//! run never leaves a folder that looks finished.
 
+mod baseline;
 mod evaluate;
+mod holdout;
 mod output;
 mod progress;
+mod truth_check;
 
 pub use evaluate::{fine_rays, render_local_resolution, Truth};
+pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use progress::Progress;
 
 use crate::brdf::BasisBrdf;
@@ -62,7 +66,8 @@ pub enum MaterialCount {
 /// Which photos are held out.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Holdout {
-    /// The workspace's `truth/manifest.json` list when present, else none.
+    /// The workspace's `truth/manifest.json` list when present, else every 5th registered
+    /// photo, at least one ([`default_holdout`]).
     #[default]
     Default,
     /// No photo.
@@ -361,7 +366,13 @@ pub fn env_from_world(up: &Vec3) -> Result<Matrix3<f64>> {
 fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Result<Vec<usize>> {
     let names: Vec<String> = match holdout {
         Holdout::None => Vec::new(),
-        Holdout::Default => truth.map(|t| t.held_out.clone()).unwrap_or_default(),
+        Holdout::Default => match truth {
+            Some(t) => t.held_out.clone(),
+            None => default_holdout(scene.views.len())
+                .into_iter()
+                .map(|i| scene.views[i].image.name.clone())
+                .collect(),
+        },
         Holdout::Names(n) => n.clone(),
         Holdout::Every(k) => scene
             .views
@@ -398,6 +409,30 @@ fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Res
         )));
     }
     Ok(idx)
+}
+
+/// How the held-out photos `held` were chosen, in words (console and report).
+fn holdout_rule(scene: &Scene, holdout: &Holdout, has_truth: bool, held: &[usize]) -> String {
+    let names = held
+        .iter()
+        .map(|&i| scene.views[i].image.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let n = format!("{} of {} photos", held.len(), scene.views.len());
+    match holdout {
+        Holdout::Default if has_truth => {
+            format!("{n}, the workspace's truth/manifest.json list ({names})")
+        }
+        Holdout::Default if held.is_empty() => {
+            format!("none: the workspace has {} photo(s) and the fit needs one", scene.views.len())
+        }
+        Holdout::Default => format!(
+            "{n}, chosen by default (every {DEFAULT_HOLDOUT_EVERY}th in name order, at least one): {names}; the fit does not use them, they score its renders (--holdout none fits on every photo)"
+        ),
+        Holdout::None => "none (--holdout none)".into(),
+        Holdout::Names(_) => format!("{n}, named with --holdout ({names})"),
+        Holdout::Every(k) => format!("{n}, every {k}th (--holdout-every {k}): {names}"),
+    }
 }
 
 /// Choose the number of materials from the per-vertex mean colours: the smallest K in
@@ -507,58 +542,24 @@ pub(crate) struct Fitted<'a> {
     pub opts: &'a RunOptions,
     pub estimate_options: EstimateOptions,
     pub bvh: SceneBvh,
+    /// The naive baseline's per-vertex colours ([`baseline`]).
+    pub baseline: baseline::VertexMedians,
 }
 
-/// Run the pipeline with `opts`, reporting progress to `progress`.
+/// Run the pipeline with `opts`, reporting progress to `progress`. The output folder is
+/// claimed before any work ([`crate::out_dir`]): results are written into a staging folder
+/// and moved into place, stamp last, only when complete.
 pub fn run(opts: &RunOptions) -> Result<RunSummary> {
     opts.check()?;
     let progress = Progress::new(opts.progress);
-    let partial = partial_dir(&opts.out)?;
-    let result = run_into(opts, &partial, &progress);
-    match result {
-        Ok(report) => {
-            finish_dir(&partial, &opts.out, opts.force)?;
-            progress.finish(&format!("results in {}", opts.out.display()));
-            Ok(RunSummary {
-                out: opts.out.clone(),
-                report,
-            })
-        }
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&partial);
-            Err(e)
-        }
-    }
-}
-
-fn partial_dir(out: &Path) -> Result<PathBuf> {
-    let name = out
-        .file_name()
-        .ok_or_else(|| Error::Config(format!("--out {}: needs a folder name", out.display())))?;
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
-    let partial = parent.join(format!(".{}.partial", name.to_string_lossy()));
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    }
-    std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    Ok(partial)
-}
-
-fn finish_dir(partial: &Path, out: &Path, force: bool) -> Result<()> {
-    if out.exists() {
-        if !force && !out.join("report.json").exists() {
-            return Err(Error::Config(format!(
-                "--out {}: exists and is not a relight-cpc result; choose another folder or pass --force",
-                out.display()
-            )));
-        }
-        std::fs::remove_dir_all(out).map_err(|e| Error::io(out, e))?;
-    }
-    std::fs::rename(partial, out).map_err(|e| Error::io(out, e))
+    let inputs: Vec<&Path> = std::iter::once(opts.workspace.as_path())
+        .chain(opts.mesh.as_deref())
+        .collect();
+    let out = crate::out_dir::OutDir::claim(&opts.out, opts.force, &inputs, "run")?;
+    let report = run_into(opts, out.path(), &progress)?;
+    let out = out.commit()?;
+    progress.finish(&format!("results in {}", out.display()));
+    Ok(RunSummary { out, report })
 }
 
 fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunReport> {
@@ -580,6 +581,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         None => None,
     };
     let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
+    let holdout_rule = holdout_rule(&scene, &opts.holdout, truth.is_some(), &held);
+    if matches!(opts.holdout, Holdout::Default) && truth.is_none() && !held.is_empty() {
+        progress.note(&format!("held out: {holdout_rule}"));
+    }
+    notes.push(format!("held-out photos: {holdout_rule}"));
     let mut train: Vec<usize> = (0..scene.views.len())
         .filter(|i| !held.contains(i))
         .collect();
@@ -963,12 +969,18 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         opts: &eff,
         estimate_options: eopts,
         bvh,
+        baseline: baseline::VertexMedians::from_observations(&obs, nv),
     };
 
     // 7. Evaluation of held-out photos, and per-photo training error.
     progress.stage("evaluation");
-    let evaluation = stages.run("evaluation", || {
-        evaluate::evaluate(&fitted, truth.as_ref(), dir, progress)
+    let (evaluation, truth_check) = stages.run("evaluation", || -> Result<_> {
+        let e = evaluate::evaluate(&fitted, truth.as_ref(), dir, progress)?;
+        let t = match &truth {
+            Some(t) => truth_check::truth_check(&fitted, t)?,
+            None => Vec::new(),
+        };
+        Ok((e, t))
     })?;
 
     // 8. Outputs.
@@ -1078,6 +1090,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         starts: (multi.starts.len() > 1).then_some(multi),
         ..Default::default()
     };
+    report.headline = evaluation.headline.map(|h| h.ratio);
+    report.headline_detail = evaluation.headline;
+    report.metrics = evaluation.metrics;
+    report.truth_check = truth_check;
+    report.holdout_rule = holdout_rule;
     if !fitted.held.is_empty() {
         let (r, h) = (evaluation.render_seconds, evaluation.half_fit_seconds);
         report.notes.push(format!(
@@ -1088,6 +1105,13 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             r[1],
             h[0],
             h[1]
+        ));
+    }
+    if fitted.baseline.unseen > 0 && !fitted.held.is_empty() {
+        report.notes.push(format!(
+            "baseline: {} of {} vertices are in no training photo; they take the median of the other vertices' medians",
+            fitted.baseline.unseen,
+            nv
         ));
     }
     if let Some(h) = evaluation.mean_holdout_rmse {

@@ -41,6 +41,13 @@ impl Progress {
         bar
     }
 
+    /// A line of information worth a user's attention (a default chosen for them).
+    pub fn note(&self, msg: &str) {
+        if self.enabled {
+            eprintln!("[{:7.1}s] {msg}", self.start.elapsed().as_secs_f64());
+        }
+    }
+
     /// The final line.
     pub fn finish(&self, msg: &str) {
         if self.enabled {

@@ -87,6 +87,7 @@ fn relit_sphere_matches_reference_under_new_map() {
             sun: None,
             cameras: CameraSelection::Named(name.clone()),
             out: render_out.clone(),
+            force: false,
             exposure: 1.0,
             resolution: None,
         },
@@ -237,6 +238,7 @@ fn bad_inputs_give_clear_errors() {
         sun: None,
         cameras: cams,
         out: t.0.join("out"),
+        force: false,
         exposure: 1.0,
         resolution: None,
     };
@@ -268,6 +270,7 @@ fn bad_camera_and_map_on_a_real_result(dir: &Path, out: &Path) {
         sun: None,
         cameras: cams,
         out: dir.join("out"),
+        force: false,
         exposure: 1.0,
         resolution: Some(32),
     };

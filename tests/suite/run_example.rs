@@ -36,7 +36,13 @@ fn example_run_recovers_held_out_photos_under_their_true_light() {
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }
-    assert!(!dir.join(".spot.partial").exists());
+    let beside: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(
+        beside.len(),
+        1,
+        "only the result, no staging folder, is left"
+    );
+    assert!(out.join(relight_cpc::out_dir::STAMP).is_file());
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     for key in [
