@@ -2227,7 +2227,7 @@ mod tests {
             obs.vertex.push(p as u32);
             obs.photo.push(0);
             // Sum of 4 uniforms on [-1, 1]: mean 0, variance 4/3.
-            let e = || {
+            let mut e = || {
                 (0..4).map(|_| rng.random_range(-1.0..1.0)).sum::<f64>() / (4.0_f64 / 3.0).sqrt()
             };
             obs.rgb

@@ -546,7 +546,6 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
     if left.is_empty() {
         return Ok(None);
     }
-    let mut left = lighting_sample_of(left, &f.estimate_options);
     let all = 0..left.len();
     left.photo_ranges = vec![all];
     let topts = TransportOptions {
@@ -569,9 +568,13 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
+    // Every left-half observation: the protocol measures the fitted reflectance, and the
+    // lighting sample (a speed lever of the estimate) moved its errors by up to 4.5% on
+    // 30K vertices (bench-results/lighting-sample.md).
     let opts = estimate::EstimateOptions {
         qp_max_iter: HALF_FIT_GPCG,
         qp_max_cg: HALF_FIT_CG,
+        lighting_sample: 0,
         ..f.estimate_options.clone()
     };
     let start = [0, 1, 2].map(|c| start.channel(c));
@@ -580,34 +583,6 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         f.opts.global_resolution,
         [&l[0], &l[1], &l[2]],
     )))
-}
-
-/// The lighting fit's stratified sample of one photo's observations, drawn before their
-/// transport is built ([`estimate::EstimateOptions::lighting_sample`]; strata
-/// `lighting_strata`): each kept observation's `α` carries its stratum's `N_h / n_h`.
-/// All of them when there are no more than the budget.
-fn lighting_sample_of(obs: Observations, opts: &estimate::EstimateOptions) -> Observations {
-    let eligible: Vec<bool> = obs.weight.iter().map(|&w| w > 0.0).collect();
-    let strata: Vec<u32> = obs
-        .vertex
-        .iter()
-        .map(|&x| opts.lighting_strata.get(x as usize).copied().unwrap_or(0))
-        .collect();
-    let budget = opts.lighting_sample;
-    if budget == 0 || eligible.iter().filter(|&&e| e).count() <= budget {
-        return obs;
-    }
-    let s = crate::solve::subsample::stratified(&strata, &eligible, budget, opts.validation_seed);
-    let mut out = Observations::default();
-    for (&p, &w) in s.index.iter().zip(&s.weight) {
-        out.vertex.push(obs.vertex[p]);
-        out.photo.push(obs.photo[p]);
-        out.rgb.push(obs.rgb[p]);
-        out.weight.push((obs.weight[p] as f64 * w) as f32);
-        out.dir.push(obs.dir[p]);
-    }
-    out.photo_ranges = vec![0..out.len()];
-    out
 }
 
 /// Evaluate every held-out view under each protocol that applies; write its renders.
