@@ -292,6 +292,17 @@ pub struct EstimateOptions {
     pub validation_seed: u64,
     /// With validation: stop after this many outer iterations without a lower score.
     pub patience: usize,
+    /// Lighting step on a stratified subsample ([`crate::solve::subsample`]): at most this
+    /// many of a photo's fitted observations enter its lighting QPs, each weighted by its
+    /// stratum's `N_h / n_h` so that the data term and its normal equations keep their
+    /// expected value; the IRLS scale and weights still come from every observation, and
+    /// the material step uses them all. 0 = every observation. Measured in
+    /// `bench-results/lighting-sample.md`.
+    pub lighting_sample: usize,
+    /// Per-vertex strata of that sample (normal and open-sky bins,
+    /// [`crate::solve::subsample::vertex_strata`]), crossed with each vertex's dominant
+    /// starting material; empty: the materials alone.
+    pub lighting_strata: Vec<u32>,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -369,6 +380,8 @@ impl Default for EstimateOptions {
             fix_gauge: false,
             materials_cut_only: false,
             patience: PATIENCE,
+            lighting_sample: 0,
+            lighting_strata: Vec::new(),
         }
     }
 }
@@ -548,6 +561,9 @@ pub struct Estimate {
     pub conditioning: Conditioning,
     /// Early stopping's record, when on.
     pub validation: Option<Validation>,
+    /// The lighting sample's check, when a photo's lighting step used a sample
+    /// ([`EstimateOptions::lighting_sample`]).
+    pub lighting_sample: Option<crate::solve::subsample::SampleCheck>,
 }
 
 /// `β_{x,b,c} = Σ_k w_k(x) λ_{k,b,c}`, row-major `V × B`.
@@ -656,6 +672,7 @@ fn haar3(tex: &[Vec<f64>; 3], n: usize) -> Vec<[f64; 3]> {
 /// precision the transport values are stored in); forward and adjoint products read the
 /// same stored values, so the Hessian stays exactly symmetric.
 struct PhotoSystem {
+    /// `0..rows`: the system's rows (the photo's observations, or its lighting sample).
     range: std::ops::Range<usize>,
     n: usize,
     /// `α_p ω_{p,c}` for the range's observations.
@@ -728,7 +745,7 @@ impl PhotoSystem {
     fn new(
         problem: &Problem,
         beta: &[[f64; 3]],
-        range: std::ops::Range<usize>,
+        rows: impl IntoIterator<Item = usize>,
         n: usize,
         dw: Vec<[f64; 3]>,
     ) -> Self {
@@ -738,11 +755,11 @@ impl PhotoSystem {
         let mut dense = vec![[0.0_f64; 3]; n2];
         let mut seen = vec![false; n2];
         let mut touched: Vec<HaarIndex> = Vec::new();
-        let mut offsets = Vec::with_capacity(range.len() + 1);
+        let mut offsets = Vec::with_capacity(dw.len() + 1);
         offsets.push(0);
         let mut index = Vec::new();
         let mut value = Vec::new();
-        for p in range.clone() {
+        for p in rows {
             let x = problem.obs.vertex[p] as usize;
             for b in 0..nb {
                 let be = beta[x * nb + b];
@@ -779,7 +796,7 @@ impl PhotoSystem {
         }
         let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
         PhotoSystem {
-            range,
+            range: 0..offsets.len() - 1,
             n,
             dw,
             offsets,
@@ -876,7 +893,7 @@ impl PhotoSystem {
 fn texel_diag(
     problem: &Problem,
     beta: &[[f64; 3]],
-    range: std::ops::Range<usize>,
+    range: impl IntoIterator<Item = usize>,
     alpha: &[f64],
 ) -> ([f64; 3], [f64; 3]) {
     let diag = texel_diag_vec(problem, beta, range, alpha);
@@ -895,7 +912,7 @@ fn texel_diag(
 fn texel_diag_vec(
     problem: &Problem,
     beta: &[[f64; 3]],
-    range: std::ops::Range<usize>,
+    range: impl IntoIterator<Item = usize>,
     alpha: &[f64],
 ) -> Vec<[f64; 3]> {
     let t = problem.transport;
@@ -904,7 +921,7 @@ fn texel_diag_vec(
     let mut diag = vec![[0.0_f64; 3]; n2];
     let mut dense = [vec![0.0_f64; n2], vec![0.0; n2], vec![0.0; n2]];
     let mut scratch = Vec::new();
-    for (q, p) in range.enumerate() {
+    for (q, p) in range.into_iter().enumerate() {
         let a = alpha[q];
         if a <= 0.0 {
             continue;
@@ -983,7 +1000,9 @@ fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
 }
 
 /// Lighting step for one photo with full control: start texels (`None` = zeros), Laplacian
-/// weights (`None` = `smoothness` × largest system diagonal, computed here).
+/// weights (`None` = `smoothness` × largest system diagonal, computed here). With
+/// [`EstimateOptions::lighting_sample`] the QPs see a stratified sample of the photo's
+/// observations (strata from [`EstimateOptions::lighting_strata`]).
 pub fn lighting_step_full(
     problem: &Problem,
     beta: &[[f64; 3]],
@@ -992,17 +1011,115 @@ pub fn lighting_step_full(
     mu: Option<[f64; 3]>,
     opts: &EstimateOptions,
 ) -> Result<LightingResult> {
+    let sample = lighting_sample(problem, photo, opts, None);
+    lighting_step_on(problem, beta, photo, start, mu, opts, sample.as_ref())
+}
+
+/// The stratified sample of `photo`'s fitted observations (positions in its range) that its
+/// lighting QPs see ([`EstimateOptions::lighting_sample`]); `None` when the photo has no
+/// more fitted observations than the budget. Strata: `opts.lighting_strata` of the vertex
+/// crossed with `dominant[x]` (a material index) when given.
+pub fn lighting_sample(
+    problem: &Problem,
+    photo: usize,
+    opts: &EstimateOptions,
+    dominant: Option<&[u32]>,
+) -> Option<crate::solve::subsample::Subsample> {
+    let budget = opts.lighting_sample;
+    let obs = problem.obs;
+    let range = obs.photo_ranges[photo].clone();
+    let eligible: Vec<bool> = range.clone().map(|p| obs.weight[p] > 0.0).collect();
+    if budget == 0 || eligible.iter().filter(|&&e| e).count() <= budget {
+        return None;
+    }
+    let k = dominant.map_or(1, |d| d.iter().max().map_or(1, |&m| m as usize + 1));
+    let strata: Vec<u32> = range
+        .map(|p| {
+            let x = obs.vertex[p] as usize;
+            let v = opts.lighting_strata.get(x).copied().unwrap_or(0) as usize;
+            (v * k + dominant.map_or(0, |d| d[x] as usize)) as u32
+        })
+        .collect();
+    let seed = opts
+        .validation_seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(photo as u64);
+    Some(crate::solve::subsample::stratified(
+        &strata, &eligible, budget, seed,
+    ))
+}
+
+/// `Σ_b β_{x,b,c} ⟨g_{p,b}, h_c⟩` for the observations `range` straight from the transport
+/// rows (`h` interleaved Haar): the prediction of observations outside a lighting sample.
+fn forward_full(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    range: std::ops::Range<usize>,
+    h: &[[f64; 3]],
+) -> Vec<[f64; 3]> {
+    let t = problem.transport;
+    let nb = t.n_basis;
+    range
+        .map(|p| {
+            let x = problem.obs.vertex[p] as usize;
+            let mut acc = [0.0; 3];
+            for b in 0..nb {
+                let be = beta[x * nb + b];
+                if be == [0.0; 3] {
+                    continue;
+                }
+                let (idx, val) = t.row(p, b);
+                let mut r = [0.0; 3];
+                for (&m, &g) in idx.iter().zip(val) {
+                    let hm = &h[m as usize];
+                    let g = g as f64;
+                    r[0] += g * hm[0];
+                    r[1] += g * hm[1];
+                    r[2] += g * hm[2];
+                }
+                for c in 0..3 {
+                    acc[c] += be[c] * r[c];
+                }
+            }
+            acc
+        })
+        .collect()
+}
+
+/// [`lighting_step_full`] on a given sample of the photo's observations (`None`: all).
+pub fn lighting_step_on(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    photo: usize,
+    start: Option<&[Vec<f64>; 3]>,
+    mu: Option<[f64; 3]>,
+    opts: &EstimateOptions,
+    sample: Option<&crate::solve::subsample::Subsample>,
+) -> Result<LightingResult> {
     let t = problem.transport;
     let n = t.n_global;
     let n2 = n * n;
     let range = problem.obs.photo_ranges[photo].clone();
     let obs = problem.obs;
-    let alpha: Vec<f64> = range.clone().map(|p| obs.weight[p] as f64).collect();
-    let y: Vec<[f64; 3]> = range.clone().map(|p| obs.rgb[p].map(f64::from)).collect();
+    // The QP's rows: positions in the range (all, or the sample) and their
+    // Horvitz–Thompson weights (1 without a sample).
+    let (pos, ht): (Vec<usize>, Vec<f64>) = match sample {
+        Some(s) => (s.index.clone(), s.weight.clone()),
+        None => ((0..range.len()).collect(), vec![1.0; range.len()]),
+    };
+    let rows = || pos.iter().map(|&q| range.start + q);
+    let alpha: Vec<f64> = rows()
+        .zip(&ht)
+        .map(|(p, w)| obs.weight[p] as f64 * w)
+        .collect();
+    let y: Vec<[f64; 3]> = rows().map(|p| obs.rgb[p].map(f64::from)).collect();
+    // Every observation of the photo: IRLS's scale and weights come from all of them.
+    let alpha_all: Vec<f64> = range.clone().map(|p| obs.weight[p] as f64).collect();
+    let y_all: Vec<[f64; 3]> = range.clone().map(|p| obs.rgb[p].map(f64::from)).collect();
     let mut sys = PhotoSystem::new(
         problem,
         beta,
-        range.clone(),
+        rows(),
         n,
         alpha.iter().map(|&a| [a; 3]).collect(),
     );
@@ -1010,7 +1127,7 @@ pub fn lighting_step_full(
     // scaling of the QP (LIGHTING_JACOBI) and, for the default smoothness scale, μ.
     let tdiag = (LIGHTING_JACOBI
         || (mu.is_none() && opts.smoothness_scale == SmoothnessScale::TexelMax))
-        .then(|| texel_diag_vec(problem, beta, range.clone(), &alpha));
+        .then(|| texel_diag_vec(problem, beta, rows(), &alpha));
     let mu = match mu {
         Some(m) => m,
         None => match opts.smoothness_scale {
@@ -1022,9 +1139,9 @@ pub fn lighting_step_full(
                     }
                     m
                 }),
-                None => texel_diag(problem, beta, range.clone(), &alpha).0,
+                None => texel_diag(problem, beta, rows(), &alpha).0,
             },
-            SmoothnessScale::Mean => texel_diag(problem, beta, range.clone(), &alpha).1,
+            SmoothnessScale::Mean => texel_diag(problem, beta, rows(), &alpha).1,
         }
         .map(|d| opts.smoothness * d),
     };
@@ -1067,11 +1184,14 @@ pub fn lighting_step_full(
         // Reweight from the current residuals (the first pass: unit weights, a restart).
         if pass > 0 {
             let h = haar3(&split3(&x, n2), n);
-            sys.forward_rows(&h, &mut pred);
+            match sample {
+                Some(_) => pred = forward_full(problem, beta, range.clone(), &h),
+                None => sys.forward_rows(&h, &mut pred),
+            }
             for c in 0..3 {
                 let mut ab: Vec<f64> = (0..range.len())
-                    .filter(|&q| alpha[q] > 0.0)
-                    .map(|q| (y[q][c] - pred[q][c]).abs())
+                    .filter(|&q| alpha_all[q] > 0.0)
+                    .map(|q| (y_all[q][c] - pred[q][c]).abs())
                     .collect();
                 if ab.is_empty() {
                     continue;
@@ -1079,12 +1199,12 @@ pub fn lighting_step_full(
                 let n_fit = ab.len();
                 let mid = n_fit / 2;
                 let (_, med, _) = ab.select_nth_unstable_by(mid, f64::total_cmp);
-                let scale = y.iter().map(|v| v[c].abs()).sum::<f64>() / y.len() as f64;
+                let scale = y_all.iter().map(|v| v[c].abs()).sum::<f64>() / y_all.len() as f64;
                 // The noise floor: a fraction of the RMS observed radiance (struct docs of
                 // `EstimateOptions::robust_floor`).
                 let rms = ((0..range.len())
-                    .filter(|&q| alpha[q] > 0.0)
-                    .map(|q| y[q][c] * y[q][c])
+                    .filter(|&q| alpha_all[q] > 0.0)
+                    .map(|q| y_all[q][c] * y_all[q][c])
                     .sum::<f64>()
                     / n_fit as f64)
                     .sqrt();
@@ -1093,17 +1213,17 @@ pub fn lighting_step_full(
                     .max(1e-9 * scale)
                     .max(f64::MIN_POSITIVE);
                 for q in 0..range.len() {
-                    omega[q][c] = robust_weight(opts.robust, y[q][c] - pred[q][c], sigma);
+                    omega[q][c] = robust_weight(opts.robust, y_all[q][c] - pred[q][c], sigma);
                 }
             }
         }
-        for q in 0..range.len() {
+        for (r, &q) in pos.iter().enumerate() {
             for c in 0..3 {
-                sys.dw[q][c] = alpha[q] * omega[q][c];
+                sys.dw[r][c] = alpha[r] * omega[q][c];
             }
         }
         // Right-hand side Wᵀ Aᵀ D y.
-        let u: Vec<[f64; 3]> = (0..range.len())
+        let u: Vec<[f64; 3]> = (0..pos.len())
             .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * y[q][c]))
             .collect();
         let mut hb = vec![[0.0; 3]; n2];
@@ -1738,6 +1858,12 @@ pub fn estimate(
         qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
         ..opts.clone()
     };
+    // The lighting sample of each photo, fixed for the whole alternation (the QPs'
+    // objective stays one function): strata crossed with the starting dominant material.
+    let dominant = crate::solve::subsample::dominant_material(&init.weights, kk);
+    let samples: Vec<Option<crate::solve::subsample::Subsample>> = (0..problem.n_photos)
+        .map(|i| lighting_sample(problem, i, opts, Some(&dominant)))
+        .collect();
     for outer_it in 1..=outer {
         // 1. Lighting, photos in parallel (each photo's solve is sequential: deterministic).
         let beta = beta_per_vertex(&lambda, &weights, nv);
@@ -1753,7 +1879,8 @@ pub fn estimate(
         let watch = crate::stages::Stopwatch::start();
         let results: Vec<Result<LightingResult>> = par_largest_first(&sizes, |i| {
             let m = mu_first[i].map(|m| m.map(|v| v * mu_factor));
-            lighting_step_full(problem, &beta, i, Some(&lights[i]), m, &light_opts)
+            let sample = samples[i].as_ref();
+            lighting_step_on(problem, &beta, i, Some(&lights[i]), m, &light_opts, sample)
         });
         cond.lighting.clear();
         cond.qp_unconverged = 0;
@@ -1959,6 +2086,19 @@ pub fn estimate(
         }
     });
 
+    let sample_check = samples.iter().any(Option::is_some).then(|| {
+        let beta = beta_per_vertex(&lambda, &weights, nv);
+        let pred = predict_from(problem, &beta, &basis_responses(problem, &lights));
+        let o = problem.obs;
+        crate::solve::subsample::sample_check(
+            &pred,
+            &o.rgb,
+            &o.weight,
+            &o.photo_ranges,
+            &samples,
+            opts.lighting_sample,
+        )
+    });
     // Normalisation (module docs).
     let mut mu: Vec<[f64; 3]> = mu.into_iter().map(|m| m.unwrap_or([0.0; 3])).collect();
     let normalisation = if opts.fixed_materials {
@@ -2038,6 +2178,7 @@ pub fn estimate(
         irls_weights: omega,
         conditioning: cond,
         validation,
+        lighting_sample: sample_check,
     })
 }
 
@@ -2045,6 +2186,143 @@ pub fn estimate(
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
+
+    /// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
+    /// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
+    /// `y` from a known smooth light plus Gaussian-like noise (`σ` relative).
+    fn planted_photo(rows: usize, n: usize, noise: f64, seed: u64) -> (Observations, Transport) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let n2 = n * n;
+        let light: Vec<[f64; 3]> = {
+            let tex: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
+                (0..n2)
+                    .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+                    .collect()
+            });
+            haar3(&tex, n)
+        };
+        let mut t = Transport {
+            n_global: n,
+            n_basis: 1,
+            n_obs: rows,
+            offsets: vec![0],
+            ..Default::default()
+        };
+        let mut obs = Observations::default();
+        for p in 0..rows {
+            let mut idx: Vec<HaarIndex> = (0..24)
+                .map(|_| rng.random_range(0..n2 / 4) as HaarIndex)
+                .collect();
+            idx.sort_unstable();
+            idx.dedup();
+            let val: Vec<f32> = idx.iter().map(|_| rng.random_range(0.1..1.0)).collect();
+            let clean = row_dot(
+                &idx,
+                &val.iter().map(|&v| [v; 3]).collect::<Vec<_>>(),
+                &light,
+            );
+            t.index.extend(&idx);
+            t.value.extend(&val);
+            t.offsets.push(t.index.len());
+            obs.vertex.push(p as u32);
+            obs.photo.push(0);
+            // Sum of 4 uniforms on [-1, 1]: mean 0, variance 4/3.
+            let mut e = || {
+                (0..4).map(|_| rng.random_range(-1.0..1.0)).sum::<f64>() / (4.0_f64 / 3.0).sqrt()
+            };
+            obs.rgb
+                .push(clean.map(|v| (v * (1.0 + noise * e())) as f32));
+            obs.weight.push(1.0);
+            obs.dir.push([0.0, 0.0, 1.0]);
+        }
+        obs.photo_ranges = vec![0..rows];
+        (obs, t)
+    }
+
+    #[test]
+    fn a_lighting_sample_leaves_the_map_where_all_observations_put_it() {
+        // 6,000 observations, 3 × 256 unknowns of which the rows reach the 64 coarsest
+        // Haar levels: the full fit against fits on 1,500 sampled rows (four seeds), all to
+        // the KKT tolerance. With 2% noise the full fit's own error against the truth is
+        // the yardstick: a sample of a quarter of the rows has about twice the variance
+        // (√4 = 2 × the standard error), so the sampled map must stay within 3 × the full
+        // fit's distance from the truth of the full map, and its predictions of the rows
+        // it never saw must be as good as of those it saw (ratio < 1.1, the run's check).
+        let n = 16;
+        let (obs, t) = planted_photo(6000, n, 0.02, 11);
+        let problem = Problem {
+            obs: &obs,
+            transport: &t,
+            n_vertices: obs.len(),
+            n_photos: 1,
+        };
+        let beta = vec![[1.0; 3]; obs.len()];
+        let opts = EstimateOptions {
+            robust: Robust::None,
+            irls_iters: 1,
+            smoothness: 1e-4,
+            qp_rel_tol: 1e-9,
+            qp_max_iter: 500,
+            ..EstimateOptions::default()
+        };
+        let full = lighting_step_full(&problem, &beta, 0, None, None, &opts).unwrap();
+        let dist = |a: &[Vec<f64>; 3], b: &[Vec<f64>; 3]| -> f64 {
+            let ha = haar3(a, n);
+            let hb = haar3(b, n);
+            // Only the coefficients the rows reach are determined by the data.
+            let (mut d, mut s) = (0.0, 0.0);
+            for m in 0..n * n / 4 {
+                for c in 0..3 {
+                    d += (ha[m][c] - hb[m][c]).powi(2);
+                    s += hb[m][c].powi(2);
+                }
+            }
+            (d / s).sqrt()
+        };
+        let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
+            (0..n * n)
+                .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+                .collect()
+        });
+        let full_err = dist(&full.light, &truth);
+        assert!(full_err < 0.05, "the full fit itself: {full_err}");
+        for seed in 1..=4 {
+            let sampled_opts = EstimateOptions {
+                lighting_sample: 1500,
+                validation_seed: seed,
+                ..opts.clone()
+            };
+            let sample = lighting_sample(&problem, 0, &sampled_opts, None).unwrap();
+            assert_eq!(sample.index.len(), 1500);
+            let r = lighting_step_on(&problem, &beta, 0, None, None, &sampled_opts, Some(&sample))
+                .unwrap();
+            assert_eq!(
+                r.irls_weights.len(),
+                obs.len(),
+                "weights for every observation"
+            );
+            let moved = dist(&r.light, &full.light);
+            assert!(
+                moved < 3.0 * full_err,
+                "seed {seed}: moved {moved}, full fit's error {full_err}"
+            );
+            let pred = predict_from(
+                &problem,
+                &beta,
+                &basis_responses(&problem, std::slice::from_ref(&r.light)),
+            );
+            let check = crate::solve::subsample::sample_check(
+                &pred,
+                &obs.rgb,
+                &obs.weight,
+                &obs.photo_ranges,
+                &[Some(sample)],
+                1500,
+            );
+            assert_eq!(check.in_sample + check.out_of_sample, obs.len());
+            assert!(check.ratio < 1.1, "seed {seed}: {check:?}");
+        }
+    }
 
     #[test]
     fn entry_chunks_cover_the_rows_in_order_and_balance_the_entries() {

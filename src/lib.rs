@@ -50,6 +50,7 @@ pub mod visibility;
 pub mod cluster;
 pub mod estimate;
 pub mod qp;
+pub mod solve;
 pub mod starts;
 
 // The tool.

@@ -574,9 +574,13 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
+    // Every left-half observation: the protocol measures the fitted reflectance, and the
+    // lighting sample (a speed lever of the estimate) moved its errors by up to 4.5% on
+    // 30K vertices (bench-results/lighting-sample.md).
     let opts = estimate::EstimateOptions {
         qp_max_iter: HALF_FIT_GPCG,
         qp_max_cg: HALF_FIT_CG,
+        lighting_sample: 0,
         ..f.estimate_options.clone()
     };
     let start = [0, 1, 2].map(|c| start.channel(c));

@@ -338,6 +338,7 @@ pub fn predict_with(
         irls_weights: Vec::new(),
         conditioning: Default::default(),
         validation: None,
+        lighting_sample: None,
     };
     relight_cpc::estimate::predict(&problem, &est)
 }
