@@ -291,6 +291,12 @@ struct RunArgs {
     /// upper bounds); `off`: the full model as given.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     adaptive: String,
+    /// Per-photo light model: `paper` (a free non-negative wavelet map, the paper's),
+    /// `prior` (the same map under a prior learnt from real HDR maps: Gaussian on its
+    /// low-order spherical harmonics, sparse wavelet detail), `auto` (both fitted, the lower
+    /// validation error kept; twice the estimation time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "auto"])]
+    light: String,
 }
 
 impl RunArgs {
@@ -350,6 +356,7 @@ impl RunArgs {
         o.force = self.force;
         o.render_training = !self.no_training_renders;
         o.adaptive = self.adaptive == "on";
+        o.light = relight_cpc::light_choose::LightChoice::parse(&self.light)?;
         Ok(o)
     }
 }
