@@ -106,7 +106,7 @@ pub struct LightDecision {
 pub fn decide(choice: LightChoice, names: &[&str], scores: &[f64]) -> (usize, LightDecision) {
     let mut best = 0;
     for (i, s) in scores.iter().enumerate() {
-        if s.is_finite() && !(scores[best] <= *s) {
+        if s.is_finite() && (scores[best].is_nan() || *s < scores[best]) {
             best = i;
         }
     }

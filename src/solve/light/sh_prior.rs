@@ -508,7 +508,9 @@ impl LightPriorOptions {
         let n2 = n * n;
         let stats = self.for_photo(photo);
         let c0: [f64; 3] = [0, 1, 2].map(|c| proj.project(&x[c * n2..(c + 1) * n2])[0]);
-        if c0.iter().any(|v| !(*v > 0.0)) || (self.sh_noise <= 0.0 && self.haar_noise <= 0.0) {
+        if c0.iter().any(|v| v.is_nan() || *v <= 0.0)
+            || (self.sh_noise <= 0.0 && self.haar_noise <= 0.0)
+        {
             return None;
         }
         let sh = (self.sh_noise > 0.0)
