@@ -24,7 +24,7 @@ for v in $VIEWS; do
     cp "$DATA_DIR/photos/buddha-gray/$v.jpg" "$SRC/"
 done
 
-"$REPO/scripts/colmap_sparse.sh" "$SRC" "$WORK_DIR/colmap" --max-size 512
+"$REPO/scripts/colmap_sparse.sh" "$SRC" "$WORK_DIR/colmap" --max-size 512 --cameras single
 
 OUT=$WORK_DIR/colmap
 rm -rf "$FIXTURE/images" "$FIXTURE/sparse" "$FIXTURE/dense" "$FIXTURE/logs"

@@ -73,7 +73,7 @@ EOF
 if [[ ${REUSE:-0} != 1 || ! -f $WORK/colmap/summary.json ]]; then
     rm -rf "$WORK/colmap"
     "$REPO/scripts/colmap_workspace.sh" "$WORK/synth/images" "$WORK/colmap" \
-        --centres "$WORK/centres.txt"
+        --centres "$WORK/centres.txt" --cameras single
 fi
 OUT=$WORK/colmap
 

@@ -2,10 +2,12 @@
 # Photos -> a complete COLMAP workspace with a mesh, on Debian's CPU-only COLMAP 3.8.
 #
 # Usage: scripts/colmap_workspace.sh IMAGE_DIR OUT_DIR [--max-size PX] [--dense-size PX]
-#            [--camera-model MODEL] [--matcher exhaustive|sequential] [--centres FILE]
+#            [--camera-model MODEL] [--cameras per-photo|per-model|single]
+#            [--matcher exhaustive|sequential] [--centres FILE]
 #            [dense options of scripts/colmap_dense.sh: --poisson-depth D, --min-num-pixels N,
 #             --max-normal-error DEG, --trim-factor F, --min-component F, --neighbours K,
-#             --max-angle DEG, --venv DIR]
+#             --max-angle DEG, --clahe C, --geom-views N, --min-views F, --target-faces N,
+#             --venv DIR]
 #
 #   --max-size PX     photos downscaled so the longer side is at most PX before SfM
 #   --dense-size PX   undistorted photos (and so depth maps and the mesh's sampling) at most PX
@@ -15,23 +17,23 @@
 #
 # What it leaves in OUT_DIR (COLMAP's own project layout, so COLMAP's GUI and
 # `relight-cpc inspect OUT_DIR` both open it):
-#   images/                       the photos SfM saw
+#   images/                       the photos SfM saw (upright 8-bit RGB), manifest.json
+#   registration.json, unregistered.txt          photos registered and left out
 #   sparse/0/ (binary), sparse/0-txt/ (text)     the distorted model
 #   dense/images/, dense/sparse/ (binary), dense/sparse-txt/ (text)   undistorted, PINHOLE
 #   dense/stereo/{depth_maps,normal_maps}/NAME.geometric.bin, patch-match.cfg, fusion.cfg
 #   dense/fused.ply, dense/meshed-poisson.ply (cleaned), dense/meshed-poisson-raw.ply
 #   logs/NN-step.log, logs/timings.tsv (seconds per step), summary.json (the figures)
 #
-# Steps: 0-7 scripts/colmap_sparse.sh (photos, SIFT on the CPU, exhaustive matching, mapper,
-# text copies, image_undistorter, model_analyzer). When its mapper finds no initial pair
-# (photos far apart, as the 13 colour Buddha views are), or --matcher sequential is asked and
-# colmap_sparse.sh has no --matcher, this script re-matches on its database as asked and runs
-# the mapper again with relaxed thresholds (10-12), then undistorts (20-21). --centres adds
-# model_aligner + model_transformer (22-25). scripts/colmap_dense.sh does the rest (30-33).
+# Steps: 0-8 scripts/colmap_sparse.sh (photos prepared, SIFT on the CPU, matching, mapper with
+# a relaxed retry when photos are missing (as with the 13 colour Buddha views, far apart),
+# the largest model, text copies, image_undistorter, model_analyzer, registration report).
+# --centres adds model_aligner + model_transformer (22-25). scripts/colmap_dense.sh does the
+# rest (30-33).
 set -euo pipefail
 
 usage() {
-    sed -n 3,8p "$0" >&2
+    sed -n 3,10p "$0" >&2
     exit 2
 }
 
@@ -42,6 +44,7 @@ shift 2
 MAX_SIZE=""
 DENSE_SIZE=""
 CAMERA_MODEL=SIMPLE_RADIAL
+CAMERAS=per-photo
 MATCHER=exhaustive
 CENTRES=""
 DENSE_ARGS=()
@@ -51,13 +54,15 @@ while [[ $# -gt 0 ]]; do
     --max-size) MAX_SIZE=$2 ;;
     --dense-size) DENSE_SIZE=$2 ;;
     --camera-model) CAMERA_MODEL=$2 ;;
+    --cameras) CAMERAS=$2 ;;
     --matcher)
         MATCHER=$2
         [[ $MATCHER == exhaustive || $MATCHER == sequential ]] || usage
         ;;
     --centres) CENTRES=$(realpath "$2") ;;
     --poisson-depth | --min-num-pixels | --max-normal-error | --trim-factor | --min-component | \
-        --neighbours | --max-angle | --venv) DENSE_ARGS+=("$1" "$2") ;;
+        --neighbours | --max-angle | --clahe | --geom-views | --min-views | --target-faces | \
+        --venv) DENSE_ARGS+=("$1" "$2") ;;
     *) usage ;;
     esac
     shift 2
@@ -69,87 +74,28 @@ mkdir -p "$OUT_DIR"
 OUT_DIR=$(realpath "$OUT_DIR")
 T_START=$(date +%s)
 
-# ---- 0-7: the sparse half (engineer A's script).
-SPARSE_ARGS=(--camera-model "$CAMERA_MODEL")
+# ---- 0-8: the sparse half: photos, features, matching, mapper (largest model, relaxed retry),
+# undistortion (at most --dense-size), statistics, registration report.
+SPARSE_ARGS=(--camera-model "$CAMERA_MODEL" --cameras "$CAMERAS" --matcher "$MATCHER")
 [[ -n $MAX_SIZE ]] && SPARSE_ARGS+=(--max-size "$MAX_SIZE")
-A_HAS_MATCHER=0
-if grep -q -- '--matcher' "$SCRIPTS/colmap_sparse.sh"; then
-    A_HAS_MATCHER=1
-    SPARSE_ARGS+=(--matcher "$MATCHER")
-fi
+[[ -n $DENSE_SIZE ]] && SPARSE_ARGS+=(--dense-size "$DENSE_SIZE")
 SPARSE_OUT=$(mktemp)
 echo "[$(date -u +%H:%M:%S)] colmap_sparse.sh $IMAGE_DIR $OUT_DIR ${SPARSE_ARGS[*]}"
-SPARSE_OK=1
-"$SCRIPTS/colmap_sparse.sh" "$IMAGE_DIR" "$OUT_DIR" "${SPARSE_ARGS[@]}" >"$SPARSE_OUT" 2>&1 ||
-    SPARSE_OK=0
+if ! "$SCRIPTS/colmap_sparse.sh" "$IMAGE_DIR" "$OUT_DIR" "${SPARSE_ARGS[@]}" >"$SPARSE_OUT" 2>&1; then
+    mkdir -p "$OUT_DIR/logs"
+    mv "$SPARSE_OUT" "$OUT_DIR/logs/00-colmap_sparse.out"
+    echo "colmap_sparse.sh failed; see $OUT_DIR/logs/00-colmap_sparse.out" >&2
+    tail -20 "$OUT_DIR/logs/00-colmap_sparse.out" >&2
+    exit 1
+fi
 LOGS=$OUT_DIR/logs
 TIMES=$LOGS/timings.tsv
-mkdir -p "$LOGS"
 mv "$SPARSE_OUT" "$LOGS/00-colmap_sparse.out"
-[[ -f $TIMES ]] || printf 'step\tseconds\n' >"$TIMES"
+cat "$LOGS/8-registration.log"
 
 # run NAME CMD...: one step, its output in logs/NAME.log, its wall time in timings.tsv.
 # shellcheck source=steps.sh
 source "$(dirname "$(realpath "${BASH_SOURCE[0]}")")/steps.sh"
-
-DB=$OUT_DIR/database.db
-REMAP=0
-if [[ $SPARSE_OK == 0 ]]; then
-    if [[ -f $DB && -f $LOGS/3-mapper.log && ! -f $OUT_DIR/sparse/0/images.bin ]]; then
-        echo "colmap_sparse.sh: the mapper found no model; retrying with relaxed thresholds"
-        REMAP=1
-    else
-        echo "colmap_sparse.sh failed; see $LOGS/00-colmap_sparse.out" >&2
-        tail -20 "$LOGS/00-colmap_sparse.out" >&2
-        exit 1
-    fi
-fi
-if [[ $MATCHER == sequential && $A_HAS_MATCHER == 0 ]]; then
-    REMAP=1
-    run 10-database_cleaner colmap database_cleaner --database_path "$DB" --type matches
-    run 10-sequential_matcher colmap sequential_matcher \
-        --database_path "$DB" --SiftMatching.use_gpu 0 --SiftMatching.num_threads 2
-fi
-
-# ---- 10-12: mapper with relaxed thresholds (few, far-apart photos), largest model as sparse/0.
-if [[ $REMAP == 1 ]]; then
-    rm -rf "$OUT_DIR/sparse" "$OUT_DIR/sparse-relaxed"
-    mkdir -p "$OUT_DIR/sparse-relaxed"
-    run 11-mapper_relaxed colmap mapper \
-        --database_path "$DB" --image_path "$OUT_DIR/images" \
-        --output_path "$OUT_DIR/sparse-relaxed" --Mapper.num_threads 2 \
-        --Mapper.init_min_num_inliers 30 --Mapper.init_min_tri_angle 2 \
-        --Mapper.abs_pose_min_num_inliers 10 --Mapper.abs_pose_min_inlier_ratio 0.1 \
-        --Mapper.min_num_matches 10 --Mapper.min_model_size 3
-    best="" best_n=0
-    for m in "$OUT_DIR"/sparse-relaxed/*/; do
-        [[ -f $m/images.bin ]] || continue
-        n=$(od -An -tu8 -N8 "$m/images.bin" | tr -d ' ')
-        if ((n > best_n)); then best=$m best_n=$n; fi
-    done
-    [[ -n $best ]] || {
-        echo "the relaxed mapper found no model either; see $LOGS/11-mapper_relaxed.log" >&2
-        exit 1
-    }
-    echo "largest model: $best ($best_n photos)"
-    mkdir -p "$OUT_DIR/sparse/0" "$OUT_DIR/sparse/0-txt"
-    cp "$best"/*.bin "$OUT_DIR/sparse/0/"
-    rm -rf "$OUT_DIR/sparse-relaxed"
-    run 12-model_converter colmap model_converter --input_path "$OUT_DIR/sparse/0" \
-        --output_path "$OUT_DIR/sparse/0-txt" --output_type TXT
-fi
-
-# ---- 20-21: (re)undistort when the model changed or a dense size is asked.
-if [[ $REMAP == 1 || -n $DENSE_SIZE ]]; then
-    rm -rf "$OUT_DIR/dense"
-    UNDIST=(--image_path "$OUT_DIR/images" --input_path "$OUT_DIR/sparse/0"
-        --output_path "$OUT_DIR/dense" --output_type COLMAP)
-    [[ -n $DENSE_SIZE ]] && UNDIST+=(--max_image_size "$DENSE_SIZE")
-    run 20-image_undistorter colmap image_undistorter "${UNDIST[@]}"
-    mkdir -p "$OUT_DIR/dense/sparse-txt"
-    run 21-model_converter colmap model_converter --input_path "$OUT_DIR/dense/sparse" \
-        --output_path "$OUT_DIR/dense/sparse-txt" --output_type TXT
-fi
 
 # ---- 22-25: into the frame of known camera centres.
 if [[ -n $CENTRES ]]; then

@@ -9,21 +9,32 @@ This step:
    point (the sampling spacing), so the threshold follows the data's own resolution;
 2. removes floating components: faces are joined through shared vertices; components with
    fewer than --min-component (fraction of the largest component's faces) are dropped;
-3. (optionally) decimates to about --target-faces faces with vertex clustering on a regular
+3. (with --workspace) crops to what the photos share: a face is kept when each of its
+   vertices lies inside the box of the sparse points (those seen by at least 3 photos, 1st to
+   99th percentile per axis, widened by --box-margin of the box's size on each side) and
+   in front of, inside the image of, and within the sparse points' depth range (1st..99th
+   percentile, widened by a factor 1.5) of at least --min-views cameras (a fraction of the
+   cameras when below 1). This drops the sky, far background and the sheets Poisson closes
+   behind the object, which no photo sees;
+   then (after trimming and cropping) components are counted again, --min-component 1
+   keeps the largest alone;
+4. (optionally) decimates to about --target-faces faces with vertex clustering on a regular
    grid (each cell's vertices merged into their mean; faces that collapse are dropped);
-4. drops unreferenced vertices and writes a binary little-endian PLY (x, y, z as float,
+5. drops unreferenced vertices and writes a binary little-endian PLY (x, y, z as float,
    red/green/blue when the input has them, `vertex_indices` as uchar/int lists).
 
 It can also thin a fused point cloud for a small fixture (--thin-points N: N points picked
 with a fixed seed, all properties kept) and reports the figures as one JSON line.
 
 Usage: depth_mesh_clean.py MESH_IN MESH_OUT --points FUSED.ply [--trim-factor 4]
-       [--min-component 0.05] [--target-faces N] [--thin-points N --thin-out OUT.ply]
+       [--min-component 0.05] [--workspace DENSE --min-views 0.5 --box-margin 0.1]
+       [--target-faces N] [--thin-points N --thin-out OUT.ply]
 Needs numpy and scipy (scripts/requirements-depth.txt).
 """
 
 import argparse
 import json
+import pathlib
 import sys
 
 import numpy as np
@@ -174,6 +185,43 @@ def cluster_decimate(verts, faces, target_faces):
     return out, fk[np.sort(first)]
 
 
+def shared_view(p, dense, min_views, box_margin):
+    """Boolean per point: inside the sparse points' box and seen by enough cameras."""
+    sys.dont_write_bytecode = True  # no __pycache__ left in scripts/
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from depth_sgbm import read_cameras_bin, read_images_bin, read_points3d_bin
+
+    sp = pathlib.Path(dense) / "sparse"
+    cams = read_cameras_bin(sp / "cameras.bin")
+    imgs = read_images_bin(sp / "images.bin")
+    pts = read_points3d_bin(sp / "points3D.bin")
+    seen = {}
+    for im in imgs.values():
+        for pid in im["point_ids"]:
+            seen[pid] = seen.get(pid, 0) + 1
+    S = np.array([pts[k] for k, n in seen.items() if n >= 3 and k in pts]).reshape(-1, 3)
+    if len(S) < 10:
+        S = np.array(list(pts.values())).reshape(-1, 3)
+    lo, hi = np.percentile(S, 1, axis=0), np.percentile(S, 99, axis=0)
+    pad = box_margin * (hi - lo)
+    keep = np.all((p >= lo - pad) & (p <= hi + pad), axis=1)
+    need = min_views if min_views >= 1 else max(1, int(np.ceil(min_views * len(imgs))))
+    views = np.zeros(len(p), np.int32)
+    for im in imgs.values():
+        w, h, K = cams[im["cam"]]
+        pc = im["R"] @ p.T + im["t"][:, None]
+        z = pc[2]
+        Xs = np.array([pts[k] for k in im["point_ids"] if k in pts]).reshape(-1, 3)
+        zs = (im["R"] @ Xs.T + im["t"][:, None])[2]
+        zs = zs[zs > 0]
+        zlo, zhi = (np.percentile(zs, 1) / 1.5, np.percentile(zs, 99) * 1.5) if len(zs) else (0, np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = K[0, 0] * pc[0] / z + K[0, 2]
+            v = K[1, 1] * pc[1] / z + K[1, 2]
+        views += (z > zlo) & (z < zhi) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    return keep & (views >= need), need
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("mesh_in")
@@ -182,6 +230,10 @@ def main():
     ap.add_argument("--trim-factor", type=float, default=4.0)
     ap.add_argument("--min-component", type=float, default=0.05)
     ap.add_argument("--target-faces", type=int, default=0)
+    ap.add_argument("--workspace", help="undistorted dense folder (DENSE/sparse/*.bin): crop "
+                    "the mesh to what the cameras share")
+    ap.add_argument("--min-views", type=float, default=0.5)
+    ap.add_argument("--box-margin", type=float, default=0.1)
     ap.add_argument("--thin-points", type=int, default=0)
     ap.add_argument("--thin-out")
     args = ap.parse_args()
@@ -199,6 +251,12 @@ def main():
     thr = args.trim_factor * spacing
     faces = faces[np.all(dist[faces] <= thr, 1)]
     stats["faces_after_trim"] = len(faces)
+    # 3. What the photos share (before counting components: the crop can split the surface).
+    if args.workspace:
+        ok, need = shared_view(xyz(verts), args.workspace, args.min_views, args.box_margin)
+        faces = faces[np.all(ok[faces], 1)]
+        stats["faces_after_crop"] = len(faces)
+        stats["crop_min_views"] = need
     # 2. Floating components.
     if len(faces):
         lab = components(len(verts), faces)
@@ -208,7 +266,7 @@ def main():
         stats["components_kept"] = int(np.sum(sizes >= args.min_component * sizes.max()))
         faces = faces[keep]
     verts, faces = compact(verts, faces)
-    # 3. Decimation.
+    # 4. Decimation.
     if args.target_faces and len(faces) > args.target_faces:
         verts, faces = cluster_decimate(verts, faces, args.target_faces)
         verts, faces = compact(verts, faces)

@@ -12,6 +12,9 @@ DENSE/sparse in binary form, PINHOLE or SIMPLE_PINHOLE cameras) and writes
 so that `colmap stereo_fusion --input_type geometric` and `poisson_mesher` can follow.
 
 Method (two-view semi-global matching, median-fused; Hirschmueller 2008 as in OpenCV):
+0. (--clahe C > 0) Each photo's grey image is equalised by contrast-limited adaptive
+   histogram equalisation (Zuiderveld 1994, OpenCV's CLAHE, 8x8 tiles, clip limit C) before
+   matching, so that photos under different light and exposure compare by local structure.
 1. Neighbours. For reference image i, the sparse points i sees that project inside image j
    (in front of it) are j's covisible points (shared tracks alone are too few when the views
    are far apart). j qualifies with at least --min-shared of them, a median triangulation
@@ -34,7 +37,10 @@ Method (two-view semi-global matching, median-fused; Hirschmueller 2008 as in Op
    (fewer when the image has fewer usable pairs). Depths outside the sparse points' depth
    range (1st..99th percentile, widened by a factor 1.5) are dropped, and so are pixels
    without texture (grey-level standard deviation over 7x7 below --min-texture).
-6. Normals. The depth map is median-filtered (5x5), back-projected to points P(col, row),
+6. (--geom-views N > 0) Multi-view agreement: a pixel is kept only when the depth maps of at
+   least N other views agree with its depth (see geometric_consistency; COLMAP's fusion
+   checks the same again with --StereoFusion.min_num_pixels).
+7. Normals. The depth map is median-filtered (5x5), back-projected to points P(col, row),
    and n = (dP/dcol x dP/drow) normalised, averaged over 5x5, oriented toward the camera.
 
 COLMAP array format (src/mvs/mat.h, Mat<float>::Write): the text header
@@ -336,6 +342,85 @@ def normals_from_depth(depth, K):
     return n.astype(np.float32), good
 
 
+def geometric_consistency(depths, imgs, cams, tol):
+    """Per image: how many other views' depth maps agree with each pixel's depth.
+
+    Pixel (col, row) of image i with depth z is lifted to X = R_i^T (z K_i^-1 [col, row, 1]
+    - t_i), projected into image j (x_j = K_j (R_j X + t_j)), and agrees with j when j has a
+    depth z_j at the nearest pixel and |z_j - (R_j X + t_j)_z| <= tol * z_j (COLMAP's fusion
+    makes the same check with its own threshold, Schoenberger et al. 2016, Sec. 4.4)."""
+    counts = {}
+    for i, di in depths.items():
+        a = imgs[i]
+        w, h, Ki = cams[a["cam"]]
+        rows, cols = np.nonzero(np.isfinite(di))
+        cnt = np.zeros(di.shape, np.int32)
+        if len(rows) == 0:
+            counts[i] = cnt
+            continue
+        z = di[rows, cols]
+        ray = np.linalg.inv(Ki) @ np.stack([cols, rows, np.ones_like(cols)]).astype(np.float64)
+        X = a["R"].T @ (ray * z - a["t"][:, None])
+        for j, dj in depths.items():
+            if j == i:
+                continue
+            b = imgs[j]
+            wj, hj, Kj = cams[b["cam"]]
+            pc = b["R"] @ X + b["t"][:, None]
+            zj = pc[2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = np.rint(Kj[0, 0] * pc[0] / zj + Kj[0, 2])
+                v = np.rint(Kj[1, 1] * pc[1] / zj + Kj[1, 2])
+            inside = (zj > 0) & (u >= 0) & (u < wj) & (v >= 0) & (v < hj)
+            idx = np.nonzero(inside)[0]
+            dref = dj[v[idx].astype(np.int64), u[idx].astype(np.int64)]
+            ok = np.isfinite(dref) & (np.abs(dref - zj[idx]) <= tol * dref)
+            np.add.at(cnt, (rows[idx[ok]], cols[idx[ok]]), 1)
+        counts[i] = cnt
+    return counts
+
+
+def image_depth(i, imgs, cams, points, gray, neigh, args):
+    """Depth map of image i (NaN = none) fused from its pairs, and the pairs used."""
+    a = imgs[i]
+    w, h, K = cams[a["cam"]]
+    depths, used = [], []
+    for _, j, ang in neigh[i]:
+        rect = rectify_pair(a, imgs[j], cams, args.max_scale)
+        if rect is None:
+            continue
+        dmap = pair_depth(a, imgs[j], gray[i], gray[j], cams, points, rect, args)
+        if dmap is None:
+            continue
+        depths.append(dmap)
+        used.append((imgs[j]["name"], ang, float(np.isfinite(dmap).mean())))
+    if not depths:
+        return np.full((h, w), np.nan), used
+    depth = fuse_depths(np.stack(depths), args.depth_tol, min(args.min_consistent, len(depths)))
+    # Sparse points' depth range in this view, widened by 1.5: no sky, no far background.
+    Xs = np.array([points[p] for p in a["point_ids"] if p in points]).reshape(-1, 3)
+    zs = (a["R"] @ Xs.T + a["t"][:, None])[2]
+    zs = zs[zs > 0]
+    if len(zs):
+        lo, hi = np.percentile(zs, [1, 99])
+        depth[(depth < lo / 1.5) | (depth > hi * 1.5)] = np.nan
+    # No depth where the reference photo has no texture to match (local standard deviation
+    # over 7x7 below --min-texture grey levels): SGBM fills such regions (a black
+    # background, a blown-out sky) from its smoothness term alone.
+    g = gray[i].astype(np.float32)
+    mu = cv2.blur(g, (7, 7))
+    sd = np.sqrt(np.maximum(cv2.blur(g * g, (7, 7)) - mu * mu, 0))
+    depth[sd < args.min_texture] = np.nan
+    return depth, used
+
+
+def read_grey(path, clahe):
+    g = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if g is None:
+        sys.exit(f"{path}: cannot read image")
+    return clahe.apply(g) if clahe is not None else g
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dense_dir")
@@ -352,6 +437,14 @@ def main():
     ap.add_argument("--min-consistent", type=int, default=2)
     ap.add_argument("--min-texture", type=float, default=1.0,
                     help="grey-level standard deviation (7x7) below which no depth is kept")
+    ap.add_argument("--clahe", type=float, default=0.0,
+                    help="contrast-limited histogram equalisation (clip limit; 0 = off) of "
+                    "each photo before matching: photos under different light and exposure")
+    ap.add_argument("--geom-views", type=int, default=0,
+                    help="keep a pixel only when at least this many other views' depth maps "
+                    "agree with it (0 = off)")
+    ap.add_argument("--geom-tol", type=float, default=0.01,
+                    help="relative depth difference within which two views agree")
     args = ap.parse_args()
     cv2.setNumThreads(2)
 
@@ -363,59 +456,43 @@ def main():
     (dense / "stereo" / "depth_maps").mkdir(parents=True, exist_ok=True)
     (dense / "stereo" / "normal_maps").mkdir(parents=True, exist_ok=True)
     neigh = choose_neighbours(imgs, points, cams, args)
-    gray = {}
-    for i, a in imgs.items():
-        g = cv2.imread(str(dense / "images" / a["name"]), cv2.IMREAD_GRAYSCALE)
-        if g is None:
-            sys.exit(f"{dense / 'images' / a['name']}: cannot read image")
-        gray[i] = g
+    clahe = cv2.createCLAHE(clipLimit=args.clahe, tileGridSize=(8, 8)) if args.clahe > 0 else None
+    gray = {i: read_grey(dense / "images" / a["name"], clahe) for i, a in imgs.items()}
+
+    order = sorted(imgs, key=lambda i: imgs[i]["name"])
+    depths, used = {}, {}
+    for i in order:
+        t0 = time.time()
+        depths[i], used[i] = image_depth(i, imgs, cams, points, gray, neigh, args)
+        pairs = "; ".join(f"{n} {ang:.0f}deg {fr:.0%}" for n, ang, fr in used[i])
+        print(f"{imgs[i]['name']}: {len(used[i])} pairs [{pairs}] -> depth on "
+              f"{np.isfinite(depths[i]).mean():.1%} of pixels ({time.time() - t0:.1f}s)",
+              flush=True)
+    if args.geom_views > 0:
+        t0 = time.time()
+        counts = geometric_consistency(depths, imgs, cams, args.geom_tol)
+        for i in order:
+            before = np.isfinite(depths[i]).mean()
+            depths[i][counts[i] < args.geom_views] = np.nan
+            print(f"{imgs[i]['name']}: {before:.1%} -> {np.isfinite(depths[i]).mean():.1%} of "
+                  f"pixels agree with >= {args.geom_views} other views", flush=True)
+        print(f"multi-view consistency: {time.time() - t0:.1f}s")
 
     cfg_lines = []
     total_valid = 0
-    for i, a in sorted(imgs.items(), key=lambda kv: kv[1]["name"]):
-        t0 = time.time()
-        w, h, K = cams[a["cam"]]
-        depths, used = [], []
-        for _, j, ang in neigh[i]:
-            rect = rectify_pair(a, imgs[j], cams, args.max_scale)
-            if rect is None:
-                continue
-            dmap = pair_depth(a, imgs[j], gray[i], gray[j], cams, points, rect, args)
-            if dmap is None:
-                continue
-            depths.append(dmap)
-            used.append((imgs[j]["name"], ang, float(np.isfinite(dmap).mean())))
-        if depths:
-            stack = np.stack(depths)
-            need = min(args.min_consistent, len(depths))
-            depth = fuse_depths(stack, args.depth_tol, need)
-            # Sparse points' depth range in this view, widened by 1.5.
-            Xs = np.array([points[p] for p in a["point_ids"] if p in points])
-            zs = (a["R"] @ Xs.T + a["t"][:, None])[2]
-            zs = zs[zs > 0]
-            if len(zs):
-                lo, hi = np.percentile(zs, [1, 99])
-                depth[(depth < lo / 1.5) | (depth > hi * 1.5)] = np.nan
-        else:
-            depth = np.full((h, w), np.nan)
-        # No depth where the reference photo has no texture to match (local standard
-        # deviation over 7x7 below --min-texture grey levels): SGBM fills such regions
-        # (a black background, a blown-out sky) from its smoothness term alone.
-        g = gray[i].astype(np.float32)
-        mu = cv2.blur(g, (7, 7))
-        sd = np.sqrt(np.maximum(cv2.blur(g * g, (7, 7)) - mu * mu, 0))
-        depth[sd < args.min_texture] = np.nan
-        normals, good = normals_from_depth(depth, K)
-        depth = np.where(good, depth, 0).astype(np.float32)
+    for i in order:
+        a = imgs[i]
+        K = cams[a["cam"]][2]
+        normals, good = normals_from_depth(depths[i], K)
+        depth = np.where(good, depths[i], 0).astype(np.float32)
         write_colmap_array(dense / "stereo" / "depth_maps" / f"{a['name']}.geometric.bin", depth)
         write_colmap_array(dense / "stereo" / "normal_maps" / f"{a['name']}.geometric.bin", normals)
-        valid = float((depth > 0).mean())
         total_valid += int((depth > 0).sum())
-        cfg_lines += [a["name"], ", ".join(u[0] for u in used) if used else "__auto__, 20"]
-        pairs = "; ".join(f"{n} {ang:.0f}deg {fr:.0%}" for n, ang, fr in used)
-        print(f"{a['name']}: {len(used)} pairs [{pairs}] -> depth on {valid:.1%} of pixels "
-              f"({time.time() - t0:.1f}s)", flush=True)
+        cfg_lines += [a["name"], ", ".join(u[0] for u in used[i]) if used[i] else "__auto__, 20"]
     (dense / "stereo" / "patch-match.cfg").write_text("\n".join(cfg_lines) + "\n")
+    fusion_cfg = dense / "stereo" / "fusion.cfg"
+    if not fusion_cfg.exists():  # image_undistorter writes it; a copied workspace may lack it
+        fusion_cfg.write_text("".join(imgs[i]["name"] + "\n" for i in order))
     print(f"total depth pixels: {total_valid}")
     if total_valid == 0:
         sys.exit("no depth anywhere: the views may be too far apart for two-view stereo")

@@ -15,3 +15,16 @@ run() {
     t1=$(date +%s.%N)
     printf '%s\t%.2f\n' "$name" "$(echo "$t1 - $t0" | bc)" >>"$TIMES"
 }
+
+# try NAME CMD...: like run, but a failing command only returns its status (logged and timed).
+try() {
+    local name=$1
+    shift
+    local t0 t1 status=0
+    t0=$(date +%s.%N)
+    echo "[$(date -u +%H:%M:%S)] $name: $*"
+    "$@" >"$LOGS/$name.log" 2>&1 || status=$?
+    t1=$(date +%s.%N)
+    printf '%s\t%.2f\n' "$name" "$(echo "$t1 - $t0" | bc)" >>"$TIMES"
+    return $status
+}

@@ -16,7 +16,8 @@
 //! solve      estimate (lighting Eq. 10, materials Eq. 11–12), qp, cluster, starts,
 //!            adapt, budget
 //! render     raster, wavelet renderer, relight (`render` subcommand)
-//! report     report.json, plots
+//! report     report.json, report.html, metrics, plots
+//! export     glTF scene and environment maps for other tools
 //! run        the `run` subcommand: import → observe → prepare → fit → evaluate → write
 //! ```
 //!
@@ -26,8 +27,10 @@
 //! than restating them.
 
 pub mod error;
+pub mod out_dir;
 
 // Pipeline stages, in the order data flows through them.
+pub mod export;
 pub mod import;
 pub mod observe;
 pub mod render;

@@ -1,4 +1,6 @@
-//! Wall time, CPU time and peak memory per pipeline stage.
+//! Wall time, CPU time and peak memory per pipeline stage, and [`tick`]: how kernels deep
+//! in the library advance the running stage's progress bar (set by `run`'s progress)
+//! without a progress parameter or a dependency on `run`.
 //!
 //! Wall time from [`std::time::Instant`]; CPU time (user + system, all threads) and the
 //! resident-set high-water mark from Linux `/proc/self`. Before each stage the high-water
@@ -6,8 +8,38 @@
 //! peak is its own; where `/proc` is missing or read-only the figures fall back to the
 //! process-wide peak, or to zero, and [`StageRecord::memory_exact`] says so.
 
+use indicatif::ProgressBar;
 use serde::Serialize;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::RwLock;
 use std::time::Instant;
+
+/// The bar [`tick`] advances, if any.
+static ACTIVE: RwLock<Option<ProgressBar>> = RwLock::new(None);
+static HAS_ACTIVE: AtomicBool = AtomicBool::new(false);
+
+/// Advance the running stage's bar by `n` units of work (no-op when there is none).
+pub fn tick(n: u64) {
+    if HAS_ACTIVE.load(Ordering::Relaxed) {
+        if let Ok(g) = ACTIVE.read() {
+            if let Some(b) = g.as_ref() {
+                b.inc(n);
+            }
+        }
+    }
+}
+
+pub(crate) fn set_active(bar: Option<ProgressBar>) {
+    if let Ok(mut g) = ACTIVE.write() {
+        HAS_ACTIVE.store(bar.is_some(), Ordering::Relaxed);
+        *g = bar;
+    }
+}
+
+/// The bar [`tick`] advances now, if any.
+pub(crate) fn active_bar() -> Option<ProgressBar> {
+    ACTIVE.read().ok().and_then(|g| g.clone())
+}
 
 /// One finished stage.
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]

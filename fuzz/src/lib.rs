@@ -13,7 +13,16 @@ fn check_err(r: relight_cpc::Result<()>, path: &Path) {
             msg.contains(&*path.to_string_lossy()),
             "error does not name the file: {msg}"
         );
+        assert!(!has_debug_text(&msg), "error shows Debug text: {msg}");
     }
+}
+
+/// Whether `msg` carries a library's `Debug` formatting (`Error { kind: .. }`,
+/// `Custom { .. }`, `Some(..)`, ply-rs's tab-indented `Error:` lines) instead of words.
+pub fn has_debug_text(msg: &str) -> bool {
+    ["Error {", "kind:", "Custom {", "Os {", "Some(", "\tError", "\tString"]
+        .iter()
+        .any(|p| msg.contains(p))
 }
 
 /// The first input byte picks cameras / images / points3D; the rest is the file.
@@ -68,14 +77,27 @@ pub fn ply(data: &[u8]) {
     }
 }
 
+/// The lat-long EXR reader (environment maps; `render --env`).
+pub fn envmap(data: &[u8]) {
+    let name = "/fuzz/map.exr";
+    match relight_cpc::sphere::envmap::LatLong::read_exr_bytes(data, name) {
+        Ok((map, _)) => {
+            assert_eq!(map.width, 2 * map.height);
+            assert!(map.rgb.iter().flatten().all(|c| c.is_finite() && *c >= 0.0));
+        }
+        Err(e) => check_err(Err(e), Path::new(name)),
+    }
+}
+
 /// Names of the targets, for the stable driver.
-pub const TARGETS: [&str; 3] = ["colmap_text", "colmap_binary", "ply"];
+pub const TARGETS: [&str; 4] = ["colmap_text", "colmap_binary", "ply", "envmap"];
 
 /// Runs target `name` on `data`.
 pub fn run_target(name: &str, data: &[u8]) {
     match name {
         "colmap_text" => colmap_text(data),
         "colmap_binary" => colmap_binary(data),
+        "envmap" => envmap(data),
         _ => ply(data),
     }
 }

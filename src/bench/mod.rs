@@ -57,6 +57,8 @@ pub struct BenchOptions {
     pub out: PathBuf,
     /// File stem of the outputs (default `pipeline`).
     pub name: String,
+    /// Replace a previous result of the same name in `out` ([`crate::out_dir::OutFiles`]).
+    pub force: bool,
     /// Outer iterations of the scaling runs (`None`: the run default); the sweep sets its
     /// own.
     pub iterations: Option<usize>,
@@ -145,6 +147,7 @@ impl BenchOptions {
             base_vertices: 100_000,
             out,
             name: "pipeline".into(),
+            force: false,
             iterations: None,
             quick: false,
             scene: "spot-varying".into(),
@@ -169,6 +172,7 @@ impl BenchOptions {
             base_vertices: 8_000,
             out,
             name: "pipeline".into(),
+            force: false,
             iterations: None,
             quick: true,
             scene: "sphere-plane".into(),
@@ -401,7 +405,14 @@ pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
         crate::transport::brdf::parse_list(b)?;
     }
     let t0 = std::time::Instant::now();
-    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    let inputs: Vec<&Path> = opts.work.as_deref().into_iter().collect();
+    let files = crate::out_dir::OutFiles::claim(
+        &opts.out,
+        &output_names(&opts.name).each_ref().map(|s| s.as_str()),
+        opts.force,
+        &inputs,
+        is_bench_report,
+    )?;
     let (work, temporary) = match &opts.work {
         Some(w) => (w.clone(), false),
         None => (
@@ -410,7 +421,7 @@ pub fn bench(opts: &BenchOptions) -> Result<BenchReport> {
         ),
     };
     std::fs::create_dir_all(&work).map_err(|e| Error::io(&work, e))?;
-    let result = bench_in(opts, &work, temporary, t0);
+    let result = bench_in(opts, &files, &work, temporary, t0);
     if temporary {
         let _ = std::fs::remove_dir_all(&work);
     }
@@ -449,6 +460,7 @@ fn summarise(report: &mut BenchReport) {
 
 fn bench_in(
     opts: &BenchOptions,
+    files: &crate::out_dir::OutFiles,
     work: &Path,
     temporary: bool,
     t0: std::time::Instant,
@@ -485,7 +497,7 @@ fn bench_in(
     let save = |report: &mut BenchReport| -> Result<()> {
         summarise(report);
         report.seconds = t0.elapsed().as_secs_f64();
-        write_outputs(report, &opts.out, &opts.name)
+        write_outputs(report, files, &opts.name)
     };
     let done = |s: &BenchScene| -> Result<()> {
         if temporary {
@@ -551,15 +563,30 @@ fn bench_in(
     Ok(report)
 }
 
-fn write_outputs(report: &BenchReport, out: &Path, name: &str) -> Result<()> {
-    let json_path = out.join(format!("{name}.json"));
+/// The files a bench named `name` writes: `NAME.json` (first: it identifies the result),
+/// `NAME.md`, `NAME.png`.
+fn output_names(name: &str) -> [String; 3] {
+    ["json", "md", "png"].map(|ext| format!("{name}.{ext}"))
+}
+
+/// A bench report written by this tool: a JSON object with the report's `command` and
+/// `complete` fields.
+fn is_bench_report(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .is_some_and(|v| v.get("command").is_some() && v.get("complete").is_some())
+}
+
+/// Writes `NAME.{json,md,png}`, each atomically (temporary file, then rename).
+fn write_outputs(report: &BenchReport, files: &crate::out_dir::OutFiles, name: &str) -> Result<()> {
+    let [json_name, md_name, png_name] = output_names(name);
     let json = serde_json::to_string_pretty(report)
         .map_err(|e| Error::Internal(format!("bench: could not encode the report: {e}")))?;
-    std::fs::write(&json_path, json).map_err(|e| Error::io(&json_path, e))?;
-    let md_path = out.join(format!("{name}.md"));
-    std::fs::write(&md_path, markdown(report, name)).map_err(|e| Error::io(&md_path, e))?;
+    files.write(&json_name, json.as_bytes())?;
+    files.write(&md_name, markdown(report, name).as_bytes())?;
     if report.sweep.len() > 1 {
-        plot_sweep(report, &out.join(format!("{name}.png")))?;
+        files.write_with(&png_name, |p| plot_sweep(report, p))?;
     }
     Ok(())
 }

@@ -16,6 +16,7 @@
 //! EXR stores linear `f32`. With a mask, both carry an alpha channel (1 object, 0 not).
 
 pub mod relight;
+pub mod views;
 pub mod wavelet;
 
 use std::path::Path;

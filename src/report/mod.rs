@@ -4,13 +4,23 @@
 //! - held-out RMSE and PSNR in linear RGB on the photo's [0, 1] scale over object pixels
 //!   that are not overexposed, per protocol: (a) `truth` light, (b) `half` light fitted with
 //!   frozen reflectance on the left half of the object, measured on the right half,
-//!   (c) `mean` of the training maps. `rmse` is the raw figure, `rmse_scaled` the figure
+//!   (c) `mean` of the training maps, and the naive `baseline` (the per-vertex median of
+//!   the training photos' colours times a per-channel gain fitted on the left half, scored
+//!   on `half`'s pixels, [`crate::run`]'s `baseline` module). `rmse` is the raw figure, `rmse_scaled` the figure
 //!   after the best global scale `s* = Σ y·ŷ / Σ ŷ²` (which removes the scale ambiguity of
 //!   Eq. 9 and any exposure difference), PSNR = −20 log10(rmse) for a peak of 1;
+//! - `headline`: `half`'s mean RMSE after scale over `baseline`'s (below 1: the fit beats
+//!   the training colours), at the top of `report.md`;
+//! - `metrics`: PSNR-H, PSNR-L and SSIM per held-out photo and protocol, the Stanford-ORB
+//!   definitions over the object's pixels ([`metrics`]);
+//! - `truth_check` (synthetic workspaces): each training photo rendered from the fit under
+//!   its true light, RMSE after the per-channel scale, beside the same under its fitted light;
 //! - error against run time (objective, training RMSE, held-out RMSE per outer iteration);
 //! - wall time, CPU time and peak memory per stage;
 //! - the model chosen (materials, basis, resolutions) and the reason for each choice.
 
+pub mod html;
+pub mod metrics;
 pub mod plot;
 
 use crate::stages::StageRecord;
@@ -25,7 +35,8 @@ use std::path::Path;
 pub struct HoldoutEntry {
     /// Image name as in `images.txt`.
     pub image: String,
-    /// `truth`, `half` or `mean` (docs/method.md, "Held-out evaluation", (a), (b), (c)).
+    /// `truth`, `half`, `baseline` or `mean` (docs/method.md, "Held-out evaluation": (a),
+    /// (b), the naive baseline on (b)'s pixels, (c)).
     pub protocol: String,
     /// Raw RMSE, linear RGB, [0, 1] photo scale.
     pub rmse: f64,
@@ -91,6 +102,9 @@ pub struct ModelReport {
     /// The adaptive model's decisions (`--adaptive on`), each against the full model.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<Vec<crate::solve::adapt::Decision>>,
+    /// The per-photo light model used (`--light`) and why.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub light: Option<crate::solve::light::choose::LightDecision>,
 }
 
 /// Everything `report.json` holds.
@@ -102,8 +116,22 @@ pub struct RunReport {
     pub workspace: String,
     /// Seed of every random choice.
     pub seed: u64,
+    /// The headline figure on held-out photos: protocol `half`'s RMSE after scale over the
+    /// naive `baseline`'s, means over the photos scored under both, same pixels (below 1:
+    /// the fit predicts unseen photos better than their training colours); `null` without
+    /// such photos.
+    pub headline: Option<f64>,
+    /// The means and photo count behind `headline`.
+    pub headline_detail: Option<metrics::Headline>,
+    /// How the held-out photos were chosen, in words.
+    pub holdout_rule: String,
     /// Held-out figures, per image and protocol.
     pub holdout: Vec<HoldoutEntry>,
+    /// Literature metrics (PSNR-H, PSNR-L, SSIM) per held-out photo and protocol, on the
+    /// same pixels as `holdout`.
+    pub metrics: Vec<metrics::MetricsEntry>,
+    /// Synthetic workspaces: each training photo rendered from the fit under its true light.
+    pub truth_check: Vec<metrics::TruthCheckEntry>,
     /// RMSE over all training observations.
     pub train_rmse: f64,
     /// Per training photo.
@@ -238,6 +266,7 @@ impl RunReport {
         plot::bars(path, "RMSE per photo", "RMSE (linear RGB)", &rows, &|v| {
             format!("{v:.4}")
         })
+        .map(drop)
     }
 
     fn plot_stages(&self, path: &Path) -> Result<()> {
@@ -259,6 +288,7 @@ impl RunReport {
             &rows,
             &|v| format!("{v:.2} s"),
         )
+        .map(drop)
     }
 
     /// The Markdown report.
@@ -270,7 +300,11 @@ impl RunReport {
             "Workspace: `{}`, seed {}, relight-cpc {}.\n",
             self.workspace, self.seed, self.version
         );
+        self.markdown_headline(&mut s);
         let _ = writeln!(s, "## Held-out photos\n");
+        if !self.holdout_rule.is_empty() {
+            let _ = writeln!(s, "Held out: {}.\n", self.holdout_rule);
+        }
         if self.holdout.is_empty() {
             let _ = writeln!(s, "No photo was held out.\n");
         } else {
@@ -279,7 +313,9 @@ impl RunReport {
                 "RMSE in linear RGB on the photo's [0, 1] scale over object pixels that are not \
                  overexposed. Protocols (docs/method.md, \"Held-out evaluation\"): `truth` = the true light, `half` = light fitted \
                  on the left half of the object with the reflectance frozen, measured on the right \
-                 half, `mean` = the mean of the training maps. *raw* is the figure as rendered, \
+                 half, `baseline` = no model: the per-vertex median of the training photos' colours \
+                 times a per-channel gain fitted on the same left half, on `half`'s pixels, \
+                 `mean` = the mean of the training maps. *raw* is the figure as rendered, \
                  *scaled* after the best global scale (shown).\n"
             );
             let _ = writeln!(
@@ -295,7 +331,9 @@ impl RunReport {
                 );
             }
             let _ = writeln!(s);
+            self.markdown_metrics(&mut s);
         }
+        self.markdown_truth_check(&mut s);
         let _ = writeln!(s, "## Training fit\n");
         let _ = writeln!(
             s,
@@ -410,6 +448,108 @@ impl RunReport {
             }
         }
         s
+    }
+}
+
+impl RunReport {
+    /// The headline paragraph at the top of `report.md`.
+    fn markdown_headline(&self, s: &mut String) {
+        match &self.headline_detail {
+            Some(h) => {
+                let _ = writeln!(
+                    s,
+                    "**Headline: held-out error / baseline error = {:.3}** ({} photo(s), protocol \
+                     `half` against `baseline` on the same pixels, RMSE after scale {:.5} against \
+                     {:.5}; below 1 the fit predicts photos it never saw better than the median \
+                     of the training photos' colours does).\n",
+                    h.ratio, h.photos, h.method_rmse, h.baseline_rmse
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "**Headline: none**: no held-out photo was scored under both `half` and \
+                     `baseline`.\n"
+                );
+            }
+        }
+    }
+
+    /// The literature metrics table.
+    fn markdown_metrics(&self, s: &mut String) {
+        if self.metrics.is_empty() {
+            return;
+        }
+        let _ = writeln!(
+            s,
+            "Literature metrics (Stanford-ORB definitions, after the per-channel scale \
+             s_c = Σ y·ŷ / Σ ŷ² over the same pixels): PSNR-H on the linear images (times \
+             Stanford-ORB's brightness factor, clipped at 4), PSNR-L on the sRGB images \
+             (clipped to [0, 1]), SSIM on the sRGB images (11×11 Gaussian window, σ = 1.5), \
+             both images zero off the scored pixels and the SSIM map averaged over them. \
+             MSEs are over the object's pixels, not the whole frame as in Stanford-ORB's \
+             tables.\n"
+        );
+        let _ = writeln!(
+            s,
+            "| image | protocol | PSNR-H (dB) | PSNR-L (dB) | SSIM | scale R, G, B |"
+        );
+        let _ = writeln!(s, "|---|---|---:|---:|---:|---|");
+        for m in &self.metrics {
+            let x = &m.metrics;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.2} | {:.2} | {:.4} | {:.3}, {:.3}, {:.3} |",
+                m.image, m.protocol, x.psnr_h, x.psnr_l, x.ssim, x.scale[0], x.scale[1], x.scale[2]
+            );
+        }
+        let _ = writeln!(s);
+    }
+
+    /// The truth check of synthetic workspaces.
+    fn markdown_truth_check(&self, s: &mut String) {
+        if self.truth_check.is_empty() {
+            return;
+        }
+        let _ = writeln!(
+            s,
+            "## Truth check: training photos under their true light\n"
+        );
+        let _ = writeln!(
+            s,
+            "Each training photo rendered from the fit under the light it was really taken in \
+             (the workspace's `truth/`), against the same render under its fitted light; RMSE \
+             in linear RGB after the best per-channel scale, over object pixels that are not \
+             overexposed, and relative to the photo's RMS there. A large gap means the fitted \
+             maps absorbed wrong reflectance.\n"
+        );
+        let _ = writeln!(
+            s,
+            "| training photo | RMSE true light | relative | RMSE fitted light | relative | pixels |"
+        );
+        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+        for t in &self.truth_check {
+            let _ = writeln!(
+                s,
+                "| {} | {:.5} | {:.1}% | {:.5} | {:.1}% | {} |",
+                t.image,
+                t.rmse_true_light,
+                100.0 * t.relative_true_light,
+                t.rmse_fitted_light,
+                100.0 * t.relative_fitted_light,
+                t.pixels
+            );
+        }
+        let n = self.truth_check.len() as f64;
+        let mean = |f: &dyn Fn(&metrics::TruthCheckEntry) -> f64| {
+            self.truth_check.iter().map(f).sum::<f64>() / n
+        };
+        let _ = writeln!(
+            s,
+            "\nMean relative error: {:.1}% under the true light, {:.1}% under the fitted light.\n",
+            100.0 * mean(&|t| t.relative_true_light),
+            100.0 * mean(&|t| t.relative_fitted_light)
+        );
     }
 }
 

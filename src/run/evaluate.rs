@@ -7,7 +7,13 @@
 //! - (b) `half`: the light fitted with the reflectance frozen to observations on the left
 //!   half of the object's pixels (`x` below the middle of the object's bounding box),
 //!   the error measured on the right half only;
-//! - (c) `mean`: the mean of the training maps.
+//! - (c) `mean`: the mean of the training maps;
+//! - `baseline`, beside (b) on its photos and pixels: no model, the per-vertex median of
+//!   the training photos' colours times a per-channel gain fitted on (b)'s left half
+//!   ([`super::baseline`]); `headline` = (b)'s error over the baseline's.
+//!
+//! Every protocol's prediction also gets the literature metrics (PSNR-H, PSNR-L, SSIM,
+//! [`crate::report::metrics`]) on the same pixels.
 //!
 //! Each view is rendered by rasterising the mesh (z-buffer) and interpolating per-vertex
 //! radiance from the wavelet renderer (Eq. 5–8, untruncated) across triangles; RMSE is over
@@ -208,6 +214,10 @@ pub(crate) struct Evaluation {
     /// Wall and CPU seconds of protocol (b)'s light fits (observations, transport and a
     /// capped lighting solve per view, [`HALF_FIT_GPCG`]).
     pub half_fit_seconds: [f64; 2],
+    /// Literature metrics per held-out photo and protocol ([`crate::report::metrics`]).
+    pub metrics: Vec<crate::report::metrics::MetricsEntry>,
+    /// Protocol `half` against the naive baseline ([`super::baseline`]).
+    pub headline: Option<crate::report::metrics::Headline>,
 }
 
 /// Adds the wall and CPU seconds `f` takes to `acc`.
@@ -308,7 +318,7 @@ pub(crate) fn render_training_view(f: &Fitted, k: usize) -> Result<RenderedView>
 /// visibility and rotation (`--render-local-resolution`,
 /// [`crate::sphere::rotation::SplatRotation`]) ([`render::shade_wavelet`]: the per-vertex BRDF
 /// slices are computed once for all of them).
-fn shade_view(
+pub(super) fn shade_view(
     f: &Fitted,
     v: usize,
     raster: &Raster,
@@ -349,7 +359,7 @@ pub(crate) fn mean_env(f: &Fitted) -> OctEnv {
 }
 
 /// Pixels that count: object pixels not overexposed in the photo.
-fn valid_mask(raster: &Raster, photo: &Photo) -> Vec<bool> {
+pub(super) fn valid_mask(raster: &Raster, photo: &Photo) -> Vec<bool> {
     raster
         .face
         .iter()
@@ -451,9 +461,13 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
+    // Every left-half observation: the protocol measures the fitted reflectance, and the
+    // lighting sample (a speed lever of the estimate) moved its errors by up to 4.5% on
+    // 30K vertices (bench-results/lighting-sample.md).
     let opts = solve::EstimateOptions {
         qp_max_iter: HALF_FIT_GPCG,
         qp_max_cg: HALF_FIT_CG,
+        lighting_sample: 0,
         ..f.estimate_options.clone()
     };
     let start = [0, 1, 2].map(|c| start.channel(c));
@@ -477,6 +491,7 @@ pub(crate) fn evaluate(
     let mean = mean_env(f);
     let bar = progress.bar(f.held.len() as u64, "held-out photos");
     let mut headline = Vec::new();
+    let (mut metrics, mut versus_baseline) = (Vec::new(), Vec::new());
     let (mut render_seconds, mut half_fit_seconds) = ([0.0; 2], [0.0; 2]);
     // Views in chunks of one per thread: their rasters, then protocol (b)'s light fits in
     // parallel (each fit's lighting QP is sequential, so a lone fit leaves the other cores
@@ -531,26 +546,76 @@ pub(crate) fn evaluate(
 
             let valid = valid_mask(raster, photo);
             let w = raster.width as usize;
+            let side = |right: bool| -> Option<Vec<bool>> {
+                let mid = mid?;
+                Some(
+                    valid
+                        .iter()
+                        .enumerate()
+                        .map(|(i, &m)| m && ((i % w) as f64 >= mid) == right)
+                        .collect(),
+                )
+            };
+            let right_half = side(true);
+            // The naive baseline on protocol (b)'s photos and pixels, its gain fitted on
+            // the left half (super::baseline).
+            let baseline = match (&half_env, side(false)) {
+                (Some(_), Some(left)) => {
+                    let (rgb, _) = super::baseline::predict(
+                        &f.scene.mesh,
+                        raster,
+                        &f.baseline,
+                        &photo.rgb,
+                        &left,
+                    );
+                    Some(rgb)
+                }
+                _ => None,
+            };
+            let mut scored: Vec<(&str, &[[f32; 3]])> = lights
+                .iter()
+                .zip(&rgbs)
+                .map(|(&(p, _), rgb)| (p, rgb.as_slice()))
+                .collect();
+            if let Some(b) = &baseline {
+                let at = scored
+                    .iter()
+                    .position(|s| s.0 == "half")
+                    .map_or(0, |i| i + 1);
+                scored.insert(at, ("baseline", b.as_slice()));
+            }
             // The first protocol that applies is the headline (truth, else half, else mean).
             let mut best: Option<f64> = None;
-            for ((protocol, _), rgb) in lights.iter().zip(&rgbs) {
-                let right_half: Vec<bool>;
-                let mask: &[bool] = match (*protocol, mid) {
-                    ("half", Some(mid)) => {
-                        right_half = valid
-                            .iter()
-                            .enumerate()
-                            .map(|(i, &m)| m && (i % w) as f64 >= mid)
-                            .collect();
-                        &right_half
-                    }
+            let mut pair = [None, None];
+            for (protocol, rgb) in scored {
+                let mask: &[bool] = match (protocol, &right_half) {
+                    ("half" | "baseline", Some(right)) => right,
                     _ => &valid,
                 };
                 let e = entry(name, protocol, photo, rgb, mask);
                 best.get_or_insert(e.rmse_scaled);
+                match protocol {
+                    "half" => pair[0] = Some(e.rmse_scaled),
+                    "baseline" => pair[1] = Some(e.rmse_scaled),
+                    _ => {}
+                }
+                metrics.push(crate::report::metrics::MetricsEntry {
+                    image: name.to_string(),
+                    protocol: protocol.to_string(),
+                    metrics: crate::report::metrics::image_metrics(
+                        &photo.rgb,
+                        rgb,
+                        w,
+                        raster.height as usize,
+                        mask,
+                    ),
+                });
                 let path = renders.join(format!("{stem}.{protocol}.png"));
                 super::output::write_triptych(&path, photo, raster, rgb, e.scale)?;
                 holdout.push(e);
+            }
+            if let [Some(m), Some(b)] = pair {
+                versus_baseline.push((m, b));
             }
             if let Some(rmse) = best {
                 if rmse.is_finite() {
@@ -568,6 +633,8 @@ pub(crate) fn evaluate(
         mean_holdout_rmse,
         render_seconds,
         half_fit_seconds,
+        metrics,
+        headline: crate::report::metrics::Headline::from_pairs(&versus_baseline),
     })
 }
 

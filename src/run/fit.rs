@@ -25,6 +25,8 @@ pub(crate) struct Fit<'a> {
     /// Why the model has its size (materials).
     pub(crate) reasons: Vec<String>,
     pub(crate) decisions: Vec<Decision>,
+    /// The per-photo light model kept and why.
+    pub(crate) light_decision: crate::solve::light::choose::LightDecision,
 }
 
 /// The index of the Lambertian basis BRDF, which carries the diffuse colour.
@@ -38,7 +40,7 @@ pub(crate) fn lambert_of(basis: &[BasisBrdf]) -> Result<usize> {
 }
 
 /// The estimator's options from the run's.
-pub(crate) fn estimate_options(o: &RunOptions, lambert: usize) -> EstimateOptions {
+pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -> EstimateOptions {
     EstimateOptions {
         max_outer: o.max_iterations,
         rel_tol: o.rel_tol,
@@ -56,6 +58,8 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize) -> EstimateOption
         lambert_basis: lambert,
         validation_seed: o.seed,
         validation_fraction: o.validation,
+        lighting_sample: o.lighting_sample,
+        lighting_strata: strata.to_vec(),
         ..EstimateOptions::default()
     }
 }
@@ -88,6 +92,7 @@ pub(crate) fn fit<'a>(
         rot,
         topts,
         tr,
+        strata,
     } = prepared;
     let nv = scene.mesh.positions.len();
     // 6. Estimate.
@@ -112,8 +117,9 @@ pub(crate) fn fit<'a>(
         n_vertices: nv,
         n_photos: train.len(),
     };
-    let eopts = estimate_options(&eff, lambert);
+    let eopts = estimate_options(&eff, lambert, &strata);
     let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+    let spinner = progress.spinner("held-out transport");
     let tracker = log.stages.run("transport", || {
         evaluate::HoldoutTracker::new(
             scene,
@@ -129,6 +135,7 @@ pub(crate) fn fit<'a>(
             truth.as_ref(),
         )
     })?;
+    drop(spinner);
     progress.stage("estimate");
     let available = starts::family_len(eff.basis.len(), lambert);
     if opts.starts > available {
@@ -141,34 +148,64 @@ pub(crate) fn fit<'a>(
     let n_starts = family.len();
     let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
     let mut timeline: Vec<TimelinePoint> = Vec::new();
-    let (est, multi) = log.stages.run("estimate", || {
-        starts::estimate_best(&problem, family, &eopts, &mut |si, it, state| {
-            bar.inc(1);
-            let holdout_rmse = tracker
-                .as_ref()
-                .map(|t| t.rmse(state, nv))
-                .filter(|v| v.is_finite());
-            bar.set_message(format!(
-                "{}objective {:.4e}, training RMSE {:.5}{}",
-                if n_starts > 1 {
-                    format!("start {} of {n_starts}: ", si + 1)
+    let light_models = crate::solve::light::choose::candidates(opts.light, &eopts)?;
+    let mut fits = Vec::with_capacity(light_models.len());
+    let mut timeline_ranges = Vec::with_capacity(light_models.len());
+    for model in &light_models {
+        let first = timeline.len();
+        let family = family.clone();
+        let eopts = &model.options;
+        fits.push(log.stages.run("estimate", || {
+            starts::estimate_best(&problem, family, eopts, &mut |si, it, state| {
+                bar.inc(1);
+                let holdout_rmse = tracker
+                    .as_ref()
+                    .map(|t| t.rmse(state, nv))
+                    .filter(|v| v.is_finite());
+                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                let line = format!(
+                    "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
+                    if n_starts > 1 {
+                        format!("start {} of {n_starts}, ", si + 1)
+                    } else {
+                        String::new()
+                    },
+                    it.objective,
+                    it.train_rmse,
+                    holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
+                    it.seconds
+                );
+                if bar.is_hidden() {
+                    progress.line(&line);
                 } else {
-                    String::new()
-                },
-                it.objective,
-                it.train_rmse,
-                holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}"))
-            ));
-            timeline.push(TimelinePoint {
-                start: si,
-                seconds: it.seconds,
-                objective: it.objective,
-                train_rmse: it.train_rmse,
-                holdout_rmse,
-                steps: it.steps,
-            });
-        })
-    })?;
+                    bar.println(format!("          {line}"));
+                }
+                timeline.push(TimelinePoint {
+                    start: si,
+                    seconds: it.seconds,
+                    objective: it.objective,
+                    train_rmse: it.train_rmse,
+                    holdout_rmse,
+                    steps: it.steps,
+                });
+            })
+        })?);
+        timeline_ranges.push(first..timeline.len());
+    }
+    let scores: Vec<f64> = fits
+        .iter()
+        .map(|(e, _)| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error()))
+        .collect();
+    let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
+    let (pick, light_decision) = crate::solve::light::choose::decide(opts.light, &names, &scores);
+    reasons.push(format!(
+        "light model `{}`: {}",
+        light_decision.model, light_decision.why
+    ));
+    let eopts = light_models[pick].options.clone();
+    let (est, multi) = fits.swap_remove(pick);
+    // The timeline of the model kept.
+    let timeline: Vec<TimelinePoint> = timeline.drain(timeline_ranges[pick].clone()).collect();
     bar.finish_and_clear();
     check_finite(&est, &conditioning_map(&est.conditioning))?;
     let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
@@ -210,6 +247,7 @@ pub(crate) fn fit<'a>(
         opts: eff.clone(),
         estimate_options: eopts,
         bvh,
+        baseline: super::baseline::VertexMedians::from_observations(&obs, nv),
     };
     Ok(Fit {
         fitted,
@@ -218,5 +256,6 @@ pub(crate) fn fit<'a>(
         multi,
         reasons,
         decisions,
+        light_decision,
     })
 }

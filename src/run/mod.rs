@@ -1,5 +1,5 @@
 //! `relight-cpc run`: the whole pipeline, workspace → scene → observations → transport →
-//! estimate → renders and report (docs/method.md).
+//! estimate → renders and report (DESIGN §1, §4).
 //!
 //! The stages, in order, each timed and measured by [`crate::stages`]:
 //! 1. `import`: discover the workspace, read the model, the mesh and the photos;
@@ -11,7 +11,7 @@
 //! 4. `rotation`: the wavelet rotations `R_ν` (Sec. 4.2, Eq. 6);
 //! 5. `transport`: `g_{p,b} = R_nᵀ T_x ρ_b(ω_o)` per observation (Eq. 5–8);
 //! 6. `estimate`: alternating lighting (Eq. 10) and material (Eq. 11–12) steps;
-//! 7. `evaluation`: held-out photos under each protocol of docs/method.md ("Held-out evaluation");
+//! 7. `evaluation`: held-out photos under each protocol of DESIGN §4;
 //! 8. `output`: environment maps, materials, coloured mesh, renders, report.
 //!
 //! The condition numbers the estimator sees (lighting, Eq. 10; λ and w, Eq. 11–12) go to
@@ -19,20 +19,29 @@
 //! fallback) and, past [`crate::solve::adapt::KAPPA_LIGHTING`] / [`crate::solve::adapt::KAPPA_LAMBDA`],
 //! what to change; a non-finite estimate stops the run with those figures.
 //!
-//! Everything is written into a hidden sibling `.NAME.partial/` of the output folder and
-//! renamed to `NAME/` only when complete, so an interrupted run never leaves a folder that
-//! looks finished.
+//! The output folder follows [`crate::out_dir`]: everything is written into a hidden
+//! staging sibling and moved into place, stamp last, only when complete, so an interrupted
+//! run never leaves a folder that looks finished.
 
+mod baseline;
 mod evaluate;
+mod example;
 mod fit;
+mod holdout;
+mod html_inputs;
 mod options;
 mod output;
 mod pipeline;
-mod progress;
+pub mod progress;
 mod truth;
+mod truth_check;
 
 pub use evaluate::{fine_rays, render_local_resolution};
-pub use options::{builtin_example, Holdout, MaterialCount, RunOptions};
+pub use example::builtin_example;
+pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
+pub use options::{
+    Holdout, MaterialCount, RunOptions, DEFAULT_LIGHTING_SAMPLE, LIGHTING_SAMPLE_MAX_RATIO,
+};
 pub use progress::Progress;
 pub use truth::{Truth, TruthPhoto};
 
@@ -58,7 +67,7 @@ pub struct RunSummary {
     pub report: RunReport,
 }
 
-/// World up from the cameras (docs/conventions.md): the mean of their `−y` axes in world
+/// World up from the cameras (DESIGN §3): the mean of their `−y` axes in world
 /// coordinates (COLMAP cameras have y pointing down in the image).
 pub fn estimate_up(views: &[scene::View]) -> Option<Vec3> {
     let sum: Vec3 = views
@@ -90,7 +99,13 @@ pub fn env_from_world(up: &Vec3) -> Result<Matrix3<f64>> {
 fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Result<Vec<usize>> {
     let names: Vec<String> = match holdout {
         Holdout::None => Vec::new(),
-        Holdout::Default => truth.map(|t| t.held_out.clone()).unwrap_or_default(),
+        Holdout::Default => match truth {
+            Some(t) => t.held_out.clone(),
+            None => default_holdout(scene.views.len())
+                .into_iter()
+                .map(|i| scene.views[i].image.name.clone())
+                .collect(),
+        },
         Holdout::Names(n) => n.clone(),
         Holdout::Every(k) => scene
             .views
@@ -127,6 +142,30 @@ fn holdout_views(scene: &Scene, holdout: &Holdout, truth: Option<&Truth>) -> Res
         )));
     }
     Ok(idx)
+}
+
+/// How the held-out photos `held` were chosen, in words (console and report).
+fn holdout_rule(scene: &Scene, holdout: &Holdout, has_truth: bool, held: &[usize]) -> String {
+    let names = held
+        .iter()
+        .map(|&i| scene.views[i].image.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let n = format!("{} of {} photos", held.len(), scene.views.len());
+    match holdout {
+        Holdout::Default if has_truth => {
+            format!("{n}, the workspace's truth/manifest.json list ({names})")
+        }
+        Holdout::Default if held.is_empty() => {
+            format!("none: the workspace has {} photo(s) and the fit needs one", scene.views.len())
+        }
+        Holdout::Default => format!(
+            "{n}, chosen by default (every {DEFAULT_HOLDOUT_EVERY}th in name order, at least one): {names}; the fit does not use them, they score its renders (--holdout none fits on every photo)"
+        ),
+        Holdout::None => "none (--holdout none)".into(),
+        Holdout::Names(_) => format!("{n}, named with --holdout ({names})"),
+        Holdout::Every(k) => format!("{n}, every {k}th (--holdout-every {k}): {names}"),
+    }
 }
 
 /// Choose the number of materials from the per-vertex mean colours: the smallest K in
@@ -237,58 +276,27 @@ pub(crate) struct Fitted<'a> {
     pub opts: RunOptions,
     pub estimate_options: EstimateOptions,
     pub bvh: SceneBvh,
+    /// The naive baseline's per-vertex colours ([`baseline`]).
+    pub baseline: baseline::VertexMedians,
 }
 
-/// Run the pipeline with `opts`, reporting progress to `progress`.
+/// Run the pipeline with `opts`, reporting progress to `progress`. The output folder is
+/// claimed before any work ([`crate::out_dir`]): results are written into a staging folder
+/// and moved into place, stamp last, only when complete.
 pub fn run(opts: &RunOptions) -> Result<RunSummary> {
     opts.check()?;
     let progress = Progress::new(opts.progress);
-    let partial = partial_dir(&opts.out)?;
-    let result = pipeline::run_into(opts, &partial, &progress);
-    match result {
-        Ok(report) => {
-            finish_dir(&partial, &opts.out, opts.force)?;
-            progress.finish(&format!("results in {}", opts.out.display()));
-            Ok(RunSummary {
-                out: opts.out.clone(),
-                report,
-            })
-        }
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&partial);
-            Err(e)
-        }
-    }
-}
-
-fn partial_dir(out: &Path) -> Result<PathBuf> {
-    let name = out
-        .file_name()
-        .ok_or_else(|| Error::Config(format!("--out {}: needs a folder name", out.display())))?;
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
-    let partial = parent.join(format!(".{}.partial", name.to_string_lossy()));
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    }
-    std::fs::create_dir_all(&partial).map_err(|e| Error::io(&partial, e))?;
-    Ok(partial)
-}
-
-fn finish_dir(partial: &Path, out: &Path, force: bool) -> Result<()> {
-    if out.exists() {
-        if !force && !out.join("report.json").exists() {
-            return Err(Error::Config(format!(
-                "--out {}: exists and is not a relight-cpc result; choose another folder or pass --force",
-                out.display()
-            )));
-        }
-        std::fs::remove_dir_all(out).map_err(|e| Error::io(out, e))?;
-    }
-    std::fs::rename(partial, out).map_err(|e| Error::io(out, e))
+    let inputs: Vec<&Path> = std::iter::once(opts.workspace.as_path())
+        .chain(opts.mesh.as_deref())
+        .collect();
+    let out = crate::out_dir::OutDir::claim(&opts.out, opts.force, &inputs, "run")?;
+    let report = pipeline::run_into(opts, out.path(), &progress)?;
+    let out = out.commit()?;
+    progress.finish(
+        &format!("results in {}", out.display()),
+        &report.stage_details,
+    );
+    Ok(RunSummary { out, report })
 }
 
 /// RMSE per training photo over its observations with `α > 0` (linear RGB).

@@ -13,7 +13,8 @@ use super::fit::{estimate_options, lambert_of, Fit};
 use super::truth::Truth;
 use super::{
     adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
-    holdout_views, mean_colours, output, MaterialCount, Progress, RunOptions,
+    holdout_rule, holdout_views, mean_colours, output, Holdout, MaterialCount, Progress,
+    RunOptions, LIGHTING_SAMPLE_MAX_RATIO,
 };
 use crate::import::photo::Photo;
 use crate::import::scene::{self, Scene};
@@ -45,6 +46,8 @@ pub(crate) struct Imported {
     pub(crate) held: Vec<usize>,
     /// Training views.
     pub(crate) train: Vec<usize>,
+    /// How the held-out photos were chosen, in words.
+    pub(crate) holdout_rule: String,
 }
 
 /// After observation extraction: the BVH, the training photos' observations, the training
@@ -72,6 +75,15 @@ pub(crate) struct Prepared {
     pub(crate) rot: Rotation,
     pub(crate) topts: TransportOptions,
     pub(crate) tr: Transport,
+    /// Per-vertex strata of the lighting sample.
+    pub(crate) strata: Vec<u32>,
+}
+
+/// After the evaluation: the held-out figures and the truth check.
+pub(crate) struct Evaluated {
+    pub(crate) evaluation: Evaluation,
+    pub(crate) truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
+    pub(crate) holdout_rule: String,
 }
 
 /// The pipeline into `dir` (module docs).
@@ -86,10 +98,28 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
     let fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
     // 7. Evaluation of held-out photos, and per-photo training error.
     progress.stage("evaluation");
-    let evaluation = log.stages.run("evaluation", || {
-        evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)
+    let (evaluation, truth_check) = log.stages.run("evaluation", || -> Result<_> {
+        let e = evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)?;
+        let t = match &imported.truth {
+            Some(t) => super::truth_check::truth_check(&fit.fitted, t)?,
+            None => Vec::new(),
+        };
+        Ok((e, t))
     })?;
-    write(opts, fit, evaluation, &mut log, dir, progress)
+    let evaluated = Evaluated {
+        evaluation,
+        truth_check,
+        holdout_rule: imported.holdout_rule.clone(),
+    };
+    write(
+        opts,
+        fit,
+        evaluated,
+        imported.truth.as_ref(),
+        &mut log,
+        dir,
+        progress,
+    )
 }
 
 /// Stage 1, import: the workspace, the model, the mesh and the photos; the held-out split.
@@ -105,11 +135,19 @@ fn import(opts: &RunOptions, log: &mut RunLog, progress: &Progress) -> Result<Im
     log.notes.extend(scene.workspace.notes.iter().cloned());
     log.notes
         .extend(scene.skipped.iter().map(|s| format!("skipped {s}")));
+    for s in &scene.skipped {
+        progress.warn(&format!("skipped photo {s}"));
+    }
     let truth = match &scene.workspace.truth_dir {
         Some(t) => Some(Truth::read(t)?),
         None => None,
     };
     let held = holdout_views(&scene, &opts.holdout, truth.as_ref())?;
+    let holdout_rule = holdout_rule(&scene, &opts.holdout, truth.is_some(), &held);
+    if matches!(opts.holdout, Holdout::Default) && truth.is_none() && !held.is_empty() {
+        progress.note(&format!("held out: {holdout_rule}"));
+    }
+    log.notes.push(format!("held-out photos: {holdout_rule}"));
     let train: Vec<usize> = (0..scene.views.len())
         .filter(|i| !held.contains(i))
         .collect();
@@ -119,6 +157,7 @@ fn import(opts: &RunOptions, log: &mut RunLog, progress: &Progress) -> Result<Im
         truth,
         held,
         train,
+        holdout_rule,
     })
 }
 
@@ -214,6 +253,10 @@ fn observe_training(
         if !red.is_empty() && red.len() < n {
             let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
             for &(k, by) in &red {
+                progress.line(&format!(
+                    "skipped photo {}: it adds no new observation (duplicates {})",
+                    scene.views[train[k]].image.name, scene.views[train[by]].image.name
+                ));
                 log.notes.push(format!(
                     "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
                     scene.views[train[k]].image.name,
@@ -301,15 +344,21 @@ fn prepare(
 
     // 3. Visibility.
     progress.stage("visibility");
+    let bar = progress.stage_bar(nv as u64, "vertices");
     let (vis, render_vis) = log.stages.run("visibility", || {
         evaluate::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
     });
+    drop(bar);
     log.notes.push(format!(
         "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced",
         vis.open_count(),
         nv,
         vis.rays_traced
     ));
+    // Strata of the lighting step's sample: normal (8 × 8 octahedral bins) × open sky
+    // (3 levels of the mean visible fraction).
+    let strata =
+        crate::solve::subsample::vertex_strata(&normals_env, Some(&vis.open_fractions()), 8, 3);
     let (mean_rgb, seen) = mean_colours(&obs, nv);
 
     // Adaptive model (crate::solve::adapt steps 2–5): a pilot fit decides the materials, the
@@ -318,6 +367,7 @@ fn prepare(
     let mut pilot_k: Option<(usize, String)> = None;
     if opts.adaptive {
         progress.stage("pilot");
+        let spinner = progress.spinner("pilot fits");
         let lambert = lambert_of(&opts.basis)?;
         let outcome = log.stages.run("pilot", || {
             crate::solve::adapt::pilot(&crate::solve::adapt::PilotInput {
@@ -333,7 +383,7 @@ fn prepare(
                 // The pilot holds out its own observations: no early stopping inside it.
                 estimate: EstimateOptions {
                     validation_fraction: 0.0,
-                    ..estimate_options(opts, lambert)
+                    ..estimate_options(opts, lambert, &strata)
                 },
                 mean_rgb: &mean_rgb,
                 seen: &seen,
@@ -344,12 +394,14 @@ fn prepare(
                 seed: opts.seed,
             })
         })?;
+        drop(spinner);
         decisions.extend(adaptive_decisions(opts, &outcome, &vis, nv, &mut eff));
         pilot_k = Some((outcome.materials, outcome.materials_reason.clone()));
     }
 
     // 4. Rotation.
     progress.stage("rotation");
+    let bar = progress.stage_bar((eff.normal_grid * eff.normal_grid) as u64, "normals");
     let rot = log.stages.run("rotation", || {
         Rotation::new(
             eff.global_resolution,
@@ -358,6 +410,7 @@ fn prepare(
             RotationForm::Factored,
         )
     });
+    drop(bar);
 
     // 5. Transport.
     progress.stage("transport");
@@ -366,6 +419,7 @@ fn prepare(
         n_local: eff.local_resolution,
         keep: eff.keep,
     };
+    let bar = progress.stage_bar(obs.vertex.len() as u64, "observations");
     let tr: Transport = log.stages.run("transport", || {
         transport::build(
             &normals_env,
@@ -377,6 +431,7 @@ fn prepare(
             &topts,
         )
     })?;
+    drop(bar);
     Ok((
         Observed {
             bvh,
@@ -396,6 +451,7 @@ fn prepare(
             rot,
             topts,
             tr,
+            strata,
         },
     ))
 }
@@ -404,7 +460,8 @@ fn prepare(
 fn write(
     opts: &RunOptions,
     fit: Fit,
-    evaluation: Evaluation,
+    evaluated: Evaluated,
+    truth: Option<&Truth>,
     log: &mut RunLog,
     dir: &Path,
     progress: &Progress,
@@ -416,8 +473,15 @@ fn write(
         multi,
         reasons,
         decisions,
+        light_decision,
     } = fit;
+    let Evaluated {
+        evaluation,
+        truth_check,
+        holdout_rule,
+    } = evaluated;
     let eff = &fitted.opts;
+    let nv = fitted.scene.mesh.positions.len();
     // 8. Outputs.
     progress.stage("output");
     log.stages
@@ -476,6 +540,23 @@ fn write(
             }
         ));
     }
+    if let Some(s) = &fitted.est.lighting_sample {
+        log.notes.push(format!(
+            "lighting sample: the lighting steps of {} photo(s) saw at most {} of their observations each (stratified by normal, open sky and material); relative RMSE of the fit {:.4} on the {} sampled observations and {:.4} on the {} others (ratio {:.3}){}",
+            s.photos_sampled,
+            s.budget,
+            s.rel_rmse_in,
+            s.in_sample,
+            s.rel_rmse_out,
+            s.out_of_sample,
+            s.ratio,
+            if s.ratio > LIGHTING_SAMPLE_MAX_RATIO {
+                format!(": above {LIGHTING_SAMPLE_MAX_RATIO}, the maps over-fit their samples; rerun with a larger --lighting-sample or 0 (all)")
+            } else {
+                String::new()
+            }
+        ));
+    }
     let conditioning_use = conditioning_use(c, &fitted.estimate_options, opts.adaptive);
 
     let mut report = RunReport {
@@ -503,6 +584,7 @@ fn write(
             kept_coefficients: eff.keep,
             reasons,
             adaptive: if opts.adaptive { Some(decisions) } else { None },
+            light: Some(light_decision),
         },
         notes: std::mem::take(&mut log.notes),
         conditioning,
@@ -510,6 +592,11 @@ fn write(
         starts: (multi.starts.len() > 1).then_some(multi),
         ..Default::default()
     };
+    report.headline = evaluation.headline.map(|h| h.ratio);
+    report.headline_detail = evaluation.headline;
+    report.metrics = evaluation.metrics;
+    report.truth_check = truth_check;
+    report.holdout_rule = holdout_rule;
     if !fitted.held.is_empty() {
         let (r, h) = (evaluation.render_seconds, evaluation.half_fit_seconds);
         report.notes.push(format!(
@@ -520,6 +607,13 @@ fn write(
             r[1],
             h[0],
             h[1]
+        ));
+    }
+    if fitted.baseline.unseen > 0 && !fitted.held.is_empty() {
+        report.notes.push(format!(
+            "baseline: {} of {} vertices are in no training photo; they take the median of the other vertices' medians",
+            fitted.baseline.unseen,
+            nv
         ));
     }
     if let Some(h) = evaluation.mean_holdout_rmse {
@@ -542,5 +636,7 @@ fn write(
         .map(|(n, ll)| (n.clone(), ll.width, ll.height, ll.rgb.as_slice()))
         .collect();
     report.write(dir, &refs)?;
+    let inputs = super::html_inputs::html_inputs(&fitted, truth, dir)?;
+    crate::report::html::write(dir, &report, &inputs)?;
     Ok(report)
 }

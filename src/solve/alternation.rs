@@ -34,7 +34,7 @@ pub fn estimate(
     opts: &EstimateOptions,
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Estimate> {
-    let light = PaperLight::new(problem, opts);
+    let light = PaperLight::new(problem, opts, &init);
     estimate_with(problem, init, opts, light, on_iter)
 }
 
@@ -355,6 +355,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         timeline: Vec<Iteration>,
         validation: Option<crate::solve::result::Validation>,
     ) -> Result<Estimate> {
+        let sample_check = self
+            .light
+            .sample_check(self.problem, &self.lambda, &self.weights);
         let normalisation = normalise(
             &mut self.light,
             &mut self.lambda,
@@ -372,6 +375,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             irls_weights: self.omega,
             conditioning: self.cond,
             validation,
+            lighting_sample: sample_check,
         })
     }
 }

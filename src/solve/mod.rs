@@ -73,10 +73,14 @@ pub mod problem;
 pub mod qp;
 pub mod result;
 pub mod starts;
+pub mod subsample;
 pub mod validation;
 
 pub use alternation::{estimate, estimate_with};
-pub use light::photo::{fit_light_frozen, lighting_step, lighting_step_full, LightingResult};
+pub use light::photo::{
+    fit_light_frozen, lighting_sample, lighting_step, lighting_step_full, lighting_step_on,
+    LightingResult,
+};
 pub use materials::{lambda_step, weights_step, LambdaStep, WeightsStep};
 pub use options::{
     EstimateOptions, Robust, SmoothnessScale, ALTERNATION_CG_ITERS, ALTERNATION_QP_ITERS, PATIENCE,

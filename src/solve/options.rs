@@ -140,6 +140,20 @@ pub struct EstimateOptions {
     pub validation_seed: u64,
     /// With validation: stop after this many outer iterations without a lower score.
     pub patience: usize,
+    /// Lighting step on a stratified subsample ([`crate::solve::subsample`]): at most this
+    /// many of a photo's fitted observations enter its lighting QPs, each weighted by its
+    /// stratum's `N_h / n_h` so that the data term and its normal equations keep their
+    /// expected value; the IRLS scale and weights still come from every observation, and
+    /// the material step uses them all. 0 = every observation. Measured in
+    /// `bench-results/lighting-sample.md`.
+    pub lighting_sample: usize,
+    /// Per-vertex strata of that sample (normal and open-sky bins,
+    /// [`crate::solve::subsample::vertex_strata`]), crossed with each vertex's dominant
+    /// starting material; empty: the materials alone.
+    pub lighting_strata: Vec<u32>,
+    /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
+    /// map): extra quadratic terms of the lighting QP ([`crate::solve::light::sh_prior`]).
+    pub light_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -217,6 +231,9 @@ impl Default for EstimateOptions {
             fix_gauge: false,
             materials_cut_only: false,
             patience: PATIENCE,
+            lighting_sample: 0,
+            lighting_strata: Vec::new(),
+            light_prior: None,
         }
     }
 }

@@ -158,6 +158,9 @@ pub struct Estimate {
     pub conditioning: Conditioning,
     /// Early stopping's record, when on.
     pub validation: Option<Validation>,
+    /// The lighting sample's check, when a photo's lighting step used a sample
+    /// ([`crate::solve::EstimateOptions::lighting_sample`]).
+    pub lighting_sample: Option<crate::solve::subsample::SampleCheck>,
 }
 
 /// The state after an outer iteration (before the final normalisation), for callers that

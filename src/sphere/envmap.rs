@@ -71,24 +71,82 @@ fn decode_exr_rgb(
     Ok(image.layer_data.channel_data.pixels)
 }
 
-/// Read the first RGB(A) layer of an EXR file as `(width, height, rgb)`, naming the file
-/// and, when the decoder gives up, the file's compression.
-fn read_exr_rgb(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
-    let file = std::fs::File::open(path).map_err(|e| crate::Error::io(path, e))?;
-    match decode_exr_rgb(std::io::BufReader::new(file)) {
-        Ok(pixels) => Ok(pixels),
-        Err(exr::error::Error::Io(e)) => Err(crate::Error::io(path, e)),
-        Err(e) => {
-            let compression = exr::meta::MetaData::read_from_file(path, false)
-                .ok()
-                .and_then(|m| m.headers.first().map(|h| format!("{:?}", h.compression)))
-                .unwrap_or_else(|| "unknown".to_string());
-            Err(crate::Error::Image {
-                path: path.to_path_buf(),
-                message: format!("cannot decode EXR (compression {compression}): {e}"),
-            })
+/// Largest map decoded, in pixels (16384 × 8192): a header claiming more is refused
+/// before any allocation.
+const MAX_PIXELS: usize = 1 << 27;
+
+/// Largest ratio of decoded pixels to file bytes accepted: lossless EXR compression of a
+/// real map stays far below it, while a damaged header can claim any size.
+const MAX_PIXELS_PER_BYTE: usize = 4096;
+
+/// Decode the first RGB(A) layer of EXR bytes as `(width, height, rgb)`; errors in plain
+/// words naming `path`: not an EXR file (and what it looks like), a size the file cannot
+/// hold, an unsupported compression, damaged data.
+fn decode_exr_checked(bytes: &[u8], path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+    let err = |message: String| Error::Image {
+        path: path.to_path_buf(),
+        message,
+    };
+    if !bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
+        let looks = if bytes.starts_with(b"\x89PNG") {
+            "a PNG image"
+        } else if bytes.starts_with(&[0xff, 0xd8]) {
+            "a JPEG image"
+        } else if bytes.starts_with(b"#?RADIANCE") || bytes.starts_with(b"#?RGBE") {
+            "a Radiance HDR image"
+        } else if bytes.is_empty() {
+            "an empty file"
+        } else {
+            "something else"
+        };
+        return Err(err(format!(
+            "expected an OpenEXR file (lat-long, linear RGB), found {looks}; convert it, e.g. `oiiotool IN -o OUT.exr`"
+        )));
+    }
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| err(format!("damaged EXR header: {}", exr_words(&e))))?;
+    for h in &meta.headers {
+        let (w, hh) = (h.layer_size.width(), h.layer_size.height());
+        let pixels = w.saturating_mul(hh);
+        if pixels > MAX_PIXELS || pixels / MAX_PIXELS_PER_BYTE > bytes.len() {
+            return Err(err(format!(
+                "the header announces {w} × {hh} pixels, which a {}-byte file cannot hold (or is over the {MAX_PIXELS}-pixel limit)",
+                bytes.len()
+            )));
         }
     }
+    decode_exr_rgb(std::io::Cursor::new(bytes)).map_err(|e| {
+        let compression = meta
+            .headers
+            .first()
+            .map(|h| h.compression.to_string())
+            .unwrap_or_else(|| "unknown compression".into());
+        match e {
+            exr::error::Error::NotSupported(what) => err(format!(
+                "this EXR reader does not support it ({what}; the file uses {compression}); re-save it with zip or piz compression, e.g. `oiiotool IN --compression zip -o OUT.exr`"
+            )),
+            other => err(format!(
+                "cannot decode the EXR data ({compression}): {}",
+                exr_words(&other)
+            )),
+        }
+    })
+}
+
+/// An `exr` error in words (its `Display`, which carries no Debug text).
+fn exr_words(e: &exr::error::Error) -> String {
+    match e {
+        exr::error::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "the file ends early (truncated?)".into()
+        }
+        other => other.to_string(),
+    }
+}
+
+/// Read the first RGB(A) layer of an EXR file as `(width, height, rgb)`, naming the file.
+fn read_exr_rgb(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
+    let bytes = std::fs::read(path).map_err(|e| crate::Error::io(path, e))?;
+    decode_exr_checked(&bytes, path)
 }
 
 /// Write `width × height` RGB as 32-bit float EXR.
@@ -140,15 +198,44 @@ impl LatLong {
         Self::checked(path, width, height, rgb)
     }
 
+    /// Read a lat-long Radiance RGBE (`.hdr`) file with the `image` crate's decoder (same
+    /// layout and checks as [`read_exr`](LatLong::read_exr)).
+    pub fn read_hdr(path: &Path) -> Result<(LatLong, ReadStats)> {
+        let err = |message: String| Error::Image {
+            path: path.to_path_buf(),
+            message,
+        };
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
+            .map_err(|e| err(format!("cannot decode Radiance HDR: {e}")))?;
+        let img = image::DynamicImage::from_decoder(decoder)
+            .map_err(|e| err(format!("cannot decode Radiance HDR: {e}")))?
+            .into_rgb32f();
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let rgb = img.pixels().map(|p| p.0).collect();
+        Self::checked(path, w, h, rgb)
+    }
+
+    /// Read a lat-long map by extension: `.exr` or `.hdr` (case-insensitive).
+    pub fn read_any(path: &Path) -> Result<(LatLong, ReadStats)> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("exr") => Self::read_exr(path),
+            Some("hdr") => Self::read_hdr(path),
+            _ => Err(Error::Image {
+                path: path.to_path_buf(),
+                message: "an environment map must be a lat-long .exr or Radiance .hdr file".into(),
+            }),
+        }
+    }
+
     /// Decode a lat-long EXR held in memory (`name` labels errors), like [`read_exr`].
     ///
     /// [`read_exr`]: LatLong::read_exr
     pub fn read_exr_bytes(bytes: &[u8], name: &str) -> Result<(LatLong, ReadStats)> {
-        let (width, height, rgb) =
-            decode_exr_rgb(std::io::Cursor::new(bytes)).map_err(|e| Error::Image {
-                path: name.into(),
-                message: format!("cannot decode EXR: {e}"),
-            })?;
+        let (width, height, rgb) = decode_exr_checked(bytes, Path::new(name))?;
         Self::checked(Path::new(name), width, height, rgb)
     }
 

@@ -57,6 +57,21 @@ impl Visibility {
         &self.frac[v * k..(v + 1) * k]
     }
 
+    /// Mean visible fraction over each vertex's texels (1 for an open hemisphere), `[0, 1]`.
+    pub fn open_fractions(&self) -> Vec<f64> {
+        let k = self.texels().max(1);
+        (0..self.open.len())
+            .map(|v| {
+                if self.open[v] {
+                    1.0
+                } else {
+                    let s: u32 = self.vertex(v).iter().map(|&f| u32::from(f)).sum();
+                    s as f64 / (255.0 * k as f64)
+                }
+            })
+            .collect()
+    }
+
     /// Visible fraction of texel `t` at vertex `v`, in `[0, 1]`.
     pub fn value(&self, v: usize, t: usize) -> f64 {
         self.frac[v * self.texels() + t] as f64 / 255.0
@@ -119,6 +134,7 @@ pub fn compute_with(
         .zip(open.par_iter_mut())
         .enumerate()
         .map(|(v, (out, is_open))| {
+            crate::stages::tick(1);
             let x = mesh.positions[v];
             let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
             let nn = n.norm();

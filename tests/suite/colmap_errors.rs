@@ -149,13 +149,13 @@ fn text_duplicate_ids_and_dangling_references() {
     expect_format(text(&dir), "cameras.txt", "line 5", "appears twice");
     let dir = setup("t-cam-ref");
     edit(&dir, "cameras.txt", "7 OPENCV", "8 OPENCV");
-    expect_format(text(&dir), "images", "image id 9", "camera id 7");
+    expect_format(text(&dir), "images.txt", "image id 9", "camera id 7");
     let dir = setup("t-track-ref");
     edit(&dir, "points3D.txt", "2 0 9 0", "2 0 5 0");
-    expect_format(text(&dir), "points3D", "point3D id 10", "image id 5");
+    expect_format(text(&dir), "points3D.txt", "point3D id 10", "image id 5");
     let dir = setup("t-track-idx");
     edit(&dir, "points3D.txt", "2 0 9 0", "2 0 9 17");
-    expect_format(text(&dir), "points3D", "point3D id 10", "point2D 17");
+    expect_format(text(&dir), "points3D.txt", "point3D id 10", "point2D 17");
 }
 
 #[test]

@@ -278,7 +278,7 @@ fn bad_files_give_clear_errors() {
     let p = scratch("bad_index.ply");
     std::fs::write(&p, ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")).unwrap();
     let msg = expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "face 0");
-    assert!(msg.contains('7') && msg.contains("out of range"), "{msg}");
+    assert!(msg.contains("found 7") && msg.contains("0 to 2"), "{msg}");
     // Negative index too.
     std::fs::write(&p, ascii("0 0 0\n1 0 0\n0 1 0\n3 0 1 -1\n")).unwrap();
     expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "face 0");
@@ -309,12 +309,20 @@ property list uchar int vertex_indices\nend_header\n"
             &p,
             &format!("vertex {bad}"),
         );
-        assert!(msg.contains("non-finite"), "{msg}");
+        assert!(
+            msg.contains("finite") && msg.contains(if bad == 1 { "NaN" } else { "inf" }),
+            "{msg}"
+        );
     }
-    // In ascii, ply-rs' grammar refuses `nan` outright: still a format error with the line.
+    // In ascii, ply-rs' grammar refuses `nan` outright: still a format error with the line
+    // (header 9 lines, then vertex 0 on line 10, vertex 1 on line 11).
     std::fs::write(&p, ascii("0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n")).unwrap();
-    let msg = expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "data");
-    assert!(msg.contains("Line") && msg.contains("nan"), "{msg}");
+    let msg = expect_format(
+        Mesh::read_ply(&p).unwrap_err(),
+        &p,
+        "line 11 (`vertex` record 1)",
+    );
+    assert!(msg.contains("x y z") && msg.contains("1 nan 0"), "{msg}");
     // Truncated binary payload.
     let p = scratch("truncated.ply");
     let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
@@ -322,17 +330,20 @@ property float y\nproperty float z\nelement face 1\nproperty list uchar int vert
         .to_vec();
     bytes.extend([0u8; 20]); // 36 bytes of vertices needed
     std::fs::write(&p, &bytes).unwrap();
-    let msg = expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "data");
-    assert!(msg.contains("ends before"), "{msg}");
+    let msg = expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "`vertex` element");
+    assert!(
+        msg.contains("expected 3") && msg.contains("found 1"),
+        "{msg}"
+    );
     // Unparseable text and a non-PLY file.
     let p = scratch("garbage.ply");
     std::fs::write(&p, ascii("0 0 zero\n1 0 0\n0 1 0\n3 0 1 2\n")).unwrap();
-    expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "data");
+    expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "`vertex` record 0");
     std::fs::File::create(&p)
         .unwrap()
         .write_all(b"\x89PNG\r\n\x1a\n not a ply")
         .unwrap();
-    expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "header");
+    expect_format(Mesh::read_ply(&p).unwrap_err(), &p, "line 1");
     // A point cloud is not a mesh; a missing file is an I/O error naming it.
     let p = scratch("cloud.ply");
     std::fs::write(

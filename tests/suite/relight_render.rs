@@ -89,8 +89,10 @@ fn relit_sphere_matches_reference_under_new_map() {
             sun: None,
             cameras: CameraSelection::Named(name.clone()),
             out: render_out.clone(),
+            force: false,
             exposure: 1.0,
             resolution: None,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -239,8 +241,10 @@ fn bad_inputs_give_clear_errors() {
         sun: None,
         cameras: cams,
         out: t.0.join("out"),
+        force: false,
         exposure: 1.0,
         resolution: None,
+        ..Default::default()
     };
     // Missing result folder.
     let e = relight::render_result(
@@ -270,8 +274,10 @@ fn bad_camera_and_map_on_a_real_result(dir: &Path, out: &Path) {
         sun: None,
         cameras: cams,
         out: dir.join("out"),
+        force: false,
         exposure: 1.0,
         resolution: Some(32),
+        ..Default::default()
     };
     let e = relight::render_result(
         &out,

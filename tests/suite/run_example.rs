@@ -4,7 +4,7 @@
 use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
 
 fn options(out: &std::path::Path) -> RunOptions {
-    let mut o = RunOptions::new(builtin_example(), out.to_path_buf());
+    let mut o = RunOptions::new(builtin_example().unwrap(), out.to_path_buf());
     // Small settings so the whole pipeline stays well under a minute in the test profile.
     o.global_resolution = 32;
     o.keep = 64;
@@ -36,7 +36,13 @@ fn example_run_recovers_held_out_photos_under_their_true_light() {
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
     }
-    assert!(!dir.join(".spot.partial").exists());
+    let beside: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(
+        beside.len(),
+        1,
+        "only the result, no staging folder, is left"
+    );
+    assert!(out.join(relight_cpc::out_dir::STAMP).is_file());
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     for key in [

@@ -101,7 +101,7 @@ fn main() {
     let out = PathBuf::from("artifacts").join(&target);
     let _ = std::fs::create_dir_all(&out);
     panic::set_hook(Box::new(|_| {}));
-    let colmap = target != "ply";
+    let colmap = target.starts_with("colmap");
     let end = Instant::now() + Duration::from_secs(secs);
     let (mut execs, mut crashes, mut slow) = (0u64, 0u64, 0u64);
     while Instant::now() < end {

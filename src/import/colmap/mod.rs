@@ -189,7 +189,7 @@ impl Reconstruction {
             images: text::read_images(open(&i)?, &i)?,
             points3d: text::read_points3d(open(&p)?, &p)?,
         };
-        rec.check_references(dir)?;
+        rec.check_references(&[&c, &i, &p])?;
         Ok(rec)
     }
 
@@ -201,7 +201,7 @@ impl Reconstruction {
             images: binary::read_images(open(&i)?, &i)?,
             points3d: binary::read_points3d(open(&p)?, &p)?,
         };
-        rec.check_references(dir)?;
+        rec.check_references(&[&c, &i, &p])?;
         Ok(rec)
     }
 
@@ -342,22 +342,28 @@ impl Reconstruction {
     }
 
     /// Check that every reference points at something that exists: images at cameras,
-    /// keypoints at 3D points, tracks at images and keypoints. `dir` names the model in
-    /// errors.
-    pub fn check_references(&self, dir: &Path) -> Result<()> {
+    /// keypoints at 3D points, tracks at images and keypoints. `files` are the cameras,
+    /// images and points3D files the model was read from, named in errors.
+    pub fn check_references(&self, files: &[&Path; 3]) -> Result<()> {
+        let [cameras_file, images_file, points_file] = *files;
         for im in self.images.values() {
             if !self.cameras.contains_key(&im.camera_id) {
                 return Err(Error::format(
-                    dir.join("images"),
+                    images_file,
                     format!("image id {}", im.id.0),
-                    format!("camera id {} is not in the cameras file", im.camera_id.0),
+                    format!(
+                        "expected a camera id of {} ({}), found camera id {}",
+                        cameras_file.display(),
+                        id_list(self.cameras.keys().map(|c| c.0 as u64)),
+                        im.camera_id.0
+                    ),
                 ));
             }
             for (k, p2) in im.points2d.iter().enumerate() {
                 if let Some(pid) = p2.point3d_id {
                     if !self.points3d.contains_key(&pid) {
                         return Err(Error::format(
-                            dir.join("images"),
+                            images_file,
                             format!("image id {}, point2D {k}", im.id.0),
                             format!("3D point id {} is not in the points3D file", pid.0),
                         ));
@@ -369,7 +375,7 @@ impl Reconstruction {
             for te in &p.track {
                 let Some(im) = self.images.get(&te.image_id) else {
                     return Err(Error::format(
-                        dir.join("points3D"),
+                        points_file,
                         format!("point3D id {}", p.id.0),
                         format!(
                             "track names image id {}, which is not in the images file",
@@ -379,7 +385,7 @@ impl Reconstruction {
                 };
                 if te.point2d_idx as usize >= im.points2d.len() {
                     return Err(Error::format(
-                        dir.join("points3D"),
+                        points_file,
                         format!("point3D id {}", p.id.0),
                         format!(
                             "track names point2D {} of image id {}, which has only {}",
@@ -392,6 +398,20 @@ impl Reconstruction {
             }
         }
         Ok(())
+    }
+}
+
+/// Up to ten ids, comma-separated, for an error message.
+fn id_list(ids: impl Iterator<Item = u64>) -> String {
+    let all: Vec<u64> = ids.collect();
+    let mut s: Vec<String> = all.iter().take(10).map(|i| i.to_string()).collect();
+    if all.len() > 10 {
+        s.push(format!("… {} in all", all.len()));
+    }
+    if s.is_empty() {
+        "it has none".into()
+    } else {
+        format!("ids {}", s.join(", "))
     }
 }
 

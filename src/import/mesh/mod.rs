@@ -22,7 +22,7 @@
 //! uchar colours and any extra per-vertex float properties (e.g. material weights).
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Write};
+use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use byteorder::{LittleEndian, WriteBytesExt};
@@ -73,10 +73,20 @@ impl Mesh {
     pub fn read_ply(path: &Path) -> Result<(Mesh, MeshCleanup)> {
         let data = read_ply_data(path)?;
         if !data.has_faces {
+            let found = if data.elements.iter().any(|e| e == "tristrips") {
+                "found triangle strips (`tristrips`), which are not read: export the mesh \
+                 with a `face` element"
+                    .to_string()
+            } else {
+                format!("found only: {}", data.elements.join(", "))
+            };
             return Err(Error::format(
                 path,
                 "header",
-                "no `face` element with a `vertex_indices` (or `vertex_index`) list: not a mesh",
+                format!(
+                    "expected a `face` element with a `vertex_indices` (or `vertex_index`) \
+                     list; {found}"
+                ),
             ));
         }
         let n = data.positions.len();
@@ -90,7 +100,7 @@ impl Mesh {
                     return Err(Error::format(
                         path,
                         format!("face {fi}"),
-                        format!("vertex index {k} out of range (the file has {n} vertices)"),
+                        format!("expected vertex indices 0 to {}, found {k}", n as i64 - 1),
                     ));
                 }
             }
@@ -415,6 +425,8 @@ pub struct PlyData {
     pub faces: Vec<Vec<i64>>,
     /// Whether the file has a face element with an index list.
     pub has_faces: bool,
+    /// The header's element names, in file order.
+    pub elements: Vec<String>,
 }
 
 /// One PLY element as the parser fills it: only the properties this crate uses are kept,
@@ -521,28 +533,23 @@ fn color_names(e: &ElementDef) -> Option<[&'static str; 3]> {
     .find(|names| has_props(e, names))
 }
 
-fn ply_error(path: &Path, part: &str, e: std::io::Error) -> Error {
-    match e.kind() {
-        std::io::ErrorKind::InvalidInput
-        | std::io::ErrorKind::InvalidData
-        | std::io::ErrorKind::UnexpectedEof => {
-            let msg = if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                "file ends before all elements the header announces were read".to_string()
-            } else {
-                e.to_string().replace(['\n', '\t'], " ")
-            };
-            Error::format(path, part, msg)
-        }
-        _ => Error::io(path, e),
-    }
-}
-
 /// Reads the `vertex` (and, when present, `face`) elements of a PLY file with `ply-rs`.
 /// Positions are checked finite (error naming the vertex); normals and colours are taken
 /// when all three components are declared.
+///
+/// The payload is read one record at a time (ply-rs's per-record readers), so an error
+/// names the element, the record and, for ASCII files, the line; ply-rs's own messages
+/// (which embed Debug text) never reach the user.
 pub fn read_ply_data(path: &Path) -> Result<PlyData> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = BufReader::new(file);
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if !bytes.starts_with(b"ply") {
+        return Err(Error::format(
+            path,
+            "line 1",
+            "the file does not start with `ply`: not a PLY file",
+        ));
+    }
+    let mut reader = std::io::Cursor::new(bytes.as_slice());
     let parser = Parser::<PlyRecord>::new();
     // ply-rs 0.1.3 panics on an element count that does not fit in u64 (it unwraps the
     // parse); turn that into an error naming the file instead of a crash.
@@ -556,11 +563,90 @@ pub fn read_ply_data(path: &Path) -> Result<PlyData> {
             "malformed header (an element count or property is out of range)",
         )
     })?
-    .map_err(|e| ply_error(path, "header", e))?;
-    let vdef = header
-        .elements
-        .get("vertex")
-        .ok_or_else(|| Error::format(path, "header", "no `vertex` element"))?;
+    .map_err(|e| header_error(path, &bytes, &e))?;
+    let header_lines = bytes[..reader.position() as usize]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count();
+    check_header(path, &header)?;
+    let vdef = &header.elements["vertex"];
+    let has_normals = has_props(vdef, &["nx", "ny", "nz"]);
+    let has_colors = color_names(vdef).is_some();
+    let face_list = header.elements.get("face").and_then(|f| {
+        ["vertex_indices", "vertex_index"]
+            .into_iter()
+            .find(|n| matches!(f.properties.get(*n), Some(p) if matches!(p.data_type, PropertyType::List(..))))
+    });
+    let mut records = RecordReader {
+        path,
+        parser: &parser,
+        encoding: header.encoding,
+        reader,
+        line: header_lines,
+    };
+    let mut vertices: Vec<PlyRecord> = Vec::new();
+    let mut face_records: Vec<PlyRecord> = Vec::new();
+    for (name, def) in &header.elements {
+        let keep = match name.as_str() {
+            "vertex" => Some(&mut vertices),
+            "face" => Some(&mut face_records),
+            _ => None,
+        };
+        records.element(def, keep)?;
+    }
+    let mut positions = Vec::with_capacity(vertices.len());
+    for (i, r) in vertices.iter().enumerate() {
+        let p = Vec3::new(r.xyz[0], r.xyz[1], r.xyz[2]);
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(Error::format(
+                path,
+                format!("vertex {i}"),
+                format!(
+                    "expected finite coordinates, found ({}, {}, {})",
+                    r.xyz[0], r.xyz[1], r.xyz[2]
+                ),
+            ));
+        }
+        positions.push(p);
+    }
+    let normals = has_normals.then(|| {
+        vertices
+            .iter()
+            .map(|r| Vec3::new(r.normal[0], r.normal[1], r.normal[2]))
+            .collect()
+    });
+    let colors = has_colors.then(|| vertices.iter().map(|r| r.color).collect());
+    let faces = match face_list {
+        Some(_) => face_records.into_iter().map(|r| r.indices).collect(),
+        None => Vec::new(),
+    };
+    Ok(PlyData {
+        positions,
+        normals,
+        colors,
+        faces,
+        has_faces: face_list.is_some(),
+        elements: header.elements.keys().cloned().collect(),
+    })
+}
+
+/// The header's `vertex` element must exist with scalar `x y z`.
+fn check_header(path: &Path, header: &ply_rs::ply::Header) -> Result<()> {
+    let vdef = header.elements.get("vertex").ok_or_else(|| {
+        let names: Vec<&str> = header.elements.keys().map(|k| k.as_str()).collect();
+        Error::format(
+            path,
+            "header",
+            format!(
+                "expected a `vertex` element, found only: {}",
+                if names.is_empty() {
+                    "no elements".to_string()
+                } else {
+                    names.join(", ")
+                }
+            ),
+        )
+    })?;
     if !has_props(vdef, &["x", "y", "z"]) {
         return Err(Error::format(
             path,
@@ -579,53 +665,156 @@ pub fn read_ply_data(path: &Path) -> Result<PlyData> {
             }
         }
     }
-    let has_normals = has_props(vdef, &["nx", "ny", "nz"]);
-    let has_colors = color_names(vdef).is_some();
-    let face_list = header.elements.get("face").and_then(|f| {
-        ["vertex_indices", "vertex_index"]
-            .into_iter()
-            .find(|n| matches!(f.properties.get(*n), Some(p) if matches!(p.data_type, PropertyType::List(..))))
-    });
-    let payload = parser
-        .read_payload(&mut reader, &header)
-        .map_err(|e| ply_error(path, "data", e))?;
-    let vertices = payload.get("vertex").map(|v| v.as_slice()).unwrap_or(&[]);
-    let mut positions = Vec::with_capacity(vertices.len());
-    for (i, r) in vertices.iter().enumerate() {
-        let p = Vec3::new(r.xyz[0], r.xyz[1], r.xyz[2]);
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(Error::format(
-                path,
-                format!("vertex {i}"),
-                format!(
-                    "non-finite coordinate ({}, {}, {})",
-                    r.xyz[0], r.xyz[1], r.xyz[2]
-                ),
-            ));
-        }
-        positions.push(p);
-    }
-    let normals = has_normals.then(|| {
-        vertices
-            .iter()
-            .map(|r| Vec3::new(r.normal[0], r.normal[1], r.normal[2]))
-            .collect()
-    });
-    let colors = has_colors.then(|| vertices.iter().map(|r| r.color).collect());
-    let faces = match face_list {
-        Some(_) => payload
-            .get("face")
-            .map(|f| f.iter().map(|r| r.indices.clone()).collect())
-            .unwrap_or_default(),
-        None => Vec::new(),
+    Ok(())
+}
+
+/// A header ply-rs refused, in plain words: the offending line as the file has it.
+fn header_error(path: &Path, bytes: &[u8], e: &std::io::Error) -> Error {
+    let msg = e.to_string();
+    // ply-rs reports "Line N: ..." with N the file's line number (from 1).
+    let line_no = msg
+        .strip_prefix("Line ")
+        .and_then(|r| r.split(':').next())
+        .and_then(|n| n.trim().parse::<usize>().ok());
+    let text = |n: usize| {
+        bytes
+            .split(|&b| b == b'\n')
+            .nth(n)
+            .map(|l| excerpt(&String::from_utf8_lossy(l)))
+            .unwrap_or_default()
     };
-    Ok(PlyData {
-        positions,
-        normals,
-        colors,
-        faces,
-        has_faces: face_list.is_some(),
-    })
+    let expected = "expected `format ascii|binary_little_endian|binary_big_endian 1.0`, \
+                    `element NAME COUNT`, `property TYPE NAME`, `property list TYPE TYPE NAME`, \
+                    `comment ...` or `end_header`";
+    match (e.kind(), line_no) {
+        (std::io::ErrorKind::UnexpectedEof, _) => {
+            Error::format(path, "header", "the file ends before `end_header`")
+        }
+        (_, Some(n)) => Error::format(
+            path,
+            format!("line {n}"),
+            format!("{expected}; found `{}`", text(n.saturating_sub(1))),
+        ),
+        _ => Error::format(
+            path,
+            "header",
+            format!("not a valid PLY header: {expected}"),
+        ),
+    }
+}
+
+/// At most 60 characters of a line, for an error message.
+fn excerpt(line: &str) -> String {
+    let t = line.trim_end_matches(['\r', '\n']);
+    if t.chars().count() > 60 {
+        format!("{}…", t.chars().take(60).collect::<String>())
+    } else {
+        t.to_string()
+    }
+}
+
+/// Reads a PLY payload one record at a time, keeping the line count (ASCII).
+struct RecordReader<'a> {
+    path: &'a Path,
+    parser: &'a Parser<PlyRecord>,
+    encoding: ply_rs::ply::Encoding,
+    reader: std::io::Cursor<&'a [u8]>,
+    /// Lines consumed so far (ASCII).
+    line: usize,
+}
+
+impl RecordReader<'_> {
+    /// Reads every record of `def`, pushing them to `keep` when given.
+    fn element(&mut self, def: &ElementDef, mut keep: Option<&mut Vec<PlyRecord>>) -> Result<()> {
+        use ply_rs::ply::Encoding;
+        use std::io::BufRead;
+        let remaining = self.reader.get_ref().len() - self.reader.position() as usize;
+        if let Some(k) = keep.as_mut() {
+            // A record takes at least one byte: never reserve more than the file can hold.
+            k.reserve((def.count).min(remaining));
+        }
+        let mut line = String::new();
+        for k in 0..def.count {
+            let before = self.reader.position();
+            let r = match self.encoding {
+                Encoding::Ascii => {
+                    line.clear();
+                    let n = self.reader.read_line(&mut line).unwrap_or(0);
+                    if n == 0 {
+                        return Err(self.ended(def, k));
+                    }
+                    self.line += 1;
+                    self.parser
+                        .read_ascii_element(&line, def)
+                        .map_err(|_| self.bad_line(def, k, &line))?
+                }
+                Encoding::BinaryLittleEndian => self
+                    .parser
+                    .read_little_endian_element(&mut self.reader, def)
+                    .map_err(|e| self.bad_record(def, k, before, &e))?,
+                Encoding::BinaryBigEndian => self
+                    .parser
+                    .read_big_endian_element(&mut self.reader, def)
+                    .map_err(|e| self.bad_record(def, k, before, &e))?,
+            };
+            if let Some(v) = keep.as_mut() {
+                v.push(r);
+            }
+        }
+        Ok(())
+    }
+
+    fn ended(&self, def: &ElementDef, k: usize) -> Error {
+        Error::format(
+            self.path,
+            format!("`{}` element", def.name),
+            format!(
+                "expected {} records as the header announces, found {k}: the file ends early (truncated?)",
+                def.count
+            ),
+        )
+    }
+
+    fn bad_line(&self, def: &ElementDef, k: usize, line: &str) -> Error {
+        Error::format(
+            self.path,
+            format!("line {} (`{}` record {k})", self.line, def.name),
+            format!(
+                "expected the values {}, found `{}`",
+                property_list(def),
+                excerpt(line)
+            ),
+        )
+    }
+
+    fn bad_record(&self, def: &ElementDef, k: usize, at: u64, e: &std::io::Error) -> Error {
+        let eof = e.kind() == std::io::ErrorKind::UnexpectedEof
+            || e.to_string().contains("UnexpectedEof");
+        if eof {
+            return self.ended(def, k);
+        }
+        Error::format(
+            self.path,
+            format!("`{}` record {k} (byte {at})", def.name),
+            format!(
+                "expected the values {}, which cannot be read there",
+                property_list(def)
+            ),
+        )
+    }
+}
+
+/// `x y z (float)` style description of an element's properties.
+fn property_list(def: &ElementDef) -> String {
+    let names: Vec<String> = def
+        .properties
+        .iter()
+        .map(|(name, p)| match &p.data_type {
+            PropertyType::Scalar(_) => name.clone(),
+            PropertyType::List(..) => format!("{name} (a count, then that many numbers)"),
+        })
+        .collect();
+    names.join(" ")
 }
 
 #[cfg(test)]

@@ -30,9 +30,11 @@ use crate::solve::problem::Problem;
 use crate::solve::result::Conditioning;
 use crate::Result;
 
+pub mod choose;
 pub mod laplacian;
 pub mod paper;
 pub mod photo;
+pub mod sh_prior;
 pub mod system;
 
 /// What the lighting step reads: the problem and the current materials.
@@ -100,4 +102,17 @@ pub trait LightModel: Send + Sync {
 
     /// The maps of the final parameters, per photo and channel.
     fn into_maps(self) -> Vec<[Vec<f64>; 3]>;
+
+    /// The check of a lighting sample at the state `lambda`, `weights` and the current
+    /// parameters, when the model fitted its lights on samples of the observations
+    /// ([`crate::solve::EstimateOptions::lighting_sample`]); `None` otherwise.
+    fn sample_check(
+        &self,
+        problem: &Problem,
+        lambda: &[Vec<[f64; 3]>],
+        weights: &[f64],
+    ) -> Option<crate::solve::subsample::SampleCheck> {
+        let _ = (problem, lambda, weights);
+        None
+    }
 }

@@ -15,10 +15,14 @@
 use std::borrow::Cow;
 
 use crate::solve::light::laplacian::Laplacian;
-use crate::solve::light::photo::{lighting_step_full, LightingResult};
+use crate::solve::light::photo::{lighting_sample, lighting_step_on, LightingResult};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
-use crate::solve::problem::{par_largest_first, Problem};
+use crate::solve::problem::{
+    basis_responses, beta_per_vertex, par_largest_first, predict_from, Problem,
+};
+use crate::solve::result::Materials0;
+use crate::solve::subsample::{dominant_material, sample_check, SampleCheck, Subsample};
 use crate::Result;
 
 /// Per photo and channel, a map's texels.
@@ -36,11 +40,18 @@ pub struct PaperLight {
     /// `opts` with the alternation's QP caps applied.
     light_opts: EstimateOptions,
     lap: Laplacian,
+    /// Each vertex's dominant starting material (the lighting sample's strata).
+    dominant: Vec<u32>,
+    /// The lighting sample of each photo ([`EstimateOptions::lighting_sample`]), drawn at
+    /// the first lighting step and fixed for the whole alternation (the QPs' objective
+    /// stays one function).
+    samples: Option<Vec<Option<Subsample>>>,
 }
 
 impl PaperLight {
-    /// Zero maps for every photo of `problem`.
-    pub fn new(problem: &Problem, opts: &EstimateOptions) -> Self {
+    /// Zero maps for every photo of `problem`; `init` (the starting materials) gives the
+    /// lighting sample's strata.
+    pub fn new(problem: &Problem, opts: &EstimateOptions, init: &Materials0) -> Self {
         let n = problem.transport.n_global;
         let n2 = n * n;
         // Inside the alternation the lighting QPs are inexact block steps (option docs).
@@ -62,6 +73,8 @@ impl PaperLight {
             opts: opts.clone(),
             light_opts,
             lap: Laplacian::new(n),
+            dominant: dominant_material(&init.weights, init.lambda.len()),
+            samples: None,
         }
     }
 
@@ -117,10 +130,17 @@ impl LightModel for PaperLight {
         let problem = input.problem;
         let mu_factor = self.mu_factor(input.outer_iteration);
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
+        let samples = self.samples.get_or_insert_with(|| {
+            (0..problem.n_photos)
+                .map(|i| lighting_sample(problem, i, &self.opts, Some(&self.dominant)))
+                .collect()
+        });
+        let (samples, lights, mu_first) = (&*samples, &self.lights, &self.mu_first);
+        let light_opts = &self.light_opts;
         let results: Vec<Result<LightingResult>> = par_largest_first(&sizes, |i| {
-            let m = self.mu_first[i].map(|m| m.map(|v| v * mu_factor));
-            let start = Some(&self.lights[i]);
-            lighting_step_full(problem, input.beta, i, start, m, &self.light_opts)
+            let m = mu_first[i].map(|m| m.map(|v| v * mu_factor));
+            let (start, sample) = (Some(&lights[i]), samples[i].as_ref());
+            lighting_step_on(problem, input.beta, i, start, m, light_opts, sample)
         });
         out.conditioning.lighting.clear();
         out.conditioning.qp_unconverged = 0;
@@ -190,5 +210,27 @@ impl LightModel for PaperLight {
 
     fn into_maps(self) -> Maps {
         self.lights
+    }
+
+    fn sample_check(
+        &self,
+        problem: &Problem,
+        lambda: &[Vec<[f64; 3]>],
+        weights: &[f64],
+    ) -> Option<SampleCheck> {
+        let samples = self.samples.as_ref()?;
+        samples.iter().any(Option::is_some).then(|| {
+            let beta = beta_per_vertex(lambda, weights, problem.n_vertices);
+            let pred = predict_from(problem, &beta, &basis_responses(problem, &self.lights));
+            let o = problem.obs;
+            sample_check(
+                &pred,
+                &o.rgb,
+                &o.weight,
+                &o.photo_ranges,
+                samples,
+                self.opts.lighting_sample,
+            )
+        })
     }
 }

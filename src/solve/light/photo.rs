@@ -8,10 +8,12 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::solve::light::laplacian::Laplacian;
+use crate::solve::light::sh_prior::{LightPriorOptions, ShProjection};
 use crate::solve::light::system::{split3, texel_diag, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::options::{EstimateOptions, Robust, SmoothnessScale};
 use crate::solve::problem::{haar3, Problem};
-use crate::solve::qp::{bound_qp_scaled, QpOptions};
+use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
+use crate::solve::subsample::Subsample;
 use crate::{Error, Result};
 
 /// Whether the lighting QP is scaled by its texel-basis diagonal
@@ -64,23 +66,65 @@ pub(crate) fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
     }
 }
 
-/// One photo's observations as its lighting step reads them.
+/// One photo's observations as its lighting step reads them: the QP's rows (all of the
+/// photo's observations, or its lighting sample) and every observation (IRLS's scale and
+/// weights come from all of them).
 struct PhotoData {
     range: std::ops::Range<usize>,
-    /// `α_p` per observation of the range.
+    /// Positions in the range of the QP's rows.
+    pos: Vec<usize>,
+    /// `α_p` times the row's Horvitz–Thompson weight (1 without a sample), per row.
     alpha: Vec<f64>,
-    /// `y_{p,c}` per observation of the range.
+    /// `y_{p,c}` per row.
     y: Vec<[f64; 3]>,
+    /// `α_p` of every observation of the photo.
+    alpha_all: Vec<f64>,
+    /// `y_{p,c}` of every observation of the photo.
+    y_all: Vec<[f64; 3]>,
+    /// Whether the rows are a sample.
+    sampled: bool,
 }
 
 impl PhotoData {
-    fn new(problem: &Problem, photo: usize) -> Self {
+    fn new(problem: &Problem, photo: usize, sample: Option<&Subsample>) -> Self {
         let range = problem.obs.photo_ranges[photo].clone();
         let obs = problem.obs;
+        let (pos, ht): (Vec<usize>, Vec<f64>) = match sample {
+            Some(s) => (s.index.clone(), s.weight.clone()),
+            None => ((0..range.len()).collect(), vec![1.0; range.len()]),
+        };
+        let rows = pos.iter().map(|&q| range.start + q);
         PhotoData {
-            alpha: range.clone().map(|p| obs.weight[p] as f64).collect(),
-            y: range.clone().map(|p| obs.rgb[p].map(f64::from)).collect(),
+            alpha: rows
+                .clone()
+                .zip(&ht)
+                .map(|(p, w)| obs.weight[p] as f64 * w)
+                .collect(),
+            y: rows.map(|p| obs.rgb[p].map(f64::from)).collect(),
+            alpha_all: range.clone().map(|p| obs.weight[p] as f64).collect(),
+            y_all: range.clone().map(|p| obs.rgb[p].map(f64::from)).collect(),
+            sampled: sample.is_some(),
+            pos,
             range,
+        }
+    }
+
+    /// The QP's rows as observation indices.
+    fn rows(&self) -> impl Iterator<Item = usize> + '_ {
+        self.pos.iter().map(|&q| self.range.start + q)
+    }
+
+    /// The α-weighted mean square of the rows' radiance (the light prior's scale).
+    fn mean_square(&self) -> f64 {
+        let (alpha, y) = (&self.alpha, &self.y);
+        let (num, den) = (0..self.range.len()).fold((0.0, 0.0), |(a, b), q| {
+            let yy = (y[q][0].powi(2) + y[q][1].powi(2) + y[q][2].powi(2)) / 3.0;
+            (a + alpha[q] * yy, b + alpha[q])
+        });
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
         }
     }
 }
@@ -107,7 +151,7 @@ impl QpStats {
         }
     }
 
-    fn add(&mut self, res: &crate::solve::qp::QpResult) {
+    fn add(&mut self, res: &QpResult) {
         self.converged &= res.converged;
         self.matvecs += res.matvecs;
         self.qps += 1;
@@ -120,7 +164,9 @@ impl QpStats {
 }
 
 /// Lighting step for one photo with full control: start texels (`None` = zeros), Laplacian
-/// weights (`None` = `smoothness` × largest system diagonal, computed here).
+/// weights (`None` = `smoothness` × largest system diagonal, computed here). With
+/// [`EstimateOptions::lighting_sample`] the QPs see a stratified sample of the photo's
+/// observations (strata from [`EstimateOptions::lighting_strata`]).
 pub fn lighting_step_full(
     problem: &Problem,
     beta: &[[f64; 3]],
@@ -129,16 +175,101 @@ pub fn lighting_step_full(
     mu: Option<[f64; 3]>,
     opts: &EstimateOptions,
 ) -> Result<LightingResult> {
+    let sample = lighting_sample(problem, photo, opts, None);
+    lighting_step_on(problem, beta, photo, start, mu, opts, sample.as_ref())
+}
+
+/// The stratified sample of `photo`'s fitted observations (positions in its range) that its
+/// lighting QPs see ([`EstimateOptions::lighting_sample`]); `None` when the photo has no
+/// more fitted observations than the budget. Strata: `opts.lighting_strata` of the vertex
+/// crossed with `dominant[x]` (a material index) when given.
+pub fn lighting_sample(
+    problem: &Problem,
+    photo: usize,
+    opts: &EstimateOptions,
+    dominant: Option<&[u32]>,
+) -> Option<crate::solve::subsample::Subsample> {
+    let budget = opts.lighting_sample;
+    let obs = problem.obs;
+    let range = obs.photo_ranges[photo].clone();
+    let eligible: Vec<bool> = range.clone().map(|p| obs.weight[p] > 0.0).collect();
+    if budget == 0 || eligible.iter().filter(|&&e| e).count() <= budget {
+        return None;
+    }
+    let k = dominant.map_or(1, |d| d.iter().max().map_or(1, |&m| m as usize + 1));
+    let strata: Vec<u32> = range
+        .map(|p| {
+            let x = obs.vertex[p] as usize;
+            let v = opts.lighting_strata.get(x).copied().unwrap_or(0) as usize;
+            (v * k + dominant.map_or(0, |d| d[x] as usize)) as u32
+        })
+        .collect();
+    let seed = opts
+        .validation_seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(photo as u64);
+    Some(crate::solve::subsample::stratified(
+        &strata, &eligible, budget, seed,
+    ))
+}
+
+/// `Σ_b β_{x,b,c} ⟨g_{p,b}, h_c⟩` for the observations `range` straight from the transport
+/// rows (`h` interleaved Haar): the prediction of observations outside a lighting sample.
+pub(crate) fn forward_full(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    range: std::ops::Range<usize>,
+    h: &[[f64; 3]],
+) -> Vec<[f64; 3]> {
+    let t = problem.transport;
+    let nb = t.n_basis;
+    range
+        .map(|p| {
+            let x = problem.obs.vertex[p] as usize;
+            let mut acc = [0.0; 3];
+            for b in 0..nb {
+                let be = beta[x * nb + b];
+                if be == [0.0; 3] {
+                    continue;
+                }
+                let (idx, val) = t.row(p, b);
+                let mut r = [0.0; 3];
+                for (&m, &g) in idx.iter().zip(val) {
+                    let hm = &h[m as usize];
+                    let g = g as f64;
+                    r[0] += g * hm[0];
+                    r[1] += g * hm[1];
+                    r[2] += g * hm[2];
+                }
+                for c in 0..3 {
+                    acc[c] += be[c] * r[c];
+                }
+            }
+            acc
+        })
+        .collect()
+}
+
+/// [`lighting_step_full`] on a given sample of the photo's observations (`None`: all).
+pub fn lighting_step_on(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    photo: usize,
+    start: Option<&[Vec<f64>; 3]>,
+    mu: Option<[f64; 3]>,
+    opts: &EstimateOptions,
+    sample: Option<&Subsample>,
+) -> Result<LightingResult> {
     let n = problem.transport.n_global;
     let n2 = n * n;
-    let data = PhotoData::new(problem, photo);
+    let data = PhotoData::new(problem, photo, sample);
     let dw0 = data.alpha.iter().map(|&a| [a; 3]).collect();
-    let mut sys = PhotoSystem::new(problem, beta, data.range.clone(), n, dw0);
+    let mut sys = PhotoSystem::new(problem, beta, data.rows(), n, dw0);
     // The texel-basis diagonal of the data term (α, without IRLS weights): the Jacobi
     // scaling of the QP (LIGHTING_JACOBI) and, for the default smoothness scale, μ.
     let tdiag = (LIGHTING_JACOBI
         || (mu.is_none() && opts.smoothness_scale == SmoothnessScale::TexelMax))
-        .then(|| texel_diag_vec(problem, beta, data.range.clone(), &data.alpha));
+        .then(|| texel_diag_vec(problem, beta, data.rows(), &data.alpha));
     let mu = match mu {
         Some(m) => m,
         None => smoothness_weights(problem, beta, &data, &sys, tdiag.as_deref(), opts),
@@ -147,20 +278,26 @@ pub fn lighting_step_full(
     let jacobi = jacobi_scaling(tdiag.as_deref(), &lap, mu, n2);
     let mut x = start_texels(start, n2)?;
     let mut omega = vec![[1.0_f64; 3]; data.range.len()];
-    let passes = if opts.robust == Robust::None {
+    let mut passes = if opts.robust == Robust::None {
         1
     } else {
         opts.irls_iters.max(1)
     };
+    // The light prior is linearised at the current iterate: from zero, a second pass.
+    let prior_proj = opts.light_prior.as_ref().map(|_| ShProjection::new(n, 4));
+    if prior_proj.is_some() && x.iter().all(|v| *v == 0.0) {
+        passes = passes.max(2);
+    }
+    let y_ms = data.mean_square();
     let mut stats = QpStats::new();
     for pass in 0..passes {
         // Reweight from the current residuals (the first pass: unit weights, a restart).
         if pass > 0 {
-            reweight(&sys, &x, &data, opts, &mut omega);
+            reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
-        for q in 0..data.range.len() {
+        for (r, &q) in data.pos.iter().enumerate() {
             for c in 0..3 {
-                sys.dw[q][c] = data.alpha[q] * omega[q][c];
+                sys.dw[r][c] = data.alpha[r] * omega[q][c];
             }
         }
         let system = PassSystem {
@@ -168,6 +305,8 @@ pub fn lighting_step_full(
             lap: &lap,
             mu,
             jacobi: jacobi.as_deref(),
+            prior: opts.light_prior.as_ref().zip(prior_proj.as_ref()),
+            y_ms,
         };
         match solve_pass(&system, &data, &x, opts, photo)? {
             // No light reaches any weighted observation: the minimiser is x = 0.
@@ -201,7 +340,6 @@ fn smoothness_weights(
     tdiag: Option<&[[f64; 3]]>,
     opts: &EstimateOptions,
 ) -> [f64; 3] {
-    let range = data.range.clone();
     match opts.smoothness_scale {
         SmoothnessScale::HaarMax => sys.max_diag(),
         SmoothnessScale::TexelMax => match tdiag {
@@ -211,9 +349,9 @@ fn smoothness_weights(
                 }
                 m
             }),
-            None => texel_diag(problem, beta, range, &data.alpha).0,
+            None => texel_diag(problem, beta, data.rows(), &data.alpha).0,
         },
-        SmoothnessScale::Mean => texel_diag(problem, beta, range, &data.alpha).1,
+        SmoothnessScale::Mean => texel_diag(problem, beta, data.rows(), &data.alpha).1,
     }
     .map(|d| opts.smoothness * d)
 }
@@ -256,9 +394,11 @@ fn start_texels(start: Option<&[Vec<f64>; 3]>, n2: usize) -> Result<Vec<f64>> {
     Ok(x)
 }
 
-/// IRLS: `ω` from the residuals of `x`, per channel scaled by
-/// `σ = max(1.4826 · MAD, robust_floor · rms(y))` (module docs).
+/// IRLS: `ω` of every observation of the photo from the residuals of `x`, per channel
+/// scaled by `σ = max(1.4826 · MAD, robust_floor · rms(y))` (module docs).
 fn reweight(
+    problem: &Problem,
+    beta: &[[f64; 3]],
     sys: &PhotoSystem,
     x: &[f64],
     data: &PhotoData,
@@ -266,10 +406,15 @@ fn reweight(
     omega: &mut [[f64; 3]],
 ) {
     let (n, len) = (sys.n, data.range.len());
-    let (alpha, y) = (&data.alpha, &data.y);
-    let mut pred = vec![[0.0; 3]; len];
+    let (alpha, y) = (&data.alpha_all, &data.y_all);
     let h = haar3(&split3(x, n * n), n);
-    sys.forward_rows(&h, &mut pred);
+    let pred = if data.sampled {
+        forward_full(problem, beta, data.range.clone(), &h)
+    } else {
+        let mut pred = vec![[0.0; 3]; len];
+        sys.forward_rows(&h, &mut pred);
+        pred
+    };
     for c in 0..3 {
         let mut ab: Vec<f64> = (0..len)
             .filter(|&q| alpha[q] > 0.0)
@@ -300,13 +445,17 @@ fn reweight(
     }
 }
 
-/// The quadratic of one IRLS pass: the photo's system with its current weights, the prior
-/// and the scaling.
+/// The quadratic of one IRLS pass: the photo's system with its current weights, the
+/// Laplacian prior, the optional light prior and the scaling.
 struct PassSystem<'a> {
     sys: &'a PhotoSystem,
     lap: &'a Laplacian,
     mu: [f64; 3],
     jacobi: Option<&'a [f64]>,
+    /// The light prior's options and projection, when on.
+    prior: Option<(&'a LightPriorOptions, &'a ShProjection)>,
+    /// The rows' mean square radiance (the prior's scale).
+    y_ms: f64,
 }
 
 /// One pass's QP from `x`; `None` when no light reaches a weighted observation (the
@@ -317,11 +466,11 @@ fn solve_pass(
     x: &[f64],
     opts: &EstimateOptions,
     photo: usize,
-) -> Result<Option<crate::solve::qp::QpResult>> {
+) -> Result<Option<QpResult>> {
     let (sys, n) = (p.sys, p.sys.n);
     let n2 = n * n;
     // Right-hand side Wᵀ Aᵀ D y.
-    let u: Vec<[f64; 3]> = (0..data.range.len())
+    let u: Vec<[f64; 3]> = (0..data.pos.len())
         .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * data.y[q][c]))
         .collect();
     let mut hb = vec![[0.0; 3]; n2];
@@ -331,12 +480,26 @@ fn solve_pass(
     if bmax == 0.0 {
         return Ok(None);
     }
+    let prior = p
+        .prior
+        .and_then(|(lp, pp)| lp.pass(photo, pp, x, n, p.y_ms));
+    let jac_pass: Option<Vec<f64>> = match (p.jacobi, &prior) {
+        (Some(j), Some(pr)) => Some(j.iter().zip(pr.diagonal()).map(|(a, b)| a + b).collect()),
+        (j, _) => j.map(<[f64]>::to_vec),
+    };
+    let prior_ref = prior.as_ref();
     let hess = |v: &[f64], out: &mut [f64]| {
         let h = haar3(&split3(v, n2), n);
         let mut hb = vec![[0.0; 3]; n2];
         sys.normal_rows(&h, &mut hb);
+        if let Some(pr) = prior_ref {
+            pr.add_haar(&h, &mut hb);
+        }
         let r = unhaar3(&hb, n);
         out.copy_from_slice(&r);
+        if let Some(pr) = prior_ref {
+            pr.add_texel(v, out);
+        }
         for c in 0..3 {
             p.lap.add_normal(
                 &v[c * n2..(c + 1) * n2],
@@ -350,10 +513,11 @@ fn solve_pass(
         max_iter: opts.qp_max_iter,
         max_cg: opts.qp_max_cg.max(1),
     };
-    let res = bound_qp_scaled(hess, &b, x, &qp, p.jacobi).map_err(|e| Error::Numeric {
-        stage: format!("lighting step, photo {photo}"),
-        message: e.to_string(),
-    })?;
+    let res =
+        bound_qp_scaled(hess, &b, x, &qp, jac_pass.as_deref()).map_err(|e| Error::Numeric {
+            stage: format!("lighting step, photo {photo}"),
+            message: e.to_string(),
+        })?;
     Ok(Some(res))
 }
 

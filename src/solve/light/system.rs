@@ -23,6 +23,7 @@ use crate::transport::HaarIndex;
 /// precision the transport values are stored in); forward and adjoint products read the
 /// same stored values, so the Hessian stays exactly symmetric.
 pub(crate) struct PhotoSystem {
+    /// `0..rows`: the system's rows (the photo's observations, or its lighting sample).
     pub(crate) range: std::ops::Range<usize>,
     pub(crate) n: usize,
     /// `α_p ω_{p,c}` for the range's observations.
@@ -95,7 +96,7 @@ impl PhotoSystem {
     pub(crate) fn new(
         problem: &Problem,
         beta: &[[f64; 3]],
-        range: std::ops::Range<usize>,
+        rows: impl IntoIterator<Item = usize>,
         n: usize,
         dw: Vec<[f64; 3]>,
     ) -> Self {
@@ -105,11 +106,11 @@ impl PhotoSystem {
         let mut dense = vec![[0.0_f64; 3]; n2];
         let mut seen = vec![false; n2];
         let mut touched: Vec<HaarIndex> = Vec::new();
-        let mut offsets = Vec::with_capacity(range.len() + 1);
+        let mut offsets = Vec::with_capacity(dw.len() + 1);
         offsets.push(0);
         let mut index = Vec::new();
         let mut value = Vec::new();
-        for p in range.clone() {
+        for p in rows {
             let x = problem.obs.vertex[p] as usize;
             for b in 0..nb {
                 let be = beta[x * nb + b];
@@ -146,7 +147,7 @@ impl PhotoSystem {
         }
         let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
         PhotoSystem {
-            range,
+            range: 0..offsets.len() - 1,
             n,
             dw,
             offsets,
@@ -243,7 +244,7 @@ impl PhotoSystem {
 pub(crate) fn texel_diag(
     problem: &Problem,
     beta: &[[f64; 3]],
-    range: std::ops::Range<usize>,
+    range: impl IntoIterator<Item = usize>,
     alpha: &[f64],
 ) -> ([f64; 3], [f64; 3]) {
     let diag = texel_diag_vec(problem, beta, range, alpha);
@@ -262,7 +263,7 @@ pub(crate) fn texel_diag(
 pub(crate) fn texel_diag_vec(
     problem: &Problem,
     beta: &[[f64; 3]],
-    range: std::ops::Range<usize>,
+    range: impl IntoIterator<Item = usize>,
     alpha: &[f64],
 ) -> Vec<[f64; 3]> {
     let t = problem.transport;
@@ -271,7 +272,7 @@ pub(crate) fn texel_diag_vec(
     let mut diag = vec![[0.0_f64; 3]; n2];
     let mut dense = [vec![0.0_f64; n2], vec![0.0; n2], vec![0.0; n2]];
     let mut scratch = Vec::new();
-    for (q, p) in range.enumerate() {
+    for (q, p) in range.into_iter().enumerate() {
         let a = alpha[q];
         if a <= 0.0 {
             continue;

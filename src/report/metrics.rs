@@ -1,0 +1,589 @@
+//! Image metrics of the inverse-rendering literature, so held-out figures compare with
+//! published work: PSNR-H, PSNR-L and SSIM as the Stanford-ORB benchmark defines them
+//! (Kuang et al., NeurIPS 2023 Datasets and Benchmarks; its evaluation code
+//! `orb/utils/metrics.py` and `orb/utils/test.py`), over the object's pixels.
+//!
+//! Given the photo `y` (ground truth, linear RGB) and a prediction `ŷ` over the mask `M`
+//! (object pixels that count):
+//! - **per-channel scale** (the scale of an inverse-rendering result is unknowable):
+//!   `s_c = Σ_M y_c ŷ_c / Σ_M ŷ_c²`, and `ŷ'_c = s_c ŷ_c`; a channel predicted black on the
+//!   whole mask keeps `s_c = 1`;
+//! - **PSNR-H** (linear HDR): both images multiplied by Stanford-ORB's brightness factor
+//!   `k = Σ_M srgb(clip(y, 0, 1)) / Σ_M clip(y, 0, 1)` (its `use_gt_median`: linear
+//!   images are dark, `k` brings their mean to the sRGB image's), clipped to `[0, 4]`;
+//!   `PSNR = −10 log₁₀ MSE` with the MSE over the mask's pixels and channels (peak 1);
+//! - **PSNR-L** (LDR): `ŷ'` and `y` clipped to `[0, 1]` and sRGB-encoded (IEC 61966-2-1),
+//!   then the same PSNR;
+//! - **SSIM** (Wang et al., IEEE TIP 2004) on the sRGB images of PSNR-L: per channel,
+//!   local statistics under an 11 × 11 Gaussian window (σ = 1.5, taps `exp(−i²/2σ²)`,
+//!   `|i| ≤ 5`, normalised), `K1 = 0.01`, `K2 = 0.03`, dynamic range 1, population
+//!   (not sample) covariances:
+//!   `S = (2μ_yμ_ŷ + C1)(2σ_yŷ + C2) / ((μ_y² + μ_ŷ² + C1)(σ_y² + σ_ŷ² + C2))`,
+//!   `C1 = K1²`, `C2 = K2²`; image borders mirrored half-sample (`d c b a | a b c d`). This is
+//!   scikit-image's `structural_similarity(gaussian_weights=True, sigma=1.5,
+//!   use_sample_covariance=False, data_range=1)` map (checked against it:
+//!   `scripts/ssim_reference.py`).
+//!
+//! **Restriction to the object.** As Stanford-ORB does, both images are set to 0 outside
+//! the mask before SSIM, so windows that straddle the silhouette see the same background
+//! in both. The SSIM map is then averaged over the mask's pixels only (a background pixel
+//! would score a perfect 1 and reward small objects). The map is evaluated on the mask's
+//! bounding box grown by the window radius (5 pixels, clamped to the image): every window
+//! centred on a mask pixel lies inside it, so the crop changes no value, it only saves work.
+//!
+//! **Where this differs from Stanford-ORB's code.** (1) Its MSEs are means over the whole
+//! 512 × 512 frame with the background zeroed (`divide_mask=False`), so they depend on how
+//! much of the frame the object fills; here the MSE is over the object's pixels, which gives
+//! a PSNR lower by `10 log₁₀(frame pixels / object pixels)` than theirs on the same images.
+//! (2) Its SSIM is kornia's with a 3 × 3 window, averaged over the whole frame; here the
+//! standard 11 × 11 Gaussian window, averaged over the object. (3) It erodes the mask by a
+//! 5 × 5 box and floors each PSNR at that of a constant 0.5 prediction; neither is done here
+//! (the mask already leaves out overexposed pixels).
+
+use crate::import::photo::linear_to_srgb;
+use serde::Serialize;
+
+/// SSIM's `K1`.
+pub const SSIM_K1: f64 = 0.01;
+/// SSIM's `K2`.
+pub const SSIM_K2: f64 = 0.03;
+/// SSIM's Gaussian window σ in pixels.
+pub const SSIM_SIGMA: f64 = 1.5;
+/// SSIM's window radius: 11 × 11 taps.
+pub const SSIM_RADIUS: usize = 5;
+/// PSNR-H's clipping value (Stanford-ORB's `max_value` for HDR).
+pub const PSNR_H_CLIP: f64 = 4.0;
+
+/// The literature metrics of one prediction against its photo.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct ImageMetrics {
+    /// PSNR in dB of the linear images (brightness factor applied, clipped at 4).
+    pub psnr_h: f64,
+    /// PSNR in dB of the sRGB images (clipped to [0, 1]).
+    pub psnr_l: f64,
+    /// Mean SSIM of the sRGB images over the mask (mean of the three channels).
+    pub ssim: f64,
+    /// The per-channel scale `s_c` applied to the prediction.
+    pub scale: [f64; 3],
+    /// Pixels in the mask.
+    pub pixels: usize,
+}
+
+/// Per-channel least-squares scale `s_c = Σ y_c ŷ_c / Σ ŷ_c²` over `mask` (1 for a channel
+/// predicted black everywhere on it).
+pub fn channel_scales(gt: &[[f32; 3]], pred: &[[f32; 3]], mask: &[bool]) -> [f64; 3] {
+    let mut num = [0.0f64; 3];
+    let mut den = [0.0f64; 3];
+    for ((y, p), _) in gt.iter().zip(pred).zip(mask).filter(|(_, &m)| m) {
+        for c in 0..3 {
+            num[c] += y[c] as f64 * p[c] as f64;
+            den[c] += p[c] as f64 * p[c] as f64;
+        }
+    }
+    [0, 1, 2].map(|c| if den[c] > 0.0 { num[c] / den[c] } else { 1.0 })
+}
+
+/// PSNR in dB of a mean squared error against a peak of 1 (`+∞` for 0, NaN for NaN).
+pub fn psnr_from_mse(mse: f64) -> f64 {
+    if mse > 0.0 {
+        -10.0 * mse.log10()
+    } else if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        f64::NAN
+    }
+}
+
+/// Stanford-ORB's brightness factor `k = Σ srgb(clip(y, 0, 1)) / Σ clip(y, 0, 1)` over
+/// `mask` (1 when the photo is black there).
+pub fn gt_brightness_factor(gt: &[[f32; 3]], mask: &[bool]) -> f64 {
+    let (mut enc, mut lin) = (0.0f64, 0.0f64);
+    for (y, _) in gt.iter().zip(mask).filter(|(_, &m)| m) {
+        for &v in y {
+            let v = v.clamp(0.0, 1.0);
+            lin += v as f64;
+            enc += linear_to_srgb(v) as f64;
+        }
+    }
+    if lin > 1e-8 {
+        enc / lin
+    } else {
+        1.0
+    }
+}
+
+/// PSNR-H of `pred` already scaled per channel (module docs).
+pub fn psnr_h(gt: &[[f32; 3]], pred_scaled: &[[f32; 3]], mask: &[bool]) -> f64 {
+    let k = gt_brightness_factor(gt, mask);
+    let clip = |v: f64| (k * v).clamp(0.0, PSNR_H_CLIP);
+    let (mut se, mut n) = (0.0f64, 0usize);
+    for ((y, p), _) in gt.iter().zip(pred_scaled).zip(mask).filter(|(_, &m)| m) {
+        for c in 0..3 {
+            se += (clip(y[c] as f64) - clip(p[c] as f64)).powi(2);
+        }
+        n += 3;
+    }
+    psnr_from_mse(if n == 0 { f64::NAN } else { se / n as f64 })
+}
+
+/// sRGB encoding of a linear value clipped to `[0, 1]` (non-finite → 0).
+pub fn srgb(v: f32) -> f64 {
+    linear_to_srgb(if v.is_finite() { v } else { 0.0 }) as f64
+}
+
+/// PSNR-L of `pred` already scaled per channel (module docs).
+pub fn psnr_l(gt: &[[f32; 3]], pred_scaled: &[[f32; 3]], mask: &[bool]) -> f64 {
+    let (mut se, mut n) = (0.0f64, 0usize);
+    for ((y, p), _) in gt.iter().zip(pred_scaled).zip(mask).filter(|(_, &m)| m) {
+        for c in 0..3 {
+            se += (srgb(y[c]) - srgb(p[c])).powi(2);
+        }
+        n += 3;
+    }
+    psnr_from_mse(if n == 0 { f64::NAN } else { se / n as f64 })
+}
+
+/// The normalised 11-tap Gaussian of SSIM (σ = 1.5).
+pub fn ssim_kernel() -> [f64; 2 * SSIM_RADIUS + 1] {
+    let mut k = [0.0; 2 * SSIM_RADIUS + 1];
+    for (i, w) in k.iter_mut().enumerate() {
+        let d = i as f64 - SSIM_RADIUS as f64;
+        *w = (-d * d / (2.0 * SSIM_SIGMA * SSIM_SIGMA)).exp();
+    }
+    let s: f64 = k.iter().sum();
+    k.iter_mut().for_each(|w| *w /= s);
+    k
+}
+
+/// Half-sample mirror of index `i` into `0..n` (`d c b a | a b c d | d c b a`).
+fn mirror(i: isize, n: usize) -> usize {
+    let n = n as isize;
+    let period = 2 * n;
+    let mut j = i.rem_euclid(period);
+    if j >= n {
+        j = period - 1 - j;
+    }
+    j as usize
+}
+
+/// Separable Gaussian filter of a `width × height` single-channel image, mirrored borders.
+fn gaussian_filter(img: &[f64], width: usize, height: usize) -> Vec<f64> {
+    let k = ssim_kernel();
+    let r = SSIM_RADIUS as isize;
+    let mut rows = vec![0.0; img.len()];
+    for y in 0..height {
+        for x in 0..width {
+            rows[y * width + x] = (-r..=r)
+                .map(|d| k[(d + r) as usize] * img[y * width + mirror(x as isize + d, width)])
+                .sum();
+        }
+    }
+    let mut out = vec![0.0; img.len()];
+    for y in 0..height {
+        for x in 0..width {
+            out[y * width + x] = (-r..=r)
+                .map(|d| k[(d + r) as usize] * rows[mirror(y as isize + d, height) * width + x])
+                .sum();
+        }
+    }
+    out
+}
+
+/// The SSIM map of two single-channel `width × height` images on a dynamic range of 1
+/// (module docs: scikit-image's Gaussian-weighted map).
+pub fn ssim_map(a: &[f64], b: &[f64], width: usize, height: usize) -> Vec<f64> {
+    let (c1, c2) = (SSIM_K1 * SSIM_K1, SSIM_K2 * SSIM_K2);
+    let prod = |f: &dyn Fn(f64, f64) -> f64| -> Vec<f64> {
+        a.iter().zip(b).map(|(&x, &y)| f(x, y)).collect()
+    };
+    let mu_a = gaussian_filter(a, width, height);
+    let mu_b = gaussian_filter(b, width, height);
+    let aa = gaussian_filter(&prod(&|x, _| x * x), width, height);
+    let bb = gaussian_filter(&prod(&|_, y| y * y), width, height);
+    let ab = gaussian_filter(&prod(&|x, y| x * y), width, height);
+    (0..a.len())
+        .map(|i| {
+            let (ma, mb) = (mu_a[i], mu_b[i]);
+            let va = aa[i] - ma * ma;
+            let vb = bb[i] - mb * mb;
+            let cov = ab[i] - ma * mb;
+            ((2.0 * ma * mb + c1) * (2.0 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2))
+        })
+        .collect()
+}
+
+/// Inclusive pixel bounds `(x0, y0, x1, y1)` of `mask`, or `None` when it is empty.
+fn mask_bounds(mask: &[bool], width: usize) -> Option<(usize, usize, usize, usize)> {
+    let mut b: Option<(usize, usize, usize, usize)> = None;
+    for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+        let (x, y) = (i % width, i / width);
+        b = Some(match b {
+            None => (x, y, x, y),
+            Some((x0, y0, x1, y1)) => (x0.min(x), y0.min(y), x1.max(x), y1.max(y)),
+        });
+    }
+    b
+}
+
+/// Mean SSIM over `mask` of two sRGB images (`width × height`, channels averaged), both
+/// set to 0 outside the mask (module docs: restriction to the object). NaN for an empty
+/// mask.
+pub fn ssim_masked(
+    gt: &[[f64; 3]],
+    pred: &[[f64; 3]],
+    width: usize,
+    height: usize,
+    mask: &[bool],
+) -> f64 {
+    let Some((x0, y0, x1, y1)) = mask_bounds(mask, width) else {
+        return f64::NAN;
+    };
+    let x0 = x0.saturating_sub(SSIM_RADIUS);
+    let y0 = y0.saturating_sub(SSIM_RADIUS);
+    let x1 = (x1 + SSIM_RADIUS).min(width - 1);
+    let y1 = (y1 + SSIM_RADIUS).min(height - 1);
+    let (cw, ch) = (x1 - x0 + 1, y1 - y0 + 1);
+    let index = |cx: usize, cy: usize| (y0 + cy) * width + x0 + cx;
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for c in 0..3 {
+        let crop = |img: &[[f64; 3]]| -> Vec<f64> {
+            (0..cw * ch)
+                .map(|j| {
+                    let i = index(j % cw, j / cw);
+                    if mask[i] {
+                        img[i][c]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        };
+        let map = ssim_map(&crop(gt), &crop(pred), cw, ch);
+        for (j, s) in map.iter().enumerate() {
+            if mask[index(j % cw, j / cw)] {
+                sum += s;
+                n += 1;
+            }
+        }
+    }
+    sum / n as f64
+}
+
+/// PSNR-H, PSNR-L and SSIM of `pred` against the photo `gt` (linear RGB, `width × height`)
+/// over `mask`, after the per-channel scale (module docs).
+pub fn image_metrics(
+    gt: &[[f32; 3]],
+    pred: &[[f32; 3]],
+    width: usize,
+    height: usize,
+    mask: &[bool],
+) -> ImageMetrics {
+    let scale = channel_scales(gt, pred, mask);
+    let scaled: Vec<[f32; 3]> = pred
+        .iter()
+        .map(|p| [0, 1, 2].map(|c| (p[c] as f64 * scale[c]) as f32))
+        .collect();
+    let encode = |img: &[[f32; 3]]| -> Vec<[f64; 3]> { img.iter().map(|p| p.map(srgb)).collect() };
+    ImageMetrics {
+        psnr_h: psnr_h(gt, &scaled, mask),
+        psnr_l: psnr_l(gt, &scaled, mask),
+        ssim: ssim_masked(&encode(gt), &encode(&scaled), width, height, mask),
+        scale,
+        pixels: mask.iter().filter(|&&m| m).count(),
+    }
+}
+
+/// One held-out photo's literature metrics under one protocol (`report.json` key
+/// `metrics`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MetricsEntry {
+    /// Image name as in `images.txt`.
+    pub image: String,
+    /// The protocol of the prediction (`truth`, `half`, `baseline`, `mean`), on the same
+    /// pixels as its `holdout` entry.
+    pub protocol: String,
+    /// The figures.
+    #[serde(flatten)]
+    pub metrics: ImageMetrics,
+}
+
+/// The headline figure: the method's held-out error over the naive baseline's, protocol
+/// `half` against `baseline` on the same photos and pixels ([`crate::run`]'s baseline).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Headline {
+    /// `method_rmse / baseline_rmse`.
+    pub ratio: f64,
+    /// Mean over the photos of protocol `half`'s RMSE after the best global scale.
+    pub method_rmse: f64,
+    /// The same mean for protocol `baseline`.
+    pub baseline_rmse: f64,
+    /// Held-out photos scored under both.
+    pub photos: usize,
+}
+
+impl Headline {
+    /// From `(half, baseline)` RMSE pairs, one per photo (non-finite pairs left out);
+    /// `None` when no pair remains or the baseline's mean is 0.
+    pub fn from_pairs(pairs: &[(f64, f64)]) -> Option<Headline> {
+        let ok: Vec<_> = pairs
+            .iter()
+            .filter(|(a, b)| a.is_finite() && b.is_finite())
+            .collect();
+        let n = ok.len();
+        let method_rmse = ok.iter().map(|p| p.0).sum::<f64>() / n as f64;
+        let baseline_rmse = ok.iter().map(|p| p.1).sum::<f64>() / n as f64;
+        (n > 0 && baseline_rmse > 0.0).then(|| Headline {
+            ratio: method_rmse / baseline_rmse,
+            method_rmse,
+            baseline_rmse,
+            photos: n,
+        })
+    }
+}
+
+/// A training photo rendered from the fit under the true light it was taken in
+/// (synthetic workspaces: `report.json` key `truth_check`).
+#[derive(Debug, Clone, Serialize)]
+pub struct TruthCheckEntry {
+    /// Image name.
+    pub image: String,
+    /// RMSE (linear RGB) after the per-channel scale, under the photo's true light.
+    pub rmse_true_light: f64,
+    /// `rmse_true_light` over the photo's RMS on the same pixels.
+    pub relative_true_light: f64,
+    /// The per-channel scale under the true light.
+    pub scale_true_light: [f64; 3],
+    /// The same figures for the photo's fitted light (same renderer, same pixels).
+    pub rmse_fitted_light: f64,
+    /// `rmse_fitted_light` over the photo's RMS.
+    pub relative_fitted_light: f64,
+    /// Pixels compared.
+    pub pixels: usize,
+}
+
+/// RMSE over `mask`'s pixels and channels of `gt − s ⊙ pred` with the per-channel scale
+/// `s` of [`channel_scales`], and the RMS of `gt` there: `(rmse, rms, s)`.
+pub fn rmse_after_channel_scale(
+    gt: &[[f32; 3]],
+    pred: &[[f32; 3]],
+    mask: &[bool],
+) -> (f64, f64, [f64; 3]) {
+    let s = channel_scales(gt, pred, mask);
+    let (mut se, mut yy, mut n) = (0.0f64, 0.0f64, 0usize);
+    for ((y, p), _) in gt.iter().zip(pred).zip(mask).filter(|(_, &m)| m) {
+        for c in 0..3 {
+            se += (y[c] as f64 - s[c] * p[c] as f64).powi(2);
+            yy += (y[c] as f64).powi(2);
+        }
+        n += 3;
+    }
+    if n == 0 {
+        return (f64::NAN, f64::NAN, s);
+    }
+    ((se / n as f64).sqrt(), (yy / n as f64).sqrt(), s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn json_f64s(v: &serde_json::Value) -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn psnr_of_a_known_mse() {
+        // Values in sRGB's linear segment (≤ 0.0031308 encodes as 12.92 v): the pair
+        // y = (a + e, a − e) against ŷ = (a, a) has s_c = Σyŷ/Σŷ² = 1 exactly, so both
+        // MSEs are (12.92 e)² (PSNR-H: the brightness factor is 12.92 too) and
+        // PSNR = −20 log₁₀(12.92 e). f32 inputs: 1e-4 dB.
+        let (a, e) = (0.002f32, 0.001f32);
+        let gt = vec![[a + e; 3], [a - e; 3]];
+        let pred = vec![[a; 3]; 2];
+        let mask = vec![true; 2];
+        let m = image_metrics(&gt, &pred, 2, 1, &mask);
+        let want = -20.0 * (12.92 * e as f64).log10();
+        for s in m.scale {
+            assert!((s - 1.0).abs() < 1e-6, "{m:?}");
+        }
+        assert!((m.psnr_l - want).abs() < 1e-4, "{} vs {want}", m.psnr_l);
+        assert!((m.psnr_h - want).abs() < 1e-4, "{} vs {want}", m.psnr_h);
+        // PSNR-H clips at 4: a photo of 1 (brightness factor 1) against 6 is an error of 3
+        // (not 5): −10 log₁₀ 9. The factor is srgb(1) = 1.055 − 0.055 in f32, 1 to
+        // ~1e-7, which moves the PSNR by ~1e-6 dB: 1e-5.
+        let h = psnr_h(&[[1.0; 3]], &[[6.0; 3]], &[true]);
+        assert!((h + 10.0 * 9f64.log10()).abs() < 1e-5, "{h}");
+        // PSNR-L clips at 1: 1 against 6 is no error at all.
+        assert_eq!(psnr_l(&[[1.0; 3]], &[[6.0; 3]], &[true]), f64::INFINITY);
+        assert!((psnr_from_mse(0.01) - 20.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn per_channel_scale_removes_a_colour_cast() {
+        // ŷ = y / (2, 3, 4): the scales are exactly (2, 3, 4) and the scaled prediction is
+        // the photo (PSNR +∞, SSIM 1). Pixels off the mask are ignored however wrong.
+        let gt: Vec<[f32; 3]> = (0..64)
+            .map(|i| [0.1 + 0.01 * i as f32, 0.5, 0.9 - 0.01 * i as f32])
+            .collect();
+        let mut pred: Vec<[f32; 3]> = gt
+            .iter()
+            .map(|p| [p[0] / 2.0, p[1] / 3.0, p[2] / 4.0])
+            .collect();
+        let mut mask = vec![true; 64];
+        pred[5] = [9.0; 3];
+        mask[5] = false;
+        let m = image_metrics(&gt, &pred, 8, 8, &mask);
+        for (s, want) in m.scale.iter().zip([2.0, 3.0, 4.0]) {
+            assert!((s - want).abs() < 1e-5, "{m:?}");
+        }
+        // f32 rounding of ŷ·s leaves ~1e-8 errors: PSNR above 100 dB.
+        assert!(m.psnr_h > 100.0 && m.psnr_l > 100.0, "{m:?}");
+        assert!((m.ssim - 1.0).abs() < 1e-9, "{m:?}");
+        assert_eq!(m.pixels, 63);
+    }
+
+    #[test]
+    fn ssim_of_identical_images_is_one_and_of_an_offset_matches_the_closed_form() {
+        let (w, h) = (17, 13);
+        let img: Vec<[f64; 3]> = (0..w * h)
+            .map(|i| [0, 1, 2].map(|c| ((i * 7 + c * 5) % 11) as f64 / 10.0))
+            .collect();
+        let mask: Vec<bool> = (0..w * h).map(|i| (i % w) > 3 && (i / w) > 2).collect();
+        assert!((ssim_masked(&img, &img, w, h, &mask) - 1.0).abs() < 1e-12);
+        // Constant images c and c + d: every local mean is the constant and every variance
+        // and covariance 0, so S = (2c(c + d) + C1) / (c² + (c + d)² + C1) at every pixel.
+        let (c, d) = (0.4, 0.15);
+        let a = vec![c; w * h];
+        let b = vec![c + d; w * h];
+        let c1 = SSIM_K1 * SSIM_K1;
+        let want = (2.0 * c * (c + d) + c1) / (c * c + (c + d) * (c + d) + c1);
+        for s in ssim_map(&a, &b, w, h) {
+            // Filter sums of 121 weights: 1e-12.
+            assert!((s - want).abs() < 1e-12, "{s} vs {want}");
+        }
+        let (ai, bi): (Vec<[f64; 3]>, Vec<[f64; 3]>) =
+            (vec![[c; 3]; w * h], vec![[c + d; 3]; w * h]);
+        let all = vec![true; w * h];
+        assert!((ssim_masked(&ai, &bi, w, h, &all) - want).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ssim_matches_scikit_image() {
+        // Reference values and the script that made them: scripts/ssim_reference.py.
+        // Both sides are float64 over the same inputs; only the summation order of the
+        // 11-tap filters differs, so 1e-9 is rounding with a wide margin.
+        let r: serde_json::Value = serde_json::from_str(include_str!(
+            "../../tests/fixtures/metrics/ssim_reference.json"
+        ))
+        .unwrap();
+        let g = &r["grey"];
+        let (w, h) = (
+            g["width"].as_u64().unwrap() as usize,
+            g["height"].as_u64().unwrap() as usize,
+        );
+        let map = ssim_map(&json_f64s(&g["a"]), &json_f64s(&g["b"]), w, h);
+        let want = json_f64s(&g["map"]);
+        assert_eq!(map.len(), want.len());
+        for (i, (s, t)) in map.iter().zip(&want).enumerate() {
+            assert!((s - t).abs() < 1e-9, "pixel {i}: {s} vs scikit-image {t}");
+        }
+        // scikit-image's mean leaves out a 5-pixel border.
+        let interior = |w: usize, h: usize| -> Vec<bool> {
+            (0..w * h)
+                .map(|i| (5..w - 5).contains(&(i % w)) && (5..h - 5).contains(&(i / w)))
+                .collect()
+        };
+        let inside = interior(w, h);
+        let mean: f64 = map
+            .iter()
+            .zip(&inside)
+            .filter(|(_, &m)| m)
+            .map(|(s, _)| s)
+            .sum::<f64>()
+            / inside.iter().filter(|&&m| m).count() as f64;
+        assert!((mean - g["mean"].as_f64().unwrap()).abs() < 1e-9);
+
+        // RGB: the mean of the three channels' means.
+        let c = &r["rgb"];
+        let (w, h) = (
+            c["width"].as_u64().unwrap() as usize,
+            c["height"].as_u64().unwrap() as usize,
+        );
+        let (a, b) = (json_f64s(&c["a"]), json_f64s(&c["b"]));
+        let inside = interior(w, h);
+        let mut total = 0.0;
+        for ch in 0..3 {
+            let pick = |v: &[f64]| -> Vec<f64> { v.iter().skip(ch).step_by(3).copied().collect() };
+            let map = ssim_map(&pick(&a), &pick(&b), w, h);
+            let s: f64 = map
+                .iter()
+                .zip(&inside)
+                .filter(|(_, &m)| m)
+                .map(|(s, _)| s)
+                .sum();
+            total += s / inside.iter().filter(|&&m| m).count() as f64;
+        }
+        assert!((total / 3.0 - c["mean"].as_f64().unwrap()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn ssim_on_the_bounding_box_equals_the_full_image_map_over_the_mask() {
+        // The crop is an optimisation only: the full-image map of the zero-outside-mask
+        // images, averaged over the mask, is the same number (to rounding, 1e-12).
+        let (w, h) = (40, 30);
+        let a: Vec<[f64; 3]> = (0..w * h)
+            .map(|i| [0, 1, 2].map(|c| ((i * 13 + c * 7) % 17) as f64 / 16.0))
+            .collect();
+        let b: Vec<[f64; 3]> = a
+            .iter()
+            .map(|p| p.map(|v| (0.7 * v + 0.2).min(1.0)))
+            .collect();
+        let mask: Vec<bool> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                (x - 22.0).powi(2) + (y - 14.0).powi(2) < 64.0
+            })
+            .collect();
+        let got = ssim_masked(&a, &b, w, h, &mask);
+        let mut sum = 0.0;
+        for c in 0..3 {
+            let zero = |img: &[[f64; 3]]| -> Vec<f64> {
+                img.iter()
+                    .zip(&mask)
+                    .map(|(p, &m)| if m { p[c] } else { 0.0 })
+                    .collect()
+            };
+            let map = ssim_map(&zero(&a), &zero(&b), w, h);
+            sum += map
+                .iter()
+                .zip(&mask)
+                .filter(|(_, &m)| m)
+                .map(|(s, _)| s)
+                .sum::<f64>();
+        }
+        let want = sum / (3 * mask.iter().filter(|&&m| m).count()) as f64;
+        assert!((got - want).abs() < 1e-12, "{got} vs {want}");
+        assert!(got < 0.99, "a real difference scores below 1: {got}");
+        assert!(ssim_masked(&a, &b, w, h, &vec![false; w * h]).is_nan());
+    }
+
+    #[test]
+    fn rmse_after_channel_scale_and_headline_by_hand() {
+        // y = (1, 3) in every channel, ŷ = (1, 1): s = 4/2 = 2, residuals (−1, 1), RMSE 1;
+        // RMS of y = √5.
+        let gt = vec![[1.0f32; 3], [3.0; 3]];
+        let pred = vec![[1.0f32; 3]; 2];
+        let (rmse, rms, s) = rmse_after_channel_scale(&gt, &pred, &[true, true]);
+        assert!((rmse - 1.0).abs() < 1e-12 && (rms - 5f64.sqrt()).abs() < 1e-12);
+        assert_eq!(s, [2.0; 3]);
+        let h = Headline::from_pairs(&[(0.1, 0.2), (0.3, 0.2), (f64::NAN, 1.0)]).unwrap();
+        assert_eq!(h.photos, 2);
+        assert!((h.ratio - 1.0).abs() < 1e-12 && (h.method_rmse - 0.2).abs() < 1e-12);
+        assert!(Headline::from_pairs(&[]).is_none());
+    }
+}
