@@ -1,0 +1,236 @@
+//! The flags of `relight-cpc run` ([`RunArgs`]) and their translation into the library's
+//! checked [`relight_cpc::run::RunOptions`].
+
+/// Flags of `run` (the README explains each default), grouped under headings in `--help`.
+#[derive(clap::Args)]
+pub(crate) struct RunArgs {
+    /// The COLMAP workspace folder (default: the built-in example).
+    #[arg(help_heading = "Input")]
+    pub(crate) workspace: Option<std::path::PathBuf>,
+    /// Use this mesh (PLY) instead of the one found in the workspace.
+    #[arg(long, help_heading = "Input")]
+    pub(crate) mesh: Option<std::path::PathBuf>,
+    /// World up as X,Y,Z (default: estimated from the cameras).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        help_heading = "Input"
+    )]
+    pub(crate) up: Option<Vec<f64>>,
+    /// Pixels with any channel at or above this value (0-255) count as overexposed and are
+    /// ignored.
+    #[arg(long, default_value_t = 250.0, help_heading = "Input")]
+    pub(crate) clip: f32,
+
+    /// Number of materials, or `auto`.
+    #[arg(long, default_value = "auto", help_heading = "Model")]
+    pub(crate) materials: String,
+    /// Reflectance lobes that materials mix, comma-separated: lambert (matte), phong:N and
+    /// ggx:ALPHA (shiny; larger N or smaller ALPHA is sharper).
+    #[arg(
+        long,
+        default_value = "lambert,phong:50,phong:500",
+        help_heading = "Model"
+    )]
+    pub(crate) basis: String,
+    /// `on`: a short trial fit decides what the scene needs (number of materials; lobes
+    /// that carry under 1% of the light or barely change the held-out error are dropped;
+    /// map detail from the sharpest lobe kept; duplicate photos skipped; the sizes given
+    /// are upper bounds). `off`: the model exactly as given.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"], help_heading = "Model")]
+    pub(crate) adaptive: String,
+    /// Model of each photo's light: `paper` (a free non-negative map, the paper's),
+    /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
+    /// maps), `auto` (both fitted, the one that predicts held-back observations better kept;
+    /// twice the fitting time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "auto"], help_heading = "Model")]
+    pub(crate) light: String,
+    /// Detail of each photo's recovered lighting: map side in texels, a power of two.
+    #[arg(long, default_value_t = 64, help_heading = "Model")]
+    pub(crate) global_resolution: usize,
+    /// Detail of the per-vertex hemisphere (shadowing and reflection), a power of two.
+    #[arg(long, default_value_t = 32, help_heading = "Model")]
+    pub(crate) local_resolution: usize,
+    /// Hemisphere detail for the renders of held-out and training views, a power of two
+    /// (default: --local-resolution; 64 draws sharp highlights more faithfully, at twice
+    /// the shadowing and rendering cost).
+    #[arg(long, help_heading = "Model")]
+    pub(crate) render_local_resolution: Option<usize>,
+    /// Number of surface directions (per side, a power of two) the light is pre-rotated
+    /// to; vertices blend the nearest ones.
+    #[arg(long, default_value_t = 32, help_heading = "Model")]
+    pub(crate) normal_grid: usize,
+    /// Light-transport terms kept per observation (0 = all): fewer is faster and coarser.
+    #[arg(long, default_value_t = 128, help_heading = "Model")]
+    pub(crate) keep: usize,
+    /// Shadow rays per hemisphere texel.
+    #[arg(long, default_value_t = 2, help_heading = "Model")]
+    pub(crate) rays_per_texel: usize,
+
+    /// Rounds of (fit the lighting, then fit the materials), at most.
+    #[arg(long, default_value_t = 8, help_heading = "Solver")]
+    pub(crate) iterations: usize,
+    /// Stop when a round improves the fit by less than this fraction.
+    #[arg(long, default_value_t = 1e-3, help_heading = "Solver")]
+    pub(crate) tolerance: f64,
+    /// How strongly the recovered lighting is smoothed, as a fraction of the system's
+    /// largest value.
+    #[arg(long, default_value_t = 1e-3, help_heading = "Solver")]
+    pub(crate) smoothness: f64,
+    /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least
+    /// squares).
+    #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
+    pub(crate) irls_iterations: usize,
+    /// Solver steps per lighting fit inside each round (each continues from the last);
+    /// 0 = solve each lighting fit to convergence.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations(),
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    pub(crate) lighting_qp_iterations: usize,
+    /// Inner linear-solver steps per lighting solver step (0 = the solver's own limit).
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_lighting_cg_iterations(),
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    pub(crate) lighting_cg_iterations: usize,
+    /// Stop after this many rounds without a better score on the held-back observations.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_patience(),
+        help_heading = "Solver"
+    )]
+    pub(crate) patience: usize,
+    /// Starting points to try, the best kept: 1 = materials from colour clusters; 2 adds
+    /// every shiny lobe at 0.3 × the matte weight, then one lobe per material in turn.
+    /// Each costs one fit.
+    #[arg(long, default_value_t = 1, help_heading = "Solver")]
+    pub(crate) starts: usize,
+    /// Outlier threshold floor, as a fraction of each photo's mean brightness: a residual
+    /// within 1.345 × this is never played down (0 = from the residuals' spread alone).
+    #[arg(
+        long,
+        default_value_t = relight_cpc::solve::ROBUST_FLOOR,
+        help_heading = "Solver"
+    )]
+    pub(crate) robust_floor: f64,
+    /// Fraction of the training observations held back to stop at the best round; 0 turns
+    /// early stopping off.
+    #[arg(long, default_value_t = 0.1, help_heading = "Solver")]
+    pub(crate) validation: f64,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1, help_heading = "Solver")]
+    pub(crate) seed: u64,
+
+    /// Hold out these photos (image names, comma-separated) to score the result; `none`
+    /// holds out nothing. Default: the workspace's truth/manifest.json list, else every 5th
+    /// photo (at least one).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        conflicts_with = "holdout_every",
+        help_heading = "Evaluation"
+    )]
+    pub(crate) holdout: Option<Vec<String>>,
+    /// Hold out every N-th photo in name order.
+    #[arg(long, help_heading = "Evaluation")]
+    pub(crate) holdout_every: Option<usize>,
+    /// Skip the renders of the training views.
+    #[arg(long, help_heading = "Evaluation")]
+    pub(crate) no_training_renders: bool,
+
+    /// Output folder (default: out/NAME, NAME = the workspace's folder name).
+    #[arg(long, help_heading = "Output")]
+    pub(crate) out: Option<std::path::PathBuf>,
+    /// Replace a previous result in the output folder (never anything else).
+    #[arg(long, help_heading = "Output")]
+    pub(crate) force: bool,
+    /// Print only warnings, errors and the final one-line summary.
+    #[arg(long, help_heading = "Output")]
+    pub(crate) quiet: bool,
+
+    /// At most this many observations per photo in its lighting step, a stratified sample
+    /// (by normal, open sky and material, weighted to keep the sums' expected value);
+    /// 0 = every observation.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::DEFAULT_LIGHTING_SAMPLE,
+        help_heading = "Performance"
+    )]
+    pub(crate) lighting_sample: usize,
+    /// Worker threads (default: all cores).
+    #[arg(long, help_heading = "Performance")]
+    pub(crate) threads: Option<usize>,
+}
+
+impl RunArgs {
+    pub(crate) fn options(self) -> anyhow::Result<relight_cpc::run::RunOptions> {
+        use relight_cpc::run::{builtin_example, Holdout, MaterialCount, RunOptions};
+        let workspace = match self.workspace {
+            Some(w) => w,
+            None => builtin_example()?,
+        };
+        let out = self.out.unwrap_or_else(|| {
+            let name = workspace
+                .canonicalize()
+                .ok()
+                .and_then(|p| p.file_name().map(|n| n.to_owned()))
+                .unwrap_or_else(|| "result".into());
+            std::path::Path::new("out").join(name)
+        });
+        let mut o = RunOptions::new(workspace, out);
+        o.mesh = self.mesh;
+        o.holdout = match (self.holdout, self.holdout_every) {
+            (Some(names), _) if names.len() == 1 && names[0] == "none" => Holdout::None,
+            (Some(names), _) => Holdout::Names(names),
+            (None, Some(k)) => Holdout::Every(k),
+            (None, None) => Holdout::Default,
+        };
+        o.up = match self.up.as_deref() {
+            None => None,
+            Some([x, y, z]) => Some(relight_cpc::Vec3::new(*x, *y, *z)),
+            Some(v) => anyhow::bail!(
+                "--up: expected X,Y,Z (three numbers), got {} values",
+                v.len()
+            ),
+        };
+        o.materials = match self.materials.as_str() {
+            "auto" => MaterialCount::Auto,
+            s => MaterialCount::Fixed(s.parse().map_err(|_| {
+                anyhow::anyhow!("--materials {s}: expected a whole number or `auto`")
+            })?),
+        };
+        o.basis = relight_cpc::transport::brdf::parse_list(&self.basis)?;
+        o.global_resolution = self.global_resolution;
+        o.local_resolution = self.local_resolution;
+        o.render_local_resolution = self.render_local_resolution;
+        o.normal_grid = self.normal_grid;
+        o.keep = self.keep;
+        o.rays_per_texel = self.rays_per_texel;
+        o.max_iterations = self.iterations;
+        o.rel_tol = self.tolerance;
+        o.smoothness = self.smoothness;
+        o.irls_iterations = self.irls_iterations;
+        o.lighting_qp_iterations = self.lighting_qp_iterations;
+        o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
+        o.validation = self.validation;
+        o.lighting_cg_iterations = self.lighting_cg_iterations;
+        o.lighting_sample = self.lighting_sample;
+        o.patience = self.patience;
+        o.starts = self.starts;
+        o.robust_floor = self.robust_floor;
+        o.clip = self.clip / 255.0;
+        o.seed = self.seed;
+        o.progress = !self.quiet;
+        o.force = self.force;
+        o.render_training = !self.no_training_renders;
+        o.adaptive = self.adaptive == "on";
+        o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
+        Ok(o)
+    }
+}
