@@ -36,6 +36,8 @@ pub mod paper;
 pub mod photo;
 pub mod sh_prior;
 pub mod system;
+#[cfg(test)]
+mod tests;
 
 /// What the lighting step reads: the problem and the current materials.
 pub struct LightingInput<'a> {

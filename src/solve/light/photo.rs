@@ -114,10 +114,11 @@ impl PhotoData {
         self.pos.iter().map(|&q| self.range.start + q)
     }
 
-    /// The α-weighted mean square of the rows' radiance (the light prior's scale).
+    /// The α-weighted mean square of the rows' radiance (the light prior's scale); over the QP's
+    /// rows, whose `α` carries the sample's weights.
     fn mean_square(&self) -> f64 {
         let (alpha, y) = (&self.alpha, &self.y);
-        let (num, den) = (0..self.range.len()).fold((0.0, 0.0), |(a, b), q| {
+        let (num, den) = (0..self.pos.len()).fold((0.0, 0.0), |(a, b), q| {
             let yy = (y[q][0].powi(2) + y[q][1].powi(2) + y[q][2].powi(2)) / 3.0;
             (a + alpha[q] * yy, b + alpha[q])
         });

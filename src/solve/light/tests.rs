@@ -1,0 +1,146 @@
+//! Tests of the lighting step on a stratified sample of a photo's observations.
+
+use rand::{Rng, SeedableRng};
+
+use crate::observe::Observations;
+use crate::solve::light::photo::{lighting_sample, lighting_step_full, lighting_step_on};
+use crate::solve::light::system::row_dot;
+use crate::solve::options::{EstimateOptions, Robust};
+use crate::solve::problem::{basis_responses, haar3, predict_from, Problem};
+use crate::transport::{HaarIndex, Transport};
+
+/// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
+/// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
+/// `y` from a known smooth light plus Gaussian-like noise (`σ` relative).
+fn planted_photo(rows: usize, n: usize, noise: f64, seed: u64) -> (Observations, Transport) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let n2 = n * n;
+    let light: Vec<[f64; 3]> = {
+        let tex: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
+            (0..n2)
+                .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+                .collect()
+        });
+        haar3(&tex, n)
+    };
+    let mut t = Transport {
+        n_global: n,
+        n_basis: 1,
+        n_obs: rows,
+        offsets: vec![0],
+        ..Default::default()
+    };
+    let mut obs = Observations::default();
+    for p in 0..rows {
+        let mut idx: Vec<HaarIndex> = (0..24)
+            .map(|_| rng.random_range(0..n2 / 4) as HaarIndex)
+            .collect();
+        idx.sort_unstable();
+        idx.dedup();
+        let val: Vec<f32> = idx.iter().map(|_| rng.random_range(0.1..1.0)).collect();
+        let clean = row_dot(
+            &idx,
+            &val.iter().map(|&v| [v; 3]).collect::<Vec<_>>(),
+            &light,
+        );
+        t.index.extend(&idx);
+        t.value.extend(&val);
+        t.offsets.push(t.index.len());
+        obs.vertex.push(p as u32);
+        obs.photo.push(0);
+        // Sum of 4 uniforms on [-1, 1]: mean 0, variance 4/3.
+        let mut e =
+            || (0..4).map(|_| rng.random_range(-1.0..1.0)).sum::<f64>() / (4.0_f64 / 3.0).sqrt();
+        obs.rgb
+            .push(clean.map(|v| (v * (1.0 + noise * e())) as f32));
+        obs.weight.push(1.0);
+        obs.dir.push([0.0, 0.0, 1.0]);
+    }
+    obs.photo_ranges = vec![0..rows];
+    (obs, t)
+}
+
+#[test]
+fn a_lighting_sample_leaves_the_map_where_all_observations_put_it() {
+    // 6,000 observations, 3 × 256 unknowns of which the rows reach the 64 coarsest
+    // Haar levels: the full fit against fits on 1,500 sampled rows (four seeds), all to
+    // the KKT tolerance. With 2% noise the full fit's own error against the truth is
+    // the yardstick: a sample of a quarter of the rows has about twice the variance
+    // (√4 = 2 × the standard error), so the sampled map must stay within 3 × the full
+    // fit's distance from the truth of the full map, and its predictions of the rows
+    // it never saw must be as good as of those it saw (ratio < 1.1, the run's check).
+    let n = 16;
+    let (obs, t) = planted_photo(6000, n, 0.02, 11);
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: obs.len(),
+        n_photos: 1,
+    };
+    let beta = vec![[1.0; 3]; obs.len()];
+    let opts = EstimateOptions {
+        robust: Robust::None,
+        irls_iters: 1,
+        smoothness: 1e-4,
+        qp_rel_tol: 1e-9,
+        qp_max_iter: 500,
+        ..EstimateOptions::default()
+    };
+    let full = lighting_step_full(&problem, &beta, 0, None, None, &opts).unwrap();
+    let dist = |a: &[Vec<f64>; 3], b: &[Vec<f64>; 3]| -> f64 {
+        let ha = haar3(a, n);
+        let hb = haar3(b, n);
+        // Only the coefficients the rows reach are determined by the data.
+        let (mut d, mut s) = (0.0, 0.0);
+        for m in 0..n * n / 4 {
+            for c in 0..3 {
+                d += (ha[m][c] - hb[m][c]).powi(2);
+                s += hb[m][c].powi(2);
+            }
+        }
+        (d / s).sqrt()
+    };
+    let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
+        (0..n * n)
+            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+            .collect()
+    });
+    let full_err = dist(&full.light, &truth);
+    assert!(full_err < 0.05, "the full fit itself: {full_err}");
+    for seed in 1..=4 {
+        let sampled_opts = EstimateOptions {
+            lighting_sample: 1500,
+            validation_seed: seed,
+            ..opts.clone()
+        };
+        let sample = lighting_sample(&problem, 0, &sampled_opts, None).unwrap();
+        assert_eq!(sample.index.len(), 1500);
+        let r =
+            lighting_step_on(&problem, &beta, 0, None, None, &sampled_opts, Some(&sample)).unwrap();
+        assert_eq!(
+            r.irls_weights.len(),
+            obs.len(),
+            "weights for every observation"
+        );
+        let moved = dist(&r.light, &full.light);
+        assert!(
+            moved < 3.0 * full_err,
+            "seed {seed}: moved {moved}, full fit's error {full_err}"
+        );
+        let pred = predict_from(
+            &problem,
+            &beta,
+            &basis_responses(&problem, std::slice::from_ref(&r.light)),
+        );
+        let check = crate::solve::subsample::sample_check(
+            &pred,
+            &obs.rgb,
+            &obs.weight,
+            &obs.photo_ranges,
+            &[Some(sample)],
+            1500,
+        );
+        assert_eq!(check.in_sample + check.out_of_sample, obs.len());
+        assert!(check.ratio < 1.1, "seed {seed}: {check:?}");
+    }
+}
