@@ -89,6 +89,13 @@ if [[ ${#need_apt[@]} -gt 0 ]]; then
     DEBIAN_FRONTEND=noninteractive apt-get install -y "${need_apt[@]}"
 fi
 
+# An OUT_DIR that holds anything must be one this script made (it has logs/timings.tsv):
+# what it replaces below is then its own earlier output.
+if [[ -d $OUT_DIR && -n $(ls -A "$OUT_DIR") && ! -f $OUT_DIR/logs/timings.tsv ]]; then
+    echo "$OUT_DIR: not empty and not made by colmap_sparse.sh (no logs/timings.tsv);" \
+        "choose an empty or new folder" >&2
+    exit 1
+fi
 mkdir -p "$OUT_DIR/logs"
 OUT_DIR=$(realpath "$OUT_DIR")
 # Only what this script writes is replaced.

@@ -104,7 +104,7 @@ if [[ -n $FROM ]]; then
 fi
 
 # step INDEX NAME CMD...: skip when NAME's stamp holds this command line, else run it (its
-# output appended to OUT/NAME.out), time it and stamp it; later stamps are removed first.
+# output in OUT/NAME.out), time it and stamp it; later stamps are removed first.
 step() {
     local idx=$1 name=$2
     shift 2
@@ -116,11 +116,16 @@ step() {
     fi
     local later=0 s
     for s in "${STEPS[@]}"; do
-        ((later)) && rm -f "$STAMPS/$s.done"
         [[ $s == "$name" ]] && later=1
+        if ((later)); then
+            rm -f "$STAMPS/$s.done"
+            # Its timing row and the later steps' rows belong to the run being replaced.
+            grep -v -P "^$s\t" "$OUT/timings.tsv" >"$OUT/timings.tsv.new" || true
+            mv "$OUT/timings.tsv.new" "$OUT/timings.tsv"
+        fi
     done
-    rm -f "$STAMPS/$name.done"
     say "step $idx $name: $*"
+    : >"$OUT/$name.out"
     local t0 wall cpu
     t0=$(date +%s)
     if ! /usr/bin/time -f '%e %U %S' -o "$STAMPS/$name.time" "$@" >>"$OUT/$name.out" 2>&1; then

@@ -25,6 +25,7 @@ Needs numpy.
 
 import argparse
 import json
+import os
 import pathlib
 import sys
 
@@ -126,9 +127,15 @@ def main():
         lines += [f"| {r[0]} | {r[1]} | {r[2]} |" for r in rows]
         lines += [f"| total | {sum(float(r[1]) for r in rows):.0f} | "
                   f"{sum(float(r[2]) for r in rows):.0f} |"]
+        lines += ["", f"Load average when written: {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
+                  "cores: on a shared machine the CPU seconds are the comparable figure."]
     rep = out / "result" / "report.json"
     if rep.exists():
-        lines += ["", f"`run` finished: {rep} (see report.md beside it)."]
+        lines += ["", "`run` finished (OUT/result/report.md); its held-out lines:", ""]
+        run_out = out / "run.out"
+        held = [l for l in run_out.read_text().splitlines() if l.startswith("held out")] \
+            if run_out.exists() else []
+        lines += ["    " + l for l in held]
     pathlib.Path(args.report).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     sys.exit(1 if failed else 0)

@@ -198,6 +198,39 @@ impl LatLong {
         Self::checked(path, width, height, rgb)
     }
 
+    /// Read a lat-long Radiance RGBE (`.hdr`) file with the `image` crate's decoder (same
+    /// layout and checks as [`read_exr`](LatLong::read_exr)).
+    pub fn read_hdr(path: &Path) -> Result<(LatLong, ReadStats)> {
+        let err = |message: String| Error::Image {
+            path: path.to_path_buf(),
+            message,
+        };
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
+            .map_err(|e| err(format!("cannot decode Radiance HDR: {e}")))?;
+        let img = image::DynamicImage::from_decoder(decoder)
+            .map_err(|e| err(format!("cannot decode Radiance HDR: {e}")))?
+            .into_rgb32f();
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let rgb = img.pixels().map(|p| p.0).collect();
+        Self::checked(path, w, h, rgb)
+    }
+
+    /// Read a lat-long map by extension: `.exr` or `.hdr` (case-insensitive).
+    pub fn read_any(path: &Path) -> Result<(LatLong, ReadStats)> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("exr") => Self::read_exr(path),
+            Some("hdr") => Self::read_hdr(path),
+            _ => Err(Error::Image {
+                path: path.to_path_buf(),
+                message: "an environment map must be a lat-long .exr or Radiance .hdr file".into(),
+            }),
+        }
+    }
+
     /// Decode a lat-long EXR held in memory (`name` labels errors), like [`read_exr`].
     ///
     /// [`read_exr`]: LatLong::read_exr

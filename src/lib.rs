@@ -57,6 +57,7 @@ pub mod starts;
 pub mod adapt;
 pub mod bench;
 pub mod budget;
+pub mod export;
 pub mod relight;
 pub mod report;
 pub mod run;

@@ -20,7 +20,7 @@ enum Command {
     // Each subcommand: one variant here, one arm in `dispatch`.
     /// Fit reflectance and per-photo illumination to a COLMAP workspace, evaluate held-out
     /// photos, and write maps, materials, renders and a report. Without WORKSPACE it runs
-    /// on the built-in example (examples/spot).
+    /// on the built-in example (a small synthetic scene carried inside the program).
     Run(RunArgs),
     /// Show what a COLMAP workspace holds: what was found and picked, counts, and per photo
     /// the observed vertices, overexposure, confidence and reprojection error.
@@ -41,9 +41,26 @@ enum Command {
     Render {
         /// The result folder written by `relight-cpc run`.
         result_dir: std::path::PathBuf,
-        /// Lat-long EXR environment map.
+        /// Lat-long environment map, .exr or Radiance .hdr, in the run's convention
+        /// (docs/envmap-convention.md).
         #[arg(long)]
         env: Option<std::path::PathBuf>,
+        /// Turn the map by DEG degrees about the up axis (counter-clockwise seen from above).
+        #[arg(
+            long,
+            default_value_t = 0.0,
+            allow_negative_numbers = true,
+            value_name = "DEG"
+        )]
+        rotate: f64,
+        /// Render N frames orbiting each camera around the object, plus a looping GIF (and
+        /// an MP4 when ffmpeg is installed).
+        #[arg(long, value_name = "N")]
+        turntable: Option<usize>,
+        /// Around the object: `env` (the map as seen by the camera), `transparent`, or a
+        /// colour (black, white, grey, #RRGGBB).
+        #[arg(long, default_value = "transparent")]
+        background: relight_cpc::render::views::Background,
         /// One registered camera, by image name (default: every registered camera).
         #[arg(long, conflicts_with = "cameras")]
         camera: Option<String>,
@@ -66,6 +83,22 @@ enum Command {
         #[arg(long)]
         resolution: Option<u32>,
         /// Replace a previous result in --out.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Export a finished run (RESULT_DIR of `run`) for other tools: the mesh as binary glTF
+    /// with per-vertex base colour and roughness approximating the fitted materials, and/or
+    /// the recovered environment maps as lat-long EXR + Radiance HDR in Blender's convention.
+    Export {
+        /// The result folder written by `relight-cpc run`.
+        result_dir: std::path::PathBuf,
+        /// Write the mesh to this .glb file.
+        #[arg(long)]
+        gltf: Option<std::path::PathBuf>,
+        /// Write every recovered environment map into this folder (NAME.exr, NAME.hdr).
+        #[arg(long)]
+        envmaps: Option<std::path::PathBuf>,
+        /// Replace a previous export (never anything else).
         #[arg(long)]
         force: bool,
     },
@@ -190,128 +223,175 @@ enum Command {
     },
 }
 
-/// Flags of `run` (the README explains each default).
+/// Flags of `run` (the README explains each default), grouped under headings in `--help`.
 #[derive(clap::Args)]
 struct RunArgs {
-    /// The COLMAP workspace (default: the built-in example).
+    /// The COLMAP workspace folder (default: the built-in example).
+    #[arg(help_heading = "Input")]
     workspace: Option<std::path::PathBuf>,
-    /// Output folder (default: out/NAME, NAME = the workspace's folder name).
-    #[arg(long)]
-    out: Option<std::path::PathBuf>,
-    /// Use this mesh instead of the workspace's.
-    #[arg(long)]
+    /// Use this mesh (PLY) instead of the one found in the workspace.
+    #[arg(long, help_heading = "Input")]
     mesh: Option<std::path::PathBuf>,
-    /// Hold out these photos (image names, comma-separated); `none` holds out nothing.
-    /// Default: the workspace's truth/manifest.json list, else every 5th photo (at least
-    /// one).
-    #[arg(long, value_delimiter = ',', conflicts_with = "holdout_every")]
+    /// World up as X,Y,Z (default: estimated from the cameras).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        help_heading = "Input"
+    )]
+    up: Option<Vec<f64>>,
+    /// Pixels with any channel at or above this value (0-255) count as overexposed and are
+    /// ignored.
+    #[arg(long, default_value_t = 250.0, help_heading = "Input")]
+    clip: f32,
+
+    /// Number of materials, or `auto`.
+    #[arg(long, default_value = "auto", help_heading = "Model")]
+    materials: String,
+    /// Reflectance lobes that materials mix, comma-separated: lambert (matte), phong:N and
+    /// ggx:ALPHA (shiny; larger N or smaller ALPHA is sharper).
+    #[arg(
+        long,
+        default_value = "lambert,phong:50,phong:500",
+        help_heading = "Model"
+    )]
+    basis: String,
+    /// `on`: a short trial fit decides what the scene needs (number of materials; lobes
+    /// that carry under 1% of the light or barely change the held-out error are dropped;
+    /// map detail from the sharpest lobe kept; duplicate photos skipped; the sizes given
+    /// are upper bounds). `off`: the model exactly as given.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"], help_heading = "Model")]
+    adaptive: String,
+    /// Detail of each photo's recovered lighting: map side in texels, a power of two.
+    #[arg(long, default_value_t = 64, help_heading = "Model")]
+    global_resolution: usize,
+    /// Detail of the per-vertex hemisphere (shadowing and reflection), a power of two.
+    #[arg(long, default_value_t = 32, help_heading = "Model")]
+    local_resolution: usize,
+    /// Hemisphere detail for the renders of held-out and training views, a power of two
+    /// (default: --local-resolution; 64 draws sharp highlights more faithfully, at twice
+    /// the shadowing and rendering cost).
+    #[arg(long, help_heading = "Model")]
+    render_local_resolution: Option<usize>,
+    /// Number of surface directions (per side, a power of two) the light is pre-rotated
+    /// to; vertices blend the nearest ones.
+    #[arg(long, default_value_t = 32, help_heading = "Model")]
+    normal_grid: usize,
+    /// Light-transport terms kept per observation (0 = all): fewer is faster and coarser.
+    #[arg(long, default_value_t = 128, help_heading = "Model")]
+    keep: usize,
+    /// Shadow rays per hemisphere texel.
+    #[arg(long, default_value_t = 2, help_heading = "Model")]
+    rays_per_texel: usize,
+
+    /// Rounds of (fit the lighting, then fit the materials), at most.
+    #[arg(long, default_value_t = 8, help_heading = "Solver")]
+    iterations: usize,
+    /// Stop when a round improves the fit by less than this fraction.
+    #[arg(long, default_value_t = 1e-3, help_heading = "Solver")]
+    tolerance: f64,
+    /// How strongly the recovered lighting is smoothed, as a fraction of the system's
+    /// largest value.
+    #[arg(long, default_value_t = 1e-3, help_heading = "Solver")]
+    smoothness: f64,
+    /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least
+    /// squares).
+    #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
+    irls_iterations: usize,
+    /// Solver steps per lighting fit inside each round (each continues from the last);
+    /// 0 = solve each lighting fit to convergence.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations(),
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    lighting_qp_iterations: usize,
+    /// Inner linear-solver steps per lighting solver step (0 = the solver's own limit).
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_lighting_cg_iterations(),
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    lighting_cg_iterations: usize,
+    /// At most this many observations per photo in its lighting fit: a stratified sample
+    /// (by normal, open sky and material), weighted to keep the sums' expected value;
+    /// 0 = every observation.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::DEFAULT_LIGHTING_SAMPLE,
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    lighting_sample: usize,
+    /// Stop after this many rounds without a better score on the held-back observations.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_patience(),
+        help_heading = "Solver"
+    )]
+    patience: usize,
+    /// Starting points to try, the best kept: 1 = materials from colour clusters; 2 adds
+    /// every shiny lobe at 0.3 × the matte weight, then one lobe per material in turn.
+    /// Each costs one fit.
+    #[arg(long, default_value_t = 1, help_heading = "Solver")]
+    starts: usize,
+    /// Outlier threshold floor, as a fraction of each photo's mean brightness: a residual
+    /// within 1.345 × this is never played down (0 = from the residuals' spread alone).
+    #[arg(
+        long,
+        default_value_t = relight_cpc::estimate::ROBUST_FLOOR,
+        help_heading = "Solver"
+    )]
+    robust_floor: f64,
+    /// Fraction of the training observations held back to stop at the best round; 0 turns
+    /// early stopping off.
+    #[arg(long, default_value_t = 0.1, help_heading = "Solver")]
+    validation: f64,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1, help_heading = "Solver")]
+    seed: u64,
+
+    /// Hold out these photos (image names, comma-separated) to score the result; `none`
+    /// holds out nothing. Default: the workspace's truth/manifest.json list, else every 5th
+    /// photo (at least one).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        conflicts_with = "holdout_every",
+        help_heading = "Evaluation"
+    )]
     holdout: Option<Vec<String>>,
     /// Hold out every N-th photo in name order.
-    #[arg(long)]
+    #[arg(long, help_heading = "Evaluation")]
     holdout_every: Option<usize>,
-    /// World up as X,Y,Z (default: estimated from the cameras).
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
-    up: Option<Vec<f64>>,
-    /// Number of materials, or `auto`.
-    #[arg(long, default_value = "auto")]
-    materials: String,
-    /// Basis BRDFs, comma-separated: lambert, phong:N, ggx:ALPHA.
-    #[arg(long, default_value = "lambert,phong:50,phong:500")]
-    basis: String,
-    /// Global (octahedral) environment map side, a power of two.
-    #[arg(long, default_value_t = 64)]
-    global_resolution: usize,
-    /// Local (hemi-octahedral) map side, a power of two.
-    #[arg(long, default_value_t = 32)]
-    local_resolution: usize,
-    /// Local map side of the renderer (held-out views, renders, `render`), a power of two;
-    /// default --local-resolution (64 draws known sharp lobes more faithfully, at twice the
-    /// visibility and evaluation cost).
-    #[arg(long)]
-    render_local_resolution: Option<usize>,
-    /// Normal-grid side of the precomputed rotations, a power of two.
-    #[arg(long, default_value_t = 32)]
-    normal_grid: usize,
-    /// Haar coefficients kept per transport row (0 = all).
-    #[arg(long, default_value_t = 128)]
-    keep: usize,
-    /// Visibility rays per local texel.
-    #[arg(long, default_value_t = 2)]
-    rays_per_texel: usize,
-    /// Outer (lighting + materials) iterations at most.
-    #[arg(long, default_value_t = 8)]
-    iterations: usize,
-    /// Stop when the objective improves by less than this fraction.
-    #[arg(long, default_value_t = 1e-3)]
-    tolerance: f64,
-    /// Laplacian smoothness of the maps, as a fraction of the system's largest value.
-    #[arg(long, default_value_t = 1e-3)]
-    smoothness: f64,
-    /// IRLS passes per lighting step (1 = plain least squares).
-    #[arg(long, default_value_t = 3)]
-    irls_iterations: usize,
-    /// GPCG iterations per lighting QP inside the alternation (each starts from the
-    /// previous iterate); 0 = solve every lighting QP to the KKT tolerance.
-    #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations())]
-    lighting_qp_iterations: usize,
-    /// Conjugate-gradient steps per GPCG iteration of a lighting QP inside the alternation
-    /// (each is one Hessian product); 0 = the solver's own cap.
-    #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_lighting_cg_iterations())]
-    lighting_cg_iterations: usize,
-    /// Early stopping: outer iterations without a better validation score before the
-    /// alternation stops.
-    #[arg(long, default_value_t = relight_cpc::run::RunOptions::default_patience())]
-    patience: usize,
-    /// At most this many observations per photo in its lighting step, a stratified sample
-    /// (by normal, open sky and material, weighted to keep the sums' expected value);
-    /// 0 = every observation.
-    #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHTING_SAMPLE)]
-    lighting_sample: usize,
-    /// Starts of the alternation to try, the best by validation score kept: 1 = the
-    /// paper's clustered start; 2 adds every glossy lobe at 0.3 × the Lambertian weight,
-    /// then one lobe per material in cyclic order. Each start costs one estimate.
-    #[arg(long, default_value_t = 1)]
-    starts: usize,
-    /// Lower bound on IRLS's robust scale, as a fraction of each photo's RMS radiance: a
-    /// residual within 1.345 × this is never down-weighted (0 = the residuals' MAD alone).
-    #[arg(long, default_value_t = relight_cpc::estimate::ROBUST_FLOOR)]
-    robust_floor: f64,
-    /// Fraction of the training observations held back (seeded) to stop the alternation
-    /// at its best iterate; 0 turns early stopping off.
-    #[arg(long, default_value_t = 0.1)]
-    validation: f64,
-    /// Overexposure threshold on the 8-bit scale: a pixel with any channel at or above it
-    /// is ignored.
-    #[arg(long, default_value_t = 250.0)]
-    clip: f32,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// No progress output.
-    #[arg(long)]
-    quiet: bool,
-    /// Replace a previous result in the output folder (never anything else).
-    #[arg(long)]
-    force: bool,
     /// Skip the renders of the training views.
-    #[arg(long)]
+    #[arg(long, help_heading = "Evaluation")]
     no_training_renders: bool,
-    /// `on`: a short pilot fit decides what the scene needs (materials by held-out error;
-    /// basis BRDFs dropped when they carry under 1% of the radiance or leaving them out
-    /// costs under 1% of held-out error; map resolution and coefficient budget from the
-    /// kept lobes' width; duplicate photos skipped; the resolutions and --keep given are
-    /// upper bounds); `off`: the full model as given.
-    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
-    adaptive: String,
+
+    /// Output folder (default: out/NAME, NAME = the workspace's folder name).
+    #[arg(long, help_heading = "Output")]
+    out: Option<std::path::PathBuf>,
+    /// Replace a previous result in the output folder (never anything else).
+    #[arg(long, help_heading = "Output")]
+    force: bool,
+    /// Print only warnings, errors and the final one-line summary.
+    #[arg(long, help_heading = "Output")]
+    quiet: bool,
+
+    /// Worker threads (default: all cores).
+    #[arg(long, help_heading = "Performance")]
+    threads: Option<usize>,
 }
 
 impl RunArgs {
     fn options(self) -> anyhow::Result<relight_cpc::run::RunOptions> {
         use relight_cpc::run::{builtin_example, Holdout, MaterialCount, RunOptions};
-        let workspace = self.workspace.unwrap_or_else(builtin_example);
+        let workspace = match self.workspace {
+            Some(w) => w,
+            None => builtin_example()?,
+        };
         let out = self.out.unwrap_or_else(|| {
             let name = workspace
                 .canonicalize()
@@ -390,13 +470,23 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             let quiet = args.quiet;
             let opts = args.options()?;
             let summary = relight_cpc::run::run(&opts)?;
+            let r = &summary.report;
+            let held = if r.holdout.is_empty() {
+                "no held-out photo".to_string()
+            } else {
+                let mean =
+                    r.holdout.iter().map(|h| h.rmse_scaled).sum::<f64>() / r.holdout.len() as f64;
+                format!(
+                    "held-out RMSE {mean:.5} (scaled, mean of {})",
+                    r.holdout.len()
+                )
+            };
+            println!(
+                "training RMSE {:.5}, {held}; report.html, report.md and report.json in {}",
+                r.train_rmse,
+                summary.out.display()
+            );
             if !quiet {
-                let r = &summary.report;
-                println!(
-                    "training RMSE {:.5}; results, report.md and report.json in {}",
-                    r.train_rmse,
-                    summary.out.display()
-                );
                 for h in &r.holdout {
                     println!(
                         "held out {} ({}): RMSE {:.5} raw, {:.5} after scale {:.3}",
@@ -422,6 +512,9 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             sun_radiance,
             exposure,
             resolution,
+            rotate,
+            turntable,
+            background,
             force,
         } => {
             use relight_cpc::relight::{self, CameraSelection, RenderOptions, Sun};
@@ -445,6 +538,9 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                 force,
                 exposure,
                 resolution,
+                rotate_deg: rotate,
+                turntable,
+                background,
             };
             let s = relight::render_result(&result_dir, &opts)?;
             for v in &s.views {
@@ -455,12 +551,47 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
                     v.png.display()
                 );
             }
+            for a in &s.animations {
+                println!("turntable: {}", a.display());
+            }
             println!(
                 "{} views rendered in {:.2} s (loading {:.2} s)",
                 s.views.len(),
                 s.render_seconds,
                 s.load_seconds
             );
+            Ok(())
+        }
+        Command::Export {
+            result_dir,
+            gltf,
+            envmaps,
+            force,
+        } => {
+            let opts = relight_cpc::export::ExportOptions {
+                gltf,
+                envmaps,
+                force,
+            };
+            let s = relight_cpc::export::export_result(&result_dir, &opts)?;
+            if let Some((path, g)) = &s.gltf {
+                println!(
+                    "{}: {} vertices, {} triangles, {} materials (roughness {}), {} bytes",
+                    path.display(),
+                    g.vertices,
+                    g.triangles,
+                    g.materials.len(),
+                    g.materials
+                        .iter()
+                        .map(|(r, n)| format!("{r:.2}: {n} triangles"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    g.bytes
+                );
+            }
+            for p in &s.envmaps {
+                println!("{}", p.display());
+            }
             Ok(())
         }
         Command::Inspect {
@@ -647,6 +778,42 @@ mod tests {
         want.adaptive = true;
         // Debug prints every field, floats to the last bit, so this is exact equality.
         assert_eq!(format!("{got:?}"), format!("{want:?}"));
+    }
+
+    /// `run --help` groups its flags under the six headings, in plain words: none of the
+    /// solver's jargon appears, and every flag with a default shows it.
+    #[test]
+    fn run_help_is_grouped_and_plain() {
+        use clap::CommandFactory;
+        let mut cli = Cli::command();
+        let run = cli.find_subcommand_mut("run").unwrap();
+        let help = run.render_long_help().to_string();
+        for h in [
+            "Input",
+            "Model",
+            "Solver",
+            "Evaluation",
+            "Output",
+            "Performance",
+        ] {
+            assert!(help.contains(&format!("{h}:")), "no heading {h}:\n{help}");
+        }
+        for jargon in ["GPCG", "KKT", "IRLS", "MAD", "QP"] {
+            let words = help.split(|c: char| !c.is_ascii_alphanumeric());
+            assert!(!words.into_iter().any(|w| w == jargon), "{jargon} in help");
+        }
+        for arg in run.get_arguments() {
+            // Switches (--force, ...) have the default `false`, which clap does not show.
+            let switch = !arg.get_action().takes_values();
+            if arg.get_default_values().len() == 1 && !arg.is_hide_default_value_set() && !switch {
+                let d = arg.get_default_values()[0].to_string_lossy().into_owned();
+                assert!(
+                    help.contains(&format!("[default: {d}]")),
+                    "--{:?}",
+                    arg.get_long()
+                );
+            }
+        }
     }
 
     /// The README's table of `run` flags states each default clap applies. A row's flags

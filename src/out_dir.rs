@@ -107,28 +107,21 @@ pub fn resolve(path: &Path) -> Result<PathBuf> {
             .map_err(|e| Error::io(".", e))?
             .join(path)
     };
-    let mut base = abs.clone();
-    let mut rest: Vec<std::ffi::OsString> = Vec::new();
-    loop {
-        if let Ok(c) = base.canonicalize() {
-            base = c;
-            break;
-        }
-        match (base.file_name(), base.parent()) {
-            (Some(n), Some(p)) => {
-                rest.push(n.to_owned());
-                base = p.to_path_buf();
-            }
-            _ => break,
-        }
-    }
-    for part in rest.iter().rev() {
-        match Path::new(part).components().next() {
-            Some(Component::ParentDir) => {
+    // Component by component, as the OS walks a path: each existing prefix is resolved
+    // (symlinks) before a following `..` applies to it.
+    let mut base = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            Component::ParentDir => {
                 base.pop();
             }
-            Some(Component::CurDir) | None => {}
-            _ => base.push(part),
+            Component::CurDir => {}
+            other => {
+                base.push(other);
+                if let Ok(real) = base.canonicalize() {
+                    base = real;
+                }
+            }
         }
     }
     Ok(base)
@@ -540,6 +533,26 @@ mod tests {
         let d = scratch("resolve");
         let a = resolve(&d.join("x/../y")).unwrap();
         assert_eq!(a, d.canonicalize().unwrap().join("y"));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    /// A symlink to the workspace, and `..` taken after it, are seen through: the OS would
+    /// write into the workspace or its parent.
+    #[cfg(unix)]
+    #[test]
+    fn symlinks_to_an_input_are_seen_through() {
+        let d = scratch("symlink");
+        let ws = d.join("data/ws");
+        std::fs::create_dir_all(&ws).unwrap();
+        let link = d.join("link");
+        std::os::unix::fs::symlink(&ws, &link).unwrap();
+        let e = check_not_protected(&link, &[&ws]).unwrap_err().to_string();
+        assert!(e.contains("is the input folder"), "{e}");
+        let e = check_not_protected(&link.join(".."), &[&ws])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("contains the input"), "{e}");
+        assert!(check_not_protected(&d.join("elsewhere"), &[&ws]).is_ok());
         std::fs::remove_dir_all(&d).unwrap();
     }
 

@@ -26,6 +26,7 @@ use crate::brdf::BasisBrdf;
 use crate::colmap::{text, Camera, CameraId, Image, ImageId};
 use crate::envmap::{LatLong, OctEnv};
 use crate::mesh::Mesh;
+use crate::render::views::{self, Background};
 use crate::render::{self, Raster};
 use crate::rotation::SplatRotation;
 use crate::transport::LocalRotation;
@@ -81,6 +82,30 @@ pub struct RenderOptions {
     pub exposure: f64,
     /// Output width in pixels (height keeps the aspect); `None`: the camera's size.
     pub resolution: Option<u32>,
+    /// Turn the map by this many degrees about the environment's up axis `e_z` (what was at
+    /// azimuth `φ` moves to `φ + DEG`; a sun stays where given).
+    pub rotate_deg: f64,
+    /// Render this many turntable frames per camera ([`crate::render::views`]).
+    pub turntable: Option<usize>,
+    /// What fills the pixels the object does not cover.
+    pub background: Background,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            env: None,
+            sun: None,
+            cameras: CameraSelection::AllRegistered,
+            out: PathBuf::from("renders"),
+            exposure: 1.0,
+            resolution: None,
+            rotate_deg: 0.0,
+            turntable: None,
+            background: Background::Transparent,
+            force: false,
+        }
+    }
 }
 
 /// One rendered view.
@@ -107,6 +132,8 @@ pub struct RenderSummary {
     pub load_seconds: f64,
     /// Wall-clock seconds for rendering all views.
     pub render_seconds: f64,
+    /// Turntable animations written (GIF always, MP4 when ffmpeg is present).
+    pub animations: Vec<PathBuf>,
 }
 
 /// Everything a result folder holds for rendering.
@@ -512,8 +539,21 @@ pub fn add_sun(ll: &mut LatLong, sun: &Sun) -> Result<()> {
 
 /// The light of `opts` on the run's `n_global² ` octahedral grid.
 pub fn load_light(opts: &RenderOptions, n_global: usize) -> Result<OctEnv> {
+    Ok(OctEnv::from_latlong(&load_light_latlong(opts)?, n_global))
+}
+
+/// The light of `opts` as a lat-long map: the map (`.exr` or `.hdr`) turned by
+/// `opts.rotate_deg`, plus the sun.
+pub fn load_light_latlong(opts: &RenderOptions) -> Result<LatLong> {
+    if !opts.rotate_deg.is_finite() {
+        return Err(Error::Config(
+            "render: --rotate must be a finite angle".into(),
+        ));
+    }
     let mut ll = match &opts.env {
-        Some(p) => LatLong::read_exr(p)?.0,
+        Some(p) => LatLong::read_any(p)?
+            .0
+            .rotated_about_up(opts.rotate_deg.to_radians()),
         None if opts.sun.is_some() => LatLong::black(512),
         None => {
             return Err(Error::Config(
@@ -524,7 +564,7 @@ pub fn load_light(opts: &RenderOptions, n_global: usize) -> Result<OctEnv> {
     if let Some(sun) = &opts.sun {
         add_sun(&mut ll, sun)?;
     }
-    Ok(OctEnv::from_latlong(&ll, n_global))
+    Ok(ll)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -627,15 +667,22 @@ fn select_cameras(model: &ResultModel, sel: &CameraSelection) -> Result<Vec<(Cam
     }
 }
 
-/// Relight the result in `result_dir` as `opts` asks: per camera `NAME.exr` (linear RGBA,
-/// alpha = mask), `NAME.png` (sRGB RGBA at `opts.exposure`) and `NAME.mask.png`, `NAME` the
-/// file stem of the image name.
+/// Relight the result in `result_dir` as `opts` asks: per camera (and turntable frame)
+/// `STEM.exr` (linear RGBA, alpha = mask), `STEM.png` (sRGB at `opts.exposure`, RGBA when
+/// the background is transparent) and `STEM.mask.png`; `STEM` names the light and the
+/// camera ([`views::output_stem`]). Turntables also get `LIGHT__CAMERA_turntable.gif`
+/// and, with ffmpeg, `.mp4`.
 pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSummary> {
     if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
         return Err(Error::Config("render: --exposure must be > 0".into()));
     }
     if opts.resolution == Some(0) {
         return Err(Error::Config("render: --resolution must be > 0".into()));
+    }
+    if opts.turntable == Some(0) {
+        return Err(Error::Config(
+            "render: --turntable must be at least 1 frame".into(),
+        ));
     }
     let mut inputs = vec![result_dir];
     inputs.extend(opts.env.as_deref());
@@ -646,12 +693,17 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
     let t0 = std::time::Instant::now();
     let model = load_result(result_dir)?;
     let views = select_cameras(&model, &opts.cameras)?;
-    let light = load_light(opts, model.n_global)?;
+    let light_ll = load_light_latlong(opts)?;
+    let light = OctEnv::from_latlong(&light_ll, model.n_global);
     let rot = render_rotation(&model);
     let load_seconds = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
     let dir = claim.path();
+    let light_name = views::light_name(opts.env.as_deref(), opts.sun.is_some(), opts.rotate_deg);
+    let up = model.env_from_world.row(2).transpose();
+    let centre = mesh_centre(&model.mesh);
     let mut out = Vec::with_capacity(views.len());
+    let mut animations = Vec::new();
     for (camera, image) in &views {
         let camera = match opts.resolution {
             Some(w) => {
@@ -661,34 +713,122 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
             }
             None => camera.clone(),
         };
-        let (raster, rgb) = render_view(&model, &rot, &light, &camera, image)?;
-        let mask = raster.mask();
-        let stem = file_stem(&image.name);
-        let (w, h) = (camera.width, camera.height);
-        let exr = dir.join(format!("{stem}.exr"));
-        let png = dir.join(format!("{stem}.png"));
-        let mp = dir.join(format!("{stem}.mask.png"));
-        render::write_exr(&exr, w, h, &rgb, Some(&mask))?;
-        render::write_png(&png, w, h, &rgb, Some(&mask), opts.exposure as f32)?;
-        let grey: Vec<u8> = mask.iter().map(|&m| if m { 255 } else { 0 }).collect();
-        image::save_buffer(&mp, &grey, w, h, image::ColorType::L8).map_err(|e| Error::Image {
-            path: mp.clone(),
-            message: e.to_string(),
-        })?;
-        out.push(RenderedFile {
-            name: image.name.clone(),
-            exr: opts.out.join(exr.file_name().unwrap_or_default()),
-            png: opts.out.join(png.file_name().unwrap_or_default()),
-            mask: opts.out.join(mp.file_name().unwrap_or_default()),
-            covered: raster.covered(),
-        });
+        let frames: Vec<(Option<usize>, Image)> = match opts.turntable {
+            Some(n) => (0..n)
+                .map(|i| Ok((Some(i), views::orbit(image, &up, &centre, i, n)?)))
+                .collect::<Result<_>>()?,
+            None => vec![(None, image.clone())],
+        };
+        let mut pngs = Vec::new();
+        for (frame, pose) in &frames {
+            let stem = views::output_stem(&light_name, &image.name, *frame);
+            let view = ViewLight {
+                model: &model,
+                rot: &rot,
+                light: &light,
+                light_ll: &light_ll,
+            };
+            let (file, png) = render_one(&view, opts, dir, &camera, pose, &stem)?;
+            pngs.extend(png);
+            out.push(file);
+        }
+        if opts.turntable.is_some() {
+            let prefix = views::output_stem(&light_name, &image.name, None);
+            let gif = format!("{prefix}_turntable.gif");
+            views::write_gif(&dir.join(&gif), &pngs, 12)?;
+            animations.push(opts.out.join(gif));
+            let mp4 = format!("{prefix}_turntable.mp4");
+            if views::write_video(dir, &prefix, &dir.join(&mp4), 12)? {
+                animations.push(opts.out.join(mp4));
+            }
+        }
     }
     claim.commit()?;
     Ok(RenderSummary {
         views: out,
         load_seconds,
         render_seconds: t1.elapsed().as_secs_f64(),
+        animations,
     })
+}
+
+/// The centre of the mesh's bounding box (the turntable's pivot).
+fn mesh_centre(mesh: &Mesh) -> Vec3 {
+    let mut lo = Vec3::repeat(f64::INFINITY);
+    let mut hi = Vec3::repeat(f64::NEG_INFINITY);
+    for p in &mesh.positions {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    if lo.x.is_finite() {
+        (lo + hi) / 2.0
+    } else {
+        Vec3::zeros()
+    }
+}
+
+/// The model and the light one view is rendered with.
+struct ViewLight<'a> {
+    model: &'a ResultModel,
+    rot: &'a SplatRotation,
+    light: &'a OctEnv,
+    light_ll: &'a LatLong,
+}
+
+/// Render and write one view as `STEM.{exr,png,mask.png}`; returns the file record and the
+/// PNG's pixels when a turntable animation needs them.
+fn render_one(
+    view: &ViewLight,
+    opts: &RenderOptions,
+    dir: &Path,
+    camera: &Camera,
+    image: &Image,
+    stem: &str,
+) -> Result<(RenderedFile, Option<image::RgbaImage>)> {
+    let (raster, mut rgb) = render_view(view.model, view.rot, view.light, camera, image)?;
+    let mask = raster.mask();
+    let (w, h) = (camera.width, camera.height);
+    let exr = dir.join(format!("{stem}.exr"));
+    let png = dir.join(format!("{stem}.png"));
+    let mp = dir.join(format!("{stem}.mask.png"));
+    let alpha = views::fill_background(
+        &mut rgb,
+        &mask,
+        opts.background,
+        (camera, image),
+        view.light_ll,
+        &view.model.env_from_world,
+    );
+    render::write_exr(&exr, w, h, &rgb, Some(&mask))?;
+    let png_mask = alpha.then_some(mask.as_slice());
+    render::write_png(&png, w, h, &rgb, png_mask, opts.exposure as f32)?;
+    let grey: Vec<u8> = mask.iter().map(|&m| if m { 255 } else { 0 }).collect();
+    image::save_buffer(&mp, &grey, w, h, image::ColorType::L8).map_err(|e| Error::Image {
+        path: mp.clone(),
+        message: e.to_string(),
+    })?;
+    let pixels = match opts.turntable {
+        Some(_) => Some(
+            image::open(&png)
+                .map_err(|e| Error::Image {
+                    path: png.clone(),
+                    message: e.to_string(),
+                })?
+                .into_rgba8(),
+        ),
+        None => None,
+    };
+    Ok((
+        // Where the files will be once the output folder is committed.
+        RenderedFile {
+            name: image.name.clone(),
+            exr: opts.out.join(exr.file_name().unwrap_or_default()),
+            png: opts.out.join(png.file_name().unwrap_or_default()),
+            mask: opts.out.join(mp.file_name().unwrap_or_default()),
+            covered: raster.covered(),
+        },
+        pixels,
+    ))
 }
 
 #[cfg(test)]

@@ -15,6 +15,8 @@
 //! (`12.92 v` for `v ≤ 0.0031308`, else `1.055 v^{1/2.4} − 0.055`), clamped to `[0, 1]`;
 //! EXR stores linear `f32`. With a mask, both carry an alpha channel (1 object, 0 not).
 
+pub mod views;
+
 use std::path::Path;
 
 use rayon::prelude::*;

@@ -231,6 +231,7 @@ impl Rotation {
         let per: Vec<Vec<Vec<(u32, f32)>>> = (0..gn.len())
             .into_par_iter()
             .map(|nu| {
+                crate::run::progress::tick(1);
                 let s = resampling_rows(&gn.texel_dir(nu), n_global, n_local, supersample);
                 match form {
                     RotationForm::Factored => s,

@@ -646,6 +646,7 @@ pub fn build_rows<R: LocalRotation>(
         .for_each_init(
             || Scratch::new(opts.n_local, opts.n_global),
             |scratch, (p, ((oi, ov), ol))| {
+                crate::run::progress::tick(1);
                 let v = obs_vertex[p] as usize;
                 let Some((normal, frame)) = vertex_frame_into(
                     &normals_env[v],

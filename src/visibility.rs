@@ -134,6 +134,7 @@ pub fn compute_with(
         .zip(open.par_iter_mut())
         .enumerate()
         .map(|(v, (out, is_open))| {
+            crate::run::progress::tick(1);
             let x = mesh.positions[v];
             let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
             let nn = n.norm();

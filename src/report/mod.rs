@@ -19,6 +19,7 @@
 //! - wall time, CPU time and peak memory per stage;
 //! - the model chosen (materials, basis, resolutions) and the reason for each choice.
 
+pub mod html;
 pub mod metrics;
 pub mod plot;
 
@@ -262,6 +263,7 @@ impl RunReport {
         plot::bars(path, "RMSE per photo", "RMSE (linear RGB)", &rows, &|v| {
             format!("{v:.4}")
         })
+        .map(drop)
     }
 
     fn plot_stages(&self, path: &Path) -> Result<()> {
@@ -283,6 +285,7 @@ impl RunReport {
             &rows,
             &|v| format!("{v:.2} s"),
         )
+        .map(drop)
     }
 
     /// The Markdown report.

@@ -106,14 +106,34 @@ pub fn line_panels(path: &Path, x_label: &str, panels: &[(&str, &str, Vec<Series
     Ok(())
 }
 
-/// Horizontal bars, one per `(label, value, color)`, with the value printed after each bar.
+/// Where [`bars`] printed one row's label: its text and the label's vertical centre in
+/// pixels of the PNG (for tests that check labels against the bars' pixels).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BarLabel {
+    /// The label text.
+    pub text: String,
+    /// Pixel row of the label's centre.
+    pub y_px: i32,
+}
+
+/// The row drawn in segment `y` of a bar chart of `n` rows (top row first): bars are
+/// stacked from the bottom, so segment `y` holds row `n − 1 − y`.
+fn row_of_segment(n: usize, y: usize) -> Option<usize> {
+    (y < n).then(|| n - 1 - y)
+}
+
+/// Horizontal bars, one per `(label, value, color)`, top to bottom in `rows` order, with the
+/// value printed after each bar and the label centred on its bar (segmented y axis: the
+/// label of segment `y` is drawn at its centre, the bar fills it). Returns where each label
+/// was printed.
 pub fn bars(
     path: &Path,
     title: &str,
     x_label: &str,
     rows: &[(String, f64, RGBColor)],
     value_fmt: &dyn Fn(f64) -> String,
-) -> Result<()> {
+) -> Result<Vec<BarLabel>> {
+    use plotters::coord::ranged1d::SegmentValue;
     register_font();
     let height = (60 + 26 * rows.len().max(1)) as u32 + 40;
     let root = BitMapBackend::new(path, (900, height)).into_drawing_area();
@@ -130,18 +150,28 @@ pub fn bars(
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(200)
-        .build_cartesian_2d(0.0..vmax * 1.3, 0..n)
+        // One row would make the discrete range empty (0..0): give it a second, empty slot.
+        .build_cartesian_2d(0.0..vmax * 1.3, (0..(n - 1).max(1)).into_segmented())
         .map_err(|e| plot_err(path, e))?;
+    let labelled = std::cell::RefCell::new(Vec::new());
+    let label_of = |v: &SegmentValue<usize>| match v {
+        SegmentValue::CenterOf(y) => row_of_segment(n, *y)
+            .and_then(|r| rows.get(r))
+            .map(|r| r.0.clone()),
+        _ => None,
+    };
     chart
         .configure_mesh()
         .disable_y_mesh()
         .x_desc(x_label)
         .label_style((FONT, 13))
         .y_labels(n)
-        .y_label_formatter(&|i| {
-            rows.get(n.saturating_sub(1).saturating_sub(*i))
-                .map(|r| r.0.clone())
-                .unwrap_or_default()
+        .y_label_formatter(&|v| {
+            let text = label_of(v).unwrap_or_default();
+            if let SegmentValue::CenterOf(y) = v {
+                labelled.borrow_mut().push((*y, text.clone()));
+            }
+            text
         })
         .draw()
         .map_err(|e| plot_err(path, e))?;
@@ -150,20 +180,34 @@ pub fn bars(
         let v = if v.is_finite() { *v } else { 0.0 };
         chart
             .draw_series(std::iter::once(Rectangle::new(
-                [(0.0, y), (v, y + 1)],
+                [
+                    (0.0, SegmentValue::Exact(y)),
+                    (v, SegmentValue::Exact(y + 1)),
+                ],
                 color.filled(),
             )))
             .map_err(|e| plot_err(path, e))?;
         chart
             .draw_series(std::iter::once(Text::new(
                 value_fmt(v),
-                (v + vmax * 0.01, y + 1),
+                (v + vmax * 0.01, SegmentValue::CenterOf(y)),
                 (FONT, 13),
             )))
             .map_err(|e| plot_err(path, e))?;
     }
+    let mut out: Vec<BarLabel> = labelled
+        .borrow()
+        .iter()
+        .filter(|(_, t)| !t.is_empty())
+        .map(|(y, text)| BarLabel {
+            text: text.clone(),
+            y_px: chart.backend_coord(&(0.0, SegmentValue::CenterOf(*y))).1,
+        })
+        .collect();
+    out.dedup();
+    drop(chart);
     root.present().map_err(|e| plot_err(path, e))?;
-    Ok(())
+    Ok(out)
 }
 
 /// A gallery of linear RGB images (e.g. lat-long environment maps), each tone-mapped with
@@ -289,4 +333,44 @@ where
         .draw()
         .map_err(|e| plot_err(path, e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each printed label sits on its own bar: the PNG's pixel at the label's height, just
+    /// right of the axis, has the colour of the bar of the row with that label (every row
+    /// a different colour, all bars long enough to be sampled), for 1, 2 and 7 rows.
+    #[test]
+    fn bar_labels_sit_on_their_bars() {
+        let dir = std::env::temp_dir().join(format!("relight-bars-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for n in [1usize, 2, 7] {
+            let rows: Vec<(String, f64, RGBColor)> = (0..n)
+                .map(|i| {
+                    let c = RGBColor((30 * i) as u8, 200 - (20 * i) as u8, (90 + 20 * i) as u8);
+                    (format!("row {i}"), 1.0 + i as f64, c)
+                })
+                .collect();
+            let path = dir.join(format!("bars{n}.png"));
+            let labels = bars(&path, "t", "x", &rows, &|v| format!("{v}")).unwrap();
+            assert_eq!(labels.len(), n, "{labels:?}");
+            let img = image::open(&path).unwrap().into_rgb8();
+            // The plot area starts after the 12 px margin and the 200 px label area; the
+            // shortest bar (value 1 of at most 1.3·n) spans > 20 px from there.
+            let x = 12 + 200 + 6;
+            for l in &labels {
+                let row = rows.iter().find(|r| r.0 == l.text).unwrap();
+                let px = img.get_pixel(x, l.y_px as u32).0;
+                assert_eq!(
+                    px,
+                    [row.2 .0, row.2 .1, row.2 .2],
+                    "n={n}: label {:?}",
+                    l.text
+                );
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

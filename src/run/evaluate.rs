@@ -7,7 +7,13 @@
 //! - (b) `half`: the light fitted with the reflectance frozen to observations on the left
 //!   half of the object's pixels (`x` below the middle of the object's bounding box),
 //!   the error measured on the right half only;
-//! - (c) `mean`: the mean of the training maps.
+//! - (c) `mean`: the mean of the training maps;
+//! - `baseline`, beside (b) on its photos and pixels: no model, the per-vertex median of
+//!   the training photos' colours times a per-channel gain fitted on (b)'s left half
+//!   ([`super::baseline`]); `headline` = (b)'s error over the baseline's.
+//!
+//! Every protocol's prediction also gets the literature metrics (PSNR-H, PSNR-L, SSIM,
+//! [`crate::report::metrics`]) on the same pixels.
 //!
 //! Each view is rendered by rasterising the mesh (z-buffer) and interpolating per-vertex
 //! radiance from the wavelet renderer (Eq. 5–8, untruncated) across triangles; RMSE is over

@@ -25,12 +25,15 @@
 
 mod baseline;
 mod evaluate;
+mod example;
 mod holdout;
+mod html_inputs;
 mod output;
-mod progress;
+pub mod progress;
 mod truth_check;
 
 pub use evaluate::{fine_rays, render_local_resolution, Truth};
+pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use progress::Progress;
 
@@ -330,14 +333,6 @@ impl RunOptions {
     }
 }
 
-/// Where the built-in example lives: a small `synth` workspace made from real data (the
-/// Spot mesh and real HDR maps; see `examples/README.md`).
-pub fn builtin_example() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join("spot")
-}
-
 /// What a finished run hands back (also written to `OUT/report.json`).
 #[derive(Debug)]
 pub struct RunSummary {
@@ -565,7 +560,10 @@ pub fn run(opts: &RunOptions) -> Result<RunSummary> {
     let out = crate::out_dir::OutDir::claim(&opts.out, opts.force, &inputs, "run")?;
     let report = run_into(opts, out.path(), &progress)?;
     let out = out.commit()?;
-    progress.finish(&format!("results in {}", out.display()));
+    progress.finish(
+        &format!("results in {}", out.display()),
+        &report.stage_details,
+    );
     Ok(RunSummary { out, report })
 }
 
@@ -583,6 +581,9 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     })?;
     notes.extend(scene.workspace.notes.iter().cloned());
     notes.extend(scene.skipped.iter().map(|s| format!("skipped {s}")));
+    for s in &scene.skipped {
+        progress.warn(&format!("skipped photo {s}"));
+    }
     let truth = match &scene.workspace.truth_dir {
         Some(t) => Some(Truth::read(t)?),
         None => None,
@@ -679,6 +680,10 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         if !red.is_empty() && red.len() < n {
             let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
             for &(k, by) in &red {
+                progress.line(&format!(
+                    "skipped photo {}: it adds no new observation (duplicates {})",
+                    scene.views[train[k]].image.name, scene.views[train[by]].image.name
+                ));
                 notes.push(format!(
                     "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
                     scene.views[train[k]].image.name,
@@ -743,9 +748,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
 
     // 3. Visibility.
     progress.stage("visibility");
+    let bar = progress.stage_bar(nv as u64, "vertices");
     let (vis, render_vis) = stages.run("visibility", || {
         evaluate::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
     });
+    drop(bar);
     notes.push(format!(
         "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced",
         vis.open_count(),
@@ -796,6 +803,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     let mut pilot_k: Option<(usize, String)> = None;
     if opts.adaptive {
         progress.stage("pilot");
+        let spinner = progress.spinner("pilot fits");
         let lambert = lambert_of(&opts.basis)?;
         let outcome = stages.run("pilot", || {
             crate::adapt::pilot(&crate::adapt::PilotInput {
@@ -822,12 +830,14 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
                 seed: opts.seed,
             })
         })?;
+        drop(spinner);
         decisions.extend(adaptive_decisions(opts, &outcome, &vis, nv, &mut eff));
         pilot_k = Some((outcome.materials, outcome.materials_reason.clone()));
     }
 
     // 4. Rotation.
     progress.stage("rotation");
+    let bar = progress.stage_bar((eff.normal_grid * eff.normal_grid) as u64, "normals");
     let rot = stages.run("rotation", || {
         Rotation::new(
             eff.global_resolution,
@@ -837,8 +847,11 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         )
     });
 
+    drop(bar);
+
     // 5. Transport.
     progress.stage("transport");
+    let bar = progress.stage_bar(obs.vertex.len() as u64, "observations");
     let topts = TransportOptions {
         n_global: eff.global_resolution,
         n_local: eff.local_resolution,
@@ -855,6 +868,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             &topts,
         )
     })?;
+    drop(bar);
 
     // 6. Estimate.
     let lambert = lambert_of(&eff.basis)?;
@@ -880,6 +894,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     };
     let eopts = estimate_options(&eff, lambert);
     let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+    let spinner = progress.spinner("held-out transport");
     let tracker = stages.run("transport", || {
         evaluate::HoldoutTracker::new(
             &scene,
@@ -895,6 +910,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             truth.as_ref(),
         )
     })?;
+    drop(spinner);
     progress.stage("estimate");
     let available = starts::family_len(eff.basis.len(), lambert);
     if opts.starts > available {
@@ -914,17 +930,24 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
                 .as_ref()
                 .map(|t| t.rmse(state, nv))
                 .filter(|v| v.is_finite());
-            bar.set_message(format!(
-                "{}objective {:.4e}, training RMSE {:.5}{}",
+            let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+            let line = format!(
+                "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
                 if n_starts > 1 {
-                    format!("start {} of {n_starts}: ", si + 1)
+                    format!("start {} of {n_starts}, ", si + 1)
                 } else {
                     String::new()
                 },
                 it.objective,
                 it.train_rmse,
-                holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}"))
-            ));
+                holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
+                it.seconds
+            );
+            if bar.is_hidden() {
+                progress.line(&line);
+            } else {
+                bar.println(format!("          {line}"));
+            }
             timeline.push(TimelinePoint {
                 start: si,
                 seconds: it.seconds,
@@ -1141,6 +1164,8 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
         .map(|(n, ll)| (n.clone(), ll.width, ll.height, ll.rgb.as_slice()))
         .collect();
     report.write(dir, &refs)?;
+    let inputs = html_inputs::html_inputs(&fitted, truth.as_ref(), dir)?;
+    crate::report::html::write(dir, &report, &inputs)?;
     Ok(report)
 }
 

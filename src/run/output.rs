@@ -49,7 +49,22 @@ pub(crate) fn write_triptych(
             };
         }
     }
-    crate::render::write_png(path, (3 * w) as u32, h as u32, &out, None, 1.0)
+    crate::render::write_png(path, (3 * w) as u32, h as u32, &out, None, 1.0)?;
+    // The same three panels as separate files, the difference as a heat map with its
+    // range, for report.html: renders/panels/STEM.{photo,render,diff}.png.
+    if let (Some(parent), Some(stem)) = (path.parent(), path.file_stem()) {
+        let panels = parent.join("panels");
+        std::fs::create_dir_all(&panels).map_err(|e| Error::io(&panels, e))?;
+        crate::report::html::write_panels(
+            &panels.join(stem),
+            (photo.width, photo.height),
+            &photo.rgb,
+            rgb,
+            &raster.mask(),
+            s,
+        )?;
+    }
+    Ok(())
 }
 
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {

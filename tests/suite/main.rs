@@ -46,6 +46,7 @@ mod reference_cost;
 mod relight_render;
 mod render_frames;
 mod render_raster;
+mod result_use;
 mod run_baseline;
 mod run_example;
 mod run_fixtures;

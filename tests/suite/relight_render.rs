@@ -90,6 +90,7 @@ fn relit_sphere_matches_reference_under_new_map() {
             force: false,
             exposure: 1.0,
             resolution: None,
+            ..Default::default()
         },
     )
     .unwrap();
@@ -241,6 +242,7 @@ fn bad_inputs_give_clear_errors() {
         force: false,
         exposure: 1.0,
         resolution: None,
+        ..Default::default()
     };
     // Missing result folder.
     let e = relight::render_result(
@@ -273,6 +275,7 @@ fn bad_camera_and_map_on_a_real_result(dir: &Path, out: &Path) {
         force: false,
         exposure: 1.0,
         resolution: Some(32),
+        ..Default::default()
     };
     let e = relight::render_result(
         &out,

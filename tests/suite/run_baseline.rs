@@ -8,6 +8,7 @@ use relight_cpc::observe::{self, ObserveOptions};
 use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
 use relight_cpc::trace::SceneBvh;
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -19,13 +20,10 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-#[test]
-fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
-    let dir = std::env::temp_dir().join(format!("relight-baseline-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = dir.join("spot");
-    let mut o = RunOptions::new(builtin_example(), out.clone());
-    // The baseline does not depend on the fit: the smallest model that runs.
+/// The smallest model that runs: the baseline, the rule that picks the held-out photos
+/// and the report's keys do not depend on the fit.
+fn tiny(workspace: PathBuf, out: PathBuf) -> RunOptions {
+    let mut o = RunOptions::new(workspace, out);
     o.global_resolution = 16;
     o.local_resolution = 8;
     o.normal_grid = 8;
@@ -35,10 +33,20 @@ fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
     o.materials = MaterialCount::Fixed(1);
     o.progress = false;
     o.render_training = false;
+    o
+}
+
+#[test]
+fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
+    let dir = std::env::temp_dir().join(format!("relight-baseline-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dir.join("spot");
+    let o = tiny(builtin_example().unwrap(), out.clone());
     let r = run(&o).expect("run on the built-in example").report;
 
     // Brute force from the workspace itself.
-    let ws = relight_cpc::workspace::Workspace::discover(&builtin_example(), None).unwrap();
+    let ws =
+        relight_cpc::workspace::Workspace::discover(&builtin_example().unwrap(), None).unwrap();
     let scene = relight_cpc::scene::load_scene(ws).unwrap();
     let photos = relight_cpc::scene::load_photos(&scene, o.clip).unwrap();
     let held_names: Vec<String> = r
@@ -191,4 +199,58 @@ fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
     );
     assert!(md.contains("| baseline |") && md.contains("## Truth check"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_workspace_without_truth_holds_out_every_fifth_photo_by_default() {
+    // The built-in example without its truth/ folder: 8 registered photos, so the default
+    // holds out the 5th in name order (photo_004.png) and says so in the report; there is
+    // no truth check, and the baseline and headline still apply.
+    let dir = crate::scratch::scratch("baseline", "no-truth");
+    let ws = dir.join("ws");
+    for sub in ["dense", "images", "sparse"] {
+        copy_dir(&builtin_example().unwrap().join(sub), &ws.join(sub));
+    }
+    let out = dir.join("out");
+    let r = run(&tiny(ws, out.clone()))
+        .expect("run without truth")
+        .report;
+    let held: std::collections::BTreeSet<&str> =
+        r.holdout.iter().map(|h| h.image.as_str()).collect();
+    assert_eq!(held.into_iter().collect::<Vec<_>>(), vec!["photo_004.png"]);
+    let protocols: Vec<&str> = r.holdout.iter().map(|h| h.protocol.as_str()).collect();
+    assert_eq!(protocols, vec!["half", "baseline", "mean"]);
+    assert!(
+        r.holdout_rule.contains("chosen by default"),
+        "{}",
+        r.holdout_rule
+    );
+    assert!(r.truth_check.is_empty());
+    assert!(r.headline.is_some_and(|h| h.is_finite() && h > 0.0));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("Held out: 1 of 8 photos, chosen by default"),
+        "{md}"
+    );
+    assert!(!md.contains("## Truth check"));
+    // `--holdout none` holds out nothing and the report says there is no headline.
+    let mut o = tiny(dir.join("ws"), dir.join("out-none"));
+    o.holdout = relight_cpc::run::Holdout::None;
+    let r = run(&o).expect("run with --holdout none").report;
+    assert!(r.holdout.is_empty() && r.headline.is_none());
+    let md = std::fs::read_to_string(dir.join("out-none").join("report.md")).unwrap();
+    assert!(md.contains("**Headline: none**") && md.contains("No photo was held out."));
 }

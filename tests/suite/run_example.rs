@@ -4,7 +4,7 @@
 use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
 
 fn options(out: &std::path::Path) -> RunOptions {
-    let mut o = RunOptions::new(builtin_example(), out.to_path_buf());
+    let mut o = RunOptions::new(builtin_example().unwrap(), out.to_path_buf());
     // Small settings so the whole pipeline stays well under a minute in the test profile.
     o.global_resolution = 32;
     o.keep = 64;

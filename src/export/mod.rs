@@ -1,0 +1,131 @@
+//! `relight-cpc export`: a finished run in formats other tools open.
+//!
+//! - [`gltf`]: the mesh as binary glTF with per-vertex base colour and a metallic-roughness
+//!   approximation of the fitted BRDF mixture;
+//! - [`envmap`]: the recovered environment maps as lat-long EXR and Radiance `.hdr` in
+//!   Blender's world-texture convention.
+
+pub mod envmap;
+pub mod gltf;
+
+use crate::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// What to export.
+#[derive(Debug, Clone, Default)]
+pub struct ExportOptions {
+    /// Write the mesh here as `.glb`.
+    pub gltf: Option<PathBuf>,
+    /// Write every recovered environment map into this folder (Blender convention).
+    pub envmaps: Option<PathBuf>,
+    /// Replace a previous export (never anything else; the output-folder contract).
+    pub force: bool,
+}
+
+/// What [`export_result`] wrote.
+#[derive(Debug, Clone, Default)]
+pub struct ExportSummary {
+    /// The `.glb` and its figures.
+    pub gltf: Option<(PathBuf, gltf::GltfSummary)>,
+    /// The environment maps written (EXR and HDR per map).
+    pub envmaps: Vec<PathBuf>,
+}
+
+/// Write `bytes` to `path` through a temporary sibling file renamed into place, so an
+/// interrupted write never leaves a file that looks complete.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::Config(format!("{}: needs a file name", path.display())))?;
+    let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
+    std::fs::write(&tmp, bytes).map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })
+}
+
+/// Whether `path` is a GLB this tool wrote (magic `glTF` and our generator string).
+fn is_our_glb(path: &Path) -> bool {
+    std::fs::read(path).is_ok_and(|b| {
+        b.starts_with(b"glTF") && b.windows(11).take(4096).any(|w| w == b"relight-cpc")
+    })
+}
+
+/// Export the result in `result_dir` as `opts` asks.
+pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSummary> {
+    if opts.gltf.is_none() && opts.envmaps.is_none() {
+        return Err(Error::Config(
+            "export: nothing to do; give --gltf FILE.glb and/or --envmaps DIR".into(),
+        ));
+    }
+    let mut summary = ExportSummary::default();
+    if let Some(path) = &opts.gltf {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .ok_or_else(|| {
+                Error::Config(format!("--gltf {}: needs a file name", path.display()))
+            })?;
+        let folder = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let files = crate::out_dir::OutFiles::claim(
+            folder,
+            &[&name],
+            opts.force,
+            &[result_dir],
+            is_our_glb,
+        )?;
+        let m = crate::relight::load_result(result_dir)?;
+        let mesh = gltf::gltf_mesh(
+            &m.mesh.positions,
+            &m.normals_env,
+            &m.mesh.faces,
+            &m.env_from_world,
+            &m.basis,
+            &m.beta,
+        )?;
+        let label = result_dir
+            .canonicalize()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "relight-cpc".into());
+        let (bytes, s) = gltf::glb_bytes(&mesh, &label)?;
+        let written = files.write(&name, &bytes)?;
+        summary.gltf = Some((written, s));
+    }
+    if let Some(dir) = &opts.envmaps {
+        let src = result_dir.join("envmaps");
+        let mut maps: Vec<PathBuf> = std::fs::read_dir(&src)
+            .map_err(|e| Error::io(&src, e))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.to_string_lossy().ends_with(".latlong.exr"))
+            .collect();
+        maps.sort();
+        if maps.is_empty() {
+            return Err(Error::Workspace {
+                path: src,
+                message: "no NAME.latlong.exr map in the result".into(),
+            });
+        }
+        let claim = crate::out_dir::OutDir::claim(dir, opts.force, &[result_dir], "export")?;
+        for p in maps {
+            let file = p.file_name().map(|n| n.to_string_lossy().into_owned());
+            let stem = file
+                .as_deref()
+                .and_then(|n| n.strip_suffix(".latlong.exr"))
+                .unwrap_or("map")
+                .to_string();
+            let ll = crate::envmap::LatLong::read_exr(&p)?.0;
+            for written in envmap::export_blender(&ll, claim.path(), &stem)? {
+                summary
+                    .envmaps
+                    .push(dir.join(written.file_name().unwrap_or_default()));
+            }
+        }
+        claim.commit()?;
+    }
+    Ok(summary)
+}

@@ -1,0 +1,697 @@
+//! `report.html`: one page a person opens from disk in any browser. Images are relative
+//! files of the result folder (no server, no script needed to show them); the page holds:
+//!
+//! - per held-out photo: photo | render | difference, the difference as a heat map of the
+//!   per-pixel error `e = sqrt(⅓ Σ_c (y_c − s·ŷ_c)²)` (linear RGB, the render after the best
+//!   global scale `s` of [`super::compare`]) over `[0, e_max]`, `e_max` the 99th percentile
+//!   of `e` over the object (stated beside a colour bar); the panels are written by
+//!   [`write_panels`];
+//! - per training photo: a thumbnail beside its recovered environment map (lat-long, sky
+//!   up), all maps tone-mapped with ONE exposure (the 99th percentile of all their
+//!   luminances maps to white) so their brightness compares; for synthetic workspaces the
+//!   true map too (re-expressed in the fit's environment frame, with one exposure shared by
+//!   the true maps: the overall scale of the fit is not observable, paper Eq. 9);
+//! - material swatches (the diffuse colour) and each material's lobe weights;
+//! - time and memory per stage, error against run time, the model choices and why, and
+//!   the literature metrics of `report.json`'s `metrics` key when present.
+
+use super::RunReport;
+use crate::envmap::LatLong;
+use crate::{Error, Result};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The heat map's control points (perceptually ordered black → purple → orange → yellow,
+/// after matplotlib's "inferno"), evenly spaced over `[0, 1]`.
+const HEAT: [[u8; 3]; 6] = [
+    [0, 0, 4],
+    [66, 10, 104],
+    [147, 38, 103],
+    [221, 81, 58],
+    [252, 165, 10],
+    [252, 255, 164],
+];
+
+/// Colour of `t ∈ [0, 1]` (clamped) on the heat map, linear between control points.
+pub fn heat(t: f64) -> [u8; 3] {
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let x = t * (HEAT.len() - 1) as f64;
+    let i = (x.floor() as usize).min(HEAT.len() - 2);
+    let f = x - i as f64;
+    [0, 1, 2].map(|c| (HEAT[i][c] as f64 * (1.0 - f) + HEAT[i + 1][c] as f64 * f).round() as u8)
+}
+
+/// The CSS gradient of the heat map (for the colour bar).
+fn heat_css() -> String {
+    let stops: Vec<String> = HEAT
+        .iter()
+        .map(|c| format!("rgb({},{},{})", c[0], c[1], c[2]))
+        .collect();
+    format!("linear-gradient(to right, {})", stops.join(", "))
+}
+
+/// Per-pixel error `e` (module docs) where `mask` holds, `None` elsewhere.
+pub fn pixel_errors(
+    photo: &[[f32; 3]],
+    render: &[[f32; 3]],
+    mask: &[bool],
+    scale: f32,
+) -> Vec<Option<f32>> {
+    photo
+        .iter()
+        .zip(render)
+        .zip(mask)
+        .map(|((p, q), &m)| {
+            m.then(|| {
+                let s: f32 = (0..3).map(|c| (p[c] - scale * q[c]).powi(2)).sum();
+                (s / 3.0).sqrt()
+            })
+        })
+        .collect()
+}
+
+/// The `q`-quantile (0..1) of the finite values, `None` if there are none.
+pub fn quantile(values: impl Iterator<Item = f32>, q: f64) -> Option<f32> {
+    let mut v: Vec<f32> = values.filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f32::total_cmp);
+    let i = ((v.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    Some(v[i])
+}
+
+/// The range of a difference image, written beside it as `STEM.diff.json`.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize, PartialEq)]
+pub struct DiffRange {
+    /// Error at the bottom of the colour bar (0).
+    pub min: f32,
+    /// Error at the top of the colour bar (the 99th percentile over the object).
+    pub max: f32,
+    /// The largest error over the object.
+    pub peak: f32,
+}
+
+fn save_rgb(path: &Path, w: u32, h: u32, px: &[u8]) -> Result<()> {
+    image::save_buffer(path, px, w, h, image::ColorType::Rgb8).map_err(|e| Error::Image {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Write `STEM.photo.png`, `STEM.render.png` (after `scale`), `STEM.diff.png` (heat map,
+/// grey outside the object) and `STEM.diff.json` (its range) for one view; `stem` is a path
+/// without extension. `mask` marks the object pixels.
+pub fn write_panels(
+    stem: &Path,
+    size: (u32, u32),
+    photo: &[[f32; 3]],
+    render: &[[f32; 3]],
+    mask: &[bool],
+    scale: f32,
+) -> Result<DiffRange> {
+    let (w, h) = size;
+    let with = |ext: &str| {
+        let mut s = stem.as_os_str().to_owned();
+        s.push(ext);
+        std::path::PathBuf::from(s)
+    };
+    let scaled: Vec<[f32; 3]> = render
+        .iter()
+        .zip(mask)
+        .map(|(q, &m)| if m { q.map(|v| v * scale) } else { [0.0; 3] })
+        .collect();
+    crate::render::write_png(&with(".photo.png"), w, h, photo, None, 1.0)?;
+    crate::render::write_png(&with(".render.png"), w, h, &scaled, None, 1.0)?;
+    let e = pixel_errors(photo, render, mask, scale);
+    let max = quantile(e.iter().flatten().copied(), 0.99)
+        .filter(|v| *v > 0.0)
+        .unwrap_or(1e-6);
+    let peak = e.iter().flatten().copied().fold(0.0f32, f32::max);
+    let px: Vec<u8> = e
+        .iter()
+        .flat_map(|v| match v {
+            Some(v) => heat((*v / max) as f64),
+            None => [96, 96, 96],
+        })
+        .collect();
+    save_rgb(&with(".diff.png"), w, h, &px)?;
+    let range = DiffRange {
+        min: 0.0,
+        max,
+        peak,
+    };
+    let json = serde_json::to_string(&range).map_err(|e| Error::Config(e.to_string()))?;
+    let jp = with(".diff.json");
+    std::fs::write(&jp, json).map_err(|e| Error::io(&jp, e))?;
+    Ok(range)
+}
+
+/// One training photo's row: thumbnail and maps, as file names relative to the result.
+#[derive(Debug, Clone)]
+pub struct TrainingRow {
+    /// Image name.
+    pub image: String,
+    /// The photo's thumbnail.
+    pub thumbnail: String,
+    /// The recovered map, tone-mapped.
+    pub fitted_map: String,
+    /// The true map, tone-mapped (synthetic workspaces).
+    pub true_map: Option<String>,
+}
+
+/// One material's swatch and parameters.
+#[derive(Debug, Clone)]
+pub struct Swatch {
+    /// sRGB colour of the diffuse lobe (normalised by the largest diffuse value over the
+    /// materials).
+    pub srgb: [u8; 3],
+    /// `(lobe label, RGB weight)` per basis lobe.
+    pub lobes: Vec<(String, [f64; 3])>,
+}
+
+/// What the page shows besides `report.json`'s figures.
+#[derive(Debug, Clone, Default)]
+pub struct HtmlInputs {
+    /// Training rows.
+    pub training: Vec<TrainingRow>,
+    /// The exposure (linear factor) shared by the recovered maps.
+    pub fitted_exposure: f32,
+    /// The exposure shared by the true maps.
+    pub true_exposure: Option<f32>,
+    /// Material swatches.
+    pub materials: Vec<Swatch>,
+}
+
+/// The linear factor mapping the 99th percentile of all maps' luminances to 1.
+pub fn shared_exposure(maps: &[&LatLong]) -> f32 {
+    let lum = maps
+        .iter()
+        .flat_map(|m| m.rgb.iter())
+        .map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+    match quantile(lum, 0.99) {
+        Some(v) if v > 0.0 => 1.0 / v,
+        _ => 1.0,
+    }
+}
+
+/// Write a lat-long map as an sRGB PNG at `exposure`.
+pub fn write_map_png(path: &Path, ll: &LatLong, exposure: f32) -> Result<()> {
+    crate::render::write_png(
+        path,
+        ll.width as u32,
+        ll.height as u32,
+        &ll.rgb,
+        None,
+        exposure,
+    )
+}
+
+/// Write a thumbnail `width` pixels wide (box filter over whole source pixels), sRGB PNG.
+pub fn write_thumbnail(path: &Path, size: (u32, u32), rgb: &[[f32; 3]], width: u32) -> Result<()> {
+    let (w, h) = (size.0 as usize, size.1 as usize);
+    let tw = (width as usize).min(w).max(1);
+    let th = ((h * tw).div_ceil(w.max(1))).max(1);
+    let mut out = vec![[0.0f32; 3]; tw * th];
+    for (i, o) in out.iter_mut().enumerate() {
+        let (x, y) = (i % tw, i / tw);
+        let (x0, x1) = (x * w / tw, ((x + 1) * w / tw).max(x * w / tw + 1).min(w));
+        let (y0, y1) = (y * h / th, ((y + 1) * h / th).max(y * h / th + 1).min(h));
+        let mut acc = [0.0f32; 3];
+        for yy in y0..y1 {
+            for xx in x0..x1 {
+                let p = rgb.get(yy * w + xx).copied().unwrap_or([0.0; 3]);
+                for c in 0..3 {
+                    acc[c] += p[c];
+                }
+            }
+        }
+        let n = ((x1 - x0) * (y1 - y0)).max(1) as f32;
+        *o = acc.map(|v| v / n);
+    }
+    crate::render::write_png(path, tw as u32, th as u32, &out, None, 1.0)
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A relative file reference for `src`/`href` (path segments percent-encoded where needed).
+fn href(rel: &str) -> String {
+    rel.split('/')
+        .map(|seg| {
+            seg.bytes()
+                .map(|b| match b {
+                    b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                        (b as char).to_string()
+                    }
+                    _ => format!("%{b:02X}"),
+                })
+                .collect::<String>()
+        })
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+fn img(rel: &str, alt: &str, class: &str) -> String {
+    format!(
+        "<img src=\"{}\" alt=\"{}\" class=\"{class}\" loading=\"eager\">",
+        href(rel),
+        esc(alt)
+    )
+}
+
+const STYLE: &str = "body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}\
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}\
+th{background:#f4f4f4}td.l,th.l{text-align:left}img.panel{width:260px;image-rendering:auto}\
+img.thumb{width:160px}img.map{width:320px}img.plot{max-width:100%}\
+.bar{height:12px;width:260px;display:inline-block;vertical-align:middle;border:1px solid #888}\
+.sw{width:48px;height:48px;display:inline-block;border:1px solid #444;vertical-align:middle}\
+figure{display:inline-block;margin:4px}figcaption{font-size:85%;color:#555}";
+
+/// The held-out section: one row per image and protocol, from the panels beside
+/// `renders/STEM.PROTOCOL.png`.
+fn held_out_section(s: &mut String, r: &RunReport, dir: &Path) {
+    let _ = writeln!(s, "<h2 id=\"held-out\">Held-out photos</h2>");
+    if r.holdout.is_empty() {
+        let _ = writeln!(
+            s,
+            "<p>No photo was held out, so nothing measures how well the result predicts a \
+             new view. Run again with <code>--holdout-every 5</code> or \
+             <code>--holdout NAME,...</code>.</p>"
+        );
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "<p>Photo | render (after the best global scale) | difference. The difference is the \
+         per-pixel error in linear RGB on the photo's [0, 1] scale, coloured from 0 to the \
+         99th percentile over the object (grey: not object).</p>"
+    );
+    for h in &r.holdout {
+        let stem = format!(
+            "renders/panels/{}.{}",
+            crate::relight::file_stem(&h.image),
+            h.protocol
+        );
+        let range: Option<DiffRange> =
+            std::fs::read_to_string(dir.join(format!("{stem}.diff.json")))
+                .ok()
+                .and_then(|t| serde_json::from_str(&t).ok());
+        let _ = writeln!(
+            s,
+            "<h3>{} <small>({}: RMSE {:.5} raw, {:.5} after scale {:.3}; PSNR {:.2} dB)</small></h3>",
+            esc(&h.image),
+            esc(&h.protocol),
+            h.rmse,
+            h.rmse_scaled,
+            h.scale,
+            h.psnr
+        );
+        if range.is_none() {
+            let _ = writeln!(s, "<p>(no panels were written for this view)</p>");
+            continue;
+        }
+        let _ = writeln!(s, "<div>");
+        for (ext, cap) in [
+            ("photo", "photo"),
+            ("render", "render"),
+            ("diff", "difference"),
+        ] {
+            let _ = writeln!(
+                s,
+                "<figure>{}<figcaption>{cap}</figcaption></figure>",
+                img(
+                    &format!("{stem}.{ext}.png"),
+                    &format!("{} {cap}", h.image),
+                    "panel"
+                )
+            );
+        }
+        if let Some(rg) = range {
+            let _ = writeln!(
+                s,
+                "<p>colour scale: {:.4} <span class=\"bar\" style=\"background:{}\"></span> {:.4} \
+                 (largest error {:.4})</p>",
+                rg.min,
+                heat_css(),
+                rg.max,
+                rg.peak
+            );
+        }
+        let _ = writeln!(s, "</div>");
+    }
+}
+
+fn training_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {
+    let _ = writeln!(
+        s,
+        "<h2 id=\"training\">Training photos and recovered light</h2>"
+    );
+    let _ = writeln!(
+        s,
+        "<p>RMSE over all training observations: <b>{:.5}</b>. Each environment map is a \
+         lat-long view of the whole sphere, sky up; all recovered maps share one exposure \
+         (×{:.3}) so their brightness compares{}.</p>",
+        r.train_rmse,
+        inputs.fitted_exposure,
+        inputs.true_exposure.map_or(String::new(), |e| format!(
+            "; the true maps share another (×{e:.3}): the fit's overall scale is not observable"
+        ))
+    );
+    let _ = writeln!(
+        s,
+        "<table><tr><th class=\"l\">photo</th><th>RMSE</th><th>thumbnail</th><th>recovered map</th>{}</tr>",
+        if inputs.true_exposure.is_some() { "<th>true map</th>" } else { "" }
+    );
+    for row in &inputs.training {
+        let rmse = r
+            .train
+            .iter()
+            .find(|t| t.image == row.image)
+            .map_or("–".to_string(), |t| format!("{:.5}", t.rmse));
+        let _ = write!(
+            s,
+            "<tr><td class=\"l\">{}</td><td>{rmse}</td><td>{}</td><td>{}</td>",
+            esc(&row.image),
+            img(&row.thumbnail, &row.image, "thumb"),
+            img(
+                &row.fitted_map,
+                &format!("recovered map of {}", row.image),
+                "map"
+            )
+        );
+        if let Some(t) = &row.true_map {
+            let _ = write!(
+                s,
+                "<td>{}</td>",
+                img(t, &format!("true map of {}", row.image), "map")
+            );
+        }
+        let _ = writeln!(s, "</tr>");
+    }
+    let _ = writeln!(s, "</table>");
+    let _ = writeln!(
+        s,
+        "<p>{}</p>",
+        img("plots/per_photo_rmse.png", "RMSE per photo", "plot")
+    );
+}
+
+fn materials_section(s: &mut String, inputs: &HtmlInputs) {
+    let _ = writeln!(s, "<h2 id=\"materials\">Materials</h2>");
+    let _ = writeln!(
+        s,
+        "<p>Each material mixes the basis lobes with these RGB weights (paper Eq. 11); the \
+         swatch is the diffuse (lambert) colour, normalised by the brightest material.</p>"
+    );
+    let Some(first) = inputs.materials.first() else {
+        return;
+    };
+    let _ = write!(s, "<table><tr><th class=\"l\">material</th><th>swatch</th>");
+    for (label, _) in &first.lobes {
+        let _ = write!(s, "<th>{}</th>", esc(label));
+    }
+    let _ = writeln!(s, "</tr>");
+    for (k, m) in inputs.materials.iter().enumerate() {
+        let [r, g, b] = m.srgb;
+        let _ = write!(
+            s,
+            "<tr><td class=\"l\">{k}</td><td><span class=\"sw\" style=\"background:rgb({r},{g},{b})\"></span></td>"
+        );
+        for (_, w) in &m.lobes {
+            let _ = write!(s, "<td>{:.4}, {:.4}, {:.4}</td>", w[0], w[1], w[2]);
+        }
+        let _ = writeln!(s, "</tr>");
+    }
+    let _ = writeln!(s, "</table>");
+}
+
+fn stages_section(s: &mut String, r: &RunReport) {
+    let _ = writeln!(s, "<h2 id=\"time\">Time and memory per stage</h2>");
+    let _ = writeln!(
+        s,
+        "<p>{}</p>",
+        img("plots/stages.png", "time per stage", "plot")
+    );
+    let _ = writeln!(
+        s,
+        "<table><tr><th class=\"l\">stage</th><th>wall s</th><th>CPU s</th><th>peak memory MiB</th></tr>"
+    );
+    for st in &r.stage_details {
+        let _ = writeln!(
+            s,
+            "<tr><td class=\"l\">{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1}{}</td></tr>",
+            esc(&st.name),
+            st.seconds,
+            st.cpu_seconds,
+            st.peak_memory_bytes as f64 / (1u64 << 20) as f64,
+            if st.memory_exact {
+                ""
+            } else {
+                " (process peak)"
+            }
+        );
+    }
+    let _ = writeln!(s, "</table>");
+    let _ = writeln!(s, "<h2 id=\"error-time\">Error against run time</h2>");
+    let _ = writeln!(
+        s,
+        "<p>{}</p>",
+        img("plots/error_vs_time.png", "error against run time", "plot")
+    );
+}
+
+fn model_section(s: &mut String, r: &RunReport) {
+    let m = &r.model;
+    let _ = writeln!(s, "<h2 id=\"model\">Model choices and why</h2>");
+    let _ = writeln!(
+        s,
+        "<p>{} material(s); lobes: {}; light map {}×{} per photo; hemisphere {}×{} (renders {}×{}); \
+         {} pre-rotated normals per side; transport terms kept per observation: {}.</p><ul>",
+        m.materials,
+        esc(&m.basis.join(", ")),
+        m.global_resolution,
+        m.global_resolution,
+        m.local_resolution,
+        m.local_resolution,
+        m.render_local_resolution,
+        m.render_local_resolution,
+        m.normal_grid,
+        if m.kept_coefficients == 0 { "all".to_string() } else { m.kept_coefficients.to_string() }
+    );
+    for reason in &m.reasons {
+        let _ = writeln!(s, "<li>{}</li>", esc(reason));
+    }
+    let _ = writeln!(s, "</ul>");
+    if let Some(ds) = &m.adaptive {
+        let _ = writeln!(
+            s,
+            "<table><tr><th class=\"l\">what</th><th class=\"l\">full model</th><th class=\"l\">chosen</th><th class=\"l\">why</th></tr>"
+        );
+        for d in ds {
+            let _ = writeln!(
+                s,
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td></tr>",
+                esc(&d.what),
+                esc(&d.full),
+                esc(&d.chosen),
+                esc(&d.reason)
+            );
+        }
+        let _ = writeln!(s, "</table>");
+    }
+}
+
+/// One JSON value as text for a table cell (numbers to 4 significant decimals).
+fn cell(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Number(n) => n
+            .as_f64()
+            .map_or_else(|| n.to_string(), |f| format!("{f:.4}")),
+        serde_json::Value::String(t) => esc(t),
+        serde_json::Value::Null => "–".into(),
+        other => esc(&other.to_string()),
+    }
+}
+
+/// The literature metrics (`metrics` of report.json), whatever their shape: an array of
+/// records is a table; an object of scalars a two-column table; nested objects recurse.
+fn metrics_section(s: &mut String, json: &serde_json::Value) {
+    let _ = writeln!(s, "<h2 id=\"metrics\">Literature metrics</h2>");
+    match json.get("metrics") {
+        None | Some(serde_json::Value::Null) => {
+            let _ = writeln!(s, "<p>This run's report has no literature metrics.</p>");
+        }
+        Some(m) => metrics_value(s, m),
+    }
+}
+
+fn metrics_value(s: &mut String, v: &serde_json::Value) {
+    use serde_json::Value;
+    match v {
+        Value::Array(rows) if rows.iter().all(|r| r.is_object()) && !rows.is_empty() => {
+            let mut cols: Vec<String> = Vec::new();
+            for r in rows {
+                for k in r.as_object().into_iter().flat_map(|o| o.keys()) {
+                    if !cols.contains(k) {
+                        cols.push(k.clone());
+                    }
+                }
+            }
+            let _ = write!(s, "<table><tr>");
+            for c in &cols {
+                let _ = write!(s, "<th>{}</th>", esc(c));
+            }
+            let _ = writeln!(s, "</tr>");
+            for r in rows {
+                let _ = write!(s, "<tr>");
+                for c in &cols {
+                    let _ = write!(s, "<td>{}</td>", r.get(c).map_or("–".into(), cell));
+                }
+                let _ = writeln!(s, "</tr>");
+            }
+            let _ = writeln!(s, "</table>");
+        }
+        Value::Object(o) => {
+            let _ = writeln!(s, "<table>");
+            for (k, v) in o {
+                if v.is_object() || v.is_array() {
+                    let _ = writeln!(s, "<tr><th class=\"l\">{}</th><td class=\"l\">", esc(k));
+                    metrics_value(s, v);
+                    let _ = writeln!(s, "</td></tr>");
+                } else {
+                    let _ = writeln!(
+                        s,
+                        "<tr><th class=\"l\">{}</th><td>{}</td></tr>",
+                        esc(k),
+                        cell(v)
+                    );
+                }
+            }
+            let _ = writeln!(s, "</table>");
+        }
+        other => {
+            let _ = writeln!(s, "<p>{}</p>", cell(other));
+        }
+    }
+}
+
+/// The page (module docs). `json` is `report.json`'s value (for keys other parts of the
+/// tool add, such as `metrics`); `dir` the result folder (to read the panels' ranges).
+pub fn page(r: &RunReport, json: &serde_json::Value, inputs: &HtmlInputs, dir: &Path) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <title>relight-cpc report</title><style>{STYLE}</style></head><body>"
+    );
+    let _ = writeln!(s, "<h1>relight-cpc report</h1>");
+    let _ = writeln!(
+        s,
+        "<p>Workspace <code>{}</code>, seed {}, relight-cpc {}. Also: \
+         <a href=\"report.md\">report.md</a>, <a href=\"report.json\">report.json</a>.</p>",
+        esc(&r.workspace),
+        r.seed,
+        esc(&r.version)
+    );
+    let _ = writeln!(
+        s,
+        "<p><a href=\"#held-out\">held-out</a> · <a href=\"#training\">training</a> · \
+         <a href=\"#materials\">materials</a> · <a href=\"#time\">time</a> · \
+         <a href=\"#error-time\">error/time</a> · <a href=\"#model\">model</a> · \
+         <a href=\"#metrics\">metrics</a> · <a href=\"#notes\">notes</a></p>"
+    );
+    held_out_section(&mut s, r, dir);
+    training_section(&mut s, r, inputs);
+    materials_section(&mut s, inputs);
+    stages_section(&mut s, r);
+    model_section(&mut s, r);
+    metrics_section(&mut s, json);
+    let _ = writeln!(s, "<h2 id=\"notes\">Notes</h2><ul>");
+    for n in &r.notes {
+        let _ = writeln!(s, "<li>{}</li>", esc(n));
+    }
+    let _ = writeln!(s, "</ul></body></html>");
+    s
+}
+
+/// Write `dir/report.html` (after `report.json`, whose value it reads for `metrics`).
+pub fn write(dir: &Path, r: &RunReport, inputs: &HtmlInputs) -> Result<()> {
+    let jp = dir.join("report.json");
+    let json: serde_json::Value = std::fs::read_to_string(&jp)
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or(serde_json::Value::Null);
+    let path = dir.join("report.html");
+    std::fs::write(&path, page(r, &json, inputs, dir)).map_err(|e| Error::io(&path, e))
+}
+
+/// Every `src="..."` of a page, in order (for tests and checks).
+pub fn image_sources(html: &str) -> Vec<String> {
+    html.split("<img src=\"")
+        .skip(1)
+        .filter_map(|rest| rest.split('"').next().map(str::to_string))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn heat_ends_and_clamps() {
+        assert_eq!(heat(0.0), HEAT[0]);
+        assert_eq!(heat(1.0), HEAT[5]);
+        assert_eq!(heat(-3.0), HEAT[0]);
+        assert_eq!(heat(f64::NAN), HEAT[0]);
+        // Halfway between control points 2 and 3 (t = 0.5): their mean, rounded.
+        assert_eq!(heat(0.5), [184, 60, 81]);
+    }
+
+    /// Per-pixel error against a hand computation: photo (0.5, 0.5, 0.5), render
+    /// (0.2, 0.2, 0.2) at scale 2 gives e = 0.1 exactly (f32: 1e-7).
+    #[test]
+    fn pixel_error_formula() {
+        let e = pixel_errors(
+            &[[0.5; 3], [1.0; 3]],
+            &[[0.2; 3], [0.0; 3]],
+            &[true, false],
+            2.0,
+        );
+        assert!((e[0].unwrap() - 0.1).abs() < 1e-7);
+        assert_eq!(e[1], None);
+        assert_eq!(quantile([3.0f32, 1.0, 2.0].into_iter(), 0.5), Some(2.0));
+    }
+
+    #[test]
+    fn href_encodes_spaces_and_keeps_slashes() {
+        assert_eq!(href("renders/a b.png"), "renders/a%20b.png");
+        let page = format!("{}{}", img("x/y.png", "a", "c"), img("z.png", "<b>", "c"));
+        assert_eq!(image_sources(&page), ["x/y.png", "z.png"]);
+        assert!(page.contains("&lt;b&gt;"));
+    }
+
+    /// Metrics of any shape render: a list of records becomes a table with a column per
+    /// key; a missing key says so.
+    #[test]
+    fn metrics_render_what_exists() {
+        let mut s = String::new();
+        metrics_section(
+            &mut s,
+            &serde_json::json!({"metrics": [{"image": "a.png", "psnr_h": 21.5}, {"image": "b.png", "ssim": 0.9}]}),
+        );
+        assert!(s.contains("<th>psnr_h</th>") && s.contains("<th>ssim</th>"));
+        assert!(s.contains("21.5000") && s.contains("0.9000"));
+        let mut t = String::new();
+        metrics_section(&mut t, &serde_json::json!({}));
+        assert!(t.contains("no literature metrics"));
+    }
+}

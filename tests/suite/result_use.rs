@@ -1,0 +1,145 @@
+//! What a user opens after `run` on the built-in example: report.html in a real headless
+//! browser (Debian's chromium, through scripts/check_report_html.sh), the glTF export
+//! through the Khronos validator (npm gltf-validator, scripts/validate_gltf.sh), and
+//! `render` under a Radiance .hdr map turned by 90°. The external checks run when their
+//! tools are present, and are required when CI=true (.ci/run installs them).
+
+use relight_cpc::export::{export_result, ExportOptions};
+use relight_cpc::relight::{render_result, CameraSelection, RenderOptions};
+use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn tool_present(name: &str) -> bool {
+    Command::new("sh")
+        .args(["-c", &format!("command -v {name}")])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// Whether an external check must run: its tool is present, or CI says it must be.
+fn must_run(tools: &[&str], what: &str) -> bool {
+    let present = tools.iter().all(|t| tool_present(t));
+    if !present {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true but {tools:?} missing: .ci/run must install them for the {what} check"
+        );
+        eprintln!("{what}: {tools:?} not installed, check skipped");
+    }
+    present
+}
+
+fn script(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scripts")
+        .join(name)
+}
+
+#[test]
+fn report_html_export_and_render_of_the_example() {
+    let t = crate::scratch::scratch("result_use", "example");
+    let dir = t.0.clone();
+    let out = dir.join("spot");
+    let mut o = RunOptions::new(builtin_example().unwrap(), out.clone());
+    // Small settings: this test is about the files, not the fit's quality.
+    o.global_resolution = 16;
+    o.keep = 32;
+    o.max_iterations = 2;
+    o.materials = MaterialCount::Fixed(2);
+    o.progress = false;
+    run(&o).expect("run on the built-in example");
+
+    // report.html: at least 6 images, each a file of the result folder that decodes.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let srcs = relight_cpc::report::html::image_sources(&html);
+    assert!(srcs.len() >= 6, "{} images: {srcs:?}", srcs.len());
+    for s in &srcs {
+        let p = out.join(s.replace("%20", " "));
+        let img = image::open(&p).unwrap_or_else(|e| panic!("{s}: {e}"));
+        assert!(img.width() > 0 && img.height() > 0, "{s}");
+    }
+    assert!(html.contains("Held-out photos") && html.contains("colour scale"));
+    if must_run(&["chromium"], "report.html in headless chromium") {
+        let o = Command::new("bash")
+            .arg(script("check_report_html.sh"))
+            .arg(&out)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&o.stdout);
+        eprintln!("{text}{}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "chromium: not every image loaded: {text}"
+        );
+        assert!(
+            text.contains(&format!("images: {0}/{0}", srcs.len())),
+            "{text}"
+        );
+    }
+
+    // export --gltf: every mesh vertex, colours and materials; the validator accepts it.
+    let glb = dir.join("spot.glb");
+    let s = export_result(
+        &out,
+        &ExportOptions {
+            gltf: Some(glb.clone()),
+            envmaps: Some(dir.join("blender")),
+            force: false,
+        },
+    )
+    .unwrap();
+    let (mesh, _) = relight_cpc::mesh::Mesh::read_ply(&out.join("mesh.ply")).unwrap();
+    let g = &s.gltf.as_ref().unwrap().1;
+    assert!(g.vertices >= mesh.positions.len() && g.triangles == mesh.faces.len());
+    let bytes = std::fs::read(&glb).unwrap();
+    let parsed = gltf::Gltf::from_slice(&bytes).expect("the gltf crate reads it back");
+    let prim = parsed.meshes().next().unwrap().primitives().next().unwrap();
+    assert!(prim.get(&gltf::Semantic::Colors(0)).is_some());
+    assert!(prim.material().index().is_some());
+    assert_eq!(s.envmaps.len(), 2 * 6, "{:?}", s.envmaps);
+    if must_run(&["node", "npm"], "Khronos glTF validator") {
+        let o = Command::new("bash")
+            .arg(script("validate_gltf.sh"))
+            .arg(&glb)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&o.stdout);
+        eprintln!("{text}{}", String::from_utf8_lossy(&o.stderr));
+        assert!(o.status.success(), "validator: {text}");
+        assert!(text.contains("0 errors, 0 warnings"), "{text}");
+    }
+
+    // render --env MAP.hdr --rotate 90: files named after the map (and the camera).
+    let hdr = s
+        .envmaps
+        .iter()
+        .find(|p| p.extension().is_some_and(|e| e == "hdr"))
+        .unwrap();
+    let map = dir.join("studio.hdr");
+    std::fs::copy(hdr, &map).unwrap();
+    let r = render_result(
+        &out,
+        &RenderOptions {
+            env: Some(map),
+            cameras: CameraSelection::AllRegistered,
+            out: dir.join("renders"),
+            resolution: Some(48),
+            rotate_deg: 90.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(r.views.len() >= 2);
+    let mut names: Vec<String> = r
+        .views
+        .iter()
+        .map(|v| v.png.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    for n in &names {
+        assert!(n.starts_with("studio_rot90__"), "{n}");
+    }
+    names.sort();
+    names.dedup();
+    assert_eq!(names.len(), r.views.len(), "two views share a file name");
+}
