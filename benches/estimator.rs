@@ -36,6 +36,7 @@
 mod synth_case;
 
 use relight_cpc::estimate::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
+use relight_cpc::light_sh_prior::{map_sample, LightPrior, LightPriorOptions, PriorSample};
 use relight_cpc::observe::Observations;
 use relight_cpc::starts::{self, estimate_best, MultiStart};
 use serde_json::{json, Value};
@@ -161,6 +162,15 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "spec0" => spec0 = num(),
             "start" => variant = Some(num() as usize),
             "starts" => best = Some(num() as usize),
+            // Light prior (issue 25): SH shape and Haar L1 noise levels; `loo=0` uses the
+            // statistics of all eight maps (including the photo's own: optimistic).
+            "prior" => prior_opts(&mut o).sh_noise = num(),
+            "haar" => prior_opts(&mut o).haar_noise = num(),
+            "loo" => {
+                if num() == 0.0 {
+                    prior_opts(&mut o).per_photo = None;
+                }
+            }
             _ => panic!("spec `{spec}`: unknown key `{k}`"),
         }
     }
@@ -178,6 +188,89 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             _ => Start::Clustered(spec0),
         },
         dirty,
+    }
+}
+
+/// The light prior options of `o`, created with every noise level 0 and leave-one-map-out
+/// statistics (filled in per case by [`with_case_priors`]).
+fn prior_opts(o: &mut EstimateOptions) -> &mut LightPriorOptions {
+    o.light_prior.get_or_insert_with(|| LightPriorOptions {
+        stats: std::sync::Arc::new(Vec::new()),
+        per_photo: Some(Vec::new()),
+        sh_noise: 0.0,
+        haar_noise: 0.0,
+    })
+}
+
+/// The eight embedded maps' names, in the order of the leave-one-out statistics.
+const PRIOR_MAPS: [&str; 8] = [
+    "city",
+    "courtyard",
+    "forest",
+    "interior",
+    "night",
+    "studio",
+    "sunrise",
+    "sunset",
+];
+
+/// Statistics for `case`'s training photos: `stats[8]` from all eight maps, `stats[i]` from
+/// all but map `i`; each photo uses the set without the map it was rendered with (from
+/// `truth/manifest.json`), so no photo's own light is in its prior.
+fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
+    let Some(lp) = &o.light_prior else {
+        return o.clone();
+    };
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/synth/hdri");
+    let samples: Vec<PriorSample> = PRIOR_MAPS
+        .iter()
+        .map(|m| {
+            let (ll, _) =
+                relight_cpc::envmap::LatLong::read_exr(&dir.join(format!("{m}.exr"))).unwrap();
+            map_sample(&ll, 24, &[case.sizes.global])
+        })
+        .collect();
+    let fit = |skip: Option<usize>| {
+        let names: Vec<String> = (0..8)
+            .filter(|&i| Some(i) != skip)
+            .map(|i| PRIOR_MAPS[i].to_string())
+            .collect();
+        let sub: Vec<PriorSample> = (0..8)
+            .filter(|&i| Some(i) != skip)
+            .map(|i| samples[i].clone())
+            .collect();
+        LightPrior::fit(names, 24, &sub, 0.1).unwrap()
+    };
+    let stats: Vec<LightPrior> = if lp.per_photo.is_some() {
+        (0..8).map(|i| fit(Some(i))).chain([fit(None)]).collect()
+    } else {
+        vec![fit(None)]
+    };
+    let manifest: Value = serde_json::from_str(
+        &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
+    )
+    .unwrap();
+    let map_of = |name: &str| -> usize {
+        let m = manifest["photos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .and_then(|p| p["map"].as_str())
+            .unwrap_or("");
+        PRIOR_MAPS.iter().position(|x| *x == m).unwrap_or(8)
+    };
+    let per_photo = lp
+        .per_photo
+        .as_ref()
+        .map(|_| case.train.names.iter().map(|n| map_of(n)).collect());
+    EstimateOptions {
+        light_prior: Some(LightPriorOptions {
+            stats: std::sync::Arc::new(stats),
+            per_photo,
+            ..lp.clone()
+        }),
+        ..o.clone()
     }
 }
 
@@ -461,7 +554,7 @@ fn joint_fit(
 
 fn joint_row(md: &mut String, label: &str, f: &JointFigures) {
     md.push_str(&format!(
-        "| {label} | {:.4} | {:.4} | {:.3} / {:.3} / {:.3} | {:.3} / {:.3} / {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {:.1} |\n",
+        "| {label} | {:.4} | {:.4} | {:.3} / {:.3} / {:.3} | {:.3} / {:.3} / {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} / {:.4} | {} | {:.1} |\n",
         f.assignment,
         f.assignment_pure,
         f.beta_ratio_errors[0],
@@ -474,17 +567,26 @@ fn joint_row(md: &mut String, label: &str, f: &JointFigures) {
         f.heldout_rel_channel,
         f.heldout_floor,
         f.heldout_rel_model,
+        f.train_true_light,
+        f.train_true_light_model,
         f.iterations,
         f.seconds
     ));
 }
 
-const JOINT_HEADER: &str = "| fit | assigned (all seen) | assigned (pure) | diffuse-ratio error R / G / B, per-vertex β (remix-invariant) | the same from λ (not invariant) | train rel. RMSE | held-out rel. RMSE (true light) | held-out floor (true reflectance) | held-out vs true model | outer its | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+const JOINT_HEADER: &str = "| fit | assigned (all seen) | assigned (pure) | diffuse-ratio error R / G / B, per-vertex β (remix-invariant) | the same from λ (not invariant) | train rel. RMSE | held-out rel. RMSE (true light) | held-out floor (true reflectance) | held-out vs true model | training photos under their TRUE light: vs photos / vs true model | outer its | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
 
 fn joint(md: &mut String) -> Value {
     let s = sizes_joint();
     let scene = joint_scene();
-    let case = prepare(&scene, s, 1, "joint");
+    let mut case = prepare(&scene, s, 1, "joint");
+    // `JOINT_NOISE_FREE=1`: every observation the true reflectance under the true light
+    // through the case's own transport (floor 0: the estimator's own error).
+    let clean = std::env::var("JOINT_NOISE_FREE").is_ok_and(|v| v == "1");
+    if clean {
+        noise_free(&mut case);
+        md.push_str("**Noise-free** (`JOINT_NOISE_FREE=1`): every observation is the true model's prediction through the case's own transport.\n\n");
+    }
     eprintln!(
         "{scene}: prepared in {:.1} + {:.1} s, {} vertices, {} train / {} held-out observations",
         case.seconds_synth,
@@ -559,6 +661,7 @@ fn joint(md: &mut String) -> Value {
     for (label, o, from) in variants {
         let label = label.as_str();
         eprintln!("joint: {label}");
+        let o = with_case_priors(&case, &o);
         let (est, secs, tl, record) = joint_fit(&case, &case.train.obs, &o, from);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");

@@ -303,6 +303,9 @@ pub struct EstimateOptions {
     /// [`crate::solve::subsample::vertex_strata`]), crossed with each vertex's dominant
     /// starting material; empty: the materials alone.
     pub lighting_strata: Vec<u32>,
+    /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
+    /// map): extra quadratic terms of the lighting QP ([`crate::light_sh_prior`]).
+    pub light_prior: Option<crate::light_sh_prior::LightPriorOptions>,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -382,6 +385,7 @@ impl Default for EstimateOptions {
             patience: PATIENCE,
             lighting_sample: 0,
             lighting_strata: Vec::new(),
+            light_prior: None,
         }
     }
 }
@@ -1170,10 +1174,29 @@ pub fn lighting_step_on(
         )));
     }
     let mut omega = vec![[1.0_f64; 3]; range.len()];
-    let passes = if opts.robust == Robust::None {
+    let mut passes = if opts.robust == Robust::None {
         1
     } else {
         opts.irls_iters.max(1)
+    };
+    // The light prior is linearised at the current iterate: from zero, a second pass.
+    let prior_proj = opts
+        .light_prior
+        .as_ref()
+        .map(|_| crate::light_sh_prior::ShProjection::new(n, 4));
+    if prior_proj.is_some() && x.iter().all(|v| *v == 0.0) {
+        passes = passes.max(2);
+    }
+    let y_ms = {
+        let (num, den) = (0..range.len()).fold((0.0, 0.0), |(a, b), q| {
+            let yy = (y[q][0].powi(2) + y[q][1].powi(2) + y[q][2].powi(2)) / 3.0;
+            (a + alpha[q] * yy, b + alpha[q])
+        });
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
     };
     let mut cond = 0.0_f64;
     let mut converged = true;
@@ -1235,14 +1258,29 @@ pub fn lighting_step_on(
             x.iter_mut().for_each(|v| *v = 0.0);
             continue;
         }
+        let prior = match (&opts.light_prior, &prior_proj) {
+            (Some(lp), Some(pp)) => lp.pass(photo, pp, &x, n, y_ms),
+            _ => None,
+        };
+        let jac_pass: Option<Vec<f64>> = match (&jacobi, &prior) {
+            (Some(j), Some(p)) => Some(j.iter().zip(p.diagonal()).map(|(a, b)| a + b).collect()),
+            (j, _) => j.clone(),
+        };
         let sys_ref = &sys;
         let lap_ref = &lap;
+        let prior_ref = prior.as_ref();
         let hess = |v: &[f64], out: &mut [f64]| {
             let h = haar3(&split3(v, n2), n);
             let mut hb = vec![[0.0; 3]; n2];
             sys_ref.normal_rows(&h, &mut hb);
+            if let Some(p) = prior_ref {
+                p.add_haar(&h, &mut hb);
+            }
             let r = unhaar3(&hb, n);
             out.copy_from_slice(&r);
+            if let Some(p) = prior_ref {
+                p.add_texel(v, out);
+            }
             for c in 0..3 {
                 lap_ref.add_normal(
                     &v[c * n2..(c + 1) * n2],
@@ -1256,11 +1294,12 @@ pub fn lighting_step_on(
             max_iter: opts.qp_max_iter,
             max_cg: opts.qp_max_cg.max(1),
         };
-        let res =
-            bound_qp_scaled(hess, &b, &x, &qp, jacobi.as_deref()).map_err(|e| Error::Numeric {
+        let res = bound_qp_scaled(hess, &b, &x, &qp, jac_pass.as_deref()).map_err(|e| {
+            Error::Numeric {
                 stage: format!("lighting step, photo {photo}"),
                 message: e.to_string(),
-            })?;
+            }
+        })?;
         converged &= res.converged;
         matvecs += res.matvecs;
         qps += 1;

@@ -49,6 +49,10 @@ pub mod visibility;
 // Estimation.
 pub mod cluster;
 pub mod estimate;
+#[path = "solve/light/choose.rs"]
+pub mod light_choose;
+#[path = "solve/light/sh_prior.rs"]
+pub mod light_sh_prior;
 pub mod qp;
 pub mod solve;
 pub mod starts;

@@ -262,6 +262,12 @@ struct RunArgs {
     /// are upper bounds). `off`: the model exactly as given.
     #[arg(long, default_value = "on", value_parser = ["on", "off"], help_heading = "Model")]
     adaptive: String,
+    /// Model of each photo's light: `paper` (a free non-negative map, the paper's),
+    /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
+    /// maps), `auto` (both fitted, the one that predicts held-back observations better kept;
+    /// twice the fitting time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "auto"], help_heading = "Model")]
+    light: String,
     /// Detail of each photo's recovered lighting: map side in texels, a power of two.
     #[arg(long, default_value_t = 64, help_heading = "Model")]
     global_resolution: usize,
@@ -380,6 +386,15 @@ struct RunArgs {
     #[arg(long, help_heading = "Output")]
     quiet: bool,
 
+    /// At most this many observations per photo in its lighting step, a stratified sample
+    /// (by normal, open sky and material, weighted to keep the sums' expected value);
+    /// 0 = every observation.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::DEFAULT_LIGHTING_SAMPLE,
+        help_heading = "Performance"
+    )]
+    lighting_sample: usize,
     /// Worker threads (default: all cores).
     #[arg(long, help_heading = "Performance")]
     threads: Option<usize>,
@@ -434,6 +449,7 @@ impl RunArgs {
         o.smoothness = self.smoothness;
         o.irls_iterations = self.irls_iterations;
         o.lighting_qp_iterations = self.lighting_qp_iterations;
+        o.light = relight_cpc::light_choose::LightChoice::parse(&self.light)?;
         o.validation = self.validation;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.lighting_sample = self.lighting_sample;
@@ -446,6 +462,7 @@ impl RunArgs {
         o.force = self.force;
         o.render_training = !self.no_training_renders;
         o.adaptive = self.adaptive == "on";
+        o.light = relight_cpc::light_choose::LightChoice::parse(&self.light)?;
         Ok(o)
     }
 }

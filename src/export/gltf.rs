@@ -194,7 +194,7 @@ fn push_view(
     data: &[u8],
     target: json::buffer::Target,
 ) -> json::Index<json::buffer::View> {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let offset = bin.len();
@@ -369,7 +369,7 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
             targets: None,
         });
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     root.push(json::Buffer {

@@ -71,13 +71,24 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
             .parent()
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
-        let files = crate::out_dir::OutFiles::claim(
-            folder,
-            &[&name],
-            opts.force,
-            &[result_dir],
-            is_our_glb,
-        )?;
+        // A named file, not a folder: the output-folder contract's rules for one file (an
+        // earlier export is replaced only with --force, anything else never), without its
+        // rule against folders that hold an input (the .glb usually sits beside the result).
+        if path.exists() {
+            if !is_our_glb(path) {
+                return Err(Error::Config(format!(
+                    "--gltf {}: exists and is not a GLB relight-cpc wrote; choose another name",
+                    path.display()
+                )));
+            }
+            if !opts.force {
+                return Err(Error::Config(format!(
+                    "--gltf {}: holds a previous export; pass --force to replace it",
+                    path.display()
+                )));
+            }
+        }
+        std::fs::create_dir_all(folder).map_err(|e| Error::io(folder, e))?;
         let m = crate::relight::load_result(result_dir)?;
         let mesh = gltf::gltf_mesh(
             &m.mesh.positions,
@@ -93,8 +104,8 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
             .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .unwrap_or_else(|| "relight-cpc".into());
         let (bytes, s) = gltf::glb_bytes(&mesh, &label)?;
-        let written = files.write(&name, &bytes)?;
-        summary.gltf = Some((written, s));
+        write_atomic(&folder.join(&name), &bytes)?;
+        summary.gltf = Some((path.clone(), s));
     }
     if let Some(dir) = &opts.envmaps {
         let src = result_dir.join("envmaps");

@@ -102,6 +102,9 @@ pub struct ModelReport {
     /// The adaptive model's decisions (`--adaptive on`), each against the full model.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<Vec<crate::adapt::Decision>>,
+    /// The per-photo light model used (`--light`) and why.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub light: Option<crate::light_choose::LightDecision>,
 }
 
 /// Everything `report.json` holds.

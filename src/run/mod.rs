@@ -158,6 +158,9 @@ pub struct RunOptions {
     /// resolutions and `keep` are then upper bounds. Off in [`RunOptions::new`] (the full
     /// model, as the benchmarks' knobs assume); the CLI turns it on unless `--adaptive off`.
     pub adaptive: bool,
+    /// The per-photo light model ([`crate::light_choose`]): the paper's free map, the
+    /// map under the statistical prior, or both and the lower validation score kept.
+    pub light: crate::light_choose::LightChoice,
 }
 
 /// Default of [`RunOptions::lighting_sample`]: 2,000 observations per photo. On
@@ -228,6 +231,7 @@ impl RunOptions {
             force: false,
             render_training: true,
             adaptive: false,
+            light: crate::light_choose::LightChoice::Paper,
         }
     }
 
@@ -923,41 +927,64 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
     let n_starts = family.len();
     let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
     let mut timeline: Vec<TimelinePoint> = Vec::new();
-    let (est, multi) = stages.run("estimate", || {
-        starts::estimate_best(&problem, family, &eopts, &mut |si, it, state| {
-            bar.inc(1);
-            let holdout_rmse = tracker
-                .as_ref()
-                .map(|t| t.rmse(state, nv))
-                .filter(|v| v.is_finite());
-            let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-            let line = format!(
-                "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
-                if n_starts > 1 {
-                    format!("start {} of {n_starts}, ", si + 1)
+    let light_models = crate::light_choose::candidates(opts.light, &eopts)?;
+    let mut fits = Vec::with_capacity(light_models.len());
+    let mut timeline_ranges = Vec::with_capacity(light_models.len());
+    for model in &light_models {
+        let first = timeline.len();
+        let family = family.clone();
+        let eopts = &model.options;
+        fits.push(stages.run("estimate", || {
+            starts::estimate_best(&problem, family, eopts, &mut |si, it, state| {
+                bar.inc(1);
+                let holdout_rmse = tracker
+                    .as_ref()
+                    .map(|t| t.rmse(state, nv))
+                    .filter(|v| v.is_finite());
+                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                let line = format!(
+                    "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
+                    if n_starts > 1 {
+                        format!("start {} of {n_starts}, ", si + 1)
+                    } else {
+                        String::new()
+                    },
+                    it.objective,
+                    it.train_rmse,
+                    holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
+                    it.seconds
+                );
+                if bar.is_hidden() {
+                    progress.line(&line);
                 } else {
-                    String::new()
-                },
-                it.objective,
-                it.train_rmse,
-                holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
-                it.seconds
-            );
-            if bar.is_hidden() {
-                progress.line(&line);
-            } else {
-                bar.println(format!("          {line}"));
-            }
-            timeline.push(TimelinePoint {
-                start: si,
-                seconds: it.seconds,
-                objective: it.objective,
-                train_rmse: it.train_rmse,
-                holdout_rmse,
-                steps: it.steps,
-            });
-        })
-    })?;
+                    bar.println(format!("          {line}"));
+                }
+                timeline.push(TimelinePoint {
+                    start: si,
+                    seconds: it.seconds,
+                    objective: it.objective,
+                    train_rmse: it.train_rmse,
+                    holdout_rmse,
+                    steps: it.steps,
+                });
+            })
+        })?);
+        timeline_ranges.push(first..timeline.len());
+    }
+    let scores: Vec<f64> = fits
+        .iter()
+        .map(|(e, _)| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error()))
+        .collect();
+    let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
+    let (pick, light_decision) = crate::light_choose::decide(opts.light, &names, &scores);
+    reasons.push(format!(
+        "light model `{}`: {}",
+        light_decision.model, light_decision.why
+    ));
+    let eopts = light_models[pick].options.clone();
+    let (est, multi) = fits.swap_remove(pick);
+    // The timeline of the model kept.
+    let timeline: Vec<TimelinePoint> = timeline.drain(timeline_ranges[pick].clone()).collect();
     bar.finish_and_clear();
     check_finite(&est, &conditioning_map(&est.conditioning))?;
     let beta = estimate::beta_per_vertex(&est.lambda, &est.weights, nv);
@@ -1113,6 +1140,7 @@ fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunRep
             kept_coefficients: eff.keep,
             reasons,
             adaptive: if opts.adaptive { Some(decisions) } else { None },
+            light: Some(light_decision),
         },
         notes,
         conditioning,

@@ -510,6 +510,11 @@ pub struct JointFigures {
     pub heldout_rel_global: f64,
     /// Held-out photos under their true light, best scale per channel.
     pub heldout_rel_channel: f64,
+    /// The fit's reflectance under the TRUE light of its own training photos (best scale
+    /// per channel) against those photos: what the per-photo maps hid (issue 25).
+    pub train_true_light: f64,
+    /// The same against the true reflectance's prediction (no renderer noise).
+    pub train_true_light_model: f64,
     /// Outer iterations run.
     pub iterations: usize,
     /// Estimation seconds.
@@ -598,7 +603,20 @@ pub fn joint_figures(
     replace_colours(&mut model_obs, &hp_true);
     let heldout_rel_model = rel_rmse_per_channel(&model_obs, &hp);
     let heldout_floor = rel_rmse(&case.held.obs, &hp_true, false).0;
+    let tp = predict_with(
+        &case.train,
+        case.nv,
+        &est.lambda,
+        &est.weights,
+        &case.train.lights,
+    );
+    let train_true_light = rel_rmse_per_channel(clean, &tp);
+    let mut model_train = clean.clone();
+    replace_colours(&mut model_train, &true_prediction(case, &case.train));
+    let train_true_light_model = rel_rmse_per_channel(&model_train, &tp);
     JointFigures {
+        train_true_light,
+        train_true_light_model,
         assignment: best.0,
         assignment_pure: best.1,
         ratio_errors,

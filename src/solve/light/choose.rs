@@ -1,0 +1,164 @@
+//! Which per-photo light model a fit uses (issue 25, `--light`): the paper's free map,
+//! the free map under the statistical prior of [`crate::light_sh_prior`], or `auto`, which
+//! fits both and keeps the one with the lower early-stopping validation score (the same
+//! seeded held-back observations for both, [`crate::estimate::Validation`]), as `--adaptive`
+//! chooses the model order by held-out error.
+
+use crate::estimate::EstimateOptions;
+use crate::light_sh_prior::LightPriorOptions;
+use crate::{Error, Result};
+
+/// Relative noise level of the SH shape term under `--light prior` (`σ = η · rms(y)`).
+/// Measured on `spot-varying` (`bench-results/estimator-light.md`): noise-free, held-out
+/// error against the true model 0.160 (paper) → 0.156 (0.1) → 0.113 (0.3) → 0.169 (1);
+/// on 8-bit photos 0.147 (paper) against 0.147 (0.3): no gain there.
+pub const PRIOR_SH_NOISE: f64 = 0.3;
+/// Relative noise level of the Haar L1 term under `--light prior`: with the SH term at 0.3,
+/// 0.03 gave 0.111 noise-free (0.113 without) and 0.148 on 8-bit photos; alone 0.03 gave
+/// 0.120 / 0.143, 0.1 gave 0.128 noise-free and 0.3 raised the 8-bit figure to 0.182.
+pub const PRIOR_HAAR_NOISE: f64 = 0.03;
+
+/// The `--light` choice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LightChoice {
+    /// The paper's free non-negative wavelet map per photo (Laplacian smoothness only).
+    Paper,
+    /// The free map plus the prior on its low-order shape and wavelet sparsity.
+    Prior,
+    /// Both fitted; the lower validation score kept.
+    Auto,
+}
+
+impl LightChoice {
+    /// Parse `paper`, `prior` or `auto`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "paper" => Ok(LightChoice::Paper),
+            "prior" => Ok(LightChoice::Prior),
+            "auto" => Ok(LightChoice::Auto),
+            other => Err(Error::Config(format!(
+                "--light {other}: expected `paper`, `prior` or `auto`"
+            ))),
+        }
+    }
+
+    /// The name `parse` reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightChoice::Paper => "paper",
+            LightChoice::Prior => "prior",
+            LightChoice::Auto => "auto",
+        }
+    }
+}
+
+/// One light model to fit: its name and the estimator's options for it.
+#[derive(Debug, Clone)]
+pub struct LightCandidate {
+    /// `paper` or `prior`.
+    pub name: &'static str,
+    /// `base` with the model's light terms.
+    pub options: EstimateOptions,
+}
+
+/// The models `choice` fits, from the estimator options `base` (whose `light_prior` is
+/// replaced).
+pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<LightCandidate>> {
+    let paper = || LightCandidate {
+        name: "paper",
+        options: EstimateOptions {
+            light_prior: None,
+            ..base.clone()
+        },
+    };
+    let prior = || -> Result<LightCandidate> {
+        Ok(LightCandidate {
+            name: "prior",
+            options: EstimateOptions {
+                light_prior: Some(LightPriorOptions::builtin(
+                    PRIOR_SH_NOISE,
+                    PRIOR_HAAR_NOISE,
+                )?),
+                ..base.clone()
+            },
+        })
+    };
+    Ok(match choice {
+        LightChoice::Paper => vec![paper()],
+        LightChoice::Prior => vec![prior()?],
+        LightChoice::Auto => vec![paper(), prior()?],
+    })
+}
+
+/// What was chosen and why (the report's words).
+#[derive(Debug, Clone, serde::Serialize, Default, PartialEq)]
+pub struct LightDecision {
+    /// The model used.
+    pub model: String,
+    /// One sentence: forced by the flag, or the validation scores compared.
+    pub why: String,
+    /// `(model, validation score)` per model fitted (score NaN without validation).
+    pub scores: Vec<(String, f64)>,
+}
+
+/// Index of the candidate to keep from their validation scores (lower is better; the
+/// first on ties or when no score is finite) and the decision's words.
+pub fn decide(choice: LightChoice, names: &[&str], scores: &[f64]) -> (usize, LightDecision) {
+    let mut best = 0;
+    for (i, s) in scores.iter().enumerate() {
+        if s.is_finite() && (scores[best].is_nan() || *s < scores[best]) {
+            best = i;
+        }
+    }
+    let list = names
+        .iter()
+        .zip(scores)
+        .map(|(n, s)| format!("{n} {s:.5}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let why = match choice {
+        LightChoice::Auto if names.len() > 1 => format!(
+            "--light auto: the lower validation score (relative RMSE of the held-back observations) of {list}"
+        ),
+        c => format!("--light {} (forced)", c.name()),
+    };
+    (
+        best,
+        LightDecision {
+            model: names[best].to_string(),
+            why,
+            scores: names
+                .iter()
+                .zip(scores)
+                .map(|(n, s)| (n.to_string(), *s))
+                .collect(),
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_keeps_the_lower_finite_score() {
+        let (i, d) = decide(LightChoice::Auto, &["paper", "prior"], &[0.12, 0.10]);
+        assert_eq!((i, d.model.as_str()), (1, "prior"));
+        assert!(d.why.contains("paper 0.12000"), "{}", d.why);
+        let (i, _) = decide(LightChoice::Auto, &["paper", "prior"], &[0.10, 0.10]);
+        assert_eq!(i, 0, "ties keep the paper's model");
+        let (i, _) = decide(LightChoice::Auto, &["paper", "prior"], &[f64::NAN, 0.2]);
+        assert_eq!(i, 1, "a NaN score never wins");
+        let (i, d) = decide(LightChoice::Prior, &["prior"], &[f64::NAN]);
+        assert_eq!((i, d.why.as_str()), (0, "--light prior (forced)"));
+    }
+
+    #[test]
+    fn parse_reads_the_names_and_rejects_others() {
+        for c in [LightChoice::Paper, LightChoice::Prior, LightChoice::Auto] {
+            assert_eq!(LightChoice::parse(c.name()).unwrap(), c);
+        }
+        let e = LightChoice::parse("sky").unwrap_err().to_string();
+        assert!(e.contains("--light sky"), "{e}");
+    }
+}
