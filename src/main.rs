@@ -321,16 +321,6 @@ struct RunArgs {
         help_heading = "Solver"
     )]
     lighting_cg_iterations: usize,
-    /// At most this many observations per photo in its lighting fit: a stratified sample
-    /// (by normal, open sky and material), weighted to keep the sums' expected value;
-    /// 0 = every observation.
-    #[arg(
-        long,
-        default_value_t = relight_cpc::run::DEFAULT_LIGHTING_SAMPLE,
-        value_name = "N",
-        help_heading = "Solver"
-    )]
-    lighting_sample: usize,
     /// Stop after this many rounds without a better score on the held-back observations.
     #[arg(
         long,
