@@ -2274,7 +2274,8 @@ mod tests {
             obs.weight.push(1.0);
             obs.dir.push([0.0, 0.0, 1.0]);
         }
-        obs.photo_ranges = vec![0..rows];
+        let all = 0..rows;
+        obs.photo_ranges = vec![all];
         (obs, t)
     }
 
