@@ -12,8 +12,6 @@ use crate::transport::{HaarIndex, Transport};
 /// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
 /// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
 /// `y` from a known smooth light plus Gaussian-like noise (`σ` relative).
-// One photo: `photo_ranges` is a list of one range on purpose.
-#[allow(clippy::single_range_in_vec_init)]
 fn planted_photo(rows: usize, n: usize, noise: f64, seed: u64) -> (Observations, Transport) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let n2 = n * n;
@@ -58,7 +56,8 @@ fn planted_photo(rows: usize, n: usize, noise: f64, seed: u64) -> (Observations,
         obs.weight.push(1.0);
         obs.dir.push([0.0, 0.0, 1.0]);
     }
-    obs.photo_ranges = vec![0..rows];
+    let all = 0..rows;
+    obs.photo_ranges = vec![all];
     (obs, t)
 }
 
