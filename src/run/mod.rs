@@ -1,5 +1,5 @@
 //! `relight-cpc run`: the whole pipeline, workspace → scene → observations → transport →
-//! estimate → renders and report (DESIGN §1, §4).
+//! estimate → renders and report (docs/method.md).
 //!
 //! The stages, in order, each timed and measured by [`crate::stages`]:
 //! 1. `import`: discover the workspace, read the model, the mesh and the photos;
@@ -11,7 +11,7 @@
 //! 4. `rotation`: the wavelet rotations `R_ν` (Sec. 4.2, Eq. 6);
 //! 5. `transport`: `g_{p,b} = R_nᵀ T_x ρ_b(ω_o)` per observation (Eq. 5–8);
 //! 6. `estimate`: alternating lighting (Eq. 10) and material (Eq. 11–12) steps;
-//! 7. `evaluation`: held-out photos under each protocol of DESIGN §4;
+//! 7. `evaluation`: held-out photos under each protocol of docs/method.md ("Held-out evaluation");
 //! 8. `output`: environment maps, materials, coloured mesh, renders, report.
 //!
 //! The condition numbers the estimator sees (lighting, Eq. 10; λ and w, Eq. 11–12) go to
@@ -67,7 +67,7 @@ pub struct RunSummary {
     pub report: RunReport,
 }
 
-/// World up from the cameras (DESIGN §3): the mean of their `−y` axes in world
+/// World up from the cameras (docs/conventions.md): the mean of their `−y` axes in world
 /// coordinates (COLMAP cameras have y pointing down in the image).
 pub fn estimate_up(views: &[scene::View]) -> Option<Vec3> {
     let sum: Vec3 = views
