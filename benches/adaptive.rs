@@ -9,7 +9,7 @@
 //! material count from the k-means elbow) and once with `adaptive = true`
 //! (`relight_cpc::solve::adapt`). Figures: wall and CPU time of the whole run (pilot included;
 //! CPU decides "faster", since the machine may be shared), the estimation time, and the error: held-out RMSE under the true light after the best
-//! global scale (protocol (a) of DESIGN §4, mean over the scene's held-out photos), plus
+//! global scale (protocol `truth` of docs/method.md, Held-out evaluation, mean over the scene's held-out photos), plus
 //! the training RMSE. The bar: the adaptive run faster, its held-out error at most
 //! 5% above the full model's.
 //!

@@ -402,7 +402,7 @@ fn object_mid_x(raster: &Raster) -> Option<f64> {
 
 /// GPCG iterations and CG steps per GPCG iteration of protocol (b)'s light fit, which
 /// starts from the mean training map. Measured on the Minerva model (2,930 vertices, 3
-/// held-out views, `bench-results/pipeline-scaling.md`): against 300 × 100 from zero (which
+/// held-out views, `bench-results/archive/pipeline-scaling.md`): against 300 × 100 from zero (which
 /// stops at its cap, not at the KKT tolerance) 4.0 instead of 10.9 CPU s, the `half` RMSEs
 /// within 0.2% (0.08649 / 0.07549 / 0.09602 against 0.08651 / 0.07559 / 0.09622); 50 × 20
 /// matches to 5 digits at 7.0 s, 5 × 20 under-solves (1–3% off).

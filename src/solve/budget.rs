@@ -61,7 +61,7 @@ pub const PIXEL_BYTES: u64 = 13;
 
 /// Entries of an observation's merged lighting row over the `B · keep` entries of its
 /// basis rows (the rows of one vertex share most of their coarse Haar coefficients). An
-/// upper bound from the measured peaks (`bench-results/pipeline-scaling.md`): at 11,714
+/// upper bound from the measured peaks (`bench-results/archive/pipeline-scaling.md`): at 11,714
 /// vertices, 7 bases, keep 128, the estimate stage peaked 24 MiB above the transport
 /// stage, where 0.5 predicts 52 MiB.
 pub const MERGED_FRACTION: f64 = 0.5;

@@ -86,7 +86,7 @@ pub struct EstimateOptions {
     /// anyway (an inexact block step: GPCG never raises the QP's objective, so `F` still
     /// does not increase). `None`: `qp_max_iter`, i.e. solved to the KKT tolerance.
     /// Single lighting fits (fixed materials, [`fit_light_frozen`]) always use
-    /// `qp_max_iter`. Measured in `bench-results/lighting-solver.md`.
+    /// `qp_max_iter`. Measured in `bench-results/archive/lighting-solver.md`.
     pub alternation_qp_iters: Option<usize>,
     /// Cap on conjugate-gradient steps on the free face per GPCG iteration of a lighting
     /// QP (each step is one Hessian product).
@@ -161,13 +161,13 @@ pub struct EstimateOptions {
 /// [`ALTERNATION_CG_ITERS`]). On the Minerva model (`spot-varying`, 2,930 vertices, 13
 /// photos of 1024²) the estimate took 7.3× less CPU than solving every QP to the KKT
 /// tolerance (48.8 s against 357.9 s) with held-out error 0.0765 against 0.0791 and
-/// training error 0.0340 against 0.0331 (`bench-results/lighting-solver.md`).
+/// training error 0.0340 against 0.0331 (`bench-results/archive/lighting-solver.md`).
 pub const ALTERNATION_QP_ITERS: usize = 5;
 
 /// Default of [`EstimateOptions::alternation_cg_iters`]: 20 conjugate-gradient steps per
 /// GPCG iteration (≤ ~120 Hessian products per lighting QP with the 5 GPCG iterations of
 /// [`ALTERNATION_QP_ITERS`]). Measured on the Minerva model (`spot-varying`, 2,930 vertices,
-/// 13 photos of 1024², `bench-results/estimator-knobs.md`): estimate 83.5 → 28.5 CPU s
+/// 13 photos of 1024², `bench-results/archive/estimator-knobs.md`): estimate 83.5 → 28.5 CPU s
 /// (×2.9) against the old cap of 100, held-out error 0.0765 → 0.0767, training 0.0340 →
 /// 0.0339; 10 steps are too few (the alternation runs 8 iterations instead of 5 and ends at
 /// 0.0782), 30 gave 0.0766 at 36.8 s.
@@ -175,7 +175,7 @@ pub const ALTERNATION_CG_ITERS: usize = 20;
 
 /// Default of [`EstimateOptions::patience`]: stop at the first outer iteration whose
 /// validation score is not a new best. Measured with [`ALTERNATION_CG_ITERS`] on the Minerva
-/// model (`bench-results/estimator-knobs.md`, then `spot-varying` at 1 MP): every scene
+/// model (`bench-results/archive/estimator-knobs.md`, then `spot-varying` at 1 MP): every scene
 /// kept the same iterate with 1 as with 2 or 3 — 2,930 vertices (2 of 3 instead of 2 of 4),
 /// 11,714 (3 of 4 / 3 of 5: estimate 87.4 → 75.3 CPU s), 100,000 (4 of 5 / 4 of 6) — and the
 /// joint bench (`ESTIMATOR_BENCH=joint`: 566 validation observations, its score improving
@@ -185,7 +185,7 @@ pub const PATIENCE: usize = 1;
 
 /// Default of [`EstimateOptions::robust_floor`]: IRLS's robust scale is at least 5% of the
 /// photo's RMS radiance in each channel. Against the MAD alone (0), measured on `spot-varying`
-/// (`bench-results/estimator-joint-floor.md`, `estimator-robust-floor.md`,
+/// (`bench-results/archive/estimator-joint-floor.md`, `estimator-robust-floor.md`,
 /// `estimator-joint-32-starts.md`): the joint bench (16² / 8², 96² photos) 17.5% held-out
 /// against 18.3% (12 fixed iterations 17.3% / 18.3%; 5% gross outliers ×1.03 of the clean
 /// fit); the finer joint case (32² / 16², 192² photos at 32 spp) 13.2% against 14.7% in

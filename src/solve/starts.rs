@@ -5,7 +5,7 @@
 //! clustered colours with every non-Lambertian weight 0 (Sec. 5.2); its first lighting
 //! step then explains the highlights by the maps, and the alternation moves only part of
 //! them back into the materials. On the finer joint bench
-//! (`bench-results/estimator-joint-32-starts.md`: 12 maps of 32² texels, 36,864 light
+//! (`bench-results/archive/estimator-joint-32-starts.md`: 12 maps of 32² texels, 36,864 light
 //! unknowns against 27,213 observed values) that start ends at 14.7% held-out error, the
 //! true materials as a start at 8.9%. The data do not settle how a photo's free map and
 //! the lobes share the highlights (a sharper map under a broader lobe), also at 4× the
@@ -43,7 +43,7 @@ use crate::{Error, Result};
 
 /// Default `gloss` of [`variants`]: glossy lobes start at 0.3 × the mean Lambertian weight.
 /// On the small joint bench a uniform start at 0.3 gave held-out 0.1789 against 0.1834 for
-/// the paper's start, 0.1 and 1 were worse (`bench-results/estimator-joint-spec0.md`).
+/// the paper's start, 0.1 and 1 were worse (`bench-results/archive/estimator-joint-spec0.md`).
 pub const GLOSS_FRACTION: f64 = 0.3;
 
 /// One start of the family (module docs) with its description.

@@ -26,7 +26,7 @@ fn irradiance_through_the_core_matches_brute_force() {
         let normal = rot.normal_dir(nu);
         let frame = local_frame(&normal);
         for c in 0..3 {
-            // Brute force: Σ over 8×8 sub-pixels of every lat-long pixel (DESIGN §3 layout)
+            // Brute force: Σ over 8×8 sub-pixels of every lat-long pixel (the layout of docs/conventions.md)
             // of L · max(0, cos) · V · ΔΩ.
             let s = 8;
             let (w, h) = (ll.width as f64, ll.height as f64);

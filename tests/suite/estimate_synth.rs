@@ -101,7 +101,7 @@ fn known_reflectance_explains_the_photos_as_well_as_the_true_light_and_resolves_
 /// the re-render error is the estimator's alone. The bound is 2%. What remains is
 /// the 10⁻³ Laplacian's bias, which grows with the detail a glossier BRDF would carry:
 /// measured 0.14% / 0.38% / 0.73% at these sizes (the bench's 96² photos of ≥ 2,500
-/// vertices: 0.16% / 0.56% / 1.35%, `bench-results/estimator-known-noise-free.md`), so the
+/// vertices: 0.16% / 0.56% / 1.35%, `bench-results/archive/estimator-known-noise-free.md`), so the
 /// bound has ×2.7 room on the specular sphere.
 #[test]
 fn known_reflectance_re_renders_noise_free_photos_within_2_percent() {

@@ -303,7 +303,7 @@ fn given_vertex_radiance_is_kept_and_the_other_vertices_rendered() {
 #[test]
 fn wavelet_render_of_a_white_furnace_is_albedo_times_radiance() {
     // Convex octahedron (every vertex open), Lambert with RGB albedo a, constant light L:
-    // every object pixel must be a·L (DESIGN issue 4 furnace). Error sources: the Lambert
+    // every object pixel must be a·L (the furnace test). Error sources: the Lambert
     // slice quadrature at 8² (≈ 6e-4) and the balanced rotation's row error for a constant
     // sky (rotation tests); allow 1%.
     use relight_cpc::render::render_wavelet;

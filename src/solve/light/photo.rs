@@ -18,7 +18,7 @@ use crate::{Error, Result};
 
 /// Whether the lighting QP is scaled by its texel-basis diagonal
 /// ([`crate::solve::qp::bound_qp_scaled`]): `diag(Wᵀ Aᵀ α A W) + μ diag(ΔᵀΔ)` per channel, the data
-/// part without the IRLS weights. Same stopping rule, fewer products (bench-results/pipeline-minerva.md, bench-results/lighting-solver.md).
+/// part without the IRLS weights. Same stopping rule, fewer products (bench-results/archive/pipeline-minerva.md, bench-results/archive/lighting-solver.md).
 pub(crate) const LIGHTING_JACOBI: bool = true;
 
 /// Result of one photo's lighting step.
