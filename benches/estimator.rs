@@ -202,17 +202,8 @@ fn prior_opts(o: &mut EstimateOptions) -> &mut LightPriorOptions {
     })
 }
 
-/// The eight embedded maps' names, in the order of the leave-one-out statistics.
-const PRIOR_MAPS: [&str; 8] = [
-    "city",
-    "courtyard",
-    "forest",
-    "interior",
-    "night",
-    "studio",
-    "sunrise",
-    "sunset",
-];
+// The eight embedded maps' names, in the order of the leave-one-out statistics.
+use relight_cpc::synth::data::MAP_NAMES as PRIOR_MAPS;
 
 /// Statistics for `case`'s training photos: `stats[8]` from all eight maps, `stats[i]` from
 /// all but map `i`; each photo uses the set without the map it was rendered with (from

@@ -9,16 +9,7 @@ use relight_cpc::solve::light::sh_prior::{map_sample, LightPrior, HAAR_SIDES};
 use relight_cpc::sphere::envmap::LatLong;
 use std::path::Path;
 
-const MAPS: [&str; 8] = [
-    "city",
-    "courtyard",
-    "forest",
-    "interior",
-    "night",
-    "studio",
-    "sunrise",
-    "sunset",
-];
+use relight_cpc::synth::data::MAP_NAMES as MAPS;
 const ROTATIONS: usize = 24;
 const SHRINKAGE: f64 = 0.1;
 
