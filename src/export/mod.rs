@@ -35,9 +35,15 @@ pub use crate::out_dir::write_atomic;
 
 /// Whether `path` is a GLB this tool wrote (magic `glTF` and our generator string).
 fn is_our_glb(path: &Path) -> bool {
-    std::fs::read(path).is_ok_and(|b| {
-        b.starts_with(b"glTF") && b.windows(11).take(4096).any(|w| w == b"relight-cpc")
-    })
+    use std::io::Read;
+    // The header and the start of the JSON chunk are enough: the generator string sits
+    // in the first 4 KiB, so a large GLB is not read whole.
+    let mut head = Vec::with_capacity(4096 + 10);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(4096 + 10).read_to_end(&mut head))
+        .is_ok()
+        && head.starts_with(b"glTF")
+        && head.windows(11).any(|w| w == b"relight-cpc")
 }
 
 /// Export the result in `result_dir` as `opts` asks.
