@@ -453,6 +453,13 @@ class Photo:
         return self.valid & ((x >= self.mid) == right)
 
 
+def decay(args, it, n):
+    """Learning-rate factor at step `it` of `n`: exponential from 1 to `--lr-decay`.
+    Without it the 4-spp gradient noise makes Adam wander once near the optimum (on the
+    built-in example the training loss rose by 24% from step 55 to 200 at a constant rate)."""
+    return args.lr_decay ** (it / max(n - 1, 1))
+
+
 def fit_training(scene, photos, train_idx, args, clock, log):
     """Adam on the per-vertex albedo and every training photo's map (module docs)."""
     import drjit as dr
@@ -467,6 +474,8 @@ def fit_training(scene, photos, train_idx, args, clock, log):
     weights = {k: photos[k].weight(photos[k].valid) for k in train_idx}
     curve = []
     for it in range(args.iterations):
+        f = decay(args, it, args.iterations)
+        opt.set_learning_rate({"albedo": args.lr_albedo * f, **{f"e{k}": args.lr_env * f for k in train_idx}})
         total = 0.0
         for j, k in enumerate(train_idx):
             img = scene.render(k, opt["albedo"], l0 * opt[f"e{k}"], args.spp, seed=it * len(photos) + k)
@@ -494,6 +503,7 @@ def fit_half(scene, photo, k, albedo, l0, start, args):
     opt["e"] = mi.TensorXf(start)
     w = photo.weight(photo.side(right=False))
     for it in range(args.half_iterations):
+        opt.set_learning_rate({"e": args.lr_env * decay(args, it, args.half_iterations)})
         img = scene.render(k, albedo, l0 * opt["e"], args.spp, seed=10**6 + it * 1000 + k)
         dr.backward(dr.sum(dr.square(img - photo.ref) * w, axis=None))
         opt.step()
@@ -553,7 +563,7 @@ def run(ws, args):
         "held_out": ws.held,
         "settings": {
             k: getattr(args, k)
-            for k in ("iterations", "half_iterations", "spp", "eval_spp", "env_width", "lr_albedo", "lr_env", "clip", "threads")
+            for k in ("iterations", "half_iterations", "spp", "eval_spp", "env_width", "lr_albedo", "lr_env", "lr_decay", "clip", "threads")
         },
         "loss_curve": curve,
         "train": train_entries,
@@ -590,6 +600,7 @@ def parse_args(argv):
     p.add_argument("--env-width", type=int, default=64, help="lat-long map width in texels (height = width/2) [64]")
     p.add_argument("--lr-albedo", type=float, default=0.02, help="Adam learning rate of the albedo [0.02]")
     p.add_argument("--lr-env", type=float, default=0.05, help="Adam learning rate of the maps, relative to their starting level [0.05]")
+    p.add_argument("--lr-decay", type=float, default=0.1, help="learning rate at the last step as a fraction of the first (exponential decay) [0.1]")
     p.add_argument("--clip", type=float, default=250, help="overexposure threshold on the 8-bit scale, as relight-cpc's --clip [250]")
     p.add_argument("--threads", type=int, default=0, help="Dr.Jit worker threads (0 = all cores)")
     p.add_argument("--no-train-eval", action="store_true", help="skip the training photos' RMSE")
@@ -606,6 +617,8 @@ def parse_args(argv):
         p.error("--clip must be in (0, 255]")
     if a.lr_albedo <= 0 or a.lr_env <= 0:
         p.error("learning rates must be positive")
+    if not (0 < a.lr_decay <= 1):
+        p.error("--lr-decay must be in (0, 1]")
     if a.relight_report and not Path(a.relight_report).is_file():
         p.error(f"{a.relight_report}: relight-cpc report not found")
     return a
