@@ -460,7 +460,7 @@ def decay(args, it, n):
     return args.lr_decay ** (it / max(n - 1, 1))
 
 
-def fit_training(scene, photos, train_idx, args, clock, log):
+def fit_training(scene, photos, train_idx, args, log):
     """Adam on the per-vertex albedo and every training photo's map (module docs)."""
     import drjit as dr
     import mitsuba as mi
@@ -533,7 +533,7 @@ def run(ws, args):
     train_idx = [scene.names.index(n) for n in ws.train]
     held_idx = [scene.names.index(n) for n in ws.held]
     log(ws.summary())
-    l0, albedo, envs, curve = clock.run("fit", lambda: fit_training(scene, photos, train_idx, args, clock, log))
+    l0, albedo, envs, curve = clock.run("fit", lambda: fit_training(scene, photos, train_idx, args, log))
     mean_env = sum(np.array(envs[k]) for k in train_idx) / len(train_idx)
 
     train_entries = []
