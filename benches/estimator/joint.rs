@@ -73,7 +73,11 @@ impl Start {
     }
 
     /// The single start this stands for (not [`Start::Best`] of more than one).
-    pub(crate) fn materials(self, case: &Case, obs: &Observations) -> relight_cpc::solve::Materials0 {
+    pub(crate) fn materials(
+        self,
+        case: &Case,
+        obs: &Observations,
+    ) -> relight_cpc::solve::Materials0 {
         let mut v = self.starts(case, obs);
         assert_eq!(v.len(), 1, "this part fits from a single start");
         v.pop().unwrap().materials
