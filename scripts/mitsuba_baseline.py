@@ -151,6 +151,13 @@ def find_mesh(root, dense, given):
     raise BaselineError(f"{root}: no meshed-poisson.ply or meshed-delaunay.ply (give --mesh)")
 
 
+def read_json(path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise BaselineError(f"{path}: not readable JSON ({e})")
+
+
 def held_out_names(root, names, args):
     """relight-cpc's held-out photos: --holdout, else those of --relight-report, else the
     truth manifest's list, else every 5th photo in name order (the last when that picks
@@ -159,14 +166,15 @@ def held_out_names(root, names, args):
         held = [n.strip() for n in args.holdout.split(",") if n.strip()]
         why = "--holdout"
     elif args.relight_report:
-        rep = json.loads(Path(args.relight_report).read_text())
+        rep = read_json(Path(args.relight_report))
         held = []
-        for e in rep.get("holdout", []):
-            if e["image"] not in held:
-                held.append(e["image"])
+        for e in rep.get("holdout", []) if isinstance(rep, dict) else []:
+            if isinstance(e, dict) and e.get("image") not in held:
+                held.append(e.get("image"))
         why = f"the held-out photos of {args.relight_report}"
     elif (root / "truth/manifest.json").is_file():
-        held = json.loads((root / "truth/manifest.json").read_text()).get("held_out", [])
+        manifest = read_json(root / "truth/manifest.json")
+        held = manifest.get("held_out", []) if isinstance(manifest, dict) else []
         why = "truth/manifest.json"
     else:
         held = [n for i, n in enumerate(names) if (i + 1) % 5 == 0]
@@ -576,7 +584,7 @@ def run(ws, args):
 
 def compare_with(report, relight_report_path):
     """Side by side with relight-cpc's `half` entries on the same photos."""
-    rc = json.loads(Path(relight_report_path).read_text())
+    rc = read_json(Path(relight_report_path))
     theirs = {e["image"]: e for e in rc.get("holdout", []) if e["protocol"] == "half"}
     lines = ["| held-out photo | relight-cpc `half` | Mitsuba `half` | pixels (relight-cpc / Mitsuba) |", "|---|---:|---:|---:|"]
     for e in report["holdout"]:
