@@ -202,6 +202,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
             Lighting::Static(m) => (m, false),
             Lighting::Rotating(m) => (m, true),
             Lighting::Varying(list) => (list[i % list.len()], true),
+            Lighting::Grouped(list) => (list[i % list.len()], false),
         };
         let idx = match maps.iter().position(|x| x.0 == m) {
             Some(j) => j,
