@@ -55,6 +55,11 @@ pub(crate) struct RunArgs {
     /// under `--light shared` (0 = never by time).
     #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHT_GROUP_MINUTES, help_heading = "Model")]
     pub(crate) light_group_minutes: f64,
+    /// What fixes the per-channel scale between colours and light, which photos can never
+    /// tell apart: `start` (the balance of the starting colours) or `grey-world` (the
+    /// surface's mean diffuse albedo is 0.5 in each channel).
+    #[arg(long, default_value = "start", value_parser = ["start", "grey-world"], help_heading = "Model")]
+    pub(crate) scale_anchor: String,
     /// Detail of each photo's recovered lighting: map side in texels, a power of two.
     #[arg(long, default_value_t = 64, help_heading = "Model")]
     pub(crate) global_resolution: usize,
@@ -242,6 +247,7 @@ impl RunArgs {
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;
+        o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
         Ok(o)
     }
 }

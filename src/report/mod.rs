@@ -105,6 +105,19 @@ pub struct ModelReport {
     /// The per-photo light model used (`--light`) and why.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub light: Option<crate::solve::light::choose::LightDecision>,
+    /// What fixes the per-channel scale between reflectance and light.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_anchor: Option<ScaleAnchorReport>,
+}
+
+/// The per-channel scale anchor ([`crate::solve::normalise::ScaleAnchor`]): its name and
+/// the normalisation applied, in words.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct ScaleAnchorReport {
+    /// `start` or `grey-world`.
+    pub name: String,
+    /// The rule, with its figures.
+    pub rule: String,
 }
 
 /// Everything `report.json` holds.
@@ -132,6 +145,9 @@ pub struct RunReport {
     pub metrics: Vec<metrics::MetricsEntry>,
     /// Synthetic workspaces: each training photo rendered from the fit under its true light.
     pub truth_check: Vec<metrics::TruthCheckEntry>,
+    /// Synthetic workspaces: diffuse albedo per material, recovered against the truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub albedo_truth: Option<metrics::AlbedoTruth>,
     /// RMSE over all training observations.
     pub train_rmse: f64,
     /// Per training photo.

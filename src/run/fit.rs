@@ -61,6 +61,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         validation_fraction: o.validation,
         lighting_sample: o.lighting_sample,
         lighting_strata: strata.to_vec(),
+        scale_anchor: o.scale_anchor,
         ..EstimateOptions::default()
     }
 }

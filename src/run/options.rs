@@ -119,6 +119,9 @@ pub struct RunOptions {
     /// Photos taken at most this many minutes apart share a sky when grouped by capture
     /// time (0 = never by time).
     pub light_group_minutes: f64,
+    /// The per-channel scale anchor between reflectance and light
+    /// ([`crate::solve::normalise::ScaleAnchor`]).
+    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
 
 /// Default of [`RunOptions::light_group_minutes`]: 5 minutes, in which the sun moves
@@ -196,6 +199,7 @@ impl RunOptions {
             light: crate::solve::light::choose::LightChoice::Paper,
             light_groups: None,
             light_group_minutes: DEFAULT_LIGHT_GROUP_MINUTES,
+            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }
 

@@ -157,6 +157,9 @@ pub struct EstimateOptions {
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
     pub light_groups: Option<crate::solve::light::shared::LightGroups>,
+    /// How the per-channel scale between reflectance and light is fixed after the
+    /// alternation ([`crate::solve::normalise::ScaleAnchor`]).
+    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -238,6 +241,7 @@ impl Default for EstimateOptions {
             lighting_strata: Vec::new(),
             light_prior: None,
             light_groups: None,
+            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }
 }

@@ -312,3 +312,43 @@ fn shared_light_recovers_gain_ratios_and_predicts_unseen_observations() {
     assert!(e_shared <= e_paper, "shared {e_shared} vs paper {e_paper}");
     assert!(shared.lights.iter().flatten().flatten().all(|&v| v >= 0.0));
 }
+
+#[test]
+fn grey_world_anchor_sets_the_mean_albedo_and_keeps_the_predictions() {
+    // The anchor only moves the per-channel scale between λ and the light, which `F`
+    // cannot see: the predictions of the two fits (same data, same path up to the final
+    // normalisation) agree to rounding (1e-9 relative), and the grey-world fit's mean
+    // diffuse albedo over the vertices is 0.5 per channel (to rounding, 1e-12).
+    use relight_cpc::solve::normalise::{ScaleAnchor, GREY_WORLD_ALBEDO};
+    let p = shared_planted(9, 0.01, 100, 2, 3);
+    let fit = |anchor: ScaleAnchor| {
+        let o = EstimateOptions {
+            max_outer: 5,
+            scale_anchor: anchor,
+            ..opts(Some(&p.group))
+        };
+        estimate(&problem(&p), start(&p), &o, &mut |_, _| {}).unwrap()
+    };
+    let (start_fit, grey) = (fit(ScaleAnchor::Start), fit(ScaleAnchor::GreyWorld));
+    assert!(
+        grey.normalisation.contains("grey-world"),
+        "{}",
+        grey.normalisation
+    );
+    let (a, b) = (
+        predict(&problem(&p), &start_fit),
+        predict(&problem(&p), &grey),
+    );
+    let scale = a.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
+    for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+        assert!((x - y).abs() <= 1e-9 * scale, "{x} vs {y}");
+    }
+    let beta = beta_per_vertex(&grey.lambda, &grey.weights, p.v);
+    for c in 0..3 {
+        let mean = (0..p.v).map(|x| beta[x * B][c]).sum::<f64>() / p.v as f64;
+        assert!(
+            (mean - GREY_WORLD_ALBEDO).abs() < 1e-12,
+            "channel {c}: {mean}"
+        );
+    }
+}
