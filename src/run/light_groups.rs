@@ -123,25 +123,35 @@ pub(crate) fn resolve(
         );
         return Ok(Some(LightGroups { source, ..g }));
     }
-    if minutes <= 0.0 || !minutes.is_finite() {
-        return Ok(None);
-    }
-    let times: Vec<Option<i64>> = train
+    let paths: Vec<&Path> = train
         .iter()
-        .map(|&v| crate::import::photo::capture_time(&scene.views[v].photo_path))
+        .map(|&v| scene.views[v].photo_path.as_path())
+        .collect();
+    Ok(groups_by_time(&paths, minutes))
+}
+
+/// Groups of the photos at `paths` by EXIF capture time (module docs); `None` when
+/// `minutes` is 0 or fewer than two photos are dated.
+pub fn groups_by_time(paths: &[&Path], minutes: f64) -> Option<LightGroups> {
+    if minutes <= 0.0 || !minutes.is_finite() {
+        return None;
+    }
+    let times: Vec<Option<i64>> = paths
+        .iter()
+        .map(|p| crate::import::photo::capture_time(p))
         .collect();
     let dated = times.iter().filter(|t| t.is_some()).count();
     if dated < 2 {
-        return Ok(None);
+        return None;
     }
     let window = (minutes * 60.0).round() as i64;
     let g = LightGroups::from_labels(&time_labels(&times, window), String::new());
     let source = format!(
         "{} groups of the {} training photos by EXIF capture time within {minutes} min ({dated} photos dated)",
         g.n_groups(),
-        train.len()
+        paths.len()
     );
-    Ok(Some(LightGroups { source, ..g }))
+    Some(LightGroups { source, ..g })
 }
 
 #[cfg(test)]
@@ -162,6 +172,39 @@ mod tests {
         // A gap of one second more than the window splits.
         let l = time_labels(&[Some(0), Some(151)], 150);
         assert_ne!(l[0], l[1]);
+    }
+
+    #[test]
+    fn photos_group_by_their_exif_capture_times() {
+        // Four JPEGs: two at 10:00:00 and 10:04:00, one at 10:30:00, one without EXIF (a
+        // PNG). With a 5-minute window: {0, 1}, {2}, {3}; with 0 minutes: no groups.
+        use crate::import::photo::tests::jpeg_with_capture_time;
+        let dir = std::env::temp_dir().join(format!("relight-groups-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut paths = Vec::new();
+        for (i, stamp) in [
+            "2025:06:01 10:00:00",
+            "2025:06:01 10:04:00",
+            "2025:06:01 10:30:00",
+        ]
+        .iter()
+        .enumerate()
+        {
+            let p = dir.join(format!("p{i}.jpg"));
+            std::fs::write(&p, jpeg_with_capture_time(stamp)).unwrap();
+            paths.push(p);
+        }
+        let plain = dir.join("p3.png");
+        image::RgbImage::new(2, 2).save(&plain).unwrap();
+        paths.push(plain);
+        let refs: Vec<&Path> = paths.iter().map(|p| p.as_path()).collect();
+        let g = groups_by_time(&refs, 5.0).unwrap();
+        assert_eq!(g.group, vec![0, 0, 1, 2]);
+        assert!(g.source.contains("3 photos dated"), "{}", g.source);
+        assert!(groups_by_time(&refs, 0.0).is_none());
+        // One dated photo alone groups nothing.
+        assert!(groups_by_time(&refs[2..], 5.0).is_none());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
