@@ -26,7 +26,10 @@
 //! where for piecewise-constant functions on one grid it is exact and costs `O(n_local²)`.
 //! `g` is then truncated to its `keep` largest-magnitude coefficients, which minimises the
 //! `ℓ²` norm of what is dropped and hence the worst-case response error `‖g_drop‖ ‖L̃‖`.
-//! The Lambert row depends only on the vertex and is computed once per vertex.
+//! The Lambert row depends only on the vertex and is computed once per vertex; an
+//! observation's view-dependent rows go through `R_nᵀ` together
+//! ([`LocalRotation::texel_transpose_many`]: the rotation's rows are read once for all of
+//! them, the sums are those of one row at a time).
 //! Memory grows as observations × basis × `keep`: 6 bytes per kept entry (a `u16` Haar
 //! index, which addresses every map up to 256², and an `f32` value) plus an 8-byte offset
 //! per row. The rows are written by the workers straight into their slots of the final
