@@ -222,6 +222,8 @@ struct Scratch {
     globals: Vec<f64>,
     /// The rotation's interleaving buffer ([`LocalRotation::texel_transpose_many`]).
     inter: Vec<f64>,
+    /// Progress, passed on per chunk of observations.
+    ticks: crate::stages::Ticker,
 }
 
 impl Scratch {
@@ -235,6 +237,7 @@ impl Scratch {
             locals: Vec::new(),
             globals: Vec::new(),
             inter: Vec::new(),
+            ticks: Default::default(),
         }
     }
 }
@@ -452,7 +455,7 @@ pub fn build_rows<R: LocalRotation>(
         .for_each_init(
             || Scratch::new(opts.n_local, opts.n_global),
             |scratch, (p, ((oi, ov), ol))| {
-                crate::stages::tick(1);
+                scratch.ticks.tick(1);
                 let v = obs_vertex[p] as usize;
                 let Some((normal, frame)) = vertex_frame_into(
                     &normals_env[v],
