@@ -154,6 +154,15 @@ pub struct EstimateOptions {
     /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
     /// map): extra quadratic terms of the lighting QP ([`crate::solve::light::sh_prior`]).
     pub light_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
+    /// Prior on each vertex's blending weights summing to one (issue 25, not in the
+    /// paper; 0 = off, the paper's free non-negative weights): the material step's `w`
+    /// part and `F` gain `Σ_x γ_x (Σ_k w_k(x) − 1)²` with
+    /// `γ_x = weights_sum · Σ_{p ∈ x} α_p ‖y_p‖²` ([`crate::solve::materials::sum_weights_gamma`]).
+    /// Free weights let a vertex's brightness absorb any function of its normal that all
+    /// photos' lights share, which moves the albedo ratios of materials facing different
+    /// ways; the prior ties a vertex's brightness to its materials. At 1 it charges a
+    /// relative change `δ` of a vertex's brightness what its data would charge for it.
+    pub weights_sum: f64,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -234,6 +243,7 @@ impl Default for EstimateOptions {
             lighting_sample: 0,
             lighting_strata: Vec::new(),
             light_prior: None,
+            weights_sum: 0.0,
         }
     }
 }
