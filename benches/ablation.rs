@@ -150,6 +150,27 @@ fn rows() -> Vec<Row> {
     ]
 }
 
+/// `o` without IRLS (plain least squares in every step).
+fn no_irls(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        robust: relight_cpc::solve::Robust::None,
+        ..o
+    })
+}
+
+/// Rows run only when `ABLATION_ROWS` names them (variants measured once, not part of the
+/// standard table).
+#[rustfmt::skip]
+fn extra_rows() -> Vec<Row> {
+    vec![
+        Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 10", make: |b| sum1(choice("paper", b), 10.0) },
+        Row::Fit { label: "paper, no IRLS", make: |b| no_irls(choice("paper", b)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("paper", b), 1.0)) },
+        Row::Fit { label: "prior, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("prior", b), 1.0)) },
+    ]
+}
+
 /// The rows whose material count is searched (the K search costs about one more fit; the
 /// other rows show `–`).
 const K_ROWS: [&str; 4] = [
@@ -462,7 +483,11 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
     let base = base_options();
     let no_k = std::env::var("ABLATION_NO_K").is_ok_and(|v| v == "1");
     let mut done: Vec<Done> = Vec::new();
-    for row in rows() {
+    let all = match wanted {
+        Some(_) => rows().into_iter().chain(extra_rows()).collect(),
+        None => rows(),
+    };
+    for row in all {
         match row {
             Row::Fit { label, make } => {
                 if wanted
