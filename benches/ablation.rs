@@ -158,6 +158,11 @@ fn no_irls(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     })
 }
 
+/// `o` with early stopping's patience at 4 outer iterations (default 1).
+fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions { patience: 4, ..o })
+}
+
 /// Rows run only when `ABLATION_ROWS` names them (variants measured once, not part of the
 /// standard table).
 #[rustfmt::skip]
@@ -168,17 +173,14 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "paper, no IRLS", make: |b| no_irls(choice("paper", b)) },
         Row::Fit { label: "paper, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("paper", b), 1.0)) },
         Row::Fit { label: "prior, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("prior", b), 1.0)) },
+        Row::Fit { label: "paper, patience 4", make: |b| patient(choice("paper", b)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, patience 4", make: |b| patient(sum1(choice("paper", b), 1.0)) },
     ]
 }
 
 /// The rows whose material count is searched (the K search costs about one more fit; the
 /// other rows show `–`).
-const K_ROWS: [&str; 4] = [
-    "paper",
-    PRIOR,
-    "paper, Σw=1 prior 1",
-    "prior, Σw=1 prior 1",
-];
+const K_ROWS: [&str; 4] = ["paper", PRIOR, "paper, Σw=1 prior 1", "prior, Σw=1 prior 1"];
 
 /// The scenes: (synth name, what it stands for).
 const SCENES: [(&str, &str); 3] = [
@@ -481,7 +483,8 @@ struct Done {
 fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done>, Floors) {
     let fl = floors(case);
     let base = base_options();
-    let no_k = std::env::var("ABLATION_NO_K").is_ok_and(|v| v == "1");
+    // The K search on the 8-bit photos only: what a user's photos ask of it.
+    let no_k = clean || std::env::var("ABLATION_NO_K").is_ok_and(|v| v == "1");
     let mut done: Vec<Done> = Vec::new();
     let all = match wanted {
         Some(_) => rows().into_iter().chain(extra_rows()).collect(),
@@ -656,6 +659,7 @@ fn main() {
                 case.held.obs.len()
             ));
             table(&mut md, &done, &fl, clean, k_true);
+            eprintln!("{scene}: case done at {:.0} s", t0.elapsed().as_secs_f64());
             out.push(json!({
                 "scene": scene,
                 "kind": what,
@@ -665,10 +669,19 @@ fn main() {
                 "floor_relit": fl.relit,
                 "rows": done.iter().map(|d| json!({"model": d.label, "figures": d.figures, "k": d.k, "note": d.note})).collect::<Vec<_>>(),
             }));
+            // After every case, so that an interrupted run keeps what it measured.
+            write(&md, &out, t0, s, &base, false);
         }
     }
+    write(&md, &out, t0, s, &base, true);
+}
+
+/// `bench-results/estimator-ablation[-S].{md,json}` (`RESULTS_SUFFIX=S`); with `last` the
+/// Markdown also goes to standard output.
+fn write(md: &str, out: &[Value], t0: Instant, s: Sizes, base: &EstimateOptions, last: bool) {
+    let mut md = md.to_string();
     md.push_str(&format!(
-        "Whole bench: {:.0} s wall.\n",
+        "Bench so far: {:.0} s wall.\n",
         t0.elapsed().as_secs_f64()
     ));
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bench-results");
@@ -677,11 +690,13 @@ fn main() {
         _ => "estimator-ablation".to_string(),
     };
     std::fs::write(dir.join(format!("{stem}.md")), &md).unwrap();
-    let v: Value = json!({"sizes": format!("{s:?}"), "options": format!("{base:?}"), "cases": out});
+    let v: Value = json!({"sizes": format!("{s:?}"), "options": format!("{base:?}"), "cases": out, "seconds": t0.elapsed().as_secs_f64()});
     std::fs::write(
         dir.join(format!("{stem}.json")),
         serde_json::to_string_pretty(&v).unwrap(),
     )
     .unwrap();
-    println!("{md}");
+    if last {
+        println!("{md}");
+    }
 }
