@@ -328,9 +328,18 @@ mod tests {
     use super::*;
     use crate::transport::Transport;
 
+    /// One vertex's data for the `w` step: observations, transport (only its basis count
+    /// is read), basis responses `s` and materials `λ`.
+    struct OneVertex {
+        obs: Observations,
+        transport: Transport,
+        s: Vec<[f64; 3]>,
+        lambda: Vec<Vec<[f64; 3]>>,
+    }
+
     /// One vertex seen by four observations, two materials of one basis: the `w` step's
     /// normal equations are 2 × 2, so the prior's minimiser has a closed form.
-    fn one_vertex() -> (Observations, Transport, Vec<[f64; 3]>, Vec<Vec<[f64; 3]>>) {
+    fn one_vertex() -> OneVertex {
         let mut obs = Observations::default();
         let s = vec![
             [1.0, 0.8, 0.6],
@@ -360,7 +369,12 @@ mod tests {
             ..Default::default()
         };
         let lambda = vec![vec![[0.8, 0.4, 0.2]], vec![[0.2, 0.4, 0.7]]];
-        (obs, t, s, lambda)
+        OneVertex {
+            obs,
+            transport: t,
+            s,
+            lambda,
+        }
     }
 
     /// `(M, b)` of the plain `w` step: `M = Σ a aᵀ`, `b = Σ a y` over observations and
@@ -395,7 +409,12 @@ mod tests {
 
     #[test]
     fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
-        let (obs, t, s, lambda) = one_vertex();
+        let OneVertex {
+            obs,
+            transport: t,
+            s,
+            lambda,
+        } = one_vertex();
         let problem = Problem {
             obs: &obs,
             transport: &t,
