@@ -215,11 +215,14 @@ fn sizes() -> Sizes {
     }
 }
 
-/// The bench's base options: the defaults, ≤ `ABLATION_ITERS` outer iterations.
+/// The bench's base options: the defaults with the paper's free blending weights
+/// (`weights_sum` 0: the rows that use the sum-to-one prior say so), ≤ `ABLATION_ITERS`
+/// outer iterations.
 fn base_options() -> EstimateOptions {
     EstimateOptions {
         max_outer: env_usize("ABLATION_ITERS", 20),
         rel_tol: 1e-5,
+        weights_sum: 0.0,
         ..EstimateOptions::default()
     }
 }
