@@ -122,7 +122,11 @@ pub(crate) struct RunArgs {
     /// Prior that each surface point's material weights sum to one, as a multiple of what
     /// its photos charge for a change of its brightness (0 = off: free weights, as the
     /// paper). Keeps shading that all photos share out of the materials' colours.
-    #[arg(long, default_value_t = 0.0, help_heading = "Solver")]
+    #[arg(
+        long,
+        default_value_t = relight_cpc::solve::WEIGHTS_SUM,
+        help_heading = "Solver"
+    )]
     pub(crate) weights_sum: f64,
     /// Fraction of the training observations held back to stop at the best round; 0 turns
     /// early stopping off.
