@@ -126,9 +126,7 @@ fn sum1(o: Option<EstimateOptions>, tau: f64) -> Option<EstimateOptions> {
 fn rows() -> Vec<Row> {
     vec![
         Row::Fit { label: "paper", make: |b| choice("paper", b) },
-        Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
         Row::Fit { label: "prior SH η=0.3", make: |b| prior(b, 0.3, 0.0) },
-        Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
         Row::Fit { label: PRIOR, make: |b| choice("prior", b) },
         Row::Fit { label: "paper, Σw=1 prior 1", make: |b| sum1(choice("paper", b), 1.0) },
         Row::Fit { label: "prior, Σw=1 prior 1", make: |b| sum1(choice("prior", b), 1.0) },
@@ -168,6 +166,8 @@ fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
 #[rustfmt::skip]
 fn extra_rows() -> Vec<Row> {
     vec![
+        Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
+        Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
         Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
         Row::Fit { label: "paper, Σw=1 prior 10", make: |b| sum1(choice("paper", b), 10.0) },
         Row::Fit { label: "paper, no IRLS", make: |b| no_irls(choice("paper", b)) },
@@ -489,10 +489,14 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
     // The K search on the 8-bit photos only: what a user's photos ask of it.
     let no_k = clean || std::env::var("ABLATION_NO_K").is_ok_and(|v| v == "1");
     let mut done: Vec<Done> = Vec::new();
-    let all = match wanted {
-        Some(_) => rows().into_iter().chain(extra_rows()).collect(),
-        None => rows(),
-    };
+    // Extra rows (when asked for) go before the picks, which choose among every fit.
+    let (picks, mut all): (Vec<Row>, Vec<Row>) = rows()
+        .into_iter()
+        .partition(|r| matches!(r, Row::Pick { .. }));
+    if wanted.is_some() {
+        all.extend(extra_rows());
+    }
+    all.extend(picks);
     for row in all {
         match row {
             Row::Fit { label, make } => {
@@ -503,7 +507,9 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     continue;
                 }
                 let Some(o) = make(&base) else {
-                    eprintln!("{label}: not in this build, skipped");
+                    // Not in this build, or not applicable (`shared` needs photos that
+                    // share a map; every photo here has its own).
+                    eprintln!("{label}: not available for this scene in this build, skipped");
                     continue;
                 };
                 let o = with_case_priors(case, &o);
