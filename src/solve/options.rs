@@ -166,13 +166,14 @@ pub struct EstimateOptions {
     pub weights_sum: f64,
 }
 
-/// Default of [`EstimateOptions::weights_sum`]: 1. Measured in
-/// `bench-results/estimator-ablation.md` (8-bit photos, relit under unseen maps, against 0):
-/// diffuse Spot 0.139 → 0.107, glossy 0.175 → 0.146, three materials 0.184 → 0.149 (0.1:
-/// 0.115 on the diffuse scene); on the built-in example the held-out RMSE under the true
-/// light went from 0.0626 / 0.0860 to 0.0538 / 0.0675 and the half protocol's from
-/// 0.0489 / 0.0922 to 0.0406 / 0.0883.
-pub const WEIGHTS_SUM: f64 = 1.0;
+/// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. `1` is the
+/// measured recommendation (`bench-results/estimator-ablation.md`, 8-bit photos, relit
+/// under unseen maps: diffuse Spot 0.139 → 0.107, glossy 0.175 → 0.146, three materials
+/// 0.184 → 0.149; the built-in example's held-out RMSE under the true light 0.0626 /
+/// 0.0860 → 0.0538 / 0.0675), not yet the default: two estimator tests calibrated on
+/// free weights (`estimate_planted`'s joint recovery, whose planted weights do not sum to
+/// one, and `estimate_synth`'s outlier test) fail with it and need their own review.
+pub const WEIGHTS_SUM: f64 = 0.0;
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
 /// (≤ ~630 Hessian products with the old CG cap of 100, ≤ ~120 with
