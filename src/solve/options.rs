@@ -164,6 +164,12 @@ pub struct EstimateOptions {
     /// relative change `δ` of a vertex's brightness what its data would charge for it.
     /// Default [`WEIGHTS_SUM`].
     pub weights_sum: f64,
+    /// Photos that share one map with per-photo gains (issue 25, not in the paper;
+    /// [`crate::solve::light::shared`]); `None`: a map per photo.
+    pub light_groups: Option<crate::solve::light::shared::LightGroups>,
+    /// How the per-channel scale between reflectance and light is fixed after the
+    /// alternation ([`crate::solve::normalise::ScaleAnchor`]).
+    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
 
 /// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. `1` is the
@@ -254,6 +260,8 @@ impl Default for EstimateOptions {
             lighting_strata: Vec::new(),
             light_prior: None,
             weights_sum: WEIGHTS_SUM,
+            light_groups: None,
+            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }
 }

@@ -287,6 +287,7 @@ fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<Lig
             Lighting::Static(m) => (m, false),
             Lighting::Rotating(m) => (m, true),
             Lighting::Varying(list) => (list[i % list.len()], true),
+            Lighting::Grouped(list) => (list[i % list.len()], false),
         };
         let idx = match maps.iter().position(|x| x.0 == m) {
             Some(j) => j,
