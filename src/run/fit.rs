@@ -27,6 +27,8 @@ pub(crate) struct Fit<'a> {
     pub(crate) decisions: Vec<Decision>,
     /// The per-photo light model kept and why.
     pub(crate) light_decision: crate::solve::light::choose::LightDecision,
+    /// What the transient pass masked (`None`: `--transients off`).
+    pub(crate) transients: Option<super::transients::Transients>,
 }
 
 /// The index of the Lambertian basis BRDF, which carries the diffuse colour.
@@ -76,7 +78,7 @@ pub(crate) fn fit<'a>(
     let (scene, photos, held, truth) = (&im.scene, &im.photos, im.held.clone(), &im.truth);
     let Observed {
         bvh,
-        obs,
+        mut obs,
         train,
         decisions,
     } = observed;
@@ -102,7 +104,29 @@ pub(crate) fn fit<'a>(
         (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
         (None, MaterialCount::Auto) => choose_material_count(&mean_rgb, &seen, opts.seed),
     };
-    let init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
+    let mut init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
+    let eopts = estimate_options(&eff, lambert, &strata);
+    let mut materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+    // The baseline is the photos' own colours: its medians ignore the transient mask.
+    let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
+    let transients = if eff.transients {
+        progress.stage("transients");
+        let spinner = progress.spinner("pilot fit for transient occluders");
+        let t = log.stages.run("transients", || {
+            super::transients::mask_transients(&mut obs, &tr, &scene.mesh, &materials0, &eopts)
+        })?;
+        drop(spinner);
+        // The clustered start from the unmasked observations only: an occluder's colour
+        // would otherwise take a material of its own.
+        if t.count() > 0 {
+            let (mean_rgb, seen) = super::mean_colours(&obs, nv);
+            init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
+            materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+        }
+        Some(t)
+    } else {
+        None
+    };
     let mut reasons = vec![k_reason];
     if init.albedo.len() < k {
         reasons.push(format!(
@@ -117,8 +141,6 @@ pub(crate) fn fit<'a>(
         n_vertices: nv,
         n_photos: train.len(),
     };
-    let eopts = estimate_options(&eff, lambert, &strata);
-    let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
     let spinner = progress.spinner("held-out transport");
     let tracker = log.stages.run("transport", || {
         evaluate::HoldoutTracker::new(
@@ -247,7 +269,7 @@ pub(crate) fn fit<'a>(
         opts: eff.clone(),
         estimate_options: eopts,
         bvh,
-        baseline: super::baseline::VertexMedians::from_observations(&obs, nv),
+        baseline,
     };
     Ok(Fit {
         fitted,
@@ -257,5 +279,6 @@ pub(crate) fn fit<'a>(
         reasons,
         decisions,
         light_decision,
+        transients,
     })
 }
