@@ -44,7 +44,7 @@ pub(crate) struct RunArgs {
     /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
     /// maps), `auto` (both fitted, the one that predicts held-back observations better kept;
     /// twice the fitting time).
-    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "auto"], help_heading = "Model")]
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "auto"], help_heading = "Model")]
     pub(crate) light: String,
     /// Find people, cars and other things in front of the object in some photos (where a
     /// short trial fit disagrees with a photo over a patch of the surface), leave them out
@@ -55,6 +55,20 @@ pub(crate) struct RunArgs {
     /// fully (by default they count less: a small misregistration mixes the background in).
     #[arg(long, help_heading = "Model")]
     pub(crate) no_edge_margin: bool,
+    /// Photos under one sky for `--light shared` (one map per group, per-photo exposure
+    /// and white-balance gains): a text file of lines `<photo name> <group label>`.
+    /// Without it, photos taken within --light-group-minutes of each other (EXIF time).
+    #[arg(long, value_name = "FILE", help_heading = "Model")]
+    pub(crate) light_groups: Option<std::path::PathBuf>,
+    /// Photos whose EXIF capture times are at most this many minutes apart share a sky
+    /// under `--light shared` (0 = never by time).
+    #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHT_GROUP_MINUTES, help_heading = "Model")]
+    pub(crate) light_group_minutes: f64,
+    /// What fixes the per-channel scale between colours and light, which photos can never
+    /// tell apart: `start` (the balance of the starting colours) or `grey-world` (the
+    /// surface's mean diffuse albedo is 0.5 in each channel).
+    #[arg(long, default_value = "start", value_parser = ["start", "grey-world"], help_heading = "Model")]
+    pub(crate) scale_anchor: String,
     /// Detail of each photo's recovered lighting: map side in texels, a power of two.
     #[arg(long, default_value_t = 64, help_heading = "Model")]
     pub(crate) global_resolution: usize,
@@ -242,6 +256,9 @@ impl RunArgs {
         o.transients = self.transients;
         o.edge_margin = !self.no_edge_margin;
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
+        o.light_groups = self.light_groups.clone();
+        o.light_group_minutes = self.light_group_minutes;
+        o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
         Ok(o)
     }
 }

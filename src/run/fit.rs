@@ -8,9 +8,11 @@ use super::{
     check_finite, choose_material_count, conditioning_map, train_errors, Fitted, MaterialCount,
     Progress, RunOptions,
 };
+use crate::observe::Observations;
 use crate::report::{TimelinePoint, TrainEntry};
 use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
+use crate::solve::light::choose::LightChoice;
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::transport::brdf::BasisBrdf;
@@ -62,6 +64,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         validation_fraction: o.validation,
         lighting_sample: o.lighting_sample,
         lighting_strata: strata.to_vec(),
+        scale_anchor: o.scale_anchor,
         ..EstimateOptions::default()
     }
 }
@@ -99,48 +102,45 @@ pub(crate) fn fit<'a>(
     let nv = scene.mesh.positions.len();
     // 6. Estimate.
     let lambert = lambert_of(&eff.basis)?;
-    let (k, k_reason) = match (pilot_k, opts.materials) {
-        (Some(p), _) => p,
-        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
-        (None, MaterialCount::Auto) => choose_material_count(&mean_rgb, &seen, opts.seed),
-    };
-    let mut init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
-    let eopts = estimate_options(&eff, lambert, &strata);
-    let mut materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+    let mut reasons = Vec::new();
+    let mut init = starting_materials(opts, pilot_k.clone(), &mean_rgb, &seen, &mut reasons)?;
+    let mut eopts = estimate_options(&eff, lambert, &strata);
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
     let transients = if eff.transients {
         progress.stage("transients");
         let spinner = progress.spinner("pilot fit for transient occluders");
+        let start = Materials0::from_initial(&init, eff.basis.len(), lambert);
         let t = log.stages.run("transients", || {
-            super::transients::mask_transients(&mut obs, &tr, &scene.mesh, &materials0, &eopts)
+            super::transients::mask_transients(&mut obs, &tr, &scene.mesh, &start, &eopts)
         })?;
         drop(spinner);
         // The clustered start from the unmasked observations only: an occluder's colour
         // would otherwise take a material of its own.
         if t.count() > 0 {
             let (mean_rgb, seen) = super::mean_colours(&obs, nv);
-            init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
-            materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
+            reasons.clear();
+            init = starting_materials(opts, pilot_k, &mean_rgb, &seen, &mut reasons)?;
         }
         Some(t)
     } else {
         None
     };
-    let mut reasons = vec![k_reason];
-    if init.albedo.len() < k {
-        reasons.push(format!(
-            "only {} distinct colour clusters exist, so {} materials are fitted",
-            init.albedo.len(),
-            init.albedo.len()
-        ));
-    }
     let problem = Problem {
         obs: &obs,
         transport: &tr,
         n_vertices: nv,
         n_photos: train.len(),
     };
+    if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
+        let file = opts.light_groups.as_deref();
+        eopts.light_groups =
+            super::light_groups::resolve(file, opts.light_group_minutes, scene, &train)?;
+        if let Some(g) = &eopts.light_groups {
+            reasons.push(format!("shared light: {}", g.source));
+        }
+    }
+    let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
     let spinner = progress.spinner("held-out transport");
     let tracker = log.stages.run("transport", || {
         evaluate::HoldoutTracker::new(
@@ -185,18 +185,7 @@ pub(crate) fn fit<'a>(
                     .map(|t| t.rmse(state, nv))
                     .filter(|v| v.is_finite());
                 let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                let line = format!(
-                    "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
-                    if n_starts > 1 {
-                        format!("start {} of {n_starts}, ", si + 1)
-                    } else {
-                        String::new()
-                    },
-                    it.objective,
-                    it.train_rmse,
-                    holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
-                    it.seconds
-                );
+                let line = iteration_line(n_starts, si, n_it, it, holdout_rmse);
                 if bar.is_hidden() {
                     progress.line(&line);
                 } else {
@@ -233,15 +222,7 @@ pub(crate) fn fit<'a>(
     let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
     let pred = solve::predict(&problem, &est);
     let train_entries = train_errors(scene, &train, &obs, &pred);
-    let train_predictions: Vec<Vec<(u32, [f32; 3])>> = obs
-        .photo_ranges
-        .iter()
-        .map(|r| {
-            r.clone()
-                .map(|p| (obs.vertex[p], pred[p].map(|v| v as f32)))
-                .collect()
-        })
-        .collect();
+    let train_predictions = photo_predictions(&obs, &pred);
     drop(pred);
     // The transport rows (training and held-out) are the run's largest arrays and nothing
     // after the estimate reads them: free them before the evaluation builds its own.
@@ -281,4 +262,64 @@ pub(crate) fn fit<'a>(
         light_decision,
         transients,
     })
+}
+
+/// The starting materials: clustered mean colours with the pilot's count, `--materials`,
+/// or a count chosen from the colours; why, pushed to `reasons`.
+fn starting_materials(
+    opts: &RunOptions,
+    pilot_k: Option<(usize, String)>,
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+    reasons: &mut Vec<String>,
+) -> Result<crate::solve::cluster::InitialMaterials> {
+    let (k, k_reason) = match (pilot_k, opts.materials) {
+        (Some(p), _) => p,
+        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
+        (None, MaterialCount::Auto) => choose_material_count(mean_rgb, seen, opts.seed),
+    };
+    let init = initial_materials(mean_rgb, seen, k, opts.seed)?;
+    reasons.push(k_reason);
+    if init.albedo.len() < k {
+        reasons.push(format!(
+            "only {} distinct colour clusters exist, so {} materials are fitted",
+            init.albedo.len(),
+            init.albedo.len()
+        ));
+    }
+    Ok(init)
+}
+
+/// The console line for outer iteration `n_it` of start `si` (of `n_starts`).
+fn iteration_line(
+    n_starts: usize,
+    si: usize,
+    n_it: usize,
+    it: &solve::Iteration,
+    holdout_rmse: Option<f64>,
+) -> String {
+    format!(
+        "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
+        if n_starts > 1 {
+            format!("start {} of {n_starts}, ", si + 1)
+        } else {
+            String::new()
+        },
+        it.objective,
+        it.train_rmse,
+        holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
+        it.seconds
+    )
+}
+
+/// Per training photo, the fitted prediction `pred` of each of its observations, by vertex.
+fn photo_predictions(obs: &Observations, pred: &[[f64; 3]]) -> Vec<Vec<(u32, [f32; 3])>> {
+    obs.photo_ranges
+        .iter()
+        .map(|r| {
+            r.clone()
+                .map(|p| (obs.vertex[p], pred[p].map(|v| v as f32)))
+                .collect()
+        })
+        .collect()
 }

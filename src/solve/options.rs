@@ -154,6 +154,12 @@ pub struct EstimateOptions {
     /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
     /// map): extra quadratic terms of the lighting QP ([`crate::solve::light::sh_prior`]).
     pub light_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
+    /// Photos that share one map with per-photo gains (issue 25, not in the paper;
+    /// [`crate::solve::light::shared`]); `None`: a map per photo.
+    pub light_groups: Option<crate::solve::light::shared::LightGroups>,
+    /// How the per-channel scale between reflectance and light is fixed after the
+    /// alternation ([`crate::solve::normalise::ScaleAnchor`]).
+    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -234,6 +240,8 @@ impl Default for EstimateOptions {
             lighting_sample: 0,
             lighting_strata: Vec::new(),
             light_prior: None,
+            light_groups: None,
+            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }
 }

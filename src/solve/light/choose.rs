@@ -1,8 +1,11 @@
 //! Which per-photo light model a fit uses (issue 25, `--light`): the paper's free map,
-//! the free map under the statistical prior of [`crate::solve::light::sh_prior`], or `auto`, which
-//! fits both and keeps the one with the lower early-stopping validation score (the same
-//! seeded held-back observations for both, [`crate::solve::Validation`]), as `--adaptive`
-//! chooses the model order by held-out error.
+//! the free map under the statistical prior of [`crate::solve::light::sh_prior`], one map
+//! per group of photos under one sky with per-photo gains
+//! ([`crate::solve::light::shared`]), or `auto`, which fits each that applies (`shared`
+//! only when some group holds two photos or more) and keeps the one with the lowest
+//! early-stopping validation score (the same seeded held-back observations for all,
+//! [`crate::solve::Validation`]), as `--adaptive` chooses the model order by held-out
+//! error.
 
 use crate::solve::light::sh_prior::LightPriorOptions;
 use crate::solve::EstimateOptions;
@@ -25,6 +28,8 @@ pub enum LightChoice {
     Paper,
     /// The free map plus the prior on its low-order shape and wavelet sparsity.
     Prior,
+    /// One free map per group of photos, per-photo exposure and white-balance gains.
+    Shared,
     /// Both fitted; the lower validation score kept.
     Auto,
 }
@@ -35,9 +40,10 @@ impl LightChoice {
         match s {
             "paper" => Ok(LightChoice::Paper),
             "prior" => Ok(LightChoice::Prior),
+            "shared" => Ok(LightChoice::Shared),
             "auto" => Ok(LightChoice::Auto),
             other => Err(Error::Config(format!(
-                "--light {other}: expected `paper`, `prior` or `auto`"
+                "--light {other}: expected `paper`, `prior`, `shared` or `auto`"
             ))),
         }
     }
@@ -47,6 +53,7 @@ impl LightChoice {
         match self {
             LightChoice::Paper => "paper",
             LightChoice::Prior => "prior",
+            LightChoice::Shared => "shared",
             LightChoice::Auto => "auto",
         }
     }
@@ -62,15 +69,32 @@ pub struct LightCandidate {
 }
 
 /// The models `choice` fits, from the estimator options `base` (whose `light_prior` is
-/// replaced).
+/// replaced; its `light_groups`, the photo groups when known, are kept by `shared` alone).
 pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<LightCandidate>> {
     let paper = || LightCandidate {
         name: "paper",
         options: EstimateOptions {
             light_prior: None,
+            light_groups: None,
             ..base.clone()
         },
     };
+    let shared = || -> Result<LightCandidate> {
+        let Some(groups) = &base.light_groups else {
+            return Err(Error::Config(
+                "--light shared: no photo groups; give --light-groups FILE, or photos whose EXIF capture times lie within --light-group-minutes of each other".into(),
+            ));
+        };
+        Ok(LightCandidate {
+            name: "shared",
+            options: EstimateOptions {
+                light_prior: None,
+                light_groups: Some(groups.clone()),
+                ..base.clone()
+            },
+        })
+    };
+    let any_shared = base.light_groups.as_ref().is_some_and(|g| g.any_shared());
     let prior = || -> Result<LightCandidate> {
         Ok(LightCandidate {
             name: "prior",
@@ -79,6 +103,7 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
                     PRIOR_SH_NOISE,
                     PRIOR_HAAR_NOISE,
                 )?),
+                light_groups: None,
                 ..base.clone()
             },
         })
@@ -86,6 +111,8 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
     Ok(match choice {
         LightChoice::Paper => vec![paper()],
         LightChoice::Prior => vec![prior()?],
+        LightChoice::Shared => vec![shared()?],
+        LightChoice::Auto if any_shared => vec![paper(), prior()?, shared()?],
         LightChoice::Auto => vec![paper(), prior()?],
     })
 }
@@ -155,10 +182,48 @@ mod tests {
 
     #[test]
     fn parse_reads_the_names_and_rejects_others() {
-        for c in [LightChoice::Paper, LightChoice::Prior, LightChoice::Auto] {
+        for c in [
+            LightChoice::Paper,
+            LightChoice::Prior,
+            LightChoice::Shared,
+            LightChoice::Auto,
+        ] {
             assert_eq!(LightChoice::parse(c.name()).unwrap(), c);
         }
         let e = LightChoice::parse("sky").unwrap_err().to_string();
         assert!(e.contains("--light sky"), "{e}");
+    }
+
+    #[test]
+    fn shared_needs_groups_and_alone_keeps_them() {
+        use crate::solve::light::shared::LightGroups;
+        let base = EstimateOptions::default();
+        let e = candidates(LightChoice::Shared, &base)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--light-groups"), "{e}");
+        let names = |v: &[LightCandidate]| v.iter().map(|c| c.name).collect::<Vec<_>>();
+        assert_eq!(
+            names(&candidates(LightChoice::Auto, &base).unwrap()),
+            ["paper", "prior"]
+        );
+        // Groups of one photo each: `auto` does not fit `shared` (it would be `paper`).
+        let single = EstimateOptions {
+            light_groups: Some(LightGroups::from_labels(&[0, 1, 2], String::new())),
+            ..base.clone()
+        };
+        assert_eq!(
+            names(&candidates(LightChoice::Auto, &single).unwrap()).len(),
+            2
+        );
+        let grouped = EstimateOptions {
+            light_groups: Some(LightGroups::from_labels(&[0, 0, 1], String::new())),
+            ..base
+        };
+        let c = candidates(LightChoice::Auto, &grouped).unwrap();
+        assert_eq!(names(&c), ["paper", "prior", "shared"]);
+        for m in &c {
+            assert_eq!(m.options.light_groups.is_some(), m.name == "shared");
+        }
     }
 }
