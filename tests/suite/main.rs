@@ -42,6 +42,7 @@ mod observe_cube;
 mod photo_load;
 mod proptest_parsers;
 mod qp_kkt;
+mod realphoto_effects;
 mod reference_analytic;
 mod reference_cost;
 mod relight_render;
