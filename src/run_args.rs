@@ -42,9 +42,10 @@ pub(crate) struct RunArgs {
     pub(crate) adaptive: String,
     /// Model of each photo's light: `paper` (a free non-negative map, the paper's),
     /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
-    /// maps), `auto` (both fitted, the one that predicts held-back observations better kept;
-    /// twice the fitting time).
-    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "auto"], help_heading = "Model")]
+    /// maps), `sky` (an outdoor sun and sky per photo plus a penalised residual map),
+    /// `auto` (all three fitted, the one that predicts held-back observations best kept;
+    /// three times the fitting time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "sky", "auto"], help_heading = "Model")]
     pub(crate) light: String,
     /// Detail of each photo's recovered lighting: map side in texels, a power of two.
     #[arg(long, default_value_t = 64, help_heading = "Model")]

@@ -15,6 +15,7 @@
 use std::time::Instant;
 
 use crate::solve::light::paper::PaperLight;
+use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{data_weights, lambda_step, weights_step};
 use crate::solve::normalise::normalise;
@@ -26,7 +27,8 @@ use crate::solve::validation::{EarlyStop, HeldBack};
 use crate::stages::Stopwatch;
 use crate::{Error, Result};
 
-/// The alternation with the paper's light model ([`PaperLight`]). `on_iter` sees every
+/// The alternation with the paper's light model ([`PaperLight`]), or the sun-and-sky
+/// model ([`SkyLight`]) when [`EstimateOptions::light_sky`] is set. `on_iter` sees every
 /// outer iteration's log line and the state it reached.
 pub fn estimate(
     problem: &Problem,
@@ -34,6 +36,10 @@ pub fn estimate(
     opts: &EstimateOptions,
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Estimate> {
+    if let Some(sky) = &opts.light_sky {
+        let light = SkyLight::new(problem, opts, sky)?;
+        return estimate_with(problem, init, opts, light, on_iter);
+    }
     let light = PaperLight::new(problem, opts, &init);
     estimate_with(problem, init, opts, light, on_iter)
 }

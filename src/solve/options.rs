@@ -154,6 +154,9 @@ pub struct EstimateOptions {
     /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
     /// map): extra quadratic terms of the lighting QP ([`crate::solve::light::sh_prior`]).
     pub light_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
+    /// The sun-and-sky light model instead of the paper's free map (issue 25, `--light
+    /// sky`; `None`: the paper's map, with `light_prior` if set): [`crate::solve::light::sky`].
+    pub light_sky: Option<crate::solve::light::sky::SkyOptions>,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -234,6 +237,7 @@ impl Default for EstimateOptions {
             lighting_sample: 0,
             lighting_strata: Vec::new(),
             light_prior: None,
+            light_sky: None,
         }
     }
 }

@@ -25,6 +25,10 @@ pub(crate) enum Lighting {
     Rotating(&'static str),
     /// A different map per photo (cycling through the list), each randomly rotated.
     Varying(&'static [&'static str]),
+    /// A clear sky per photo from the sun-and-sky model ([`crate::solve::light::sky`]):
+    /// the sun at azimuth `2π (i + jitter) / photos` and a random elevation in 20°–60°
+    /// ([`super::sky_map`]).
+    Sky,
 }
 
 pub(crate) struct SceneDef {
@@ -104,6 +108,18 @@ pub(crate) fn scene_defs() -> Vec<SceneDef> {
                 ("blue-lambert", vec![[0.2, 0.3, 0.6], [0.0, 0.0, 0.0]]),
             ],
             lighting: Lighting::Varying(ALL_MAPS),
+            photos: 16,
+        },
+        SceneDef {
+            name: "spot-sky",
+            description: "Spot, two blended materials, outdoors: a clear sky (Hosek–Wilkie), sun and ground per photo with a different known sun direction, held-out photos",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert, Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![
+                ("orange-ggx", vec![[0.8, 0.45, 0.2], [0.25, 0.25, 0.25]]),
+                ("blue-lambert", vec![[0.2, 0.3, 0.6], [0.0, 0.0, 0.0]]),
+            ],
+            lighting: Lighting::Sky,
             photos: 16,
         },
         SceneDef {

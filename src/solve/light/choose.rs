@@ -1,6 +1,6 @@
 //! Which per-photo light model a fit uses (issue 25, `--light`): the paper's free map,
-//! the free map under the statistical prior of [`crate::solve::light::sh_prior`], or `auto`, which
-//! fits both and keeps the one with the lower early-stopping validation score (the same
+//! the free map under the statistical prior of [`crate::solve::light::sh_prior`], the
+//! sun and sky of [`crate::solve::light::sky`], or `auto`, which fits all three and keeps the one with the lower early-stopping validation score (the same
 //! seeded held-back observations for both, [`crate::solve::Validation`]), as `--adaptive`
 //! chooses the model order by held-out error.
 
@@ -25,19 +25,22 @@ pub enum LightChoice {
     Paper,
     /// The free map plus the prior on its low-order shape and wavelet sparsity.
     Prior,
-    /// Both fitted; the lower validation score kept.
+    /// A parametric sun and sky plus a penalised wavelet residual per photo.
+    Sky,
+    /// Every model fitted; the lowest validation score kept.
     Auto,
 }
 
 impl LightChoice {
-    /// Parse `paper`, `prior` or `auto`.
+    /// Parse `paper`, `prior`, `sky` or `auto`.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "paper" => Ok(LightChoice::Paper),
             "prior" => Ok(LightChoice::Prior),
+            "sky" => Ok(LightChoice::Sky),
             "auto" => Ok(LightChoice::Auto),
             other => Err(Error::Config(format!(
-                "--light {other}: expected `paper`, `prior` or `auto`"
+                "--light {other}: expected `paper`, `prior`, `sky` or `auto`"
             ))),
         }
     }
@@ -47,6 +50,7 @@ impl LightChoice {
         match self {
             LightChoice::Paper => "paper",
             LightChoice::Prior => "prior",
+            LightChoice::Sky => "sky",
             LightChoice::Auto => "auto",
         }
     }
@@ -55,19 +59,20 @@ impl LightChoice {
 /// One light model to fit: its name and the estimator's options for it.
 #[derive(Debug, Clone)]
 pub struct LightCandidate {
-    /// `paper` or `prior`.
+    /// `paper`, `prior` or `sky`.
     pub name: &'static str,
     /// `base` with the model's light terms.
     pub options: EstimateOptions,
 }
 
-/// The models `choice` fits, from the estimator options `base` (whose `light_prior` is
-/// replaced).
+/// The models `choice` fits, from the estimator options `base` (whose `light_prior` and
+/// `light_sky` are replaced).
 pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<LightCandidate>> {
     let paper = || LightCandidate {
         name: "paper",
         options: EstimateOptions {
             light_prior: None,
+            light_sky: None,
             ..base.clone()
         },
     };
@@ -79,14 +84,24 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
                     PRIOR_SH_NOISE,
                     PRIOR_HAAR_NOISE,
                 )?),
+                light_sky: None,
                 ..base.clone()
             },
         })
     };
+    let sky = || LightCandidate {
+        name: "sky",
+        options: EstimateOptions {
+            light_prior: None,
+            light_sky: Some(crate::solve::light::sky::SkyOptions::default()),
+            ..base.clone()
+        },
+    };
     Ok(match choice {
         LightChoice::Paper => vec![paper()],
         LightChoice::Prior => vec![prior()?],
-        LightChoice::Auto => vec![paper(), prior()?],
+        LightChoice::Sky => vec![sky()],
+        LightChoice::Auto => vec![paper(), prior()?, sky()],
     })
 }
 
@@ -155,10 +170,15 @@ mod tests {
 
     #[test]
     fn parse_reads_the_names_and_rejects_others() {
-        for c in [LightChoice::Paper, LightChoice::Prior, LightChoice::Auto] {
+        for c in [
+            LightChoice::Paper,
+            LightChoice::Prior,
+            LightChoice::Sky,
+            LightChoice::Auto,
+        ] {
             assert_eq!(LightChoice::parse(c.name()).unwrap(), c);
         }
-        let e = LightChoice::parse("sky").unwrap_err().to_string();
-        assert!(e.contains("--light sky"), "{e}");
+        let e = LightChoice::parse("skies").unwrap_err().to_string();
+        assert!(e.contains("--light skies"), "{e}");
     }
 }

@@ -20,7 +20,8 @@
 //! - [`LightModel::parameter_count`], its number of free parameters.
 //!
 //! Implementations: [`paper::PaperLight`], the paper's free wavelet map per photo with a
-//! Laplacian smoothness prior. Others (a Gaussian prior on the map, a parametric sun and
+//! Laplacian smoothness prior; [`sky::SkyLight`], a parametric sun and sky plus a
+//! penalised wavelet residual. Others (a Gaussian prior on the map, a parametric sun and
 //! sky plus a penalised residual, one map shared by several photos with per-photo gains)
 //! go in as one file each beside it.
 
@@ -35,6 +36,7 @@ pub mod laplacian;
 pub mod paper;
 pub mod photo;
 pub mod sh_prior;
+pub mod sky;
 pub mod system;
 #[cfg(test)]
 mod tests;
