@@ -192,7 +192,7 @@ pub(crate) fn make_geometry(
 ) -> Result<Geometry> {
     if exact && shape != Shape::Spot {
         return Err(Error::Config(
-            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-static): the other shapes are built from parts".into(),
+            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-sky, spot-static): the other shapes are built from parts".into(),
         ));
     }
     let sphere_level = |target: usize| -> u32 {

@@ -51,6 +51,9 @@
 //! Not done: taking the sun direction from EXIF time and GPS (the `spa` crate): the photo
 //! importer reads no EXIF yet, so the search is the only source of `s`.
 
+// Kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
 pub mod model;
 pub mod search;
 #[cfg(test)]

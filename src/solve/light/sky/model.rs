@@ -4,6 +4,9 @@
 //! least squares (its IRLS weights are 1) on all of a photo's observations (no lighting
 //! sample).
 
+// Kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
 use std::borrow::Cow;
 use std::sync::Arc;
 
@@ -34,6 +37,10 @@ const MIN_ANGLE: f64 = 0.25 * std::f64::consts::PI / 180.0;
 /// Evaluation caps of the first and of a warm-started search.
 const FIRST_EVALS: usize = 200;
 const WARM_EVALS: usize = 60;
+/// Outer iterations through which the grid is searched again (the materials move most
+/// early on, and a sun found under the starting materials may be a wrong local minimum);
+/// the better of the grid's best and the previous `θ` is refined.
+const REGRID_ITERATIONS: usize = 3;
 
 /// Options of the sun-and-sky model ([`EstimateOptions::light_sky`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -285,7 +292,13 @@ impl JointQp<'_> {
 
 impl SkyLight {
     /// One photo's lighting step: the `θ` search, then the joint QP.
-    fn fit_photo(&self, problem: &Problem, beta: &[[f64; 3]], photo: usize) -> Result<PhotoFit> {
+    fn fit_photo(
+        &self,
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        photo: usize,
+        outer_iteration: usize,
+    ) -> Result<PhotoFit> {
         let n = problem.transport.n_global;
         let n2 = n * n;
         let prev = &self.params[photo];
@@ -306,8 +319,18 @@ impl SkyLight {
             target: &target,
         };
         let best = if self.searched[photo] {
-            let start = search.evaluate(prev.theta)?;
-            search.refine(start, WARM_STEPS, MIN_ANGLE, WARM_EVALS)?
+            let warm = search.evaluate(prev.theta)?;
+            let grid = if outer_iteration <= REGRID_ITERATIONS {
+                Some(search.grid(GRID_TURBIDITY, GRID_KAPPA)?)
+            } else {
+                None
+            };
+            match grid {
+                Some(g) if g.sse < warm.sse => {
+                    search.refine(g, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS)?
+                }
+                _ => search.refine(warm, WARM_STEPS, MIN_ANGLE, WARM_EVALS)?,
+            }
         } else {
             let start = search.grid(GRID_TURBIDITY, GRID_KAPPA)?;
             search.refine(start, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS)?
@@ -409,8 +432,9 @@ impl LightModel for SkyLight {
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
-        let results: Vec<Result<PhotoFit>> =
-            par_largest_first(&sizes, |i| self.fit_photo(problem, input.beta, i));
+        let results: Vec<Result<PhotoFit>> = par_largest_first(&sizes, |i| {
+            self.fit_photo(problem, input.beta, i, input.outer_iteration)
+        });
         let cond = &mut *out.conditioning;
         cond.lighting.clear();
         cond.qp_unconverged = 0;
