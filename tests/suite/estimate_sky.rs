@@ -142,11 +142,11 @@ fn joint_fit_under_a_sky_predicts_held_out_photos_at_least_as_well_as_the_free_m
     // measure the materials; the sky model constrains each photo's light to a sun, a sky
     // and a penalised residual, so it must not do worse than the paper's free map (5%
     // slack for the two runs' different stopping points; measured: see the eprintln and
-    // bench-results/estimator-sky.md; measured 0.234 against 0.241, floor 0.096). The sun
+    // bench-results/estimator-sky.md; measured 0.229 against 0.241, floor 0.096). The sun
     // directions recovered with the fitted materials: the median within 8° (measured
-    // 5.5°) and all but one photo within 12° (measured max 9.7° over those 11). The one
+    // 5.7°) and all but one photo within 12° (measured max 8.7° over those 11). The one
     // allowed is the least constrained photo: 12.5° off even under the true materials
-    // (the test above), it loses its sun (95°) under the fitted ones.
+    // (the test above), it loses its sun (87°) under the fitted ones.
     let c = sky_case();
     let case = &c.case;
     let (paper, tp) = joint(case, None);
