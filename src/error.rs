@@ -33,7 +33,7 @@ pub enum Error {
     /// A COLMAP workspace lacks a part that the job needs.
     #[error("workspace {path}: {message}")]
     Workspace { path: PathBuf, message: String },
-    /// The output folder cannot be used (src/out_dir.rs says which folders are refused).
+    /// The output folder cannot be used (src/out_dir/ says which folders are refused).
     #[error("output folder {path}: {message}")]
     Output { path: PathBuf, message: String },
     /// A user option or a combination of options is invalid.

@@ -1,6 +1,7 @@
-//! Wall time, CPU time and peak memory per pipeline stage, and [`tick`]: how kernels deep
-//! in the library advance the running stage's progress bar (set by `run`'s progress)
-//! without a progress parameter or a dependency on `run`.
+//! Wall time, CPU time and peak memory per pipeline stage, and [`tick`] (batched per chunk
+//! of work by [`Ticker`]): how kernels deep in the library advance the running stage's
+//! progress bar (set by `run`'s progress) without a progress parameter or a dependency on
+//! `run`.
 //!
 //! Wall time from [`std::time::Instant`]; CPU time (user + system, all threads) and the
 //! resident-set high-water mark from Linux `/proc/self`. Before each stage the high-water
@@ -25,6 +26,35 @@ pub fn tick(n: u64) {
             if let Some(b) = g.as_ref() {
                 b.inc(n);
             }
+        }
+    }
+}
+
+/// How many units a [`Ticker`] gathers before it passes them on.
+const TICK_BATCH: u64 = 64;
+
+/// Ticks gathered by one worker and passed to [`tick`] once per [`TICK_BATCH`] units (the
+/// rest when dropped): one read of the active bar per chunk of work instead of one per
+/// item. Give each parallel job its own (rayon's `map_init`/`for_each_init`).
+#[derive(Debug, Default)]
+pub struct Ticker {
+    pending: u64,
+}
+
+impl Ticker {
+    /// Count `n` units of work done.
+    pub fn tick(&mut self, n: u64) {
+        self.pending += n;
+        if self.pending >= TICK_BATCH {
+            tick(std::mem::take(&mut self.pending));
+        }
+    }
+}
+
+impl Drop for Ticker {
+    fn drop(&mut self) {
+        if self.pending > 0 {
+            tick(self.pending);
         }
     }
 }
@@ -225,5 +255,22 @@ mod tests {
             // the buffer plus the test harness, so no upper bound is asserted).
             assert!(r.peak_memory_bytes >= n as u64, "{r:?}");
         }
+    }
+
+    /// Every unit counted by a ticker reaches the bar: in whole batches while it runs, the
+    /// rest when it is dropped.
+    #[test]
+    fn a_ticker_passes_on_every_unit() {
+        let bar = ProgressBar::hidden();
+        set_active(Some(bar.clone()));
+        {
+            let mut t = Ticker::default();
+            for _ in 0..TICK_BATCH + 5 {
+                t.tick(1);
+            }
+            assert_eq!(bar.position(), TICK_BATCH, "one batch passed on so far");
+        }
+        assert_eq!(bar.position(), TICK_BATCH + 5, "the rest on drop");
+        set_active(None);
     }
 }

@@ -8,6 +8,7 @@
 pub mod envmap;
 pub mod gltf;
 
+use crate::out_dir::OutFiles;
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -65,24 +66,9 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
             .parent()
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
-        // A named file, not a folder: the output-folder contract's rules for one file (an
-        // earlier export is replaced only with --force, anything else never), without its
-        // rule against folders that hold an input (the .glb usually sits beside the result).
-        if path.exists() {
-            if !is_our_glb(path) {
-                return Err(Error::Config(format!(
-                    "--gltf {}: exists and is not a GLB relight-cpc wrote; choose another name",
-                    path.display()
-                )));
-            }
-            if !opts.force {
-                return Err(Error::Config(format!(
-                    "--gltf {}: holds a previous export; pass --force to replace it",
-                    path.display()
-                )));
-            }
-        }
-        std::fs::create_dir_all(folder).map_err(|e| Error::io(folder, e))?;
+        // One named file in a shared folder, usually beside the result it came from: an
+        // earlier export is replaced only with --force, any other file never.
+        let files = OutFiles::claim(folder, &[&name], opts.force, &[result_dir], is_our_glb)?;
         let m = crate::render::relight::load_result(result_dir)?;
         let mesh = gltf::gltf_mesh(
             &m.mesh.positions,
@@ -98,7 +84,7 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
             .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .unwrap_or_else(|| "relight-cpc".into());
         let (bytes, s) = gltf::glb_bytes(&mesh, &label)?;
-        write_atomic(&folder.join(&name), &bytes)?;
+        files.write(&name, &bytes)?;
         summary.gltf = Some((path.clone(), s));
     }
     if let Some(dir) = &opts.envmaps {

@@ -472,21 +472,12 @@ fn stages_section(s: &mut String, r: &RunReport) {
 fn model_section(s: &mut String, r: &RunReport) {
     let m = &r.model;
     let _ = writeln!(s, "<h2 id=\"model\">Model choices and why</h2>");
-    let _ = writeln!(
-        s,
-        "<p>{} material(s); lobes: {}; light map {}×{} per photo; hemisphere {}×{} (renders {}×{}); \
-         {} pre-rotated normals per side; transport terms kept per observation: {}.</p><ul>",
-        m.materials,
-        esc(&m.basis.join(", ")),
-        m.global_resolution,
-        m.global_resolution,
-        m.local_resolution,
-        m.local_resolution,
-        m.render_local_resolution,
-        m.render_local_resolution,
-        m.normal_grid,
-        if m.kept_coefficients == 0 { "all".to_string() } else { m.kept_coefficients.to_string() }
-    );
+    let facts: Vec<String> = m
+        .facts()
+        .iter()
+        .map(|(l, v)| format!("{l}: {}", esc(v)))
+        .collect();
+    let _ = writeln!(s, "<p>{}.</p><ul>", facts.join("; "));
     for reason in &m.reasons {
         let _ = writeln!(s, "<li>{}</li>", esc(reason));
     }

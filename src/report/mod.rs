@@ -107,6 +107,35 @@ pub struct ModelReport {
     pub light: Option<crate::solve::light::choose::LightDecision>,
 }
 
+impl ModelReport {
+    /// The model's figures as (label, value), in the order shown: one list feeds the
+    /// paragraph of both `report.md` and `report.html`.
+    pub fn facts(&self) -> Vec<(&'static str, String)> {
+        let side = |n: usize| format!("{n}×{n}");
+        vec![
+            ("materials", self.materials.to_string()),
+            ("basis BRDFs (lobes)", self.basis.join(", ")),
+            ("light map per photo", side(self.global_resolution)),
+            (
+                "hemisphere map",
+                format!(
+                    "{} (renders {})",
+                    side(self.local_resolution),
+                    side(self.render_local_resolution)
+                ),
+            ),
+            ("pre-rotated normals", side(self.normal_grid)),
+            (
+                "transport terms kept per observation",
+                match self.kept_coefficients {
+                    0 => "all".to_string(),
+                    n => n.to_string(),
+                },
+            ),
+        ]
+    }
+}
+
 /// Everything `report.json` holds.
 #[derive(Debug, Clone, Serialize, Default)]
 pub struct RunReport {
@@ -366,21 +395,8 @@ impl RunReport {
         }
         let _ = writeln!(s, "## Model\n");
         let m = &self.model;
-        let _ = writeln!(
-            s,
-            "{} material(s); basis BRDFs: {}; global map {}×{}, local map {}×{} (renders: {}×{}), normal grid {}×{}, kept coefficients per row: {}.\n",
-            m.materials,
-            m.basis.join(", "),
-            m.global_resolution,
-            m.global_resolution,
-            m.local_resolution,
-            m.local_resolution,
-            m.render_local_resolution,
-            m.render_local_resolution,
-            m.normal_grid,
-            m.normal_grid,
-            if m.kept_coefficients == 0 { "all".to_string() } else { m.kept_coefficients.to_string() }
-        );
+        let facts: Vec<String> = m.facts().iter().map(|(l, v)| format!("{l}: {v}")).collect();
+        let _ = writeln!(s, "{}.\n", facts.join("; "));
         for r in &m.reasons {
             let _ = writeln!(s, "- {r}");
         }

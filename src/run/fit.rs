@@ -8,6 +8,7 @@ use super::{
     check_finite, choose_material_count, conditioning_map, train_errors, Fitted, MaterialCount,
     Progress, RunOptions,
 };
+use crate::observe::Observations;
 use crate::report::{TimelinePoint, TrainEntry};
 use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
@@ -97,20 +98,8 @@ pub(crate) fn fit<'a>(
     let nv = scene.mesh.positions.len();
     // 6. Estimate.
     let lambert = lambert_of(&eff.basis)?;
-    let (k, k_reason) = match (pilot_k, opts.materials) {
-        (Some(p), _) => p,
-        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
-        (None, MaterialCount::Auto) => choose_material_count(&mean_rgb, &seen, opts.seed),
-    };
-    let init = initial_materials(&mean_rgb, &seen, k, opts.seed)?;
-    let mut reasons = vec![k_reason];
-    if init.albedo.len() < k {
-        reasons.push(format!(
-            "only {} distinct colour clusters exist, so {} materials are fitted",
-            init.albedo.len(),
-            init.albedo.len()
-        ));
-    }
+    let mut reasons = Vec::new();
+    let init = starting_materials(opts, pilot_k, &mean_rgb, &seen, &mut reasons)?;
     let problem = Problem {
         obs: &obs,
         transport: &tr,
@@ -163,18 +152,7 @@ pub(crate) fn fit<'a>(
                     .map(|t| t.rmse(state, nv))
                     .filter(|v| v.is_finite());
                 let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                let line = format!(
-                    "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
-                    if n_starts > 1 {
-                        format!("start {} of {n_starts}, ", si + 1)
-                    } else {
-                        String::new()
-                    },
-                    it.objective,
-                    it.train_rmse,
-                    holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
-                    it.seconds
-                );
+                let line = iteration_line(n_starts, si, n_it, it, holdout_rmse);
                 if bar.is_hidden() {
                     progress.line(&line);
                 } else {
@@ -211,15 +189,7 @@ pub(crate) fn fit<'a>(
     let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
     let pred = solve::predict(&problem, &est);
     let train_entries = train_errors(scene, &train, &obs, &pred);
-    let train_predictions: Vec<Vec<(u32, [f32; 3])>> = obs
-        .photo_ranges
-        .iter()
-        .map(|r| {
-            r.clone()
-                .map(|p| (obs.vertex[p], pred[p].map(|v| v as f32)))
-                .collect()
-        })
-        .collect();
+    let train_predictions = photo_predictions(&obs, &pred);
     drop(pred);
     // The transport rows (training and held-out) are the run's largest arrays and nothing
     // after the estimate reads them: free them before the evaluation builds its own.
@@ -258,4 +228,64 @@ pub(crate) fn fit<'a>(
         decisions,
         light_decision,
     })
+}
+
+/// The starting materials: clustered mean colours with the pilot's count, `--materials`,
+/// or a count chosen from the colours; why, pushed to `reasons`.
+fn starting_materials(
+    opts: &RunOptions,
+    pilot_k: Option<(usize, String)>,
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+    reasons: &mut Vec<String>,
+) -> Result<crate::solve::cluster::InitialMaterials> {
+    let (k, k_reason) = match (pilot_k, opts.materials) {
+        (Some(p), _) => p,
+        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
+        (None, MaterialCount::Auto) => choose_material_count(mean_rgb, seen, opts.seed),
+    };
+    let init = initial_materials(mean_rgb, seen, k, opts.seed)?;
+    reasons.push(k_reason);
+    if init.albedo.len() < k {
+        reasons.push(format!(
+            "only {} distinct colour clusters exist, so {} materials are fitted",
+            init.albedo.len(),
+            init.albedo.len()
+        ));
+    }
+    Ok(init)
+}
+
+/// The console line for outer iteration `n_it` of start `si` (of `n_starts`).
+fn iteration_line(
+    n_starts: usize,
+    si: usize,
+    n_it: usize,
+    it: &solve::Iteration,
+    holdout_rmse: Option<f64>,
+) -> String {
+    format!(
+        "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
+        if n_starts > 1 {
+            format!("start {} of {n_starts}, ", si + 1)
+        } else {
+            String::new()
+        },
+        it.objective,
+        it.train_rmse,
+        holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
+        it.seconds
+    )
+}
+
+/// Per training photo, the fitted prediction `pred` of each of its observations, by vertex.
+fn photo_predictions(obs: &Observations, pred: &[[f64; 3]]) -> Vec<Vec<(u32, [f32; 3])>> {
+    obs.photo_ranges
+        .iter()
+        .map(|r| {
+            r.clone()
+                .map(|p| (obs.vertex[p], pred[p].map(|v| v as f32)))
+                .collect()
+        })
+        .collect()
 }

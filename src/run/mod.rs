@@ -29,6 +29,7 @@ mod example;
 mod fit;
 mod holdout;
 mod html_inputs;
+mod notes;
 mod options;
 mod output;
 mod pipeline;

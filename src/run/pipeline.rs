@@ -14,7 +14,7 @@ use super::truth::Truth;
 use super::{
     adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
     holdout_rule, holdout_views, mean_colours, output, Holdout, MaterialCount, Progress,
-    RunOptions, LIGHTING_SAMPLE_MAX_RATIO,
+    RunOptions,
 };
 use crate::import::photo::Photo;
 use crate::import::scene::{self, Scene};
@@ -170,11 +170,43 @@ fn observe_training(
     log: &mut RunLog,
     progress: &Progress,
 ) -> Result<Observed> {
-    let (scene, photos, held) = (&im.scene, &im.photos, &im.held);
+    let scene = &im.scene;
     let mut train = im.train.clone();
+    let (bvh, mut obs) = extract_observations(opts, im, log, progress)?;
+    check_light_observed(&obs, train.len())?;
+    for (k, &i) in train.iter().enumerate() {
+        if obs.photo_ranges[k].is_empty() {
+            log.notes.push(format!(
+                "{}: no vertex observed in it; its map stays black",
+                scene.views[i].image.name
+            ));
+        }
+    }
+    let mut decisions: Vec<crate::solve::adapt::Decision> = Vec::new();
+    if opts.adaptive {
+        decisions.push(drop_duplicate_photos(
+            scene, &mut obs, &mut train, log, progress,
+        ));
+    }
+    Ok(Observed {
+        bvh,
+        obs,
+        train,
+        decisions,
+    })
+}
+
+/// The training photos' observations and the BVH they were traced with, checked against
+/// the memory budget with the real observation count before anything large (visibility,
+/// rotations, transport, solver) is allocated.
+fn extract_observations(
+    opts: &RunOptions,
+    im: &Imported,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<(SceneBvh, Observations)> {
+    let (scene, photos, held, train) = (&im.scene, &im.photos, &im.held, &im.train);
     let nv = scene.mesh.positions.len();
-    // Memory, checked with the real observation count before anything large (visibility,
-    // rotations, transport, solver) is allocated.
     let photo_pixels: u64 = photos
         .iter()
         .map(|p| p.width as u64 * p.height as u64)
@@ -194,7 +226,7 @@ fn observe_training(
         keep: opts.keep as u64,
     };
     progress.stage("observations");
-    let (bvh, mut obs) = log.stages.run("observations", || {
+    let (bvh, obs) = log.stages.run("observations", || {
         let bvh = SceneBvh::new(&scene.mesh);
         let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
         let ph: Vec<&crate::import::photo::Photo> = train.iter().map(|&i| &photos[i]).collect();
@@ -207,6 +239,12 @@ fn observe_training(
         budget.total() as f64 / (1u64 << 20) as f64,
         budget.largest().name
     ));
+    Ok((bvh, obs))
+}
+
+/// Refuses observations with nothing to fit: no vertex seen un-clipped, or every pixel
+/// black (`n_train` photos).
+fn check_light_observed(obs: &Observations, n_train: usize) -> Result<()> {
     let useful = obs.weight.iter().filter(|&&w| w > 0.0).count();
     if useful == 0 {
         return Err(Error::Numeric {
@@ -232,76 +270,70 @@ fn observe_training(
             message: format!(
                 "every observed pixel of the {} training photos is black (brightest {:.1e} linear): \
                  there is no light to fit; check the photos and their exposure",
-                train.len(),
+                n_train,
                 brightest
             ),
         });
     }
-    for (k, &i) in train.iter().enumerate() {
-        if obs.photo_ranges[k].is_empty() {
+    Ok(())
+}
+
+/// Drops the training photos that add no new observation (adaptive model,
+/// [`crate::solve::adapt`] step 1) from `obs` and `train`; the decision, for the report.
+fn drop_duplicate_photos(
+    scene: &Scene,
+    obs: &mut Observations,
+    train: &mut Vec<usize>,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> crate::solve::adapt::Decision {
+    let red = crate::solve::adapt::redundant_photos(obs, scene.mesh.positions.len());
+    let n = train.len();
+    if !red.is_empty() && red.len() < n {
+        let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
+        for &(k, by) in &red {
+            progress.line(&format!(
+                "skipped photo {}: it adds no new observation (duplicates {})",
+                scene.views[train[k]].image.name, scene.views[train[by]].image.name
+            ));
             log.notes.push(format!(
-                "{}: no vertex observed in it; its map stays black",
-                scene.views[i].image.name
+                "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
+                scene.views[train[k]].image.name,
+                scene.views[train[by]].image.name,
+                crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                100.0 * crate::solve::adapt::DUPLICATE_RGB
             ));
         }
-    }
-    // Photos that add no new observation (adaptive model, crate::solve::adapt step 1).
-    let mut decisions: Vec<crate::solve::adapt::Decision> = Vec::new();
-    if opts.adaptive {
-        let red = crate::solve::adapt::redundant_photos(&obs, nv);
-        let n = train.len();
-        if !red.is_empty() && red.len() < n {
-            let drop: Vec<usize> = red.iter().map(|r| r.0).collect();
-            for &(k, by) in &red {
-                progress.line(&format!(
-                    "skipped photo {}: it adds no new observation (duplicates {})",
-                    scene.views[train[k]].image.name, scene.views[train[by]].image.name
-                ));
-                log.notes.push(format!(
-                    "{}: skipped, it adds no new observation (every vertex it sees is seen in {} from within {}° and with the same colour within {:.0}%)",
-                    scene.views[train[k]].image.name,
-                    scene.views[train[by]].image.name,
-                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
-                    100.0 * crate::solve::adapt::DUPLICATE_RGB
-                ));
-            }
-            obs = crate::solve::adapt::drop_photos(&obs, &drop);
-            train = train
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| !drop.contains(k))
-                .map(|(_, &i)| i)
-                .collect();
-            decisions.push(crate::solve::adapt::Decision {
-                what: "photos".into(),
-                full: n.to_string(),
-                chosen: train.len().to_string(),
-                reason: format!(
-                    "{} training photo(s) duplicate an earlier one (same view within {}°, same colour within {:.0}%): a duplicate adds a light map to estimate and no information",
-                    drop.len(),
-                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
-                    100.0 * crate::solve::adapt::DUPLICATE_RGB
-                ),
-            });
-        } else {
-            decisions.push(crate::solve::adapt::Decision {
-                what: "photos".into(),
-                full: n.to_string(),
-                chosen: n.to_string(),
-                reason: format!(
-                    "every training photo adds observations: none repeats an earlier photo's view (within {}°) with the same colours (within {:.0}%); a photo from the same view under another light is new information, since every photo has its own light",
-                    crate::solve::adapt::DUPLICATE_ANGLE_DEG,
-                    100.0 * crate::solve::adapt::DUPLICATE_RGB
-                ),
-            });
+        *obs = crate::solve::adapt::drop_photos(obs, &drop);
+        *train = train
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !drop.contains(k))
+            .map(|(_, &i)| i)
+            .collect();
+        crate::solve::adapt::Decision {
+            what: "photos".into(),
+            full: n.to_string(),
+            chosen: train.len().to_string(),
+            reason: format!(
+                "{} training photo(s) duplicate an earlier one (same view within {}°, same colour within {:.0}%): a duplicate adds a light map to estimate and no information",
+                drop.len(),
+                crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                100.0 * crate::solve::adapt::DUPLICATE_RGB
+            ),
+        }
+    } else {
+        crate::solve::adapt::Decision {
+            what: "photos".into(),
+            full: n.to_string(),
+            chosen: n.to_string(),
+            reason: format!(
+                "every training photo adds observations: none repeats an earlier photo's view (within {}°) with the same colours (within {:.0}%); a photo from the same view under another light is new information, since every photo has its own light",
+                crate::solve::adapt::DUPLICATE_ANGLE_DEG,
+                100.0 * crate::solve::adapt::DUPLICATE_RGB
+            ),
         }
     }
-    Ok(Observed {
-        bvh,
-        obs,
-        train,
-        decisions,
-    })
 }
 
 /// Stages 3–5: frames, visibility, the adaptive pilot, the rotation and the transport rows.
@@ -321,19 +353,7 @@ fn prepare(
     } = observed;
     let nv = scene.mesh.positions.len();
     // Frames.
-    let up = match opts.up {
-        Some(u) => u.normalize(),
-        None => {
-            let u = estimate_up(&scene.views).ok_or_else(|| {
-                Error::Config("cannot estimate world up from the cameras (their −y axes cancel out); give --up X,Y,Z".into())
-            })?;
-            log.notes.push(format!(
-                "world up estimated from the cameras' −y axes: ({:.4}, {:.4}, {:.4})",
-                u.x, u.y, u.z
-            ));
-            u
-        }
-    };
+    let up = world_up(opts, &scene.views, log)?;
     let env_from_world = env_from_world(&up)?;
     let normals_env: Vec<Vec3> = scene
         .mesh
@@ -400,17 +420,7 @@ fn prepare(
     }
 
     // 4. Rotation.
-    progress.stage("rotation");
-    let bar = progress.stage_bar((eff.normal_grid * eff.normal_grid) as u64, "normals");
-    let rot = log.stages.run("rotation", || {
-        Rotation::new(
-            eff.global_resolution,
-            eff.local_resolution,
-            eff.normal_grid,
-            RotationForm::Factored,
-        )
-    });
-    drop(bar);
+    let rot = rotation(&eff, log, progress);
 
     // 5. Transport.
     progress.stage("transport");
@@ -456,6 +466,40 @@ fn prepare(
     ))
 }
 
+/// World up: `--up`, or estimated from the cameras' −y axes (noted in the report).
+fn world_up(opts: &RunOptions, views: &[scene::View], log: &mut RunLog) -> Result<Vec3> {
+    Ok(match opts.up {
+        Some(u) => u.normalize(),
+        None => {
+            let u = estimate_up(views).ok_or_else(|| {
+                Error::Config("cannot estimate world up from the cameras (their −y axes cancel out); give --up X,Y,Z".into())
+            })?;
+            log.notes.push(format!(
+                "world up estimated from the cameras' −y axes: ({:.4}, {:.4}, {:.4})",
+                u.x, u.y, u.z
+            ));
+            u
+        }
+    })
+}
+
+/// Stage 4, the rotation of the light into each normal's frame at the effective
+/// resolutions (`eff`).
+fn rotation(eff: &RunOptions, log: &mut RunLog, progress: &Progress) -> Rotation {
+    progress.stage("rotation");
+    let bar = progress.stage_bar((eff.normal_grid * eff.normal_grid) as u64, "normals");
+    let rot = log.stages.run("rotation", || {
+        Rotation::new(
+            eff.global_resolution,
+            eff.local_resolution,
+            eff.normal_grid,
+            RotationForm::Factored,
+        )
+    });
+    drop(bar);
+    rot
+}
+
 /// Stage 8, outputs and the report.
 fn write(
     opts: &RunOptions,
@@ -481,7 +525,6 @@ fn write(
         holdout_rule,
     } = evaluated;
     let eff = &fitted.opts;
-    let nv = fitted.scene.mesh.positions.len();
     // 8. Outputs.
     progress.stage("output");
     log.stages
@@ -489,74 +532,7 @@ fn write(
 
     let c = &fitted.est.conditioning;
     let conditioning = conditioning_map(c);
-    if c.weights_singular > 0 {
-        log.notes.push(format!(
-            "{} vertices had fewer independent observations than materials (their blending weights are minimum-norm)",
-            c.weights_singular
-        ));
-    }
-    if c.qp_unconverged > 0 {
-        log.notes.push(format!(
-            "{} photos' lighting solves in the last outer iteration stopped at the iteration cap before the KKT tolerance ({} of the QPs, one per photo and IRLS pass, at the alternation's cap of {} GPCG iterations, by design: --lighting-qp-iterations)",
-            c.qp_unconverged,
-            c.qp_alternation_capped,
-            opts.lighting_qp_iterations
-        ));
-    }
-    if multi.starts.len() > 1 {
-        log.notes.push(format!(
-            "{} starts tried, kept start {} ({}) by the {}: {}",
-            multi.starts.len(),
-            multi.chosen + 1,
-            multi.starts[multi.chosen].label,
-            multi.criterion,
-            multi
-                .starts
-                .iter()
-                .enumerate()
-                .map(|(i, r)| format!("start {} {:.4} in {:.1} s", i + 1, r.score, r.seconds))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-    }
-    log.notes
-        .push(format!("scale normalisation: {}", fitted.est.normalisation));
-    if let Some(v) = &fitted.est.validation {
-        log.notes.push(format!(
-            "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",
-            v.observations,
-            100.0 * v.fraction,
-            v.errors
-                .iter()
-                .map(|e| format!("{e:.4}"))
-                .collect::<Vec<_>>()
-                .join(", "),
-            v.best_iteration,
-            v.errors.len(),
-            if v.stopped_early {
-                " (stopped: no lower score for the patience)"
-            } else {
-                ""
-            }
-        ));
-    }
-    if let Some(s) = &fitted.est.lighting_sample {
-        log.notes.push(format!(
-            "lighting sample: the lighting steps of {} photo(s) saw at most {} of their observations each (stratified by normal, open sky and material); relative RMSE of the fit {:.4} on the {} sampled observations and {:.4} on the {} others (ratio {:.3}){}",
-            s.photos_sampled,
-            s.budget,
-            s.rel_rmse_in,
-            s.in_sample,
-            s.rel_rmse_out,
-            s.out_of_sample,
-            s.ratio,
-            if s.ratio > LIGHTING_SAMPLE_MAX_RATIO {
-                format!(": above {LIGHTING_SAMPLE_MAX_RATIO}, the maps over-fit their samples; rerun with a larger --lighting-sample or 0 (all)")
-            } else {
-                String::new()
-            }
-        ));
-    }
+    super::notes::fit_notes(opts, &fitted, &multi, log);
     let conditioning_use = conditioning_use(c, &fitted.estimate_options, opts.adaptive);
 
     let mut report = RunReport {
@@ -597,30 +573,12 @@ fn write(
     report.metrics = evaluation.metrics;
     report.truth_check = truth_check;
     report.holdout_rule = holdout_rule;
-    if !fitted.held.is_empty() {
-        let (r, h) = (evaluation.render_seconds, evaluation.half_fit_seconds);
-        report.notes.push(format!(
-            "evaluation of {} held-out photos: renders {:.1} s wall / {:.1} CPU s, the half \
-             protocol's light fits {:.1} s / {:.1} CPU s",
-            fitted.held.len(),
-            r[0],
-            r[1],
-            h[0],
-            h[1]
-        ));
-    }
-    if fitted.baseline.unseen > 0 && !fitted.held.is_empty() {
-        report.notes.push(format!(
-            "baseline: {} of {} vertices are in no training photo; they take the median of the other vertices' medians",
-            fitted.baseline.unseen,
-            nv
-        ));
-    }
-    if let Some(h) = evaluation.mean_holdout_rmse {
-        report.notes.push(format!(
-            "the timeline's held-out RMSE is over the held-out photos' observations (per vertex, after the best global scale, true light when known, else the mean training map); the final per-pixel figure, mean over held-out photos, is {h:.5}"
-        ));
-    }
+    report.notes.extend(super::notes::evaluation_notes(
+        &fitted,
+        evaluation.render_seconds,
+        evaluation.half_fit_seconds,
+        evaluation.mean_holdout_rmse,
+    ));
     progress.stage("report");
     // The report's own writing is timed but cannot appear in the file it is writing.
     report.stage_details = log.stages.records.clone();

@@ -44,9 +44,13 @@ use rand_pcg::Pcg32;
 use std::f64::consts::PI;
 use std::path::Path;
 
+mod photos;
 mod scenes;
+mod sparse;
 mod truth;
 
+use photos::Rendered;
+use scenes::SceneDef;
 use scenes::{embedded_map, make_geometry, make_weights, scene_defs, Lighting, Shape};
 pub use scenes::{look_at, rotate_texels, scene_names};
 use truth::{
@@ -175,7 +179,53 @@ pub fn sky_map(sun: &Vec3, height: usize) -> Result<LatLong> {
 
 /// Writes the workspace of scene `name` into `out` (created if missing).
 pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary> {
-    let def = scene_defs()
+    let def = find_scene(name)?;
+    let n_photos = check_options(&def, opts)?;
+    for dir in ["sparse", "images", "dense", "truth/env", "truth/masks"] {
+        create_dir(&out.join(dir))?;
+    }
+    let up = Vec3::y();
+    let frame = crate::sphere::env_frame(&up).ok_or_else(|| Error::Numeric {
+        stage: "synth".into(),
+        message: "no environment frame for the up vector".into(),
+    })?;
+    let object = make_object(&def, opts, out)?;
+    // One random stream, drawn in a fixed order: cameras, lighting plan, white balance.
+    let mut rng = Pcg32::new(opts.seed, 0x5eed);
+    let cams = place_cameras(&mut rng, &def, opts, &object, &up, n_photos);
+    let lighting = plan_lighting(&mut rng, &def, n_photos)?;
+    let shoot = photos::Shoot {
+        object: &object,
+        cams: &cams,
+        lighting: &lighting,
+        frame,
+        opts,
+        out,
+    };
+    let photos = photos::render_all(&mut rng, &shoot)?;
+    let sparse = sparse::sparse_model(&object, &cams, &photos, opts)?;
+    sparse.rec.write_text(&out.join("sparse"))?;
+    object
+        .mesh
+        .write_ply(&out.join("dense/meshed-poisson.ply"), &[])?;
+    write_weights(&object, &out.join("truth/weights.ply"))?;
+    write_materials(&def, &object, &photos, &out.join("truth/materials.json"))?;
+    let held_out = write_manifest(&def, opts, &object, &photos, &up, frame, out)?;
+    Ok(SynthSummary {
+        scene: def.name.to_string(),
+        photos: photos.names,
+        held_out,
+        vertices: object.mesh.positions.len(),
+        faces: object.mesh.faces.len(),
+        points3d: sparse.rec.points3d.len(),
+        observations: sparse.observations,
+        render_seconds: photos.render_seconds,
+    })
+}
+
+/// The scene called `name`.
+fn find_scene(name: &str) -> Result<SceneDef> {
+    scene_defs()
         .into_iter()
         .find(|d| d.name == name)
         .ok_or_else(|| {
@@ -183,7 +233,11 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
                 "unknown scene `{name}`; known scenes: {}",
                 scene_names().join(", ")
             ))
-        })?;
+        })
+}
+
+/// Refuses options no workspace can be made with; returns the number of photos.
+fn check_options(def: &SceneDef, opts: &SynthOptions) -> Result<usize> {
     if opts.width == 0 || opts.height == 0 {
         return Err(Error::Config("synth image size must be positive".into()));
     }
@@ -194,16 +248,22 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     if n_photos == 0 {
         return Err(Error::Config("synth needs at least one photo".into()));
     }
-    for dir in ["sparse", "images", "dense", "truth/env", "truth/masks"] {
-        create_dir(&out.join(dir))?;
-    }
-    let up = Vec3::y();
-    let frame = crate::sphere::env_frame(&up).ok_or_else(|| Error::Numeric {
-        stage: "synth".into(),
-        message: "no environment frame for the up vector".into(),
-    })?;
+    Ok(n_photos)
+}
 
-    // Geometry, cleaned by the project's mesh code (the mesh written is the mesh rendered).
+/// The scene's object as rendered and written: the cleaned mesh, its reflectance, its BVH,
+/// and where the cameras look (`target`, with the object within `radius`).
+pub(crate) struct Object {
+    mesh: Mesh,
+    refl: Reflectance,
+    bvh: SceneBvh,
+    target: Vec3,
+    radius: f64,
+}
+
+/// The mesh (cleaned by the project's mesh code: the mesh written is the mesh rendered) and
+/// its reflectance.
+fn make_object(def: &SceneDef, opts: &SynthOptions, out: &Path) -> Result<Object> {
     let (positions, faces, target, radius) = make_geometry(
         def.shape,
         opts.vertices
@@ -224,9 +284,25 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     };
     refl.validate(mesh.positions.len())?;
     let bvh = SceneBvh::new(&mesh);
+    Ok(Object {
+        mesh,
+        refl,
+        bvh,
+        target,
+        radius,
+    })
+}
 
-    // Cameras around and above the target, evenly spread in azimuth with jitter.
-    let mut rng = Pcg32::new(opts.seed, 0x5eed);
+/// Cameras around and above the object, evenly spread in azimuth with jitter.
+fn place_cameras(
+    rng: &mut Pcg32,
+    def: &SceneDef,
+    opts: &SynthOptions,
+    object: &Object,
+    up: &Vec3,
+    n_photos: usize,
+) -> Vec<PinholeCamera> {
+    let (target, radius) = (object.target, object.radius);
     let fov: f64 = 40.0;
     let dist = radius / (fov.to_radians() / 2.0 * 0.85).sin();
     let min_elev = if matches!(def.shape, Shape::SpherePlane | Shape::SpotTextured) {
@@ -234,16 +310,25 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     } else {
         5.0
     };
-    let cams: Vec<PinholeCamera> = (0..n_photos)
+    (0..n_photos)
         .map(|i| {
             let az = 2.0 * PI * (i as f64 + 0.6 * (rng.random::<f64>() - 0.5)) / n_photos as f64;
             let el = (min_elev + 35.0 * rng.random::<f64>()).to_radians();
             let eye = target + Vec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin()) * dist;
-            look_at(&eye, &target, &up, opts.width, opts.height, fov)
+            look_at(&eye, &target, up, opts.width, opts.height, fov)
         })
-        .collect();
+        .collect()
+}
 
-    // Lighting plan: per photo a map (index into `maps`), its rotation and its sun.
+/// The maps the photos are lit by, and per photo the map (index into `maps`), its
+/// rotation in texels and, for a sun-and-sky map, its sun direction.
+pub(crate) struct LightingPlan {
+    maps: Vec<(String, LatLong)>,
+    plan: Vec<(usize, usize, Option<Vec3>)>,
+}
+
+/// Per photo a map and its rotation, as the scene's lighting says.
+fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<LightingPlan> {
     let mut maps: Vec<(String, LatLong)> = Vec::new();
     let mut plan: Vec<(usize, usize, Option<Vec3>)> = Vec::with_capacity(n_photos);
     for i in 0..n_photos {
@@ -274,230 +359,13 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
         };
         plan.push((idx, shift, None));
     }
+    Ok(LightingPlan { maps, plan })
+}
 
-    // Render, expose, encode.
-    let names: Vec<String> = (0..n_photos).map(|i| format!("photo_{i:03}.png")).collect();
-    let held: Vec<bool> = (0..n_photos).map(|i| n_photos >= 4 && i % 4 == 3).collect();
-    let mut truths = Vec::with_capacity(n_photos);
-    let mut photos8: Vec<Vec<u8>> = Vec::with_capacity(n_photos);
-    let mut render_seconds = 0.0;
-    for (i, cam) in cams.iter().enumerate() {
-        let (mi, shift, sun) = plan[i];
-        let env_map = rotate_texels(&maps[mi].1, shift);
-        let stem = names[i].trim_end_matches(".png");
-        let env_rel = format!("env/{stem}.exr");
-        data::write_exr(&env_map, &out.join("truth").join(&env_rel), false)?;
-        let env = Environment::new(env_map.width, env_map.height, &env_map.rgb, frame)?;
-        let scene = ReferenceScene {
-            positions: &mesh.positions,
-            normals: &mesh.normals,
-            faces: &mesh.faces,
-            reflectance: &refl,
-            env: &env,
-            caster: &bvh,
-            offset: bvh.ray_offset(),
-        };
-        let samples = Samples {
-            seed: opts.samples.seed
-                ^ opts.seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
-                ^ (i as u64) << 40,
-            ..opts.samples
-        };
-        let t0 = std::time::Instant::now();
-        let img = scene.render(cam, &samples);
-        render_seconds += t0.elapsed().as_secs_f64();
-
-        let wb = if opts.white_balance {
-            [
-                0.85 + 0.3 * rng.random::<f64>(),
-                1.0,
-                0.85 + 0.3 * rng.random::<f64>(),
-            ]
-        } else {
-            [1.0; 3]
-        };
-        // Exposure: the 99th percentile of the object's brightest channel maps to 1.
-        let mut bright: Vec<f64> = img
-            .rgb
-            .iter()
-            .zip(&img.coverage)
-            .filter(|(_, &c)| c > 0.0)
-            .map(|(p, _)| (0..3).map(|c| p[c] as f64 * wb[c]).fold(0.0, f64::max))
-            .collect();
-        bright.sort_by(|a, b| a.total_cmp(b));
-        let p99 = bright
-            .get((bright.len() as f64 * 0.99) as usize)
-            .or(bright.last())
-            .copied()
-            .unwrap_or(0.0);
-        let exposure = if p99 > 0.0 { 1.0 / p99 } else { 1.0 };
-        let mut noise_rng = Pcg32::new(opts.seed ^ 0x006e_6f69_7365, i as u64);
-        let mut bytes = Vec::with_capacity(img.rgb.len() * 3);
-        for p in &img.rgb {
-            for c in 0..3 {
-                let mut x = exposure * wb[c] * p[c] as f64;
-                if opts.noise > 0.0 {
-                    x += opts.noise * gaussian(&mut noise_rng);
-                }
-                let e = crate::import::photo::linear_to_srgb(x as f32);
-                bytes.push((e * 255.0).round().clamp(0.0, 255.0) as u8);
-            }
-        }
-        save_png(
-            &out.join("images").join(&names[i]),
-            opts.width,
-            opts.height,
-            bytes.clone(),
-            3,
-        )?;
-        let mask: Vec<u8> = img
-            .coverage
-            .iter()
-            .map(|&c| (c * 255.0).round() as u8)
-            .collect();
-        save_png(
-            &out.join("truth/masks").join(&names[i]),
-            opts.width,
-            opts.height,
-            mask,
-            1,
-        )?;
-        photos8.push(bytes);
-        truths.push(PhotoTruth {
-            name: names[i].clone(),
-            env: env_rel,
-            map: maps[mi].0.clone(),
-            rotation_texels: shift,
-            rotation_radians: 2.0 * PI * shift as f64 / env_map.width as f64,
-            held_out: held[i],
-            exposure,
-            white_balance: wb,
-            sun: sun.map(|v| [v.x, v.y, v.z]),
-        });
-    }
-
-    // Sparse model: surface points by area, observed where visible and front-facing.
-    let areas: Vec<f64> = (0..mesh.faces.len())
-        .map(|f| {
-            let [a, b, c] = mesh.faces[f].map(|v| mesh.positions[v as usize]);
-            (b - a).cross(&(c - a)).norm() / 2.0
-        })
-        .collect();
-    let mut cdf = Vec::with_capacity(areas.len());
-    let mut acc = 0.0;
-    for a in &areas {
-        acc += a;
-        cdf.push(acc);
-    }
-    let mut rec = Reconstruction::default();
-    rec.cameras.insert(
-        CameraId(1),
-        Camera::pinhole(
-            CameraId(1),
-            opts.width,
-            opts.height,
-            cams[0].fx,
-            cams[0].fy,
-            cams[0].cx,
-            cams[0].cy,
-        ),
-    );
-    for (i, cam) in cams.iter().enumerate() {
-        let rot = nalgebra::Rotation3::from_matrix(&cam.rotation);
-        let im = Image::from_pose(
-            ImageId(i as u32 + 1),
-            names[i].clone(),
-            CameraId(1),
-            &rot,
-            &cam.translation,
-        );
-        rec.images.insert(im.id, im);
-    }
-    let centers: Vec<Vec3> = cams.iter().map(|c| c.center()).collect();
-    let mut pts_rng = Pcg32::new(opts.seed ^ 0x706f_696e_7473_0000, 1);
-    let mut observations = 0;
-    let mut next_id = 1u64;
-    if acc > 0.0 {
-        for _ in 0..opts.points {
-            let r = pts_rng.random::<f64>() * acc;
-            let f = cdf.partition_point(|&c| c <= r).min(cdf.len() - 1);
-            let (mut s, mut t) = (pts_rng.random::<f64>(), pts_rng.random::<f64>());
-            if s + t > 1.0 {
-                s = 1.0 - s;
-                t = 1.0 - t;
-            }
-            let [a, b, c] = mesh.faces[f].map(|v| mesh.positions[v as usize]);
-            let x = a + (b - a) * s + (c - a) * t;
-            let ng = (b - a).cross(&(c - a));
-            if ng.norm() == 0.0 {
-                continue;
-            }
-            let ng = ng.normalize();
-            let mut obs = Vec::new();
-            for (i, cam) in cams.iter().enumerate() {
-                let to_c = centers[i] - x;
-                let dist_c = to_c.norm();
-                let dir = to_c / dist_c;
-                if ng.dot(&dir) <= 0.05 {
-                    continue;
-                }
-                let Some((u, v)) = cam.project(&x) else {
-                    continue;
-                };
-                if !(u >= 0.0 && v >= 0.0 && u < opts.width as f64 && v < opts.height as f64) {
-                    continue;
-                }
-                let off = bvh.ray_offset();
-                if bvh.occluded(&(x + ng * off), &dir, 0.0, dist_c - 2.0 * off) {
-                    continue;
-                }
-                obs.push((i, [u, v]));
-            }
-            if obs.len() < 2 {
-                continue;
-            }
-            let id = Point3DId(next_id);
-            next_id += 1;
-            let (i0, [u0, v0]) = obs[0];
-            let pix = (v0 as usize) * opts.width as usize + u0 as usize;
-            let rgb = [
-                photos8[i0][3 * pix],
-                photos8[i0][3 * pix + 1],
-                photos8[i0][3 * pix + 2],
-            ];
-            let mut track = Vec::with_capacity(obs.len());
-            for (i, xy) in obs {
-                let im =
-                    rec.images
-                        .get_mut(&ImageId(i as u32 + 1))
-                        .ok_or_else(|| Error::Numeric {
-                            stage: "synth".into(),
-                            message: format!("image {i} missing"),
-                        })?;
-                track.push(TrackElement {
-                    image_id: im.id,
-                    point2d_idx: im.points2d.len() as u32,
-                });
-                im.points2d.push(Point2D {
-                    xy,
-                    point3d_id: Some(id),
-                });
-            }
-            observations += track.len();
-            rec.points3d.insert(
-                id,
-                Point3D {
-                    id,
-                    xyz: x,
-                    rgb,
-                    error: 0.0,
-                    track,
-                },
-            );
-        }
-    }
-    rec.write_text(&out.join("sparse"))?;
-    mesh.write_ply(&out.join("dense/meshed-poisson.ply"), &[])?;
+/// `truth/weights.ply`: the mesh with per-vertex material weights `w0 … w{K-1}`.
+fn write_weights(object: &Object, path: &Path) -> Result<()> {
+    let (mesh, refl) = (&object.mesh, &object.refl);
+    let k = refl.lambda.len();
     let wcols: Vec<Vec<f32>> = (0..k)
         .map(|j| {
             (0..mesh.positions.len())
@@ -511,8 +379,12 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
         .zip(&wcols)
         .map(|(n, c)| (n.as_str(), c.as_slice()))
         .collect();
-    mesh.write_ply(&out.join("truth/weights.ply"), &extra)?;
+    mesh.write_ply(path, &extra)
+}
 
+/// `truth/materials.json`: lobes, formulas, λ per material, and the photo model.
+fn write_materials(def: &SceneDef, object: &Object, photos: &Rendered, path: &Path) -> Result<()> {
+    let refl = &object.refl;
     let mat_truth = MaterialsTruth {
         lobes: &refl.lobes,
         formulas: [
@@ -527,7 +399,8 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
             .map(|(n, l)| MaterialTruth { name: n, lambda: l })
             .collect(),
         photo_model: "photo_linear_c = exposure · white_balance_c · radiance_c (+ Gaussian noise), clipped to [0, 1], sRGB-encoded to 8 bits",
-        photos: truths
+        photos: photos
+            .truths
             .iter()
             .map(|t| PhotoScale {
                 name: &t.name,
@@ -536,8 +409,21 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
             })
             .collect(),
     };
-    write_json(&out.join("truth/materials.json"), &mat_truth)?;
-    let held_out: Vec<String> = truths
+    write_json(path, &mat_truth)
+}
+
+/// `truth/manifest.json`; returns the held-out photos' names.
+fn write_manifest(
+    def: &SceneDef,
+    opts: &SynthOptions,
+    object: &Object,
+    photos: &Rendered,
+    up: &Vec3,
+    frame: [Vec3; 3],
+    out: &Path,
+) -> Result<Vec<String>> {
+    let held_out: Vec<String> = photos
+        .truths
         .iter()
         .filter(|t| t.held_out)
         .map(|t| t.name.clone())
@@ -551,28 +437,18 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
         env_convention: "lat-long 2H×H, v = 0 the top row; θ = π(v+0.5)/H from e_z (up), φ = 2π(u+0.5)/(2H) from e_x toward e_y; texels are radiance averages over their solid angle, rendered as piecewise constant",
         static_illumination: matches!(def.lighting, Lighting::Static(_)),
         held_out: held_out.clone(),
-        photos: &truths,
+        photos: &photos.truths,
         image_size: [opts.width, opts.height],
         samples_per_pixel: opts.samples.per_pixel,
         light_sample_pairs: opts.samples.light,
         noise_sigma: opts.noise,
-        vertices: mesh.positions.len(),
-        faces: mesh.faces.len(),
+        vertices: object.mesh.positions.len(),
+        faces: object.mesh.faces.len(),
         mesh: "dense/meshed-poisson.ply",
         weights: "truth/weights.ply",
         materials: "truth/materials.json",
         credits: "HDR maps: Greg Zaal (HDRI Haven), CC0, via Debian blender-data; Spot: Keenan Crane",
     };
     write_json(&out.join("truth/manifest.json"), &manifest)?;
-
-    Ok(SynthSummary {
-        scene: def.name.to_string(),
-        photos: names,
-        held_out,
-        vertices: mesh.positions.len(),
-        faces: mesh.faces.len(),
-        points3d: rec.points3d.len(),
-        observations,
-        render_seconds,
-    })
+    Ok(held_out)
 }

@@ -213,6 +213,8 @@ struct Scratch {
     v_dw: Vec<f64>,
     /// `(|g_m|, m)` of the non-zero coefficients, for [`truncate_into`].
     order: Vec<(f64, u32)>,
+    /// Progress, passed on per chunk of observations.
+    ticks: crate::stages::Ticker,
 }
 
 impl Scratch {
@@ -223,6 +225,7 @@ impl Scratch {
             global: vec![0.0; n_global * n_global],
             v_dw: Vec::with_capacity(n_local * n_local),
             order: Vec::with_capacity(n_global * n_global),
+            ticks: Default::default(),
         }
     }
 }
@@ -430,7 +433,7 @@ pub fn build_rows<R: LocalRotation>(
         .for_each_init(
             || Scratch::new(opts.n_local, opts.n_global),
             |scratch, (p, ((oi, ov), ol))| {
-                crate::stages::tick(1);
+                scratch.ticks.tick(1);
                 let v = obs_vertex[p] as usize;
                 let Some((normal, frame)) = vertex_frame_into(
                     &normals_env[v],

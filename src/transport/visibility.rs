@@ -133,49 +133,52 @@ pub fn compute_with(
         .par_chunks_mut(texels.max(1))
         .zip(open.par_iter_mut())
         .enumerate()
-        .map(|(v, (out, is_open))| {
-            crate::stages::tick(1);
-            let x = mesh.positions[v];
-            let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
-            let nn = n.norm();
-            if !(nn.is_finite() && nn > 0.0 && x.iter().all(|c| c.is_finite())) {
-                return (0, 1);
-            }
-            let n = n / nn;
-            if skip_open && !tree.any_above(&x, &n, eps) {
-                *is_open = true;
-                out.fill(255);
-                return (0, 0);
-            }
-            let frame = local_frame(&(env_from_world * n));
-            let origin = x + n * eps;
-            let mut rng = Pcg64::seed_from_u64(mix(seed, v as u64));
-            let (i_side, nf) = (grid.n, grid.n as f64);
-            let strata = (r as f64).sqrt().round() as usize;
-            let stratified = strata * strata == r;
-            for (t, o) in out.iter_mut().enumerate() {
-                let (i, j) = ((t % i_side) as f64, (t / i_side) as f64);
-                let mut visible = 0usize;
-                for k in 0..r {
-                    let (a, b) = if stratified {
-                        let s = strata as f64;
-                        (
-                            ((k % strata) as f64 + rng.random::<f64>()) / s,
-                            ((k / strata) as f64 + rng.random::<f64>()) / s,
-                        )
-                    } else {
-                        (rng.random::<f64>(), rng.random::<f64>())
-                    };
-                    let local = grid.decode([(i + a) / nf, (j + b) / nf]);
-                    let dir = world_from_env * from_local(&frame, &local);
-                    if !bvh.occluded(&origin, &dir, eps, f64::INFINITY) {
-                        visible += 1;
-                    }
+        .map_init(
+            crate::stages::Ticker::default,
+            |ticks, (v, (out, is_open))| {
+                ticks.tick(1);
+                let x = mesh.positions[v];
+                let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
+                let nn = n.norm();
+                if !(nn.is_finite() && nn > 0.0 && x.iter().all(|c| c.is_finite())) {
+                    return (0, 1);
                 }
-                *o = ((visible as f64 / r as f64) * 255.0).round() as u8;
-            }
-            ((texels * r) as u64, 0)
-        })
+                let n = n / nn;
+                if skip_open && !tree.any_above(&x, &n, eps) {
+                    *is_open = true;
+                    out.fill(255);
+                    return (0, 0);
+                }
+                let frame = local_frame(&(env_from_world * n));
+                let origin = x + n * eps;
+                let mut rng = Pcg64::seed_from_u64(mix(seed, v as u64));
+                let (i_side, nf) = (grid.n, grid.n as f64);
+                let strata = (r as f64).sqrt().round() as usize;
+                let stratified = strata * strata == r;
+                for (t, o) in out.iter_mut().enumerate() {
+                    let (i, j) = ((t % i_side) as f64, (t / i_side) as f64);
+                    let mut visible = 0usize;
+                    for k in 0..r {
+                        let (a, b) = if stratified {
+                            let s = strata as f64;
+                            (
+                                ((k % strata) as f64 + rng.random::<f64>()) / s,
+                                ((k / strata) as f64 + rng.random::<f64>()) / s,
+                            )
+                        } else {
+                            (rng.random::<f64>(), rng.random::<f64>())
+                        };
+                        let local = grid.decode([(i + a) / nf, (j + b) / nf]);
+                        let dir = world_from_env * from_local(&frame, &local);
+                        if !bvh.occluded(&origin, &dir, eps, f64::INFINITY) {
+                            visible += 1;
+                        }
+                    }
+                    *o = ((visible as f64 / r as f64) * 255.0).round() as u8;
+                }
+                ((texels * r) as u64, 0)
+            },
+        )
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     Visibility {
         n_local,

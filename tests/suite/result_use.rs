@@ -98,6 +98,22 @@ fn report_html_export_and_render_of_the_example() {
     assert!(prim.get(&gltf::Semantic::Colors(0)).is_some());
     assert!(prim.material().index().is_some());
     assert_eq!(s.envmaps.len(), 2 * 6, "{:?}", s.envmaps);
+    // The .glb sits beside its result: a second export is refused without --force and
+    // replaces the first with it; a file of that name the tool did not write never is.
+    let gltf_only = |path: &Path, force| ExportOptions {
+        gltf: Some(path.to_path_buf()),
+        envmaps: None,
+        force,
+    };
+    let e = export_result(&out, &gltf_only(&glb, false)).unwrap_err();
+    assert!(e.to_string().contains("--force"), "{e}");
+    export_result(&out, &gltf_only(&glb, true)).unwrap();
+    assert_eq!(std::fs::read(&glb).unwrap(), bytes, "the same export again");
+    let mine = dir.join("mine.glb");
+    std::fs::write(&mine, "not a GLB").unwrap();
+    let e = export_result(&out, &gltf_only(&mine, true)).unwrap_err();
+    assert!(e.to_string().contains("not a relight-cpc result"), "{e}");
+    assert_eq!(std::fs::read(&mine).unwrap(), b"not a GLB");
     if must_run(&["node", "npm"], "Khronos glTF validator") {
         let o = Command::new("bash")
             .arg(script("validate_gltf.sh"))

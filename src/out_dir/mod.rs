@@ -2,7 +2,8 @@
 //! `synth`, `bench`, and any later one).
 //!
 //! Checked before any work, by [`OutDir::claim`] (a whole folder is the result) or
-//! [`OutFiles::claim`] (named files in a shared folder, `bench`):
+//! [`OutFiles::claim`] (named files in a shared folder, `bench` and `export --gltf`: the
+//! rules below hold for each named file instead of the folder, see there):
 //! - an absent folder is created (and its parents);
 //! - a previous result, recognised by the stamp file [`STAMP`] the tool writes last (it
 //!   holds the tool's version and the command), is refused without `force`; with `force`
@@ -23,6 +24,9 @@
 use crate::{Error, Result};
 use std::path::{Component, Path, PathBuf};
 use std::sync::Mutex;
+
+mod files;
+pub use files::OutFiles;
 
 /// Name of the stamp file a finished result carries.
 pub const STAMP: &str = ".relight-cpc-result.json";
@@ -130,18 +134,8 @@ pub fn resolve(path: &Path) -> Result<PathBuf> {
 /// Refuses `/`, the home folder, and any folder that is or contains the folder of an
 /// input (`inputs`: the workspace, a mesh, an environment map, ...).
 pub fn check_not_protected(out: &Path, inputs: &[&Path]) -> Result<()> {
+    check_not_root_or_home(out)?;
     let target = resolve(out)?;
-    if target.parent().is_none() {
-        return Err(refuse(
-            out,
-            "is the file system's root folder; choose a new folder",
-        ));
-    }
-    if let Some(home) = std::env::var_os("HOME").filter(|h| !h.is_empty()) {
-        if resolve(Path::new(&home)).ok().as_deref() == Some(target.as_path()) {
-            return Err(refuse(out, "is your home folder; choose a new folder"));
-        }
-    }
     for input in inputs {
         let Ok(inp) = input.canonicalize() else {
             continue; // A missing input is the reader's error, with its own message.
@@ -166,6 +160,23 @@ pub fn check_not_protected(out: &Path, inputs: &[&Path]) -> Result<()> {
                 out,
                 format!("contains the input {shown}; replacing it would delete the input: choose a new folder"),
             ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses `/` and the home folder as an output folder.
+fn check_not_root_or_home(out: &Path) -> Result<()> {
+    let target = resolve(out)?;
+    if target.parent().is_none() {
+        return Err(refuse(
+            out,
+            "is the file system's root folder; choose a new folder",
+        ));
+    }
+    if let Some(home) = std::env::var_os("HOME").filter(|h| !h.is_empty()) {
+        if resolve(Path::new(&home)).ok().as_deref() == Some(target.as_path()) {
+            return Err(refuse(out, "is your home folder; choose a new folder"));
         }
     }
     Ok(())
@@ -380,104 +391,6 @@ fn first_file(path: &Path) -> PathBuf {
         .last()
         .unwrap_or(path)
         .to_path_buf()
-}
-
-/// Named result files in a shared folder (`bench` writes `NAME.json`, `NAME.md`, ...
-/// into one folder of many results). The folder gets the same protection as
-/// [`OutDir::claim`]; a previous result is recognised by `is_ours` on its first file,
-/// refused without `force`; a file of one of the names that is not ours is refused even
-/// with `force`. Write each file with [`OutFiles::write`] (temporary file, then rename).
-#[derive(Debug)]
-pub struct OutFiles {
-    folder: PathBuf,
-}
-
-impl OutFiles {
-    /// Claims `names` in `folder` (created when absent).
-    pub fn claim(
-        folder: &Path,
-        names: &[&str],
-        force: bool,
-        inputs: &[&Path],
-        is_ours: impl Fn(&Path) -> bool,
-    ) -> Result<OutFiles> {
-        check_not_protected(folder, inputs)?;
-        if folder.exists() && !folder.is_dir() {
-            return Err(refuse(
-                folder,
-                "is a file, not a folder; choose a new folder",
-            ));
-        }
-        let present: Vec<PathBuf> = names
-            .iter()
-            .map(|n| folder.join(n))
-            .filter(|p| p.exists())
-            .collect();
-        if let Some(first) = present.first() {
-            let main = folder.join(names[0]);
-            if !main.exists() || !is_ours(&main) {
-                return Err(refuse(
-                    folder,
-                    format!(
-                        "{} exists and is not a relight-cpc result; choose another folder or name (--force only replaces a previous result)",
-                        first.display()
-                    ),
-                ));
-            }
-            if !force {
-                return Err(refuse(
-                    folder,
-                    format!(
-                        "holds a previous result ({}); pass --force to replace it, or choose another folder or name",
-                        main.display()
-                    ),
-                ));
-            }
-        }
-        std::fs::create_dir_all(folder).map_err(|e| unwritable(folder, folder, e))?;
-        let probe = folder.join(format!(".relight-cpc-probe.{}", std::process::id()));
-        std::fs::write(&probe, b"").map_err(|e| unwritable(folder, folder, e))?;
-        let _ = std::fs::remove_file(&probe);
-        Ok(OutFiles {
-            folder: folder.to_path_buf(),
-        })
-    }
-
-    /// The folder.
-    pub fn folder(&self) -> &Path {
-        &self.folder
-    }
-
-    /// Writes `name` atomically: `bytes` go to a hidden temporary file beside it, flushed,
-    /// then renamed over the old file.
-    pub fn write(&self, name: &str, bytes: &[u8]) -> Result<PathBuf> {
-        self.write_with(name, |tmp| write_synced(tmp, bytes))
-    }
-
-    /// Like [`OutFiles::write`] for a writer that takes a path: `write` fills a hidden
-    /// temporary file beside `name`, which is then renamed over it (removed on error).
-    pub fn write_with(
-        &self,
-        name: &str,
-        write: impl FnOnce(&Path) -> Result<()>,
-    ) -> Result<PathBuf> {
-        let path = self.folder.join(name);
-        let ext = Path::new(name)
-            .extension()
-            .map(|e| format!(".{}", e.to_string_lossy()))
-            .unwrap_or_default();
-        // The extension stays last: some writers pick the format from it.
-        let tmp = self.folder.join(format!(
-            ".{name}.relight-cpc-staging.{}{ext}",
-            std::process::id()
-        ));
-        if let Err(e) = write(&tmp) {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e);
-        }
-        std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))?;
-        Ok(path)
-    }
 }
 
 /// Removes this process's staging folders on SIGINT, SIGTERM or SIGHUP, then exits with

@@ -1,0 +1,120 @@
+//! The report's notes written after the fit and the evaluation (stage 8 of `run`): plain
+//! sentences on what the figures alone do not say.
+
+use super::pipeline::RunLog;
+use super::{Fitted, RunOptions, LIGHTING_SAMPLE_MAX_RATIO};
+
+/// The report's notes on the fit: ill-conditioned solves, the starts tried, the scale
+/// normalisation, early stopping and the lighting sample.
+pub(crate) fn fit_notes(
+    opts: &RunOptions,
+    fitted: &Fitted,
+    multi: &crate::solve::starts::MultiStart,
+    log: &mut RunLog,
+) {
+    let c = &fitted.est.conditioning;
+    if c.weights_singular > 0 {
+        log.notes.push(format!(
+            "{} vertices had fewer independent observations than materials (their blending weights are minimum-norm)",
+            c.weights_singular
+        ));
+    }
+    if c.qp_unconverged > 0 {
+        log.notes.push(format!(
+            "{} photos' lighting solves in the last outer iteration stopped at the iteration cap before the KKT tolerance ({} of the QPs, one per photo and IRLS pass, at the alternation's cap of {} GPCG iterations, by design: --lighting-qp-iterations)",
+            c.qp_unconverged,
+            c.qp_alternation_capped,
+            opts.lighting_qp_iterations
+        ));
+    }
+    if multi.starts.len() > 1 {
+        log.notes.push(format!(
+            "{} starts tried, kept start {} ({}) by the {}: {}",
+            multi.starts.len(),
+            multi.chosen + 1,
+            multi.starts[multi.chosen].label,
+            multi.criterion,
+            multi
+                .starts
+                .iter()
+                .enumerate()
+                .map(|(i, r)| format!("start {} {:.4} in {:.1} s", i + 1, r.score, r.seconds))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    log.notes
+        .push(format!("scale normalisation: {}", fitted.est.normalisation));
+    if let Some(v) = &fitted.est.validation {
+        log.notes.push(format!(
+            "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",
+            v.observations,
+            100.0 * v.fraction,
+            v.errors
+                .iter()
+                .map(|e| format!("{e:.4}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            v.best_iteration,
+            v.errors.len(),
+            if v.stopped_early {
+                " (stopped: no lower score for the patience)"
+            } else {
+                ""
+            }
+        ));
+    }
+    if let Some(s) = &fitted.est.lighting_sample {
+        log.notes.push(format!(
+            "lighting sample: the lighting steps of {} photo(s) saw at most {} of their observations each (stratified by normal, open sky and material); relative RMSE of the fit {:.4} on the {} sampled observations and {:.4} on the {} others (ratio {:.3}){}",
+            s.photos_sampled,
+            s.budget,
+            s.rel_rmse_in,
+            s.in_sample,
+            s.rel_rmse_out,
+            s.out_of_sample,
+            s.ratio,
+            if s.ratio > LIGHTING_SAMPLE_MAX_RATIO {
+                format!(": above {LIGHTING_SAMPLE_MAX_RATIO}, the maps over-fit their samples; rerun with a larger --lighting-sample or 0 (all)")
+            } else {
+                String::new()
+            }
+        ));
+    }
+}
+
+/// The report's notes on the evaluation: its cost, the baseline's unseen vertices and the
+/// held-out figure the timeline uses.
+pub(crate) fn evaluation_notes(
+    fitted: &Fitted,
+    render_seconds: [f64; 2],
+    half_fit_seconds: [f64; 2],
+    mean_holdout_rmse: Option<f64>,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    if !fitted.held.is_empty() {
+        let (r, h) = (render_seconds, half_fit_seconds);
+        notes.push(format!(
+            "evaluation of {} held-out photos: renders {:.1} s wall / {:.1} CPU s, the half \
+             protocol's light fits {:.1} s / {:.1} CPU s",
+            fitted.held.len(),
+            r[0],
+            r[1],
+            h[0],
+            h[1]
+        ));
+    }
+    if fitted.baseline.unseen > 0 && !fitted.held.is_empty() {
+        notes.push(format!(
+            "baseline: {} of {} vertices are in no training photo; they take the median of the other vertices' medians",
+            fitted.baseline.unseen,
+            fitted.scene.mesh.positions.len()
+        ));
+    }
+    if let Some(h) = mean_holdout_rmse {
+        notes.push(format!(
+            "the timeline's held-out RMSE is over the held-out photos' observations (per vertex, after the best global scale, true light when known, else the mean training map); the final per-pixel figure, mean over held-out photos, is {h:.5}"
+        ));
+    }
+    notes
+}
