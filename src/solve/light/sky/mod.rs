@@ -43,8 +43,10 @@
 //!    photo's observations (3 × 3 per channel, from the bases' responses through the
 //!    transport) and its weighted squared error; on the photo's first step a grid of
 //!    [`GRID_SUNS`] sun directions on the upper hemisphere (Fibonacci) at `T = 3`, `κ = 64`,
-//!    then a pattern search over `(azimuth, elevation, ln κ, T)` with halving steps; later
-//!    steps only the pattern search, from the previous `θ` with small steps ([`search`]);
+//!    then a pattern search over `(azimuth, elevation, ln κ, T)` with halving steps; through
+//!    the third outer iteration the grid runs again and the better of its best and the
+//!    previous `θ` is refined; later steps only refine the previous `θ` with small steps
+//!    ([`search`]);
 //! 2. the joint QP in `(w, r) ≥ 0` at the chosen `θ`, warm-started from the search's `w`
 //!    and the previous `r`, solved by [`crate::solve::qp::bound_qp_scaled`].
 //!
