@@ -54,6 +54,7 @@ mod robust;
 
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::sh_prior::{map_sample, LightPrior, LightPriorOptions, PriorSample};
+use relight_cpc::solve::light::shared::LightGroups;
 use relight_cpc::solve::starts::{self, estimate_best, MultiStart};
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use serde_json::{json, Value};
@@ -126,7 +127,8 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
 /// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
-/// `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (parts 2 and 5: the clustered
+/// `shared=1` (one map per group of training photos under the same true map, with
+/// per-photo gains), `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (parts 2 and 5: the clustered
 /// start with every non-Lambertian basis at `f` × the material's mean Lambertian weight, grey,
 /// instead of 0), `start=s` (parts 2 and 5: start number `s` of `starts::variants`),
 /// `starts=n` (part 2: the best of the first `n` of them, `starts::estimate_best`), `dirty=1` (5% outliers, part 3),
@@ -190,6 +192,14 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "sky" => {
                 o.light_sky = Some(relight_cpc::solve::light::sky::SkyOptions {
                     residual_noise: num(),
+                })
+            }
+            // Shared light (issue 25): photos rendered under the same true map (and
+            // rotation) share one fitted map with per-photo gains ([`with_case_groups`]).
+            "shared" => {
+                o.light_groups = (num() > 0.0).then(|| LightGroups {
+                    group: Vec::new(),
+                    source: "the true map of each training photo".into(),
                 })
             }
             "loo" => {
@@ -288,6 +298,32 @@ fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
             per_photo,
             ..lp.clone()
         }),
+        ..o.clone()
+    }
+}
+
+/// `o` with its light groups (spec `shared=1`) filled in from the case's truth: training
+/// photos with the same map and rotation in `truth/manifest.json` share a group.
+fn with_case_groups(case: &Case, o: &EstimateOptions) -> EstimateOptions {
+    let Some(g) = &o.light_groups else {
+        return o.clone();
+    };
+    let manifest: Value = serde_json::from_str(
+        &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
+    )
+    .unwrap();
+    let sky_of = |name: &str| -> String {
+        let p = manifest["photos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap_or_else(|| panic!("{name} is not in the truth manifest"));
+        format!("{} {}", p["map"], p["rotation_texels"])
+    };
+    let labels: Vec<String> = case.train.names.iter().map(|n| sky_of(n)).collect();
+    EstimateOptions {
+        light_groups: Some(LightGroups::from_labels(&labels, g.source.clone())),
         ..o.clone()
     }
 }

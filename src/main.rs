@@ -25,7 +25,7 @@ enum Command {
     /// Fit reflectance and per-photo illumination to a COLMAP workspace, evaluate held-out
     /// photos, and write maps, materials, renders and a report. Without WORKSPACE it runs
     /// on the built-in example (a small synthetic scene carried inside the program).
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// Show what a COLMAP workspace holds: what was found and picked, counts, and per photo
     /// the observed vertices, overexposure, confidence and reprojection error.
     Inspect {

@@ -42,11 +42,26 @@ pub(crate) struct RunArgs {
     pub(crate) adaptive: String,
     /// Model of each photo's light: `paper` (a free non-negative map, the paper's),
     /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
-    /// maps), `sky` (an outdoor sun and sky per photo plus a penalised residual map),
-    /// `auto` (all three fitted, the one that predicts held-back observations best kept;
-    /// three times the fitting time).
-    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "sky", "auto"], help_heading = "Model")]
+    /// maps), `shared` (one map per group of photos under one sky, per-photo gains), `sky`
+    /// (an outdoor sun and sky per photo plus a penalised residual map), `auto` (every model
+    /// that applies fitted, the one that predicts held-back observations best kept; that
+    /// many times the fitting time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "sky", "auto"], help_heading = "Model")]
     pub(crate) light: String,
+    /// Photos under one sky for `--light shared` (one map per group, per-photo exposure
+    /// and white-balance gains): a text file of lines `<photo name> <group label>`.
+    /// Without it, photos taken within --light-group-minutes of each other (EXIF time).
+    #[arg(long, value_name = "FILE", help_heading = "Model")]
+    pub(crate) light_groups: Option<std::path::PathBuf>,
+    /// Photos whose EXIF capture times are at most this many minutes apart share a sky
+    /// under `--light shared` (0 = never by time).
+    #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHT_GROUP_MINUTES, help_heading = "Model")]
+    pub(crate) light_group_minutes: f64,
+    /// What fixes the per-channel scale between colours and light, which photos can never
+    /// tell apart: `start` (the balance of the starting colours) or `grey-world` (the
+    /// surface's mean diffuse albedo is 0.5 in each channel).
+    #[arg(long, default_value = "start", value_parser = ["start", "grey-world"], help_heading = "Model")]
+    pub(crate) scale_anchor: String,
     /// Detail of each photo's recovered lighting: map side in texels, a power of two.
     #[arg(long, default_value_t = 64, help_heading = "Model")]
     pub(crate) global_resolution: usize,
@@ -232,6 +247,9 @@ impl RunArgs {
         o.render_training = !self.no_training_renders;
         o.adaptive = self.adaptive == "on";
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
+        o.light_groups = self.light_groups.clone();
+        o.light_group_minutes = self.light_group_minutes;
+        o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
         Ok(o)
     }
 }

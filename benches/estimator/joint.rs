@@ -160,7 +160,7 @@ pub(crate) fn joint(md: &mut String) -> Value {
     );
     md.push_str(&format!(
         "## 2. Joint recovery: `{scene}`\n\nSpot ({} vertices), two blended materials ({}), \
-         {} training and {} held-out photos ({}², {} spp × {} MIS pairs), 8 real maps cycling, each rotated; basis = the true lobes \
+         {} training and {} held-out photos ({}², {} spp × {} MIS pairs), {}; basis = the true lobes \
          ({}); {}² global map, {}² local, {}² normal grid, all coefficients kept; K = 2 from the k-means start.\n\n\
          Materials are identifiable only up to a K×K non-negative remix (`w → w M⁻¹`, `λ → M λ` leaves every vertex's reflectance \
          `β = Σ_k w_k λ_k` unchanged) and each channel only up to the light colour (`λ_c → s_c λ_c`, maps `/ s_c`). The diffuse-ratio \
@@ -177,6 +177,11 @@ pub(crate) fn joint(md: &mut String) -> Value {
         s.width,
         s.spp,
         s.light_samples,
+        if scene == "spot-groups" {
+            "three real maps (courtyard, forest, city), photo i under map i mod 3, unrotated"
+        } else {
+            "8 real maps cycling, each rotated"
+        },
         basis_text(&case),
         s.global,
         s.local,
@@ -224,7 +229,7 @@ pub(crate) fn joint(md: &mut String) -> Value {
     for (label, o, from) in variants {
         let label = label.as_str();
         eprintln!("joint: {label}");
-        let o = with_case_priors(&case, &o);
+        let o = with_case_groups(&case, &with_case_priors(&case, &o));
         let (est, secs, tl, record) = joint_fit(&case, &case.train.obs, &o, from);
         let f = joint_figures(&case, &est, &case.train.obs, secs);
         eprintln!("{f:?}");

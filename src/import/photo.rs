@@ -11,6 +11,11 @@
 //!   clip on, so only non-finite or negative-infinite samples are marked overexposed (and
 //!   stored as 0). A user who knows an EXR's clip level can mask it before import.
 //!
+//! The capture time ([`capture_time`]) is the EXIF `DateTimeOriginal` of JPEG, PNG,
+//! TIFF, HEIF and WebP files (the `kamadak-exif` crate), read on the camera's clock with no
+//! time zone: it only groups photos taken close together (shared light,
+//! [`crate::solve::light::shared`]).
+//!
 //! Pixel coordinates follow COLMAP: the top-left pixel's centre is `(0.5, 0.5)`, x right,
 //! y down. [`Photo::sample`] interpolates bilinearly between pixel centres.
 
@@ -224,8 +229,45 @@ fn load_exr(path: &Path) -> Result<Photo> {
     })
 }
 
+/// The EXIF `DateTimeOriginal` of the image at `path` as seconds on the camera's clock
+/// (days from 1970-01-01 in the proleptic Gregorian calendar × 86,400 + time of day; no
+/// time zone); `None` when the file has no EXIF block, no such field, or an unreadable
+/// one: a missing time only means the photo is not grouped by time.
+pub fn capture_time(path: &Path) -> Option<i64> {
+    let file = std::fs::File::open(path).ok()?;
+    let exif = exif::Reader::new()
+        .read_from_container(&mut std::io::BufReader::new(file))
+        .ok()?;
+    let field = exif.get_field(exif::Tag::DateTimeOriginal, exif::In::PRIMARY)?;
+    let exif::Value::Ascii(ref parts) = field.value else {
+        return None;
+    };
+    let t = exif::DateTime::from_ascii(parts.first()?).ok()?;
+    let valid = (1..=12).contains(&t.month)
+        && (1..=31).contains(&t.day)
+        && t.hour < 24
+        && t.minute < 60
+        && t.second < 61;
+    valid.then(|| {
+        let days = days_from_civil(i64::from(t.year), i64::from(t.month), i64::from(t.day));
+        days * 86_400 + i64::from(t.hour) * 3600 + i64::from(t.minute) * 60 + i64::from(t.second)
+    })
+}
+
+/// Days from 1970-01-01 to the date `y-m-d` of the proleptic Gregorian calendar (the
+/// era arithmetic of H. Hinnant, "chrono-compatible low-level date algorithms").
+fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -269,5 +311,68 @@ mod tests {
         assert!(photo.sample([-0.1, 1.0]).is_none());
         assert!(photo.sample([1.0, 5.01]).is_none());
         assert!(photo.sample([f64::NAN, 1.0]).is_none());
+    }
+
+    #[test]
+    fn civil_days_match_known_dates() {
+        // Known day numbers (Unix epoch days): 1970-01-01 = 0, 2000-03-01 = 11017
+        // (a leap-century February before it), 2024-02-29 = 19782, 1969-12-31 = -1.
+        assert_eq!(days_from_civil(1970, 1, 1), 0);
+        assert_eq!(days_from_civil(2000, 3, 1), 11017);
+        assert_eq!(days_from_civil(2024, 2, 29), 19782);
+        assert_eq!(days_from_civil(1969, 12, 31), -1);
+    }
+
+    /// A 4×4 grey JPEG whose EXIF block (an APP1 segment after the start-of-image marker,
+    /// as cameras write it) holds `DateTimeOriginal = stamp`.
+    pub(crate) fn jpeg_with_capture_time(stamp: &str) -> Vec<u8> {
+        let mut jpeg = Vec::new();
+        image::RgbImage::from_pixel(4, 4, image::Rgb([128, 128, 128]))
+            .write_to(
+                &mut std::io::Cursor::new(&mut jpeg),
+                image::ImageFormat::Jpeg,
+            )
+            .unwrap();
+        let field = exif::Field {
+            tag: exif::Tag::DateTimeOriginal,
+            ifd_num: exif::In::PRIMARY,
+            value: exif::Value::Ascii(vec![stamp.as_bytes().to_vec()]),
+        };
+        let mut writer = exif::experimental::Writer::new();
+        writer.push_field(&field);
+        let mut tiff = std::io::Cursor::new(Vec::new());
+        writer.write(&mut tiff, false).unwrap();
+        let tiff = tiff.into_inner();
+        let mut app1 = vec![0xFF, 0xE1];
+        app1.extend(((tiff.len() + 8) as u16).to_be_bytes());
+        app1.extend(b"Exif\0\0");
+        app1.extend(tiff);
+        let mut out = jpeg[..2].to_vec();
+        out.extend(app1);
+        out.extend(&jpeg[2..]);
+        out
+    }
+
+    #[test]
+    fn capture_time_reads_date_time_original() {
+        let dir = std::env::temp_dir().join(format!("relight-exif-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let a = dir.join("a.jpg");
+        let b = dir.join("b.jpg");
+        std::fs::write(&a, jpeg_with_capture_time("2024:02:29 23:59:30")).unwrap();
+        std::fs::write(&b, jpeg_with_capture_time("2024:03:01 00:04:30")).unwrap();
+        // The image still decodes with the EXIF block in it.
+        assert!(Photo::load(&a, 1.0).is_ok());
+        let (ta, tb) = (capture_time(&a).unwrap(), capture_time(&b).unwrap());
+        // 2024-02-29 is day 19782 after 1970-01-01 (see civil_days_match_known_dates).
+        assert_eq!(ta, 19782 * 86_400 + 23 * 3600 + 59 * 60 + 30);
+        // Across midnight and a leap day: 5 minutes later.
+        assert_eq!(tb - ta, 300);
+        // No EXIF block: no time, no error.
+        let plain = dir.join("plain.png");
+        image::RgbImage::new(2, 2).save(&plain).unwrap();
+        assert_eq!(capture_time(&plain), None);
+        assert_eq!(capture_time(&dir.join("missing.jpg")), None);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

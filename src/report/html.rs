@@ -183,6 +183,9 @@ pub struct HtmlInputs {
     pub fitted_exposure: f32,
     /// The exposure shared by the true maps.
     pub true_exposure: Option<f32>,
+    /// The per-channel scale applied to the recovered maps to match the true ones (then
+    /// both are shown at `true_exposure`).
+    pub map_scale: Option<[f32; 3]>,
     /// Material swatches.
     pub materials: Vec<Swatch>,
 }
@@ -362,9 +365,19 @@ fn training_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {
          (×{:.3}) so their brightness compares{}.</p>",
         r.train_rmse,
         inputs.fitted_exposure,
-        inputs.true_exposure.map_or(String::new(), |e| format!(
-            "; the true maps share another (×{e:.3}): the fit's overall scale is not observable"
-        ))
+        match (inputs.map_scale, inputs.true_exposure) {
+            (Some(s), Some(_)) => format!(
+                "; the true maps are the light as each camera saw it (map × exposure × white balance), \
+                 the recovered maps are multiplied by the one per-channel scale that best matches them \
+                 to the true maps (×{:.4} / {:.4} / {:.4}: photos cannot fix it), and both share the \
+                 true maps' exposure, so brightness and colour compare across the row",
+                s[0], s[1], s[2]
+            ),
+            (None, Some(e)) => format!(
+                "; the true maps share another (×{e:.3}): the fit's overall scale is not observable"
+            ),
+            _ => String::new(),
+        }
     );
     let _ = writeln!(
         s,
@@ -405,7 +418,50 @@ fn training_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {
     );
 }
 
-fn materials_section(s: &mut String, inputs: &HtmlInputs) {
+fn materials_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {
+    materials_table(s, inputs);
+    if let Some(a) = &r.albedo_truth {
+        albedo_truth_table(s, a);
+    }
+}
+
+/// Recovered diffuse albedo per material against the truth (synthetic workspaces).
+fn albedo_truth_table(s: &mut String, a: &crate::report::metrics::AlbedoTruth) {
+    let _ = writeln!(
+        s,
+        "<h3 id=\"albedo-truth\">Diffuse albedo against the truth</h3><p>Each recovered \
+         material beside the true material most of its vertices belong to. The recovered albedo \
+         is multiplied by the per-channel scale that best matches the recovered per-vertex \
+         diffuse albedo to the true one over {} vertices (×{:.4} / {:.4} / {:.4}: photos cannot \
+         fix it); the ratio error is scaled / true − 1 (largest: <b>{:.4}</b>).</p>",
+        a.vertices, a.scale[0], a.scale[1], a.scale[2], a.max_ratio_error
+    );
+    let _ = writeln!(
+        s,
+        "<table><tr><th class=\"l\">material</th><th class=\"l\">true material (share)</th>\
+         <th>recovered</th><th>scaled</th><th>true</th><th>ratio error R / G / B</th></tr>"
+    );
+    let rgb = |v: [f64; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
+    for m in &a.materials {
+        let _ = writeln!(
+            s,
+            "<tr><td class=\"l\">{}</td><td class=\"l\">{} ({:.3})</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td>{:+.4} / {:+.4} / {:+.4}</td></tr>",
+            m.material,
+            esc(&m.true_material),
+            m.agreement,
+            rgb(m.recovered),
+            rgb(m.recovered_scaled),
+            rgb(m.truth),
+            m.ratio_error[0],
+            m.ratio_error[1],
+            m.ratio_error[2]
+        );
+    }
+    let _ = writeln!(s, "</table>");
+}
+
+fn materials_table(s: &mut String, inputs: &HtmlInputs) {
     let _ = writeln!(s, "<h2 id=\"materials\">Materials</h2>");
     let _ = writeln!(
         s,
@@ -480,6 +536,14 @@ fn model_section(s: &mut String, r: &RunReport) {
     let _ = writeln!(s, "<p>{}.</p><ul>", facts.join("; "));
     for reason in &m.reasons {
         let _ = writeln!(s, "<li>{}</li>", esc(reason));
+    }
+    if let Some(a) = &m.scale_anchor {
+        let _ = writeln!(
+            s,
+            "<li>scale anchor <code>{}</code>: {}</li>",
+            esc(&a.name),
+            esc(&a.rule)
+        );
     }
     let _ = writeln!(s, "</ul>");
     if let Some(ds) = &m.adaptive {
@@ -602,7 +666,7 @@ pub fn page(r: &RunReport, json: &serde_json::Value, inputs: &HtmlInputs, dir: &
     );
     held_out_section(&mut s, r, dir);
     training_section(&mut s, r, inputs);
-    materials_section(&mut s, inputs);
+    materials_section(&mut s, r, inputs);
     stages_section(&mut s, r);
     model_section(&mut s, r);
     metrics_section(&mut s, json);

@@ -362,6 +362,42 @@ pub struct TruthCheckEntry {
     pub pixels: usize,
 }
 
+/// Diffuse albedo per material, recovered against the truth (synthetic workspaces:
+/// `report.json` key `albedo_truth`, [`crate::run`]'s `truth_check` module).
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct AlbedoTruth {
+    /// The per-channel scale `s_c = Σ_x b_{x,c} β_{x,c} / Σ_x β_{x,c}²` applied to the
+    /// recovered albedo: the least-squares match of the recovered per-vertex diffuse
+    /// albedo `β` to the true one `b` (the scale photos cannot fix, whatever the anchor).
+    pub scale: [f64; 3],
+    /// Vertices compared (those with a blending weight in both).
+    pub vertices: usize,
+    /// Per recovered material.
+    pub materials: Vec<AlbedoTruthEntry>,
+    /// The largest `|ratio_error|` over materials and channels.
+    pub max_ratio_error: f64,
+}
+
+/// One recovered material's diffuse albedo against its true material's.
+#[derive(Debug, Clone, Serialize)]
+pub struct AlbedoTruthEntry {
+    /// Index of the recovered material.
+    pub material: usize,
+    /// The true material it stands for: the most frequent true dominant material over the
+    /// vertices this material dominates.
+    pub true_material: String,
+    /// The share of those vertices whose true dominant material is `true_material`.
+    pub agreement: f64,
+    /// Recovered `λ_{k,lambert,c}` (after the run's scale anchor).
+    pub recovered: [f64; 3],
+    /// `s_c` × recovered.
+    pub recovered_scaled: [f64; 3],
+    /// The true diffuse albedo.
+    pub truth: [f64; 3],
+    /// `recovered_scaled / truth − 1` per channel.
+    pub ratio_error: [f64; 3],
+}
+
 /// RMSE over `mask`'s pixels and channels of `gt − s ⊙ pred` with the per-channel scale
 /// `s` of [`channel_scales`], and the RMS of `gt` there: `(rmse, rms, s)`.
 pub fn rmse_after_channel_scale(

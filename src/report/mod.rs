@@ -105,6 +105,19 @@ pub struct ModelReport {
     /// The per-photo light model used (`--light`) and why.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub light: Option<crate::solve::light::choose::LightDecision>,
+    /// What fixes the per-channel scale between reflectance and light.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_anchor: Option<ScaleAnchorReport>,
+}
+
+/// The per-channel scale anchor ([`crate::solve::normalise::ScaleAnchor`]): its name and
+/// the normalisation applied, in words.
+#[derive(Debug, Clone, Serialize, Default, PartialEq)]
+pub struct ScaleAnchorReport {
+    /// `start` or `grey-world`.
+    pub name: String,
+    /// The rule, with its figures.
+    pub rule: String,
 }
 
 impl ModelReport {
@@ -161,6 +174,9 @@ pub struct RunReport {
     pub metrics: Vec<metrics::MetricsEntry>,
     /// Synthetic workspaces: each training photo rendered from the fit under its true light.
     pub truth_check: Vec<metrics::TruthCheckEntry>,
+    /// Synthetic workspaces: diffuse albedo per material, recovered against the truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub albedo_truth: Option<metrics::AlbedoTruth>,
     /// RMSE over all training observations.
     pub train_rmse: f64,
     /// Per training photo.
@@ -566,6 +582,43 @@ impl RunReport {
             100.0 * mean(&|t| t.relative_true_light),
             100.0 * mean(&|t| t.relative_fitted_light)
         );
+        self.markdown_albedo_truth(s);
+    }
+
+    /// Diffuse albedo per material against the truth (synthetic workspaces).
+    fn markdown_albedo_truth(&self, s: &mut String) {
+        let Some(a) = &self.albedo_truth else {
+            return;
+        };
+        let _ = writeln!(
+            s,
+            "Diffuse albedo per material against the truth, after the per-channel scale \
+             ×{:.4} / {:.4} / {:.4} that best matches the recovered per-vertex diffuse albedo to \
+             the true one ({} vertices); largest ratio error {:.4}.\n",
+            a.scale[0], a.scale[1], a.scale[2], a.vertices, a.max_ratio_error
+        );
+        let _ = writeln!(
+            s,
+            "| material | true material (share) | recovered | scaled | true | ratio error R / G / B |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        let rgb = |v: [f64; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
+        for m in &a.materials {
+            let _ = writeln!(
+                s,
+                "| {} | {} ({:.3}) | {} | {} | {} | {:+.4} / {:+.4} / {:+.4} |",
+                m.material,
+                m.true_material,
+                m.agreement,
+                rgb(m.recovered),
+                rgb(m.recovered_scaled),
+                rgb(m.truth),
+                m.ratio_error[0],
+                m.ratio_error[1],
+                m.ratio_error[2]
+            );
+        }
+        let _ = writeln!(s);
     }
 }
 

@@ -12,6 +12,7 @@ use crate::observe::Observations;
 use crate::report::{TimelinePoint, TrainEntry};
 use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
+use crate::solve::light::choose::LightChoice;
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::transport::brdf::BasisBrdf;
@@ -61,6 +62,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         validation_fraction: o.validation,
         lighting_sample: o.lighting_sample,
         lighting_strata: strata.to_vec(),
+        scale_anchor: o.scale_anchor,
         ..EstimateOptions::default()
     }
 }
@@ -106,7 +108,15 @@ pub(crate) fn fit<'a>(
         n_vertices: nv,
         n_photos: train.len(),
     };
-    let eopts = estimate_options(&eff, lambert, &strata);
+    let mut eopts = estimate_options(&eff, lambert, &strata);
+    if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
+        let file = opts.light_groups.as_deref();
+        eopts.light_groups =
+            super::light_groups::resolve(file, opts.light_group_minutes, scene, &train)?;
+        if let Some(g) = &eopts.light_groups {
+            reasons.push(format!("shared light: {}", g.source));
+        }
+    }
     let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
     let spinner = progress.spinner("held-out transport");
     let tracker = log.stages.run("transport", || {

@@ -2,8 +2,13 @@
 //! `report_files/`: per training photo a thumbnail (240 px wide, box-filtered) and its
 //! recovered lat-long map; for synthetic workspaces the true map re-expressed in the fit's
 //! environment frame (`L_fit(d) = L_true(T Fᵀ d)`, `F`, `T` the fit's and the truth's
-//! `env_from_world`, bilinear lookup); and the material swatches. One exposure is shared by
-//! all recovered maps and one by all true maps ([`html::shared_exposure`]).
+//! `env_from_world`, bilinear lookup) as the camera saw it (times the photo's exposure and
+//! white balance); and the material swatches. One exposure is shared by all recovered maps
+//! ([`html::shared_exposure`]). When every training photo has a true map, the recovered
+//! maps are first multiplied by the one per-channel scale that best matches them all to
+//! the true maps, `s_c = Σ_{I,px} t_c f_c / Σ_{I,px} f_c²` (photos cannot fix that scale,
+//! paper Eq. 9), and recovered and true maps share the true maps' exposure: side by side,
+//! their brightness and colour compare directly.
 
 use super::evaluate::fitted_env;
 use super::truth::Truth;
@@ -78,12 +83,35 @@ pub(crate) fn html_inputs(f: &Fitted, truth: Option<&Truth>, dir: &Path) -> Resu
     for (k, &v) in f.train.iter().enumerate() {
         let name = &f.scene.views[v].image.name;
         fitted.push(fitted_env(f, k).to_latlong(MAP_HEIGHT));
-        truths.push(truth.and_then(|t| true_map(f, t, name)));
+        truths.push(truth.and_then(|t| {
+            let mut m = true_map(f, t, name)?;
+            let p = t.photos.get(name)?;
+            let gain = p.white_balance.map(|w| (w * p.exposure) as f32);
+            m.rgb
+                .iter_mut()
+                .for_each(|px| (0..3).for_each(|c| px[c] *= gain[c]));
+            Some(m)
+        }));
     }
-    let fit_refs: Vec<&LatLong> = fitted.iter().collect();
-    let fitted_exposure = html::shared_exposure(&fit_refs);
+    let map_scale = truths
+        .iter()
+        .all(Option::is_some)
+        .then(|| best_channel_scale(&fitted, &truths))
+        .flatten();
+    if let Some(s) = map_scale {
+        for m in fitted.iter_mut() {
+            m.rgb
+                .iter_mut()
+                .for_each(|p| (0..3).for_each(|c| p[c] *= s[c]));
+        }
+    }
     let true_refs: Vec<&LatLong> = truths.iter().flatten().collect();
     let true_exposure = (!true_refs.is_empty()).then(|| html::shared_exposure(&true_refs));
+    let fit_refs: Vec<&LatLong> = fitted.iter().collect();
+    let fitted_exposure = match (map_scale, true_exposure) {
+        (Some(_), Some(e)) => e,
+        _ => html::shared_exposure(&fit_refs),
+    };
     let mut training = Vec::new();
     for (k, &v) in f.train.iter().enumerate() {
         let name = f.scene.views[v].image.name.clone();
@@ -117,6 +145,26 @@ pub(crate) fn html_inputs(f: &Fitted, truth: Option<&Truth>, dir: &Path) -> Resu
         training,
         fitted_exposure,
         true_exposure,
+        map_scale,
         materials: swatches(&f.est.lambda, &f.basis),
     })
+}
+
+/// `s_c = Σ t_c f_c / Σ f_c²` over every pixel of every pair (module docs); `None` when a
+/// channel of the recovered maps is all zero or a sum is not finite.
+fn best_channel_scale(fitted: &[LatLong], truths: &[Option<LatLong>]) -> Option<[f32; 3]> {
+    let (mut num, mut den) = ([0.0_f64; 3], [0.0_f64; 3]);
+    for (f, t) in fitted.iter().zip(truths) {
+        let t = t.as_ref()?;
+        for (a, b) in f.rgb.iter().zip(&t.rgb) {
+            for c in 0..3 {
+                num[c] += a[c] as f64 * b[c] as f64;
+                den[c] += a[c] as f64 * a[c] as f64;
+            }
+        }
+    }
+    let s = [0, 1, 2].map(|c| num[c] / den[c]);
+    s.iter()
+        .all(|v| v.is_finite() && *v > 0.0)
+        .then(|| s.map(|v| v as f32))
 }

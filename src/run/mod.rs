@@ -29,6 +29,7 @@ mod example;
 mod fit;
 mod holdout;
 mod html_inputs;
+pub mod light_groups;
 mod notes;
 mod options;
 mod output;
@@ -41,7 +42,8 @@ pub use evaluate::{fine_rays, render_local_resolution};
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    Holdout, MaterialCount, RunOptions, DEFAULT_LIGHTING_SAMPLE, LIGHTING_SAMPLE_MAX_RATIO,
+    Holdout, MaterialCount, RunOptions, DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_GROUP_MINUTES,
+    LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;
 pub use truth::{Truth, TruthPhoto};

@@ -113,7 +113,20 @@ pub struct RunOptions {
     /// The per-photo light model ([`crate::solve::light::choose`]): the paper's free map, the
     /// map under the statistical prior, or both and the lower validation score kept.
     pub light: crate::solve::light::choose::LightChoice,
+    /// Groups of photos under one sky for `--light shared` ([`super::light_groups`]); `None`:
+    /// by EXIF capture time.
+    pub light_groups: Option<std::path::PathBuf>,
+    /// Photos taken at most this many minutes apart share a sky when grouped by capture
+    /// time (0 = never by time).
+    pub light_group_minutes: f64,
+    /// The per-channel scale anchor between reflectance and light
+    /// ([`crate::solve::normalise::ScaleAnchor`]).
+    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
+
+/// Default of [`RunOptions::light_group_minutes`]: 5 minutes, in which the sun moves
+/// about 1.25° and a sky's light changes little unless clouds pass.
+pub const DEFAULT_LIGHT_GROUP_MINUTES: f64 = 5.0;
 
 /// Default of [`RunOptions::lighting_sample`]: 2,000 observations per photo. On
 /// `spot-varying` at 30K vertices (13 photos of 1 MP, the Minerva model;
@@ -184,6 +197,9 @@ impl RunOptions {
             render_training: true,
             adaptive: false,
             light: crate::solve::light::choose::LightChoice::Paper,
+            light_groups: None,
+            light_group_minutes: DEFAULT_LIGHT_GROUP_MINUTES,
+            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }
 
@@ -284,6 +300,12 @@ impl RunOptions {
             return Err(Error::Config(
                 "--holdout-every 0: must be at least 1".into(),
             ));
+        }
+        if !(self.light_group_minutes >= 0.0 && self.light_group_minutes.is_finite()) {
+            return Err(Error::Config(format!(
+                "--light-group-minutes {}: must be a finite number of minutes, 0 or more",
+                self.light_group_minutes
+            )));
         }
         Ok(())
     }

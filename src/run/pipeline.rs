@@ -561,6 +561,10 @@ fn write(
             reasons,
             adaptive: if opts.adaptive { Some(decisions) } else { None },
             light: Some(light_decision),
+            scale_anchor: Some(crate::report::ScaleAnchorReport {
+                name: fitted.estimate_options.scale_anchor.name().to_string(),
+                rule: fitted.est.normalisation.clone(),
+            }),
         },
         notes: std::mem::take(&mut log.notes),
         conditioning,
@@ -572,6 +576,10 @@ fn write(
     report.headline_detail = evaluation.headline;
     report.metrics = evaluation.metrics;
     report.truth_check = truth_check;
+    report.albedo_truth = match truth {
+        Some(t) => super::truth_check::albedo_truth(&fitted, t)?,
+        None => None,
+    };
     report.holdout_rule = holdout_rule;
     report.notes.extend(super::notes::evaluation_notes(
         &fitted,

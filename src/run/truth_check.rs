@@ -10,11 +10,18 @@
 //! photos): `RMSE = √(Σ_c Σ_pixels (y_c − s_c ŷ_c)² / 3n)`, and relative to the photo's RMS
 //! on those pixels. Protocol `truth` of the held-out photos is the same check on photos
 //! the fit never saw.
+//!
+//! Beside it, the diffuse albedo per material against the truth ([`albedo_truth`]), after
+//! the per-channel scale that best maps the recovered per-vertex diffuse albedo onto the
+//! true one (the anchor's scale is arbitrary; ratios between materials are not).
 
 use super::evaluate::{fitted_env, shade_view, valid_mask};
 use super::{Fitted, Truth};
-use crate::report::metrics::{rmse_after_channel_scale, TruthCheckEntry};
-use crate::Result;
+use crate::report::metrics::{
+    rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry,
+};
+use crate::transport::brdf::BasisBrdf;
+use crate::{Error, Result};
 
 /// The truth check of every training photo the manifest lists.
 pub(crate) fn truth_check(f: &Fitted, truth: &Truth) -> Result<Vec<TruthCheckEntry>> {
@@ -44,4 +51,175 @@ pub(crate) fn truth_check(f: &Fitted, truth: &Truth) -> Result<Vec<TruthCheckEnt
         });
     }
     Ok(out)
+}
+
+/// The truth's materials: per-vertex blending weights (row-major `V × J`), names and
+/// diffuse albedos (`truth/weights.ply`, `truth/materials.json`).
+struct TrueMaterials {
+    names: Vec<String>,
+    diffuse: Vec<[f64; 3]>,
+    weights: Vec<f64>,
+}
+
+impl TrueMaterials {
+    /// `None` when the truth has no materials file, no Lambertian lobe or no weights.
+    fn read(truth: &Truth) -> Result<Option<Self>> {
+        let path = truth.dir.join("materials.json");
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            return Ok(None);
+        };
+        let bad = |m: &str| Error::format(&path, "materials", m.to_string());
+        let json: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| Error::format(&path, format!("line {}", e.line()), e.to_string()))?;
+        let lobes = json["lobes"]
+            .as_array()
+            .ok_or_else(|| bad("no `lobes` list"))?;
+        let Some(lt) = lobes.iter().position(|l| l["type"] == "lambert") else {
+            return Ok(None);
+        };
+        let mut names = Vec::new();
+        let mut diffuse = Vec::new();
+        for m in json["materials"]
+            .as_array()
+            .ok_or_else(|| bad("no `materials` list"))?
+        {
+            names.push(m["name"].as_str().unwrap_or("?").to_string());
+            let d = &m["lambda"][lt];
+            let rgb = [0, 1, 2].map(|c| d[c].as_f64());
+            if rgb.iter().any(Option::is_none) {
+                return Err(bad("a material's lambert weight is not three numbers"));
+            }
+            diffuse.push(rgb.map(|v| v.unwrap_or(0.0)));
+        }
+        let wpath = truth.dir.join("weights.ply");
+        let Ok(file) = std::fs::File::open(&wpath) else {
+            return Ok(None);
+        };
+        let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
+            .read_ply(&mut std::io::BufReader::new(file))
+            .map_err(|_| Error::format(&wpath, "header", "not a readable PLY file"))?;
+        let verts = ply.payload.get("vertex").map_or(&[][..], |v| v.as_slice());
+        let j = names.len();
+        let mut weights = Vec::with_capacity(verts.len() * j);
+        for (x, v) in verts.iter().enumerate() {
+            for m in 0..j {
+                let w = match v.get(&format!("w{m}")) {
+                    Some(ply_rs::ply::Property::Float(w)) => *w as f64,
+                    Some(ply_rs::ply::Property::Double(w)) => *w,
+                    _ => {
+                        return Err(Error::format(
+                            &wpath,
+                            format!("vertex {x}"),
+                            format!("no float property w{m}"),
+                        ))
+                    }
+                };
+                weights.push(w);
+            }
+        }
+        Ok(Some(TrueMaterials {
+            names,
+            diffuse,
+            weights,
+        }))
+    }
+}
+
+/// The dominant material of each vertex with any weight (`None` elsewhere).
+fn dominant(weights: &[f64], k: usize) -> Vec<Option<usize>> {
+    weights
+        .chunks(k.max(1))
+        .map(|w| {
+            let (i, &m) = w.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+            (m > 0.0).then_some(i)
+        })
+        .collect()
+}
+
+/// Diffuse albedo per material against the truth (`report.json` `albedo_truth`); `None`
+/// without true materials, with a mesh of another vertex count, or without a Lambertian
+/// lobe in the fit.
+///
+/// Per channel `s_c = Σ_x b_{x,c} β_{x,c} / Σ_x β_{x,c}²` over the vertices with weights in
+/// both (`b`, `β` the true and recovered per-vertex diffuse albedo); each recovered
+/// material `k` stands for the true material most vertices it dominates are dominated by;
+/// its ratio error is `s_c λ_{k,lb,c} / λ^true_{j,lambert,c} − 1`.
+pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTruth>> {
+    let Some(t) = TrueMaterials::read(truth)? else {
+        return Ok(None);
+    };
+    let nv = f.scene.mesh.positions.len();
+    let (kk, jj, nb) = (f.est.lambda.len(), t.names.len(), f.basis.len());
+    let Some(lb) = f.basis.iter().position(|b| matches!(b, BasisBrdf::Lambert)) else {
+        return Ok(None);
+    };
+    if jj == 0 || t.weights.len() != nv * jj || f.est.weights.len() != nv * kk {
+        return Ok(None);
+    }
+    let (dom_fit, dom_true) = (dominant(&f.est.weights, kk), dominant(&t.weights, jj));
+    let (mut num, mut den, mut n) = ([0.0_f64; 3], [0.0_f64; 3], 0);
+    for x in 0..nv {
+        if dom_fit[x].is_none() || dom_true[x].is_none() {
+            continue;
+        }
+        n += 1;
+        let beta = f.beta[x * nb + lb];
+        for c in 0..3 {
+            let b: f64 = (0..jj)
+                .map(|j| t.weights[x * jj + j] * t.diffuse[j][c])
+                .sum();
+            num[c] += b * beta[c];
+            den[c] += beta[c] * beta[c];
+        }
+    }
+    let scale = [0, 1, 2].map(|c| {
+        if den[c] > 0.0 {
+            num[c] / den[c]
+        } else {
+            f64::NAN
+        }
+    });
+    let mut materials = Vec::new();
+    for k in 0..kk {
+        let mut votes = vec![0usize; jj];
+        for x in 0..nv {
+            if let (Some(a), Some(b)) = (dom_fit[x], dom_true[x]) {
+                if a == k {
+                    votes[b] += 1;
+                }
+            }
+        }
+        let total: usize = votes.iter().sum();
+        let (j, &v) = votes
+            .iter()
+            .enumerate()
+            .max_by_key(|e| *e.1)
+            .unwrap_or((0, &0));
+        if total == 0 {
+            continue;
+        }
+        let recovered = f.est.lambda[k][lb];
+        let recovered_scaled = [0, 1, 2].map(|c| scale[c] * recovered[c]);
+        let ratio_error = [0, 1, 2].map(|c| recovered_scaled[c] / t.diffuse[j][c] - 1.0);
+        materials.push(AlbedoTruthEntry {
+            material: k,
+            true_material: t.names[j].clone(),
+            agreement: v as f64 / total as f64,
+            recovered,
+            recovered_scaled,
+            truth: t.diffuse[j],
+            ratio_error,
+        });
+    }
+    let max_ratio_error = materials
+        .iter()
+        .flat_map(|m| m.ratio_error)
+        .map(f64::abs)
+        .fold(0.0, f64::max);
+    Ok(Some(AlbedoTruth {
+        scale,
+        vertices: n,
+        materials,
+        max_ratio_error,
+    }))
 }

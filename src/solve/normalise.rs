@@ -7,10 +7,57 @@
 //! (basis `lambert_basis`) over materials and channels equals that of the start (the
 //! initial materials' median colours; the mean of all `λ` when either is 0), the lights
 //! taking the inverse scale. With `fixed_materials` (Sec. 6.1) nothing is rescaled.
+//!
+//! **The per-channel scale anchor** ([`ScaleAnchor`]). `F` is also invariant under a
+//! per-channel `λ_{·,·,c} → t_c λ_{·,·,c}`, `x_{I,c} → x_{I,c} / t_c`: photos can never
+//! tell a reddish object under white light from a white one under reddish light. Some
+//! anchor fixes `t_c`, and the report names it (`scale_anchor`):
+//! - `start` (default): the per-channel balance is where the alternation left it from the
+//!   start (the initial materials' median colours, the gauge of
+//!   [`EstimateOptions::fix_gauge`] when on); only the overall scale above is anchored;
+//! - `grey-world`: per channel, the mean diffuse albedo over the surface,
+//!   `(1/|X|) Σ_{x∈X} β_{x,lb,c}` (`X` the vertices with any blending weight), is
+//!   [`GREY_WORLD_ALBEDO`] = 0.5, the lights taking `1 / t_c` (applied after the rule
+//!   above, so it replaces that rule's overall scale).
 
 use crate::solve::light::LightModel;
 use crate::solve::options::EstimateOptions;
 use crate::solve::result::Materials0;
+use crate::{Error, Result};
+
+/// The mean diffuse albedo per channel under [`ScaleAnchor::GreyWorld`].
+pub const GREY_WORLD_ALBEDO: f64 = 0.5;
+
+/// How the per-channel scale between reflectance and light is fixed (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ScaleAnchor {
+    /// The start's per-channel balance; the mean Lambertian weight at its start value.
+    #[default]
+    Start,
+    /// Mean diffuse albedo over the surface = 0.5 per channel.
+    GreyWorld,
+}
+
+impl ScaleAnchor {
+    /// Parse `start` or `grey-world`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "start" => Ok(ScaleAnchor::Start),
+            "grey-world" => Ok(ScaleAnchor::GreyWorld),
+            other => Err(Error::Config(format!(
+                "--scale-anchor {other}: expected `start` or `grey-world`"
+            ))),
+        }
+    }
+
+    /// The name `parse` reads (the report's `scale_anchor.name`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ScaleAnchor::Start => "start",
+            ScaleAnchor::GreyWorld => "grey-world",
+        }
+    }
+}
 
 /// Normalises `lambda`, `weights` and the light (module docs); the rule applied, in words
 /// ([`crate::solve::Estimate::normalisation`]).
@@ -36,10 +83,57 @@ pub(crate) fn normalise<M: LightModel>(
         }
         light.normalise(s);
     }
-    format!(
+    let rule = format!(
         "every material's median blending weight over the vertices it dominates is 1; then {} equals its initial value {:.6e}; maps scaled inversely",
         scale.what, scale.target
-    )
+    );
+    match opts.scale_anchor {
+        ScaleAnchor::Start => {
+            format!("{rule}; per-channel balance: the start's (scale anchor `start`)")
+        }
+        ScaleAnchor::GreyWorld => {
+            let t = grey_world_scales(lambda, weights, lb);
+            for (c, &tc) in t.iter().enumerate() {
+                if tc > 0.0 && tc.is_finite() {
+                    lambda.iter_mut().flatten().for_each(|v| v[c] *= tc);
+                    light.divide_channel(c, tc);
+                }
+            }
+            format!(
+                "every material's median blending weight over the vertices it dominates is 1; then per channel the mean diffuse albedo over the surface is {GREY_WORLD_ALBEDO} (scale anchor `grey-world`, factors {:.4} / {:.4} / {:.4}); maps scaled inversely",
+                t[0], t[1], t[2]
+            )
+        }
+    }
+}
+
+/// Per channel, the factor `t_c` that brings the surface's mean diffuse albedo
+/// `(1/|X|) Σ_x Σ_k w_{x,k} λ_{k,lb,c}` to [`GREY_WORLD_ALBEDO`] (`X`: vertices with any
+/// blending weight); 1 where that mean is 0.
+pub fn grey_world_scales(lambda: &[Vec<[f64; 3]>], weights: &[f64], lb: usize) -> [f64; 3] {
+    let kk = lambda.len();
+    let nv = weights.len() / kk.max(1);
+    let (mut sum, mut n) = ([0.0_f64; 3], 0usize);
+    for x in 0..nv {
+        let w = &weights[x * kk..(x + 1) * kk];
+        if w.iter().all(|&v| v <= 0.0) {
+            continue;
+        }
+        n += 1;
+        for (k, &wk) in w.iter().enumerate() {
+            for c in 0..3 {
+                sum[c] += wk * lambda[k][lb][c];
+            }
+        }
+    }
+    sum.map(|s| {
+        let mean = s / n.max(1) as f64;
+        if mean > 0.0 {
+            GREY_WORLD_ALBEDO / mean
+        } else {
+            1.0
+        }
+    })
 }
 
 /// Per material, the median weight over the vertices where it dominates becomes 1, its

@@ -157,6 +157,12 @@ pub struct EstimateOptions {
     /// The sun-and-sky light model instead of the paper's free map (issue 25, `--light
     /// sky`; `None`: the paper's map, with `light_prior` if set): [`crate::solve::light::sky`].
     pub light_sky: Option<crate::solve::light::sky::SkyOptions>,
+    /// Photos that share one map with per-photo gains (issue 25, not in the paper;
+    /// [`crate::solve::light::shared`]); `None`: a map per photo.
+    pub light_groups: Option<crate::solve::light::shared::LightGroups>,
+    /// How the per-channel scale between reflectance and light is fixed after the
+    /// alternation ([`crate::solve::normalise::ScaleAnchor`]).
+    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
@@ -238,6 +244,8 @@ impl Default for EstimateOptions {
             lighting_strata: Vec::new(),
             light_prior: None,
             light_sky: None,
+            light_groups: None,
+            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }
 }

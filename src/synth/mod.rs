@@ -344,6 +344,7 @@ fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<Lig
                 plan.push((maps.len() - 1, 0, Some(sun)));
                 continue;
             }
+            Lighting::Grouped(list) => (list[i % list.len()], false),
         };
         let idx = match maps.iter().position(|x| x.0 == m) {
             Some(j) => j,

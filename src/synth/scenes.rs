@@ -29,6 +29,9 @@ pub(crate) enum Lighting {
     /// the sun at azimuth `2π (i + jitter) / photos` and a random elevation in 20°–60°
     /// ([`super::sky_map`]).
     Sky,
+    /// Photos in groups under one sky each: photo `i` sees map `i mod len`, unrotated
+    /// (photos taken in sessions round the object; `--light shared`).
+    Grouped(&'static [&'static str]),
 }
 
 pub(crate) struct SceneDef {
@@ -133,6 +136,18 @@ pub(crate) fn scene_defs() -> Vec<SceneDef> {
             ],
             lighting: Lighting::Static("forest"),
             photos: 12,
+        },
+        SceneDef {
+            name: "spot-groups",
+            description: "Spot, two blended materials, photos in three groups under one real map each (courtyard, forest, city), held-out photos in every group",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert, phong(50.0), Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![
+                ("orange-ggx", vec![[0.8, 0.45, 0.2], [0.0, 0.0, 0.0], [0.25, 0.25, 0.25]]),
+                ("blue-phong", vec![[0.2, 0.3, 0.6], [0.3, 0.3, 0.3], [0.0, 0.0, 0.0]]),
+            ],
+            lighting: Lighting::Grouped(&["courtyard", "forest", "city"]),
+            photos: 16,
         },
         SceneDef {
             name: "spot-textured",

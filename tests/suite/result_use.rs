@@ -60,6 +60,14 @@ fn report_html_export_and_render_of_the_example() {
         assert!(img.width() > 0 && img.height() > 0, "{s}");
     }
     assert!(html.contains("Held-out photos") && html.contains("colour scale"));
+    // Truth against recovered (synthetic workspace): every training photo's recovered map
+    // beside its true map, and the albedo table, whose figures an independent computation
+    // from the truth files and the result's own files must reproduce.
+    let recovered = srcs.iter().filter(|s| s.ends_with(".map.png")).count();
+    let true_maps = srcs.iter().filter(|s| s.ends_with(".true_map.png")).count();
+    assert!(recovered >= 2 && true_maps == recovered, "{srcs:?}");
+    assert!(html.contains("id=\"albedo-truth\"") && html.contains("scale anchor"));
+    check_albedo_truth(&out);
     if must_run(&["chromium"], "report.html in headless chromium") {
         let o = Command::new("bash")
             .arg(script("check_report_html.sh"))
@@ -158,4 +166,130 @@ fn report_html_export_and_render_of_the_example() {
     names.sort();
     names.dedup();
     assert_eq!(names.len(), r.views.len(), "two views share a file name");
+}
+
+/// `name`'s float properties `props` of every vertex of a PLY file, read by ply-rs.
+fn ply_columns(path: &Path, props: &[String]) -> Vec<Vec<f64>> {
+    use ply_rs::parser::Parser;
+    use ply_rs::ply::{DefaultElement, Property};
+    let mut f = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let ply = Parser::<DefaultElement>::new().read_ply(&mut f).unwrap();
+    props
+        .iter()
+        .map(|p| {
+            ply.payload["vertex"]
+                .iter()
+                .map(|v| match &v[p] {
+                    Property::Float(x) => *x as f64,
+                    Property::Double(x) => *x,
+                    other => panic!("{p}: {other:?}"),
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// `report.json`'s `albedo_truth` recomputed from files alone: the truth's
+/// `materials.json` and `weights.ply`, the result's `materials.json` (λ) and `mesh.ply`
+/// (per-vertex diffuse albedo `albedo_*` and weights `w*`).
+fn check_albedo_truth(out: &Path) {
+    let read = |p: PathBuf| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let truth_dir = builtin_example().unwrap().join("truth");
+    let tm = read(truth_dir.join("materials.json"));
+    let lt = tm["lobes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|l| l["type"] == "lambert")
+        .unwrap();
+    let tmat = tm["materials"].as_array().unwrap();
+    let tdiff: Vec<[f64; 3]> = tmat
+        .iter()
+        .map(|m| [0, 1, 2].map(|c| m["lambda"][lt][c].as_f64().unwrap()))
+        .collect();
+    let jj = tdiff.len();
+    let tw = ply_columns(
+        &truth_dir.join("weights.ply"),
+        &(0..jj).map(|j| format!("w{j}")).collect::<Vec<_>>(),
+    );
+    let fm = read(out.join("materials.json"));
+    let lb = fm["basis"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|b| b["label"] == "lambert")
+        .unwrap();
+    let lambda = fm["lambda"].as_array().unwrap();
+    let kk = lambda.len();
+    let mut props: Vec<String> = ["albedo_r", "albedo_g", "albedo_b"]
+        .map(String::from)
+        .to_vec();
+    props.extend((0..kk).map(|k| format!("w{k}")));
+    let cols = ply_columns(&out.join("mesh.ply"), &props);
+    let nv = cols[0].len();
+    assert_eq!(tw[0].len(), nv, "the run's mesh is the truth's");
+    let argmax = |w: &[f64]| {
+        let (i, m) = w
+            .iter()
+            .enumerate()
+            .fold((0, f64::MIN), |a, (i, &v)| if v > a.1 { (i, v) } else { a });
+        (m > 0.0).then_some(i)
+    };
+    let dom_fit: Vec<Option<usize>> = (0..nv)
+        .map(|x| argmax(&(0..kk).map(|k| cols[3 + k][x]).collect::<Vec<_>>()))
+        .collect();
+    let dom_true: Vec<Option<usize>> = (0..nv)
+        .map(|x| argmax(&(0..jj).map(|j| tw[j][x]).collect::<Vec<_>>()))
+        .collect();
+    let (mut num, mut den) = ([0.0; 3], [0.0; 3]);
+    for x in 0..nv {
+        if dom_fit[x].is_none() || dom_true[x].is_none() {
+            continue;
+        }
+        for c in 0..3 {
+            let b: f64 = (0..jj).map(|j| tw[j][x] * tdiff[j][c]).sum();
+            num[c] += b * cols[c][x];
+            den[c] += cols[c][x] * cols[c][x];
+        }
+    }
+    let scale: Vec<f64> = (0..3).map(|c| num[c] / den[c]).collect();
+    let report = read(out.join("report.json"));
+    let a = &report["albedo_truth"];
+    // mesh.ply stores the albedo and weights as f32 (relative rounding 6e-8 per value):
+    // sums over the mesh agree with the run's f64 figures to far better than 1e-5.
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-5 * y.abs().max(1e-3);
+    for c in 0..3 {
+        let s = a["scale"][c].as_f64().unwrap();
+        assert!(
+            close(s, scale[c]),
+            "scale {c}: report {s}, recomputed {}",
+            scale[c]
+        );
+    }
+    let entries = a["materials"].as_array().unwrap();
+    assert_eq!(entries.len(), kk);
+    for e in entries {
+        let k = e["material"].as_u64().unwrap() as usize;
+        let mut votes = vec![0usize; jj];
+        for x in 0..nv {
+            if let (Some(f), Some(t)) = (dom_fit[x], dom_true[x]) {
+                if f == k {
+                    votes[t] += 1;
+                }
+            }
+        }
+        let j = (0..jj).max_by_key(|&j| votes[j]).unwrap();
+        assert_eq!(e["true_material"], tmat[j]["name"], "material {k}");
+        for c in 0..3 {
+            let l = lambda[k][lb][c].as_f64().unwrap();
+            let err = scale[c] * l / tdiff[j][c] - 1.0;
+            let rep = e["ratio_error"][c].as_f64().unwrap();
+            assert!(
+                (rep - err).abs() < 1e-5,
+                "material {k} channel {c}: report {rep}, recomputed {err}"
+            );
+        }
+    }
 }

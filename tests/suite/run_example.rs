@@ -184,3 +184,78 @@ fn several_starts_keep_the_lowest_validation_score() {
     assert!(truth.len() == 2 && truth.iter().all(|h| h.rmse_scaled.is_finite()));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--light shared` with a groups file on the built-in example: the run fits one map per
+/// group (photos 0–2 share one, the rest keep their own), the report says which model and
+/// where the groups came from, and every photo of a group gets the same map up to its
+/// per-channel gains. A groups file naming an unknown photo is refused with the file and
+/// line, before anything is written.
+#[test]
+fn shared_light_follows_a_groups_file() {
+    use relight_cpc::solve::light::choose::LightChoice;
+    let dir = std::env::temp_dir().join(format!("relight-run-shared-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let groups = dir.join("groups.txt");
+    std::fs::write(
+        &groups,
+        "# one sky for the first three photos\nphoto_000.png a\nphoto_001.png a\nphoto_002.png a\n",
+    )
+    .unwrap();
+    let mut o = options(&dir.join("spot"));
+    o.max_iterations = 2;
+    o.light = LightChoice::Shared;
+    o.light_groups = Some(groups.clone());
+    let r = run(&o).expect("run with --light shared").report;
+    let light = r.model.light.as_ref().unwrap();
+    assert_eq!(light.model, "shared", "{light:?}");
+    assert!(
+        r.model
+            .reasons
+            .iter()
+            .any(|s| s.contains("groups of the 6 training photos from")),
+        "{:?}",
+        r.model.reasons
+    );
+    // The three photos' fitted maps: one map times per-channel gains, so the texel-wise
+    // ratio of two of them is one number per channel (to the f32 precision of the EXR
+    // files, 1e-5 relative, on texels brighter than 1e-3 of the map's peak).
+    let read = |n: &str| {
+        relight_cpc::sphere::envmap::LatLong::read_exr(
+            &dir.join("spot/envmaps").join(format!("{n}.latlong.exr")),
+        )
+        .unwrap()
+        .0
+    };
+    let (a, b) = (read("photo_000"), read("photo_002"));
+    for c in 0..3 {
+        let peak = a.rgb.iter().map(|p| p[c]).fold(0.0f32, f32::max);
+        let ratios: Vec<f64> = a
+            .rgb
+            .iter()
+            .zip(&b.rgb)
+            .filter(|(p, q)| p[c] > 1e-3 * peak && q[c] > 0.0)
+            .map(|(p, q)| q[c] as f64 / p[c] as f64)
+            .collect();
+        assert!(ratios.len() > 100, "channel {c}: {} texels", ratios.len());
+        let (lo, hi) = ratios
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+        assert!(hi / lo - 1.0 < 1e-4, "channel {c}: ratios {lo}..{hi}");
+    }
+
+    std::fs::write(&groups, "photo_000.png a\nno_such_photo.png b\n").unwrap();
+    let mut o = options(&dir.join("refused"));
+    o.light = LightChoice::Shared;
+    o.light_groups = Some(groups);
+    let e = run(&o).unwrap_err().to_string();
+    assert!(
+        e.contains("groups.txt") && e.contains("line 2") && e.contains("no_such_photo.png"),
+        "{e}"
+    );
+    assert!(
+        !dir.join("refused").exists(),
+        "nothing written for a refused run"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

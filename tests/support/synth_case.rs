@@ -180,6 +180,9 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
                 seed,
             },
             points: 400,
+            // `SYNTH_WHITE_BALANCE=1`: random per-photo white balance too (the shared-light
+            // model's gains must absorb it).
+            white_balance: std::env::var("SYNTH_WHITE_BALANCE").is_ok_and(|v| v == "1"),
             ..SynthOptions::default()
         },
     )

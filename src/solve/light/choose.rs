@@ -1,8 +1,12 @@
 //! Which per-photo light model a fit uses (issue 25, `--light`): the paper's free map,
-//! the free map under the statistical prior of [`crate::solve::light::sh_prior`], the
-//! sun and sky of [`crate::solve::light::sky`], or `auto`, which fits all three and keeps the one with the lower early-stopping validation score (the same
-//! seeded held-back observations for both, [`crate::solve::Validation`]), as `--adaptive`
-//! chooses the model order by held-out error.
+//! the free map under the statistical prior of [`crate::solve::light::sh_prior`], one map
+//! per group of photos under one sky with per-photo gains
+//! ([`crate::solve::light::shared`]), the sun and sky of [`crate::solve::light::sky`], or
+//! `auto`, which fits each that applies (`shared`
+//! only when some group holds two photos or more) and keeps the one with the lowest
+//! early-stopping validation score (the same seeded held-back observations for all,
+//! [`crate::solve::Validation`]), as `--adaptive` chooses the model order by held-out
+//! error.
 
 use crate::solve::light::sh_prior::LightPriorOptions;
 use crate::solve::EstimateOptions;
@@ -25,22 +29,25 @@ pub enum LightChoice {
     Paper,
     /// The free map plus the prior on its low-order shape and wavelet sparsity.
     Prior,
+    /// One free map per group of photos, per-photo exposure and white-balance gains.
+    Shared,
     /// A parametric sun and sky plus a penalised wavelet residual per photo.
     Sky,
-    /// Every model fitted; the lowest validation score kept.
+    /// Every model that applies fitted; the lowest validation score kept.
     Auto,
 }
 
 impl LightChoice {
-    /// Parse `paper`, `prior`, `sky` or `auto`.
+    /// Parse `paper`, `prior`, `shared`, `sky` or `auto`.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "paper" => Ok(LightChoice::Paper),
             "prior" => Ok(LightChoice::Prior),
+            "shared" => Ok(LightChoice::Shared),
             "sky" => Ok(LightChoice::Sky),
             "auto" => Ok(LightChoice::Auto),
             other => Err(Error::Config(format!(
-                "--light {other}: expected `paper`, `prior`, `sky` or `auto`"
+                "--light {other}: expected `paper`, `prior`, `shared`, `sky` or `auto`"
             ))),
         }
     }
@@ -50,6 +57,7 @@ impl LightChoice {
         match self {
             LightChoice::Paper => "paper",
             LightChoice::Prior => "prior",
+            LightChoice::Shared => "shared",
             LightChoice::Sky => "sky",
             LightChoice::Auto => "auto",
         }
@@ -59,23 +67,42 @@ impl LightChoice {
 /// One light model to fit: its name and the estimator's options for it.
 #[derive(Debug, Clone)]
 pub struct LightCandidate {
-    /// `paper`, `prior` or `sky`.
+    /// `paper`, `prior`, `shared` or `sky`.
     pub name: &'static str,
     /// `base` with the model's light terms.
     pub options: EstimateOptions,
 }
 
 /// The models `choice` fits, from the estimator options `base` (whose `light_prior` and
-/// `light_sky` are replaced).
+/// `light_sky` are replaced; its `light_groups`, the photo groups when known, are kept by
+/// `shared` alone).
 pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<LightCandidate>> {
     let paper = || LightCandidate {
         name: "paper",
         options: EstimateOptions {
             light_prior: None,
             light_sky: None,
+            light_groups: None,
             ..base.clone()
         },
     };
+    let shared = || -> Result<LightCandidate> {
+        let Some(groups) = &base.light_groups else {
+            return Err(Error::Config(
+                "--light shared: no photo groups; give --light-groups FILE, or photos whose EXIF capture times lie within --light-group-minutes of each other".into(),
+            ));
+        };
+        Ok(LightCandidate {
+            name: "shared",
+            options: EstimateOptions {
+                light_prior: None,
+                light_groups: Some(groups.clone()),
+                light_sky: None,
+                ..base.clone()
+            },
+        })
+    };
+    let any_shared = base.light_groups.as_ref().is_some_and(|g| g.any_shared());
     let prior = || -> Result<LightCandidate> {
         Ok(LightCandidate {
             name: "prior",
@@ -85,6 +112,7 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
                     PRIOR_HAAR_NOISE,
                 )?),
                 light_sky: None,
+                light_groups: None,
                 ..base.clone()
             },
         })
@@ -93,6 +121,7 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
         name: "sky",
         options: EstimateOptions {
             light_prior: None,
+            light_groups: None,
             light_sky: Some(crate::solve::light::sky::SkyOptions::default()),
             ..base.clone()
         },
@@ -100,7 +129,9 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
     Ok(match choice {
         LightChoice::Paper => vec![paper()],
         LightChoice::Prior => vec![prior()?],
+        LightChoice::Shared => vec![shared()?],
         LightChoice::Sky => vec![sky()],
+        LightChoice::Auto if any_shared => vec![paper(), prior()?, shared()?, sky()],
         LightChoice::Auto => vec![paper(), prior()?, sky()],
     })
 }
@@ -173,6 +204,7 @@ mod tests {
         for c in [
             LightChoice::Paper,
             LightChoice::Prior,
+            LightChoice::Shared,
             LightChoice::Sky,
             LightChoice::Auto,
         ] {
@@ -180,5 +212,39 @@ mod tests {
         }
         let e = LightChoice::parse("skies").unwrap_err().to_string();
         assert!(e.contains("--light skies"), "{e}");
+    }
+
+    #[test]
+    fn shared_needs_groups_and_alone_keeps_them() {
+        use crate::solve::light::shared::LightGroups;
+        let base = EstimateOptions::default();
+        let e = candidates(LightChoice::Shared, &base)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--light-groups"), "{e}");
+        let names = |v: &[LightCandidate]| v.iter().map(|c| c.name).collect::<Vec<_>>();
+        assert_eq!(
+            names(&candidates(LightChoice::Auto, &base).unwrap()),
+            ["paper", "prior", "sky"]
+        );
+        // Groups of one photo each: `auto` does not fit `shared` (it would be `paper`).
+        let single = EstimateOptions {
+            light_groups: Some(LightGroups::from_labels(&[0, 1, 2], String::new())),
+            ..base.clone()
+        };
+        assert_eq!(
+            names(&candidates(LightChoice::Auto, &single).unwrap()).len(),
+            3
+        );
+        let grouped = EstimateOptions {
+            light_groups: Some(LightGroups::from_labels(&[0, 0, 1], String::new())),
+            ..base
+        };
+        let c = candidates(LightChoice::Auto, &grouped).unwrap();
+        assert_eq!(names(&c), ["paper", "prior", "shared", "sky"]);
+        for m in &c {
+            assert_eq!(m.options.light_groups.is_some(), m.name == "shared");
+            assert_eq!(m.options.light_sky.is_some(), m.name == "sky");
+        }
     }
 }

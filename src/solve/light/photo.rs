@@ -69,14 +69,14 @@ pub(crate) fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
 /// One photo's observations as its lighting step reads them: the QP's rows (all of the
 /// photo's observations, or its lighting sample) and every observation (IRLS's scale and
 /// weights come from all of them).
-struct PhotoData {
-    range: std::ops::Range<usize>,
+pub(crate) struct PhotoData {
+    pub(crate) range: std::ops::Range<usize>,
     /// Positions in the range of the QP's rows.
-    pos: Vec<usize>,
+    pub(crate) pos: Vec<usize>,
     /// `α_p` times the row's Horvitz–Thompson weight (1 without a sample), per row.
-    alpha: Vec<f64>,
+    pub(crate) alpha: Vec<f64>,
     /// `y_{p,c}` per row.
-    y: Vec<[f64; 3]>,
+    pub(crate) y: Vec<[f64; 3]>,
     /// `α_p` of every observation of the photo.
     alpha_all: Vec<f64>,
     /// `y_{p,c}` of every observation of the photo.
@@ -86,7 +86,7 @@ struct PhotoData {
 }
 
 impl PhotoData {
-    fn new(problem: &Problem, photo: usize, sample: Option<&Subsample>) -> Self {
+    pub(crate) fn new(problem: &Problem, photo: usize, sample: Option<&Subsample>) -> Self {
         let range = problem.obs.photo_ranges[photo].clone();
         let obs = problem.obs;
         let (pos, ht): (Vec<usize>, Vec<f64>) = match sample {
@@ -110,7 +110,7 @@ impl PhotoData {
     }
 
     /// The QP's rows as observation indices.
-    fn rows(&self) -> impl Iterator<Item = usize> + '_ {
+    pub(crate) fn rows(&self) -> impl Iterator<Item = usize> + '_ {
         self.pos.iter().map(|&q| self.range.start + q)
     }
 
@@ -397,7 +397,7 @@ fn start_texels(start: Option<&[Vec<f64>; 3]>, n2: usize) -> Result<Vec<f64>> {
 
 /// IRLS: `ω` of every observation of the photo from the residuals of `x`, per channel
 /// scaled by `σ = max(1.4826 · MAD, robust_floor · rms(y))` (module docs).
-fn reweight(
+pub(crate) fn reweight(
     problem: &Problem,
     beta: &[[f64; 3]],
     sys: &PhotoSystem,

@@ -1,0 +1,611 @@
+//! Shared light (issue 25, not in the paper): photos taken under one sky share one
+//! non-negative octahedral map, each photo seeing it through its own exposure and
+//! white-balance gains.
+//!
+//! Photo `I` of group `g(I)` sees, per channel `c`, the map `x_{I,c} = a_{I,c} m_{g(I),c}`
+//! with `m_{g,c} ≥ 0` (`n_global²` texels) and `a_{I,c} ≥ 0`. The lighting step minimises
+//!
+//! `Σ_I Σ_{p∈I} α_p ω_{p,c} (y_{p,c} − a_{I,c} ⟨e_{p,c}, W m_{g(I),c}⟩)² + Σ_g μ_{g,c} ‖Δ m_{g,c}‖²`
+//!
+//! (`e_{p,c} = Σ_b β_{x,b,c} g_{p,b}`, Eq. 8; the Laplacian prior of the paper's Eq. 10 on
+//! each shared map) by block coordinate descent, [`INNER_ROUNDS`] rounds per IRLS pass:
+//! 1. **map**, gains fixed: one bound-constrained QP per group, the paper's Eq. 10 over the
+//!    group's photos with photo `I`'s rows weighted by `a_{I,c}²` and its right-hand side by
+//!    `a_{I,c}`: `H = Σ_I a_I² Wᵀ A_Iᵀ D_I A_I W + μ ΔᵀΔ`, `b = Σ_I a_I Wᵀ A_Iᵀ D_I y_I`,
+//!    solved matrix-free from the previous map ([`crate::solve::qp::bound_qp_scaled`]);
+//! 2. **gains**, map fixed: per photo and channel the closed form of a one-variable
+//!    non-negative least squares, `a_{I,c} = max(0, Σ_p d_p y_p s_p / Σ_p d_p s_p²)` with
+//!    `s_p = ⟨e_{p,c}, W m_{g,c}⟩` and `d_p = α_p ω_{p,c}`;
+//! 3. **gauge**: `a m` is invariant under `a → a t`, `m → m / t`; per group and channel the
+//!    mean gain is set to 1, the map taking the factor (the data term is unchanged).
+//!
+//! Each step lowers (or keeps) the data term for the other's value, so the step is monotone
+//! in it. A group of one photo is the paper's model with a gain fixed at 1. IRLS (Huber or
+//! Tukey, [`crate::solve::light::photo`]) reweighs each photo from its own residuals under
+//! `a_I m_g`, restarting from unit weights at every call as the paper's step does; the
+//! lighting sample ([`crate::solve::EstimateOptions::lighting_sample`]) applies per photo.
+//! `μ_{g,c}` = `smoothness` × the largest texel-basis diagonal entry of the group's
+//! system at its first lighting step, decayed as the paper's
+//! (`smoothness_decay`, `smoothness_min`). The statistical prior of
+//! [`crate::solve::light::sh_prior`] is not applied here.
+
+// Numerical kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
+use std::borrow::Cow;
+
+use rayon::prelude::*;
+
+use crate::solve::light::laplacian::Laplacian;
+use crate::solve::light::photo::{lighting_sample, reweight, PhotoData};
+use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
+use crate::solve::light::{LightModel, LightingInput, LightingOutput};
+use crate::solve::options::{EstimateOptions, Robust};
+use crate::solve::problem::{
+    basis_responses, beta_per_vertex, haar3, par_largest_first, predict_from, Problem,
+};
+use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
+use crate::solve::result::Materials0;
+use crate::solve::subsample::{dominant_material, sample_check, SampleCheck, Subsample};
+use crate::{Error, Result};
+
+/// Map / gains rounds per IRLS pass of one lighting step. Two: the first round's map
+/// is fitted with the previous gains, the second's with gains matched to it.
+pub const INNER_ROUNDS: usize = 2;
+
+/// Which photos share a map: a group index per photo of the problem (training photos, in
+/// problem order), groups numbered `0..n_groups` in order of first appearance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightGroups {
+    /// `g(I)` per photo.
+    pub group: Vec<usize>,
+    /// Where the groups came from, in words (the report's).
+    pub source: String,
+}
+
+impl LightGroups {
+    /// Groups from any labels per photo, renumbered in order of first appearance.
+    pub fn from_labels<T: PartialEq + Clone>(labels: &[T], source: String) -> Self {
+        let mut seen: Vec<T> = Vec::new();
+        let group = labels
+            .iter()
+            .map(|l| match seen.iter().position(|s| s == l) {
+                Some(g) => g,
+                None => {
+                    seen.push(l.clone());
+                    seen.len() - 1
+                }
+            })
+            .collect();
+        LightGroups { group, source }
+    }
+
+    /// The number of groups.
+    pub fn n_groups(&self) -> usize {
+        self.group.iter().max().map_or(0, |&g| g + 1)
+    }
+
+    /// The photos of each group, ascending.
+    pub fn members(&self) -> Vec<Vec<usize>> {
+        let mut m = vec![Vec::new(); self.n_groups()];
+        for (i, &g) in self.group.iter().enumerate() {
+            m[g].push(i);
+        }
+        m
+    }
+
+    /// Whether some group holds more than one photo (else the model is the paper's).
+    pub fn any_shared(&self) -> bool {
+        self.members().iter().any(|m| m.len() > 1)
+    }
+}
+
+/// The shared model's parameters: a map per group and gains per photo.
+#[derive(Clone, Debug)]
+pub struct SharedParams {
+    /// `m_{g,c}`: texels per group and channel.
+    pub maps: Vec<[Vec<f64>; 3]>,
+    /// `a_{I,c}` per photo.
+    pub gains: Vec<[f64; 3]>,
+}
+
+/// One photo's data inside a lighting step.
+struct PhotoWork {
+    data: PhotoData,
+    sys: PhotoSystem,
+    /// Texel-basis diagonal of the photo's data term (α, no IRLS, no gain).
+    tdiag: Vec<[f64; 3]>,
+    /// IRLS weights of every observation of the photo (range order).
+    omega: Vec<[f64; 3]>,
+}
+
+/// One group's QP answer.
+struct GroupSolve {
+    map: [Vec<f64>; 3],
+    mu: [f64; 3],
+    res: Option<QpResult>,
+}
+
+/// The shared-sky light model (module docs).
+pub struct SharedLight {
+    params: SharedParams,
+    groups: LightGroups,
+    members: Vec<Vec<usize>>,
+    /// `μ_{g,c}` of the latest and of the first lighting step.
+    mu: Vec<Option<[f64; 3]>>,
+    mu_first: Vec<Option<[f64; 3]>>,
+    opts: EstimateOptions,
+    /// `opts` with the alternation's QP caps applied.
+    light_opts: EstimateOptions,
+    lap: Laplacian,
+    dominant: Vec<u32>,
+    samples: Option<Vec<Option<Subsample>>>,
+}
+
+impl SharedLight {
+    /// Zero maps, unit gains; `groups` must give one group per photo of `problem`.
+    pub fn new(
+        problem: &Problem,
+        opts: &EstimateOptions,
+        init: &Materials0,
+        groups: &LightGroups,
+    ) -> Result<Self> {
+        if groups.group.len() != problem.n_photos {
+            return Err(Error::Internal(format!(
+                "shared light: {} photo groups for {} photos",
+                groups.group.len(),
+                problem.n_photos
+            )));
+        }
+        let n2 = problem.transport.n_global.pow(2);
+        let n_groups = groups.n_groups();
+        let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
+            (false, Some(c)) => c.clamp(1, max.max(1)),
+            _ => max,
+        };
+        let light_opts = EstimateOptions {
+            qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
+            qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
+            ..opts.clone()
+        };
+        Ok(SharedLight {
+            params: SharedParams {
+                maps: vec![[vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]]; n_groups],
+                gains: vec![[1.0; 3]; problem.n_photos],
+            },
+            members: groups.members(),
+            groups: groups.clone(),
+            mu: vec![None; n_groups],
+            mu_first: vec![None; n_groups],
+            opts: opts.clone(),
+            light_opts,
+            lap: Laplacian::new(problem.transport.n_global),
+            dominant: dominant_material(&init.weights, init.lambda.len()),
+            samples: None,
+        })
+    }
+
+    /// The factor on `μ_1` at outer iteration `outer_it` (the paper model's schedule).
+    fn mu_factor(&self, outer_it: usize) -> f64 {
+        let o = &self.opts;
+        if o.smoothness_decay == 1.0 || o.smoothness <= 0.0 {
+            1.0
+        } else {
+            o.smoothness_decay
+                .powi(outer_it as i32 - 1)
+                .max(o.smoothness_min / o.smoothness)
+                .min(1.0)
+        }
+    }
+
+    /// Photo `i`'s map `a_{I,c} m_{g,c}`, channel-major.
+    fn photo_texels(params: &SharedParams, g: usize, i: usize) -> Vec<f64> {
+        let (m, a) = (&params.maps[g], params.gains[i]);
+        (0..3)
+            .flat_map(|c| m[c].iter().map(move |v| a[c] * v))
+            .collect()
+    }
+
+    /// Sets each photo's QP weights `d_p a_{I,c}²` from its IRLS weights and gain.
+    fn set_row_weights(&self, work: &mut [PhotoWork]) {
+        let gains = &self.params.gains;
+        work.par_iter_mut().enumerate().for_each(|(i, w)| {
+            let a = gains[i];
+            for (r, &q) in w.data.pos.iter().enumerate() {
+                for c in 0..3 {
+                    w.sys.dw[r][c] = w.data.alpha[r] * w.omega[q][c] * a[c] * a[c];
+                }
+            }
+        });
+    }
+
+    /// Step 1 for group `g` (module docs).
+    fn map_step(&self, work: &[PhotoWork], g: usize, mu_factor: f64) -> Result<GroupSolve> {
+        let n = self.lap_n(work);
+        let n2 = n * n;
+        let members = &self.members[g];
+        let gains = &self.params.gains;
+        let mut diag = vec![[0.0_f64; 3]; n2];
+        let mut hb = vec![[0.0_f64; 3]; n2];
+        for &i in members {
+            let (w, a) = (&work[i], gains[i]);
+            for (d, t) in diag.iter_mut().zip(&w.tdiag) {
+                for c in 0..3 {
+                    d[c] += a[c] * a[c] * t[c];
+                }
+            }
+            let u: Vec<[f64; 3]> = (0..w.data.pos.len())
+                .map(|r| {
+                    let q = w.data.pos[r];
+                    [0, 1, 2].map(|c| w.data.alpha[r] * w.omega[q][c] * a[c] * w.data.y[r][c])
+                })
+                .collect();
+            w.sys.adjoint_rows(&u, &mut hb);
+        }
+        let mu = match self.mu_first[g] {
+            Some(m) => m.map(|v| v * mu_factor),
+            None => diag.iter().fold([0.0_f64; 3], |mut m, v| {
+                for c in 0..3 {
+                    m[c] = m[c].max(self.opts.smoothness * v[c]);
+                }
+                m
+            }),
+        };
+        let b = unhaar3(&hb, n);
+        let start: Vec<f64> = self.params.maps[g].iter().flatten().copied().collect();
+        let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        if bmax == 0.0 {
+            // No light reaches a weighted observation: the minimiser is 0.
+            let zero = [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]];
+            return Ok(GroupSolve {
+                map: zero,
+                mu,
+                res: None,
+            });
+        }
+        let ld = self.lap.normal_diag();
+        let jacobi: Vec<f64> = (0..3)
+            .flat_map(|c| (0..n2).map(move |t| (c, t)))
+            .map(|(c, t)| diag[t][c] + mu[c] * ld[t])
+            .collect();
+        let hess = |v: &[f64], out: &mut [f64]| {
+            let h = haar3(&split3(v, n2), n);
+            let mut acc = vec![[0.0; 3]; n2];
+            for &i in members {
+                work[i].sys.normal_rows(&h, &mut acc);
+            }
+            out.copy_from_slice(&unhaar3(&acc, n));
+            for c in 0..3 {
+                let r = c * n2..(c + 1) * n2;
+                self.lap.add_normal(&v[r.clone()], mu[c], &mut out[r]);
+            }
+        };
+        let qp = QpOptions {
+            tol: self.opts.qp_rel_tol * bmax,
+            max_iter: self.light_opts.qp_max_iter,
+            max_cg: self.light_opts.qp_max_cg.max(1),
+        };
+        let res =
+            bound_qp_scaled(hess, &b, &start, &qp, Some(&jacobi)).map_err(|e| Error::Numeric {
+                stage: format!("shared lighting step, group {g}"),
+                message: e.to_string(),
+            })?;
+        Ok(GroupSolve {
+            map: split3(&res.x, n2),
+            mu,
+            res: Some(res),
+        })
+    }
+
+    fn lap_n(&self, work: &[PhotoWork]) -> usize {
+        work.first().map_or(1, |w| w.sys.n)
+    }
+
+    /// Step 2 (module docs): every photo's gains in closed form.
+    fn gain_step(&mut self, work: &[PhotoWork]) {
+        let n = self.lap_n(work);
+        let hmaps: Vec<Vec<[f64; 3]>> = self.params.maps.iter().map(|m| haar3(m, n)).collect();
+        let groups = &self.groups.group;
+        let old = &self.params.gains;
+        let gains: Vec<[f64; 3]> = work
+            .par_iter()
+            .enumerate()
+            .map(|(i, w)| {
+                let mut s = vec![[0.0; 3]; w.data.pos.len()];
+                w.sys.forward_rows(&hmaps[groups[i]], &mut s);
+                let (mut num, mut den) = ([0.0_f64; 3], [0.0_f64; 3]);
+                for (r, &q) in w.data.pos.iter().enumerate() {
+                    for c in 0..3 {
+                        let d = w.data.alpha[r] * w.omega[q][c];
+                        num[c] += d * w.data.y[r][c] * s[r][c];
+                        den[c] += d * s[r][c] * s[r][c];
+                    }
+                }
+                [0, 1, 2].map(|c| {
+                    if den[c] > 0.0 {
+                        (num[c] / den[c]).max(0.0)
+                    } else {
+                        old[i][c]
+                    }
+                })
+            })
+            .collect();
+        self.params.gains = gains;
+    }
+
+    /// Step 3 (module docs): the mean gain of every group and channel becomes 1.
+    fn balance_gains(&mut self) {
+        balance(&mut self.params, &self.members);
+    }
+}
+
+/// The gauge of step 3 on `params` (module docs).
+fn balance(params: &mut SharedParams, members: &[Vec<usize>]) {
+    for (g, m) in members.iter().enumerate() {
+        for c in 0..3 {
+            let t = m.iter().map(|&i| params.gains[i][c]).sum::<f64>() / m.len().max(1) as f64;
+            if t > 0.0 && t.is_finite() {
+                m.iter().for_each(|&i| params.gains[i][c] /= t);
+                params.maps[g][c].iter_mut().for_each(|v| *v *= t);
+            }
+        }
+    }
+}
+
+impl PhotoWork {
+    fn new(problem: &Problem, beta: &[[f64; 3]], photo: usize, sample: Option<&Subsample>) -> Self {
+        let n = problem.transport.n_global;
+        let data = PhotoData::new(problem, photo, sample);
+        let dw = data.alpha.iter().map(|&a| [a; 3]).collect();
+        let sys = PhotoSystem::new(problem, beta, data.rows(), n, dw);
+        let tdiag = texel_diag_vec(problem, beta, data.rows(), &data.alpha);
+        let omega = vec![[1.0; 3]; data.range.len()];
+        PhotoWork {
+            data,
+            sys,
+            tdiag,
+            omega,
+        }
+    }
+}
+
+impl LightModel for SharedLight {
+    type Params = SharedParams;
+
+    fn name(&self) -> &'static str {
+        "shared: one free wavelet map per group of photos, per-photo exposure and white-balance gains"
+    }
+
+    fn parameter_count(&self) -> usize {
+        let n2 = self.params.maps.first().map_or(0, |m| m[0].len());
+        self.params.maps.len() * 3 * n2 + 3 * self.params.gains.len()
+    }
+
+    fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
+        let problem = input.problem;
+        let beta = input.beta;
+        let mu_factor = self.mu_factor(input.outer_iteration);
+        let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
+        let samples = self.samples.get_or_insert_with(|| {
+            (0..problem.n_photos)
+                .map(|i| lighting_sample(problem, i, &self.opts, Some(&self.dominant)))
+                .collect()
+        });
+        let samples = &*samples;
+        let mut work: Vec<PhotoWork> = par_largest_first(&sizes, |i| {
+            PhotoWork::new(problem, beta, i, samples[i].as_ref())
+        });
+        let passes = if self.opts.robust == Robust::None {
+            1
+        } else {
+            self.opts.irls_iters.max(1)
+        };
+        let cond = &mut *out.conditioning;
+        cond.lighting = vec![0.0; problem.n_photos];
+        cond.qp_unconverged = 0;
+        cond.qp_alternation_capped = 0;
+        let capped = self.light_opts.qp_max_iter < self.opts.qp_max_iter;
+        let n2 = problem.transport.n_global.pow(2);
+        for pass in 0..passes {
+            if pass > 0 {
+                let (params, groups) = (&self.params, &self.groups.group);
+                let opts = &self.opts;
+                work.par_iter_mut().enumerate().for_each(|(i, w)| {
+                    let x = SharedLight::photo_texels(params, groups[i], i);
+                    reweight(problem, beta, &w.sys, &x, &w.data, opts, &mut w.omega);
+                });
+            }
+            for _ in 0..INNER_ROUNDS {
+                self.set_row_weights(&mut work);
+                let group_sizes: Vec<usize> = self
+                    .members
+                    .iter()
+                    .map(|m| m.iter().map(|&i| sizes[i]).sum())
+                    .collect();
+                let solved: Vec<Result<GroupSolve>> =
+                    par_largest_first(&group_sizes, |g| self.map_step(&work, g, mu_factor));
+                for (g, s) in solved.into_iter().enumerate() {
+                    let s = s?;
+                    self.params.maps[g] = s.map;
+                    self.mu[g] = Some(s.mu);
+                    self.mu_first[g].get_or_insert(s.mu);
+                    if let Some(r) = s.res {
+                        cond.qp_unconverged += usize::from(!r.converged);
+                        cond.qp_alternation_capped += usize::from(capped && !r.converged);
+                        cond.lighting_matvecs += r.matvecs;
+                        cond.lighting_qps += 1;
+                        cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(r.matvecs);
+                        for &i in &self.members[g] {
+                            if r.cond_lower_bound.is_finite() {
+                                cond.lighting[i] = r.cond_lower_bound;
+                            }
+                        }
+                    }
+                }
+                self.gain_step(&work);
+                self.balance_gains();
+            }
+        }
+        debug_assert!(self.params.maps.iter().all(|m| m[0].len() == n2));
+        for (i, w) in work.iter().enumerate() {
+            let range = problem.obs.photo_ranges[i].clone();
+            for (o, v) in out.irls_weights[range].iter_mut().zip(&w.omega) {
+                *o = v.map(|x| x as f32);
+            }
+        }
+        Ok(())
+    }
+
+    fn params(&self) -> &SharedParams {
+        &self.params
+    }
+
+    fn set_params(&mut self, params: SharedParams) {
+        self.params = params;
+    }
+
+    fn maps<'a>(&'a self, params: &'a SharedParams) -> Cow<'a, [[Vec<f64>; 3]]> {
+        Cow::Owned(photo_maps(params, &self.groups.group))
+    }
+
+    fn penalty(&self, params: &SharedParams) -> f64 {
+        params
+            .maps
+            .iter()
+            .zip(&self.mu)
+            .map(|(m, mu)| {
+                let mu = mu.unwrap_or([0.0; 3]);
+                (0..3).map(|c| mu[c] * self.lap.energy(&m[c])).sum::<f64>()
+            })
+            .sum()
+    }
+
+    fn extrapolate(&self, params: &SharedParams, prev: &SharedParams, sigma: f64) -> SharedParams {
+        let ext = |a: f64, b: f64| (a + sigma * (a - b)).max(0.0);
+        SharedParams {
+            maps: params
+                .maps
+                .iter()
+                .zip(&prev.maps)
+                .map(|(l, q)| {
+                    [0, 1, 2].map(|c| l[c].iter().zip(&q[c]).map(|(&a, &b)| ext(a, b)).collect())
+                })
+                .collect(),
+            gains: params
+                .gains
+                .iter()
+                .zip(&prev.gains)
+                .map(|(a, b)| [0, 1, 2].map(|c| ext(a[c], b[c])))
+                .collect(),
+        }
+    }
+
+    fn divide_channel(&mut self, c: usize, f: f64) {
+        for m in self.params.maps.iter_mut() {
+            m[c].iter_mut().for_each(|v| *v /= f);
+        }
+    }
+
+    fn normalise(&mut self, s: f64) {
+        for v in self.params.maps.iter_mut().flatten().flatten() {
+            *v /= s;
+        }
+        for m in self.mu.iter_mut().flatten() {
+            m.iter_mut().for_each(|v| *v *= s * s);
+        }
+    }
+
+    fn prior_weights(&self) -> Vec<[f64; 3]> {
+        self.groups
+            .group
+            .iter()
+            .map(|&g| self.mu[g].unwrap_or([0.0; 3]))
+            .collect()
+    }
+
+    fn into_maps(self) -> Vec<[Vec<f64>; 3]> {
+        photo_maps(&self.params, &self.groups.group)
+    }
+
+    fn sample_check(
+        &self,
+        problem: &Problem,
+        lambda: &[Vec<[f64; 3]>],
+        weights: &[f64],
+    ) -> Option<SampleCheck> {
+        let samples = self.samples.as_ref()?;
+        samples.iter().any(Option::is_some).then(|| {
+            let beta = beta_per_vertex(lambda, weights, problem.n_vertices);
+            let maps = photo_maps(&self.params, &self.groups.group);
+            let pred = predict_from(problem, &beta, &basis_responses(problem, &maps));
+            let o = problem.obs;
+            sample_check(
+                &pred,
+                &o.rgb,
+                &o.weight,
+                &o.photo_ranges,
+                samples,
+                self.opts.lighting_sample,
+            )
+        })
+    }
+}
+
+/// Per photo, `a_{I,c} m_{g(I),c}`.
+pub fn photo_maps(params: &SharedParams, group: &[usize]) -> Vec<[Vec<f64>; 3]> {
+    group
+        .iter()
+        .enumerate()
+        .map(|(i, &g)| {
+            let a = params.gains[i];
+            [0, 1, 2].map(|c| params.maps[g][c].iter().map(|v| a[c] * v).collect())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_number_by_first_appearance_and_list_their_members() {
+        let g = LightGroups::from_labels(&["b", "a", "b", "c", "a"], "test".into());
+        assert_eq!(g.group, vec![0, 1, 0, 2, 1]);
+        assert_eq!(g.n_groups(), 3);
+        assert_eq!(g.members(), vec![vec![0, 2], vec![1, 4], vec![3]]);
+        assert!(g.any_shared());
+        let single = LightGroups::from_labels(&[1, 2, 3], "test".into());
+        assert!(!single.any_shared());
+    }
+
+    #[test]
+    fn the_gauge_keeps_every_photos_map_and_sets_mean_gains_to_one() {
+        // Two groups, gains with means (2, 0.5, 1) in group 0: a m per photo must be
+        // unchanged to rounding (1e-12 relative) and the means exactly 1.
+        let mut p = SharedParams {
+            maps: vec![
+                [vec![1.0, 2.0], vec![3.0, 4.0], vec![5.0, 6.0]],
+                [vec![0.5, 0.5], vec![0.0, 1.0], vec![2.0, 0.0]],
+            ],
+            gains: vec![[1.0, 0.25, 0.5], [3.0, 0.75, 1.5], [0.3, 0.0, 7.0]],
+        };
+        let group = vec![0, 0, 1];
+        let before = photo_maps(&p, &group);
+        balance(&mut p, &[vec![0, 1], vec![2]]);
+        let after = photo_maps(&p, &group);
+        for (a, b) in before
+            .iter()
+            .flatten()
+            .flatten()
+            .zip(after.iter().flatten().flatten())
+        {
+            assert!((a - b).abs() <= 1e-12 * a.abs().max(1.0), "{a} vs {b}");
+        }
+        for c in 0..3 {
+            assert!(((p.gains[0][c] + p.gains[1][c]) / 2.0 - 1.0).abs() < 1e-12);
+        }
+        // A zero-mean channel (all gains 0) is left alone, never divided by 0.
+        assert_eq!(p.gains[2][1], 0.0);
+        assert!(p.maps[1][1].iter().all(|v| v.is_finite()));
+    }
+}
