@@ -53,7 +53,7 @@ mod known;
 mod robust;
 
 use relight_cpc::observe::Observations;
-use relight_cpc::solve::light::sh_prior::{map_sample, LightPrior, LightPriorOptions, PriorSample};
+use relight_cpc::solve::light::sh_prior::LightPriorOptions;
 use relight_cpc::solve::light::shared::LightGroups;
 use relight_cpc::solve::starts::{self, estimate_best, MultiStart};
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
@@ -236,70 +236,6 @@ fn prior_opts(o: &mut EstimateOptions) -> &mut LightPriorOptions {
         sh_noise: 0.0,
         haar_noise: 0.0,
     })
-}
-
-// The eight embedded maps' names, in the order of the leave-one-out statistics.
-use relight_cpc::synth::data::MAP_NAMES as PRIOR_MAPS;
-
-/// Statistics for `case`'s training photos: `stats[8]` from all eight maps, `stats[i]` from
-/// all but map `i`; each photo uses the set without the map it was rendered with (from
-/// `truth/manifest.json`), so no photo's own light is in its prior.
-fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
-    let Some(lp) = &o.light_prior else {
-        return o.clone();
-    };
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/synth/hdri");
-    let samples: Vec<PriorSample> = PRIOR_MAPS
-        .iter()
-        .map(|m| {
-            let (ll, _) =
-                relight_cpc::sphere::envmap::LatLong::read_exr(&dir.join(format!("{m}.exr")))
-                    .unwrap();
-            map_sample(&ll, 24, &[case.sizes.global])
-        })
-        .collect();
-    let fit = |skip: Option<usize>| {
-        let names: Vec<String> = (0..8)
-            .filter(|&i| Some(i) != skip)
-            .map(|i| PRIOR_MAPS[i].to_string())
-            .collect();
-        let sub: Vec<PriorSample> = (0..8)
-            .filter(|&i| Some(i) != skip)
-            .map(|i| samples[i].clone())
-            .collect();
-        LightPrior::fit(names, 24, &sub, 0.1).unwrap()
-    };
-    let stats: Vec<LightPrior> = if lp.per_photo.is_some() {
-        (0..8).map(|i| fit(Some(i))).chain([fit(None)]).collect()
-    } else {
-        vec![fit(None)]
-    };
-    let manifest: Value = serde_json::from_str(
-        &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
-    )
-    .unwrap();
-    let map_of = |name: &str| -> usize {
-        let m = manifest["photos"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == name)
-            .and_then(|p| p["map"].as_str())
-            .unwrap_or("");
-        PRIOR_MAPS.iter().position(|x| *x == m).unwrap_or(8)
-    };
-    let per_photo = lp
-        .per_photo
-        .as_ref()
-        .map(|_| case.train.names.iter().map(|n| map_of(n)).collect());
-    EstimateOptions {
-        light_prior: Some(LightPriorOptions {
-            stats: std::sync::Arc::new(stats),
-            per_photo,
-            ..lp.clone()
-        }),
-        ..o.clone()
-    }
 }
 
 /// `o` with its light groups (spec `shared=1`) filled in from the case's truth: training

@@ -135,6 +135,15 @@ pub(crate) struct RunArgs {
         help_heading = "Solver"
     )]
     pub(crate) robust_floor: f64,
+    /// Prior that each surface point's material weights sum to one, as a multiple of what
+    /// its photos charge for a change of its brightness (0 = off: free weights, as the
+    /// paper). Keeps shading that all photos share out of the materials' colours.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::solve::WEIGHTS_SUM,
+        help_heading = "Solver"
+    )]
+    pub(crate) weights_sum: f64,
     /// Fraction of the training observations held back to stop at the best round; 0 turns
     /// early stopping off.
     #[arg(long, default_value_t = 0.1, help_heading = "Solver")]
@@ -240,6 +249,7 @@ impl RunArgs {
         o.patience = self.patience;
         o.starts = self.starts;
         o.robust_floor = self.robust_floor;
+        o.weights_sum = self.weights_sum;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;
         o.progress = !self.quiet;

@@ -91,6 +91,9 @@ pub struct RunOptions {
     /// Lower bound on IRLS's robust scale relative to each photo's RMS radiance
     /// ([`EstimateOptions::robust_floor`]; 0 = the residuals' MAD alone).
     pub robust_floor: f64,
+    /// Prior that each vertex's blending weights sum to one, relative to its data
+    /// ([`EstimateOptions::weights_sum`]; 0 = off, the paper's free weights).
+    pub weights_sum: f64,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -189,6 +192,7 @@ impl RunOptions {
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             robust_floor: EstimateOptions::default().robust_floor,
+            weights_sum: EstimateOptions::default().weights_sum,
             validation: EstimateOptions::default().validation_fraction,
             clip: crate::import::photo::DEFAULT_CLIP,
             seed: 1,
@@ -270,6 +274,12 @@ impl RunOptions {
             return Err(Error::Config(format!(
                 "--robust-floor {}: must be in [0, 1) (a fraction of the RMS radiance)",
                 self.robust_floor
+            )));
+        }
+        if !(self.weights_sum.is_finite() && self.weights_sum >= 0.0) {
+            return Err(Error::Config(format!(
+                "--weights-sum {}: must be a finite number ≥ 0 (0 = off)",
+                self.weights_sum
             )));
         }
         if self.starts == 0 {

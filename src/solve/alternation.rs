@@ -18,7 +18,9 @@ use crate::solve::light::paper::PaperLight;
 use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
-use crate::solve::materials::{data_weights, lambda_step, weights_step};
+use crate::solve::materials::{
+    data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step,
+};
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{evaluate, gauge, Objective, Point};
 use crate::solve::options::EstimateOptions;
@@ -153,6 +155,8 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     gauge0: [f64; 3],
     /// The previous iterate, for extrapolation.
     prev: Option<Snapshot<M::Params>>,
+    /// `γ_x` of the weights' sum-to-one prior, when on ([`EstimateOptions::weights_sum`]).
+    sum_gamma: Option<Vec<f64>>,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -173,6 +177,8 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             cond: Conditioning::default(),
             gauge0: gauge(&init.lambda, &init.weights, problem.n_vertices),
             prev: None,
+            sum_gamma: (opts.weights_sum > 0.0)
+                .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
         }
     }
 
@@ -253,7 +259,14 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             }
             self.lambda = l.lambda;
             self.cond.lambda = l.cond;
-            let w = weights_step(problem, &s, &self.lambda, &self.weights, &dw.weights)?;
+            let w = weights_step(
+                problem,
+                &s,
+                &self.lambda,
+                &self.weights,
+                &dw.weights,
+                self.sum_gamma.as_deref(),
+            )?;
             self.weights = w.weights;
             self.cond.weights_max = w.cond_max;
             self.cond.weights_singular = w.singular;
@@ -262,6 +275,13 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             self.fix_gauge(&mut s);
         }
         Ok(s)
+    }
+
+    /// The weights' sum-to-one prior term of `F` at `weights` (0 when off).
+    fn weights_prior(&self, weights: &[f64]) -> f64 {
+        self.sum_gamma
+            .as_ref()
+            .map_or(0.0, |g| sum_weights_penalty(g, weights, self.lambda.len()))
     }
 
     /// Per channel, `G_c = Σ_x Σ_b β_{x,b,c}` back to its start value, the lights (and
@@ -291,7 +311,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             maps: &maps,
             lambda: &self.lambda,
             weights: &self.weights,
-            prior: self.light.penalty(params),
+            prior: self.light.penalty(params) + self.weights_prior(&self.weights),
         };
         evaluate(self.problem, &at, self.ridge, &self.omega, s)
     }
@@ -329,7 +349,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                     maps: &maps,
                     lambda: &clam,
                     weights: &cw,
-                    prior: self.light.penalty(&cl),
+                    prior: self.light.penalty(&cl) + self.weights_prior(&cw),
                 };
                 evaluate(self.problem, &at, self.ridge, &self.omega, None)
             };

@@ -207,15 +207,45 @@ pub(crate) fn by_vertex(obs: &Observations, n_vertices: usize) -> (Vec<usize>, V
     (off, list)
 }
 
-/// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels.
-/// Vertices without weighted observations keep their weights. Returns the new weights, the
-/// largest finite condition number and the count of singular systems.
+/// The weights of the sum-to-one prior ([`EstimateOptions::weights_sum`] `= tau`): per
+/// vertex `γ_x = tau · Σ_{p ∈ x} α_p Σ_c y_{p,c}²` over its fitted observations. Scaling
+/// every weight of a vertex by `1 + δ` scales its predictions by `1 + δ`; near a fit that
+/// costs `δ² Σ α ‖y‖²` in the data term, and the prior charges `γ_x δ²` when the weights
+/// summed to one, so `tau` is the ratio of the two.
+pub fn sum_weights_gamma(obs: &Observations, n_vertices: usize, tau: f64) -> Vec<f64> {
+    let mut gamma = vec![0.0; n_vertices];
+    for p in 0..obs.len() {
+        let a = obs.weight[p] as f64;
+        if a > 0.0 {
+            let y2: f64 = obs.rgb[p].iter().map(|&v| (v as f64).powi(2)).sum();
+            gamma[obs.vertex[p] as usize] += tau * a * y2;
+        }
+    }
+    gamma
+}
+
+/// The sum-to-one prior's value `Σ_x γ_x (Σ_k w_k(x) − 1)²` (`weights` row-major `V × K`).
+pub fn sum_weights_penalty(gamma: &[f64], weights: &[f64], kk: usize) -> f64 {
+    gamma
+        .iter()
+        .enumerate()
+        .filter(|(_, &g)| g > 0.0)
+        .map(|(x, g)| g * (weights[x * kk..(x + 1) * kk].iter().sum::<f64>() - 1.0).powi(2))
+        .sum()
+}
+
+/// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels,
+/// plus the sum-to-one prior `γ_x (Σ_k w_k − 1)²` when `gamma` is given (its normal
+/// equations gain `γ_x 1 1ᵀ` and `γ_x 1`, [`sum_weights_gamma`]). Vertices without weighted
+/// observations keep their weights. Returns the new weights, the largest finite condition
+/// number and the count of singular systems.
 pub fn weights_step(
     problem: &Problem,
     s: &[[f64; 3]],
     lambda: &[Vec<[f64; 3]>],
     weights: &[f64],
     dw: &[[f64; 3]],
+    gamma: Option<&[f64]>,
 ) -> Result<WeightsStep> {
     let nb = problem.transport.n_basis;
     let kk = lambda.len();
@@ -251,6 +281,14 @@ pub fn weights_step(
             if !any {
                 return Ok((old, 0.0));
             }
+            if let Some(g) = gamma.map(|g| g[x]).filter(|&g| g > 0.0) {
+                for i in 0..kk {
+                    rhs[i] += g;
+                    for j in 0..kk {
+                        mat[(i, j)] += g;
+                    }
+                }
+            }
             let ev = mat.clone().symmetric_eigenvalues();
             let (lo, hi) = ev
                 .iter()
@@ -283,4 +321,154 @@ pub fn weights_step(
         cond_max: cmax,
         singular,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transport::Transport;
+
+    /// One vertex's data for the `w` step: observations, transport (only its basis count
+    /// is read), basis responses `s` and materials `λ`.
+    struct OneVertex {
+        obs: Observations,
+        transport: Transport,
+        s: Vec<[f64; 3]>,
+        lambda: Vec<Vec<[f64; 3]>>,
+    }
+
+    /// One vertex seen by four observations, two materials of one basis: the `w` step's
+    /// normal equations are 2 × 2, so the prior's minimiser has a closed form.
+    fn one_vertex() -> OneVertex {
+        let mut obs = Observations::default();
+        let s = vec![
+            [1.0, 0.8, 0.6],
+            [0.5, 0.9, 1.2],
+            [1.5, 0.4, 0.7],
+            [0.9, 1.1, 0.3],
+        ];
+        let rgb = [
+            [0.9, 0.7, 0.5],
+            [0.6, 0.8, 0.9],
+            [1.1, 0.5, 0.6],
+            [0.7, 0.9, 0.4],
+        ];
+        for (p, y) in rgb.iter().enumerate() {
+            obs.vertex.push(0);
+            obs.photo.push(p as u32);
+            obs.rgb.push(*y);
+            obs.weight.push(1.0);
+            obs.dir.push([0.0, 0.0, 1.0]);
+            obs.photo_ranges.push(p..p + 1);
+        }
+        let t = Transport {
+            n_global: 2,
+            n_basis: 1,
+            n_obs: 4,
+            offsets: vec![0; 5],
+            ..Default::default()
+        };
+        let lambda = vec![vec![[0.8, 0.4, 0.2]], vec![[0.2, 0.4, 0.7]]];
+        OneVertex {
+            obs,
+            transport: t,
+            s,
+            lambda,
+        }
+    }
+
+    /// `(M, b)` of the plain `w` step: `M = Σ a aᵀ`, `b = Σ a y` over observations and
+    /// channels, `a_k = λ_{k,c} s_{p,c}`.
+    fn normal_equations(
+        obs: &Observations,
+        s: &[[f64; 3]],
+        lambda: &[Vec<[f64; 3]>],
+    ) -> ([[f64; 2]; 2], [f64; 2]) {
+        let (mut m, mut b) = ([[0.0; 2]; 2], [0.0; 2]);
+        for p in 0..obs.len() {
+            for c in 0..3 {
+                let a = [lambda[0][0][c] * s[p][c], lambda[1][0][c] * s[p][c]];
+                for i in 0..2 {
+                    b[i] += a[i] * obs.rgb[p][c] as f64;
+                    for j in 0..2 {
+                        m[i][j] += a[i] * a[j];
+                    }
+                }
+            }
+        }
+        (m, b)
+    }
+
+    fn solve2(m: [[f64; 2]; 2], b: [f64; 2]) -> [f64; 2] {
+        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        [
+            (m[1][1] * b[0] - m[0][1] * b[1]) / det,
+            (m[0][0] * b[1] - m[1][0] * b[0]) / det,
+        ]
+    }
+
+    #[test]
+    fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
+        let OneVertex {
+            obs,
+            transport: t,
+            s,
+            lambda,
+        } = one_vertex();
+        let problem = Problem {
+            obs: &obs,
+            transport: &t,
+            n_vertices: 1,
+            n_photos: 4,
+        };
+        let dw = vec![[1.0; 3]; 4];
+        let w0 = vec![0.5, 0.5];
+        // γ by hand: Σ_p Σ_c y² of the four observations.
+        let y2: f64 = obs.rgb.iter().flatten().map(|&v| (v as f64).powi(2)).sum();
+        let gamma = sum_weights_gamma(&obs, 1, 0.3);
+        assert!((gamma[0] - 0.3 * y2).abs() < 1e-12 * y2);
+        let (m, b) = normal_equations(&obs, &s, &lambda);
+        // Soft prior: (M + γ 1 1ᵀ) w = b + γ 1. Both weights come out positive here, so
+        // the NNLS solution is the unconstrained one: equal to rounding (1e-10 relative
+        // covers the active-set solver's Cholesky on a 2 × 2 system).
+        let g = gamma[0];
+        let soft = solve2(
+            [[m[0][0] + g, m[0][1] + g], [m[1][0] + g, m[1][1] + g]],
+            [b[0] + g, b[1] + g],
+        );
+        assert!(soft.iter().all(|&v| v > 0.0), "{soft:?}");
+        let w = weights_step(&problem, &s, &lambda, &w0, &dw, Some(&gamma)).unwrap();
+        for k in 0..2 {
+            assert!(
+                (w.weights[k] - soft[k]).abs() < 1e-10,
+                "{:?} vs {soft:?}",
+                w.weights
+            );
+        }
+        // Off: the plain least squares, whose weights do not sum to one.
+        let free = solve2(m, b);
+        let w = weights_step(&problem, &s, &lambda, &w0, &dw, None).unwrap();
+        for k in 0..2 {
+            assert!((w.weights[k] - free[k]).abs() < 1e-10);
+        }
+        assert!((free[0] + free[1] - 1.0).abs() > 0.05, "{free:?}");
+        // The hard limit (τ = 10⁸): least squares on the line w₀ + w₁ = 1, by Lagrange:
+        // w = M⁻¹ (b − ν 1) with ν chosen so that 1ᵀ w = 1. The soft solution is within
+        // O(1/γ) of it: |M| ≈ 1, γ ≈ 10⁸ ⇒ 1e-6 is ample.
+        let (mi_b, mi_1) = (solve2(m, b), solve2(m, [1.0, 1.0]));
+        let nu = (mi_b[0] + mi_b[1] - 1.0) / (mi_1[0] + mi_1[1]);
+        let hard = [mi_b[0] - nu * mi_1[0], mi_b[1] - nu * mi_1[1]];
+        let gamma = sum_weights_gamma(&obs, 1, 1e8);
+        let w = weights_step(&problem, &s, &lambda, &w0, &dw, Some(&gamma)).unwrap();
+        for k in 0..2 {
+            assert!(
+                (w.weights[k] - hard[k]).abs() < 1e-6,
+                "{:?} vs {hard:?}",
+                w.weights
+            );
+        }
+        // The penalty's value at a point off the line, by hand.
+        let p = sum_weights_penalty(&[2.0, 0.0], &[0.7, 0.6, 5.0, 5.0], 2);
+        assert!((p - 2.0 * 0.3f64.powi(2)).abs() < 1e-15);
+    }
 }

@@ -1,5 +1,6 @@
 //! The objective `F` of Eq. 9 (data term `Σ α ω r²` plus the light model's prior plus the
-//! ridge `Σ r_c λ²`), the train RMSE, and the scale `Σ_x Σ_b β_{x,b,c}` that the gauge
+//! ridge `Σ r_c λ²`, plus the blending weights' sum-to-one prior when on,
+//! [`crate::solve::EstimateOptions::weights_sum`]), the train RMSE, and the scale `Σ_x Σ_b β_{x,b,c}` that the gauge
 //! holds fixed.
 
 // Numerical kernels index several arrays in step; range loops read like the math.
@@ -57,7 +58,8 @@ pub(crate) struct Point<'a> {
     pub(crate) lambda: &'a [Vec<[f64; 3]>],
     /// Row-major `V × K`.
     pub(crate) weights: &'a [f64],
-    /// The light model's prior term ([`crate::solve::light::LightModel::penalty`]).
+    /// The priors' terms: the light model's ([`crate::solve::light::LightModel::penalty`])
+    /// plus the weights' sum-to-one prior.
     pub(crate) prior: f64,
 }
 

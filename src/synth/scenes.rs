@@ -114,6 +114,31 @@ pub(crate) fn scene_defs() -> Vec<SceneDef> {
             photos: 16,
         },
         SceneDef {
+            name: "spot-diffuse",
+            description: "Spot, two blended Lambertian materials, a different real map and rotation per photo, held-out photos",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert],
+            materials: vec![
+                ("orange", vec![[0.8, 0.45, 0.2]]),
+                ("blue", vec![[0.2, 0.3, 0.6]]),
+            ],
+            lighting: Lighting::Varying(ALL_MAPS),
+            photos: 16,
+        },
+        SceneDef {
+            name: "spot-three",
+            description: "Spot, three blended materials in bands (Lambert + GGX 0.3, Lambert, Lambert + GGX 0.3), a different real map and rotation per photo, held-out photos",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert, Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![
+                ("orange-ggx", vec![[0.8, 0.45, 0.2], [0.25, 0.25, 0.25]]),
+                ("blue-lambert", vec![[0.2, 0.3, 0.6], [0.0, 0.0, 0.0]]),
+                ("green-ggx", vec![[0.25, 0.6, 0.3], [0.15, 0.15, 0.15]]),
+            ],
+            lighting: Lighting::Varying(ALL_MAPS),
+            photos: 16,
+        },
+        SceneDef {
             name: "spot-sky",
             description: "Spot, two blended materials, outdoors: a clear sky (Hosek–Wilkie), sun and ground per photo with a different known sun direction, held-out photos",
             shape: Shape::Spot,
@@ -207,7 +232,7 @@ pub(crate) fn make_geometry(
 ) -> Result<Geometry> {
     if exact && shape != Shape::Spot {
         return Err(Error::Config(
-            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-sky, spot-static): the other shapes are built from parts".into(),
+            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-diffuse, spot-three, spot-sky, spot-static): the other shapes are built from parts".into(),
         ));
     }
     let sphere_level = |target: usize| -> u32 {
@@ -278,6 +303,12 @@ pub(crate) type Geometry = (Vec<Vec3>, Vec<[u32; 3]>, Vec3, f64);
 /// Height of the ground plane below the unit sphere's centre (a small gap under it).
 pub(crate) const PLANE_DROP: f64 = 1.02;
 
+/// Spacing of the planes between a spot scene's material bands, relative to the bounding
+/// box diagonal. Three materials: planes at ±0.07 of the diagonal; Spot's vertices span
+/// −0.28 … +0.23 of it along the split direction, so 499, 520 and 421 of its 2,930
+/// vertices are pure materials 0, 1 and 2 (the rest are in the blended bands).
+pub(crate) const SPOT_BAND_SPACING: f64 = 0.14;
+
 /// Per-vertex material weights (row-major `n × K`).
 pub(crate) fn make_weights(shape: Shape, positions: &[Vec3], k: usize) -> Vec<f64> {
     let mut w = vec![0.0; positions.len() * k];
@@ -294,16 +325,28 @@ pub(crate) fn make_weights(shape: Shape, positions: &[Vec3], k: usize) -> Vec<f6
             }
         }
         Shape::Spot => {
-            // Split by a tilted plane through the box centre; linear blend over a band of
-            // 8% of the diagonal.
+            // K bands split by K − 1 parallel tilted planes, evenly spaced by
+            // SPOT_BAND_SPACING of the diagonal and centred on the box centre (one plane
+            // through the centre for two materials); linear blend over a band of 8% of the
+            // diagonal at each plane. Material j's weight is s_{j−1} − s_j, s_j the blend
+            // across plane j (s_{−1} = 1, s_{K−1} = 0): non-negative, summing to 1.
             let (lo, hi) = crate::import::mesh::bounding_box(positions);
             let c = (lo + hi) * 0.5;
-            let band = 0.08 * (hi - lo).norm();
+            let diag = (hi - lo).norm();
+            let band = 0.08 * diag;
             let dir = Vec3::new(1.0, 0.6, 0.3).normalize();
+            let planes: Vec<f64> = (0..k.saturating_sub(1))
+                .map(|j| (j as f64 - (k as f64 - 2.0) / 2.0) * SPOT_BAND_SPACING * diag)
+                .collect();
             for (i, p) in positions.iter().enumerate() {
-                let s = ((p - c).dot(&dir) / band + 0.5).clamp(0.0, 1.0);
-                w[i * k] = 1.0 - s;
-                w[i * k + 1] = s;
+                let t = (p - c).dot(&dir);
+                let mut prev = 1.0;
+                for (j, &tj) in planes.iter().enumerate() {
+                    let s = ((t - tj) / band + 0.5).clamp(0.0, 1.0);
+                    w[i * k + j] = prev - s;
+                    prev = s;
+                }
+                w[i * k + k - 1] = prev;
             }
         }
         Shape::SpotTextured => {
@@ -366,4 +409,67 @@ pub fn rotate_texels(map: &LatLong, shift: usize) -> LatLong {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The corners of the box [−1, 1]³ (centre 0, diagonal 2√3), then `n` points along the
+    /// split direction through the centre, inside the box (|t| ≤ 1.2: the direction's
+    /// largest component is 0.83).
+    fn line(n: usize) -> Vec<Vec3> {
+        let dir = Vec3::new(1.0, 0.6, 0.3).normalize();
+        let mut p = vec![Vec3::new(-1.0, -1.0, -1.0), Vec3::new(1.0, 1.0, 1.0)];
+        p.extend((0..n).map(|i| dir * (-1.2 + 2.4 * i as f64 / (n - 1) as f64)));
+        p
+    }
+
+    #[test]
+    fn spot_two_materials_keep_the_single_centred_plane() {
+        // The two-material split as it was written before bands: s = clamp(t/band + ½),
+        // w = (1 − s, s), band 8% of the diagonal; the general form must reproduce it
+        // exactly (the same operations in the same order).
+        let p = line(61);
+        let w = make_weights(Shape::Spot, &p, 2);
+        let (band, dir) = (0.08 * 12f64.sqrt(), Vec3::new(1.0, 0.6, 0.3).normalize());
+        for (i, q) in p.iter().enumerate() {
+            let s = (q.dot(&dir) / band + 0.5).clamp(0.0, 1.0);
+            assert_eq!([w[2 * i], w[2 * i + 1]], [1.0 - s, s], "vertex {i}");
+        }
+    }
+
+    #[test]
+    fn spot_three_materials_are_ordered_bands_that_sum_to_one() {
+        let p = line(301);
+        let w = make_weights(Shape::Spot, &p, 3);
+        let dir = Vec3::new(1.0, 0.6, 0.3).normalize();
+        let (diag, band) = (12f64.sqrt(), 0.08 * 12f64.sqrt());
+        let plane = SPOT_BAND_SPACING * diag / 2.0;
+        for (i, q) in p.iter().enumerate() {
+            let wi = &w[3 * i..3 * i + 3];
+            // Exact arithmetic would give 1; the telescoping sum rounds at most twice.
+            assert!((wi.iter().sum::<f64>() - 1.0).abs() < 1e-15, "{wi:?}");
+            assert!(wi.iter().all(|&v| v >= 0.0), "{wi:?}");
+            // Pure material j wherever the point is more than half a band from every plane
+            // on its side: below −plane material 0, between the planes 1, above 2.
+            let t = q.dot(&dir);
+            let pure = if t < -plane - band / 2.0 {
+                Some(0)
+            } else if t.abs() < plane - band / 2.0 {
+                Some(1)
+            } else if t > plane + band / 2.0 {
+                Some(2)
+            } else {
+                None
+            };
+            if let Some(j) = pure {
+                assert_eq!(wi[j], 1.0, "point {i} at t = {t}: {wi:?}");
+            }
+        }
+        // Every band is reached by the points of the line (planes at ±0.24, |t| ≤ 1.2).
+        for j in 0..3 {
+            assert!((0..p.len()).any(|i| w[3 * i + j] == 1.0), "material {j}");
+        }
+    }
 }

@@ -26,7 +26,10 @@
 //! where for piecewise-constant functions on one grid it is exact and costs `O(n_local²)`.
 //! `g` is then truncated to its `keep` largest-magnitude coefficients, which minimises the
 //! `ℓ²` norm of what is dropped and hence the worst-case response error `‖g_drop‖ ‖L̃‖`.
-//! The Lambert row depends only on the vertex and is computed once per vertex.
+//! The Lambert row depends only on the vertex and is computed once per vertex; an
+//! observation's view-dependent rows go through `R_nᵀ` together
+//! ([`LocalRotation::texel_transpose_many`]: the rotation's rows are read once for all of
+//! them, the sums are those of one row at a time).
 //! Memory grows as observations × basis × `keep`: 6 bytes per kept entry (a `u16` Haar
 //! index, which addresses every map up to 256², and an `f32` value) plus an 8-byte offset
 //! per row. The rows are written by the workers straight into their slots of the final
@@ -213,6 +216,12 @@ struct Scratch {
     v_dw: Vec<f64>,
     /// `(|g_m|, m)` of the non-zero coefficients, for [`truncate_into`].
     order: Vec<(f64, u32)>,
+    /// The view-dependent bases' `V ⊙ Δω ⊙ slice` of one observation, basis-major.
+    locals: Vec<f64>,
+    /// Their dense global rows, basis-major.
+    globals: Vec<f64>,
+    /// The rotation's interleaving buffer ([`LocalRotation::texel_transpose_many`]).
+    inter: Vec<f64>,
     /// Progress, passed on per chunk of observations.
     ticks: crate::stages::Ticker,
 }
@@ -225,6 +234,9 @@ impl Scratch {
             global: vec![0.0; n_global * n_global],
             v_dw: Vec::with_capacity(n_local * n_local),
             order: Vec::with_capacity(n_global * n_global),
+            locals: Vec::new(),
+            globals: Vec::new(),
+            inter: Vec::new(),
             ticks: Default::default(),
         }
     }
@@ -255,11 +267,20 @@ fn truncate_into(
     idx: &mut [HaarIndex],
     val: &mut [f32],
 ) -> usize {
-    let order = &mut scratch.order;
+    truncate_global(&scratch.global, &mut scratch.order, keep, idx, val)
+}
+
+/// [`truncate_into`] of the dense row `global`, with `order` as its selection buffer.
+fn truncate_global(
+    global: &[f64],
+    order: &mut Vec<(f64, u32)>,
+    keep: usize,
+    idx: &mut [HaarIndex],
+    val: &mut [f32],
+) -> usize {
     order.clear();
     order.extend(
-        scratch
-            .global
+        global
             .iter()
             .enumerate()
             .filter(|(_, &c)| c != 0.0)
@@ -277,7 +298,7 @@ fn truncate_into(
     for ((i, v), &(_, m)) in idx.iter_mut().zip(val.iter_mut()).zip(kept.iter()) {
         // m < n_global² ≤ 65,536 (checked in `check_inputs`).
         *i = m as HaarIndex;
-        *v = scratch.global[m as usize] as f32;
+        *v = global[m as usize] as f32;
     }
     k
 }
@@ -375,6 +396,7 @@ pub fn build_rows<R: LocalRotation>(
         .filter(|&b| matches!(sources[b], SliceSource::Fixed(_)))
         .collect();
     let nf = fixed_bases.len();
+    let view_bases: Vec<usize> = (0..nb).filter(|b| !fixed_bases.contains(b)).collect();
 
     // View-independent (Lambert) rows depend only on the vertex: once per observed vertex.
     let mut observed = vec![false; nv];
@@ -443,21 +465,43 @@ pub fn build_rows<R: LocalRotation>(
                 ) else {
                     return;
                 };
-                let wo = local_wo(&frame, &obs_dir_env[p]);
-                for (b, (brdf, src)) in basis.iter().zip(&sources).enumerate() {
+                for (j, &b) in fixed_bases.iter().enumerate() {
                     let span = b * stride..(b + 1) * stride;
-                    if let Some(j) = fixed_bases.iter().position(|&f| f == b) {
-                        let k = fixed_len[v * nf + j];
-                        let from = (v * nf + j) * stride;
-                        oi[span.start..span.start + k].copy_from_slice(&fixed_idx[from..from + k]);
-                        ov[span.start..span.start + k].copy_from_slice(&fixed_val[from..from + k]);
-                        ol[b] = k;
-                        continue;
+                    let k = fixed_len[v * nf + j];
+                    let from = (v * nf + j) * stride;
+                    oi[span.start..span.start + k].copy_from_slice(&fixed_idx[from..from + k]);
+                    ov[span.start..span.start + k].copy_from_slice(&fixed_val[from..from + k]);
+                    ol[b] = k;
+                }
+                let Some(wo) = local_wo(&frame, &obs_dir_env[p]) else {
+                    return;
+                };
+                // The view-dependent rows of the observation, rotated together (the
+                // rotation's rows are read once for all of them).
+                let nl2 = scratch.v_dw.len();
+                scratch.locals.resize(view_bases.len() * nl2, 0.0);
+                scratch.globals.resize(view_bases.len() * ng2, 0.0);
+                for (&b, local) in view_bases.iter().zip(scratch.locals.chunks_mut(nl2)) {
+                    sources[b].slice(&basis[b], &grid, &wo, local);
+                    for (l, vw) in local.iter_mut().zip(&scratch.v_dw) {
+                        *l *= vw;
                     }
-                    let Some(wo) = wo else { continue };
-                    src.slice(brdf, &grid, &wo, &mut scratch.slice);
-                    dense_row(&normal, rot, scratch);
-                    ol[b] = truncate_into(scratch, opts.keep, &mut oi[span.clone()], &mut ov[span]);
+                }
+                rot.texel_transpose_many(
+                    &normal,
+                    &mut scratch.locals,
+                    &mut scratch.globals,
+                    &mut scratch.inter,
+                );
+                for (&b, global) in view_bases.iter().zip(scratch.globals.chunks(ng2)) {
+                    let span = b * stride..(b + 1) * stride;
+                    ol[b] = truncate_global(
+                        global,
+                        &mut scratch.order,
+                        opts.keep,
+                        &mut oi[span.clone()],
+                        &mut ov[span],
+                    );
                 }
             },
         );

@@ -204,6 +204,29 @@ fn zero_starts_are_refused() {
     assert!(two.check().is_ok());
 }
 
+/// `--weights-sum` is a non-negative multiple of the data's charge: negative, NaN or
+/// infinite refused, naming the flag; 0 (off) and positive values pass.
+#[test]
+fn weights_sum_outside_its_range_is_refused() {
+    use relight_cpc::run::RunOptions;
+    let base = RunOptions::new("ws".into(), "out".into());
+    for bad in [-0.5, f64::NAN, f64::INFINITY] {
+        let o = RunOptions {
+            weights_sum: bad,
+            ..base.clone()
+        };
+        let e = o.check().unwrap_err().to_string();
+        assert!(e.contains("--weights-sum"), "{e}");
+    }
+    for good in [0.0, 1.0, 10.0] {
+        let o = RunOptions {
+            weights_sum: good,
+            ..base.clone()
+        };
+        assert!(o.check().is_ok(), "{good}");
+    }
+}
+
 /// `--robust-floor` is a fraction of the RMS radiance: outside [0, 1) (or NaN) refused,
 /// naming the flag.
 #[test]

@@ -86,6 +86,8 @@ pub struct Case {
     pub scratch: Scratch,
     pub basis: Vec<BasisBrdf>,
     pub nv: usize,
+    /// Vertex positions, world frame (the cleaned mesh's).
+    pub positions: Vec<Vec3>,
     pub train: Split,
     pub held: Split,
     /// `lambda[k][b][c]`, the truth.
@@ -289,6 +291,7 @@ pub fn prepare_in(
         scratch,
         basis,
         nv,
+        positions: sc.mesh.positions.clone(),
         train,
         held,
         lambda,
@@ -688,4 +691,69 @@ pub fn estimate_bits(e: &Estimate) -> Vec<u64> {
         .chain(&e.weights)
         .map(|v| v.to_bits())
         .collect()
+}
+
+use relight_cpc::solve::light::sh_prior::{map_sample, LightPrior, LightPriorOptions, PriorSample};
+/// The eight embedded maps' names, in the order of the leave-one-out statistics.
+pub use relight_cpc::synth::data::MAP_NAMES as PRIOR_MAPS;
+
+/// Statistics for `case`'s training photos: `stats[8]` from all eight maps, `stats[i]` from
+/// all but map `i`; each photo uses the set without the map it was rendered with (from
+/// `truth/manifest.json`), so no photo's own light is in its prior.
+pub fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
+    let Some(lp) = &o.light_prior else {
+        return o.clone();
+    };
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/synth/hdri");
+    let samples: Vec<PriorSample> = PRIOR_MAPS
+        .iter()
+        .map(|m| {
+            let (ll, _) =
+                relight_cpc::sphere::envmap::LatLong::read_exr(&dir.join(format!("{m}.exr")))
+                    .unwrap();
+            map_sample(&ll, 24, &[case.sizes.global])
+        })
+        .collect();
+    let fit = |skip: Option<usize>| {
+        let names: Vec<String> = (0..8)
+            .filter(|&i| Some(i) != skip)
+            .map(|i| PRIOR_MAPS[i].to_string())
+            .collect();
+        let sub: Vec<PriorSample> = (0..8)
+            .filter(|&i| Some(i) != skip)
+            .map(|i| samples[i].clone())
+            .collect();
+        LightPrior::fit(names, 24, &sub, 0.1).unwrap()
+    };
+    let stats: Vec<LightPrior> = if lp.per_photo.is_some() {
+        (0..8).map(|i| fit(Some(i))).chain([fit(None)]).collect()
+    } else {
+        vec![fit(None)]
+    };
+    let manifest: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
+    )
+    .unwrap();
+    let map_of = |name: &str| -> usize {
+        let m = manifest["photos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .and_then(|p| p["map"].as_str())
+            .unwrap_or("");
+        PRIOR_MAPS.iter().position(|x| *x == m).unwrap_or(8)
+    };
+    let per_photo = lp
+        .per_photo
+        .as_ref()
+        .map(|_| case.train.names.iter().map(|n| map_of(n)).collect());
+    EstimateOptions {
+        light_prior: Some(LightPriorOptions {
+            stats: std::sync::Arc::new(stats),
+            per_photo,
+            ..lp.clone()
+        }),
+        ..o.clone()
+    }
 }

@@ -293,6 +293,66 @@ impl Rotation {
         }
     }
 
+    /// [`Rotation::resample_transpose_add`] for `K` texel-domain vectors at once, interleaved:
+    /// `inter[g K + i] += Σ_(ν, w) Σ_j w x_{i,j} S_ν[j, g]` with `x_i = locals[i n_l²..]`.
+    /// Each resampling row is read once for all `K` vectors; every sum takes its terms in
+    /// the order of the single-vector form (a zero `x` adds `±0`, which changes no value).
+    fn resample_transpose_add_many<const K: usize>(
+        &self,
+        nus: &[(usize, f64)],
+        locals: &[f64],
+        inter: &mut [f64],
+    ) {
+        let nl2 = self.nl2();
+        for &(nu, w) in nus {
+            if w == 0.0 {
+                continue;
+            }
+            for j in 0..nl2 {
+                let mut wx = [0.0f64; K];
+                let mut any = false;
+                for (i, o) in wx.iter_mut().enumerate() {
+                    let x = locals[i * nl2 + j];
+                    any |= x != 0.0;
+                    *o = w * x;
+                }
+                if !any {
+                    continue;
+                }
+                let (idx, val) = self.rows.row(nu * nl2 + j);
+                for (&g, &v) in idx.iter().zip(val) {
+                    let v = v as f64;
+                    let at = g as usize * K;
+                    let out: &mut [f64; K] =
+                        (&mut inter[at..at + K]).try_into().expect("a K-wide slot");
+                    for (o, a) in out.iter_mut().zip(&wx) {
+                        *o += a * v;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The factored form of [`LocalRotation::texel_transpose_many`] for `K` vectors.
+    fn texel_transpose_k<const K: usize>(
+        &self,
+        nus: &[(usize, f64)],
+        locals: &[f64],
+        global: &mut [f64],
+        inter: &mut Vec<f64>,
+    ) {
+        let ng2 = self.ng2();
+        inter.clear();
+        inter.resize(ng2 * K, 0.0);
+        self.resample_transpose_add_many::<K>(nus, locals, inter);
+        for (i, g) in global.chunks_mut(ng2).enumerate().take(K) {
+            for (m, o) in g.iter_mut().enumerate() {
+                *o = inter[m * K + i];
+            }
+            haar::forward(g, self.n_global);
+        }
+    }
+
     /// Wavelet domain, sparse form: `local += Σ_i w_i R_{ν_i} global`.
     fn sparse_add(&self, nus: &[(usize, f64)], global: &[f64], local: &mut [f64]) {
         for &(nu, w) in nus {
@@ -564,6 +624,41 @@ impl LocalRotation for Rotation {
                 haar::forward(local_texels, self.n_local);
                 global.fill(0.0);
                 self.apply_blend_transpose_add(normal_env, local_texels, global);
+            }
+        }
+    }
+    fn texel_transpose_many(
+        &self,
+        normal_env: &Vec3,
+        local_texels: &mut [f64],
+        global: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) {
+        if self.form() != RotationForm::Factored {
+            for (l, g) in local_texels
+                .chunks_mut(self.nl2())
+                .zip(global.chunks_mut(self.ng2()))
+            {
+                self.texel_transpose(normal_env, l, g);
+            }
+            return;
+        }
+        let nus = self.blend(normal_env);
+        // Groups of at most 8 vectors (the interleaved slot of one global texel stays
+        // within a cache line).
+        for (l, g) in local_texels
+            .chunks(8 * self.nl2())
+            .zip(global.chunks_mut(8 * self.ng2()))
+        {
+            match l.len() / self.nl2() {
+                1 => self.texel_transpose_k::<1>(&nus, l, g, scratch),
+                2 => self.texel_transpose_k::<2>(&nus, l, g, scratch),
+                3 => self.texel_transpose_k::<3>(&nus, l, g, scratch),
+                4 => self.texel_transpose_k::<4>(&nus, l, g, scratch),
+                5 => self.texel_transpose_k::<5>(&nus, l, g, scratch),
+                6 => self.texel_transpose_k::<6>(&nus, l, g, scratch),
+                7 => self.texel_transpose_k::<7>(&nus, l, g, scratch),
+                _ => self.texel_transpose_k::<8>(&nus, l, g, scratch),
             }
         }
     }

@@ -64,6 +64,27 @@ pub trait LocalRotation: Sync {
         global.fill(0.0);
         self.apply_transpose_add(normal_env, local_texels, global);
     }
+    /// [`LocalRotation::texel_transpose`] for `k = local_texels.len() / n_local²` vectors at
+    /// once (vector `i` is `local_texels[i n_local²..]`, its result
+    /// `global[i n_global²..]`); `scratch` is a reused buffer. Each result equals a call
+    /// for that vector alone (a rotation that walks per-normal rows reads them once for all
+    /// `k`).
+    fn texel_transpose_many(
+        &self,
+        normal_env: &Vec3,
+        local_texels: &mut [f64],
+        global: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) {
+        let _ = scratch;
+        let (nl2, ng2) = (
+            self.n_local() * self.n_local(),
+            self.n_global() * self.n_global(),
+        );
+        for (l, g) in local_texels.chunks_mut(nl2).zip(global.chunks_mut(ng2)) {
+            self.texel_transpose(normal_env, l, g);
+        }
+    }
     /// `local_texels = W_lᵀ R_n W_g global_texels`: the light's local texel averages, given
     /// the global light both as texels and as Haar coefficients (`global_haar = W_g
     /// global_texels`). The default goes through Haar; a factored rotation resamples

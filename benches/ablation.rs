@@ -1,0 +1,711 @@
+//! The light-model ablation of issue 25: `cargo bench --bench ablation` writes
+//! `bench-results/estimator-ablation.{md,json}`.
+//!
+//! Scenes made by `relight-cpc synth` (the reference renderer, the eight embedded CC0 maps,
+//! a different map and rotation per photo) and taken through the real pipeline stages
+//! (`tests/support/synth_case.rs`): `spot-diffuse` (two Lambertian materials),
+//! `spot-varying` (two glossy materials) and `spot-three` (three materials). Every fourth
+//! photo is held out; with 16 photos cycling the 8 maps the held-out photos are lit by
+//! maps 3 and 7, which no training photo sees: the held-out photos are the *unseen maps*.
+//! Each scene twice: as rendered (Monte Carlo noise, 1% clipping, 8-bit sRGB) and
+//! noise-free (every observation replaced by the true model's prediction through the
+//! case's own transport, so every error is the estimator's).
+//!
+//! Per light model (one line of [`rows`] each) and case:
+//! - **held-out** (the run's half protocol, [`half_error`]): each held-out photo's light
+//!   fitted with the reflectance frozen on the observations left of its centre line (the
+//!   paper's Laplacian, no light prior, for every row alike), the right half predicted,
+//!   relative RMSE after the best scale per channel; *photo floor* = the same protocol
+//!   with the TRUE reflectance;
+//! - **relit** under the unseen maps: the held-out photos predicted under their TRUE maps,
+//!   best scale per channel (the light colour is not observable), against the photos;
+//!   *MC floor* = the true reflectance doing the same (the renderer's noise and the
+//!   transport's discretisation: the metric's own floor);
+//! - **albedo ratios**: per channel and material `j ≥ 1`, the median estimated Lambertian
+//!   weight `β̂_{x,L,c}` over the vertices truly pure material `j` (weight ≥ 0.95) over the
+//!   same median for material 0, against the truth's `λ_{j,L,c} / λ_{0,L,c}`: invariant to
+//!   the K×K material remix and the per-channel scale; the worst relative error;
+//! - **material accuracy**: the fraction of seen vertices whose largest estimated weight
+//!   is their true largest material (best of the K! orders), fitted with the true K;
+//! - **K chosen**: the adaptive pilot's rule ([`relight_cpc::solve::adapt`], step 3) with
+//!   the row's light model: K = 1 … K_true + 1 fitted for
+//!   [`adapt::PILOT_ITERATIONS`] outer iterations on the training observations with 1 in
+//!   [`adapt::HELDOUT_EVERY`] held out, the smallest K within [`adapt::MATERIAL_TOL`] of
+//!   the best held-out RMSE.
+//!
+//! Every prior row uses leave-one-map-out statistics: a photo's prior never contains the
+//! map it was rendered with ([`with_case_priors`]).
+//!
+//! Environment: `ABLATION_SCENES` (comma list), `ABLATION_ROWS` (`;`-separated row
+//! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
+//! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
+//! `ABLATION_NO_K=1` (skip the K search), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
+
+#![allow(clippy::needless_range_loop)]
+
+#[path = "../tests/support/synth_case.rs"]
+mod synth_case;
+
+use relight_cpc::observe::Observations;
+use relight_cpc::solve::light::choose::{candidates, decide, LightChoice};
+use relight_cpc::solve::{adapt, beta_per_vertex, estimate, fit_light_frozen, Estimate};
+use relight_cpc::solve::{EstimateOptions, Materials0};
+use serde_json::{json, Value};
+use std::time::Instant;
+use synth_case::*;
+
+/// How a row's estimator options are made from the bench's base options; `None` when the
+/// model is not in this build (a `--light` name the binary does not know yet).
+type Make = fn(&EstimateOptions) -> Option<EstimateOptions>;
+
+/// One row of the ablation.
+enum Row {
+    /// A fit with the options `make` returns.
+    Fit { label: &'static str, make: Make },
+    /// No fit of its own: the row among `among()` (labels of earlier rows) with the lowest
+    /// early-stopping validation score ([`decide`], as `--light auto` keeps a model).
+    Pick {
+        label: &'static str,
+        among: fn() -> Vec<String>,
+    },
+}
+
+/// The row label of `--light NAME`'s model.
+fn label_of(name: &str) -> String {
+    match name {
+        "prior" => PRIOR.to_string(),
+        other => other.to_string(),
+    }
+}
+
+/// The `--light prior` row's label.
+const PRIOR: &str = "prior (SH 0.3 + Haar 0.03)";
+
+/// The models `--light auto` fits in this build, as row labels.
+fn auto_models() -> Vec<String> {
+    candidates(LightChoice::Auto, &EstimateOptions::default())
+        .map(|v| v.iter().map(|c| label_of(c.name)).collect())
+        .unwrap_or_default()
+}
+
+fn labels(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// A `--light NAME` model as `run` builds it (its first candidate).
+fn choice(name: &str, base: &EstimateOptions) -> Option<EstimateOptions> {
+    let c = LightChoice::parse(name).ok()?;
+    candidates(c, base)
+        .ok()?
+        .into_iter()
+        .next()
+        .map(|c| c.options)
+}
+
+/// The free map under the SH shape prior at noise level `sh` and the Haar L1 prior at
+/// `haar` (statistics filled in per case).
+fn prior(base: &EstimateOptions, sh: f64, haar: f64) -> Option<EstimateOptions> {
+    let mut o = choice("prior", base)?;
+    let lp = o.light_prior.as_mut()?;
+    lp.sh_noise = sh;
+    lp.haar_noise = haar;
+    Some(o)
+}
+
+/// `o` with the blending weights' sum-to-one prior at strength `tau`
+/// ([`EstimateOptions::weights_sum`]).
+fn sum1(o: Option<EstimateOptions>, tau: f64) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        weights_sum: tau,
+        ..o
+    })
+}
+
+/// The rows, in table order. Adding a light model is one line here.
+#[rustfmt::skip]
+fn rows() -> Vec<Row> {
+    vec![
+        Row::Fit { label: "paper", make: |b| choice("paper", b) },
+        Row::Fit { label: "prior SH η=0.3", make: |b| prior(b, 0.3, 0.0) },
+        Row::Fit { label: PRIOR, make: |b| choice("prior", b) },
+        Row::Fit { label: "paper, Σw=1 prior 1", make: |b| sum1(choice("paper", b), 1.0) },
+        Row::Fit { label: "prior, Σw=1 prior 1", make: |b| sum1(choice("prior", b), 1.0) },
+        Row::Fit { label: "sky", make: |b| choice("sky", b) },
+        Row::Fit { label: "shared", make: |b| choice("shared", b) },
+        Row::Pick { label: "auto (--light auto)", among: auto_models },
+        Row::Pick {
+            label: "prior η by validation",
+            among: || labels(&["prior SH η=0.1", "prior SH η=0.3", "prior SH η=1", PRIOR]),
+        },
+        Row::Pick {
+            label: "auto with and without Σw=1",
+            among: || {
+                let mut v = auto_models();
+                v.extend(labels(&["paper, Σw=1 prior 1", "prior, Σw=1 prior 1"]));
+                v
+            },
+        },
+    ]
+}
+
+/// `o` without IRLS (plain least squares in every step).
+fn no_irls(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        robust: relight_cpc::solve::Robust::None,
+        ..o
+    })
+}
+
+/// `o` with early stopping's patience at 4 outer iterations (default 1).
+fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions { patience: 4, ..o })
+}
+
+/// Rows run only when `ABLATION_ROWS` names them (variants measured once, not part of the
+/// standard table).
+#[rustfmt::skip]
+fn extra_rows() -> Vec<Row> {
+    vec![
+        Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
+        Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
+        Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 10", make: |b| sum1(choice("paper", b), 10.0) },
+        Row::Fit { label: "paper, no IRLS", make: |b| no_irls(choice("paper", b)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("paper", b), 1.0)) },
+        Row::Fit { label: "prior, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("prior", b), 1.0)) },
+        Row::Fit { label: "paper, patience 4", make: |b| patient(choice("paper", b)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, patience 4", make: |b| patient(sum1(choice("paper", b), 1.0)) },
+    ]
+}
+
+/// The rows whose material count is searched (the K search costs about one more fit; the
+/// other rows show `–`).
+const K_ROWS: [&str; 4] = ["paper", PRIOR, "paper, Σw=1 prior 1", "prior, Σw=1 prior 1"];
+
+/// The scenes: (synth name, what it stands for).
+const SCENES: [(&str, &str); 3] = [
+    ("spot-diffuse", "diffuse"),
+    ("spot-varying", "glossy"),
+    ("spot-three", "three materials"),
+];
+
+fn env_usize(k: &str, d: usize) -> usize {
+    std::env::var(k)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(d)
+}
+
+/// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp, Spot's 2,930 vertices, 16²
+/// global / 8² local maps, every coefficient kept.
+fn sizes() -> Sizes {
+    Sizes {
+        width: env_usize("ABLATION_WIDTH", 96) as u32,
+        photos: std::env::var("ABLATION_PHOTOS")
+            .ok()
+            .and_then(|v| v.parse().ok()),
+        vertices: 2_000,
+        spp: 8,
+        light_samples: 64,
+        global: 16,
+        local: 8,
+        normal_grid: 16,
+        keep: 0,
+        rays_per_texel: 2,
+    }
+}
+
+/// The bench's base options: the defaults with the paper's free blending weights
+/// (`weights_sum` 0: the rows that use the sum-to-one prior say so), ≤ `ABLATION_ITERS`
+/// outer iterations.
+fn base_options() -> EstimateOptions {
+    EstimateOptions {
+        max_outer: env_usize("ABLATION_ITERS", 20),
+        rel_tol: 1e-5,
+        weights_sum: 0.0,
+        ..EstimateOptions::default()
+    }
+}
+
+/// Every observation replaced by the true model's prediction (training and held out).
+fn noise_free(case: &mut Case) {
+    let t = true_prediction(case, &case.train);
+    replace_colours(&mut case.train.obs, &t);
+    let h = true_prediction(case, &case.held);
+    replace_colours(&mut case.held.obs, &h);
+}
+
+/// The paper's start: k-means on the per-vertex mean colours, Lambertian only.
+fn start(case: &Case, obs: &Observations, k: usize) -> Option<Materials0> {
+    let (mean, seen) = relight_cpc::run::mean_colours(obs, case.nv);
+    let init = relight_cpc::solve::cluster::initial_materials(&mean, &seen, k, 1).ok()?;
+    (init.albedo.len() == k).then(|| Materials0::from_initial(&init, case.basis.len(), 0))
+}
+
+/// The figures of one fit.
+#[derive(Debug, Clone, serde::Serialize)]
+struct Figures {
+    /// Half protocol, estimated reflectance (relative RMSE, per-channel scale).
+    heldout: f64,
+    /// Half protocol, true reflectance.
+    heldout_floor: f64,
+    /// Held-out photos under their true (unseen) maps, per-channel scale, vs the photos.
+    relit: f64,
+    /// The true reflectance doing the same.
+    relit_floor: f64,
+    /// The relit prediction against the true reflectance's (the estimator's own error).
+    relit_model: f64,
+    /// Worst relative diffuse-ratio error over materials j ≥ 1, per channel.
+    ratio_errors: [f64; 3],
+    /// Material accuracy over the seen vertices (all; pure).
+    assignment: f64,
+    assignment_pure: f64,
+    /// Training relative RMSE.
+    train_rel: f64,
+    /// The early-stopping validation score (NaN without validation).
+    validation: f64,
+    iterations: usize,
+    seconds: f64,
+}
+
+/// All permutations of `0..k` (k ≤ 4).
+fn permutations(k: usize) -> Vec<Vec<usize>> {
+    if k == 0 {
+        return vec![Vec::new()];
+    }
+    let mut out = Vec::new();
+    for p in permutations(k - 1) {
+        for i in 0..k {
+            let mut q = p.clone();
+            q.insert(i, k - 1);
+            out.push(q);
+        }
+    }
+    out
+}
+
+/// Material accuracy (all seen, pure seen) over the best order of the estimated materials.
+fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
+    let k = case.lambda.len();
+    let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
+    let mut best = (0.0, 0.0);
+    for perm in permutations(k) {
+        let (mut ok, mut n, mut okp, mut np) = (0, 0, 0, 0);
+        for x in (0..case.nv).filter(|&x| seen[x]) {
+            let t = argmax(&case.weights[x * k..(x + 1) * k]);
+            let hit = perm[argmax(&est.weights[x * k..(x + 1) * k])] == t;
+            n += 1;
+            ok += usize::from(hit);
+            if case.weights[x * k + t] >= 0.95 {
+                np += 1;
+                okp += usize::from(hit);
+            }
+        }
+        let a = ok as f64 / n.max(1) as f64;
+        if a > best.0 {
+            best = (a, okp as f64 / np.max(1) as f64);
+        }
+    }
+    best
+}
+
+/// Per channel, the worst relative error of the diffuse ratios `β_{j,L,c} / β_{0,L,c}`
+/// (module docs).
+fn ratio_errors(case: &Case, est: &Estimate, seen: &[bool]) -> [f64; 3] {
+    let k = case.lambda.len();
+    let nb = case.basis.len();
+    let beta = beta_per_vertex(&est.lambda, &est.weights, case.nv);
+    let median = |mut v: Vec<f64>| -> f64 {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let pure = |t: usize, c: usize| -> f64 {
+        median(
+            (0..case.nv)
+                .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
+                .map(|x| beta[x * nb][c])
+                .collect(),
+        )
+    };
+    [0, 1, 2].map(|c| {
+        (1..k)
+            .map(|j| {
+                let r_true = case.lambda[j][0][c] / case.lambda[0][0][c];
+                (pure(j, c) / pure(0, c) / r_true - 1.0).abs()
+            })
+            .fold(0.0, f64::max)
+    })
+}
+
+/// The held-out split's observations cut in two per photo by the plane through the
+/// observed vertices' centroid spanned by the mean viewing direction and the world up
+/// axis: `true` = left (the light is fitted there), `false` = right (evaluated).
+fn left_half(case: &Case) -> Vec<bool> {
+    let obs = &case.held.obs;
+    let mut left = vec![false; obs.len()];
+    for r in &obs.photo_ranges {
+        let n = r.len().max(1) as f64;
+        let (mut c, mut d) = (relight_cpc::Vec3::zeros(), relight_cpc::Vec3::zeros());
+        for p in r.clone() {
+            c += case.positions[obs.vertex[p] as usize] / n;
+            d += relight_cpc::Vec3::new(
+                obs.dir[p][0] as f64,
+                obs.dir[p][1] as f64,
+                obs.dir[p][2] as f64,
+            );
+        }
+        let right = d.cross(&relight_cpc::Vec3::y());
+        for p in r.clone() {
+            left[p] = (case.positions[obs.vertex[p] as usize] - c).dot(&right) < 0.0;
+        }
+    }
+    left
+}
+
+/// The half protocol's error for reflectance `(lambda, weights)` (module docs).
+fn half_error(case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64], left: &[bool]) -> f64 {
+    let mut fit_obs = case.held.obs.clone();
+    let mut eval_obs = case.held.obs.clone();
+    for p in 0..left.len() {
+        if left[p] {
+            eval_obs.weight[p] = 0.0;
+        } else {
+            fit_obs.weight[p] = 0.0;
+        }
+    }
+    let problem = relight_cpc::solve::Problem {
+        obs: &fit_obs,
+        transport: &case.held.transport,
+        n_vertices: case.nv,
+        n_photos: fit_obs.photo_ranges.len(),
+    };
+    let beta = beta_per_vertex(lambda, weights, case.nv);
+    let opts = EstimateOptions {
+        lighting_sample: 0,
+        ..EstimateOptions::default()
+    };
+    let lights: Vec<[Vec<f64>; 3]> = (0..problem.n_photos)
+        .map(|i| fit_light_frozen(&problem, &beta, i, None, &opts).unwrap())
+        .collect();
+    let pred = predict_with(&case.held, case.nv, lambda, weights, &lights);
+    rel_rmse_per_channel(&eval_obs, &pred)
+}
+
+/// The floors of a case: the true reflectance through the same protocols.
+struct Floors {
+    heldout: f64,
+    relit: f64,
+    left: Vec<bool>,
+    seen: Vec<bool>,
+    truth_held: Vec<[f64; 3]>,
+}
+
+fn floors(case: &Case) -> Floors {
+    let left = left_half(case);
+    let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let truth_held = true_prediction(case, &case.held);
+    Floors {
+        heldout: half_error(case, &case.lambda, &case.weights, &left),
+        relit: rel_rmse_per_channel(&case.held.obs, &truth_held),
+        left,
+        seen,
+        truth_held,
+    }
+}
+
+/// Fit `case` with options `o` from the paper's start with the true K; its figures.
+fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
+    let problem = case.train.problem(case.nv);
+    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    let t0 = Instant::now();
+    let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
+    let seconds = t0.elapsed().as_secs_f64();
+    let hp = case.predict_held(&est.lambda, &est.weights);
+    let mut model = case.held.obs.clone();
+    replace_colours(&mut model, &fl.truth_held);
+    let pred = relight_cpc::solve::predict(&problem, &est);
+    let (assignment, assignment_pure) = assignment(case, &est, &fl.seen);
+    let f = Figures {
+        heldout: half_error(case, &est.lambda, &est.weights, &fl.left),
+        heldout_floor: fl.heldout,
+        relit: rel_rmse_per_channel(&case.held.obs, &hp),
+        relit_floor: fl.relit,
+        relit_model: rel_rmse_per_channel(&model, &hp),
+        ratio_errors: ratio_errors(case, &est, &fl.seen),
+        assignment,
+        assignment_pure,
+        train_rel: rel_rmse(&case.train.obs, &pred, false).0,
+        validation: est.validation.as_ref().map_or(f64::NAN, |v| v.best_error()),
+        iterations: est.timeline.len(),
+        seconds,
+    };
+    (est, f)
+}
+
+/// The material count the pilot's rule picks with light options `o` (module docs):
+/// `(K chosen, (K, held-out RMSE) per K tried)`.
+fn choose_k(case: &Case, o: &EstimateOptions) -> (usize, Vec<(usize, f64)>) {
+    let (split, held) = adapt::holdout_split(&case.train.obs, 1);
+    let problem = case.train_problem_with(&split);
+    let opts = EstimateOptions {
+        max_outer: adapt::PILOT_ITERATIONS,
+        rel_tol: 0.0,
+        robust: relight_cpc::solve::Robust::None,
+        irls_iters: 1,
+        validation_fraction: 0.0,
+        ..o.clone()
+    };
+    let mut scores = Vec::new();
+    for k in 1..=case.lambda.len() + 1 {
+        let Some(init) = start(case, &split, k) else {
+            break;
+        };
+        let est = estimate(&problem, init, &opts, &mut |_, _| {}).unwrap();
+        let pred = relight_cpc::solve::predict(&problem, &est);
+        scores.push((k, adapt::heldout_rmse(&case.train.obs, &held, &pred)));
+    }
+    let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+    let k = scores
+        .iter()
+        .find(|s| adapt::as_good(s.1, best, adapt::MATERIAL_TOL))
+        .map_or(0, |s| s.0);
+    (k, scores)
+}
+
+/// One fitted or picked row of a case.
+struct Done {
+    label: String,
+    figures: Figures,
+    k: Option<(usize, Vec<(usize, f64)>)>,
+    note: String,
+}
+
+fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done>, Floors) {
+    let fl = floors(case);
+    let base = base_options();
+    // The K search on the 8-bit photos only: what a user's photos ask of it.
+    let no_k = clean || std::env::var("ABLATION_NO_K").is_ok_and(|v| v == "1");
+    let mut done: Vec<Done> = Vec::new();
+    // Extra rows (when asked for) go before the picks, which choose among every fit.
+    let (picks, mut all): (Vec<Row>, Vec<Row>) = rows()
+        .into_iter()
+        .partition(|r| matches!(r, Row::Pick { .. }));
+    if wanted.is_some() {
+        all.extend(extra_rows());
+    }
+    all.extend(picks);
+    for row in all {
+        match row {
+            Row::Fit { label, make } => {
+                if wanted
+                    .as_ref()
+                    .is_some_and(|w| !w.iter().any(|l| l == label))
+                {
+                    continue;
+                }
+                let Some(o) = make(&base) else {
+                    // Not in this build, or not applicable (`shared` needs photos that
+                    // share a map; every photo here has its own).
+                    eprintln!("{label}: not available for this scene in this build, skipped");
+                    continue;
+                };
+                let o = with_case_priors(case, &o);
+                eprintln!(
+                    "{} {}: {label}",
+                    case.scene,
+                    if clean { "noise-free" } else { "8-bit" }
+                );
+                let (_, figures) = fit(case, &fl, &o);
+                let k = (!no_k && K_ROWS.contains(&label)).then(|| choose_k(case, &o));
+                eprintln!("  {figures:?} K {k:?}");
+                done.push(Done {
+                    label: label.into(),
+                    figures,
+                    k,
+                    note: String::new(),
+                });
+            }
+            Row::Pick { label, among } => {
+                let idx: Vec<usize> = among()
+                    .iter()
+                    .filter_map(|a| done.iter().position(|d| d.label == *a))
+                    .collect();
+                if idx.len() < 2 {
+                    continue;
+                }
+                let names: Vec<&str> = idx.iter().map(|&i| done[i].label.as_str()).collect();
+                let scores: Vec<f64> = idx.iter().map(|&i| done[i].figures.validation).collect();
+                let (pick, decision) = decide(LightChoice::Auto, &names, &scores);
+                let from = &done[idx[pick]];
+                let note = format!("kept `{}` ({})", decision.model, decision.why);
+                done.push(Done {
+                    label: label.into(),
+                    figures: from.figures.clone(),
+                    k: from.k.clone(),
+                    note,
+                });
+            }
+        }
+    }
+    (done, fl)
+}
+
+fn fmt_ratio(v: f64, floor: f64, clean: bool) -> String {
+    if clean {
+        format!("{v:.4}")
+    } else {
+        format!("{v:.4} ({:.2}×)", v / floor)
+    }
+}
+
+fn table(md: &mut String, done: &[Done], fl: &Floors, clean: bool, k_true: usize) {
+    md.push_str(&format!(
+        "Floors: held-out (half protocol, true reflectance) {:.4}; relit (true reflectance under the unseen maps) {:.4}.\n\n",
+        fl.heldout, fl.relit
+    ));
+    md.push_str("| light model | held-out (× photo floor) | relit, unseen maps (× MC floor) | relit vs true model | albedo ratio error R / G / B (worst) | material accuracy all / pure | K chosen (held-out RMSE per K) | train rel. | its | s |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    for d in done {
+        let f = &d.figures;
+        let k = d.k.as_ref().map_or("–".to_string(), |(k, s)| {
+            format!(
+                "{}{} ({})",
+                k,
+                if *k == k_true { " ✓" } else { " ✗" },
+                s.iter()
+                    .map(|(k, e)| format!("{k}: {e:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        });
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.4} | {:.3} / {:.3} / {:.3} | {:.4} / {:.4} | {k} | {:.4} | {} | {:.0} |\n",
+            d.label,
+            fmt_ratio(f.heldout, f.heldout_floor, clean),
+            fmt_ratio(f.relit, f.relit_floor, clean),
+            f.relit_model,
+            f.ratio_errors[0],
+            f.ratio_errors[1],
+            f.ratio_errors[2],
+            f.assignment,
+            f.assignment_pure,
+            f.train_rel,
+            f.iterations,
+            f.seconds
+        ));
+    }
+    let notes: Vec<String> = done
+        .iter()
+        .filter(|d| !d.note.is_empty())
+        .map(|d| format!("- {}: {}\n", d.label, d.note))
+        .collect();
+    if !notes.is_empty() {
+        md.push('\n');
+        md.push_str(&notes.concat());
+    }
+    md.push('\n');
+}
+
+fn main() {
+    let t0 = Instant::now();
+    let s = sizes();
+    let only_scenes = std::env::var("ABLATION_SCENES").ok();
+    let wanted: Option<Vec<String>> = std::env::var("ABLATION_ROWS")
+        .ok()
+        .map(|v| v.split(';').map(|x| x.trim().to_string()).collect());
+    let cleans: Vec<bool> = match std::env::var("ABLATION_CLEAN").as_deref() {
+        Ok("0") => vec![false],
+        Ok("1") => vec![true],
+        _ => vec![false, true],
+    };
+    let base = base_options();
+    let mut md = format!(
+        "# Light-model ablation (issue 25)\n\nWritten by `cargo bench --bench ablation` (module docs of `benches/ablation.rs`: definitions). \
+         Spot, {}² photos at {} spp × {} MIS pairs, 1 in 4 held out (maps 3 and 7, unseen in training), {}² global / {}² local maps, \
+         all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping.\n\n",
+        s.width, s.spp, s.light_samples, s.global, s.local, base.max_outer
+    );
+    let mut out = Vec::new();
+    for (scene, what) in SCENES {
+        if only_scenes
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|v| v == scene))
+        {
+            continue;
+        }
+        let mut case = prepare(scene, s, 1, &format!("ablation-{scene}"));
+        eprintln!(
+            "{scene}: {:.1} + {:.1} s, {} vertices, {} / {} observations",
+            case.seconds_synth,
+            case.seconds_prepare,
+            case.nv,
+            case.train.obs.len(),
+            case.held.obs.len()
+        );
+        let k_true = case.lambda.len();
+        let pure: Vec<usize> = (0..k_true)
+            .map(|j| {
+                (0..case.nv)
+                    .filter(|&x| case.weights[x * k_true + j] >= 0.95)
+                    .count()
+            })
+            .collect();
+        eprintln!("{scene}: pure vertices per material {pure:?}");
+        for &clean in &cleans {
+            if clean {
+                noise_free(&mut case);
+            }
+            let (done, fl) = run_case(&case, clean, &wanted);
+            md.push_str(&format!(
+                "## {what}: `{scene}`, {}\n\n{} materials, {} training / {} held-out photos, {} / {} observations.\n\n",
+                if clean { "noise-free" } else { "8-bit photos" },
+                k_true,
+                case.train.names.len(),
+                case.held.names.len(),
+                case.train.obs.len(),
+                case.held.obs.len()
+            ));
+            table(&mut md, &done, &fl, clean, k_true);
+            eprintln!("{scene}: case done at {:.0} s", t0.elapsed().as_secs_f64());
+            out.push(json!({
+                "scene": scene,
+                "kind": what,
+                "noise_free": clean,
+                "materials": k_true,
+                "floor_heldout": fl.heldout,
+                "floor_relit": fl.relit,
+                "rows": done.iter().map(|d| json!({"model": d.label, "figures": d.figures, "k": d.k, "note": d.note})).collect::<Vec<_>>(),
+            }));
+            // After every case, so that an interrupted run keeps what it measured.
+            write(&md, &out, t0, s, &base, false);
+        }
+    }
+    write(&md, &out, t0, s, &base, true);
+}
+
+/// `bench-results/estimator-ablation[-S].{md,json}` (`RESULTS_SUFFIX=S`); with `last` the
+/// Markdown also goes to standard output.
+fn write(md: &str, out: &[Value], t0: Instant, s: Sizes, base: &EstimateOptions, last: bool) {
+    let mut md = md.to_string();
+    md.push_str(&format!(
+        "Bench so far: {:.0} s wall.\n",
+        t0.elapsed().as_secs_f64()
+    ));
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("bench-results");
+    let stem = match std::env::var("RESULTS_SUFFIX") {
+        Ok(sfx) if !sfx.is_empty() => format!("estimator-ablation-{sfx}"),
+        _ => "estimator-ablation".to_string(),
+    };
+    std::fs::write(dir.join(format!("{stem}.md")), &md).unwrap();
+    let v: Value = json!({"sizes": format!("{s:?}"), "options": format!("{base:?}"), "cases": out, "seconds": t0.elapsed().as_secs_f64()});
+    std::fs::write(
+        dir.join(format!("{stem}.json")),
+        serde_json::to_string_pretty(&v).unwrap(),
+    )
+    .unwrap();
+    if last {
+        println!("{md}");
+    }
+}
