@@ -42,9 +42,11 @@ pub(crate) struct RunArgs {
     pub(crate) adaptive: String,
     /// Model of each photo's light: `paper` (a free non-negative map, the paper's),
     /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
-    /// maps), `auto` (both fitted, the one that predicts held-back observations better kept;
-    /// twice the fitting time).
-    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "auto"], help_heading = "Model")]
+    /// maps), `shared` (one map per group of photos under one sky, per-photo gains), `sky`
+    /// (an outdoor sun and sky per photo plus a penalised residual map), `auto` (every model
+    /// that applies fitted, the one that predicts held-back observations best kept; that
+    /// many times the fitting time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "sky", "auto"], help_heading = "Model")]
     pub(crate) light: String,
     /// Find people, cars and other things in front of the object in some photos (where a
     /// short trial fit disagrees with a photo over a patch of the surface), leave them out

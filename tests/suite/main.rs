@@ -31,6 +31,7 @@ mod core_pipeline;
 mod estimate_planted;
 mod estimate_scale;
 mod estimate_shared;
+mod estimate_sky;
 mod estimate_synth;
 mod extreme_pipeline;
 mod extreme_units;
