@@ -2,6 +2,7 @@
 //! grid across its folded seams ([`crate::sphere::SphereGrid::neighbors`]), the term
 //! `μ ‖Δ x‖²` of the objective (Eq. 9) and its normal matrix `μ ΔᵀΔ`.
 
+use crate::solve::options::EstimateOptions;
 use crate::sphere::SphereGrid;
 
 /// The map's graph Laplacian `Δ` on the full octahedral grid (4 neighbours across seams):
@@ -60,4 +61,52 @@ impl Laplacian {
         self.apply(x, &mut lx);
         lx.iter().map(|v| v * v).sum()
     }
+}
+
+/// The factor on `μ_1` at outer iteration `outer_it` (from 1): `smoothness_decay^(it−1)`,
+/// floored at `smoothness_min / smoothness` and capped at 1; 1 when the decay is off.
+pub(crate) fn smoothness_factor(opts: &EstimateOptions, outer_it: usize) -> f64 {
+    if opts.smoothness_decay == 1.0 || opts.smoothness <= 0.0 {
+        1.0
+    } else {
+        opts.smoothness_decay
+            .powi(outer_it as i32 - 1)
+            .max(opts.smoothness_min / opts.smoothness)
+            .min(1.0)
+    }
+}
+
+/// `Σ_maps Σ_c μ_c ‖Δ x_c‖²` over maps paired with their weights (`None`: not yet fitted,
+/// no penalty): the smoothness term of `F` for any model made of free maps.
+pub(crate) fn maps_penalty(
+    lap: &Laplacian,
+    maps: &[[Vec<f64>; 3]],
+    mu: &[Option<[f64; 3]>],
+) -> f64 {
+    maps.iter()
+        .zip(mu)
+        .map(|(l, m)| {
+            let m = m.unwrap_or([0.0; 3]);
+            (0..3).map(|c| m[c] * lap.energy(&l[c])).sum::<f64>()
+        })
+        .sum()
+}
+
+/// Maps moved along their last step, `a + σ (a − b)`, projected on `a ≥ 0`.
+pub(crate) fn extrapolate_maps(
+    maps: &[[Vec<f64>; 3]],
+    prev: &[[Vec<f64>; 3]],
+    sigma: f64,
+) -> Vec<[Vec<f64>; 3]> {
+    maps.iter()
+        .zip(prev)
+        .map(|(l, q)| {
+            [0, 1, 2].map(|c| {
+                l[c].iter()
+                    .zip(&q[c])
+                    .map(|(&a, &b)| (a + sigma * (a - b)).max(0.0))
+                    .collect()
+            })
+        })
+        .collect()
 }

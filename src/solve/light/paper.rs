@@ -14,7 +14,9 @@
 
 use std::borrow::Cow;
 
-use crate::solve::light::laplacian::Laplacian;
+use crate::solve::light::laplacian::{
+    extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
+};
 use crate::solve::light::photo::{lighting_sample, lighting_step_on, LightingResult};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
@@ -78,19 +80,6 @@ impl PaperLight {
         }
     }
 
-    /// The factor on `μ_1` at outer iteration `outer_it` (module docs).
-    fn mu_factor(&self, outer_it: usize) -> f64 {
-        let o = &self.opts;
-        if o.smoothness_decay == 1.0 || o.smoothness <= 0.0 {
-            1.0
-        } else {
-            o.smoothness_decay
-                .powi(outer_it as i32 - 1)
-                .max(o.smoothness_min / o.smoothness)
-                .min(1.0)
-        }
-    }
-
     /// Takes one photo's lighting result into the state and the outputs.
     fn absorb(&mut self, problem: &Problem, i: usize, r: LightingResult, out: &mut LightingOutput) {
         let range = problem.obs.photo_ranges[i].clone();
@@ -128,7 +117,7 @@ impl LightModel for PaperLight {
 
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
-        let mu_factor = self.mu_factor(input.outer_iteration);
+        let mu_factor = smoothness_factor(&self.opts, input.outer_iteration);
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
         let samples = self.samples.get_or_insert_with(|| {
             (0..problem.n_photos)
@@ -164,25 +153,11 @@ impl LightModel for PaperLight {
     }
 
     fn penalty(&self, params: &Maps) -> f64 {
-        params
-            .iter()
-            .zip(&self.mu)
-            .map(|(l, m)| {
-                let m = m.unwrap_or([0.0; 3]);
-                (0..3).map(|c| m[c] * self.lap.energy(&l[c])).sum::<f64>()
-            })
-            .sum()
+        maps_penalty(&self.lap, params, &self.mu)
     }
 
     fn extrapolate(&self, params: &Maps, prev: &Maps, sigma: f64) -> Maps {
-        let ext = |a: f64, b: f64| (a + sigma * (a - b)).max(0.0);
-        params
-            .iter()
-            .zip(prev)
-            .map(|(l, q)| {
-                [0, 1, 2].map(|c| l[c].iter().zip(&q[c]).map(|(&a, &b)| ext(a, b)).collect())
-            })
-            .collect()
+        extrapolate_maps(params, prev, sigma)
     }
 
     fn divide_channel(&mut self, c: usize, f: f64) {

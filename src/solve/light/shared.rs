@@ -36,7 +36,9 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
-use crate::solve::light::laplacian::Laplacian;
+use crate::solve::light::laplacian::{
+    extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
+};
 use crate::solve::light::photo::{lighting_sample, reweight, PhotoData};
 use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
@@ -185,20 +187,6 @@ impl SharedLight {
         })
     }
 
-    /// The factor on `μ_1` at outer iteration `outer_it` (the paper model's schedule).
-    fn mu_factor(&self, outer_it: usize) -> f64 {
-        let o = &self.opts;
-        if o.smoothness_decay == 1.0 || o.smoothness <= 0.0 {
-            1.0
-        } else {
-            o.smoothness_decay
-                .powi(outer_it as i32 - 1)
-                .max(o.smoothness_min / o.smoothness)
-                .min(1.0)
-        }
-    }
-
-    /// Photo `i`'s map `a_{I,c} m_{g,c}`, channel-major.
     fn photo_texels(params: &SharedParams, g: usize, i: usize) -> Vec<f64> {
         let (m, a) = (&params.maps[g], params.gains[i]);
         (0..3)
@@ -384,7 +372,7 @@ impl LightModel for SharedLight {
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
         let beta = input.beta;
-        let mu_factor = self.mu_factor(input.outer_iteration);
+        let mu_factor = smoothness_factor(&self.opts, input.outer_iteration);
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
         let samples = self.samples.get_or_insert_with(|| {
             (0..problem.n_photos)
@@ -469,28 +457,13 @@ impl LightModel for SharedLight {
     }
 
     fn penalty(&self, params: &SharedParams) -> f64 {
-        params
-            .maps
-            .iter()
-            .zip(&self.mu)
-            .map(|(m, mu)| {
-                let mu = mu.unwrap_or([0.0; 3]);
-                (0..3).map(|c| mu[c] * self.lap.energy(&m[c])).sum::<f64>()
-            })
-            .sum()
+        maps_penalty(&self.lap, &params.maps, &self.mu)
     }
 
     fn extrapolate(&self, params: &SharedParams, prev: &SharedParams, sigma: f64) -> SharedParams {
         let ext = |a: f64, b: f64| (a + sigma * (a - b)).max(0.0);
         SharedParams {
-            maps: params
-                .maps
-                .iter()
-                .zip(&prev.maps)
-                .map(|(l, q)| {
-                    [0, 1, 2].map(|c| l[c].iter().zip(&q[c]).map(|(&a, &b)| ext(a, b)).collect())
-                })
-                .collect(),
+            maps: extrapolate_maps(&params.maps, &prev.maps, sigma),
             gains: params
                 .gains
                 .iter()
