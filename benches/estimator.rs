@@ -131,7 +131,9 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// per-photo gains), `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (parts 2 and 5: the clustered
 /// start with every non-Lambertian basis at `f` × the material's mean Lambertian weight, grey,
 /// instead of 0), `start=s` (parts 2 and 5: start number `s` of `starts::variants`),
-/// `starts=n` (part 2: the best of the first `n` of them, `starts::estimate_best`), `dirty=1` (5% outliers, part 3); `base` alone
+/// `starts=n` (part 2: the best of the first `n` of them, `starts::estimate_best`), `dirty=1` (5% outliers, part 3),
+/// `prior=η` / `haar=η` (the light prior's SH and Haar noise levels), `sky=η` (the
+/// sun-and-sky light model with residual noise level η); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
     label: String,
@@ -186,6 +188,12 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             // statistics of all eight maps (including the photo's own: optimistic).
             "prior" => prior_opts(&mut o).sh_noise = num(),
             "haar" => prior_opts(&mut o).haar_noise = num(),
+            // The sun-and-sky model (issue 25) with its residual prior at noise level η.
+            "sky" => {
+                o.light_sky = Some(relight_cpc::solve::light::sky::SkyOptions {
+                    residual_noise: num(),
+                })
+            }
             // Shared light (issue 25): photos rendered under the same true map (and
             // rotation) share one fitted map with per-photo gains ([`with_case_groups`]).
             "shared" => {

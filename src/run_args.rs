@@ -42,10 +42,21 @@ pub(crate) struct RunArgs {
     pub(crate) adaptive: String,
     /// Model of each photo's light: `paper` (a free non-negative map, the paper's),
     /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
-    /// maps), `auto` (both fitted, the one that predicts held-back observations better kept;
-    /// twice the fitting time).
-    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "auto"], help_heading = "Model")]
+    /// maps), `shared` (one map per group of photos under one sky, per-photo gains), `sky`
+    /// (an outdoor sun and sky per photo plus a penalised residual map), `auto` (every model
+    /// that applies fitted, the one that predicts held-back observations best kept; that
+    /// many times the fitting time).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "sky", "auto"], help_heading = "Model")]
     pub(crate) light: String,
+    /// Find people, cars and other things in front of the object in some photos (where a
+    /// short trial fit disagrees with a photo over a patch of the surface), leave them out
+    /// of the fit and draw them in outliers/*.png (two short trial fits more).
+    #[arg(long, help_heading = "Model")]
+    pub(crate) transients: bool,
+    /// Let pixels within a few pixels of the object's outline or of a depth edge count
+    /// fully (by default they count less: a small misregistration mixes the background in).
+    #[arg(long, help_heading = "Model")]
+    pub(crate) no_edge_margin: bool,
     /// Photos under one sky for `--light shared` (one map per group, per-photo exposure
     /// and white-balance gains): a text file of lines `<photo name> <group label>`.
     /// Without it, photos taken within --light-group-minutes of each other (EXIF time).
@@ -254,6 +265,8 @@ impl RunArgs {
         o.force = self.force;
         o.render_training = !self.no_training_renders;
         o.adaptive = self.adaptive == "on";
+        o.transients = self.transients;
+        o.edge_margin = !self.no_edge_margin;
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;

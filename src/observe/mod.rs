@@ -29,10 +29,16 @@
 //! under the bilinear footprint is overexposed (the observation is kept with zero weight,
 //! so counts stay honest).
 //!
+//! **Margins** ([`margins`]): with [`ObserveOptions::edge_margin`], `α_p` is further
+//! multiplied by a ramp in the pixel distance from `π(X_cam)` to the nearest silhouette or
+//! depth edge of the rasterised mesh, 0 within `inner_px`, 1 from `outer_px` on.
+//!
 //! Output is a struct of arrays sorted by photo then vertex, identical for any thread count:
 //! each photo's vertices are processed in parallel with rayon and collected in order.
 
 pub mod inspect;
+pub mod margins;
+pub mod outliers;
 pub mod trace;
 
 use std::ops::Range;
@@ -102,7 +108,17 @@ pub struct ObserveOptions {
     pub depth_discontinuity: f64,
     /// Probe offset `r` in pixels; 0 disables the discontinuity test. Default 1.5.
     pub probe_px: f64,
+    /// Down-weighting near silhouettes and depth edges ([`margins`]); `None`: off.
+    /// Default [`DEFAULT_EDGE_MARGIN`].
+    pub edge_margin: Option<margins::EdgeMargin>,
 }
+
+/// Default of [`ObserveOptions::edge_margin`].
+pub const DEFAULT_EDGE_MARGIN: Option<margins::EdgeMargin> = Some(margins::EdgeMargin {
+    inner_px: 1.0,
+    outer_px: 3.0,
+    depth_jump: 0.05,
+});
 
 impl Default for ObserveOptions {
     fn default() -> Self {
@@ -112,6 +128,7 @@ impl Default for ObserveOptions {
             min_cos: 0.1,
             depth_discontinuity: 0.02,
             probe_px: 1.5,
+            edge_margin: DEFAULT_EDGE_MARGIN,
         }
     }
 }
@@ -131,6 +148,8 @@ pub struct ViewStats {
     pub observed: usize,
     /// Kept observations on overexposed pixels (weight 0).
     pub overexposed: usize,
+    /// Kept observations given weight 0 by the edge margin ([`margins`]).
+    pub near_edge: usize,
 }
 
 /// `α` for a cosine (module docs); 0 at or below `min_cos`.
@@ -145,6 +164,8 @@ pub fn grazing_confidence(cos: f64, opts: &ObserveOptions) -> f64 {
 /// One kept observation before it is split into arrays.
 struct Record {
     vertex: u32,
+    /// Camera pixel `π(X_cam)`.
+    px: [f64; 2],
     rgb: [f32; 3],
     weight: f32,
     dir: [f32; 3],
@@ -249,6 +270,7 @@ impl ViewGeometry<'_> {
         Outcome::Kept(
             Record {
                 vertex: v as u32,
+                px,
                 rgb,
                 weight,
                 dir: [wo.x as f32, wo.y as f32, wo.z as f32],
@@ -327,6 +349,9 @@ pub fn extract_with_stats<P: std::borrow::Borrow<Photo>>(
             .with_min_len(512)
             .map(|v| geo.test(mesh, bvh, v, reach[v], opts))
             .collect();
+        let edge_distance = opts
+            .edge_margin
+            .map(|m| margins::edge_distance(mesh, cam, &view.image, m.depth_jump));
         let mut s = ViewStats::default();
         for o in outcomes {
             match o {
@@ -342,7 +367,21 @@ pub fn extract_with_stats<P: std::borrow::Borrow<Photo>>(
                     s.facing += 1;
                     s.discontinuity += 1;
                 }
-                Outcome::Kept(r, over) => {
+                Outcome::Kept(mut r, over) => {
+                    if let (Some(m), Some(d)) = (&opts.edge_margin, &edge_distance) {
+                        let (ix, iy) = (r.px[0].floor(), r.px[1].floor());
+                        let (w, h) = (cam.width as f64, cam.height as f64);
+                        let dist = if ix >= 0.0 && iy >= 0.0 && ix < w && iy < h {
+                            d[iy as usize * cam.width as usize + ix as usize] as f64
+                        } else {
+                            0.0
+                        };
+                        let f = margins::margin_factor(dist, m) as f32;
+                        if r.weight > 0.0 && f == 0.0 {
+                            s.near_edge += 1;
+                        }
+                        r.weight *= f;
+                    }
                     s.inside += 1;
                     s.facing += 1;
                     s.observed += 1;

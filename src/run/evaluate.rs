@@ -419,7 +419,7 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         &f.bvh,
         std::slice::from_ref(view),
         std::slice::from_ref(&f.photos[v]),
-        &ObserveOptions::default(),
+        &super::observe_options(&f.opts),
     );
     let mut left = Observations::default();
     for p in 0..obs.len() {

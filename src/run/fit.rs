@@ -29,6 +29,8 @@ pub(crate) struct Fit<'a> {
     pub(crate) decisions: Vec<Decision>,
     /// The per-photo light model kept and why.
     pub(crate) light_decision: crate::solve::light::choose::LightDecision,
+    /// What the transient pass masked (`None`: `--transients off`).
+    pub(crate) transients: Option<super::transients::Transients>,
 }
 
 /// The index of the Lambertian basis BRDF, which carries the diffuse colour.
@@ -80,7 +82,7 @@ pub(crate) fn fit<'a>(
     let (scene, photos, held, truth) = (&im.scene, &im.photos, im.held.clone(), &im.truth);
     let Observed {
         bvh,
-        obs,
+        mut obs,
         train,
         decisions,
     } = observed;
@@ -102,14 +104,35 @@ pub(crate) fn fit<'a>(
     // 6. Estimate.
     let lambert = lambert_of(&eff.basis)?;
     let mut reasons = Vec::new();
-    let init = starting_materials(opts, pilot_k, &mean_rgb, &seen, &mut reasons)?;
+    let mut init = starting_materials(opts, pilot_k.clone(), &mean_rgb, &seen, &mut reasons)?;
+    let mut eopts = estimate_options(&eff, lambert, &strata);
+    // The baseline is the photos' own colours: its medians ignore the transient mask.
+    let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
+    let transients = if eff.transients {
+        progress.stage("transients");
+        let spinner = progress.spinner("pilot fit for transient occluders");
+        let start = Materials0::from_initial(&init, eff.basis.len(), lambert);
+        let t = log.stages.run("transients", || {
+            super::transients::mask_transients(&mut obs, &tr, &scene.mesh, &start, &eopts)
+        })?;
+        drop(spinner);
+        // The clustered start from the unmasked observations only: an occluder's colour
+        // would otherwise take a material of its own.
+        if t.count() > 0 {
+            let (mean_rgb, seen) = super::mean_colours(&obs, nv);
+            reasons.clear();
+            init = starting_materials(opts, pilot_k, &mean_rgb, &seen, &mut reasons)?;
+        }
+        Some(t)
+    } else {
+        None
+    };
     let problem = Problem {
         obs: &obs,
         transport: &tr,
         n_vertices: nv,
         n_photos: train.len(),
     };
-    let mut eopts = estimate_options(&eff, lambert, &strata);
     if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
         let file = opts.light_groups.as_deref();
         eopts.light_groups =
@@ -228,7 +251,7 @@ pub(crate) fn fit<'a>(
         opts: eff.clone(),
         estimate_options: eopts,
         bvh,
-        baseline: super::baseline::VertexMedians::from_observations(&obs, nv),
+        baseline,
     };
     Ok(Fit {
         fitted,
@@ -238,6 +261,7 @@ pub(crate) fn fit<'a>(
         reasons,
         decisions,
         light_decision,
+        transients,
     })
 }
 

@@ -35,6 +35,7 @@ mod options;
 mod output;
 mod pipeline;
 pub mod progress;
+mod transients;
 mod truth;
 mod truth_check;
 
@@ -281,6 +282,16 @@ pub(crate) struct Fitted<'a> {
     pub bvh: SceneBvh,
     /// The naive baseline's per-vertex colours ([`baseline`]).
     pub baseline: baseline::VertexMedians,
+}
+
+/// The observation options of a run: the defaults, with the edge margin as
+/// [`RunOptions::edge_margin`] says.
+pub(crate) fn observe_options(o: &RunOptions) -> crate::observe::ObserveOptions {
+    let d = crate::observe::ObserveOptions::default();
+    crate::observe::ObserveOptions {
+        edge_margin: if o.edge_margin { d.edge_margin } else { None },
+        ..d
+    }
 }
 
 /// Run the pipeline with `opts`, reporting progress to `progress`. The output folder is

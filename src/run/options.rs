@@ -116,6 +116,15 @@ pub struct RunOptions {
     /// The per-photo light model ([`crate::solve::light::choose`]): the paper's free map, the
     /// map under the statistical prior, or both and the lower validation score kept.
     pub light: crate::solve::light::choose::LightChoice,
+    /// Mask transient occluders in the training photos before the estimate
+    /// ([`super::transients`]): a short pilot fit, its residuals' spatially coherent
+    /// outliers get weight 0, and each photo's mask is written to `outliers/`. Off by
+    /// default: on planted occluders it finds about half of their pixels and moves the
+    /// held-out error by 2%, at the cost of two pilot fits (`bench-results/realphoto.md`).
+    pub transients: bool,
+    /// Down-weight observations near silhouettes and depth edges
+    /// ([`crate::observe::margins`], [`crate::observe::DEFAULT_EDGE_MARGIN`]).
+    pub edge_margin: bool,
     /// Groups of photos under one sky for `--light shared` ([`super::light_groups`]); `None`:
     /// by EXIF capture time.
     pub light_groups: Option<std::path::PathBuf>,
@@ -201,6 +210,8 @@ impl RunOptions {
             render_training: true,
             adaptive: false,
             light: crate::solve::light::choose::LightChoice::Paper,
+            transients: false,
+            edge_margin: true,
             light_groups: None,
             light_group_minutes: DEFAULT_LIGHT_GROUP_MINUTES,
             scale_anchor: crate::solve::normalise::ScaleAnchor::Start,

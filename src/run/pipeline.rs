@@ -20,7 +20,7 @@ use crate::import::photo::Photo;
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
 use crate::observe::trace::SceneBvh;
-use crate::observe::{self, Observations, ObserveOptions};
+use crate::observe::{self, Observations};
 use crate::report::{ModelReport, RunReport};
 use crate::solve::adapt::Decision;
 use crate::solve::EstimateOptions;
@@ -230,7 +230,13 @@ fn extract_observations(
         let bvh = SceneBvh::new(&scene.mesh);
         let views: Vec<_> = train.iter().map(|&i| scene.views[i].clone()).collect();
         let ph: Vec<&crate::import::photo::Photo> = train.iter().map(|&i| &photos[i]).collect();
-        let obs = observe::extract(&scene.mesh, &bvh, &views, &ph, &ObserveOptions::default());
+        let obs = observe::extract(
+            &scene.mesh,
+            &bvh,
+            &views,
+            &ph,
+            &super::observe_options(opts),
+        );
         (bvh, obs)
     });
     let budget = crate::solve::budget::check(&sizes(obs.len() as u64))?;
@@ -518,6 +524,7 @@ fn write(
         reasons,
         decisions,
         light_decision,
+        transients,
     } = fit;
     let Evaluated {
         evaluation,
@@ -530,6 +537,18 @@ fn write(
     log.stages
         .run("output", || output::write_results(&fitted, dir, progress))?;
 
+    if let Some(t) = &transients {
+        let folder = super::transients::write_masks(t, fitted.scene, &fitted.train, dir)?;
+        log.notes.push(format!(
+            "transient occluders: {} of {} training observations masked ({} rounds of a {}-iteration pilot fit's residuals, coherent over the mesh) in {} of {} photos; masks in {folder}/",
+            t.count(),
+            t.used_before,
+            super::transients::PILOT_ROUNDS,
+            super::transients::PILOT_ITERATIONS,
+            t.masked.iter().filter(|m| !m.is_empty()).count(),
+            t.masked.len()
+        ));
+    }
     let c = &fitted.est.conditioning;
     let conditioning = conditioning_map(c);
     super::notes::fit_notes(opts, &fitted, &multi, log);

@@ -16,6 +16,7 @@ use std::time::Instant;
 
 use crate::solve::light::paper::PaperLight;
 use crate::solve::light::shared::SharedLight;
+use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
     data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step,
@@ -29,15 +30,20 @@ use crate::solve::validation::{EarlyStop, HeldBack};
 use crate::stages::Stopwatch;
 use crate::{Error, Result};
 
-/// The alternation with the paper's light model ([`PaperLight`]), or with the shared
-/// one ([`SharedLight`]) when `opts.light_groups` is set. `on_iter` sees every outer
-/// iteration's log line and the state it reached.
+/// The alternation with the paper's light model ([`PaperLight`]), with the shared one
+/// ([`SharedLight`]) when `opts.light_groups` is set, or with the sun-and-sky model
+/// ([`SkyLight`]) when `opts.light_sky` is. `on_iter` sees every outer iteration's log
+/// line and the state it reached.
 pub fn estimate(
     problem: &Problem,
     init: Materials0,
     opts: &EstimateOptions,
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Estimate> {
+    if let Some(sky) = &opts.light_sky {
+        let light = SkyLight::new(problem, opts, sky)?;
+        return estimate_with(problem, init, opts, light, on_iter);
+    }
     if let Some(groups) = &opts.light_groups {
         let light = SharedLight::new(problem, opts, &init, groups)?;
         return estimate_with(problem, init, opts, light, on_iter);

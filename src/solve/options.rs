@@ -154,6 +154,9 @@ pub struct EstimateOptions {
     /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
     /// map): extra quadratic terms of the lighting QP ([`crate::solve::light::sh_prior`]).
     pub light_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
+    /// The sun-and-sky light model instead of the paper's free map (issue 25, `--light
+    /// sky`; `None`: the paper's map, with `light_prior` if set): [`crate::solve::light::sky`].
+    pub light_sky: Option<crate::solve::light::sky::SkyOptions>,
     /// Prior on each vertex's blending weights summing to one (issue 25, not in the
     /// paper; 0 = off, the paper's free non-negative weights): the material step's `w`
     /// part and `F` gain `Σ_x γ_x (Σ_k w_k(x) − 1)²` with
@@ -260,6 +263,7 @@ impl Default for EstimateOptions {
             lighting_sample: 0,
             lighting_strata: Vec::new(),
             light_prior: None,
+            light_sky: None,
             weights_sum: WEIGHTS_SUM,
             light_groups: None,
             scale_anchor: crate::solve::normalise::ScaleAnchor::Start,

@@ -74,7 +74,7 @@ pub struct SynthOptions {
     pub vertices: Option<usize>,
     /// Make the mesh exactly `vertices` vertices (whole subdivision steps, then a partial
     /// one: [`geometry::refine_to`]) instead of the first subdivision level with at least
-    /// that many. Spot scenes only (`spot-varying`, `spot-ggx`, `spot-diffuse`, `spot-three`, `spot-static`).
+    /// that many. Spot scenes only (`spot-varying`, `spot-ggx`, `spot-diffuse`, `spot-three`, `spot-sky`, `spot-static`).
     pub exact_vertices: bool,
     /// Standard deviation of Gaussian noise on the linear `[0, 1]` photo scale.
     pub noise: f64,
@@ -126,6 +126,55 @@ pub struct SynthSummary {
     pub observations: usize,
     /// Wall time spent in the reference renderer, seconds.
     pub render_seconds: f64,
+}
+
+/// Height of a `spot-sky` map (lat-long, twice as wide).
+pub const SKY_MAP_HEIGHT: usize = 128;
+/// Sun-and-sky map weights of [`sky_map`]: powers (integrals over the sphere) of the sky,
+/// the sun lobe and the ground per channel, and the sun lobe's `κ` (a lobe ~4° wide).
+pub const SKY_MAP_POWER: [[f64; 3]; 3] = [[0.8, 1.0, 1.3], [3.0, 2.7, 2.2], [0.35, 0.3, 0.25]];
+/// Turbidity and sun-lobe sharpness of [`sky_map`].
+pub const SKY_MAP_TURBIDITY: f64 = 3.0;
+pub const SKY_MAP_KAPPA: f64 = 300.0;
+
+/// A clear-sky lat-long map of `height` rows from the sun-and-sky model
+/// ([`crate::solve::light::sky`]) with sun `sun` (environment frame, `e_z` up): the
+/// Hosek–Wilkie sky scaled to power `SKY_MAP_POWER[0]`, the sun lobe and the ground to the
+/// next two (the lobe and ground bases integrate to 1; the sky by its own quadrature here).
+pub fn sky_map(sun: &Vec3, height: usize) -> Result<LatLong> {
+    use crate::solve::light::sky::{ground, sky_radiance, sky_state, sun_lobe, SunSky};
+    let p = SunSky {
+        sun: sun.normalize(),
+        turbidity: SKY_MAP_TURBIDITY,
+        kappa: SKY_MAP_KAPPA,
+    };
+    let state = sky_state(&p)?;
+    let mut ll = LatLong::black(height);
+    let mut sky = vec![[0.0_f64; 3]; ll.rgb.len()];
+    let mut total = [0.0_f64; 3];
+    for v in 0..ll.height {
+        let sa = ll.solid_angle(v);
+        for u in 0..ll.width {
+            let s = sky_radiance(&state, &ll.dir(u, v), &p.sun);
+            for c in 0..3 {
+                total[c] += s[c] * sa;
+            }
+            sky[v * ll.width + u] = s;
+        }
+    }
+    for v in 0..ll.height {
+        for u in 0..ll.width {
+            let d = ll.dir(u, v);
+            let (lobe, g) = (sun_lobe(p.kappa, d.dot(&p.sun)), ground(&d));
+            let s = sky[v * ll.width + u];
+            ll.rgb[v * ll.width + u] = std::array::from_fn(|c| {
+                let w = &SKY_MAP_POWER;
+                (w[0][c] * s[c] / total[c].max(f64::MIN_POSITIVE) + w[1][c] * lobe + w[2][c] * g)
+                    as f32
+            });
+        }
+    }
+    Ok(ll)
 }
 
 /// Writes the workspace of scene `name` into `out` (created if missing).
@@ -271,22 +320,30 @@ fn place_cameras(
         .collect()
 }
 
-/// The maps the photos are lit by, and per photo the map (index into `maps`) and its
-/// rotation in texels.
+/// The maps the photos are lit by, and per photo the map (index into `maps`), its
+/// rotation in texels and, for a sun-and-sky map, its sun direction.
 pub(crate) struct LightingPlan {
     maps: Vec<(String, LatLong)>,
-    plan: Vec<(usize, usize)>,
+    plan: Vec<(usize, usize, Option<Vec3>)>,
 }
 
 /// Per photo a map and its rotation, as the scene's lighting says.
 fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<LightingPlan> {
     let mut maps: Vec<(String, LatLong)> = Vec::new();
-    let mut plan: Vec<(usize, usize)> = Vec::with_capacity(n_photos);
+    let mut plan: Vec<(usize, usize, Option<Vec3>)> = Vec::with_capacity(n_photos);
     for i in 0..n_photos {
         let (m, rotate) = match def.lighting {
             Lighting::Static(m) => (m, false),
             Lighting::Rotating(m) => (m, true),
             Lighting::Varying(list) => (list[i % list.len()], true),
+            Lighting::Sky => {
+                let az = 2.0 * PI * (i as f64 + 0.5 * rng.random::<f64>()) / n_photos as f64;
+                let el = (20.0 + 40.0 * rng.random::<f64>()).to_radians();
+                let sun = Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                maps.push(("sky".into(), sky_map(&sun, SKY_MAP_HEIGHT)?));
+                plan.push((maps.len() - 1, 0, Some(sun)));
+                continue;
+            }
             Lighting::Grouped(list) => (list[i % list.len()], false),
         };
         let idx = match maps.iter().position(|x| x.0 == m) {
@@ -301,7 +358,7 @@ fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<Lig
         } else {
             0
         };
-        plan.push((idx, shift));
+        plan.push((idx, shift, None));
     }
     Ok(LightingPlan { maps, plan })
 }

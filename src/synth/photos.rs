@@ -37,7 +37,7 @@ pub(super) fn render_all(rng: &mut Pcg32, shoot: &Shoot) -> Result<Rendered> {
     let mut photos8: Vec<Vec<u8>> = Vec::with_capacity(n_photos);
     let mut render_seconds = 0.0;
     for (i, cam) in shoot.cams.iter().enumerate() {
-        let (mi, shift) = shoot.lighting.plan[i];
+        let (mi, shift, sun) = shoot.lighting.plan[i];
         let maps = &shoot.lighting.maps;
         let env_map = rotate_texels(&maps[mi].1, shift);
         let stem = names[i].trim_end_matches(".png");
@@ -84,6 +84,7 @@ pub(super) fn render_all(rng: &mut Pcg32, shoot: &Shoot) -> Result<Rendered> {
             held_out: held[i],
             exposure,
             white_balance: wb,
+            sun: sun.map(|v| [v.x, v.y, v.z]),
         });
     }
     Ok(Rendered {

@@ -25,6 +25,10 @@ pub(crate) enum Lighting {
     Rotating(&'static str),
     /// A different map per photo (cycling through the list), each randomly rotated.
     Varying(&'static [&'static str]),
+    /// A clear sky per photo from the sun-and-sky model ([`crate::solve::light::sky`]):
+    /// the sun at azimuth `2π (i + jitter) / photos` and a random elevation in 20°–60°
+    /// ([`super::sky_map`]).
+    Sky,
     /// Photos in groups under one sky each: photo `i` sees map `i mod len`, unrotated
     /// (photos taken in sessions round the object; `--light shared`).
     Grouped(&'static [&'static str]),
@@ -135,6 +139,18 @@ pub(crate) fn scene_defs() -> Vec<SceneDef> {
             photos: 16,
         },
         SceneDef {
+            name: "spot-sky",
+            description: "Spot, two blended materials, outdoors: a clear sky (Hosek–Wilkie), sun and ground per photo with a different known sun direction, held-out photos",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert, Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![
+                ("orange-ggx", vec![[0.8, 0.45, 0.2], [0.25, 0.25, 0.25]]),
+                ("blue-lambert", vec![[0.2, 0.3, 0.6], [0.0, 0.0, 0.0]]),
+            ],
+            lighting: Lighting::Sky,
+            photos: 16,
+        },
+        SceneDef {
             name: "spot-static",
             description: "Spot, two blended materials, one real map for every photo (static illumination)",
             shape: Shape::Spot,
@@ -216,7 +232,7 @@ pub(crate) fn make_geometry(
 ) -> Result<Geometry> {
     if exact && shape != Shape::Spot {
         return Err(Error::Config(
-            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-diffuse, spot-three, spot-static): the other shapes are built from parts".into(),
+            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-diffuse, spot-three, spot-sky, spot-static): the other shapes are built from parts".into(),
         ));
     }
     let sphere_level = |target: usize| -> u32 {

@@ -12,6 +12,9 @@ pub(crate) struct PhotoTruth {
     pub(crate) held_out: bool,
     pub(crate) exposure: f64,
     pub(crate) white_balance: [f64; 3],
+    /// The sun direction (environment frame) of a sun-and-sky map.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) sun: Option<[f64; 3]>,
 }
 
 #[derive(serde::Serialize)]

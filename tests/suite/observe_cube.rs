@@ -119,7 +119,12 @@ fn cube_with_occluder_observations_match_geometry() {
         photo0(),
         Photo::from_linear(W, W, vec![[0.25, 0.5, 0.75]; (W * W) as usize]),
     ];
-    let opts = ObserveOptions::default();
+    // The weights below are the grazing ramp alone: no edge margin (tested in
+    // realphoto_effects and the margins module).
+    let opts = ObserveOptions {
+        edge_margin: None,
+        ..ObserveOptions::default()
+    };
     let (obs, stats) = extract_with_stats(&mesh, &bvh, &views, &photos, &opts);
 
     // Expected set, view 0: front face (z = 1) vertices, not on the silhouette ring
@@ -208,7 +213,12 @@ fn output_is_identical_with_one_thread() {
         Vec3::new(0.3, 0.2, 5.0),
     )];
     let photos = vec![photo0()];
-    let opts = ObserveOptions::default();
+    // The weights below are the grazing ramp alone: no edge margin (tested in
+    // realphoto_effects and the margins module).
+    let opts = ObserveOptions {
+        edge_margin: None,
+        ..ObserveOptions::default()
+    };
     let (a, _) = extract_with_stats(&mesh, &bvh, &views, &photos, &opts);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -241,7 +251,12 @@ fn smooth_convex_surface_has_no_false_discontinuities() {
         c,
     )];
     let photos = vec![Photo::from_linear(W, W, vec![[0.5; 3]; (W * W) as usize])];
-    let opts = ObserveOptions::default();
+    // The weights below are the grazing ramp alone: no edge margin (tested in
+    // realphoto_effects and the margins module).
+    let opts = ObserveOptions {
+        edge_margin: None,
+        ..ObserveOptions::default()
+    };
     let (obs, stats) = extract_with_stats(&mesh, &bvh, &views, &photos, &opts);
     assert_eq!(stats[0].occluded, 0);
     let seen: std::collections::HashSet<u32> = obs.vertex.iter().copied().collect();

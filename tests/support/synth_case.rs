@@ -256,7 +256,13 @@ pub fn prepare_in(
             .collect();
         let views: Vec<_> = idx.iter().map(|&i| sc.views[i].clone()).collect();
         let ph: Vec<_> = idx.iter().map(|&i| photos[i].clone()).collect();
-        let obs = observe::extract(&sc.mesh, &bvh, &views, &ph, &ObserveOptions::default());
+        // The paper's observation rule: the estimator's tests measure the estimator, and
+        // the edge margin (a real-photo guard, tested in realphoto_effects) is off.
+        let opts = ObserveOptions {
+            edge_margin: None,
+            ..ObserveOptions::default()
+        };
+        let obs = observe::extract(&sc.mesh, &bvh, &views, &ph, &opts);
         let transport = transport::build(
             &normals_env,
             &obs,

@@ -1,7 +1,8 @@
 //! Which per-photo light model a fit uses (issue 25, `--light`): the paper's free map,
 //! the free map under the statistical prior of [`crate::solve::light::sh_prior`], one map
 //! per group of photos under one sky with per-photo gains
-//! ([`crate::solve::light::shared`]), or `auto`, which fits each that applies (`shared`
+//! ([`crate::solve::light::shared`]), the sun and sky of [`crate::solve::light::sky`], or
+//! `auto`, which fits each that applies (`shared`
 //! only when some group holds two photos or more) and keeps the one with the lowest
 //! early-stopping validation score (the same seeded held-back observations for all,
 //! [`crate::solve::Validation`]), as `--adaptive` chooses the model order by held-out
@@ -30,20 +31,23 @@ pub enum LightChoice {
     Prior,
     /// One free map per group of photos, per-photo exposure and white-balance gains.
     Shared,
-    /// Both fitted; the lower validation score kept.
+    /// A parametric sun and sky plus a penalised wavelet residual per photo.
+    Sky,
+    /// Every model that applies fitted; the lowest validation score kept.
     Auto,
 }
 
 impl LightChoice {
-    /// Parse `paper`, `prior` or `auto`.
+    /// Parse `paper`, `prior`, `shared`, `sky` or `auto`.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "paper" => Ok(LightChoice::Paper),
             "prior" => Ok(LightChoice::Prior),
             "shared" => Ok(LightChoice::Shared),
+            "sky" => Ok(LightChoice::Sky),
             "auto" => Ok(LightChoice::Auto),
             other => Err(Error::Config(format!(
-                "--light {other}: expected `paper`, `prior`, `shared` or `auto`"
+                "--light {other}: expected `paper`, `prior`, `shared`, `sky` or `auto`"
             ))),
         }
     }
@@ -54,6 +58,7 @@ impl LightChoice {
             LightChoice::Paper => "paper",
             LightChoice::Prior => "prior",
             LightChoice::Shared => "shared",
+            LightChoice::Sky => "sky",
             LightChoice::Auto => "auto",
         }
     }
@@ -62,19 +67,21 @@ impl LightChoice {
 /// One light model to fit: its name and the estimator's options for it.
 #[derive(Debug, Clone)]
 pub struct LightCandidate {
-    /// `paper` or `prior`.
+    /// `paper`, `prior`, `shared` or `sky`.
     pub name: &'static str,
     /// `base` with the model's light terms.
     pub options: EstimateOptions,
 }
 
-/// The models `choice` fits, from the estimator options `base` (whose `light_prior` is
-/// replaced; its `light_groups`, the photo groups when known, are kept by `shared` alone).
+/// The models `choice` fits, from the estimator options `base` (whose `light_prior` and
+/// `light_sky` are replaced; its `light_groups`, the photo groups when known, are kept by
+/// `shared` alone).
 pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<LightCandidate>> {
     let paper = || LightCandidate {
         name: "paper",
         options: EstimateOptions {
             light_prior: None,
+            light_sky: None,
             light_groups: None,
             ..base.clone()
         },
@@ -90,6 +97,7 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
             options: EstimateOptions {
                 light_prior: None,
                 light_groups: Some(groups.clone()),
+                light_sky: None,
                 ..base.clone()
             },
         })
@@ -103,17 +111,28 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
                     PRIOR_SH_NOISE,
                     PRIOR_HAAR_NOISE,
                 )?),
+                light_sky: None,
                 light_groups: None,
                 ..base.clone()
             },
         })
     };
+    let sky = || LightCandidate {
+        name: "sky",
+        options: EstimateOptions {
+            light_prior: None,
+            light_groups: None,
+            light_sky: Some(crate::solve::light::sky::SkyOptions::default()),
+            ..base.clone()
+        },
+    };
     Ok(match choice {
         LightChoice::Paper => vec![paper()],
         LightChoice::Prior => vec![prior()?],
         LightChoice::Shared => vec![shared()?],
-        LightChoice::Auto if any_shared => vec![paper(), prior()?, shared()?],
-        LightChoice::Auto => vec![paper(), prior()?],
+        LightChoice::Sky => vec![sky()],
+        LightChoice::Auto if any_shared => vec![paper(), prior()?, shared()?, sky()],
+        LightChoice::Auto => vec![paper(), prior()?, sky()],
     })
 }
 
@@ -186,12 +205,13 @@ mod tests {
             LightChoice::Paper,
             LightChoice::Prior,
             LightChoice::Shared,
+            LightChoice::Sky,
             LightChoice::Auto,
         ] {
             assert_eq!(LightChoice::parse(c.name()).unwrap(), c);
         }
-        let e = LightChoice::parse("sky").unwrap_err().to_string();
-        assert!(e.contains("--light sky"), "{e}");
+        let e = LightChoice::parse("skies").unwrap_err().to_string();
+        assert!(e.contains("--light skies"), "{e}");
     }
 
     #[test]
@@ -205,7 +225,7 @@ mod tests {
         let names = |v: &[LightCandidate]| v.iter().map(|c| c.name).collect::<Vec<_>>();
         assert_eq!(
             names(&candidates(LightChoice::Auto, &base).unwrap()),
-            ["paper", "prior"]
+            ["paper", "prior", "sky"]
         );
         // Groups of one photo each: `auto` does not fit `shared` (it would be `paper`).
         let single = EstimateOptions {
@@ -214,16 +234,17 @@ mod tests {
         };
         assert_eq!(
             names(&candidates(LightChoice::Auto, &single).unwrap()).len(),
-            2
+            3
         );
         let grouped = EstimateOptions {
             light_groups: Some(LightGroups::from_labels(&[0, 0, 1], String::new())),
             ..base
         };
         let c = candidates(LightChoice::Auto, &grouped).unwrap();
-        assert_eq!(names(&c), ["paper", "prior", "shared"]);
+        assert_eq!(names(&c), ["paper", "prior", "shared", "sky"]);
         for m in &c {
             assert_eq!(m.options.light_groups.is_some(), m.name == "shared");
+            assert_eq!(m.options.light_sky.is_some(), m.name == "sky");
         }
     }
 }

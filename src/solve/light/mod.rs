@@ -21,9 +21,10 @@
 //!
 //! Implementations: [`paper::PaperLight`], the paper's free wavelet map per photo with a
 //! Laplacian smoothness prior; [`shared::SharedLight`], one map per group of photos under
-//! one sky with per-photo exposure and white-balance gains. Others (a Gaussian prior on the map, a parametric sun and
-//! sky plus a penalised residual, one map shared by several photos with per-photo gains)
-//! go in as one file each beside it.
+//! one sky with per-photo exposure and white-balance gains; [`sky::SkyLight`], a parametric
+//! sun and sky plus a penalised wavelet residual. The statistical prior on the free map is
+//! an option of the paper's ([`sh_prior`]). Other models go in as one file each beside
+//! them.
 
 use std::borrow::Cow;
 
@@ -37,6 +38,7 @@ pub mod paper;
 pub mod photo;
 pub mod sh_prior;
 pub mod shared;
+pub mod sky;
 pub mod system;
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,546 @@
+//! [`SkyLight`]: the sun-and-sky light model as a [`LightModel`] (the math in the parent
+//! module's docs). Photos are independent and fitted in parallel, largest first; each fit
+//! is sequential, so results do not depend on the thread count. The model fits by plain
+//! least squares (its IRLS weights are 1) on all of a photo's observations (no lighting
+//! sample).
+
+// Kernels index several arrays in step; range loops read like the math.
+#![allow(clippy::needless_range_loop)]
+
+use std::borrow::Cow;
+use std::sync::Arc;
+
+use super::search::SearchData;
+use super::{
+    coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
+};
+use crate::solve::light::sh_prior::{haar_diag_in_texels, LightPrior};
+use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
+use crate::solve::light::{LightModel, LightingInput, LightingOutput};
+use crate::solve::options::EstimateOptions;
+use crate::solve::problem::{haar3, par_largest_first, Problem};
+use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
+use crate::sphere::haar;
+use crate::{Error, Result};
+
+/// Relative noise level `η` of the residual's prior by default (`σ = η · rms(y)`).
+/// Measured on `spot-sky` (`bench-results/estimator-sky.md`), held-out error against the
+/// photos: 0.257 (η = 0.1), 0.249 (η = 1) on 8-bit photos; noise-free, against the true
+/// model, 0.151 (η = 1), 0.154 (η = 10).
+pub const SKY_RESIDUAL_NOISE: f64 = 1.0;
+/// Turbidity and lobe sharpness of the first step's grid.
+const GRID_TURBIDITY: f64 = 3.0;
+const GRID_KAPPA: f64 = 64.0;
+/// Pattern-search steps `(azimuth, elevation, ln κ, T)` after the grid (half its spacing)
+/// and warm-started from the previous outer iteration.
+const FIRST_STEPS: [f64; 4] = [0.16, 0.16, 1.0, 2.0];
+const WARM_STEPS: [f64; 4] = [0.04, 0.04, 0.25, 0.5];
+/// The search ends when its angular step is below 0.25°.
+const MIN_ANGLE: f64 = 0.25 * std::f64::consts::PI / 180.0;
+/// Evaluation caps of the first and of a warm-started search.
+const FIRST_EVALS: usize = 200;
+const WARM_EVALS: usize = 60;
+/// Outer iterations through which the grid is searched again (the materials move most
+/// early on, and a sun found under the starting materials may be a wrong local minimum);
+/// the better of the grid's best and the previous `θ` is refined.
+const REGRID_ITERATIONS: usize = 3;
+
+/// Options of the sun-and-sky model ([`EstimateOptions::light_sky`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SkyOptions {
+    /// `η` of the residual's prior (`σ = η · rms(y)`); larger keeps the map closer to the
+    /// parametric sky.
+    pub residual_noise: f64,
+}
+
+impl Default for SkyOptions {
+    fn default() -> Self {
+        SkyOptions {
+            residual_noise: SKY_RESIDUAL_NOISE,
+        }
+    }
+}
+
+/// One photo's sun-and-sky parameters.
+#[derive(Debug, Clone)]
+pub struct SkyPhoto {
+    /// The non-linear values.
+    pub theta: SunSky,
+    /// The bases at `theta`.
+    pub basis: Arc<SkyBasis>,
+    /// `w_{j,c}`, `≥ 0`.
+    pub weights: [[f64; 3]; N_BASIS],
+    /// The residual's texels per channel, `≥ 0`.
+    pub residual: [Vec<f64>; 3],
+}
+
+impl SkyPhoto {
+    /// The map: `Σ_j w_{j,c} B_{j,c} + r_c`.
+    pub fn map(&self) -> [Vec<f64>; 3] {
+        let mut m = self.basis.combine(&self.weights);
+        for (mc, rc) in m.iter_mut().zip(&self.residual) {
+            mc.iter_mut().zip(rc).for_each(|(a, b)| *a += b);
+        }
+        m
+    }
+}
+
+/// The residual prior's state of one photo: `σ²` and the light's scale `h_{0,c}`.
+#[derive(Debug, Clone, Copy, Default)]
+struct ResidualScale {
+    sigma2: f64,
+    h0: [f64; 3],
+}
+
+/// The sun-and-sky light model (module docs).
+pub struct SkyLight {
+    params: Vec<SkyPhoto>,
+    scale: Vec<Option<ResidualScale>>,
+    /// Whether a photo's `θ` was searched (its next search is warm-started).
+    searched: Vec<bool>,
+    /// `b_k` per Haar coefficient.
+    b: Vec<f64>,
+    opts: EstimateOptions,
+    sky: SkyOptions,
+    /// QP caps inside the alternation (as for the paper's map).
+    qp_max_iter: usize,
+    qp_max_cg: usize,
+}
+
+impl SkyLight {
+    /// Zero light for every photo of `problem` (sun at the zenith, every weight 0).
+    pub fn new(problem: &Problem, opts: &EstimateOptions, sky: &SkyOptions) -> Result<Self> {
+        let n = problem.transport.n_global;
+        let prior = LightPrior::builtin()?;
+        let scales = prior.haar_scales(n).ok_or_else(|| {
+            Error::Config(format!(
+                "--light sky: no wavelet statistics for a {n}² global map (sides 4 to 128, powers of two)"
+            ))
+        })?;
+        let b = coefficient_scales(n, scales);
+        let theta = SunSky {
+            sun: crate::Vec3::z(),
+            turbidity: GRID_TURBIDITY,
+            kappa: GRID_KAPPA,
+        };
+        let basis = Arc::new(SkyBasis::new(n, SUB_TEXELS, &theta)?);
+        let zero = SkyPhoto {
+            theta,
+            basis,
+            weights: [[0.0; 3]; N_BASIS],
+            residual: std::array::from_fn(|_| vec![0.0; n * n]),
+        };
+        let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
+            (false, Some(c)) => c.clamp(1, max.max(1)),
+            _ => max,
+        };
+        Ok(SkyLight {
+            params: vec![zero; problem.n_photos],
+            scale: vec![None; problem.n_photos],
+            searched: vec![false; problem.n_photos],
+            b,
+            opts: opts.clone(),
+            sky: sky.clone(),
+            qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
+            qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
+        })
+    }
+
+    /// The recovered `θ` per photo.
+    pub fn thetas(&self) -> Vec<SunSky> {
+        self.params.iter().map(|p| p.theta).collect()
+    }
+}
+
+/// One photo's lighting step result.
+struct PhotoFit {
+    photo: SkyPhoto,
+    scale: ResidualScale,
+    qp: Option<QpResult>,
+}
+
+/// The photo's observations as the step reads them.
+struct Rows {
+    range: std::ops::Range<usize>,
+    alpha: Vec<f64>,
+    y: Vec<[f64; 3]>,
+}
+
+impl Rows {
+    fn new(problem: &Problem, photo: usize) -> Self {
+        let range = problem.obs.photo_ranges[photo].clone();
+        let o = problem.obs;
+        Rows {
+            alpha: range.clone().map(|p| o.weight[p] as f64).collect(),
+            y: range.clone().map(|p| o.rgb[p].map(f64::from)).collect(),
+            range,
+        }
+    }
+
+    /// The α-weighted mean square radiance.
+    fn mean_square(&self) -> f64 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (a, y) in self.alpha.iter().zip(&self.y) {
+            num += a * (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) / 3.0;
+            den += a;
+        }
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The joint QP of one photo in `z = (w, r)` (module docs of the parent).
+struct JointQp<'a> {
+    sys: &'a PhotoSystem,
+    basis: &'a SkyBasis,
+    /// Residual weights `d_k` per channel.
+    d: [Vec<f64>; 3],
+}
+
+impl JointQp<'_> {
+    const NW: usize = N_BASIS * 3;
+
+    /// The texels `x = B w + r`, channel-major, of `z`.
+    fn texels(&self, z: &[f64]) -> Vec<f64> {
+        let n2 = self.sys.n * self.sys.n;
+        let mut x = z[Self::NW..].to_vec();
+        for j in 0..N_BASIS {
+            for c in 0..3 {
+                let w = z[j * 3 + c];
+                if w != 0.0 {
+                    let bm = &self.basis.maps[j][c];
+                    x[c * n2..(c + 1) * n2]
+                        .iter_mut()
+                        .zip(bm)
+                        .for_each(|(a, b)| *a += w * b);
+                }
+            }
+        }
+        x
+    }
+
+    /// `out = (Bᵀ g, g)` for a texel-space gradient `g` (channel-major).
+    fn pull_back(&self, g: &[f64], out: &mut [f64]) {
+        let n2 = self.sys.n * self.sys.n;
+        for j in 0..N_BASIS {
+            for c in 0..3 {
+                let bm = &self.basis.maps[j][c];
+                out[j * 3 + c] = bm
+                    .iter()
+                    .zip(&g[c * n2..(c + 1) * n2])
+                    .map(|(a, b)| a * b)
+                    .sum();
+            }
+        }
+        out[Self::NW..].copy_from_slice(g);
+    }
+
+    /// `Wᵀ Aᵀ D A W x` for channel-major texels.
+    fn data_hessian(&self, x: &[f64]) -> Vec<f64> {
+        let n = self.sys.n;
+        let h = haar3(&split3(x, n * n), n);
+        let mut hb = vec![[0.0; 3]; n * n];
+        self.sys.normal_rows(&h, &mut hb);
+        unhaar3(&hb, n)
+    }
+
+    /// The Hessian product.
+    fn hess(&self, z: &[f64], out: &mut [f64]) {
+        let n = self.sys.n;
+        let n2 = n * n;
+        let hx = self.data_hessian(&self.texels(z));
+        self.pull_back(&hx, out);
+        let mut h = haar3(&split3(&z[Self::NW..], n2), n);
+        for (k, hk) in h.iter_mut().enumerate() {
+            for c in 0..3 {
+                hk[c] *= self.d[c][k];
+            }
+        }
+        let pen = unhaar3(&h, n);
+        out[Self::NW..]
+            .iter_mut()
+            .zip(&pen)
+            .for_each(|(a, b)| *a += b);
+    }
+
+    /// The Jacobi scaling: `B_jᵀ H B_j` per weight, the texel diagonal of the data term
+    /// plus the prior's per residual texel.
+    fn diagonal(&self, tdiag: &[[f64; 3]]) -> Vec<f64> {
+        let n = self.sys.n;
+        let n2 = n * n;
+        let mut diag = vec![0.0; Self::NW + 3 * n2];
+        for j in 0..N_BASIS {
+            let x: Vec<f64> = self.basis.maps[j].iter().flatten().copied().collect();
+            let hx = self.data_hessian(&x);
+            for c in 0..3 {
+                diag[j * 3 + c] = self.basis.maps[j][c]
+                    .iter()
+                    .zip(&hx[c * n2..(c + 1) * n2])
+                    .map(|(a, b)| a * b)
+                    .sum();
+            }
+        }
+        for c in 0..3 {
+            let pd = haar_diag_in_texels(&self.d[c], n);
+            for t in 0..n2 {
+                diag[Self::NW + c * n2 + t] = tdiag[t][c] + pd[t];
+            }
+        }
+        diag
+    }
+}
+
+impl SkyLight {
+    /// One photo's lighting step: the `θ` search, then the joint QP.
+    fn fit_photo(
+        &self,
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        photo: usize,
+        outer_iteration: usize,
+    ) -> Result<PhotoFit> {
+        let n = problem.transport.n_global;
+        let n2 = n * n;
+        let prev = &self.params[photo];
+        let rows = Rows::new(problem, photo);
+        let dw: Vec<[f64; 3]> = rows.alpha.iter().map(|&a| [a; 3]).collect();
+        let sys = PhotoSystem::new(problem, beta, rows.range.clone(), n, dw);
+        // 1. θ with the residual fixed.
+        let mut resid_pred = vec![[0.0; 3]; rows.y.len()];
+        sys.forward_rows(&haar3(&prev.residual, n), &mut resid_pred);
+        let target: Vec<[f64; 3]> = rows
+            .y
+            .iter()
+            .zip(&resid_pred)
+            .map(|(y, r)| [0, 1, 2].map(|c| y[c] - r[c]))
+            .collect();
+        let search = SearchData {
+            sys: &sys,
+            target: &target,
+        };
+        let best = if self.searched[photo] {
+            let warm = search.evaluate(prev.theta)?;
+            let grid = if outer_iteration <= REGRID_ITERATIONS {
+                Some(search.grid(GRID_TURBIDITY, GRID_KAPPA)?)
+            } else {
+                None
+            };
+            match grid {
+                Some(g) if g.sse < warm.sse => {
+                    search.refine(g, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS)?
+                }
+                _ => search.refine(warm, WARM_STEPS, MIN_ANGLE, WARM_EVALS)?,
+            }
+        } else {
+            let start = search.grid(GRID_TURBIDITY, GRID_KAPPA)?;
+            search.refine(start, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS)?
+        };
+        // 2. The residual prior at the current light's scale.
+        let sigma2 = self.sky.residual_noise.powi(2) * rows.mean_square();
+        let mut total = best.basis.combine(&best.weights);
+        for (t, r) in total.iter_mut().zip(&prev.residual) {
+            t.iter_mut().zip(r).for_each(|(a, b)| *a += b);
+        }
+        let h0_all = haar3(&total, n)[0];
+        let h0_max = h0_all.iter().fold(0.0_f64, |a, &v| a.max(v));
+        let h0 = h0_all.map(|v| v.max(1e-9 * h0_max).max(f64::MIN_POSITIVE));
+        let hr = haar3(&prev.residual, n);
+        let d: [Vec<f64>; 3] = std::array::from_fn(|c| {
+            let hc: Vec<f64> = hr.iter().map(|v| v[c]).collect();
+            residual_weights(&hc, h0[c], &self.b, sigma2)
+        });
+        // 3. The joint QP from the search's weights and the previous residual.
+        let qp = JointQp {
+            sys: &sys,
+            basis: &best.basis,
+            d,
+        };
+        let u: Vec<[f64; 3]> = (0..rows.y.len())
+            .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * rows.y[q][c]))
+            .collect();
+        let mut hb = vec![[0.0; 3]; n2];
+        sys.adjoint_rows(&u, &mut hb);
+        let bx = unhaar3(&hb, n);
+        let mut b = vec![0.0; JointQp::NW + 3 * n2];
+        qp.pull_back(&bx, &mut b);
+        let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        let mut z0: Vec<f64> = best.weights.iter().flatten().copied().collect();
+        z0.extend(prev.residual.iter().flatten());
+        let scale = ResidualScale { sigma2, h0 };
+        if bmax == 0.0 {
+            // No light reaches any weighted observation: the minimiser is zero.
+            let photo = SkyPhoto {
+                theta: best.theta,
+                basis: Arc::new(best.basis),
+                weights: [[0.0; 3]; N_BASIS],
+                residual: std::array::from_fn(|_| vec![0.0; n2]),
+            };
+            return Ok(PhotoFit {
+                photo,
+                scale,
+                qp: None,
+            });
+        }
+        let tdiag = texel_diag_vec(problem, beta, rows.range.clone(), &rows.alpha);
+        let jac = qp.diagonal(&tdiag);
+        let opts = QpOptions {
+            tol: self.opts.qp_rel_tol * bmax,
+            max_iter: self.qp_max_iter,
+            max_cg: self.qp_max_cg.max(1),
+        };
+        let res =
+            bound_qp_scaled(|v, o| qp.hess(v, o), &b, &z0, &opts, Some(&jac)).map_err(|e| {
+                Error::Numeric {
+                    stage: format!("sky lighting step, photo {photo}"),
+                    message: e.to_string(),
+                }
+            })?;
+        let mut weights = [[0.0; 3]; N_BASIS];
+        for j in 0..N_BASIS {
+            for c in 0..3 {
+                weights[j][c] = res.x[j * 3 + c];
+            }
+        }
+        let residual = split3(&res.x[JointQp::NW..], n2);
+        Ok(PhotoFit {
+            photo: SkyPhoto {
+                theta: best.theta,
+                basis: Arc::new(best.basis),
+                weights,
+                residual,
+            },
+            scale,
+            qp: Some(res),
+        })
+    }
+}
+
+impl LightModel for SkyLight {
+    type Params = Vec<SkyPhoto>;
+
+    fn name(&self) -> &'static str {
+        "sky: Hosek–Wilkie sky + sun lobe + ground per photo, penalised wavelet residual"
+    }
+
+    fn parameter_count(&self) -> usize {
+        self.params
+            .iter()
+            .map(|p| 4 + 3 * N_BASIS + p.residual.iter().map(Vec::len).sum::<usize>())
+            .sum()
+    }
+
+    fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
+        let problem = input.problem;
+        let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
+        let results: Vec<Result<PhotoFit>> = par_largest_first(&sizes, |i| {
+            self.fit_photo(problem, input.beta, i, input.outer_iteration)
+        });
+        let cond = &mut *out.conditioning;
+        cond.lighting.clear();
+        cond.qp_unconverged = 0;
+        cond.qp_alternation_capped = 0;
+        for (i, r) in results.into_iter().enumerate() {
+            let fit = r?;
+            let range = problem.obs.photo_ranges[i].clone();
+            out.irls_weights[range].fill([1.0; 3]);
+            if let Some(res) = &fit.qp {
+                cond.lighting.push(res.cond_lower_bound);
+                cond.qp_unconverged += usize::from(!res.converged);
+                cond.lighting_matvecs += res.matvecs;
+                cond.lighting_qps += 1;
+                cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(res.matvecs);
+                if self.qp_max_iter < self.opts.qp_max_iter {
+                    cond.qp_alternation_capped += usize::from(!res.converged);
+                }
+            }
+            self.params[i] = fit.photo;
+            self.scale[i] = Some(fit.scale);
+            self.searched[i] = true;
+        }
+        Ok(())
+    }
+
+    fn params(&self) -> &Vec<SkyPhoto> {
+        &self.params
+    }
+
+    fn set_params(&mut self, params: Vec<SkyPhoto>) {
+        self.params = params;
+    }
+
+    fn maps<'a>(&'a self, params: &'a Vec<SkyPhoto>) -> Cow<'a, [[Vec<f64>; 3]]> {
+        Cow::Owned(params.iter().map(SkyPhoto::map).collect())
+    }
+
+    fn penalty(&self, params: &Vec<SkyPhoto>) -> f64 {
+        let n = self.params.first().map_or(0, |p| p.basis.n);
+        params
+            .iter()
+            .zip(&self.scale)
+            .map(|(p, s)| {
+                let Some(s) = s else { return 0.0 };
+                (0..3)
+                    .map(|c| {
+                        let mut h = p.residual[c].clone();
+                        haar::forward(&mut h, n);
+                        residual_penalty(&h, s.h0[c], &self.b, s.sigma2)
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
+    fn extrapolate(
+        &self,
+        params: &Vec<SkyPhoto>,
+        prev: &Vec<SkyPhoto>,
+        sigma: f64,
+    ) -> Vec<SkyPhoto> {
+        let ext = |a: f64, b: f64| (a + sigma * (a - b)).max(0.0);
+        params
+            .iter()
+            .zip(prev)
+            .map(|(p, q)| {
+                let mut e = p.clone();
+                for j in 0..N_BASIS {
+                    for c in 0..3 {
+                        e.weights[j][c] = ext(p.weights[j][c], q.weights[j][c]);
+                    }
+                }
+                for c in 0..3 {
+                    for (v, w) in e.residual[c].iter_mut().zip(&q.residual[c]) {
+                        *v = ext(*v, *w);
+                    }
+                }
+                e
+            })
+            .collect()
+    }
+
+    fn divide_channel(&mut self, c: usize, f: f64) {
+        for p in self.params.iter_mut() {
+            p.weights.iter_mut().for_each(|w| w[c] /= f);
+            p.residual[c].iter_mut().for_each(|v| *v /= f);
+        }
+        for s in self.scale.iter_mut().flatten() {
+            s.h0[c] /= f;
+        }
+    }
+
+    fn normalise(&mut self, s: f64) {
+        for c in 0..3 {
+            self.divide_channel(c, s);
+        }
+    }
+
+    fn prior_weights(&self) -> Vec<[f64; 3]> {
+        vec![[0.0; 3]; self.params.len()]
+    }
+
+    fn into_maps(self) -> Vec<[Vec<f64>; 3]> {
+        self.params.iter().map(SkyPhoto::map).collect()
+    }
+}

@@ -1,0 +1,178 @@
+//! The search for one photo's non-linear sun and sky values `θ = (s, T, κ)` with the
+//! residual fixed (module docs of [`crate::solve::light::sky`]): for each candidate the
+//! nine colour weights by NNLS and the weighted squared error; a grid of sun directions,
+//! then a pattern search with halving steps.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::{SkyBasis, SunSky, GRID_SUNS, KAPPA_RANGE, N_BASIS, SUB_TEXELS};
+use crate::solve::light::system::PhotoSystem;
+use crate::solve::problem::haar3;
+use crate::solve::qp::{nnls, NnlsOptions};
+use crate::Result;
+
+/// One evaluated `θ`: its bases, NNLS weights and weighted squared error.
+#[derive(Debug, Clone)]
+pub struct Candidate {
+    /// The non-linear values.
+    pub theta: SunSky,
+    /// The bases at `theta`.
+    pub basis: SkyBasis,
+    /// `w_{j,c}` (basis, channel), `≥ 0`.
+    pub weights: [[f64; 3]; N_BASIS],
+    /// `Σ_q Σ_c d_{q,c} (y_{q,c} − Σ_j w_{j,c} s_{q,j,c})²`.
+    pub sse: f64,
+}
+
+/// The nine weights by NNLS, per channel independently, from the bases' responses
+/// `resp[j][q][c]` (basis `j`'s prediction of row `q`), the row weights `dw` and targets
+/// `y`; and the weighted squared error at them.
+pub fn weights_nnls(
+    resp: &[Vec<[f64; 3]>; N_BASIS],
+    dw: &[[f64; 3]],
+    y: &[[f64; 3]],
+) -> Result<([[f64; 3]; N_BASIS], f64)> {
+    let mut w = [[0.0; 3]; N_BASIS];
+    let mut sse = 0.0;
+    for c in 0..3 {
+        let mut g = DMatrix::<f64>::zeros(N_BASIS, N_BASIS);
+        let mut rhs = DVector::<f64>::zeros(N_BASIS);
+        let mut yy = 0.0;
+        for (q, (d, yq)) in dw.iter().zip(y).enumerate() {
+            let (d, t) = (d[c], yq[c]);
+            if d == 0.0 {
+                continue;
+            }
+            yy += d * t * t;
+            for j in 0..N_BASIS {
+                let sj = resp[j][q][c];
+                rhs[j] += d * sj * t;
+                for k in j..N_BASIS {
+                    g[(j, k)] += d * sj * resp[k][q][c];
+                }
+            }
+        }
+        for j in 0..N_BASIS {
+            for k in 0..j {
+                g[(j, k)] = g[(k, j)];
+            }
+        }
+        let x = nnls(&g, &rhs, &NnlsOptions::default())?;
+        let quad = (&g * &x).dot(&x);
+        sse += (yy - 2.0 * rhs.dot(&x) + quad).max(0.0);
+        for j in 0..N_BASIS {
+            w[j][c] = x[j];
+        }
+    }
+    Ok((w, sse))
+}
+
+/// What the search reads for one photo: its lighting system (rows, weights `dw`) and the
+/// targets with the residual's prediction taken off.
+pub(crate) struct SearchData<'a> {
+    /// The photo's system (its `dw` the row weights).
+    pub(crate) sys: &'a PhotoSystem,
+    /// `y − A r` per row.
+    pub(crate) target: &'a [[f64; 3]],
+}
+
+impl SearchData<'_> {
+    /// `θ` evaluated: bases, responses, NNLS.
+    pub fn evaluate(&self, theta: SunSky) -> Result<Candidate> {
+        let n = self.sys.n;
+        let basis = SkyBasis::new(n, SUB_TEXELS, &theta)?;
+        let rows = self.target.len();
+        let resp: [Vec<[f64; 3]>; N_BASIS] = std::array::from_fn(|j| {
+            let h = haar3(&basis.maps[j], n);
+            let mut r = vec![[0.0; 3]; rows];
+            self.sys.forward_rows(&h, &mut r);
+            r
+        });
+        let (weights, sse) = weights_nnls(&resp, &self.sys.dw, self.target)?;
+        Ok(Candidate {
+            theta,
+            basis,
+            weights,
+            sse,
+        })
+    }
+
+    /// The best of [`GRID_SUNS`] sun directions evenly spread over the upper hemisphere
+    /// (a Fibonacci spiral, uniform in `s_z`) at turbidity `turbidity` and lobe `kappa`.
+    pub fn grid(&self, turbidity: f64, kappa: f64) -> Result<Candidate> {
+        let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
+        let mut best: Option<Candidate> = None;
+        for i in 0..GRID_SUNS {
+            let z = (i as f64 + 0.5) / GRID_SUNS as f64;
+            let theta = SunSky::from_angles(golden * i as f64, z.asin(), turbidity, kappa);
+            let c = self.evaluate(theta)?;
+            if best.as_ref().is_none_or(|b| c.sse < b.sse) {
+                best = Some(c);
+            }
+        }
+        Ok(best.expect("the grid has points"))
+    }
+
+    /// Pattern search over `(azimuth, elevation, ln κ, T)` from `start`: each round tries
+    /// `±step` per coordinate and moves on any decrease; a round without one halves every
+    /// step; it ends when the angular step is below `min_angle` (radians) or after
+    /// `max_evals` evaluations.
+    pub fn refine(
+        &self,
+        start: Candidate,
+        steps: [f64; 4],
+        min_angle: f64,
+        max_evals: usize,
+    ) -> Result<Candidate> {
+        let mut x = clamp_coords(coords(&start.theta));
+        let mut best = start;
+        let mut steps = steps;
+        let mut evals = 0;
+        while steps[0] >= min_angle && evals < max_evals {
+            let mut improved = false;
+            for i in 0..4 {
+                for sign in [1.0, -1.0] {
+                    let mut x2 = x;
+                    x2[i] += sign * steps[i];
+                    let x2 = clamp_coords(x2);
+                    if x2 == x {
+                        continue;
+                    }
+                    let c = self.evaluate(from_coords(x2))?;
+                    evals += 1;
+                    if c.sse < best.sse {
+                        best = c;
+                        x = x2;
+                        improved = true;
+                    }
+                }
+            }
+            if !improved {
+                steps.iter_mut().for_each(|s| *s *= 0.5);
+            }
+        }
+        Ok(best)
+    }
+}
+
+/// `(azimuth, elevation, ln κ, T)` of `θ`.
+fn coords(t: &SunSky) -> [f64; 4] {
+    let (az, el) = t.angles();
+    [az, el, t.kappa.ln(), t.turbidity]
+}
+
+/// Coordinates clamped to the model's ranges (elevation `[0, π/2]`, `κ` in
+/// [`KAPPA_RANGE`], `T` in `[1, 10]`).
+fn clamp_coords(x: [f64; 4]) -> [f64; 4] {
+    [
+        x[0],
+        x[1].clamp(0.0, std::f64::consts::FRAC_PI_2),
+        x[2].clamp(KAPPA_RANGE.0.ln(), KAPPA_RANGE.1.ln()),
+        x[3].clamp(1.0, 10.0),
+    ]
+}
+
+/// `θ` from (clamped) coordinates.
+fn from_coords(x: [f64; 4]) -> SunSky {
+    SunSky::from_angles(x[0], x[1], x[3], x[2].exp())
+}

@@ -1,0 +1,183 @@
+use super::search::weights_nnls;
+use super::*;
+use crate::sphere::envmap::LatLong;
+use rand::{Rng, SeedableRng};
+
+/// `∫ f dω` by a fine lat-long midpoint rule (`height` rows): independent of the
+/// octahedral texels the bases are built on.
+fn latlong_integral(height: usize, f: impl Fn(&Vec3) -> f64) -> f64 {
+    let ll = LatLong::black(height);
+    let mut s = 0.0;
+    for v in 0..ll.height {
+        let sa = ll.solid_angle(v);
+        for u in 0..ll.width {
+            s += f(&ll.dir(u, v)) * sa;
+        }
+    }
+    s
+}
+
+#[test]
+fn the_sun_lobe_and_the_ground_integrate_to_one() {
+    // The lobe's closed-form normalisation against a 2048-row lat-long quadrature (pixel
+    // 0.09°, ≥ 20 pixels across the sharpest lobe's 1/√κ ≈ 2.6° width): the midpoint rule's
+    // error is far below 1e-3 there. The sun is placed off the pole and off pixel centres.
+    let sun = SunSky::from_angles(0.7, 0.4, 3.0, 1.0).sun;
+    for kappa in [2.0, 50.0, 500.0] {
+        let i = latlong_integral(2048, |d| sun_lobe(kappa, d.dot(&sun)));
+        assert!((i - 1.0).abs() < 1e-3, "κ = {kappa}: ∫ = {i}");
+    }
+    let g = latlong_integral(512, ground);
+    assert!((g - 1.0).abs() < 1e-9, "ground ∫ = {g}");
+}
+
+#[test]
+fn the_basis_texels_integrate_to_one_and_are_non_negative() {
+    // Texel averages times exact texel solid angles. The sky is scaled to 1 by its own sum
+    // (1e-12: rounding). The lobe (κ = 64, ~7° wide) and the ground (the horizon cuts
+    // texels diagonally) are averages over 6 × 6 midpoint sub-texels of 3.9° on a 16²
+    // map: a 1% tolerance on their formula integral of 1 (measured error below 0.3%).
+    let p = SunSky::from_angles(1.1, 0.5, 4.0, 64.0);
+    let b = SkyBasis::new(16, SUB_TEXELS, &p).unwrap();
+    let omega = crate::sphere::SphereGrid::full(16).solid_angles();
+    for (j, tol) in [(SKY, 1e-12), (SUN, 1e-2), (GROUND, 1e-2)] {
+        for c in 0..3 {
+            let m = &b.maps[j][c];
+            assert!(m.iter().all(|v| v.is_finite() && *v >= 0.0));
+            let i: f64 = m.iter().zip(&omega).map(|(v, o)| v * o).sum();
+            assert!((i - 1.0).abs() < tol, "basis {j} channel {c}: ∫ = {i}");
+        }
+    }
+}
+
+#[test]
+fn the_sky_basis_is_the_crates_radiance_over_its_integral() {
+    // The sky's texel average × its integral (a 1024-row lat-long quadrature of the crate's
+    // radiance, independent of the octahedral texels) against the crate's radiance at the
+    // texel's centre, on a 32² map (texels ~5.6°), for texels 15° or more above the
+    // horizon and 20° or more from the sun, where the radiance varies by a few percent
+    // across a texel (its curvature makes centre and average differ): 3% tolerance.
+    let p = SunSky::from_angles(-0.4, 0.6, 3.0, 64.0);
+    let b = SkyBasis::new(32, SUB_TEXELS, &p).unwrap();
+    let state = sky_state(&p).unwrap();
+    let grid = crate::sphere::SphereGrid::full(32);
+    for c in 0..3 {
+        let total = latlong_integral(1024, |d| sky_radiance(&state, d, &p.sun)[c]);
+        let mut checked = 0;
+        for t in 0..grid.len() {
+            let d = grid.texel_dir(t);
+            if d.z < 15f64.to_radians().sin() || d.dot(&p.sun) > 20f64.to_radians().cos() {
+                continue;
+            }
+            let want = sky_radiance(&state, &d, &p.sun)[c];
+            let got = b.maps[SKY][c][t] * total;
+            assert!(
+                (got - want).abs() <= 0.03 * want,
+                "texel {t} channel {c}: {got} vs {want}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 50, "{checked} texels checked");
+        // Below the horizon: nothing.
+        for t in 0..grid.len() {
+            if grid.texel_dir(t).z < -0.2 {
+                assert_eq!(b.maps[SKY][c][t], 0.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_sky_brightens_toward_the_sun() {
+    // Hosek–Wilkie's circumsolar term: at equal elevation (30°), the sky 30° from the sun
+    // is brighter than the sky opposite it, in every channel.
+    let p = SunSky::from_angles(0.0, 30f64.to_radians(), 3.0, 64.0);
+    let state = sky_state(&p).unwrap();
+    let near = SunSky::from_angles(30f64.to_radians(), 30f64.to_radians(), 3.0, 1.0).sun;
+    let far = SunSky::from_angles(std::f64::consts::PI, 30f64.to_radians(), 3.0, 1.0).sun;
+    let (a, b) = (
+        sky_radiance(&state, &near, &p.sun),
+        sky_radiance(&state, &far, &p.sun),
+    );
+    for c in 0..3 {
+        assert!(a[c] > b[c], "channel {c}: {} vs {}", a[c], b[c]);
+    }
+}
+
+#[test]
+fn nnls_weights_recover_planted_weights_and_stay_non_negative() {
+    // Random responses, targets made from known non-negative weights: NNLS gives them back
+    // (1e-9 relative: a well-conditioned 3 × 3 system) with zero error. With a negative
+    // planted weight, the solution is ≥ 0 and no worse than the weights clamped at 0.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let rows = 200;
+    let resp: [Vec<[f64; 3]>; N_BASIS] = std::array::from_fn(|_| {
+        (0..rows)
+            .map(|_| std::array::from_fn(|_| rng.random_range(0.0..1.0)))
+            .collect()
+    });
+    let dw: Vec<[f64; 3]> = (0..rows)
+        .map(|_| std::array::from_fn(|_| rng.random_range(0.5..1.5)))
+        .collect();
+    let make = |w: [[f64; 3]; N_BASIS]| -> Vec<[f64; 3]> {
+        (0..rows)
+            .map(|q| std::array::from_fn(|c| (0..N_BASIS).map(|j| w[j][c] * resp[j][q][c]).sum()))
+            .collect()
+    };
+    let w_true = [[0.5, 0.7, 0.9], [2.0, 1.5, 1.0], [0.0, 0.2, 0.1]];
+    let (w, sse) = weights_nnls(&resp, &dw, &make(w_true)).unwrap();
+    for j in 0..N_BASIS {
+        for c in 0..3 {
+            assert!((w[j][c] - w_true[j][c]).abs() < 1e-9, "{w:?}");
+        }
+    }
+    assert!(sse < 1e-12, "{sse}");
+    let w_neg = [[0.5, -0.7, 0.9], [2.0, 1.5, -1.0], [0.3, 0.2, 0.1]];
+    let y = make(w_neg);
+    let (w, sse) = weights_nnls(&resp, &dw, &y).unwrap();
+    assert!(w.iter().flatten().all(|v| *v >= 0.0));
+    let clamped = w_neg.map(|r| r.map(|v: f64| v.max(0.0)));
+    let yc = make(clamped);
+    let sse_clamped: f64 = (0..rows)
+        .map(|q| {
+            (0..3)
+                .map(|c| dw[q][c] * (y[q][c] - yc[q][c]).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    assert!(sse <= sse_clamped + 1e-12, "{sse} vs {sse_clamped}");
+}
+
+#[test]
+fn the_residual_weights_majorise_the_penalty() {
+    // Majorise–minimise: φ(h) ≤ φ(h̄) + ½ Σ d_k (h_k² − h̄_k²) for every h, with equality at
+    // h̄, and the weights are φ's derivative over h at h̄ (central differences, 1e-6
+    // relative: step 1e-6 of a smooth function).
+    let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+    let b: Vec<f64> = (0..64).map(|_| rng.random_range(0.01..0.2)).collect();
+    let (h0, s2) = (2.0, 0.3);
+    let hbar: Vec<f64> = (0..64).map(|_| rng.random_range(-0.5..0.5)).collect();
+    let d = residual_weights(&hbar, h0, &b, s2);
+    let f0 = residual_penalty(&hbar, h0, &b, s2);
+    for _ in 0..100 {
+        let h: Vec<f64> = (0..64).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let maj = f0
+            + 0.5
+                * d.iter()
+                    .zip(&h)
+                    .zip(&hbar)
+                    .map(|((dk, a), c)| dk * (a * a - c * c))
+                    .sum::<f64>();
+        assert!(residual_penalty(&h, h0, &b, s2) <= maj + 1e-12);
+    }
+    for k in [0, 7, 40] {
+        let e = 1e-6;
+        let at = |v: f64| residual_penalty(&[v], h0, &b[k..k + 1], s2);
+        let deriv = (at(hbar[k] + e) - at(hbar[k] - e)) / (2.0 * e);
+        let want = d[k] * hbar[k];
+        assert!(
+            (deriv - want).abs() <= 1e-6 * want.abs().max(1e-3),
+            "{deriv} vs {want}"
+        );
+    }
+}
