@@ -179,9 +179,10 @@ pub struct EstimateOptions {
 /// measured recommendation (`bench-results/estimator-ablation.md`, 8-bit photos, relit
 /// under unseen maps: diffuse Spot 0.139 → 0.107, glossy 0.175 → 0.146, three materials
 /// 0.184 → 0.149; the built-in example's held-out RMSE under the true light 0.0626 /
-/// 0.0860 → 0.0538 / 0.0675), not yet the default: two estimator tests calibrated on
-/// free weights (`estimate_planted`'s joint recovery, whose planted weights do not sum to
-/// one, and `estimate_synth`'s outlier test) fail with it and need their own review.
+/// 0.0860 → 0.0538 / 0.0675), not the default: on the real-photo Buddha fixture it does
+/// not help (headline 0.9109 → 0.9131), and with [`PATIENCE`] 1 the validation score stops
+/// `estimate_planted`'s joint recovery after 15 of 40 iterations (0.016 against noise 0.01;
+/// run to the end 0.0073, free weights 0.0081) (`bench-results/weights-sum-default.md`).
 pub const WEIGHTS_SUM: f64 = 0.0;
 
 /// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
