@@ -157,6 +157,11 @@ pub(crate) struct RunArgs {
     /// early stopping off.
     #[arg(long, default_value_t = 0.1, help_heading = "Solver")]
     pub(crate) validation: f64,
+    /// Hold back whole blocks of this many consecutive mesh vertices (all their
+    /// observations, their weights refitted after stopping) instead of single observations;
+    /// 0 = single observations.
+    #[arg(long, default_value_t = 0, help_heading = "Solver")]
+    pub(crate) validation_block: usize,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1, help_heading = "Solver")]
     pub(crate) seed: u64,
@@ -253,6 +258,7 @@ impl RunArgs {
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
         o.validation = self.validation;
+        o.validation_block = self.validation_block;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;

@@ -63,6 +63,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         lambert_basis: lambert,
         validation_seed: o.seed,
         validation_fraction: o.validation,
+        validation_block: o.validation_block,
         lighting_sample: o.lighting_sample,
         lighting_strata: strata.to_vec(),
         scale_anchor: o.scale_anchor,

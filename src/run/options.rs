@@ -97,6 +97,9 @@ pub struct RunOptions {
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
+    /// Early stopping holds back blocks of this many consecutive vertex ids
+    /// ([`EstimateOptions::validation_block`]; 0 = single observations).
+    pub validation_block: usize,
     /// Overexposure threshold on the encoded [0, 1] scale.
     pub clip: f32,
     /// Seed of every random choice.
@@ -203,6 +206,7 @@ impl RunOptions {
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: EstimateOptions::default().weights_sum,
             validation: EstimateOptions::default().validation_fraction,
+            validation_block: 0,
             clip: crate::import::photo::DEFAULT_CLIP,
             seed: 1,
             progress: true,

@@ -96,6 +96,9 @@ pub fn estimate_with<M: LightModel>(
         prev_obj = objective;
     }
     let validation = stop.finish(&mut alt);
+    if opts.validation_block > 0 && !held.idx.is_empty() {
+        alt.refit_held_weights(problem, &held.idx)?;
+    }
     alt.finish(&init, timeline, validation)
 }
 
@@ -236,6 +239,28 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     }
 
     /// The material step (module docs); the basis responses `s` of the lights it ends with.
+    /// After a blocked validation split ([`EstimateOptions::validation_block`]) its vertices
+    /// have no fitted weights: one w step (Eq. 12) on the `full` problem, under the current
+    /// maps and `λ`, gives them theirs; the other vertices keep the returned iterate's.
+    fn refit_held_weights(&mut self, full: &Problem, held: &[usize]) -> Result<()> {
+        let dw = data_weights(full, &self.omega, self.opts);
+        let s = basis_responses(full, &self.light.maps(self.light.params()));
+        let w = weights_step(
+            full,
+            &s,
+            &self.lambda,
+            &self.weights,
+            &dw.weights,
+            self.sum_gamma.as_deref(),
+        )?;
+        let kk = self.lambda.len();
+        for &p in held {
+            let x = full.obs.vertex[p] as usize;
+            self.weights[x * kk..(x + 1) * kk].copy_from_slice(&w.weights[x * kk..(x + 1) * kk]);
+        }
+        Ok(())
+    }
+
     fn materials(&mut self) -> Result<Vec<[f64; 3]>> {
         let (problem, opts) = (self.problem, self.opts);
         let dw = data_weights(problem, &self.omega, opts);

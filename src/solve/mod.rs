@@ -88,4 +88,4 @@ pub use options::{
 };
 pub use problem::{basis_responses, beta_per_vertex, par_largest_first, predict, Problem};
 pub use result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes, Validation};
-pub use validation::validation_split;
+pub use validation::{validation_split, validation_split_blocked};
