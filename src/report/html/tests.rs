@@ -1,0 +1,52 @@
+//! Tests of the parent module.
+
+use super::*;
+
+#[test]
+fn heat_ends_and_clamps() {
+    assert_eq!(heat(0.0), HEAT[0]);
+    assert_eq!(heat(1.0), HEAT[5]);
+    assert_eq!(heat(-3.0), HEAT[0]);
+    assert_eq!(heat(f64::NAN), HEAT[0]);
+    // Halfway between control points 2 and 3 (t = 0.5): their mean, rounded.
+    assert_eq!(heat(0.5), [184, 60, 81]);
+}
+
+/// Per-pixel error against a hand computation: photo (0.5, 0.5, 0.5), render
+/// (0.2, 0.2, 0.2) at scale 2 gives e = 0.1 exactly (f32: 1e-7).
+#[test]
+fn pixel_error_formula() {
+    let e = pixel_errors(
+        &[[0.5; 3], [1.0; 3]],
+        &[[0.2; 3], [0.0; 3]],
+        &[true, false],
+        2.0,
+    );
+    assert!((e[0].unwrap() - 0.1).abs() < 1e-7);
+    assert_eq!(e[1], None);
+    assert_eq!(quantile([3.0f32, 1.0, 2.0].into_iter(), 0.5), Some(2.0));
+}
+
+#[test]
+fn href_encodes_spaces_and_keeps_slashes() {
+    assert_eq!(href("renders/a b.png"), "renders/a%20b.png");
+    let page = format!("{}{}", img("x/y.png", "a", "c"), img("z.png", "<b>", "c"));
+    assert_eq!(image_sources(&page), ["x/y.png", "z.png"]);
+    assert!(page.contains("&lt;b&gt;"));
+}
+
+/// Metrics of any shape render: a list of records becomes a table with a column per
+/// key; a missing key says so.
+#[test]
+fn metrics_render_what_exists() {
+    let mut s = String::new();
+    metrics_section(
+        &mut s,
+        &serde_json::json!({"metrics": [{"image": "a.png", "psnr_h": 21.5}, {"image": "b.png", "ssim": 0.9}]}),
+    );
+    assert!(s.contains("<th>psnr_h</th>") && s.contains("<th>ssim</th>"));
+    assert!(s.contains("21.5000") && s.contains("0.9000"));
+    let mut t = String::new();
+    metrics_section(&mut t, &serde_json::json!({}));
+    assert!(t.contains("no literature metrics"));
+}
