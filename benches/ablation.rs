@@ -161,6 +161,21 @@ fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     o.map(|o| EstimateOptions { patience: 4, ..o })
 }
 
+/// `o` with early stopping's patience at `n` outer iterations (the best-validation iterate
+/// still returned).
+fn patience(o: Option<EstimateOptions>, n: usize) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions { patience: n, ..o })
+}
+
+/// `o` with the Laplacian schedule `smoothness_decay` = `decay` down to `smoothness_min` = `min`.
+fn decay(o: Option<EstimateOptions>, decay: f64, min: f64) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        smoothness_decay: decay,
+        smoothness_min: min,
+        ..o
+    })
+}
+
 /// Rows run only when `ABLATION_ROWS` names them (variants measured once, not part of the
 /// standard table).
 #[rustfmt::skip]
@@ -175,6 +190,14 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "prior, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("prior", b), 1.0)) },
         Row::Fit { label: "paper, patience 4", make: |b| patient(choice("paper", b)) },
         Row::Fit { label: "paper, Σw=1 prior 1, patience 4", make: |b| patient(sum1(choice("paper", b), 1.0)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, patience 50", make: |b| patience(sum1(choice("paper", b), 1.0), 50) },
+        Row::Fit { label: "paper, Σw=1 prior 1, Laplacian ×0.8 per iteration to 1e-5", make: |b| decay(sum1(choice("paper", b), 1.0), 0.8, 1e-5) },
+        Row::Fit { label: "paper, Σw=1 prior 1, Laplacian ×0.8 per iteration to 1e-4", make: |b| decay(sum1(choice("paper", b), 1.0), 0.8, 1e-4) },
+        Row::Fit { label: "paper, Σw=1 prior 1, no IRLS, patience 50", make: |b| patience(no_irls(sum1(choice("paper", b), 1.0)), 50) },
+        Row::Fit { label: "paper, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("paper", b), 1.0)), 1000) },
+        Row::Fit { label: "paper, Σw=1 prior 10, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("paper", b), 10.0)), 1000) },
+        Row::Fit { label: "paper, Σw=1 prior 1, patience 1000", make: |b| patience(sum1(choice("paper", b), 1.0), 1000) },
+        Row::Fit { label: "paper, no IRLS, patience 1000", make: |b| patience(no_irls(choice("paper", b)), 1000) },
     ]
 }
 
@@ -257,6 +280,8 @@ struct Figures {
     relit_model: f64,
     /// Worst relative diffuse-ratio error over materials j ≥ 1, per channel.
     ratio_errors: [f64; 3],
+    /// The same for the k-means start.
+    start_ratio_errors: [f64; 3],
     /// Material accuracy over the seen vertices (all; pure).
     assignment: f64,
     assignment_pure: f64,
@@ -311,10 +336,10 @@ fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
 
 /// Per channel, the worst relative error of the diffuse ratios `β_{j,L,c} / β_{0,L,c}`
 /// (module docs).
-fn ratio_errors(case: &Case, est: &Estimate, seen: &[bool]) -> [f64; 3] {
+fn ratio_errors(case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64], seen: &[bool]) -> [f64; 3] {
     let k = case.lambda.len();
     let nb = case.basis.len();
-    let beta = beta_per_vertex(&est.lambda, &est.weights, case.nv);
+    let beta = beta_per_vertex(lambda, weights, case.nv);
     let median = |mut v: Vec<f64>| -> f64 {
         if v.is_empty() {
             return f64::NAN;
@@ -420,6 +445,7 @@ fn floors(case: &Case) -> Floors {
 fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let problem = case.train.problem(case.nv);
     let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    let start_ratio_errors = ratio_errors(case, &init.lambda, &init.weights, &fl.seen);
     let t0 = Instant::now();
     let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
     let seconds = t0.elapsed().as_secs_f64();
@@ -434,7 +460,8 @@ fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
         relit: rel_rmse_per_channel(&case.held.obs, &hp),
         relit_floor: fl.relit,
         relit_model: rel_rmse_per_channel(&model, &hp),
-        ratio_errors: ratio_errors(case, &est, &fl.seen),
+        ratio_errors: ratio_errors(case, &est.lambda, &est.weights, &fl.seen),
+        start_ratio_errors,
         assignment,
         assignment_pure,
         train_rel: rel_rmse(&case.train.obs, &pred, false).0,

@@ -126,7 +126,8 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// `base`. Keys: `floor` (`robust_floor`), `irls` (`none`, `huber`, `tukey`), `k` (Huber's
 /// k), `smooth` (`smoothness`), `decay` (`smoothness_decay`), `smin` (`smoothness_min`), `patience`, `extrap` (0/1), `its` (`max_outer`), `val`
 /// (`validation_fraction`), `passes` (`irls_iters`), `cut` (`weights_reject`, 0 = none),
-/// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance),
+/// `qp` (`alternation_qp_iters`, 0 = every lighting QP to the KKT tolerance), `ws`
+/// (`weights_sum`),
 /// `shared=1` (one map per group of training photos under the same true map, with
 /// per-photo gains), `truth=1` (start at the true materials; parts 2 and 5), `spec0=f` (parts 2 and 5: the clustered
 /// start with every non-Lambertian basis at `f` × the material's mean Lambertian weight, grey,
@@ -180,6 +181,8 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "qp" => o.alternation_qp_iters = (num() > 0.0).then(|| num() as usize),
             "cut" => o.weights_reject = (num() > 0.0).then(num),
             "truth" => from_truth = num() > 0.0,
+            // The blending weights' sum-to-one prior (issue 25) at strength τ.
+            "ws" => o.weights_sum = num(),
             "dirty" => dirty = num() > 0.0,
             "spec0" => spec0 = num(),
             "start" => variant = Some(num() as usize),
