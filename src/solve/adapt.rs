@@ -71,6 +71,14 @@
 //!    96², 8 iterations, one thread): held-out RMSE under the true light (mean of the two
 //!    held-out photos) 0.0871 at 64², 0.0874 at 32², 0.0881 at 16² (+1.1%), 0.0909 at 8²
 //!    (+4.4%, too close to the 5% budget); estimation took 171 s, 39 s, 7.0 s and 1.3 s.
+//!    The band limit holds for the cosine lobe over an open hemisphere: a shadowed vertex's
+//!    transport row is the lobe times its visibility, whose edges are as sharp as the
+//!    occluder's outline, so when some vertex is shadowed the side is at least
+//!    [`SHADOWED_MIN_RESOLUTION`] (32², the side a Phong-50 lobe gets). Measured on the real
+//!    photos of `tests/fixtures/colmap-dense-buddha` (the pilot keeps Lambert only and 2
+//!    materials; headline = held-out error over the naive baseline's,
+//!    bench-results/realphoto.md): 0.911 at 16², 0.903 at 32² (seed 2: 0.910, 0.900); with
+//!    the model fixed (`--adaptive off`), 0.910 at 16², 0.899 at 32², 0.902 at 64².
 //!    The coefficient budget `keep` is capped at the map's `N²` coefficients.
 //!
 //! The transport of the kept bases is a column selection of the full one
@@ -295,6 +303,9 @@ pub fn basis_shares(problem: &Problem, est: &solve::Estimate) -> Vec<f64> {
     share
 }
 
+/// The smallest global map side when some vertex is shadowed (module docs, step 5).
+pub const SHADOWED_MIN_RESOLUTION: usize = 32;
+
 /// Global map side for the bases `basis` (module docs, step 5), at most `requested`:
 /// `(side, reason)`. `shadowed` = some vertex has an occluded hemisphere.
 pub fn global_resolution_for(
@@ -317,11 +328,18 @@ pub fn global_resolution_for(
     } else {
         (
             16,
+            "only the Lambertian lobe is kept: diffuse transport is band-limited (irradiance: 99% of its energy in spherical harmonics of order ≤ 2); measured on sphere-diffuse (Lambert only, 1000 vertices, 8 photos), the held-out error at 16² is 1.1% above 64² and at 8² 4.4% above, so 16² it is".to_string(),
+        )
+    };
+    let (need, why) = if shadowed && need < SHADOWED_MIN_RESOLUTION {
+        (
+            SHADOWED_MIN_RESOLUTION,
             format!(
-                "only the Lambertian lobe is kept: diffuse transport is band-limited (irradiance: 99% of its energy in spherical harmonics of order ≤ 2){}; measured on sphere-diffuse (Lambert only, 1000 vertices, 8 photos), the held-out error at 16² is 1.1% above 64² and at 8² 4.4% above, so 16² it is",
-                if shadowed { ", cast shadows add sharper visibility edges" } else { "" }
+                "{why}; but cast shadows put the visibility's edges into every shadowed transport row, which no band limit of the BRDF smooths, so at least {SHADOWED_MIN_RESOLUTION}² (measured on the real photos of colmap-dense-buddha, Lambert only: held-out error over the baseline's 0.911 at 16², 0.903 at 32²)"
             ),
         )
+    } else {
+        (need, why)
     };
     let need = need.clamp(4, 256);
     if need >= requested {

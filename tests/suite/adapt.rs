@@ -13,7 +13,8 @@
 //!   `sphere-plane` (a glossy sphere and a diffuse plane; see that test for why not
 //!   exactly 2).
 //! - [`adapt::global_resolution_for`] against its closed form `N = 2^⌈log₂ ⌈√(4π)·√n⌉⌉`
-//!   for the sharpest kept Phong exponent `n` (`σ = 1/√n`).
+//!   for the sharpest kept Phong exponent `n` (`σ = 1/√n`), at least
+//!   [`adapt::SHADOWED_MIN_RESOLUTION`] when the scene is shadowed.
 //! - The report (report.json and report.md) carries every decision.
 
 use std::path::{Path, PathBuf};
@@ -209,11 +210,20 @@ fn global_resolution_matches_the_closed_form() {
     ] {
         let basis = [BasisBrdf::Lambert, BasisBrdf::Phong { exponent: n }];
         // Texel side √(4π)/N ≤ σ = 1/√n.
-        let want = ((four_pi_sqrt * f64::sqrt(n)).ceil() as usize)
-            .next_power_of_two()
-            .min(requested);
-        let (got, why) = adapt::global_resolution_for(&basis, requested, true);
-        assert_eq!(got, want, "Phong {n}, requested {requested}: {why}");
+        let lobe = ((four_pi_sqrt * f64::sqrt(n)).ceil() as usize).next_power_of_two();
+        let (got, why) = adapt::global_resolution_for(&basis, requested, false);
+        assert_eq!(
+            got,
+            lobe.min(requested),
+            "Phong {n}, requested {requested}: {why}"
+        );
+        // Shadowed: no coarser than the floor (n = 10 wants 16², gets 32²).
+        let (shadowed, why) = adapt::global_resolution_for(&basis, requested, true);
+        let want = lobe.max(adapt::SHADOWED_MIN_RESOLUTION).min(requested);
+        assert_eq!(
+            shadowed, want,
+            "shadowed, Phong {n}, requested {requested}: {why}"
+        );
         // The texel is no wider than the lobe unless the request caps it.
         if got < requested {
             assert!(four_pi_sqrt / got as f64 <= 1.0 / n.sqrt());
@@ -239,6 +249,13 @@ fn global_resolution_matches_the_closed_form() {
         adapt::global_resolution_for(&[BasisBrdf::Lambert], 8, false).0,
         8
     );
+    // Lambert only with cast shadows: the visibility's edges are not band-limited, at
+    // least SHADOWED_MIN_RESOLUTION (32²), or the request when smaller; a sharper lobe
+    // than that floor still decides.
+    let lambert = [BasisBrdf::Lambert];
+    assert_eq!(adapt::global_resolution_for(&lambert, 64, true).0, 32);
+    assert_eq!(adapt::global_resolution_for(&lambert, 16, true).0, 16);
+    assert_eq!(adapt::global_resolution_for(&p(500.0), 256, true).0, 128);
     // GGX α: σ = α.
     let g = [BasisBrdf::Ggx { alpha: 0.3 }];
     let want = ((four_pi_sqrt / 0.3).ceil() as usize).next_power_of_two();
