@@ -49,6 +49,7 @@ use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Held-out error as the estimator goes (the `timeline`'s `holdout_rmse`): the held-out
 /// photos' observations predicted with the current reflectance under their true light
@@ -253,25 +254,33 @@ pub fn fine_rays(rays: usize, n_est: usize, n_fine: usize) -> usize {
 }
 
 /// Trace visibility once at the finer of the estimator's and the renderer's local
-/// resolutions (module docs) and return `(estimator's, renderer's)`.
+/// resolutions (module docs) and return `(estimator's, renderer's)`: one allocation when
+/// the two resolutions are equal (the default; 100 MB at 100K vertices and 32²).
 pub(crate) fn trace_visibility(
     mesh: &crate::import::mesh::Mesh,
     bvh: &crate::observe::trace::SceneBvh,
     env_from_world: &Matrix3<f64>,
     opts: &super::RunOptions,
-) -> (Visibility, Visibility) {
+) -> (Arc<Visibility>, Arc<Visibility>) {
     let n_render = render_local_resolution(opts);
     let n_fine = opts.local_resolution.max(n_render);
     let rays = fine_rays(opts.rays_per_texel, opts.local_resolution, n_fine);
-    let fine =
-        crate::transport::visibility::compute(mesh, bvh, env_from_world, n_fine, rays, opts.seed);
-    let est = crate::solve::adapt::downsample_visibility(&fine, opts.local_resolution);
-    let render = if n_render < n_fine {
-        crate::solve::adapt::downsample_visibility(&fine, n_render)
-    } else {
-        fine
+    let fine = Arc::new(crate::transport::visibility::compute(
+        mesh,
+        bvh,
+        env_from_world,
+        n_fine,
+        rays,
+        opts.seed,
+    ));
+    let coarser = |n: usize| {
+        if n < n_fine {
+            Arc::new(crate::solve::adapt::downsample_visibility(&fine, n))
+        } else {
+            fine.clone()
+        }
     };
-    (est, render)
+    (coarser(opts.local_resolution), coarser(n_render))
 }
 
 /// The wavelet renderer's model of the fit, with visibility `vis`.

@@ -265,10 +265,11 @@ pub(crate) struct Fitted<'a> {
     pub held: Vec<usize>,
     pub env_from_world: Matrix3<f64>,
     pub normals_env: Vec<Vec3>,
-    pub vis: visibility::Visibility,
+    pub vis: std::sync::Arc<visibility::Visibility>,
     pub rot: Rotation,
-    /// The renderer's visibility and rotation ([`evaluate`] module docs).
-    pub render_vis: visibility::Visibility,
+    /// The renderer's visibility and rotation ([`evaluate`] module docs); the same
+    /// allocation as `vis` when both have the estimator's resolution.
+    pub render_vis: std::sync::Arc<visibility::Visibility>,
     pub render_rot: crate::sphere::rotation::SplatRotation,
     pub basis: Vec<BasisBrdf>,
     pub est: solve::Estimate,

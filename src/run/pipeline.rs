@@ -5,6 +5,7 @@
 //! notes to the report through [`RunLog`].
 
 use std::path::Path;
+use std::sync::Arc;
 
 use nalgebra::Matrix3;
 
@@ -64,8 +65,8 @@ pub(crate) struct Observed {
 pub(crate) struct Prepared {
     pub(crate) env_from_world: Matrix3<f64>,
     pub(crate) normals_env: Vec<Vec3>,
-    pub(crate) vis: Visibility,
-    pub(crate) render_vis: Visibility,
+    pub(crate) vis: Arc<Visibility>,
+    pub(crate) render_vis: Arc<Visibility>,
     /// The options in effect: `opts` with the pilot's decisions.
     pub(crate) eff: RunOptions,
     /// The pilot's material count and its reason.

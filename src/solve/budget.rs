@@ -17,7 +17,7 @@
 //! - the photos, decoded at import and kept for the evaluation and the renders: linear
 //!   RGB `f32` and an overexposure flag per pixel — `13 · pixels` over all photos;
 //! - transport rows `T_x ρ_b` (Eq. 7–8, [`crate::transport::Transport`]): `P · B` rows of `keep`
-//!   (index `u16`, value `f32`) entries plus an offset — `P · B · (6 keep + 8)`; the same
+//!   (index `u16`, value in half precision) entries plus an offset — `P · B · (4 keep + 8)`; the same
 //!   for the held-out photos' observations (the held-out error tracked per iteration),
 //!   counted as `min(P · held / photos, HELD_OUT_TRACKED_MAX)` observations before they
 //!   are extracted (the tracker keeps at most [`HELD_OUT_TRACKED_MAX`]);
@@ -53,8 +53,10 @@ pub const OBSERVATION_BYTES: u64 = 36;
 /// Held-out observations the per-iteration held-out tracker keeps at most (every `k`-th).
 pub const HELD_OUT_TRACKED_MAX: u64 = 20_000;
 
-/// Bytes per kept transport entry (`u16` Haar index, `f32` value).
-pub const TRANSPORT_ENTRY_BYTES: u64 = 6;
+/// Bytes per kept transport entry (`u16` Haar index, half-precision value).
+pub const TRANSPORT_ENTRY_BYTES: u64 = (std::mem::size_of::<crate::transport::HaarIndex>()
+    + std::mem::size_of::<crate::transport::TransportValue>())
+    as u64;
 
 /// Bytes per decoded photo pixel (`[f32; 3]` linear RGB, `bool` overexposed).
 pub const PIXEL_BYTES: u64 = 13;
@@ -409,16 +411,16 @@ mod tests {
                 .bytes,
             0
         );
-        assert_eq!(get("transport rows"), 4000 * 3 * (128 * 6 + 8));
+        assert_eq!(get("transport rows"), 4000 * 3 * (128 * 4 + 8));
         // One held-out photo of four training ones: a quarter of the observations.
-        assert_eq!(get("held-out transport rows"), 1000 * 3 * (128 * 6 + 8));
+        assert_eq!(get("held-out transport rows"), 1000 * 3 * (128 * 4 + 8));
         // … and never more than the tracker keeps (100K vertices: 100,000 would be a quarter).
         let big = estimate(&defaults(100_000, 4));
         let held = big
             .items
             .iter()
             .find(|i| i.name == "held-out transport rows");
-        assert_eq!(held.unwrap().bytes, 20_000 * 3 * (128 * 6 + 8));
+        assert_eq!(held.unwrap().bytes, 20_000 * 3 * (128 * 4 + 8));
         assert_eq!(get("photos"), 5000 * 13);
         // Two threads, 1000 observations per photo, ⌈f · 3 · 128⌉ merged entries of 16 B.
         let merged = (MERGED_FRACTION * 384.0).ceil() as u64;
@@ -432,7 +434,7 @@ mod tests {
 
     #[test]
     fn million_vertices_refused_with_option() {
-        // 1.2 M vertices, 4 photos: transport 4.8 M × 3 × 776 B ≈ 10.4 GiB, visibility 1.2 GiB.
+        // 1.2 M vertices, 4 photos: transport 4.8 M × 3 × 520 B ≈ 7.0 GiB, visibility 1.2 GiB.
         let s = defaults(1_200_000, 4);
         let b = estimate(&s);
         let avail = 8u64 << 30;

@@ -174,7 +174,7 @@ pub fn basis_responses(problem: &Problem, lights: &[[Vec<f64>; 3]]) -> Vec<[f64;
                 for (&m, &g) in idx.iter().zip(val) {
                     let hm = h[m as usize];
                     for c in 0..3 {
-                        acc[c] += g as f64 * hm[c];
+                        acc[c] += f64::from(g) * hm[c];
                     }
                 }
                 *ob = acc;

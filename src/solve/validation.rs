@@ -101,7 +101,7 @@ pub(crate) fn validation_error(
                     for (&m, &g) in ix.iter().zip(val) {
                         let hm = h[m as usize];
                         for c in 0..3 {
-                            pred[c] += be[c] * g as f64 * hm[c];
+                            pred[c] += be[c] * f64::from(g) * hm[c];
                         }
                     }
                 }

@@ -313,7 +313,10 @@ pub struct SliceGrid {
     /// "within `5σ + r` of the peak" by a dot product instead of an `acos` per texel.
     radius_cos_sin: Vec<(f64, f64)>,
     /// `levels[k]`: sub-texels at `s = 2^(k+1)`, texel-major (`s²` per texel).
-    levels: Vec<Vec<(Vec3, f64)>>,
+    levels: Vec<Samples>,
+    /// `level_solid_angle[k][t]`: the sum of texel `t`'s sub-texel solid angles at `levels[k]`
+    /// (summed in sample order, as the quadrature's denominator).
+    level_solid_angle: Vec<Vec<f64>>,
 }
 
 /// Finest refinement level: `s = 2^MAX_LEVEL` sub-texels per side.
@@ -348,14 +351,23 @@ impl SliceGrid {
             })
             .collect();
         let radius_cos_sin = radius.iter().map(|r: &f64| (r.cos(), r.sin())).collect();
-        let levels = (1..=MAX_LEVEL)
-            .map(|k| {
-                let s = 1usize << k;
-                (0..grid.len())
-                    .flat_map(|t| grid.sample_points(t, s))
-                    .collect()
-            })
-            .collect();
+        let mut levels = Vec::new();
+        let mut level_solid_angle = Vec::new();
+        for k in 1..=MAX_LEVEL {
+            let s = 1usize << k;
+            let mut samples = Samples::default();
+            let mut sums = Vec::with_capacity(grid.len());
+            for t in 0..grid.len() {
+                let mut den = 0.0;
+                for (d, w) in grid.sample_points(t, s) {
+                    samples.push(d, w);
+                    den += w;
+                }
+                sums.push(den);
+            }
+            levels.push(samples);
+            level_solid_angle.push(sums);
+        }
         Ok(SliceGrid {
             grid,
             centre,
@@ -363,6 +375,7 @@ impl SliceGrid {
             radius,
             radius_cos_sin,
             levels,
+            level_solid_angle,
         })
     }
 
@@ -384,9 +397,12 @@ impl SliceGrid {
     }
 
     /// Sub-texels of texel `t` at level `s = 2^level` (`1 ≤ level ≤ 4`).
-    fn subsamples(&self, t: usize, level: usize) -> &[(Vec3, f64)] {
+    #[cfg(test)]
+    fn subsamples(&self, t: usize, level: usize) -> Vec<(Vec3, f64)> {
         let s2 = 1usize << (2 * level);
-        &self.levels[level - 1][t * s2..(t + 1) * s2]
+        (t * s2..(t + 1) * s2)
+            .map(|i| self.levels[level - 1].get(i))
+            .collect()
     }
 }
 
@@ -471,33 +487,72 @@ impl BasisBrdf {
         let zero_at = self.negligible_angle().filter(|_| skip_negligible);
         let (cz, sz) = zero_at.map_or((0.0, 0.0), |z| (z.cos(), z.sin()));
         let peak_unit = peak.normalize();
-        let lobe = self.at(wo);
-        for (t, o) in out.iter_mut().enumerate() {
-            let r = grid.radius[t];
-            let level = match self {
-                BasisBrdf::Lambert => 2,
-                _ => {
-                    let (cr, sr) = grid.radius_cos_sin[t];
-                    let cos_peak = grid.centre[t].dot(&peak_unit) / grid.centre[t].norm();
-                    if zero_at.is_some_and(|z| z + r < PI && cos_peak < cz * cr - sz * sr) {
-                        *o = 0.0;
-                        continue;
-                    }
-                    let near = 5.0 * sigma + r >= PI || cos_peak > c5 * cr - s5 * sr;
-                    if near {
-                        self.peak_level(r)
-                    } else {
-                        1
+        // Each texel's refinement level (0: written as zero without sampling).
+        let levels: Vec<u8> = (0..out.len())
+            .map(|t| {
+                let r = grid.radius[t];
+                match self {
+                    BasisBrdf::Lambert => 2,
+                    _ => {
+                        let (cr, sr) = grid.radius_cos_sin[t];
+                        let cos_peak = grid.centre[t].dot(&peak_unit) / grid.centre[t].norm();
+                        if zero_at.is_some_and(|z| z + r < PI && cos_peak < cz * cr - sz * sr) {
+                            return 0;
+                        }
+                        let near = 5.0 * sigma + r >= PI || cos_peak > c5 * cr - s5 * sr;
+                        if near {
+                            self.peak_level(r) as u8
+                        } else {
+                            1
+                        }
                     }
                 }
-            };
-            let (mut num, mut den) = (0.0, 0.0);
-            for (d, w) in grid.subsamples(t, level) {
-                num += lobe.eval(d) * w;
-                den += w;
-            }
-            *o = if den > 0.0 { num / den } else { 0.0 };
+            })
+            .collect();
+        integrate_texels(&self.at(wo), grid, &levels, out);
+    }
+}
+
+/// Samples per batch of [`integrate_texels`] (a stack buffer).
+const TEXEL_BATCH: usize = 256;
+
+/// `out[t] = Σ ρ(d) w / Σ w` over texel `t`'s sub-texels at `levels[t]` (0 for level 0):
+/// runs of consecutive texels at one level are contiguous in the level's sample arrays, so
+/// they are evaluated together ([`LobeAt::eval_many`]), then summed texel by texel in
+/// sample order.
+fn integrate_texels(lobe: &LobeAt, grid: &SliceGrid, levels: &[u8], out: &mut [f64]) {
+    let mut vals = [0.0f64; TEXEL_BATCH];
+    let mut t = 0;
+    while t < out.len() {
+        let level = levels[t] as usize;
+        if level == 0 {
+            out[t] = 0.0;
+            t += 1;
+            continue;
         }
+        let s2 = 1usize << (2 * level);
+        let per_batch = (TEXEL_BATCH / s2).max(1);
+        let mut end = t + 1;
+        while end < out.len() && end - t < per_batch && levels[end] as usize == level {
+            end += 1;
+        }
+        let samples = &grid.levels[level - 1];
+        let dens = &grid.level_solid_angle[level - 1];
+        for chunk in (t * s2..end * s2).step_by(TEXEL_BATCH) {
+            let hi = (chunk + TEXEL_BATCH).min(end * s2);
+            lobe.eval_many(samples, chunk..hi, &mut vals);
+            for (k, tex_vals) in vals[..hi - chunk].chunks(s2).enumerate() {
+                let tt = chunk / s2 + k;
+                let ws = &samples.w[tt * s2..(tt + 1) * s2];
+                let mut num = 0.0;
+                for (v, w) in tex_vals.iter().zip(ws) {
+                    num += v * w;
+                }
+                let den = dens[tt];
+                out[tt] = if den > 0.0 { num / den } else { 0.0 };
+            }
+        }
+        t = end;
     }
 }
 
@@ -563,6 +618,9 @@ impl SliceTable {
         self.data.len() * std::mem::size_of::<f32>()
     }
 }
+
+mod many;
+use many::Samples;
 
 #[cfg(test)]
 mod tests;

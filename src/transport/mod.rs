@@ -30,9 +30,9 @@
 //! observation's view-dependent rows go through `R_nᵀ` together
 //! ([`LocalRotation::texel_transpose_many`]: the rotation's rows are read once for all of
 //! them, the sums are those of one row at a time).
-//! Memory grows as observations × basis × `keep`: 6 bytes per kept entry (a `u16` Haar
-//! index, which addresses every map up to 256², and an `f32` value) plus an 8-byte offset
-//! per row. The rows are written by the workers straight into their slots of the final
+//! Memory grows as observations × basis × `keep`: 4 bytes per kept entry (a `u16` Haar
+//! index, which addresses every map up to 256², and an IEEE half-precision value,
+//! [`TransportValue`]) plus an 8-byte offset per row. The rows are written by the workers straight into their slots of the final
 //! arrays and compacted in place, so the build never holds them twice; truncation selects
 //! the kept entries in a reused buffer (no allocation per row).
 //!
@@ -66,6 +66,9 @@ use crate::{Error, Result, Vec3};
 /// A Haar coefficient index of the global map (`< n_global² ≤ 256² = 65,536`).
 pub type HaarIndex = u16;
 
+mod value;
+pub use value::TransportValue;
+
 /// Largest global map side whose Haar indices fit in [`HaarIndex`].
 pub const MAX_GLOBAL_SIDE: usize = 256;
 
@@ -85,12 +88,12 @@ pub struct Transport {
     /// index is below 65,536; [`build_rows`] refuses larger maps).
     pub index: Vec<HaarIndex>,
     /// Values of the kept entries.
-    pub value: Vec<f32>,
+    pub value: Vec<TransportValue>,
 }
 
 impl Transport {
     /// The kept entries `(indices, values)` of `g_{p,b}`.
-    pub fn row(&self, p: usize, b: usize) -> (&[HaarIndex], &[f32]) {
+    pub fn row(&self, p: usize, b: usize) -> (&[HaarIndex], &[TransportValue]) {
         let r = p * self.n_basis + b;
         let (lo, hi) = (self.offsets[r], self.offsets[r + 1]);
         (&self.index[lo..hi], &self.value[lo..hi])
@@ -102,7 +105,21 @@ impl Transport {
         let (idx, val) = self.row(p, b);
         idx.iter()
             .zip(val)
-            .map(|(&m, &g)| g as f64 * light[m as usize])
+            .map(|(&m, &g)| f64::from(g) * light[m as usize])
+            .sum()
+    }
+
+    /// A bound on how far [`Transport::response`] lies from the same sum over the unrounded
+    /// values: each stored value is within `2⁻¹¹ |g|` of its `f64` original when normal and
+    /// within `2⁻²⁵` when subnormal ([`TransportValue`]), so the sum is within
+    /// `Σ_m (2⁻¹¹ |g_m| + 2⁻²⁵) |L̃_m|` (plus `f64` rounding, far smaller).
+    pub fn rounding_bound(&self, p: usize, b: usize, light: &[f64]) -> f64 {
+        let (idx, val) = self.row(p, b);
+        idx.iter()
+            .zip(val)
+            .map(|(&m, &g)| {
+                (f64::from(g).abs() * 2f64.powi(-11) + 2f64.powi(-25)) * light[m as usize].abs()
+            })
             .sum()
     }
 
@@ -110,7 +127,7 @@ impl Transport {
     pub fn memory_bytes(&self) -> usize {
         self.offsets.len() * std::mem::size_of::<usize>()
             + self.index.len() * std::mem::size_of::<HaarIndex>()
-            + self.value.len() * std::mem::size_of::<f32>()
+            + self.value.len() * std::mem::size_of::<TransportValue>()
     }
 }
 
@@ -265,7 +282,7 @@ fn truncate_into(
     scratch: &mut Scratch,
     keep: usize,
     idx: &mut [HaarIndex],
-    val: &mut [f32],
+    val: &mut [TransportValue],
 ) -> usize {
     truncate_global(&scratch.global, &mut scratch.order, keep, idx, val)
 }
@@ -276,7 +293,7 @@ fn truncate_global(
     order: &mut Vec<(f64, u32)>,
     keep: usize,
     idx: &mut [HaarIndex],
-    val: &mut [f32],
+    val: &mut [TransportValue],
 ) -> usize {
     order.clear();
     order.extend(
@@ -298,7 +315,7 @@ fn truncate_global(
     for ((i, v), &(_, m)) in idx.iter_mut().zip(val.iter_mut()).zip(kept.iter()) {
         // m < n_global² ≤ 65,536 (checked in `check_inputs`).
         *i = m as HaarIndex;
-        *v = global[m as usize] as f32;
+        *v = TransportValue::from_f64(global[m as usize]);
     }
     k
 }
@@ -404,7 +421,7 @@ pub fn build_rows<R: LocalRotation>(
         observed[v as usize] = true;
     }
     let mut fixed_idx: Vec<HaarIndex> = vec![0; if nf > 0 { nv * nf * stride } else { 0 }];
-    let mut fixed_val = vec![0f32; fixed_idx.len()];
+    let mut fixed_val = vec![TransportValue::ZERO; fixed_idx.len()];
     let mut fixed_len = vec![0usize; nv * nf];
     if nf > 0 {
         fixed_idx
@@ -444,7 +461,7 @@ pub fn build_rows<R: LocalRotation>(
         .and_then(|r| r.checked_mul(stride))
         .ok_or_else(|| Error::Internal("transport: row storage size overflows".into()))?;
     let mut index: Vec<HaarIndex> = vec![0; total_slots];
-    let mut value = vec![0f32; total_slots];
+    let mut value = vec![TransportValue::ZERO; total_slots];
     let mut lens = vec![0usize; n_obs * nb];
     index
         .par_chunks_mut(nb * stride)

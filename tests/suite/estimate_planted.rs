@@ -11,7 +11,7 @@ use relight_cpc::solve::{
     beta_per_vertex, estimate, predict, Estimate, EstimateOptions, Materials0, Problem, Robust,
 };
 use relight_cpc::sphere::haar;
-use relight_cpc::transport::Transport;
+use relight_cpc::transport::{Transport, TransportValue};
 
 const N: usize = 8; // map side: 64 texels per channel
 const B: usize = 2; // basis BRDFs: a wide ("diffuse") and a narrow ("glossy") lobe
@@ -116,7 +116,7 @@ fn planted(seed: u64, noise: f64, outlier_fraction: f64, nv: usize, photos: usiz
                 for (m, &v) in g.iter().enumerate() {
                     if v.abs() > 1e-12 {
                         index.push(m as u16);
-                        value.push(v as f32);
+                        value.push(TransportValue::from_f64(v));
                     }
                 }
                 offsets.push(index.len());
@@ -132,7 +132,7 @@ fn planted(seed: u64, noise: f64, outlier_fraction: f64, nv: usize, photos: usiz
         index,
         value,
     };
-    // Clean observations from the truth, in f64, with the f32-stored rows.
+    // Clean observations from the truth, in f64, with the stored (half-precision) rows.
     let beta = beta_per_vertex(&lambda, &weights, nv);
     let hl: Vec<[Vec<f64>; 3]> = lights
         .iter()

@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::{lighting_step_full, EstimateOptions, Problem, Robust};
-use relight_cpc::transport::Transport;
+use relight_cpc::transport::{Transport, TransportValue};
 use std::time::Instant;
 
 #[test]
@@ -30,13 +30,13 @@ fn lighting_step_at_issue_9_scale() {
         for _ in 0..nb {
             // Coarse coefficients (the scaling function and low levels) are kept most often.
             index.push(0);
-            value.push(0.05);
+            value.push(TransportValue::from_f64(0.05));
             for _ in 1..nnz {
                 let level = rng.random_range(1..7u32);
                 let side = 1usize << level;
                 let m = rng.random_range(0..side * side).max(1);
                 index.push(m as u16);
-                value.push((rng.random::<f32>() - 0.5) * 0.02);
+                value.push(TransportValue::from_f32((rng.random::<f32>() - 0.5) * 0.02));
             }
             offsets.push(index.len());
         }

@@ -14,7 +14,7 @@ use relight_cpc::solve::{
     beta_per_vertex, estimate, predict, Estimate, EstimateOptions, Materials0, Problem, Robust,
 };
 use relight_cpc::sphere::haar;
-use relight_cpc::transport::Transport;
+use relight_cpc::transport::{Transport, TransportValue};
 
 const N: usize = 8; // map side: 64 texels per channel
 const B: usize = 2; // a wide ("diffuse") and a narrow ("glossy") lobe
@@ -61,7 +61,7 @@ fn group_map(rng: &mut Pcg64, g: usize) -> [Vec<f64>; 3] {
 fn push_rows(
     rng: &mut Pcg64,
     index: &mut Vec<u16>,
-    value: &mut Vec<f32>,
+    value: &mut Vec<TransportValue>,
     offsets: &mut Vec<usize>,
 ) {
     let (ci, cj) = (
@@ -87,7 +87,7 @@ fn push_rows(
         for (m, &v) in g.iter().enumerate() {
             if v.abs() > 1e-12 {
                 index.push(m as u16);
-                value.push(v as f32);
+                value.push(TransportValue::from_f64(v));
             }
         }
         offsets.push(index.len());

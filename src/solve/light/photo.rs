@@ -237,7 +237,7 @@ pub(crate) fn forward_full(
                 let mut r = [0.0; 3];
                 for (&m, &g) in idx.iter().zip(val) {
                     let hm = &h[m as usize];
-                    let g = g as f64;
+                    let g = f64::from(g);
                     r[0] += g * hm[0];
                     r[1] += g * hm[1];
                     r[2] += g * hm[2];

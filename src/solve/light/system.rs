@@ -124,7 +124,7 @@ impl PhotoSystem {
                         seen[mu] = true;
                         touched.push(m);
                     }
-                    let g = g as f64;
+                    let g = f64::from(g);
                     let d = &mut dense[mu];
                     d[0] += be[0] * g;
                     d[1] += be[1] * g;
@@ -286,7 +286,7 @@ pub(crate) fn texel_diag_vec(
             let (idx, val) = t.row(p, b);
             for (&m, &g) in idx.iter().zip(val) {
                 for c in 0..3 {
-                    dense[c][m as usize] += be[c] * g as f64;
+                    dense[c][m as usize] += be[c] * f64::from(g);
                 }
             }
         }

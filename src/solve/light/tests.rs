@@ -7,7 +7,7 @@ use crate::solve::light::photo::{lighting_sample, lighting_step_full, lighting_s
 use crate::solve::light::system::row_dot;
 use crate::solve::options::{EstimateOptions, Robust};
 use crate::solve::problem::{basis_responses, haar3, predict_from, Problem};
-use crate::transport::{HaarIndex, Transport};
+use crate::transport::{HaarIndex, Transport, TransportValue};
 
 /// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
 /// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
@@ -37,14 +37,19 @@ fn planted_photo(rows: usize, n: usize, noise: f64, seed: u64) -> (Observations,
             .collect();
         idx.sort_unstable();
         idx.dedup();
-        let val: Vec<f32> = idx.iter().map(|_| rng.random_range(0.1..1.0)).collect();
+        // Values as stored (half precision), so `clean` is the rows' exact response.
+        let val: Vec<f32> = idx
+            .iter()
+            .map(|_| TransportValue::from_f32(rng.random_range(0.1..1.0)).to_f32())
+            .collect();
         let clean = row_dot(
             &idx,
             &val.iter().map(|&v| [v; 3]).collect::<Vec<_>>(),
             &light,
         );
         t.index.extend(&idx);
-        t.value.extend(&val);
+        t.value
+            .extend(val.iter().map(|&v| TransportValue::from_f32(v)));
         t.offsets.push(t.index.len());
         obs.vertex.push(p as u32);
         obs.photo.push(0);
