@@ -162,6 +162,10 @@ pub(crate) struct RunArgs {
     /// 0 = single observations.
     #[arg(long, default_value_t = 0, help_heading = "Solver")]
     pub(crate) validation_block: usize,
+    /// Hold back the right half of the object (as the `half` protocol splits it) in this
+    /// many training photos, spread over the list, instead of random observations; 0 = off.
+    #[arg(long, default_value_t = 0, help_heading = "Solver")]
+    pub(crate) validation_halves: usize,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1, help_heading = "Solver")]
     pub(crate) seed: u64,
@@ -259,6 +263,7 @@ impl RunArgs {
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
         o.validation = self.validation;
         o.validation_block = self.validation_block;
+        o.validation_halves = self.validation_halves;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;

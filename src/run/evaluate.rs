@@ -404,9 +404,23 @@ fn object_mid_x(raster: &Raster) -> Option<f64> {
         .iter()
         .enumerate()
         .filter(|(_, &f)| f != u32::MAX)
-        .map(|(i, _)| i % w);
-    let (lo, hi) = xs.fold((usize::MAX, 0), |(lo, hi), x| (lo.min(x), hi.max(x)));
-    (lo <= hi).then(|| 0.5 * (lo + hi + 1) as f64)
+        .map(|(i, _)| (i % w) as f64 + 0.5);
+    span_mid(xs)
+}
+
+/// The middle of the span of `xs`, `(min + max) / 2` (pixel centres: the middle of the
+/// covered pixels), or `None` when empty: the left/right rule of protocol (b).
+pub(super) fn span_mid(xs: impl Iterator<Item = f64>) -> Option<f64> {
+    let (lo, hi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+        (lo.min(x), hi.max(x))
+    });
+    (lo <= hi).then_some(0.5 * (lo + hi))
+}
+
+/// The pixel `x` at which `view` sees `point`, or `None` behind the camera.
+pub(super) fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3) -> Option<f64> {
+    let cam = view.image.cam_from_world_point(point);
+    view.camera.project(&cam).map(|px| px[0])
 }
 
 /// GPCG iterations and CG steps per GPCG iteration of protocol (b)'s light fit, which
@@ -433,11 +447,10 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
     let mut left = Observations::default();
     for p in 0..obs.len() {
         let x = obs.vertex[p] as usize;
-        let cam = view.image.cam_from_world_point(&f.scene.mesh.positions[x]);
-        let Some(px) = view.camera.project(&cam) else {
+        let Some(px) = projected_x(view, &f.scene.mesh.positions[x]) else {
             continue;
         };
-        if px[0] < mid_x && obs.weight[p] > 0.0 {
+        if px < mid_x && obs.weight[p] > 0.0 {
             left.vertex.push(obs.vertex[p]);
             left.photo.push(0);
             left.rgb.push(obs.rgb[p]);

@@ -14,6 +14,7 @@ use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
 use crate::solve::light::choose::LightChoice;
 use crate::solve::starts::{self, MultiStart};
+use crate::solve::validation::PhotoHalves;
 use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
@@ -69,6 +70,45 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         scale_anchor: o.scale_anchor,
         ..EstimateOptions::default()
     }
+}
+
+/// Early stopping's split by photo half (`--validation-halves k`): `k` training photos
+/// spread evenly over the list (the middle of each of `k` equal runs), and in each the
+/// vertices it observes projecting at or right of the middle of their `x` span
+/// ([`evaluate::span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or
+/// when `k` is not below the number of training photos.
+fn photo_halves(
+    scene: &crate::import::scene::Scene,
+    train: &[usize],
+    obs: &Observations,
+    k: usize,
+) -> Option<std::sync::Arc<PhotoHalves>> {
+    let n = train.len();
+    if k == 0 || k >= n {
+        return None;
+    }
+    let positions = &scene.mesh.positions;
+    let right = (0..k)
+        .map(|i| {
+            let t = (2 * i + 1) * n / (2 * k);
+            let view = &scene.views[train[t]];
+            let px: Vec<(usize, f64)> = (0..obs.len())
+                .filter(|&p| obs.photo[p] as usize == t && obs.weight[p] > 0.0)
+                .filter_map(|p| {
+                    let x = obs.vertex[p] as usize;
+                    evaluate::projected_x(view, &positions[x]).map(|u| (x, u))
+                })
+                .collect();
+            let mut right = vec![false; positions.len()];
+            if let Some(mid) = evaluate::span_mid(px.iter().map(|&(_, u)| u)) {
+                for &(x, u) in &px {
+                    right[x] = u >= mid;
+                }
+            }
+            (t as u32, right)
+        })
+        .collect();
+    Some(std::sync::Arc::new(PhotoHalves { right }))
 }
 
 /// Stage 6, the estimate: initial materials, the starts, the alternation; the fitted model.
@@ -142,6 +182,7 @@ pub(crate) fn fit<'a>(
             reasons.push(format!("shared light: {}", g.source));
         }
     }
+    eopts.validation_halves = photo_halves(scene, &train, &obs, opts.validation_halves);
     let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
     let spinner = progress.spinner("held-out transport");
     let tracker = log.stages.run("transport", || {

@@ -100,6 +100,9 @@ pub struct RunOptions {
     /// Early stopping holds back blocks of this many consecutive vertex ids
     /// ([`EstimateOptions::validation_block`]; 0 = single observations).
     pub validation_block: usize,
+    /// Early stopping holds back the right halves of this many training photos instead
+    /// ([`EstimateOptions::validation_halves`]; 0 = off).
+    pub validation_halves: usize,
     /// Overexposure threshold on the encoded [0, 1] scale.
     pub clip: f32,
     /// Seed of every random choice.
@@ -207,6 +210,7 @@ impl RunOptions {
             weights_sum: EstimateOptions::default().weights_sum,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
+            validation_halves: 0,
             clip: crate::import::photo::DEFAULT_CLIP,
             seed: 1,
             progress: true,

@@ -126,6 +126,10 @@ pub struct EstimateOptions {
     /// iteration (headline 0.9114 → 0.9035) but the built-in example stops at the 5th
     /// (headline 0.486 → 0.546), `bench-results/validation-split.md`.
     pub validation_block: usize,
+    /// Hold back, instead, the right halves of a few training photos
+    /// ([`crate::solve::validation::photo_halves_split`]); built by `crate::run` from the
+    /// cameras. Takes precedence over `validation_block`. Default `None`.
+    pub validation_halves: Option<std::sync::Arc<crate::solve::validation::PhotoHalves>>,
     /// Hold the per-channel scale of the reflectance (`Σ_x Σ_b β_{x,b,c}`) at its start
     /// value after every material step, the maps taking the inverse factor. Default off:
     /// on noise-free `spot-varying` it changed the held-out error after 20 iterations
@@ -264,6 +268,7 @@ impl Default for EstimateOptions {
             weights_reject: Some(4.685),
             validation_fraction: 0.1,
             validation_block: 0,
+            validation_halves: None,
             validation_seed: 1,
             robust_floor: ROBUST_FLOOR,
             fix_gauge: false,

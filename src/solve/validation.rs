@@ -4,7 +4,12 @@
 //! The draw is per observation ([`validation_split`]) or, with
 //! [`EstimateOptions::validation_block`] `= n > 0`, per block of `n` consecutive vertex ids
 //! ([`validation_split_blocked`]: every observation of a drawn vertex is held back, so no
-//! held-back observation has a fitted one at its own vertex).
+//! held-back observation has a fitted one at its own vertex). With
+//! [`EstimateOptions::validation_halves`] set, the split is by photo half
+//! ([`photo_halves_split`]): in each of a few chosen training photos, every observation of a
+//! vertex projecting right of the object's middle is held back, so those photos' lights
+//! are fitted on their left halves only and the score measures how a light fitted on one
+//! side of a photo extrapolates to the other (the rule of the `half` protocol).
 
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
@@ -75,6 +80,31 @@ pub fn validation_split_blocked(
         .collect()
 }
 
+/// A validation split by photo half: for each chosen training photo (its index in the
+/// observations' `photo`), which vertices project right of the object's middle in it.
+/// The rule is per (photo, vertex), so it applies to any observation list over the same
+/// photos; `crate::run` builds it from the cameras.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PhotoHalves {
+    /// `(photo, right)`: `right[x]` when vertex `x` projects right of the middle.
+    pub right: Vec<(u32, Vec<bool>)>,
+}
+
+/// Photo-half validation observations (sorted): every `α > 0` observation of a chosen
+/// photo whose vertex lies in that photo's right half.
+pub fn photo_halves_split(obs: &Observations, halves: &PhotoHalves) -> Vec<usize> {
+    (0..obs.len())
+        .filter(|&p| {
+            let (k, x) = (obs.photo[p], obs.vertex[p] as usize);
+            obs.weight[p] > 0.0
+                && halves
+                    .right
+                    .iter()
+                    .any(|(q, r)| *q == k && r.get(x).copied().unwrap_or(false))
+        })
+        .collect()
+}
+
 /// Early stopping's score: `sqrt(Σ α (y − ŷ)²) / sqrt(Σ α y²)` over the observations `idx`
 /// and channels (`α` from `obs`, the unmasked observations).
 pub(crate) fn validation_error(
@@ -134,11 +164,14 @@ pub(crate) struct HeldBack {
 }
 
 impl HeldBack {
-    /// The split of [`validation_split`] when early stopping is on (a fraction `> 0`, more
+    /// The split of [`photo_halves_split`], [`validation_split_blocked`] or
+    /// [`validation_split`] (in that order of precedence) when early stopping is on (a fraction `> 0`, more
     /// than one outer iteration, materials not fixed).
     pub(crate) fn new(problem: &Problem, opts: &EstimateOptions) -> Self {
         let on = !opts.fixed_materials && opts.validation_fraction > 0.0 && opts.max_outer > 1;
-        let idx = if on && opts.validation_block > 0 {
+        let idx = if let (true, Some(h)) = (on, &opts.validation_halves) {
+            photo_halves_split(problem.obs, h)
+        } else if on && opts.validation_block > 0 {
             validation_split_blocked(
                 problem.obs,
                 problem.n_vertices,
@@ -164,6 +197,16 @@ impl HeldBack {
             m
         });
         HeldBack { idx, masked }
+    }
+
+    /// The share of the `α > 0` observations held back: `validation_fraction` for the
+    /// drawn splits, the share actually taken for the photo-half split (a rule, no draw).
+    pub(crate) fn fraction(&self, obs: &Observations, opts: &EstimateOptions) -> f64 {
+        if opts.validation_halves.is_none() || self.idx.is_empty() {
+            return opts.validation_fraction;
+        }
+        let usable = obs.weight.iter().filter(|&&a| a > 0.0).count();
+        self.idx.len() as f64 / usable.max(1) as f64
     }
 
     /// `problem` with the validation observations masked.
@@ -321,5 +364,41 @@ mod tests {
         );
         // A different seed draws different blocks.
         assert_ne!(held, validation_split_blocked(&obs, nv, fraction, block, 8));
+    }
+
+    /// The photo-half split holds back exactly the `α > 0` observations of the chosen
+    /// photos at vertices marked right, and nothing of the other photos. The rule is
+    /// deterministic (no draw), so the check is exact: with `grid_obs` every vertex is seen
+    /// by photos 0..4, photos 1 and 3 are chosen with vertices `x ≥ nv/2` (resp. odd `x`) on
+    /// the right, and the count is recomputed by brute force.
+    #[test]
+    fn photo_halves_split_holds_back_right_halves_of_chosen_photos() {
+        let nv = 40;
+        let obs = grid_obs(nv, 4);
+        let halves = PhotoHalves {
+            right: vec![
+                (1, (0..nv).map(|x| x >= nv / 2).collect()),
+                (3, (0..nv).map(|x| x % 2 == 1).collect()),
+            ],
+        };
+        let held = photo_halves_split(&obs, &halves);
+        assert!(held.windows(2).all(|w| w[0] < w[1]), "not sorted / unique");
+        for &p in &held {
+            let (k, x) = (obs.photo[p], obs.vertex[p] as usize);
+            assert!(obs.weight[p] > 0.0, "held-back observation {p} has α = 0");
+            assert!(k == 1 || k == 3, "observation {p} of unchosen photo {k}");
+            assert!(
+                (k == 1 && x >= nv / 2) || (k == 3 && x % 2 == 1),
+                "observation {p} (photo {k}, vertex {x}) is not in the right half"
+            );
+        }
+        let expected = (0..obs.len())
+            .filter(|&p| {
+                let (k, x) = (obs.photo[p], obs.vertex[p] as usize);
+                obs.weight[p] > 0.0 && ((k == 1 && x >= nv / 2) || (k == 3 && x % 2 == 1))
+            })
+            .count();
+        assert_eq!(held.len(), expected);
+        assert!(photo_halves_split(&obs, &PhotoHalves::default()).is_empty());
     }
 }
