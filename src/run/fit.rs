@@ -92,8 +92,12 @@ fn photo_halves(
         .map(|i| {
             let t = (2 * i + 1) * n / (2 * k);
             let view = &scene.views[train[t]];
-            let px: Vec<(usize, f64)> = (0..obs.len())
-                .filter(|&p| obs.photo[p] as usize == t && obs.weight[p] > 0.0)
+            let px: Vec<(usize, f64)> = obs
+                .photo_ranges
+                .get(t)
+                .cloned()
+                .unwrap_or_default()
+                .filter(|&p| obs.weight[p] > 0.0)
                 .filter_map(|p| {
                     let x = obs.vertex[p] as usize;
                     evaluate::projected_x(view, &positions[x]).map(|u| (x, u))

@@ -67,7 +67,7 @@ pub fn estimate_with<M: LightModel>(
     let held = HeldBack::new(problem, opts);
     let fit_problem = held.fit_problem(problem);
     let mut alt = Alternation::new(&fit_problem, opts, light, &init);
-    let mut stop = EarlyStop::new(&held, problem.obs, held.fraction(problem.obs, opts));
+    let mut stop = EarlyStop::new(&held, problem.obs, held.fraction);
     let outer = if opts.fixed_materials {
         1
     } else {
@@ -96,7 +96,7 @@ pub fn estimate_with<M: LightModel>(
         prev_obj = objective;
     }
     let validation = stop.finish(&mut alt);
-    if opts.validation_block > 0 && opts.validation_halves.is_none() && !held.idx.is_empty() {
+    if held.refit {
         alt.refit_held_weights(problem, &held.idx)?;
     }
     alt.finish(&init, timeline, validation)

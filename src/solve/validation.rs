@@ -160,18 +160,26 @@ pub(crate) fn validation_error(
 pub(crate) struct HeldBack {
     /// Indices of the validation observations, sorted (empty when early stopping is off).
     pub(crate) idx: Vec<usize>,
+    /// The share of the `α > 0` observations held back: `validation_fraction` for the
+    /// drawn splits, the share actually taken by the photo-half split (a rule, no draw).
+    pub(crate) fraction: f64,
+    /// Whether the held-back vertices' weights are refitted after the stop: the blocked
+    /// split only, whose drawn vertices keep no fitted observation.
+    pub(crate) refit: bool,
     masked: Option<Observations>,
 }
 
 impl HeldBack {
     /// The split of [`photo_halves_split`], [`validation_split_blocked`] or
-    /// [`validation_split`] (in that order of precedence) when early stopping is on (a fraction `> 0`, more
-    /// than one outer iteration, materials not fixed).
+    /// [`validation_split`] (in that order of precedence) when early stopping is on (a
+    /// fraction `> 0`, more than one outer iteration, materials not fixed).
     pub(crate) fn new(problem: &Problem, opts: &EstimateOptions) -> Self {
         let on = !opts.fixed_materials && opts.validation_fraction > 0.0 && opts.max_outer > 1;
-        let idx = if let (true, Some(h)) = (on, &opts.validation_halves) {
+        let halves = on && opts.validation_halves.is_some();
+        let blocked = on && !halves && opts.validation_block > 0;
+        let idx = if let (true, Some(h)) = (halves, &opts.validation_halves) {
             photo_halves_split(problem.obs, h)
-        } else if on && opts.validation_block > 0 {
+        } else if blocked {
             validation_split_blocked(
                 problem.obs,
                 problem.n_vertices,
@@ -196,17 +204,19 @@ impl HeldBack {
             }
             m
         });
-        HeldBack { idx, masked }
-    }
-
-    /// The share of the `α > 0` observations held back: `validation_fraction` for the
-    /// drawn splits, the share actually taken for the photo-half split (a rule, no draw).
-    pub(crate) fn fraction(&self, obs: &Observations, opts: &EstimateOptions) -> f64 {
-        if opts.validation_halves.is_none() || self.idx.is_empty() {
-            return opts.validation_fraction;
+        let fraction = if halves && !idx.is_empty() {
+            let usable = problem.obs.weight.iter().filter(|&&a| a > 0.0).count();
+            idx.len() as f64 / usable.max(1) as f64
+        } else {
+            opts.validation_fraction
+        };
+        let refit = blocked && !idx.is_empty();
+        HeldBack {
+            idx,
+            fraction,
+            refit,
+            masked,
         }
-        let usable = obs.weight.iter().filter(|&&a| a > 0.0).count();
-        self.idx.len() as f64 / usable.max(1) as f64
     }
 
     /// `problem` with the validation observations masked.
