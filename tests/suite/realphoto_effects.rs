@@ -47,16 +47,21 @@ fn workspace(dir: &Path) -> PathBuf {
     ws
 }
 
-/// Mean over the held-out photos of protocol `truth`'s RMSE after scale.
-fn truth_rmse(r: &relight_cpc::report::RunReport) -> f64 {
+/// Mean over the two held-out photos of `protocol`'s RMSE after scale (`truth`: under
+/// their true light; `half`: right half, the map fitted on the left half).
+fn holdout_rmse(r: &relight_cpc::report::RunReport, protocol: &str) -> f64 {
     let v: Vec<f64> = r
         .holdout
         .iter()
-        .filter(|h| h.protocol == "truth")
+        .filter(|h| h.protocol == protocol)
         .map(|h| h.rmse_scaled)
         .collect();
-    assert_eq!(v.len(), 2, "two held-out photos under their true light");
+    assert_eq!(v.len(), 2, "two held-out photos under protocol {protocol}");
     v.iter().sum::<f64>() / v.len() as f64
+}
+
+fn truth_rmse(r: &relight_cpc::report::RunReport) -> f64 {
+    holdout_rmse(r, "truth")
 }
 
 fn read_grey(path: &Path) -> image::GrayImage {
@@ -233,17 +238,8 @@ fn edge_margins_lower_the_error_of_a_small_pose_error() {
     assert!(e_on < e_off, "with margins {e_on}, without {e_off}");
 }
 
-/// Mean over the held-out photos of protocol `half`'s RMSE after scale (right half, the
-/// map fitted on the left half).
 fn half_rmse(r: &relight_cpc::report::RunReport) -> f64 {
-    let v: Vec<f64> = r
-        .holdout
-        .iter()
-        .filter(|h| h.protocol == "half")
-        .map(|h| h.rmse_scaled)
-        .collect();
-    assert_eq!(v.len(), 2, "two held-out photos under protocol half");
-    v.iter().sum::<f64>() / v.len() as f64
+    holdout_rmse(r, "half")
 }
 
 /// Multiplies `stem`'s photo by `gain` per channel in linear RGB (decode sRGB, scale,
