@@ -138,6 +138,14 @@ fn rows() -> Vec<Row> {
             among: || labels(&["prior SH η=0.1", "prior SH η=0.3", "prior SH η=1", PRIOR]),
         },
         Row::Pick {
+            label: "Σw=1 with or without achromatic specular",
+            among: || labels(&["paper, Σw=1 prior 1", "paper, Σw=1 prior 1, achromatic specular"]),
+        },
+        Row::Pick {
+            label: "Σw=1 long run with or without achromatic specular",
+            among: || labels(&["paper, Σw=1 prior 1, no IRLS, patience 1000", "paper, Σw=1 prior 1, achromatic specular, no IRLS, patience 1000"]),
+        },
+        Row::Pick {
             label: "auto with and without Σw=1",
             among: || {
                 let mut v = auto_models();
@@ -152,6 +160,15 @@ fn rows() -> Vec<Row> {
 fn no_irls(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     o.map(|o| EstimateOptions {
         robust: relight_cpc::solve::Robust::None,
+        ..o
+    })
+}
+
+/// `o` with one specular weight per material across R, G and B
+/// ([`EstimateOptions::achromatic_specular`]).
+fn achromatic(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        achromatic_specular: true,
         ..o
     })
 }
@@ -198,6 +215,13 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "paper, Σw=1 prior 10, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("paper", b), 10.0)), 1000) },
         Row::Fit { label: "paper, Σw=1 prior 1, patience 1000", make: |b| patience(sum1(choice("paper", b), 1.0), 1000) },
         Row::Fit { label: "paper, no IRLS, patience 1000", make: |b| patience(no_irls(choice("paper", b)), 1000) },
+        Row::Fit { label: "paper, achromatic specular", make: |b| achromatic(choice("paper", b)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular", make: |b| achromatic(sum1(choice("paper", b), 1.0)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular, no IRLS, patience 1000", make: |b| patience(no_irls(achromatic(sum1(choice("paper", b), 1.0))), 1000) },
+        Row::Fit { label: "prior, Σw=1 prior 1, achromatic specular", make: |b| achromatic(sum1(choice("prior", b), 1.0)) },
+        Row::Fit { label: "prior, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("prior", b), 1.0)), 1000) },
+        Row::Fit { label: "prior SH η=0.3, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 0.3, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "prior SH η=1, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 1.0, 0.0), 1.0)), 1000) },
     ]
 }
 

@@ -153,6 +153,10 @@ pub(crate) struct RunArgs {
         help_heading = "Solver"
     )]
     pub(crate) weights_sum: f64,
+    /// Specular lobes take the light's colour: one specular weight per material shared by
+    /// R, G and B, the colour in the diffuse lobe (dielectrics).
+    #[arg(long, help_heading = "Solver")]
+    pub(crate) achromatic_specular: bool,
     /// Fraction of the training observations held back to stop at the best round; 0 turns
     /// early stopping off.
     #[arg(long, default_value_t = 0.1, help_heading = "Solver")]
@@ -270,6 +274,7 @@ impl RunArgs {
         o.starts = self.starts;
         o.robust_floor = self.robust_floor;
         o.weights_sum = self.weights_sum;
+        o.achromatic_specular = self.achromatic_specular;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;
         o.progress = !self.quiet;

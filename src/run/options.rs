@@ -94,6 +94,9 @@ pub struct RunOptions {
     /// Prior that each vertex's blending weights sum to one, relative to its data
     /// ([`EstimateOptions::weights_sum`]; 0 = off, the paper's free weights).
     pub weights_sum: f64,
+    /// One specular weight per material across R, G and B
+    /// ([`EstimateOptions::achromatic_specular`]).
+    pub achromatic_specular: bool,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -208,6 +211,7 @@ impl RunOptions {
             starts: 1,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: EstimateOptions::default().weights_sum,
+            achromatic_specular: false,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
             validation_halves: 0,

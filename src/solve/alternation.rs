@@ -19,7 +19,7 @@ use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
-    data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step,
+    data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step, LambdaCoupling,
 };
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{evaluate, gauge, Objective, Point};
@@ -278,6 +278,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 &dw.lambda,
                 self.ridge,
                 opts.beta,
+                LambdaCoupling::of(opts),
             )?;
             if self.ridge.is_none() {
                 self.ridge = Some(l.max_diag.map(|d| opts.beta * d));

@@ -179,6 +179,11 @@ pub struct EstimateOptions {
     /// relative change `δ` of a vertex's brightness what its data would charge for it.
     /// Default [`WEIGHTS_SUM`].
     pub weights_sum: f64,
+    /// Specular lobes reflect the light's colour (issue 25, not in the paper): every basis
+    /// but [`Self::lambert_basis`] gets one weight per material shared by R, G and B in the
+    /// λ step ([`crate::solve::materials`], the dichromatic model of dielectrics). Default
+    /// off (the paper's independent channels).
+    pub achromatic_specular: bool,
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
     pub light_groups: Option<crate::solve::light::shared::LightGroups>,
@@ -279,6 +284,7 @@ impl Default for EstimateOptions {
             light_prior: None,
             light_sky: None,
             weights_sum: WEIGHTS_SUM,
+            achromatic_specular: false,
             light_groups: None,
             scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
