@@ -173,6 +173,14 @@ fn achromatic(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     })
 }
 
+/// `o` with Anderson acceleration over λ of depth `m` ([`EstimateOptions::anderson_depth`]).
+fn anderson(o: Option<EstimateOptions>, m: usize) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        anderson_depth: m,
+        ..o
+    })
+}
+
 /// `o` with early stopping's patience at 4 outer iterations (default 1).
 fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     o.map(|o| EstimateOptions { patience: 4, ..o })
@@ -219,6 +227,9 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular", make: |b| achromatic(sum1(choice("paper", b), 1.0)) },
         Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular, no IRLS, patience 1000", make: |b| patience(no_irls(achromatic(sum1(choice("paper", b), 1.0))), 1000) },
         Row::Fit { label: "prior, Σw=1 prior 1, achromatic specular", make: |b| achromatic(sum1(choice("prior", b), 1.0)) },
+        Row::Fit { label: "paper, Σw=1 prior 1, Anderson 3", make: |b| anderson(sum1(choice("paper", b), 1.0), 3) },
+        Row::Fit { label: "paper, Σw=1 prior 1, Anderson 3, no IRLS, patience 1000", make: |b| patience(no_irls(anderson(sum1(choice("paper", b), 1.0), 3)), 1000) },
+        Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular, Anderson 3, no IRLS, patience 1000", make: |b| patience(no_irls(anderson(achromatic(sum1(choice("paper", b), 1.0)), 3)), 1000) },
         Row::Fit { label: "prior, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("prior", b), 1.0)), 1000) },
         Row::Fit { label: "prior SH η=0.3, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 0.3, 0.0), 1.0)), 1000) },
         Row::Fit { label: "prior SH η=1, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 1.0, 0.0), 1.0)), 1000) },

@@ -9,11 +9,14 @@
 //! 3. extrapolation (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
 //!    crawls along the bilinear valley): `θ + σ(θ − θ_prev)`, `σ = t^{1/3}`, projected to
 //!    `≥ 0`, kept only when `F` drops, so `F` stays monotone;
+//!    with [`EstimateOptions::anderson_depth`], then Anderson acceleration over `λ`
+//!    ([`crate::solve::accel`], kept likewise only when `F` drops);
 //! 4. validation: the held-back observations scored, the best iterate kept
 //!    ([`crate::solve::validation`]).
 
 use std::time::Instant;
 
+use crate::solve::accel::{anderson_step, AndersonHistory};
 use crate::solve::light::paper::PaperLight;
 use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
@@ -143,7 +146,7 @@ pub(crate) struct Snapshot<P> {
 /// The state the alternation carries from one step to the next.
 pub(crate) struct Alternation<'a, M: LightModel> {
     pub(crate) problem: &'a Problem<'a>,
-    opts: &'a EstimateOptions,
+    pub(crate) opts: &'a EstimateOptions,
     pub(crate) light: M,
     /// `lambda[k][b][c]`.
     pub(crate) lambda: Vec<Vec<[f64; 3]>>,
@@ -159,7 +162,9 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     /// The previous iterate, for extrapolation.
     prev: Option<Snapshot<M::Params>>,
     /// `γ_x` of the weights' sum-to-one prior, when on ([`EstimateOptions::weights_sum`]).
-    sum_gamma: Option<Vec<f64>>,
+    pub(crate) sum_gamma: Option<Vec<f64>>,
+    /// Anderson acceleration's history, when on ([`crate::solve::accel`]).
+    pub(crate) anderson: Option<AndersonHistory>,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -182,6 +187,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             prev: None,
             sum_gamma: (opts.weights_sum > 0.0)
                 .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
+            anderson: (opts.anderson_depth > 0).then(|| AndersonHistory::new(opts.anderson_depth)),
         }
     }
 
@@ -199,6 +205,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let mut obj = self.objective(Some(&s));
         if !self.opts.fixed_materials && self.opts.extrapolate {
             obj = self.extrapolate(outer_it, obj);
+            obj = anderson_step(self, outer_it, obj)?;
         }
         if !obj.value.is_finite() {
             return Err(Error::Numeric {
@@ -222,7 +229,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     }
 
     /// The lighting step; its wall and CPU seconds.
-    fn lighting(&mut self, outer_it: usize) -> Result<(f64, f64)> {
+    pub(crate) fn lighting(&mut self, outer_it: usize) -> Result<(f64, f64)> {
         let beta = beta_per_vertex(&self.lambda, &self.weights, self.problem.n_vertices);
         let watch = Stopwatch::start();
         let input = LightingInput {
@@ -330,7 +337,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     }
 
     /// `F` and the train RMSE of the current state (`s`: its basis responses, if known).
-    fn objective(&self, s: Option<&[[f64; 3]]>) -> Objective {
+    pub(crate) fn objective(&self, s: Option<&[[f64; 3]]>) -> Objective {
         let params = self.light.params();
         let maps = self.light.maps(params);
         let at = Point {

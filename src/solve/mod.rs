@@ -60,6 +60,7 @@
 //! initial materials), [`starts`], [`adapt`] (the pilot fit), [`budget`] (memory), [`qp`]
 //! (the non-negative solvers).
 
+pub mod accel;
 pub mod adapt;
 pub mod alternation;
 pub mod budget;

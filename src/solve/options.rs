@@ -184,6 +184,10 @@ pub struct EstimateOptions {
     /// λ step ([`crate::solve::materials`], the dichromatic model of dielectrics). Default
     /// off (the paper's independent channels).
     pub achromatic_specular: bool,
+    /// Anderson acceleration of the alternation over `λ` with this many differences
+    /// ([`crate::solve::accel`], safeguarded: a candidate is kept only when `F` drops; each
+    /// try costs one more lighting step); 0 = off (default).
+    pub anderson_depth: usize,
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
     pub light_groups: Option<crate::solve::light::shared::LightGroups>,
@@ -285,6 +289,7 @@ impl Default for EstimateOptions {
             light_sky: None,
             weights_sum: WEIGHTS_SUM,
             achromatic_specular: false,
+            anderson_depth: 0,
             light_groups: None,
             scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
