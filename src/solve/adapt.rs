@@ -87,7 +87,6 @@
 // Channel loops index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
-use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::observe::Observations;
@@ -577,15 +576,8 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         None => {
             let mut fits: Vec<(usize, solve::Estimate, f64)> = Vec::new();
             let mut stop = String::new();
-            // The counts are independent fits (each from its own k-means start): done in
-            // parallel, then read in order up to the first count k-means cannot seed, so
-            // the choice and every figure are those of fitting one count after another.
-            let candidates: Vec<Result<Option<(solve::Estimate, f64)>>> = (1..=MAX_MATERIALS)
-                .into_par_iter()
-                .map(|k| fit(k, &all, true))
-                .collect();
-            for (k, candidate) in (1..=MAX_MATERIALS).zip(candidates) {
-                let Some((est, e)) = candidate? else {
+            for k in 1..=MAX_MATERIALS {
+                let Some((est, e)) = fit(k, &all, true)? else {
                     stop = format!("k-means finds no {k}th distinct colour cluster");
                     break;
                 };
