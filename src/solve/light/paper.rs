@@ -10,14 +10,16 @@
 //! not depend on the thread count. Inside the alternation each QP is an inexact block
 //! step from the previous iterate, capped at
 //! [`EstimateOptions::alternation_qp_iters`] GPCG iterations of at most
-//! [`EstimateOptions::alternation_cg_iters`] CG steps.
+//! [`EstimateOptions::alternation_cg_iters`] CG steps, and after a photo's first step its
+//! IRLS continues from the previous iterate's residuals in one pass
+//! ([`crate::solve::light::photo::WARM_IRLS`]).
 
 use std::borrow::Cow;
 
 use crate::solve::light::laplacian::{
     extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
 };
-use crate::solve::light::photo::{lighting_sample, lighting_step_on, LightingResult};
+use crate::solve::light::photo::{lighting_sample, lighting_step_warm, LightingResult, WARM_IRLS};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
 use crate::solve::problem::{
@@ -129,7 +131,9 @@ impl LightModel for PaperLight {
         let results: Vec<Result<LightingResult>> = par_largest_first(&sizes, |i| {
             let m = mu_first[i].map(|m| m.map(|v| v * mu_factor));
             let (start, sample) = (Some(&lights[i]), samples[i].as_ref());
-            lighting_step_on(problem, input.beta, i, start, m, light_opts, sample)
+            lighting_step_warm(
+                problem, input.beta, i, start, m, light_opts, sample, WARM_IRLS,
+            )
         });
         out.conditioning.lighting.clear();
         out.conditioning.qp_unconverged = 0;

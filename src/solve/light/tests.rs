@@ -3,7 +3,9 @@
 use rand::{Rng, SeedableRng};
 
 use crate::observe::Observations;
-use crate::solve::light::photo::{lighting_sample, lighting_step_full, lighting_step_on};
+use crate::solve::light::photo::{
+    lighting_sample, lighting_step_full, lighting_step_on, lighting_step_warm,
+};
 use crate::solve::light::system::row_dot;
 use crate::solve::options::{EstimateOptions, Robust};
 use crate::solve::problem::{basis_responses, haar3, predict_from, Problem};
@@ -149,4 +151,86 @@ fn a_lighting_sample_leaves_the_map_where_all_observations_put_it() {
         assert_eq!(check.in_sample + check.out_of_sample, obs.len());
         assert!(check.ratio < 1.1, "seed {seed}: {check:?}");
     }
+}
+
+/// Relative distance of two maps on the Haar coefficients the planted rows reach (the
+/// first `n²/4`; the others are set by the prior alone).
+fn reached_distance(a: &[Vec<f64>; 3], b: &[Vec<f64>; 3], n: usize) -> f64 {
+    let (ha, hb) = (haar3(a, n), haar3(b, n));
+    let (mut d, mut s) = (0.0, 0.0);
+    for m in 0..n * n / 4 {
+        for c in 0..3 {
+            d += (ha[m][c] - hb[m][c]).powi(2);
+            s += hb[m][c].powi(2);
+        }
+    }
+    (d / s).sqrt()
+}
+
+#[test]
+fn warm_irls_passes_continue_to_the_robust_fit() {
+    // 3,000 observations with 1% noise, every 8th one a gross outlier (radiance × 4). The
+    // plain least-squares fit is pulled off the planted light; IRLS continued one warm
+    // pass at a time (each from the previous pass's light, as the alternation runs it)
+    // must reach the robust fit: within 1.5 × the distance from the planted light of a
+    // fit restarted from unit weights with 8 passes, and at least 3 × closer than the
+    // least-squares start (both thresholds leave room for the noise, which is the same
+    // draw for every fit).
+    let n = 16;
+    let (mut obs, t) = planted_photo(3000, n, 0.01, 5);
+    for rgb in obs.rgb.iter_mut().step_by(8) {
+        *rgb = rgb.map(|v| 4.0 * v);
+    }
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: obs.len(),
+        n_photos: 1,
+    };
+    let beta = vec![[1.0; 3]; obs.len()];
+    let robust = EstimateOptions {
+        smoothness: 1e-4,
+        irls_iters: 8,
+        qp_rel_tol: 1e-9,
+        qp_max_iter: 500,
+        ..EstimateOptions::default()
+    };
+    let plain = EstimateOptions {
+        robust: Robust::None,
+        irls_iters: 1,
+        ..robust.clone()
+    };
+    let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
+        (0..n * n)
+            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+            .collect()
+    });
+    let ls = lighting_step_full(&problem, &beta, 0, None, None, &plain).unwrap();
+    let restarted = lighting_step_full(&problem, &beta, 0, None, None, &robust).unwrap();
+    let mut light = ls.light.clone();
+    for _ in 0..8 {
+        let r = lighting_step_warm(
+            &problem,
+            &beta,
+            0,
+            Some(&light),
+            Some(restarted.mu),
+            &robust,
+            None,
+            true,
+        )
+        .unwrap();
+        assert_eq!(r.qps, 1, "one pass per warm step");
+        light = r.light;
+    }
+    let (e_ls, e_restart, e_warm) = (
+        reached_distance(&ls.light, &truth, n),
+        reached_distance(&restarted.light, &truth, n),
+        reached_distance(&light, &truth, n),
+    );
+    assert!(
+        e_warm < 1.5 * e_restart,
+        "warm {e_warm}, restarted {e_restart}"
+    );
+    assert!(3.0 * e_warm < e_ls, "warm {e_warm}, least squares {e_ls}");
 }

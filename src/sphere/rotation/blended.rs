@@ -57,6 +57,66 @@ pub const DEFAULT_SUPERSAMPLE: usize = 4;
 /// Sinkhorn iterations balancing rows and columns of `S_ν`.
 const BALANCE_ITERATIONS: usize = 12;
 
+/// The parts of the resampling `S_ν` that do not depend on the normal `ν`: the local
+/// sub-texels (their directions in the local frame and exact solid angles), both grids'
+/// texel solid angles, the global texel centres and 4-neighbours. Built once per
+/// [`Rotation`] and shared by every normal's [`resampling_rows_with`]; the values are the
+/// ones the per-normal construction computes, so the rows are bit for bit the same.
+#[derive(Debug, Clone)]
+pub struct ResamplingGeometry {
+    gg: SphereGrid,
+    gl: SphereGrid,
+    supersample: usize,
+    /// Sub-texels of local texel `j`: `subs[j s² .. (j + 1) s²]`, (local direction, `ω`).
+    subs: Vec<(Vec3, f64)>,
+    omega_g: Vec<f64>,
+    omega_l: Vec<f64>,
+    /// Global texel centres (environment frame).
+    dir_g: Vec<Vec3>,
+    /// [`SphereGrid::neighbors`] of every global texel.
+    nbr_g: Vec<[usize; 4]>,
+}
+
+impl ResamplingGeometry {
+    /// The normal-independent parts for the given map sides and sub-texels per side.
+    pub fn new(n_global: usize, n_local: usize, supersample: usize) -> Self {
+        let gg = SphereGrid::full(n_global);
+        let gl = SphereGrid::hemi(n_local);
+        let s = supersample.max(1);
+        let subs = (0..gl.len()).flat_map(|j| gl.sample_points(j, s)).collect();
+        ResamplingGeometry {
+            gg,
+            gl,
+            supersample: s,
+            subs,
+            omega_g: gg.solid_angles(),
+            omega_l: gl.solid_angles(),
+            dir_g: (0..gg.len()).map(|t| gg.texel_dir(t)).collect(),
+            nbr_g: (0..gg.len()).map(|t| gg.neighbors(t)).collect(),
+        }
+    }
+
+    /// The sub-texels of local texel `j`.
+    pub(super) fn subs_of(&self, j: usize) -> &[(Vec3, f64)] {
+        let k = self.supersample * self.supersample;
+        &self.subs[j * k..(j + 1) * k]
+    }
+
+    /// Global texels whose bilinear footprint (centres of the 3×3 block around them) is
+    /// above the horizon of the frame with normal `up_axis`.
+    pub(super) fn interior(&self, up_axis: &Vec3) -> Vec<bool> {
+        let up: Vec<bool> = self.dir_g.iter().map(|d| d.dot(up_axis) > 0.0).collect();
+        (0..up.len())
+            .map(|t| {
+                up[t]
+                    && self.nbr_g[t]
+                        .iter()
+                        .all(|&nb| up[nb] && self.nbr_g[nb].iter().all(|&nn| up[nn]))
+            })
+            .collect()
+    }
+}
+
 /// The resampling `S` for one exact normal, as rows `(global texel, weight)` per local texel
 /// (each row a weighted average: weights sum to ~1). Module docs give the construction.
 pub fn resampling_rows(
@@ -65,19 +125,38 @@ pub fn resampling_rows(
     n_local: usize,
     supersample: usize,
 ) -> Vec<Vec<(u32, f32)>> {
-    let gg = SphereGrid::full(n_global);
-    let gl = SphereGrid::hemi(n_local);
+    resampling_rows_with(
+        &ResamplingGeometry::new(n_global, n_local, supersample),
+        normal,
+    )
+}
+
+/// [`resampling_rows`] with the normal-independent parts given.
+pub fn resampling_rows_with(geo: &ResamplingGeometry, normal: &Vec3) -> Vec<Vec<(u32, f32)>> {
     let frame = local_frame(&normal.normalize());
-    let omega_g = gg.solid_angles();
-    let omega_l = gl.solid_angles();
-    // Gather: overlap areas A[j][g] from sub-texel samples and bilinear taps.
-    let mut acc = vec![0.0f64; gg.len()];
+    let rows = overlap_rows(geo, &frame);
+    let interior = geo.interior(&frame[2]);
+    let rows = balance(rows, &interior, &geo.omega_g, &geo.omega_l);
+    rows.into_iter()
+        .enumerate()
+        .map(|(j, row)| {
+            row.into_iter()
+                .map(|(t, a)| (t, (a / geo.omega_l[j]) as f32))
+                .collect()
+        })
+        .collect()
+}
+
+/// Overlap areas `A[j][g]` (ascending `g` per local texel `j`) from the sub-texel samples
+/// and their bilinear taps in the global map.
+fn overlap_rows(geo: &ResamplingGeometry, frame: &[Vec3; 3]) -> Vec<Vec<(u32, f64)>> {
+    let mut acc = vec![0.0f64; geo.gg.len()];
     let mut touched: Vec<usize> = Vec::new();
-    let mut rows: Vec<Vec<(u32, f64)>> = Vec::with_capacity(gl.len());
-    for j in 0..gl.len() {
-        for (dl, w) in gl.sample_points(j, supersample) {
-            let de = from_local(&frame, &dl);
-            for (t, bw) in gg.bilinear(&de) {
+    let mut rows: Vec<Vec<(u32, f64)>> = Vec::with_capacity(geo.gl.len());
+    for j in 0..geo.gl.len() {
+        for (dl, w) in geo.subs_of(j) {
+            let de = from_local(frame, dl);
+            for (t, bw) in geo.gg.bilinear(&de) {
                 if bw == 0.0 {
                     continue;
                 }
@@ -94,20 +173,18 @@ pub fn resampling_rows(
         }
         touched.clear();
     }
-    // Global texels whose bilinear footprint (centres of the 3×3 block around them) is above
-    // the local horizon: their columns must carry exactly Ω_g.
-    let up = |t: usize| gg.texel_dir(t).dot(&frame[2]) > 0.0;
-    let interior: Vec<bool> = (0..gg.len())
-        .map(|t| {
-            up(t)
-                && gg
-                    .neighbors(t)
-                    .iter()
-                    .all(|&nb| up(nb) && gg.neighbors(nb).iter().all(|&nn| up(nn)))
-        })
-        .collect();
-    // Sinkhorn balancing, ending with the columns.
-    let mut col = vec![0.0f64; gg.len()];
+    rows
+}
+
+/// Sinkhorn balancing of the overlap rows (module docs): rows to `Ω_l`, the columns of
+/// `interior` global texels to `Ω_g`, ending with the columns.
+fn balance(
+    mut rows: Vec<Vec<(u32, f64)>>,
+    interior: &[bool],
+    omega_g: &[f64],
+    omega_l: &[f64],
+) -> Vec<Vec<(u32, f64)>> {
+    let mut col = vec![0.0f64; omega_g.len()];
     for it in 0..BALANCE_ITERATIONS {
         if it > 0 {
             for (j, row) in rows.iter_mut().enumerate() {
@@ -135,14 +212,7 @@ pub fn resampling_rows(
             row.iter_mut().for_each(|e| e.1 *= col[e.0 as usize]);
         }
     }
-    rows.into_iter()
-        .enumerate()
-        .map(|(j, row)| {
-            row.into_iter()
-                .map(|(t, a)| (t, (a / omega_l[j]) as f32))
-                .collect()
-        })
-        .collect()
+    rows
 }
 
 /// Precomputed rotations `R_ν` for a grid of normals (module docs).
@@ -186,11 +256,12 @@ impl Rotation {
             "global map side {n_global} > 256: rotation indices are 16-bit"
         );
         let gn = SphereGrid::full(n_normals);
+        let geo = ResamplingGeometry::new(n_global, n_local, supersample);
         let per: Vec<Vec<Vec<(u32, f32)>>> = (0..gn.len())
             .into_par_iter()
             .map(|nu| {
                 crate::stages::tick(1);
-                let s = resampling_rows(&gn.texel_dir(nu), n_global, n_local, supersample);
+                let s = resampling_rows_with(&geo, &gn.texel_dir(nu));
                 match form {
                     RotationForm::Factored => s,
                     RotationForm::Sparse { threshold } => {

@@ -36,7 +36,10 @@ mod splat;
 #[cfg(test)]
 mod tests;
 
-pub use blended::{resampling_rows, Rotation, RotationForm, DEFAULT_SUPERSAMPLE};
+pub use blended::{
+    resampling_rows, resampling_rows_with, ResamplingGeometry, Rotation, RotationForm,
+    DEFAULT_SUPERSAMPLE,
+};
 pub use exact::ExactRotation;
 pub use splat::SplatRotation;
 

@@ -330,3 +330,37 @@ fn splat_rotation_conserves_energy_places_the_sun_and_is_adjoint() {
         }
     }
 }
+
+#[test]
+fn shared_geometry_matches_the_grids_and_the_horizon_rule() {
+    // The normal-independent parts against the grids' own methods: every local sub-texel
+    // (direction and exact solid angle) as `SphereGrid::sample_points` gives it, and the
+    // interior set against the footprint rule evaluated directly from the texel centres
+    // (a 3×3 block of centres above the horizon). Exact equality: the same f64 operations.
+    let (ng, nl, s) = (16, 8, 3);
+    let geo = ResamplingGeometry::new(ng, nl, s);
+    let (gg, gl) = (SphereGrid::full(ng), SphereGrid::hemi(nl));
+    for j in [0, 7, 27, 63] {
+        let direct: Vec<(Vec3, f64)> = gl.sample_points(j, s).collect();
+        assert_eq!(geo.subs_of(j), &direct[..], "local texel {j}");
+    }
+    let mut rng = Pcg64::seed_from_u64(11);
+    for _ in 0..5 {
+        let n = random_normal(&mut rng);
+        let up = |t: usize| gg.texel_dir(t).dot(&n) > 0.0;
+        let interior = geo.interior(&n);
+        assert_eq!(interior.len(), gg.len());
+        let mut count = 0;
+        for (t, &inside) in interior.iter().enumerate() {
+            let direct = up(t)
+                && gg
+                    .neighbors(t)
+                    .iter()
+                    .all(|&nb| up(nb) && gg.neighbors(nb).iter().all(|&nn| up(nn)));
+            assert_eq!(inside, direct, "texel {t}");
+            count += usize::from(direct);
+        }
+        // About a hemisphere less a border band: between a quarter and a half of the map.
+        assert!(count > gg.len() / 4 && count < gg.len() / 2, "{count}");
+    }
+}
