@@ -298,6 +298,7 @@ pub(crate) fn fit<'a>(
         estimate_options: eopts,
         bvh,
         baseline,
+        half_prior: None,
     };
     Ok(Fit {
         fitted,
