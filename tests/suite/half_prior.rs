@@ -72,9 +72,9 @@ fn right_half_errors(case: &Case, eta: f64) -> Vec<f64> {
     let held = &case.held;
     let right = right_halves(case);
     let mut left: Observations = held.obs.clone();
-    for p in 0..left.len() {
-        if right[p] {
-            left.weight[p] = 0.0;
+    for (w, &r) in left.weight.iter_mut().zip(&right) {
+        if r {
+            *w = 0.0;
         }
     }
     let full = held.problem(nv);

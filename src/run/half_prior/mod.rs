@@ -141,8 +141,8 @@ pub fn weighted_mse(obs: &Observations, pred: &[[f64; 3]], idx: &[usize]) -> f64
     let (mut num, mut den) = (0.0, 0.0);
     for &p in idx {
         let a = f64::from(obs.weight[p]);
-        for c in 0..3 {
-            num += a * (f64::from(obs.rgb[p][c]) - pred[p][c]).powi(2);
+        for (y, q) in obs.rgb[p].iter().zip(&pred[p]) {
+            num += a * (f64::from(*y) - q).powi(2);
         }
         den += 3.0 * a;
     }
@@ -210,8 +210,9 @@ fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
     if right.is_empty() || fit.weight.iter().all(|&w| w <= 0.0) {
         return Ok(None);
     }
-    obs.photo_ranges = vec![0..obs.len()];
-    fit.photo_ranges = vec![0..obs.len()];
+    let all = 0..obs.len();
+    obs.photo_ranges = vec![all.clone()];
+    fit.photo_ranges = vec![all];
     let topts = crate::transport::TransportOptions {
         n_global: f.opts.global_resolution,
         n_local: f.opts.local_resolution,
