@@ -260,9 +260,15 @@ fn replay_errors(f: &super::Fitted, k: usize, opts: &EstimateOptions) -> Result<
     let n = f.opts.global_resolution;
     let mut out = Vec::with_capacity(ETA_GRID.len());
     for &eta in &ETA_GRID {
-        let prior = (eta > 0.0)
+        // Too few lit maps for a prior: this candidate scores nothing (the photo is then
+        // left out of the choice, [`log_ratio_scores`]).
+        let Ok(prior) = (eta > 0.0)
             .then(|| half_fit_prior(&others, n, eta))
-            .transpose()?;
+            .transpose()
+        else {
+            out.push(f64::INFINITY);
+            continue;
+        };
         let o = EstimateOptions {
             light_prior: prior,
             ..opts.clone()
@@ -351,6 +357,8 @@ pub(crate) fn prepare(
         HalfPriorMode::Auto if f.held.is_empty() => (0.0, Vec::new(), 0),
         HalfPriorMode::Auto => choose_eta(f, opts)?,
     };
+    // `auto` only picks η > 0 when the prior could be built on the replays; a fixed η
+    // with too few lit maps is an error naming the cause.
     let options = (eta > 0.0)
         .then(|| half_fit_prior(&f.est.lights, f.opts.global_resolution, eta))
         .transpose()?;
