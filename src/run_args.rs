@@ -174,6 +174,12 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value_t = 1, help_heading = "Solver")]
     pub(crate) seed: u64,
 
+    /// Light prior of the held-out `half` protocol's fit: `auto` (the training photos'
+    /// maps as a prior on the new photo's low-order light, weighted as replaying the
+    /// protocol on training photos says, possibly not at all), `off` (the Laplacian alone)
+    /// or a fixed weight η > 0.
+    #[arg(long, default_value = "auto", help_heading = "Evaluation")]
+    pub(crate) half_prior: String,
     /// Hold out these photos (image names, comma-separated) to score the result; `none`
     /// holds out nothing. Default: the workspace's truth/manifest.json list, else every 5th
     /// photo (at least one).
@@ -268,6 +274,7 @@ impl RunArgs {
         o.validation = self.validation;
         o.validation_block = self.validation_block;
         o.validation_halves = self.validation_halves;
+        o.half_prior = relight_cpc::run::half_prior::HalfPriorMode::parse(&self.half_prior)?;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;

@@ -429,9 +429,9 @@ pub(super) fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3
 /// stops at its cap, not at the KKT tolerance) 4.0 instead of 10.9 CPU s, the `half` RMSEs
 /// within 0.2% (0.08649 / 0.07549 / 0.09602 against 0.08651 / 0.07559 / 0.09622); 50 × 20
 /// matches to 5 digits at 7.0 s, 5 × 20 under-solves (1–3% off).
-const HALF_FIT_GPCG: usize = 20;
+pub(super) const HALF_FIT_GPCG: usize = 20;
 /// See [`HALF_FIT_GPCG`].
-const HALF_FIT_CG: usize = 20;
+pub(super) const HALF_FIT_CG: usize = 20;
 
 /// Protocol (b): fit the light on the observations left of `mid_x`, frozen reflectance,
 /// from `start` (the mean training map) with the caps [`HALF_FIT_GPCG`] × [`HALF_FIT_CG`].
@@ -490,6 +490,10 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
         qp_max_iter: HALF_FIT_GPCG,
         qp_max_cg: HALF_FIT_CG,
         lighting_sample: 0,
+        light_prior: f
+            .half_prior
+            .clone()
+            .or(f.estimate_options.light_prior.clone()),
         ..f.estimate_options.clone()
     };
     let start = [0, 1, 2].map(|c| start.channel(c));

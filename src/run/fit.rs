@@ -299,6 +299,7 @@ pub(crate) fn fit<'a>(
         estimate_options: eopts,
         bvh,
         baseline,
+        half_prior: None,
     };
     Ok(Fit {
         fitted,

@@ -27,6 +27,7 @@ mod baseline;
 mod evaluate;
 mod example;
 mod fit;
+pub mod half_prior;
 mod holdout;
 mod html_inputs;
 pub mod light_groups;
@@ -283,6 +284,9 @@ pub(crate) struct Fitted<'a> {
     pub bvh: SceneBvh,
     /// The naive baseline's per-vertex colours ([`baseline`]).
     pub baseline: baseline::VertexMedians,
+    /// The light prior of held-out protocol (b)'s fit ([`half_prior`]); `None`: the
+    /// estimator's own light options.
+    pub half_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
 }
 
 /// The observation options of a run: the defaults, with the edge margin as

@@ -134,6 +134,10 @@ pub struct RunOptions {
     /// Down-weight observations near silhouettes and depth edges
     /// ([`crate::observe::margins`], [`crate::observe::DEFAULT_EDGE_MARGIN`]).
     pub edge_margin: bool,
+    /// The light prior of held-out protocol (b)'s fit ([`super::half_prior`]): `Auto`
+    /// (the training maps' shape prior, its weight chosen by replaying the protocol on
+    /// training photos), `Off` (the Laplacian alone) or a fixed weight.
+    pub half_prior: super::half_prior::HalfPriorMode,
     /// Groups of photos under one sky for `--light shared` ([`super::light_groups`]); `None`:
     /// by EXIF capture time.
     pub light_groups: Option<std::path::PathBuf>,
@@ -224,6 +228,7 @@ impl RunOptions {
             light: crate::solve::light::choose::LightChoice::Paper,
             transients: false,
             edge_margin: true,
+            half_prior: super::half_prior::HalfPriorMode::Auto,
             light_groups: None,
             light_group_minutes: DEFAULT_LIGHT_GROUP_MINUTES,
             scale_anchor: crate::solve::normalise::ScaleAnchor::Start,

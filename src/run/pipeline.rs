@@ -85,6 +85,7 @@ pub(crate) struct Evaluated {
     pub(crate) evaluation: Evaluation,
     pub(crate) truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
     pub(crate) holdout_rule: String,
+    pub(crate) half_fit_prior: Option<crate::report::HalfFitPriorReport>,
 }
 
 /// The pipeline into `dir` (module docs).
@@ -96,9 +97,19 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
     let imported = import(opts, &mut log, progress)?;
     let observed = observe_training(opts, &imported, &mut log, progress)?;
     let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
-    let fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
+    let mut fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
     // 7. Evaluation of held-out photos, and per-photo training error.
     progress.stage("evaluation");
+    let half_fit_prior = if fit.fitted.held.is_empty() {
+        None
+    } else {
+        let hp = log.stages.run("half-fit prior", || {
+            let o = super::half_prior::half_fit_options(&fit.fitted);
+            super::half_prior::prepare(&fit.fitted, opts.half_prior, &o)
+        })?;
+        fit.fitted.half_prior = hp.options;
+        Some(hp.report)
+    };
     let (evaluation, truth_check) = log.stages.run("evaluation", || -> Result<_> {
         let e = evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)?;
         let t = match &imported.truth {
@@ -111,6 +122,7 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
         evaluation,
         truth_check,
         holdout_rule: imported.holdout_rule.clone(),
+        half_fit_prior,
     };
     write(
         opts,
@@ -531,6 +543,7 @@ fn write(
         evaluation,
         truth_check,
         holdout_rule,
+        half_fit_prior,
     } = evaluated;
     let eff = &fitted.opts;
     // 8. Outputs.
@@ -594,6 +607,7 @@ fn write(
     };
     report.headline = evaluation.headline.map(|h| h.ratio);
     report.headline_detail = evaluation.headline;
+    report.half_fit_prior = half_fit_prior;
     report.metrics = evaluation.metrics;
     report.truth_check = truth_check;
     report.albedo_truth = match truth {

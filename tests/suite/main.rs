@@ -35,6 +35,7 @@ mod estimate_sky;
 mod estimate_synth;
 mod extreme_pipeline;
 mod extreme_units;
+mod half_prior;
 mod inspect_buddha;
 mod inspect_dense_buddha;
 mod malformed_inputs;

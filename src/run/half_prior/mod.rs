@@ -1,0 +1,389 @@
+//! The light prior of held-out protocol (b) (`half`), learnt from the training photos'
+//! fitted maps (docs/method.md, "Held-out evaluation").
+//!
+//! Protocol (b) fits a held-out photo's map on the left half of the object and predicts
+//! the right half: the part of the map that only the right half sees is extrapolated, by
+//! the Laplacian prior alone. Photos of one collection are often lit alike (one site, one
+//! kind of sky, one world frame), and then the training photos' fitted maps say where the
+//! new photo's light comes from. The prior is the Gaussian shape term of
+//! [`crate::solve::light::sh_prior`] with its statistics taken from those maps:
+//!
+//! - each training map `k`, per channel `c`, projected on the real SH up to order 2,
+//!   `c_{k,c,i} = (P x_{k,c})_i`, reduced to its shape `ĉ_{k,c,i} = c_{k,c,i} / c_{k,c,0}`
+//!   (`i = 1..9`, 24 numbers; level and colour are free: exposure and white balance differ);
+//! - mean `m = (1/K) Σ_k ĉ_k` and covariance `Σ = (1/(K−1)) Σ_k (ĉ_k − m)(ĉ_k − m)ᵀ`, shrunk
+//!   toward its diagonal, `Σ_s = (1 − a) Σ + a diag(Σ)` ([`SHRINKAGE`]: `K` is about 10
+//!   against 24 numbers, `Σ` alone is singular), plus a floor `f² I` ([`SHAPE_FLOOR`]) so that
+//!   a coefficient on which the training maps happen to agree is not pinned;
+//! - in the QP, `½ σ² (A x)ᵀ (Σ_s + f² I)⁻¹ (A x)`, `σ = η · rms(y)` (`σ²` × the negative
+//!   log prior, [`crate::solve::light::sh_prior`] module docs).
+//!
+//! Whether the collection's lights are alike enough is a property of the collection, so
+//! `η` is chosen by replaying protocol (b) on training photos ([`choose_eta`]): for up to
+//! [`LOO_PHOTOS`] training photos `k` (spread over the list), the left half of `k`'s
+//! observations (projected `x` below the middle of their span, [`super::evaluate::span_mid`])
+//! fits its map from the mean of the other training maps, the prior learnt from the other
+//! maps only (leave one out), reflectance frozen, the right half scored (α-weighted MSE).
+//! The kept `η` ∈ [`ETA_GRID`] (0 = no prior) minimises the mean over photos of
+//! `½ ln(MSE_η / MSE_0)` (the log of the RMSE ratio: no photo's scale dominates). The
+//! replay's reflectance saw photo `k` (it is a training photo), so the replay scores the
+//! light's extrapolation, not the reflectance's generalisation, which the prior cannot
+//! change.
+
+use crate::observe::Observations;
+use crate::report::HalfFitPriorReport;
+use crate::solve::light::sh_prior::{
+    shape_vector, LightPrior, LightPriorOptions, PriorSample, ShProjection, N_SH, N_SHAPE,
+};
+use crate::solve::{EstimateOptions, Problem};
+use crate::{Error, Result};
+use rayon::prelude::*;
+
+/// Shrinkage of the training maps' shape covariance toward its diagonal (module docs).
+pub const SHRINKAGE: f64 = 0.5;
+/// Floor `f` of the shape covariance, in units of the shape `ĉ` (module docs).
+pub const SHAPE_FLOOR: f64 = 0.05;
+/// Training photos the choice of `η` replays at most.
+pub const LOO_PHOTOS: usize = 4;
+/// Candidate relative noise levels `η` (0 = no prior).
+pub const ETA_GRID: [f64; 3] = [0.0, 3.0, 10.0];
+
+/// `--half-prior`: how protocol (b) uses the training maps' prior.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HalfPriorMode {
+    /// `η` chosen by the replay on training photos (module docs).
+    Auto,
+    /// No prior: the Laplacian alone (the estimator's own light options).
+    Off,
+    /// A fixed `η > 0`.
+    Fixed(f64),
+}
+
+impl HalfPriorMode {
+    /// `auto`, `off` or a positive number.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(HalfPriorMode::Auto),
+            "off" => Ok(HalfPriorMode::Off),
+            _ => match s.parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(HalfPriorMode::Fixed(v)),
+                _ => Err(Error::Config(format!(
+                    "--half-prior {s}: expected auto, off or a positive number (η)"
+                ))),
+            },
+        }
+    }
+}
+
+/// The shape vector of one map (three channels' texels on the full octahedral grid),
+/// `None` where a channel has no positive mean.
+pub fn map_shape(light: &[Vec<f64>; 3], proj: &ShProjection) -> Option<[f64; N_SHAPE]> {
+    let c: [[f64; N_SH]; 3] = [0, 1, 2].map(|c| proj.project(&light[c]));
+    shape_vector(&c)
+}
+
+/// Mean and precision `(Σ_s + f² I)⁻¹` of the maps' shapes (module docs) as a
+/// [`LightPrior`] without Haar statistics; `n` the maps' side. Errors when fewer than two
+/// maps have light in every channel.
+pub fn training_prior(
+    lights: &[[Vec<f64>; 3]],
+    n: usize,
+    shrinkage: f64,
+    floor: f64,
+) -> Result<LightPrior> {
+    let proj = ShProjection::new(n, 4);
+    let samples: Vec<PriorSample> = lights
+        .iter()
+        .filter_map(|l| map_shape(l, &proj))
+        .map(|s| PriorSample {
+            shapes: vec![s],
+            haar: Vec::new(),
+        })
+        .collect();
+    if samples.len() < 2 {
+        return Err(Error::Config(format!(
+            "half-fit light prior: {} of {} training maps have light in every channel, need 2",
+            samples.len(),
+            lights.len()
+        )));
+    }
+    let names = (0..samples.len())
+        .map(|k| format!("training map {k}"))
+        .collect();
+    let mut prior = LightPrior::fit(names, 1, &samples, shrinkage)?;
+    prior.shape_precision = add_floor(&prior.shape_precision, floor)?;
+    Ok(prior)
+}
+
+/// `(Λ₀⁻¹ + f² I)⁻¹` for a row-major `N_SHAPE²` precision `Λ₀`.
+fn add_floor(precision: &[f64], floor: f64) -> Result<Vec<f64>> {
+    let p = nalgebra::DMatrix::from_row_slice(N_SHAPE, N_SHAPE, precision);
+    let singular = || Error::Config("half-fit light prior: singular shape covariance".into());
+    let cov = p.try_inverse().ok_or_else(singular)?
+        + nalgebra::DMatrix::<f64>::identity(N_SHAPE, N_SHAPE) * (floor * floor);
+    let prec = cov.try_inverse().ok_or_else(singular)?;
+    Ok(prec.transpose().iter().copied().collect())
+}
+
+/// The light-prior options of the half fit: the training maps' shape term at `eta`.
+pub fn half_fit_prior(lights: &[[Vec<f64>; 3]], n: usize, eta: f64) -> Result<LightPriorOptions> {
+    Ok(LightPriorOptions {
+        stats: std::sync::Arc::new(vec![training_prior(lights, n, SHRINKAGE, SHAPE_FLOOR)?]),
+        per_photo: None,
+        sh_noise: eta,
+        haar_noise: 0.0,
+    })
+}
+
+/// `α`-weighted mean square error of `pred` against the observations `idx`, over channels
+/// (`∞` when they weigh nothing).
+pub fn weighted_mse(obs: &Observations, pred: &[[f64; 3]], idx: &[usize]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for &p in idx {
+        let a = f64::from(obs.weight[p]);
+        for (y, q) in obs.rgb[p].iter().zip(&pred[p]) {
+            num += a * (f64::from(*y) - q).powi(2);
+        }
+        den += 3.0 * a;
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The mean over `lights` of every map but the `k`-th, per channel.
+pub fn mean_without(lights: &[[Vec<f64>; 3]], k: usize) -> [Vec<f64>; 3] {
+    let n2 = lights.first().map_or(0, |l| l[0].len());
+    let mut m = [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]];
+    let others = lights.len().saturating_sub(1).max(1) as f64;
+    for (_, l) in lights.iter().enumerate().filter(|&(j, _)| j != k) {
+        for c in 0..3 {
+            for (a, v) in m[c].iter_mut().zip(&l[c]) {
+                *a += v / others;
+            }
+        }
+    }
+    m
+}
+
+/// Protocol (b) replayed on one training photo: every observation (transport built over
+/// all), the fit's copy with the right half's `α` zeroed, the right half's indices.
+struct Replay {
+    obs: Observations,
+    fit: Observations,
+    right: Vec<usize>,
+    transport: crate::transport::Transport,
+}
+
+/// [`Replay`] of training photo `k` (training order); `None` without both halves.
+fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
+    let view = &f.scene.views[f.train[k]];
+    let mut obs = crate::observe::extract(
+        &f.scene.mesh,
+        &f.bvh,
+        std::slice::from_ref(view),
+        std::slice::from_ref(&f.photos[f.train[k]]),
+        &super::observe_options(&f.opts),
+    );
+    let px: Vec<Option<f64>> = obs
+        .vertex
+        .iter()
+        .map(|&x| super::evaluate::projected_x(view, &f.scene.mesh.positions[x as usize]))
+        .collect();
+    let seen = |p: usize| obs.weight[p] > 0.0 && px[p].is_some();
+    let Some(mid) =
+        super::evaluate::span_mid((0..px.len()).filter(|&p| seen(p)).filter_map(|p| px[p]))
+    else {
+        return Ok(None);
+    };
+    let right: Vec<usize> = (0..px.len())
+        .filter(|&p| seen(p) && px[p].is_some_and(|u| u >= mid))
+        .collect();
+    let mut fit = obs.clone();
+    for (p, w) in fit.weight.iter_mut().enumerate() {
+        if !seen(p) || px[p].is_some_and(|u| u >= mid) {
+            *w = 0.0;
+        }
+    }
+    if right.is_empty() || fit.weight.iter().all(|&w| w <= 0.0) {
+        return Ok(None);
+    }
+    let all = 0..obs.len();
+    obs.photo_ranges = vec![all.clone()];
+    fit.photo_ranges = vec![all];
+    let topts = crate::transport::TransportOptions {
+        n_global: f.opts.global_resolution,
+        n_local: f.opts.local_resolution,
+        keep: f.opts.keep,
+    };
+    let transport = crate::transport::build(
+        &f.normals_env,
+        &obs,
+        &f.env_from_world,
+        &f.vis,
+        &f.basis,
+        &f.rot,
+        &topts,
+    )?;
+    Ok(Some(Replay {
+        obs,
+        fit,
+        right,
+        transport,
+    }))
+}
+
+/// Right-half MSE of training photo `k` for each `η` in [`ETA_GRID`] (module docs); `opts`
+/// the half fit's options.
+fn replay_errors(f: &super::Fitted, k: usize, opts: &EstimateOptions) -> Result<Option<Vec<f64>>> {
+    let Some(r) = replay(f, k)? else {
+        return Ok(None);
+    };
+    let lights = &f.est.lights;
+    let others: Vec<[Vec<f64>; 3]> = (0..lights.len())
+        .filter(|&j| j != k)
+        .map(|j| lights[j].clone())
+        .collect();
+    let start = mean_without(lights, k);
+    let full = Problem {
+        obs: &r.obs,
+        transport: &r.transport,
+        n_vertices: f.scene.mesh.positions.len(),
+        n_photos: 1,
+    };
+    let fit = Problem {
+        obs: &r.fit,
+        ..full
+    };
+    let n = f.opts.global_resolution;
+    let mut out = Vec::with_capacity(ETA_GRID.len());
+    for &eta in &ETA_GRID {
+        // Too few lit maps for a prior: this candidate scores nothing (the photo is then
+        // left out of the choice, [`log_ratio_scores`]).
+        let Ok(prior) = (eta > 0.0)
+            .then(|| half_fit_prior(&others, n, eta))
+            .transpose()
+        else {
+            out.push(f64::INFINITY);
+            continue;
+        };
+        let o = EstimateOptions {
+            light_prior: prior,
+            ..opts.clone()
+        };
+        let l = crate::solve::fit_light_frozen(&fit, &f.beta, 0, Some(&start), &o)?;
+        let s = crate::solve::basis_responses(&full, std::slice::from_ref(&l));
+        let pred = crate::solve::problem::predict_from(&full, &f.beta, &s);
+        out.push(weighted_mse(&r.obs, &pred, &r.right));
+    }
+    Ok(Some(out))
+}
+
+/// The mean over photos of `½ ln(MSE_η / MSE_0)` per grid value (photos whose errors are
+/// not all finite and positive left out), and how many photos counted.
+pub fn log_ratio_scores(errors: &[Vec<f64>]) -> (Vec<f64>, usize) {
+    let ok: Vec<&Vec<f64>> = errors
+        .iter()
+        .filter(|e| e.iter().all(|v| v.is_finite() && *v > 0.0))
+        .collect();
+    let len = errors.first().map_or(0, Vec::len);
+    let mut score = vec![0.0; len];
+    for e in &ok {
+        for (s, v) in score.iter_mut().zip(e.iter()) {
+            *s += 0.5 * (v / e[0]).ln() / ok.len() as f64;
+        }
+    }
+    (score, ok.len())
+}
+
+/// The half fit's prior for a fitted run and what the report says of it.
+pub(crate) struct HalfPrior {
+    /// The options the half fit uses (`None`: the estimator's own, no training prior).
+    pub options: Option<LightPriorOptions>,
+    /// report.json's `half_fit_prior`.
+    pub report: HalfFitPriorReport,
+}
+
+/// `η` by the replay on up to [`LOO_PHOTOS`] training photos (module docs): the grid
+/// value with the lowest [`log_ratio_scores`], 0 on ties or without a scored photo.
+pub(crate) fn choose_eta(
+    f: &super::Fitted,
+    opts: &EstimateOptions,
+) -> Result<(f64, Vec<f64>, usize)> {
+    let kk = f.est.lights.len();
+    if kk < 3 {
+        return Ok((0.0, Vec::new(), 0));
+    }
+    let m = LOO_PHOTOS.min(kk);
+    let picks: Vec<usize> = (0..m).map(|i| (2 * i + 1) * kk / (2 * m)).collect();
+    let errors: Vec<Vec<f64>> = picks
+        .par_iter()
+        .map(|&k| replay_errors(f, k, opts))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .flatten()
+        .collect();
+    let (score, counted) = log_ratio_scores(&errors);
+    let best = (0..score.len())
+        .filter(|&i| score[i] < 0.0)
+        .min_by(|&a, &b| score[a].total_cmp(&score[b]))
+        .map_or(0.0, |i| ETA_GRID[i]);
+    Ok((best, score, counted))
+}
+
+/// The options of protocol (b)'s light fit without its prior (as
+/// [`super::evaluate`]'s fit sets them: its iteration caps, every observation).
+pub(crate) fn half_fit_options(f: &super::Fitted) -> EstimateOptions {
+    EstimateOptions {
+        qp_max_iter: super::evaluate::HALF_FIT_GPCG,
+        qp_max_cg: super::evaluate::HALF_FIT_CG,
+        lighting_sample: 0,
+        ..f.estimate_options.clone()
+    }
+}
+
+/// The half fit's prior under `mode`; `opts` the half fit's options.
+pub(crate) fn prepare(
+    f: &super::Fitted,
+    mode: HalfPriorMode,
+    opts: &EstimateOptions,
+) -> Result<HalfPrior> {
+    let watch = crate::stages::Stopwatch::start();
+    let (eta, scores, photos) = match mode {
+        HalfPriorMode::Off => (0.0, Vec::new(), 0),
+        HalfPriorMode::Fixed(eta) => (eta, Vec::new(), 0),
+        HalfPriorMode::Auto if f.held.is_empty() => (0.0, Vec::new(), 0),
+        HalfPriorMode::Auto => choose_eta(f, opts)?,
+    };
+    // `auto` only picks η > 0 when the prior could be built on the replays; a fixed η
+    // with too few lit maps is an error naming the cause.
+    let options = (eta > 0.0)
+        .then(|| half_fit_prior(&f.est.lights, f.opts.global_resolution, eta))
+        .transpose()?;
+    let (_, cpu) = watch.elapsed();
+    let mode_name = match mode {
+        HalfPriorMode::Auto => "auto",
+        HalfPriorMode::Off => "off",
+        HalfPriorMode::Fixed(_) => "fixed",
+    };
+    Ok(HalfPrior {
+        options,
+        report: HalfFitPriorReport {
+            mode: mode_name.to_string(),
+            eta,
+            grid: if scores.is_empty() {
+                Vec::new()
+            } else {
+                ETA_GRID.to_vec()
+            },
+            log_rmse_ratio: scores,
+            replayed_photos: photos,
+            cpu_seconds: cpu,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,143 @@
+use super::*;
+use crate::sphere::SphereGrid;
+
+/// Texel averages of `f` on the full grid of side `n` by 8² sub-texels.
+fn texels(n: usize, f: impl Fn(&crate::Vec3) -> f64) -> Vec<f64> {
+    let g = SphereGrid::full(n);
+    (0..g.len())
+        .map(|t| {
+            let (mut a, mut w) = (0.0, 0.0);
+            for (d, o) in g.sample_points(t, 8) {
+                a += o * f(&d);
+                w += o;
+            }
+            a / w
+        })
+        .collect()
+}
+
+#[test]
+fn shape_of_a_linear_map_matches_its_analytic_ratio() {
+    // L(ω) = 1 + a z: c_00 = 4π Y_00, c_10 = a · 0.4886 · 4π/3, so c_10 / c_00 = a / √3,
+    // every other order-1..2 coefficient 0. The projection treats each texel as constant,
+    // an O(h²) error in the texel size: 1.1e-3 on c_10 / c_00 at 32² (measured), so at 64²
+    // about a quarter of that, below the 1e-3 allowed.
+    let n = 64;
+    let a = [0.5, 0.2, -0.3];
+    let light = a.map(|ac| texels(n, |d| 1.0 + ac * d.z));
+    let s = map_shape(&light, &ShProjection::new(n, 4)).unwrap();
+    for c in 0..3 {
+        for i in 0..8 {
+            let want = if i == 1 { a[c] / 3f64.sqrt() } else { 0.0 };
+            assert!(
+                (s[c * 8 + i] - want).abs() < 1e-3,
+                "c{c} i{i}: {} vs {want}",
+                s[c * 8 + i]
+            );
+        }
+    }
+}
+
+#[test]
+fn training_prior_matches_the_brute_force_shrunk_floored_covariance() {
+    // Four maps 1 + a_k z + b_k x with distinct (a_k, b_k): the mean and the precision
+    // against the definitions computed here by plain loops (shapes, sample covariance,
+    // shrinkage, floor, inverse). Both sides use the same projection, so only rounding
+    // separates them: 1e-8 relative.
+    let n = 16;
+    let ab = [(0.5, 0.1), (0.2, -0.3), (-0.1, 0.2), (0.3, 0.4)];
+    let lights: Vec<[Vec<f64>; 3]> = ab
+        .iter()
+        .map(|&(a, b)| [1.0, 0.8, 0.6].map(|g| texels(n, |d| g * (1.0 + a * d.z + b * d.x))))
+        .collect();
+    let (shrink, floor) = (0.3, 0.05);
+    let prior = training_prior(&lights, n, shrink, floor).unwrap();
+    let proj = ShProjection::new(n, 4);
+    let shapes: Vec<[f64; N_SHAPE]> = lights
+        .iter()
+        .map(|l| map_shape(l, &proj).unwrap())
+        .collect();
+    let k = shapes.len() as f64;
+    let mean: Vec<f64> = (0..N_SHAPE)
+        .map(|i| shapes.iter().map(|s| s[i]).sum::<f64>() / k)
+        .collect();
+    let mut cov = nalgebra::DMatrix::<f64>::zeros(N_SHAPE, N_SHAPE);
+    for i in 0..N_SHAPE {
+        for j in 0..N_SHAPE {
+            let c: f64 = shapes
+                .iter()
+                .map(|s| (s[i] - mean[i]) * (s[j] - mean[j]))
+                .sum::<f64>()
+                / (k - 1.0);
+            cov[(i, j)] = if i == j {
+                c + floor * floor
+            } else {
+                (1.0 - shrink) * c
+            };
+        }
+    }
+    let want = cov.try_inverse().unwrap();
+    for i in 0..N_SHAPE {
+        assert!((prior.shape_mean[i] - mean[i]).abs() < 1e-12);
+        for j in 0..N_SHAPE {
+            let got = prior.shape_precision[i * N_SHAPE + j];
+            let w = want[(i, j)];
+            assert!(
+                (got - w).abs() <= 1e-8 * w.abs().max(1.0),
+                "Λ[{i},{j}] {got} vs {w}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_dark_collection_is_a_clear_error() {
+    let dark = vec![[vec![0.0; 16], vec![0.0; 16], vec![0.0; 16]]; 3];
+    let e = training_prior(&dark, 4, SHRINKAGE, SHAPE_FLOOR).unwrap_err();
+    assert!(e.to_string().contains("0 of 3 training maps"), "{e}");
+}
+
+#[test]
+fn log_ratio_scores_against_hand_computed_means() {
+    // Photo 1: MSE 4 → 1 → 16 (RMSE ratio 1/2, 2); photo 2 unchanged; photo 3 has a
+    // non-finite entry and is left out. Means: [0, ½ ln ½, ½ ln 2].
+    let e = vec![
+        vec![4.0, 1.0, 16.0],
+        vec![1.0, 1.0, 1.0],
+        vec![1.0, f64::INFINITY, 1.0],
+    ];
+    let (s, n) = log_ratio_scores(&e);
+    assert_eq!(n, 2);
+    let want = [0.0, 0.5 * 0.5f64.ln(), 0.5 * 2f64.ln()];
+    for (a, b) in s.iter().zip(want) {
+        assert!((a - b).abs() < 1e-12, "{s:?} vs {want:?}");
+    }
+}
+
+#[test]
+fn mean_without_matches_the_brute_force_mean() {
+    let lights: Vec<[Vec<f64>; 3]> = (0..4)
+        .map(|k| [0, 1, 2].map(|c| (0..5).map(|t| (k * 7 + c * 3 + t) as f64).collect()))
+        .collect();
+    let m = mean_without(&lights, 2);
+    for c in 0..3 {
+        for t in 0..5 {
+            let want = [0, 1, 3].iter().map(|&k| lights[k][c][t]).sum::<f64>() / 3.0;
+            assert!((m[c][t] - want).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn half_prior_flag_parses_and_rejects() {
+    assert_eq!(HalfPriorMode::parse("auto").unwrap(), HalfPriorMode::Auto);
+    assert_eq!(HalfPriorMode::parse("off").unwrap(), HalfPriorMode::Off);
+    assert_eq!(
+        HalfPriorMode::parse("3").unwrap(),
+        HalfPriorMode::Fixed(3.0)
+    );
+    for bad in ["-1", "0", "nan", "strong"] {
+        let e = HalfPriorMode::parse(bad).unwrap_err().to_string();
+        assert!(e.contains("--half-prior"), "{bad}: {e}");
+    }
+}
