@@ -51,7 +51,7 @@ use crate::observe::trace::SceneBvh;
 use crate::{import::mesh::Mesh, Vec3};
 
 /// All observations, struct of arrays, sorted by photo then vertex.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Observations {
     /// Observed vertex (index into [`Mesh::positions`]).
     pub vertex: Vec<u32>,

@@ -29,6 +29,13 @@
 //! replay's reflectance saw photo `k` (it is a training photo), so the replay scores the
 //! light's extrapolation, not the reflectance's generalisation, which the prior cannot
 //! change.
+//!
+//! The replay's cost must not grow with the mesh: a photo with more than
+//! [`REPLAY_MAX_OBSERVATIONS`] observations is replayed on every `k`-th of them
+//! (`k = ⌈N / max⌉`, [`thin_observations`]), each kept observation weighted `N / n`
+//! (Horvitz–Thompson: the data term `Σ_p α_p (y_p − ŷ_p)²` keeps its expected value, so
+//! its balance against the prior term, which does not scale with `N`, is that of the
+//! full photo; Cochran, "Sampling Techniques", 3rd ed., §8 on systematic sampling).
 
 use crate::observe::Observations;
 use crate::report::HalfFitPriorReport;
@@ -45,6 +52,10 @@ pub const SHRINKAGE: f64 = 0.5;
 pub const SHAPE_FLOOR: f64 = 0.05;
 /// Training photos the choice of `η` replays at most.
 pub const LOO_PHOTOS: usize = 4;
+/// Observations of one training photo the replay fits and scores at most (module docs):
+/// at 100K vertices a photo has ~25,000, and 12 light fits on all of them would cost
+/// more than the evaluation itself.
+pub const REPLAY_MAX_OBSERVATIONS: usize = 6_000;
 /// Candidate relative noise levels `η` (0 = no prior).
 pub const ETA_GRID: [f64; 3] = [0.0, 3.0, 10.0];
 
@@ -168,8 +179,29 @@ pub fn mean_without(lights: &[[Vec<f64>; 3]], k: usize) -> [Vec<f64>; 3] {
     m
 }
 
-/// Protocol (b) replayed on one training photo: every observation (transport built over
-/// all), the fit's copy with the right half's `α` zeroed, the right half's indices.
+/// Every `⌈N / max⌉`-th observation of `obs` (all when `N ≤ max`) with its weight `α`
+/// multiplied by `N / n` (module docs: the data term's expected value is kept). One photo
+/// range covering the result.
+pub fn thin_observations(obs: Observations, max: usize) -> Observations {
+    let n_all = obs.len();
+    if n_all <= max || max == 0 {
+        return obs;
+    }
+    let step = n_all.div_ceil(max);
+    let kept: Vec<usize> = (0..n_all).step_by(step).collect();
+    let scale = n_all as f32 / kept.len() as f32;
+    Observations {
+        vertex: kept.iter().map(|&p| obs.vertex[p]).collect(),
+        photo: kept.iter().map(|&p| obs.photo[p]).collect(),
+        rgb: kept.iter().map(|&p| obs.rgb[p]).collect(),
+        weight: kept.iter().map(|&p| obs.weight[p] * scale).collect(),
+        dir: kept.iter().map(|&p| obs.dir[p]).collect(),
+        photo_ranges: vec![0..kept.len()],
+    }
+}
+
+/// Protocol (b) replayed on one training photo: its observations, thinned to
+/// [`REPLAY_MAX_OBSERVATIONS`] (transport built over them), the fit's copy with the right half's `α` zeroed, the right half's indices.
 struct Replay {
     obs: Observations,
     fit: Observations,
@@ -180,12 +212,15 @@ struct Replay {
 /// [`Replay`] of training photo `k` (training order); `None` without both halves.
 fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
     let view = &f.scene.views[f.train[k]];
-    let mut obs = crate::observe::extract(
-        &f.scene.mesh,
-        &f.bvh,
-        std::slice::from_ref(view),
-        std::slice::from_ref(&f.photos[f.train[k]]),
-        &super::observe_options(&f.opts),
+    let mut obs = thin_observations(
+        crate::observe::extract(
+            &f.scene.mesh,
+            &f.bvh,
+            std::slice::from_ref(view),
+            std::slice::from_ref(&f.photos[f.train[k]]),
+            &super::observe_options(&f.opts),
+        ),
+        REPLAY_MAX_OBSERVATIONS,
     );
     let px: Vec<Option<f64>> = obs
         .vertex

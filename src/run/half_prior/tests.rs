@@ -141,3 +141,52 @@ fn half_prior_flag_parses_and_rejects() {
         assert!(e.contains("--half-prior"), "{bad}: {e}");
     }
 }
+
+/// Observations `0..n` of one photo with `α_p = w(p)` and `y_p = (p, 2p, 3p)`.
+fn numbered_observations(n: usize, w: impl Fn(usize) -> f32) -> Observations {
+    Observations {
+        vertex: (0..n as u32).collect(),
+        photo: vec![0; n],
+        rgb: (0..n)
+            .map(|p| [p as f32, 2.0 * p as f32, 3.0 * p as f32])
+            .collect(),
+        weight: (0..n).map(w).collect(),
+        dir: vec![[0.0, 0.0, 1.0]; n],
+        photo_ranges: vec![0..n],
+    }
+}
+
+#[test]
+fn thinning_keeps_small_photos_whole_and_the_data_terms_expected_size() {
+    // At or under the cap nothing changes.
+    let small = numbered_observations(50, |_| 1.0);
+    assert_eq!(thin_observations(small.clone(), 50), small);
+    // Over it: every ⌈N / max⌉-th observation, in order, its record intact.
+    let n = 10_007;
+    let max = 1_000;
+    let thin = thin_observations(numbered_observations(n, |_| 0.5), max);
+    let step = n.div_ceil(max);
+    assert!(thin.len() <= max && thin.len() == n.div_ceil(step));
+    for (i, &v) in thin.vertex.iter().enumerate() {
+        assert_eq!(v as usize, i * step);
+        assert_eq!(thin.rgb[i], [v as f32, 2.0 * v as f32, 3.0 * v as f32]);
+    }
+    assert_eq!(thin.photo_ranges, vec![0..thin.len()]);
+    // Horvitz–Thompson: with equal α the kept weights sum to the photo's total exactly
+    // (n · N/n = N, up to f32 rounding of the ratio: 1e-6 relative), and a smooth term's
+    // weighted sum (here Σ α_p · p) to within the systematic sample's error, at most one
+    // step's worth of the largest term (step · N / Σ p ≈ 2 · 11 / N ≈ 2e-3 relative).
+    let total: f64 = thin.weight.iter().map(|&w| w as f64).sum();
+    assert!((total - 0.5 * n as f64).abs() < 1e-6 * n as f64, "{total}");
+    let exact: f64 = (0..n).map(|p| 0.5 * p as f64).sum();
+    let sampled: f64 = thin
+        .weight
+        .iter()
+        .zip(&thin.vertex)
+        .map(|(&w, &v)| w as f64 * v as f64)
+        .sum();
+    assert!(
+        (sampled - exact).abs() < 2e-3 * exact,
+        "{sampled} against {exact}"
+    );
+}
