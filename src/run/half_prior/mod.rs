@@ -190,13 +190,14 @@ pub fn thin_observations(obs: Observations, max: usize) -> Observations {
     let step = n_all.div_ceil(max);
     let kept: Vec<usize> = (0..n_all).step_by(step).collect();
     let scale = n_all as f32 / kept.len() as f32;
+    let all = 0..kept.len();
     Observations {
         vertex: kept.iter().map(|&p| obs.vertex[p]).collect(),
         photo: kept.iter().map(|&p| obs.photo[p]).collect(),
         rgb: kept.iter().map(|&p| obs.rgb[p]).collect(),
         weight: kept.iter().map(|&p| obs.weight[p] * scale).collect(),
         dir: kept.iter().map(|&p| obs.dir[p]).collect(),
-        photo_ranges: vec![0..kept.len()],
+        photo_ranges: vec![all],
     }
 }
 

@@ -144,6 +144,7 @@ fn half_prior_flag_parses_and_rejects() {
 
 /// Observations `0..n` of one photo with `α_p = w(p)` and `y_p = (p, 2p, 3p)`.
 fn numbered_observations(n: usize, w: impl Fn(usize) -> f32) -> Observations {
+    let all = 0..n;
     Observations {
         vertex: (0..n as u32).collect(),
         photo: vec![0; n],
@@ -152,7 +153,7 @@ fn numbered_observations(n: usize, w: impl Fn(usize) -> f32) -> Observations {
             .collect(),
         weight: (0..n).map(w).collect(),
         dir: vec![[0.0, 0.0, 1.0]; n],
-        photo_ranges: vec![0..n],
+        photo_ranges: vec![all],
     }
 }
 
@@ -171,7 +172,7 @@ fn thinning_keeps_small_photos_whole_and_the_data_terms_expected_size() {
         assert_eq!(v as usize, i * step);
         assert_eq!(thin.rgb[i], [v as f32, 2.0 * v as f32, 3.0 * v as f32]);
     }
-    assert_eq!(thin.photo_ranges, vec![0..thin.len()]);
+    assert_eq!(thin.photo_ranges, [0..thin.len()]);
     // Horvitz–Thompson: with equal α the kept weights sum to the photo's total exactly
     // (n · N/n = N, up to f32 rounding of the ratio: 1e-6 relative), and a smooth term's
     // weighted sum (here Σ α_p · p) to within the systematic sample's error, at most one
