@@ -243,14 +243,18 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 }
             }
         } else {
-            let (texels, haar): (Vec<[&[f64]; 3]>, Vec<[&[f64]; 3]>) = listed
-                .map(|l| {
-                    (
-                        [0, 1, 2].map(|c| l.texels[c].as_slice()),
-                        [0, 1, 2].map(|c| l.haar[c].as_slice()),
-                    )
-                })
-                .unzip();
+            let listed: Vec<&RendererLight> = listed.collect();
+            let channels = |f: fn(&RendererLight) -> &[Vec<f64>; 3]| -> Vec<[&[f64]; 3]> {
+                listed
+                    .iter()
+                    .map(|&l| {
+                        let ch = f(l);
+                        [0, 1, 2].map(|c| ch[c].as_slice())
+                    })
+                    .collect()
+            };
+            let texels = channels(|l| &l.texels);
+            let haar = channels(|l| &l.haar);
             self.rot
                 .light_texels_rgb_many(normal, &texels, &haar, locals);
         }
