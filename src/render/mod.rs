@@ -27,7 +27,7 @@ use nalgebra::Matrix3;
 
 use crate::import::colmap::{Camera, Image};
 use crate::import::mesh::Mesh;
-use crate::render::wavelet::{RadianceScratch, WaveletRenderer};
+use crate::render::wavelet::{RadianceScratch, VertexView, WaveletRenderer};
 use crate::sphere::envmap::OctEnv;
 use crate::sphere::rotation::LocalRotation;
 use crate::transport::brdf::BasisBrdf;
@@ -328,15 +328,7 @@ pub fn view_directions(mesh: &Mesh, image: &Image) -> Vec<Vec3> {
     let c = image.center();
     mesh.positions
         .par_iter()
-        .map(|p| {
-            let d = c - p;
-            let n = d.norm();
-            if n > 0.0 {
-                d / n
-            } else {
-                Vec3::zeros()
-            }
-        })
+        .map(|p| unit_toward(&c, p))
         .collect()
 }
 
@@ -392,6 +384,175 @@ pub fn shade_wavelet<R: LocalRotation>(
     shade_wavelet_given(model, raster, image, envs, rot, None)
 }
 
+/// One view for [`shade_views`]: its raster, its image (the camera's pose) and the lights
+/// to shade it under.
+pub struct ViewToShade<'a> {
+    /// The view's raster.
+    pub raster: &'a Raster,
+    /// The view's image (its camera centre gives the outgoing directions).
+    pub image: &'a Image,
+    /// The lights, in the order of the returned images.
+    pub envs: Vec<&'a OctEnv>,
+}
+
+/// [`shade_wavelet`] of several views at once ([`ShadedViews::images`]`(i, …)[l]` is view
+/// `i` under its light `l`). Vertex-major: a vertex that several views need is rotated into its frame once for
+/// every light of all of them (with a per-normal rotation such as
+/// [`crate::sphere::rotation::SplatRotation`], one walk of its footprint instead of one
+/// per view), its frame and `V ⊙ Δω` once; the BRDF slices once per view. With a
+/// rotation without precomputed frames every image equals [`shade_wavelet`] of that view
+/// alone bit for bit; with precomputed frames they are used as soon as more vertex renders
+/// than frames are asked for in all (per view in [`shade_wavelet`]), equal up to rounding.
+pub fn shade_views<R: LocalRotation>(
+    model: &WaveletModel,
+    views: &[ViewToShade],
+    rot: &R,
+) -> Result<ShadedViews> {
+    check_model(model)?;
+    let WaveletModel {
+        mesh,
+        normals_env,
+        vis,
+        env_from_world,
+        basis,
+        beta,
+    } = *model;
+    let (nv, nb) = (mesh.positions.len(), basis.len());
+    let needed: Vec<Vec<bool>> = views
+        .iter()
+        .map(|v| needed_vertices(mesh, v.raster))
+        .collect();
+    let mut ranges = Vec::with_capacity(views.len());
+    let mut envs = Vec::new();
+    for v in views {
+        ranges.push(envs.len()..envs.len() + v.envs.len());
+        envs.extend(v.envs.iter().copied());
+    }
+    if envs.is_empty() {
+        return Ok(ShadedViews {
+            radiance: Vec::new(),
+            ranges,
+            n_lights: 0,
+        });
+    }
+    let renders: usize = needed
+        .iter()
+        .map(|n| n.iter().filter(|&&b| b).count())
+        .sum();
+    let mut renderer = WaveletRenderer::new_many(rot, basis, &envs)?;
+    if renders > rot.n_frames() {
+        renderer = renderer.with_frames();
+    }
+    let centres: Vec<Vec3> = views.iter().map(|v| v.image.center()).collect();
+    let nl = envs.len();
+    // Vertex-major: every light of every view per vertex; one scratch per thread.
+    let mut radiance = vec![[0.0f32; 3]; nv * nl];
+    radiance.par_chunks_mut(nl).enumerate().for_each_init(
+        || {
+            let scratch = RadianceScratch::default();
+            (scratch, Vec::<VertexView>::new(), vec![[0.0f64; 3]; nl])
+        },
+        |(scratch, seen, out), (x, rad)| {
+            seen.clear();
+            for (i, c) in centres.iter().enumerate() {
+                if needed[i][x] {
+                    seen.push(VertexView {
+                        wo_env: env_from_world * unit_toward(c, &mesh.positions[x]),
+                        lights: ranges[i].clone(),
+                    });
+                }
+            }
+            if seen.is_empty() {
+                return;
+            }
+            let n: usize = seen.iter().map(|v| v.lights.len()).sum();
+            let beta_x = &beta[x * nb..(x + 1) * nb];
+            renderer.vertex_radiance_views(
+                scratch,
+                &normals_env[x],
+                vis.vertex(x),
+                beta_x,
+                seen,
+                &mut out[..n],
+            );
+            let slots = seen.iter().flat_map(|v| v.lights.clone());
+            for (l, o) in slots.zip(out.iter()) {
+                rad[l] = [o[0] as f32, o[1] as f32, o[2] as f32];
+            }
+        },
+    );
+    Ok(ShadedViews {
+        radiance,
+        ranges,
+        n_lights: nl,
+    })
+}
+
+/// The per-vertex radiance [`shade_views`] computed: images on demand, so that a caller
+/// holds one view's images at a time.
+pub struct ShadedViews {
+    /// Vertex-major: `n_lights` radiances per vertex (zero where no view needs it).
+    radiance: Vec<[f32; 3]>,
+    /// Per view, its lights' slots among the `n_lights`.
+    ranges: Vec<std::ops::Range<usize>>,
+    n_lights: usize,
+}
+
+impl ShadedViews {
+    /// View `i`'s images, one per light in its order: the radiance interpolated across
+    /// `raster` (the view's raster given to [`shade_views`]).
+    pub fn images(&self, i: usize, raster: &Raster, mesh: &Mesh) -> Vec<Vec<[f32; 3]>> {
+        let nl = self.n_lights;
+        self.ranges[i]
+            .clone()
+            .map(|l| {
+                let per_light: Vec<[f32; 3]> =
+                    self.radiance.iter().skip(l).step_by(nl).copied().collect();
+                shade_vertices(raster, mesh, &per_light)
+            })
+            .collect()
+    }
+}
+
+/// The unit direction from `p` toward `c` (zero when they coincide), as
+/// [`view_directions`] computes it.
+fn unit_toward(c: &Vec3, p: &Vec3) -> Vec3 {
+    let d = c - p;
+    let n = d.norm();
+    if n > 0.0 {
+        d / n
+    } else {
+        Vec3::zeros()
+    }
+}
+
+/// The vertices of the faces `raster` shows.
+fn needed_vertices(mesh: &Mesh, raster: &Raster) -> Vec<bool> {
+    let mut needed = vec![false; mesh.positions.len()];
+    for &f in raster.face.iter().filter(|&&f| f != u32::MAX) {
+        for &k in &mesh.faces[f as usize] {
+            needed[k as usize] = true;
+        }
+    }
+    needed
+}
+
+/// The model's arrays agree in their vertex and basis counts.
+fn check_model(model: &WaveletModel) -> Result<()> {
+    let nv = model.mesh.positions.len();
+    let nb = model.basis.len();
+    if model.normals_env.len() != nv || model.beta.len() != nv * nb || model.vis.open.len() != nv {
+        return Err(Error::Internal(format!(
+            "render: {nv} vertices but {} normals, {} visibility rows and {} β entries \
+             ({nb} per vertex expected)",
+            model.normals_env.len(),
+            model.vis.open.len(),
+            model.beta.len()
+        )));
+    }
+    Ok(())
+}
+
 /// [`shade_wavelet`] under one light with the radiance of some vertices given:
 /// `given[x] = Some(rgb)` is used as vertex `x`'s radiance, and only the other vertices the
 /// raster needs are rendered. A run's training renders pass the estimator's own predictions
@@ -427,23 +588,10 @@ fn shade_wavelet_given<R: LocalRotation>(
         basis,
         beta,
     } = *model;
+    check_model(model)?;
     let nv = mesh.positions.len();
     let nb = basis.len();
-    if normals_env.len() != nv || beta.len() != nv * nb || vis.open.len() != nv {
-        return Err(Error::Internal(format!(
-            "render: {nv} vertices but {} normals, {} visibility rows and {} β entries \
-             ({nb} per vertex expected)",
-            normals_env.len(),
-            vis.open.len(),
-            beta.len()
-        )));
-    }
-    let mut needed = vec![false; nv];
-    for &f in raster.face.iter().filter(|&&f| f != u32::MAX) {
-        for &k in &mesh.faces[f as usize] {
-            needed[k as usize] = true;
-        }
-    }
+    let needed = needed_vertices(mesh, raster);
     if let Some(given) = given {
         if given.len() != nv || envs.len() != 1 {
             return Err(Error::Internal(format!(

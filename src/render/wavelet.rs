@@ -1,6 +1,12 @@
 //! The wavelet renderer: the model's radiance at arbitrary vertices and views under one or
 //! more environment maps, paper Eq. 5–8 evaluated per vertex (the light rotated into the
 //! vertex's local frame, then the local triple product as a texel sum).
+//!
+//! Per channel `c`, with the light's local texel averages `L_{c,t}`, the slices
+//! `ρ_b(t, ω_o)`, visibility `V_t` and solid angles `Δω_t`:
+//! `I_c = Σ_b β_{b,c} Σ_t ρ_b(t, ω_o) V_t Δω_t L_{c,t} = Σ_t K_{c,t} L_{c,t}` with the
+//! light-independent kernel `K_{c,t} = V_t Δω_t Σ_b β_{b,c} ρ_b(t, ω_o)`, formed once per
+//! vertex and view; each light then costs one product per texel and channel.
 
 use crate::sphere::envmap::OctEnv;
 use crate::sphere::rotation::LocalRotation;
@@ -19,9 +25,10 @@ use crate::{Error, Result, Vec3};
 ///
 /// With several lights ([`WaveletRenderer::new_many`], [`WaveletRenderer::vertex_radiance_all`])
 /// the parts of Eq. 8 that do not depend on the light — the vertex frame, `V ⊙ Δω` and the
-/// `B` BRDF slices `ρ_b(·, ω_o)` — are computed once per vertex and view and shared; only the
-/// rotation and the final sums are per light. Each light's sums run in the same order as a
-/// renderer of that light alone, so the results are bitwise those of separate renders.
+/// `B` BRDF slices `ρ_b(·, ω_o)` and the kernel `K` (module docs) — are computed once per
+/// vertex and view and shared; only the rotation and the final sums are per light. Each
+/// light's sums run in the same order as a renderer of that light alone, so the results
+/// are bitwise those of separate renders.
 pub struct WaveletRenderer<'a, R: LocalRotation> {
     rot: &'a R,
     basis: &'a [BasisBrdf],
@@ -40,6 +47,8 @@ pub struct RadianceScratch {
     v_dw: Vec<f64>,
     used: Vec<usize>,
     slices: Vec<f64>,
+    /// Per channel, `(V Δω)_t Σ_b β_{b,c} slice_{b,t}` of the view being shaded.
+    kernel: [Vec<f64>; 3],
     locals: Vec<[Vec<f64>; 3]>,
 }
 
@@ -139,13 +148,16 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         beta: &[[f64; 3]],
     ) -> [f64; 3] {
         let mut out = [[0.0; 3]];
+        let view = VertexView {
+            wo_env: *wo_env,
+            lights: 0..1,
+        };
         self.radiance_into(
-            &self.lights[..1],
             &mut RadianceScratch::default(),
             normal_env,
             vis_row,
-            wo_env,
             beta,
+            std::slice::from_ref(&view),
             &mut out,
         );
         out[0]
@@ -164,65 +176,59 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         out: &mut [[f64; 3]],
     ) {
         assert_eq!(out.len(), self.lights.len(), "one output per light");
+        let view = VertexView {
+            wo_env: *wo_env,
+            lights: 0..self.lights.len(),
+        };
         self.radiance_into(
-            &self.lights,
             scratch,
             normal_env,
             vis_row,
-            wo_env,
             beta,
+            std::slice::from_ref(&view),
             out,
         );
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn radiance_into(
+    /// The radiance of one vertex toward several views, each under its own lights
+    /// (`views[i].lights`, a range of the lights given to [`WaveletRenderer::new_many`]),
+    /// into `out`: the lights of view 0, then those of view 1, … (`Σ_i |views[i].lights|`
+    /// entries). The light-independent work of the vertex (frame, `V ⊙ Δω`) and the
+    /// rotation of every listed light into its frame (one walk of the footprint for all of
+    /// them) are done once for all the views; the slices once per view. Every value equals
+    /// [`WaveletRenderer::vertex_radiance_all`] of a renderer of that view's lights alone,
+    /// bit for bit.
+    pub fn vertex_radiance_views(
         &self,
-        lights: &[RendererLight],
         scratch: &mut RadianceScratch,
         normal_env: &Vec3,
         vis_row: &[u8],
-        wo_env: &Vec3,
         beta: &[[f64; 3]],
+        views: &[VertexView],
         out: &mut [[f64; 3]],
     ) {
-        out.iter_mut().for_each(|o| *o = [0.0; 3]);
-        let RadianceScratch {
-            v_dw,
-            used,
-            slices,
-            locals,
-        } = scratch;
-        let Some((normal, frame)) =
-            vertex_frame_into(normal_env, vis_row, &self.grid.solid_angle, v_dw)
-        else {
-            return;
-        };
-        let Some(wo) = local_wo(&frame, wo_env) else {
-            return;
-        };
-        let nl2 = self.rot.n_local() * self.rot.n_local();
-        // The slices of the bases with a non-zero weight, once for every light.
-        used.clear();
-        used.extend(
-            (0..self.basis.len().min(beta.len())).filter(|&b| beta[b].iter().any(|&x| x != 0.0)),
+        let n: usize = views.iter().map(|v| v.lights.len()).sum();
+        assert_eq!(out.len(), n, "one output per listed light");
+        assert!(
+            views.iter().all(|v| v.lights.end <= self.lights.len()),
+            "a view names a light the renderer does not have"
         );
-        slices.resize(used.len() * nl2, 0.0);
-        for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
-            match &self.fixed[b] {
-                Some(f) => s.copy_from_slice(f),
-                None => self.basis[b].slice_with(&self.grid, &wo, s),
-            }
-        }
-        // Every light rotated into the vertex's local frame: blended from the frames (every
-        // light has them or none does), or one footprint pass for all of them.
-        locals.resize_with(lights.len(), || [0, 1, 2].map(|_| vec![0.0; nl2]));
-        let locals = &mut locals[..lights.len()];
-        if lights[0].frames.is_some() {
+        self.radiance_into(scratch, normal_env, vis_row, beta, views, out);
+    }
+
+    /// The listed lights (in `views` order) rotated into the vertex's local frame, into
+    /// `locals`: blended from the frames (every light has them or none does), or one
+    /// footprint walk for all of them.
+    fn rotate_lights(&self, normal: &Vec3, views: &[VertexView], locals: &mut [[Vec<f64>; 3]]) {
+        let nl2 = self.rot.n_local() * self.rot.n_local();
+        let listed = views
+            .iter()
+            .flat_map(|v| self.lights[v.lights.clone()].iter());
+        if self.lights[0].frames.is_some() {
             // Same accumulation order as the blended resampling (frame by frame, zero
             // weights skipped).
-            let blend = self.rot.frame_blend(&normal);
-            for (light, local) in lights.iter().zip(locals.iter_mut()) {
+            let blend = self.rot.frame_blend(normal);
+            for (light, local) in listed.zip(locals.iter_mut()) {
                 let frames = light.frames.as_ref().expect("every light has frames");
                 for (l, f) in local.iter_mut().zip(frames) {
                     l.fill(0.0);
@@ -237,30 +243,116 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 }
             }
         } else {
-            let texels: Vec<[&[f64]; 3]> = lights
-                .iter()
-                .map(|l| [0, 1, 2].map(|c| l.texels[c].as_slice()))
-                .collect();
-            let haar: Vec<[&[f64]; 3]> = lights
-                .iter()
-                .map(|l| [0, 1, 2].map(|c| l.haar[c].as_slice()))
-                .collect();
+            let listed: Vec<&RendererLight> = listed.collect();
+            let channels = |f: fn(&RendererLight) -> &[Vec<f64>; 3]| -> Vec<[&[f64]; 3]> {
+                listed
+                    .iter()
+                    .map(|&l| {
+                        let ch = f(l);
+                        [0, 1, 2].map(|c| ch[c].as_slice())
+                    })
+                    .collect()
+            };
+            let texels = channels(|l| &l.texels);
+            let haar = channels(|l| &l.haar);
             self.rot
-                .light_texels_rgb_many(&normal, &texels, &haar, locals);
+                .light_texels_rgb_many(normal, &texels, &haar, locals);
         }
-        for (local, o) in locals.iter().zip(out.iter_mut()) {
-            for (&b, slice) in used.iter().zip(slices.chunks(nl2)) {
-                let w = &beta[b];
+    }
+
+    fn radiance_into(
+        &self,
+        scratch: &mut RadianceScratch,
+        normal_env: &Vec3,
+        vis_row: &[u8],
+        beta: &[[f64; 3]],
+        views: &[VertexView],
+        out: &mut [[f64; 3]],
+    ) {
+        out.iter_mut().for_each(|o| *o = [0.0; 3]);
+        let RadianceScratch {
+            v_dw,
+            used,
+            slices,
+            kernel,
+            locals,
+        } = scratch;
+        let Some((normal, frame)) =
+            vertex_frame_into(normal_env, vis_row, &self.grid.solid_angle, v_dw)
+        else {
+            return;
+        };
+        let nl2 = self.rot.n_local() * self.rot.n_local();
+        // The bases with a non-zero weight.
+        used.clear();
+        used.extend(
+            (0..self.basis.len().min(beta.len())).filter(|&b| beta[b].iter().any(|&x| x != 0.0)),
+        );
+        slices.resize(used.len() * nl2, 0.0);
+        locals.resize_with(out.len(), || [0, 1, 2].map(|_| vec![0.0; nl2]));
+        let locals = &mut locals[..out.len()];
+        self.rotate_lights(&normal, views, locals);
+        let mut at = 0;
+        for view in views {
+            let (lo, hi) = (at, at + view.lights.len());
+            at = hi;
+            let Some(wo) = local_wo(&frame, &view.wo_env) else {
+                continue;
+            };
+            // The slices once for every light of the view.
+            for (&b, s) in used.iter().zip(slices.chunks_mut(nl2)) {
+                match &self.fixed[b] {
+                    Some(f) => s.copy_from_slice(f),
+                    None => self.basis[b].slice_with(&self.grid, &wo, s),
+                }
+            }
+            view_kernel(used, slices, v_dw, beta, kernel);
+            for (local, o) in locals[lo..hi].iter().zip(out[lo..hi].iter_mut()) {
                 for c in 0..3 {
-                    let s: f64 = slice
-                        .iter()
-                        .zip(v_dw.iter())
-                        .zip(&local[c])
-                        .map(|((s, vw), l)| s * vw * l)
-                        .sum();
-                    o[c] += w[c] * s;
+                    o[c] = kernel[c].iter().zip(&local[c]).map(|(k, l)| k * l).sum();
                 }
             }
         }
+    }
+}
+
+/// One view of a vertex in [`WaveletRenderer::vertex_radiance_views`]: the outgoing
+/// direction (unit, environment frame, vertex → camera) and the renderer's lights the view
+/// is shaded under.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VertexView {
+    /// Unit direction from the vertex toward the camera, environment frame.
+    pub wo_env: Vec3,
+    /// The renderer's lights of this view (indices into [`WaveletRenderer::new_many`]'s).
+    pub lights: std::ops::Range<usize>,
+}
+
+/// The light-independent factor of Eq. 8 as a texel sum for one view, per channel:
+/// `kernel_{c,t} = (V Δω)_t Σ_b β_{b,c} slice_{b,t}` over the `used` bases (their slices
+/// consecutive in `slices`, `n_local²` each), so that a light with local texels `L_{c,t}`
+/// gives `out_c = Σ_t kernel_{c,t} L_{c,t}` (one product per texel and light instead of one
+/// per texel, basis and light).
+fn view_kernel(
+    used: &[usize],
+    slices: &[f64],
+    v_dw: &[f64],
+    beta: &[[f64; 3]],
+    kernel: &mut [Vec<f64>; 3],
+) {
+    let nl2 = v_dw.len();
+    for k in kernel.iter_mut() {
+        k.clear();
+        k.resize(nl2, 0.0);
+    }
+    for (&b, slice) in used.iter().zip(slices.chunks(nl2)) {
+        let w = &beta[b];
+        for c in 0..3 {
+            for (k, s) in kernel[c].iter_mut().zip(slice) {
+                *k += w[c] * s;
+            }
+        }
+    }
+    for k in kernel.iter_mut() {
+        k.iter_mut().zip(v_dw).for_each(|(k, vw)| *k *= vw);
     }
 }

@@ -323,24 +323,15 @@ pub(crate) fn render_training_view(f: &Fitted, k: usize) -> Result<RenderedView>
     Ok(RenderedView { raster, rgb })
 }
 
-/// Shade the raster of held-out view `v` under each of `lights` with the renderer's
-/// visibility and rotation (`--render-local-resolution`,
-/// [`crate::sphere::rotation::SplatRotation`]) ([`render::shade_wavelet`]: the per-vertex BRDF
-/// slices are computed once for all of them).
-pub(super) fn shade_view(
+/// Shade several views (each under its lights) with the renderer's visibility and rotation
+/// (`--render-local-resolution`, [`crate::sphere::rotation::SplatRotation`]) in one
+/// vertex-major pass ([`render::shade_views`]: a vertex's footprint walked once for the
+/// lights of every view that shows it, its BRDF slices once per view).
+pub(super) fn shade_views(
     f: &Fitted,
-    v: usize,
-    raster: &Raster,
-    lights: &[&OctEnv],
-) -> Result<Vec<Vec<[f32; 3]>>> {
-    let image = &f.scene.views[v].image;
-    render::shade_wavelet(
-        &wavelet_model(f, &f.render_vis),
-        raster,
-        image,
-        lights,
-        &f.render_rot,
-    )
+    views: &[render::ViewToShade],
+) -> Result<render::ShadedViews> {
+    render::shade_views(&wavelet_model(f, &f.render_vis), views, &f.render_rot)
 }
 
 /// The texels of a photo's fitted map as an [`OctEnv`].
@@ -519,56 +510,84 @@ pub(crate) fn evaluate(
     let mut headline = Vec::new();
     let (mut metrics, mut versus_baseline) = (Vec::new(), Vec::new());
     let (mut render_seconds, mut half_fit_seconds) = ([0.0; 2], [0.0; 2]);
-    // Views in chunks of one per thread: their rasters, then protocol (b)'s light fits in
-    // parallel (each fit's lighting QP is sequential, so a lone fit leaves the other cores
-    // idle; the results do not depend on the chunking), then each view's renders.
+    // Every view's raster, then protocol (b)'s light fits in chunks of one view per thread
+    // (each fit's lighting QP is sequential, so a lone fit leaves the other cores idle; the
+    // results do not depend on the chunking), then every view's renders in one
+    // vertex-major pass ([`render::shade_views`]).
+    let rasters: Vec<Raster> = timed(&mut render_seconds, || {
+        f.held
+            .iter()
+            .map(|&v| {
+                let view = &f.scene.views[v];
+                render::rasterize(&f.scene.mesh, &view.camera, &view.image)
+            })
+            .collect()
+    });
+    let mids: Vec<Option<f64>> = rasters.iter().map(object_mid_x).collect();
     let chunk = rayon::current_num_threads().max(1);
-    for views in f.held.chunks(chunk) {
-        let rasters: Vec<Raster> = timed(&mut render_seconds, || {
-            views
-                .iter()
-                .map(|&v| {
-                    let view = &f.scene.views[v];
-                    render::rasterize(&f.scene.mesh, &view.camera, &view.image)
-                })
-                .collect()
-        });
-        let mids: Vec<Option<f64>> = rasters.iter().map(object_mid_x).collect();
+    let mut half_envs = Vec::with_capacity(f.held.len());
+    for (views, mids) in f.held.chunks(chunk).zip(mids.chunks(chunk)) {
         let halves: Vec<Result<Option<OctEnv>>> = timed(&mut half_fit_seconds, || {
             views
                 .par_iter()
-                .zip(&mids)
+                .zip(mids)
                 .map(|(&v, mid)| match mid {
                     Some(mid) => fit_left_half(f, v, *mid, &mean),
                     None => Ok(None),
                 })
                 .collect()
         });
-        for ((&v, raster), (mid, half)) in
-            views.iter().zip(&rasters).zip(mids.into_iter().zip(halves))
+        for h in halves {
+            half_envs.push(h?);
+        }
+    }
+    // The lights of the protocols that apply, in report order: (a) truth, (b) the
+    // left-half fit (judged on the right half), (c) the mean of the training maps.
+    let mut true_envs = Vec::with_capacity(f.held.len());
+    for &v in &f.held {
+        let name = f.scene.views[v].image.name.as_str();
+        true_envs.push(match truth {
+            Some(t) => t.light(name, f.opts.global_resolution, &f.env_from_world)?,
+            None => None,
+        });
+    }
+    let lights: Vec<Vec<(&str, &OctEnv)>> = true_envs
+        .iter()
+        .zip(&half_envs)
+        .map(|(t, h)| {
+            [
+                ("truth", t.as_ref()),
+                ("half", h.as_ref()),
+                ("mean", Some(&mean)),
+            ]
+            .into_iter()
+            .filter_map(|(p, e)| e.map(|e| (p, e)))
+            .collect()
+        })
+        .collect();
+    let to_shade: Vec<render::ViewToShade> = f
+        .held
+        .iter()
+        .zip(&rasters)
+        .zip(&lights)
+        .map(|((&v, raster), l)| render::ViewToShade {
+            raster,
+            image: &f.scene.views[v].image,
+            envs: l.iter().map(|&(_, e)| e).collect(),
+        })
+        .collect();
+    let shaded = timed(&mut render_seconds, || shade_views(f, &to_shade))?;
+    for (i, ((&v, raster), lights)) in f.held.iter().zip(&rasters).zip(&lights).enumerate() {
         {
             let view = &f.scene.views[v];
             let name = view.image.name.as_str();
             let photo = &f.photos[v];
             let stem = crate::render::relight::file_stem(name);
-
-            // The lights of the protocols that apply, in report order: (a) truth, (b) the
-            // left-half fit (judged on the right half), (c) the mean of the training maps.
-            let true_env = match truth {
-                Some(t) => t.light(name, f.opts.global_resolution, &f.env_from_world)?,
-                None => None,
-            };
-            let half_env = half?;
-            let lights: Vec<(&str, &OctEnv)> = [
-                ("truth", true_env.as_ref()),
-                ("half", half_env.as_ref()),
-                ("mean", Some(&mean)),
-            ]
-            .into_iter()
-            .filter_map(|(p, e)| e.map(|e| (p, e)))
-            .collect();
-            let envs: Vec<&OctEnv> = lights.iter().map(|&(_, e)| e).collect();
-            let rgbs = timed(&mut render_seconds, || shade_view(f, v, raster, &envs))?;
+            let mid = mids[i];
+            let half_env = &half_envs[i];
+            let rgbs = timed(&mut render_seconds, || {
+                shaded.images(i, raster, &f.scene.mesh)
+            });
 
             let valid = valid_mask(raster, photo);
             let w = raster.width as usize;

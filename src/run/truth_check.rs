@@ -15,33 +15,49 @@
 //! the per-channel scale that best maps the recovered per-vertex diffuse albedo onto the
 //! true one (the anchor's scale is arbitrary; ratios between materials are not).
 
-use super::evaluate::{fitted_env, shade_view, valid_mask};
+use super::evaluate::{fitted_env, shade_views, valid_mask};
 use super::{Fitted, Truth};
+use crate::render::ViewToShade;
 use crate::report::metrics::{
     rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry,
 };
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
 
-/// The truth check of every training photo the manifest lists.
+/// The truth check of every training photo the manifest lists. All of them are shaded in
+/// one vertex-major pass ([`crate::render::shade_views`]: a vertex seen in several photos
+/// is rotated into its frame once for all their lights), each photo's two images
+/// interpolated and scored in turn.
 pub(crate) fn truth_check(f: &Fitted, truth: &Truth) -> Result<Vec<TruthCheckEntry>> {
-    let mut out = Vec::new();
+    let mut checked = Vec::new();
     for (k, &v) in f.train.iter().enumerate() {
         let view = &f.scene.views[v];
         let name = view.image.name.as_str();
         let Some(true_env) = truth.light(name, f.opts.global_resolution, &f.env_from_world)? else {
             continue;
         };
-        let fitted = fitted_env(f, k);
         let raster = crate::render::rasterize(&f.scene.mesh, &view.camera, &view.image);
-        let rgbs = shade_view(f, v, &raster, &[&true_env, &fitted])?;
-        let photo = &f.photos[v];
-        let mask = valid_mask(&raster, photo);
+        checked.push((v, [true_env, fitted_env(f, k)], raster));
+    }
+    let views: Vec<ViewToShade> = checked
+        .iter()
+        .map(|(v, envs, raster)| ViewToShade {
+            raster,
+            image: &f.scene.views[*v].image,
+            envs: envs.iter().collect(),
+        })
+        .collect();
+    let shaded = shade_views(f, &views)?;
+    let mut out = Vec::with_capacity(checked.len());
+    for (i, (v, _, raster)) in checked.iter().enumerate() {
+        let rgbs = shaded.images(i, raster, &f.scene.mesh);
+        let photo = &f.photos[*v];
+        let mask = valid_mask(raster, photo);
         let (rmse_t, rms, scale_t) = rmse_after_channel_scale(&photo.rgb, &rgbs[0], &mask);
         let (rmse_f, _, _) = rmse_after_channel_scale(&photo.rgb, &rgbs[1], &mask);
         let rel = |r: f64| if rms > 0.0 { r / rms } else { f64::NAN };
         out.push(TruthCheckEntry {
-            image: name.to_string(),
+            image: f.scene.views[*v].image.name.clone(),
             rmse_true_light: rmse_t,
             relative_true_light: rel(rmse_t),
             scale_true_light: scale_t,

@@ -160,3 +160,115 @@ fn several_lights_equal_separate_renders_bit_for_bit() {
     // No light is an error, not an empty render.
     assert!(WaveletRenderer::new_many(&splat, &basis, &[]).is_err());
 }
+
+#[test]
+fn several_views_of_a_vertex_equal_each_views_own_renderer_bit_for_bit() {
+    // `vertex_radiance_views` rotates the lights of every listed view into the vertex's
+    // frame in one call and forms the slices per view; each view's values must be what a
+    // renderer of that view's lights alone gives (`vertex_radiance_all`), bit for bit, for
+    // the SplatRotation and the blended rotation with and without frames. Views: three
+    // outgoing directions, under lights {0}, {1, 2} and {2} of one renderer, plus a view
+    // listed with no light; a degenerate normal gives zeros.
+    use relight_cpc::render::wavelet::VertexView;
+    use relight_cpc::sphere::rotation::{LocalRotation, SplatRotation};
+    let mut rng = Pcg64::seed_from_u64(33);
+    let (mut normals, dirs, vis) = random_vertices(&mut rng, NV, NL, 3, 0);
+    normals[5] = Vec3::zeros();
+    let basis = [
+        BasisBrdf::Lambert,
+        BasisBrdf::Ggx { alpha: 0.1 },
+        BasisBrdf::Phong { exponent: 50.0 },
+    ];
+    let beta = [[0.5, 0.2, 0.1], [0.3, 0.1, 0.0], [0.2, 0.0, 0.4]];
+    let envs: Vec<OctEnv> = (0..3)
+        .map(|k| {
+            let mut rgb: Vec<[f32; 3]> = (0..NG * NG)
+                .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..1.0f32)))
+                .collect();
+            rgb[(NG * NG / 4 + 31 * k) % (NG * NG)] = [500.0, 400.0, 300.0];
+            OctEnv { n: NG, rgb }
+        })
+        .collect();
+    let ranges = [0..1, 1..3, 3..3, 2..3];
+
+    fn check<R: LocalRotation>(
+        rot: &R,
+        frames: bool,
+        basis: &[BasisBrdf],
+        beta: &[[f64; 3]],
+        envs: &[OctEnv],
+        ranges: &[std::ops::Range<usize>],
+        (normals, dirs, vis): (&[Vec3], &[Vec3], &Visibility),
+    ) -> usize {
+        let refs: Vec<&OctEnv> = envs.iter().collect();
+        let many = WaveletRenderer::new_many(rot, basis, &refs).unwrap();
+        let many = if frames { many.with_frames() } else { many };
+        let mut scratch = RadianceScratch::default();
+        let mut lit = 0;
+        for p in 0..normals.len() {
+            // Three directions per vertex: its own and two others'.
+            let wo = [
+                dirs[p],
+                dirs[(p + 1) % dirs.len()],
+                dirs[(p + 7) % dirs.len()],
+            ];
+            let views: Vec<VertexView> = ranges
+                .iter()
+                .enumerate()
+                .map(|(i, r)| VertexView {
+                    wo_env: wo[i % 3],
+                    lights: r.clone(),
+                })
+                .collect();
+            let mut out = vec![[0.0; 3]; 4];
+            many.vertex_radiance_views(
+                &mut scratch,
+                &normals[p],
+                vis.vertex(p),
+                beta,
+                &views,
+                &mut out,
+            );
+            let mut at = 0;
+            for v in &views {
+                let own: Vec<&OctEnv> = refs[v.lights.clone()].to_vec();
+                if own.is_empty() {
+                    continue;
+                }
+                let alone = WaveletRenderer::new_many(rot, basis, &own).unwrap();
+                let alone = if frames { alone.with_frames() } else { alone };
+                let mut want = vec![[0.0; 3]; own.len()];
+                let mut s = RadianceScratch::default();
+                alone.vertex_radiance_all(
+                    &mut s,
+                    &normals[p],
+                    vis.vertex(p),
+                    &v.wo_env,
+                    beta,
+                    &mut want,
+                );
+                for (l, w) in want.iter().enumerate() {
+                    for c in 0..3 {
+                        assert_eq!(
+                            out[at + l][c].to_bits(),
+                            w[c].to_bits(),
+                            "vertex {p} light {l}"
+                        );
+                        lit += usize::from(w[c] > 0.0);
+                    }
+                }
+                at += own.len();
+            }
+            if p == 5 {
+                assert_eq!(out, vec![[0.0; 3]; 4], "degenerate normal");
+            }
+        }
+        lit
+    }
+    let data = (&normals[..], &dirs[..], &vis);
+    let splat = SplatRotation::new(NG, NL, 4);
+    assert!(check(&splat, false, &basis, &beta, &envs, &ranges, data) > NV * 4);
+    let blended = Rotation::new(NG, NL, 8, RotationForm::Factored);
+    assert!(check(&blended, false, &basis, &beta, &envs, &ranges, data) > NV * 4);
+    assert!(check(&blended, true, &basis, &beta, &envs, &ranges, data) > NV * 4);
+}
