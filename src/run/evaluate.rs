@@ -454,20 +454,7 @@ fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Opt
     }
     let all = 0..left.len();
     left.photo_ranges = vec![all];
-    let topts = TransportOptions {
-        n_global: f.opts.global_resolution,
-        n_local: f.opts.local_resolution,
-        keep: f.opts.keep,
-    };
-    let tr = transport::build(
-        &f.normals_env,
-        &left,
-        &f.env_from_world,
-        &f.vis,
-        &f.basis,
-        &f.rot,
-        &topts,
-    )?;
+    let tr = f.transport_for(&left)?;
     let problem = Problem {
         obs: &left,
         transport: &tr,

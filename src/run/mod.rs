@@ -289,6 +289,30 @@ pub(crate) struct Fitted<'a> {
     pub half_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
 }
 
+impl Fitted<'_> {
+    /// The fit's transport (its maps, lobes, visibility and rotation) for observations
+    /// `obs` it did not train on: a held-out photo's, or a training photo replayed.
+    pub(crate) fn transport_for(
+        &self,
+        obs: &crate::observe::Observations,
+    ) -> Result<crate::transport::Transport> {
+        let topts = crate::transport::TransportOptions {
+            n_global: self.opts.global_resolution,
+            n_local: self.opts.local_resolution,
+            keep: self.opts.keep,
+        };
+        crate::transport::build(
+            &self.normals_env,
+            obs,
+            &self.env_from_world,
+            &self.vis,
+            &self.basis,
+            &self.rot,
+            &topts,
+        )
+    }
+}
+
 /// The observation options of a run: the defaults, with the edge margin as
 /// [`RunOptions::edge_margin`] says.
 pub(crate) fn observe_options(o: &RunOptions) -> crate::observe::ObserveOptions {

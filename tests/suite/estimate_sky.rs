@@ -9,21 +9,6 @@ use relight_cpc::solve::light::{LightModel, LightingInput, LightingOutput};
 use relight_cpc::solve::{beta_per_vertex, estimate, Conditioning, Estimate, EstimateOptions};
 use relight_cpc::Vec3;
 
-fn sizes() -> Sizes {
-    Sizes {
-        width: 64,
-        photos: None,
-        vertices: 1_000, // Spot's own mesh, 2930 vertices
-        spp: 4,
-        light_samples: 64,
-        global: 16,
-        local: 8,
-        normal_grid: 16,
-        keep: 0,
-        rays_per_texel: 2,
-    }
-}
-
 /// The case and the true sun direction of each training photo (from the manifest).
 struct SkyCase {
     case: Case,
@@ -33,7 +18,7 @@ struct SkyCase {
 fn sky_case() -> &'static SkyCase {
     static CASE: std::sync::OnceLock<SkyCase> = std::sync::OnceLock::new();
     CASE.get_or_init(|| {
-        let case = prepare("spot-sky", sizes(), 1, "spot-sky");
+        let case = prepare("spot-sky", Sizes::spot_small(), 1, "spot-sky");
         let manifest: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
         )

@@ -165,27 +165,12 @@ fn irls_keeps_the_known_reflectance_fit_close_to_the_clean_one_under_5_percent_o
     assert!(plain >= 1.5 * irls, "no IRLS {plain:.4} vs IRLS {irls:.4}");
 }
 
-fn spot_sizes() -> Sizes {
-    Sizes {
-        width: 64,
-        photos: None,
-        vertices: 1_000, // Spot's own mesh, 2930 vertices
-        spp: 4,
-        light_samples: 64,
-        global: 16,
-        local: 8,
-        normal_grid: 16,
-        keep: 0,
-        rays_per_texel: 2,
-    }
-}
-
 /// The `spot-varying` case, prepared once for the tests that share it (its scratch folder
 /// removed at once: everything needed is in memory).
 fn spot() -> &'static Case {
     static CASE: std::sync::OnceLock<Case> = std::sync::OnceLock::new();
     CASE.get_or_init(|| {
-        let case = prepare("spot-varying", spot_sizes(), 1, "spot");
+        let case = prepare("spot-varying", Sizes::spot_small(), 1, "spot");
         let _ = std::fs::remove_dir_all(&case.scratch.0);
         case
     })

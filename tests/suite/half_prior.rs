@@ -16,21 +16,6 @@ use relight_cpc::solve::{
     basis_responses, beta_per_vertex, fit_light_frozen, EstimateOptions, Problem,
 };
 
-fn sizes() -> Sizes {
-    Sizes {
-        width: 64,
-        photos: None,
-        vertices: 1_000, // Spot's own mesh, 2930 vertices
-        spp: 4,
-        light_samples: 64,
-        global: 16,
-        local: 8,
-        normal_grid: 16,
-        keep: 0,
-        rays_per_texel: 2,
-    }
-}
-
 /// Per held-out observation, whether its vertex lies right of the middle of the photo's
 /// observed vertices along the camera's horizontal axis `d × up` (`d` the photo's mean
 /// direction toward the camera, `up` the environment's `e_z` in world coordinates).
@@ -123,7 +108,7 @@ fn right_half_errors(case: &Case, eta: f64) -> Vec<f64> {
 #[test]
 fn training_map_prior_predicts_the_right_half_better_under_one_light() {
     let scene = std::env::var("HP_SCENE").unwrap_or("spot-static".into());
-    let case = prepare(&scene, sizes(), 1, "half-prior");
+    let case = prepare(&scene, Sizes::spot_small(), 1, "half-prior");
     let off = right_half_errors(&case, 0.0);
     if std::env::var("HP_SCENE").is_ok() {
         for eta in [1.0, 3.0, 10.0] {

@@ -60,6 +60,25 @@ pub struct Sizes {
     pub rays_per_texel: usize,
 }
 
+impl Sizes {
+    /// The small Spot case of the estimator's synthetic tests: 64 px photos, 1,000 of the
+    /// mesh's 2,930 vertices, 16² maps, 8² local maps, every coefficient kept.
+    pub fn spot_small() -> Self {
+        Sizes {
+            width: 64,
+            photos: None,
+            vertices: 1_000,
+            spp: 4,
+            light_samples: 64,
+            global: 16,
+            local: 8,
+            normal_grid: 16,
+            keep: 0,
+            rays_per_texel: 2,
+        }
+    }
+}
+
 /// One split's observations and transport.
 pub struct Split {
     pub obs: Observations,

@@ -256,20 +256,7 @@ fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
     let all = 0..obs.len();
     obs.photo_ranges = vec![all.clone()];
     fit.photo_ranges = vec![all];
-    let topts = crate::transport::TransportOptions {
-        n_global: f.opts.global_resolution,
-        n_local: f.opts.local_resolution,
-        keep: f.opts.keep,
-    };
-    let transport = crate::transport::build(
-        &f.normals_env,
-        &obs,
-        &f.env_from_world,
-        &f.vis,
-        &f.basis,
-        &f.rot,
-        &topts,
-    )?;
+    let transport = f.transport_for(&obs)?;
     Ok(Some(Replay {
         obs,
         fit,
