@@ -32,15 +32,16 @@
 
 mod blended;
 mod exact;
+mod resampling;
 mod splat;
 #[cfg(test)]
 mod tests;
 
-pub use blended::{
-    resampling_rows, resampling_rows_with, ResamplingGeometry, Rotation, RotationForm,
-    DEFAULT_SUPERSAMPLE,
-};
+pub use blended::{Rotation, RotationForm};
 pub use exact::ExactRotation;
+pub use resampling::{
+    resampling_rows, resampling_rows_with, ResamplingGeometry, DEFAULT_SUPERSAMPLE,
+};
 pub use splat::SplatRotation;
 
 use crate::sphere::haar;
