@@ -264,12 +264,7 @@ fn sizes() -> Sizes {
             .and_then(|v| v.parse().ok()),
         vertices: 2_000,
         spp: 8,
-        light_samples: 64,
-        global: 16,
-        local: 8,
-        normal_grid: 16,
-        keep: 0,
-        rays_per_texel: 2,
+        ..Sizes::spot_small()
     }
 }
 

@@ -93,6 +93,25 @@ impl Observations {
         }
         count
     }
+
+    /// The observations at positions `index` (ascending), in that order; each photo's
+    /// range is that of its kept observations.
+    pub fn gather(&self, index: &[usize]) -> Observations {
+        let mut out = Observations {
+            vertex: index.iter().map(|&p| self.vertex[p]).collect(),
+            photo: index.iter().map(|&p| self.photo[p]).collect(),
+            rgb: index.iter().map(|&p| self.rgb[p]).collect(),
+            weight: index.iter().map(|&p| self.weight[p]).collect(),
+            dir: index.iter().map(|&p| self.dir[p]).collect(),
+            photo_ranges: Vec::with_capacity(self.photo_ranges.len()),
+        };
+        for range in &self.photo_ranges {
+            let start = index.partition_point(|&p| p < range.start);
+            let end = index.partition_point(|&p| p < range.end);
+            out.photo_ranges.push(start..end);
+        }
+        out
+    }
 }
 
 /// Tunables of [`extract`] (module docs).
@@ -403,6 +422,30 @@ pub fn extract_with_stats<P: std::borrow::Borrow<Photo>>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gather_keeps_records_and_recounts_each_photos_range() {
+        // Three photos of 4, 0 and 3 observations; keep positions 1, 3 (photo 0) and 5
+        // (photo 2): ranges 0..2, 2..2, 2..3, every record copied whole.
+        let n = 7;
+        let obs = Observations {
+            vertex: (0..n as u32).map(|p| 10 + p).collect(),
+            photo: vec![0, 0, 0, 0, 2, 2, 2],
+            rgb: (0..n).map(|p| [p as f32; 3]).collect(),
+            weight: (0..n).map(|p| 0.1 * p as f32).collect(),
+            dir: (0..n).map(|p| [0.0, p as f32, 1.0]).collect(),
+            photo_ranges: vec![0..4, 4..4, 4..7],
+        };
+        let g = obs.gather(&[1, 3, 5]);
+        assert_eq!(g.photo_ranges, vec![0..2, 2..2, 2..3]);
+        for (i, &p) in [1usize, 3, 5].iter().enumerate() {
+            assert_eq!(g.vertex[i], obs.vertex[p]);
+            assert_eq!(g.photo[i], obs.photo[p]);
+            assert_eq!(g.rgb[i], obs.rgb[p]);
+            assert_eq!(g.weight[i], obs.weight[p]);
+            assert_eq!(g.dir[i], obs.dir[p]);
+        }
+    }
 
     #[test]
     fn folded_radial_projections_are_not_observed() {

@@ -190,19 +190,12 @@ fn every_kth(obs: Observations, max: usize) -> Observations {
         return obs;
     }
     let k = n.div_ceil(max);
-    let mut out = Observations::default();
-    for range in &obs.photo_ranges {
-        let start = out.len();
-        for p in range.clone().filter(|p| p % k == 0) {
-            out.vertex.push(obs.vertex[p]);
-            out.photo.push(obs.photo[p]);
-            out.rgb.push(obs.rgb[p]);
-            out.weight.push(obs.weight[p]);
-            out.dir.push(obs.dir[p]);
-        }
-        out.photo_ranges.push(start..out.len());
-    }
-    out
+    let kept: Vec<usize> = obs
+        .photo_ranges
+        .iter()
+        .flat_map(|r| r.clone().filter(|p| p % k == 0))
+        .collect();
+    obs.gather(&kept)
 }
 
 /// What the evaluation found.
@@ -428,13 +421,7 @@ pub(super) const HALF_FIT_CG: usize = 20;
 /// from `start` (the mean training map) with the caps [`HALF_FIT_GPCG`] × [`HALF_FIT_CG`].
 fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Option<OctEnv>> {
     let view = &f.scene.views[v];
-    let obs = observe::extract(
-        &f.scene.mesh,
-        &f.bvh,
-        std::slice::from_ref(view),
-        std::slice::from_ref(&f.photos[v]),
-        &super::observe_options(&f.opts),
-    );
+    let obs = f.observations_of(v);
     let mut left = Observations::default();
     for p in 0..obs.len() {
         let x = obs.vertex[p] as usize;

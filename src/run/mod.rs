@@ -290,6 +290,17 @@ pub(crate) struct Fitted<'a> {
 }
 
 impl Fitted<'_> {
+    /// The observations of view `v` alone (one photo range), with the run's options.
+    pub(crate) fn observations_of(&self, v: usize) -> crate::observe::Observations {
+        crate::observe::extract(
+            &self.scene.mesh,
+            &self.bvh,
+            std::slice::from_ref(&self.scene.views[v]),
+            std::slice::from_ref(&self.photos[v]),
+            &observe_options(&self.opts),
+        )
+    }
+
     /// The fit's transport (its maps, lobes, visibility and rotation) for observations
     /// `obs` it did not train on: a held-out photo's, or a training photo replayed.
     pub(crate) fn transport_for(

@@ -187,8 +187,8 @@ pub fn mean_without(lights: &[[Vec<f64>; 3]], k: usize) -> [Vec<f64>; 3] {
 }
 
 /// Every `⌈N / max⌉`-th observation of `obs` (all when `N ≤ max`) with its weight `α`
-/// multiplied by `N / n` (module docs: the data term's expected value is kept). One photo
-/// range covering the result.
+/// multiplied by `N / n` (module docs: the data term's expected value is kept); photo
+/// ranges those of the kept observations.
 pub fn thin_observations(obs: Observations, max: usize) -> Observations {
     let n_all = obs.len();
     if n_all <= max || max == 0 {
@@ -197,19 +197,14 @@ pub fn thin_observations(obs: Observations, max: usize) -> Observations {
     let step = n_all.div_ceil(max);
     let kept: Vec<usize> = (0..n_all).step_by(step).collect();
     let scale = n_all as f32 / kept.len() as f32;
-    let all = 0..kept.len();
-    Observations {
-        vertex: kept.iter().map(|&p| obs.vertex[p]).collect(),
-        photo: kept.iter().map(|&p| obs.photo[p]).collect(),
-        rgb: kept.iter().map(|&p| obs.rgb[p]).collect(),
-        weight: kept.iter().map(|&p| obs.weight[p] * scale).collect(),
-        dir: kept.iter().map(|&p| obs.dir[p]).collect(),
-        photo_ranges: vec![all],
-    }
+    let mut out = obs.gather(&kept);
+    out.weight.iter_mut().for_each(|w| *w *= scale);
+    out
 }
 
 /// Protocol (b) replayed on one training photo: its observations, thinned to
-/// [`REPLAY_MAX_OBSERVATIONS`] (transport built over them), the fit's copy with the right half's `α` zeroed, the right half's indices.
+/// [`REPLAY_MAX_OBSERVATIONS`] (transport built over them), the fit's copy with the right
+/// half's `α` zeroed, the right half's indices.
 struct Replay {
     obs: Observations,
     fit: Observations,
@@ -220,16 +215,7 @@ struct Replay {
 /// [`Replay`] of training photo `k` (training order); `None` without both halves.
 fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
     let view = &f.scene.views[f.train[k]];
-    let mut obs = thin_observations(
-        crate::observe::extract(
-            &f.scene.mesh,
-            &f.bvh,
-            std::slice::from_ref(view),
-            std::slice::from_ref(&f.photos[f.train[k]]),
-            &super::observe_options(&f.opts),
-        ),
-        REPLAY_MAX_OBSERVATIONS,
-    );
+    let mut obs = thin_observations(f.observations_of(f.train[k]), REPLAY_MAX_OBSERVATIONS);
     let px: Vec<Option<f64>> = obs
         .vertex
         .iter()

@@ -95,19 +95,8 @@ fn a_lighting_sample_leaves_the_map_where_all_observations_put_it() {
         ..EstimateOptions::default()
     };
     let full = lighting_step_full(&problem, &beta, 0, None, None, &opts).unwrap();
-    let dist = |a: &[Vec<f64>; 3], b: &[Vec<f64>; 3]| -> f64 {
-        let ha = haar3(a, n);
-        let hb = haar3(b, n);
-        // Only the coefficients the rows reach are determined by the data.
-        let (mut d, mut s) = (0.0, 0.0);
-        for m in 0..n * n / 4 {
-            for c in 0..3 {
-                d += (ha[m][c] - hb[m][c]).powi(2);
-                s += hb[m][c].powi(2);
-            }
-        }
-        (d / s).sqrt()
-    };
+    // Only the coefficients the rows reach are determined by the data.
+    let dist = |a: &[Vec<f64>; 3], b: &[Vec<f64>; 3]| reached_distance(a, b, n);
     let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
         (0..n * n)
             .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
