@@ -13,6 +13,7 @@ use crate::report::{TimelinePoint, TrainEntry};
 use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
 use crate::solve::light::choose::LightChoice;
+use crate::solve::materials::propagate::propagate_unseen;
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::validation::PhotoHalves;
 use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
@@ -262,7 +263,20 @@ pub(crate) fn fit<'a>(
         light_decision.model, light_decision.why
     ));
     let eopts = light_models[pick].options.clone();
-    let (est, multi) = fits.swap_remove(pick);
+    let (mut est, multi) = fits.swap_remove(pick);
+    // The vertices no training photo sees kept their start: give them their seen
+    // neighbours' materials (the harmonic extension, `solve::materials::propagate`).
+    let seen_now = super::mean_colours(&obs, nv).1;
+    let k = est.lambda.len();
+    let filled = log.stages.run("estimate", || {
+        propagate_unseen(&scene.mesh.positions, &seen_now, &mut est.weights, k)
+    })?;
+    if filled.filled > 0 {
+        reasons.push(format!(
+            "materials of the {} vertices no training photo sees: from their seen neighbours",
+            filled.filled
+        ));
+    }
     // The timeline of the model kept.
     let timeline: Vec<TimelinePoint> = timeline.drain(timeline_ranges[pick].clone()).collect();
     bar.finish_and_clear();

@@ -33,6 +33,8 @@ use crate::solve::problem::{Problem, CHUNK};
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::{Error, Result};
 
+pub mod propagate;
+
 /// The λ part of the material step.
 #[derive(Debug, Clone)]
 pub struct LambdaStep {
