@@ -48,11 +48,18 @@ mod synth_case;
 
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::choose::{candidates, decide, LightChoice};
-use relight_cpc::solve::{adapt, beta_per_vertex, estimate, fit_light_frozen, Estimate};
+use relight_cpc::solve::materials::propagate::propagate_unseen;
+use relight_cpc::solve::{adapt, estimate, Estimate};
 use relight_cpc::solve::{EstimateOptions, Materials0};
 use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
+
+#[path = "ablation/diagnose.rs"]
+mod diagnose;
+#[path = "ablation/metrics.rs"]
+mod metrics;
+use metrics::*;
 
 /// How a row's estimator options are made from the bench's base options; `None` when the
 /// model is not in this build (a `--light` name the binary does not know yet).
@@ -323,132 +330,6 @@ struct Figures {
     seconds: f64,
 }
 
-/// All permutations of `0..k` (k ≤ 4).
-fn permutations(k: usize) -> Vec<Vec<usize>> {
-    if k == 0 {
-        return vec![Vec::new()];
-    }
-    let mut out = Vec::new();
-    for p in permutations(k - 1) {
-        for i in 0..k {
-            let mut q = p.clone();
-            q.insert(i, k - 1);
-            out.push(q);
-        }
-    }
-    out
-}
-
-/// Material accuracy (all seen, pure seen) over the best order of the estimated materials.
-fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
-    let k = case.lambda.len();
-    let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
-    let mut best = (0.0, 0.0);
-    for perm in permutations(k) {
-        let (mut ok, mut n, mut okp, mut np) = (0, 0, 0, 0);
-        for x in (0..case.nv).filter(|&x| seen[x]) {
-            let t = argmax(&case.weights[x * k..(x + 1) * k]);
-            let hit = perm[argmax(&est.weights[x * k..(x + 1) * k])] == t;
-            n += 1;
-            ok += usize::from(hit);
-            if case.weights[x * k + t] >= 0.95 {
-                np += 1;
-                okp += usize::from(hit);
-            }
-        }
-        let a = ok as f64 / n.max(1) as f64;
-        if a > best.0 {
-            best = (a, okp as f64 / np.max(1) as f64);
-        }
-    }
-    best
-}
-
-/// Per channel, the worst relative error of the diffuse ratios `β_{j,L,c} / β_{0,L,c}`
-/// (module docs).
-fn ratio_errors(case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64], seen: &[bool]) -> [f64; 3] {
-    let k = case.lambda.len();
-    let nb = case.basis.len();
-    let beta = beta_per_vertex(lambda, weights, case.nv);
-    let median = |mut v: Vec<f64>| -> f64 {
-        if v.is_empty() {
-            return f64::NAN;
-        }
-        let mid = v.len() / 2;
-        *v.select_nth_unstable_by(mid, f64::total_cmp).1
-    };
-    let pure = |t: usize, c: usize| -> f64 {
-        median(
-            (0..case.nv)
-                .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
-                .map(|x| beta[x * nb][c])
-                .collect(),
-        )
-    };
-    [0, 1, 2].map(|c| {
-        (1..k)
-            .map(|j| {
-                let r_true = case.lambda[j][0][c] / case.lambda[0][0][c];
-                (pure(j, c) / pure(0, c) / r_true - 1.0).abs()
-            })
-            .fold(0.0, f64::max)
-    })
-}
-
-/// The held-out split's observations cut in two per photo by the plane through the
-/// observed vertices' centroid spanned by the mean viewing direction and the world up
-/// axis: `true` = left (the light is fitted there), `false` = right (evaluated).
-fn left_half(case: &Case) -> Vec<bool> {
-    let obs = &case.held.obs;
-    let mut left = vec![false; obs.len()];
-    for r in &obs.photo_ranges {
-        let n = r.len().max(1) as f64;
-        let (mut c, mut d) = (relight_cpc::Vec3::zeros(), relight_cpc::Vec3::zeros());
-        for p in r.clone() {
-            c += case.positions[obs.vertex[p] as usize] / n;
-            d += relight_cpc::Vec3::new(
-                obs.dir[p][0] as f64,
-                obs.dir[p][1] as f64,
-                obs.dir[p][2] as f64,
-            );
-        }
-        let right = d.cross(&relight_cpc::Vec3::y());
-        for p in r.clone() {
-            left[p] = (case.positions[obs.vertex[p] as usize] - c).dot(&right) < 0.0;
-        }
-    }
-    left
-}
-
-/// The half protocol's error for reflectance `(lambda, weights)` (module docs).
-fn half_error(case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64], left: &[bool]) -> f64 {
-    let mut fit_obs = case.held.obs.clone();
-    let mut eval_obs = case.held.obs.clone();
-    for p in 0..left.len() {
-        if left[p] {
-            eval_obs.weight[p] = 0.0;
-        } else {
-            fit_obs.weight[p] = 0.0;
-        }
-    }
-    let problem = relight_cpc::solve::Problem {
-        obs: &fit_obs,
-        transport: &case.held.transport,
-        n_vertices: case.nv,
-        n_photos: fit_obs.photo_ranges.len(),
-    };
-    let beta = beta_per_vertex(lambda, weights, case.nv);
-    let opts = EstimateOptions {
-        lighting_sample: 0,
-        ..EstimateOptions::default()
-    };
-    let lights: Vec<[Vec<f64>; 3]> = (0..problem.n_photos)
-        .map(|i| fit_light_frozen(&problem, &beta, i, None, &opts).unwrap())
-        .collect();
-    let pred = predict_with(&case.held, case.nv, lambda, weights, &lights);
-    rel_rmse_per_channel(&eval_obs, &pred)
-}
-
 /// The floors of a case: the true reflectance through the same protocols.
 struct Floors {
     heldout: f64,
@@ -471,35 +352,76 @@ fn floors(case: &Case) -> Floors {
     }
 }
 
+/// The k-means start's ratio errors.
+fn start_ratio_errors(case: &Case, fl: &Floors) -> [f64; 3] {
+    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    ratio_errors(case, &init.lambda, &init.weights, &fl.seen)
+}
+
 /// Fit `case` with options `o` from the paper's start with the true K; its figures.
 fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let problem = case.train.problem(case.nv);
     let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
-    let start_ratio_errors = ratio_errors(case, &init.lambda, &init.weights, &fl.seen);
     let t0 = Instant::now();
     let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
     let seconds = t0.elapsed().as_secs_f64();
+    let f = figures(case, fl, &est, start_ratio_errors(case, fl), seconds);
+    (est, f)
+}
+
+/// The figures of a fitted reflectance `est`.
+fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f64) -> Figures {
+    let problem = case.train.problem(case.nv);
     let hp = case.predict_held(&est.lambda, &est.weights);
     let mut model = case.held.obs.clone();
     replace_colours(&mut model, &fl.truth_held);
-    let pred = relight_cpc::solve::predict(&problem, &est);
-    let (assignment, assignment_pure) = assignment(case, &est, &fl.seen);
-    let f = Figures {
+    let pred = relight_cpc::solve::predict(&problem, est);
+    let (assignment, assignment_pure) = assignment(case, est, &fl.seen);
+    Figures {
         heldout: half_error(case, &est.lambda, &est.weights, &fl.left),
         heldout_floor: fl.heldout,
         relit: rel_rmse_per_channel(&case.held.obs, &hp),
         relit_floor: fl.relit,
         relit_model: rel_rmse_per_channel(&model, &hp),
         ratio_errors: ratio_errors(case, &est.lambda, &est.weights, &fl.seen),
-        start_ratio_errors,
+        start_ratio_errors: start,
         assignment,
         assignment_pure,
         train_rel: rel_rmse(&case.train.obs, &pred, false).0,
         validation: est.validation.as_ref().map_or(f64::NAN, |v| v.best_error()),
         iterations: est.timeline.len(),
         seconds,
-    };
-    (est, f)
+    }
+}
+
+fn env_flag(k: &str) -> bool {
+    std::env::var(k).is_ok_and(|v| v == "1")
+}
+
+/// `ABLATION_DIAGNOSE=1`: the relit error's breakdown ([`diagnose`]).
+fn diagnosed(case: &Case, est: &Estimate, label: &str) -> Option<(String, Value)> {
+    env_flag("ABLATION_DIAGNOSE").then(|| diagnose::diagnose(case, est, label))
+}
+
+/// The row `label`'s fit with the weights of the vertices no training photo sees
+/// propagated from the seen ones ([`propagate_unseen`]); the fit itself is unchanged, so
+/// the training figures are the fit's.
+fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str) -> Done {
+    let k = est.lambda.len();
+    let p = propagate_unseen(&case.positions, &fl.seen, &mut est.weights, k).expect("propagation");
+    let label = format!("{label}, unseen propagated");
+    let f = figures(case, fl, &est, start_ratio_errors(case, fl), f64::NAN);
+    eprintln!("  {label}: {p:?} {f:?}");
+    Done {
+        diagnosis: diagnosed(case, &est, &label),
+        label,
+        figures: f,
+        k: None,
+        note: format!(
+            "{} unseen vertices filled, {} isolated",
+            p.filled, p.isolated
+        ),
+    }
 }
 
 /// The material count the pilot's rule picks with light options `o` (module docs):
@@ -538,6 +460,8 @@ struct Done {
     figures: Figures,
     k: Option<(usize, Vec<(usize, f64)>)>,
     note: String,
+    /// `ABLATION_DIAGNOSE=1`: where the relit error comes from ([`diagnose`]).
+    diagnosis: Option<(String, Value)>,
 }
 
 fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done>, Floors) {
@@ -575,7 +499,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     case.scene,
                     if clean { "noise-free" } else { "8-bit" }
                 );
-                let (_, figures) = fit(case, &fl, &o);
+                let (est, figures) = fit(case, &fl, &o);
                 let k = (!no_k && K_ROWS.contains(&label)).then(|| choose_k(case, &o));
                 eprintln!("  {figures:?} K {k:?}");
                 done.push(Done {
@@ -583,7 +507,11 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     figures,
                     k,
                     note: String::new(),
+                    diagnosis: diagnosed(case, &est, label),
                 });
+                if env_flag("ABLATION_PROPAGATE") {
+                    done.push(propagated(case, &fl, est, label));
+                }
             }
             Row::Pick { label, among } => {
                 let idx: Vec<usize> = among()
@@ -603,6 +531,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     figures: from.figures.clone(),
                     k: from.k.clone(),
                     note,
+                    diagnosis: None,
                 });
             }
         }
@@ -663,6 +592,9 @@ fn table(md: &mut String, done: &[Done], fl: &Floors, clean: bool, k_true: usize
         md.push_str(&notes.concat());
     }
     md.push('\n');
+    for (text, _) in done.iter().filter_map(|d| d.diagnosis.as_ref()) {
+        md.push_str(text);
+    }
 }
 
 fn main() {
@@ -733,7 +665,7 @@ fn main() {
                 "materials": k_true,
                 "floor_heldout": fl.heldout,
                 "floor_relit": fl.relit,
-                "rows": done.iter().map(|d| json!({"model": d.label, "figures": d.figures, "k": d.k, "note": d.note})).collect::<Vec<_>>(),
+                "rows": done.iter().map(|d| json!({"model": d.label, "figures": d.figures, "k": d.k, "note": d.note, "diagnosis": d.diagnosis.as_ref().map(|x| &x.1)})).collect::<Vec<_>>(),
             }));
             // After every case, so that an interrupted run keeps what it measured.
             write(&md, &out, t0, s, &base, false);
