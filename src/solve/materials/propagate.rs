@@ -21,6 +21,7 @@
 //! error (`bench-results/estimator-ablation-iterations.md`, section 8).
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
 use std::num::NonZeroUsize;
 
 use crate::{Error, Result, Vec3};
@@ -37,7 +38,7 @@ pub struct Propagation {
     pub filled: usize,
     /// Unseen vertices of a component without a seen vertex (weights kept).
     pub isolated: usize,
-    /// Conjugate-gradient iterations, the most over the material columns.
+    /// Conjugate-gradient iterations (the material columns solved side by side).
     pub iterations: usize,
 }
 
@@ -133,23 +134,23 @@ pub fn propagate_unseen(
         unknown: &unknown,
         slot: &slot,
     };
-    let mut iterations = 0;
-    for k in 0..kk {
-        let rhs: Vec<f64> = unknown
+    // Right-hand sides `A_us f_s`, row-major `unknowns × K`.
+    let mut rhs = vec![0.0; unknown.len() * kk];
+    for (i, &x) in unknown.iter().enumerate() {
+        for &y in adj[off[x]..off[x + 1]]
             .iter()
-            .map(|&x| {
-                adj[off[x]..off[x + 1]]
-                    .iter()
-                    .filter(|&&y| seen[y as usize])
-                    .map(|&y| weights[y as usize * kk + k])
-                    .sum()
-            })
-            .collect();
-        let (f, it) = system.solve(&rhs);
-        iterations = iterations.max(it);
-        for (i, &x) in unknown.iter().enumerate() {
+            .filter(|&&y| seen[y as usize])
+        {
+            for k in 0..kk {
+                rhs[i * kk + k] += weights[y as usize * kk + k];
+            }
+        }
+    }
+    let (f, iterations) = system.solve(&rhs, kk);
+    for (i, &x) in unknown.iter().enumerate() {
+        for k in 0..kk {
             // The exact solution is ≥ 0 (module docs); CG's round-off can leave −1e-16.
-            weights[x * kk + k] = f[i].max(0.0);
+            weights[x * kk + k] = f[i * kk + k].max(0.0);
         }
     }
     Ok(Propagation {
@@ -169,43 +170,83 @@ struct Harmonic<'a> {
 }
 
 impl Harmonic<'_> {
-    /// `out = L_uu v`.
-    fn apply(&self, v: &[f64], out: &mut [f64]) {
-        for (i, &x) in self.unknown.iter().enumerate() {
-            let nb = &self.adj[self.off[x]..self.off[x + 1]];
-            let mut s = nb.len() as f64 * v[i];
-            for &y in nb {
-                let j = self.slot[y as usize];
-                if j != usize::MAX {
-                    s -= v[j];
+    /// `out = L_uu v` for `kk` columns at once (`v`, `out` row-major `unknowns × kk`).
+    fn apply(&self, v: &[f64], out: &mut [f64], kk: usize) {
+        out.par_chunks_mut(kk)
+            .zip(self.unknown.par_iter().enumerate())
+            .for_each(|(o, (i, &x))| {
+                let nb = &self.adj[self.off[x]..self.off[x + 1]];
+                let d = nb.len() as f64;
+                for k in 0..kk {
+                    o[k] = d * v[i * kk + k];
                 }
-            }
-            out[i] = s;
-        }
+                for &y in nb {
+                    let j = self.slot[y as usize];
+                    if j != usize::MAX {
+                        for k in 0..kk {
+                            o[k] -= v[j * kk + k];
+                        }
+                    }
+                }
+            });
     }
 
-    /// Conjugate gradients for `L_uu f = rhs` from 0, to a residual of 10⁻¹² of the
-    /// right-hand side's norm: `(f, iterations)`.
-    fn solve(&self, rhs: &[f64]) -> (Vec<f64>, usize) {
+    /// Conjugate gradients for `L_uu f = rhs`, the `kk` columns side by side (one pass over
+    /// the graph per iteration for all of them, each column its own step lengths), from 0,
+    /// each column to a residual of 10⁻¹² of its right-hand side's norm:
+    /// `(f, iterations)`.
+    fn solve(&self, rhs: &[f64], kk: usize) -> (Vec<f64>, usize) {
         let m = rhs.len();
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let col_dot = |a: &[f64], b: &[f64]| -> Vec<f64> {
+            let mut d = vec![0.0; kk];
+            for (ra, rb) in a.chunks(kk).zip(b.chunks(kk)) {
+                for k in 0..kk {
+                    d[k] += ra[k] * rb[k];
+                }
+            }
+            d
+        };
         let mut f = vec![0.0; m];
         let mut r = rhs.to_vec();
         let mut p = r.clone();
         let mut ap = vec![0.0; m];
-        let mut rr = dot(&r, &r);
-        let stop = 1e-24 * rr;
+        let mut rr = col_dot(&r, &r);
+        let stop: Vec<f64> = rr.iter().map(|v| 1e-24 * v).collect();
         let mut it = 0;
-        while rr > stop && it < 10 * m + 10 {
-            self.apply(&p, &mut ap);
-            let alpha = rr / dot(&p, &ap);
+        let limit = 10 * m / kk.max(1) + 10;
+        while (0..kk).any(|k| rr[k] > stop[k]) && it < limit {
+            self.apply(&p, &mut ap, kk);
+            let pap = col_dot(&p, &ap);
+            // A converged (or zero) column stops moving: step 0, direction kept at 0.
+            let alpha: Vec<f64> = (0..kk)
+                .map(|k| {
+                    if rr[k] > stop[k] && pap[k] > 0.0 {
+                        rr[k] / pap[k]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
             for i in 0..m {
-                f[i] += alpha * p[i];
-                r[i] -= alpha * ap[i];
+                f[i] += alpha[i % kk] * p[i];
+                r[i] -= alpha[i % kk] * ap[i];
             }
-            let rr_new = dot(&r, &r);
+            let rr_new = col_dot(&r, &r);
+            let beta: Vec<f64> = (0..kk)
+                .map(|k| {
+                    if alpha[k] > 0.0 {
+                        rr_new[k] / rr[k]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
             for i in 0..m {
-                p[i] = r[i] + rr_new / rr * p[i];
+                p[i] = if alpha[i % kk] > 0.0 {
+                    r[i] + beta[i % kk] * p[i]
+                } else {
+                    0.0
+                };
             }
             rr = rr_new;
             it += 1;
