@@ -42,6 +42,7 @@ mod malformed_inputs;
 mod mesh_ply;
 mod observe_cube;
 mod photo_load;
+mod propagate_synth;
 mod proptest_parsers;
 mod qp_kkt;
 mod realphoto_effects;
