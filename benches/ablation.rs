@@ -59,7 +59,10 @@ use synth_case::*;
 mod diagnose;
 #[path = "ablation/metrics.rs"]
 mod metrics;
+#[path = "ablation/table.rs"]
+mod table;
 use metrics::*;
+use table::table;
 
 /// How a row's estimator options are made from the bench's base options; `None` when the
 /// model is not in this build (a `--light` name the binary does not know yet).
@@ -537,64 +540,6 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
         }
     }
     (done, fl)
-}
-
-fn fmt_ratio(v: f64, floor: f64, clean: bool) -> String {
-    if clean {
-        format!("{v:.4}")
-    } else {
-        format!("{v:.4} ({:.2}×)", v / floor)
-    }
-}
-
-fn table(md: &mut String, done: &[Done], fl: &Floors, clean: bool, k_true: usize) {
-    md.push_str(&format!(
-        "Floors: held-out (half protocol, true reflectance) {:.4}; relit (true reflectance under the unseen maps) {:.4}.\n\n",
-        fl.heldout, fl.relit
-    ));
-    md.push_str("| light model | held-out (× photo floor) | relit, unseen maps (× MC floor) | relit vs true model | albedo ratio error R / G / B (worst) | material accuracy all / pure | K chosen (held-out RMSE per K) | train rel. | its | s |\n|---|---|---|---|---|---|---|---|---|---|\n");
-    for d in done {
-        let f = &d.figures;
-        let k = d.k.as_ref().map_or("–".to_string(), |(k, s)| {
-            format!(
-                "{}{} ({})",
-                k,
-                if *k == k_true { " ✓" } else { " ✗" },
-                s.iter()
-                    .map(|(k, e)| format!("{k}: {e:.4}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        });
-        md.push_str(&format!(
-            "| {} | {} | {} | {:.4} | {:.3} / {:.3} / {:.3} | {:.4} / {:.4} | {k} | {:.4} | {} | {:.0} |\n",
-            d.label,
-            fmt_ratio(f.heldout, f.heldout_floor, clean),
-            fmt_ratio(f.relit, f.relit_floor, clean),
-            f.relit_model,
-            f.ratio_errors[0],
-            f.ratio_errors[1],
-            f.ratio_errors[2],
-            f.assignment,
-            f.assignment_pure,
-            f.train_rel,
-            f.iterations,
-            f.seconds
-        ));
-    }
-    let notes: Vec<String> = done
-        .iter()
-        .filter(|d| !d.note.is_empty())
-        .map(|d| format!("- {}: {}\n", d.label, d.note))
-        .collect();
-    if !notes.is_empty() {
-        md.push('\n');
-        md.push_str(&notes.concat());
-    }
-    md.push('\n');
-    for (text, _) in done.iter().filter_map(|d| d.diagnosis.as_ref()) {
-        md.push_str(text);
-    }
 }
 
 fn main() {

@@ -18,8 +18,9 @@
 //!    Tukey) against plain least squares, all against the clean Huber fit.
 //! 4. Determinism: bitwise comparison of two runs, on 1 and 2 threads.
 //!
-//! `ESTIMATOR_BENCH=known,joint,robust,determinism` picks parts (default: all; `convergence`
-//! and `floors` write their own files). Variants without editing the bench:
+//! `ESTIMATOR_BENCH=known,joint,robust,determinism` picks parts (default: all; `convergence`,
+//! `floors` and `propagate`, the cost of filling unseen vertices' materials on the large
+//! Spot meshes, write their own files). Variants without editing the bench:
 //! `JOINT_SPECS` / `ROBUST_SPECS` / `CONVERGENCE_SPECS` replace a part's rows by option
 //! strings ([`parse_spec`], e.g. `"floor=0.1;floor=0.1,val=0"`); `JOINT_SCENE` (default
 //! `spot-varying`) and `JOINT_GLOBAL`, `JOINT_LOCAL`, `JOINT_SPP`, `JOINT_VERTICES`,
@@ -32,7 +33,7 @@
 //!
 //! This file holds the shared sizes, option strings, the noise-free case and `main`; each
 //! part is a module in `benches/estimator/` (`known`, `joint`, `robust`, `determinism`,
-//! `convergence`, `floors`).
+//! `convergence`, `floors`, `propagate`).
 
 #![allow(clippy::needless_range_loop)]
 
@@ -49,6 +50,8 @@ mod floors;
 mod joint;
 #[path = "estimator/known.rs"]
 mod known;
+#[path = "estimator/propagate.rs"]
+mod propagate;
 #[path = "estimator/robust.rs"]
 mod robust;
 
@@ -60,7 +63,7 @@ use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Robust, Smoothness
 use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
-use {convergence::*, determinism::*, floors::*, joint::*, known::*, robust::*};
+use {convergence::*, determinism::*, floors::*, joint::*, known::*, propagate::*, robust::*};
 
 /// `KNOWN_FINE=1`: 64² photos at 64 spp, 64² global / 32² local maps, where the diffuse
 /// sphere's floor falls below 2% (`estimator-floors.md`).
@@ -318,6 +321,17 @@ fn main() {
         let v = floors(&mut fmd);
         write_results(&dir, "estimator-floors", &fmd, &v);
         if parts == "floors" {
+            return;
+        }
+    }
+    if parts.contains("propagate") {
+        // Its own files: a cost, not one of the estimator's accuracy figures.
+        let mut pmd = String::from(
+            "# Propagating materials to unseen vertices: cost\n\nWritten by `ESTIMATOR_BENCH=propagate cargo bench --bench estimator`.\n\n",
+        );
+        let v = propagate(&mut pmd);
+        write_results(&dir, "estimator-propagate", &pmd, &v);
+        if parts == "propagate" {
             return;
         }
     }
