@@ -408,12 +408,13 @@ fn diagnosed(case: &Case, est: &Estimate, label: &str) -> Option<(String, Value)
 
 /// The row `label`'s fit with the weights of the vertices no training photo sees
 /// propagated from the seen ones ([`propagate_unseen`]); the fit itself is unchanged, so
-/// the training figures are the fit's.
-fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str) -> Done {
+/// the training figures and its `seconds` are the fit's (the propagation's own cost:
+/// `ESTIMATOR_BENCH=propagate`).
+fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str, seconds: f64) -> Done {
     let k = est.lambda.len();
     let p = propagate_unseen(&case.positions, &fl.seen, &mut est.weights, k).expect("propagation");
     let label = format!("{label}, unseen propagated");
-    let f = figures(case, fl, &est, start_ratio_errors(case, fl), f64::NAN);
+    let f = figures(case, fl, &est, start_ratio_errors(case, fl), seconds);
     eprintln!("  {label}: {p:?} {f:?}");
     Done {
         diagnosis: diagnosed(case, &est, &label),
@@ -503,6 +504,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     if clean { "noise-free" } else { "8-bit" }
                 );
                 let (est, figures) = fit(case, &fl, &o);
+                let seconds = figures.seconds;
                 let k = (!no_k && K_ROWS.contains(&label)).then(|| choose_k(case, &o));
                 eprintln!("  {figures:?} K {k:?}");
                 done.push(Done {
@@ -513,7 +515,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     diagnosis: diagnosed(case, &est, label),
                 });
                 if env_flag("ABLATION_PROPAGATE") {
-                    done.push(propagated(case, &fl, est, label));
+                    done.push(propagated(case, &fl, est, label, seconds));
                 }
             }
             Row::Pick { label, among } => {
