@@ -346,7 +346,8 @@ pub fn sum_weights_penalty(gamma: &[f64], weights: &[f64], kk: usize) -> f64 {
 /// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels,
 /// plus the sum-to-one prior `γ_x (Σ_k w_k − 1)²` when `gamma` is given (its normal
 /// equations gain `γ_x 1 1ᵀ` and `γ_x 1`, [`sum_weights_gamma`]). Vertices without weighted
-/// observations keep their weights. Returns the new weights, the largest finite condition
+/// observations keep their weights (after the fit, `run` gives the ones no training photo
+/// sees their seen neighbours' materials: [`propagate`]). Returns the new weights, the largest finite condition
 /// number and the count of singular systems.
 pub fn weights_step(
     problem: &Problem,
