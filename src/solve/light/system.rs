@@ -178,6 +178,9 @@ impl PhotoSystem {
             touched.clear();
             offsets.push(index.len());
         }
+        // One entry past the last row: the AVX2 product loads each entry's three `f32`
+        // as four (the fourth ignored), and the last entry's fourth comes from here.
+        value.push([0.0; 3]);
         let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
         PhotoSystem {
             range: 0..offsets.len() - 1,
@@ -222,6 +225,23 @@ impl PhotoSystem {
     /// once per product instead of twice. The rows are cut into [`PRODUCT_CHUNKS`] parts
     /// done in parallel, each into its own buffer, then added to `out` in part order.
     pub(crate) fn normal_rows(&self, h: &[[f64; 3]], out: &mut [[f64; 3]]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.value.len() > self.index.len() && std::is_x86_feature_detected!("avx2") {
+            let h4: Vec<[f64; 4]> = h.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
+            let parts: Vec<Vec<[f64; 4]>> = self
+                .chunks
+                .par_iter()
+                .map(|rows| {
+                    let mut acc = vec![[0.0_f64; 4]; out.len()];
+                    // SAFETY: the CPU has AVX2, and `value` has an entry past the last row's
+                    // (the condition above), which `normal_part_avx2` needs.
+                    unsafe { self.normal_part_avx2(rows.clone(), &h4, &mut acc) };
+                    acc
+                })
+                .collect();
+            add_parts(&parts, out);
+            return;
+        }
         let part = |rows: &std::ops::Range<usize>| {
             let mut acc = vec![[0.0_f64; 3]; out.len()];
             // A row of zero weight `d` adds nothing (`d ⊙ r = 0` for the finite response
@@ -245,13 +265,7 @@ impl PhotoSystem {
             acc
         };
         let parts: Vec<Vec<[f64; 3]>> = self.chunks.par_iter().map(part).collect();
-        for p in &parts {
-            for (o, v) in out.iter_mut().zip(p) {
-                o[0] += v[0];
-                o[1] += v[1];
-                o[2] += v[2];
-            }
-        }
+        add_parts(&parts, out);
     }
 
     /// `acc += e_q (d_q ⊙ r)` for merged row `q` = `row` and its response `r`, skipped when
@@ -268,6 +282,77 @@ impl PhotoSystem {
         let uq = [r[0] * d[0], r[1] * d[1], r[2] * d[2]];
         if uq != [0.0; 3] {
             row_scatter(row.0, row.1, uq, acc);
+        }
+    }
+
+    /// The rows `rows` of [`Self::normal_rows`] into `acc` with AVX2: the three channels
+    /// in the first three lanes of a 4-lane vector, each lane's multiplications and
+    /// additions the scalar code's, in its order (rows in pairs, zero-weight rows skipped),
+    /// so the result is bit for bit the scalar one. An entry's three `f32` are loaded as
+    /// four; the fourth (the next entry's first, or the padding entry past the last row)
+    /// meets a zero lane of `h4` or of the scattered response, and lane 3 is never read.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, and `self.value` an entry past the last row's.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn normal_part_avx2(
+        &self,
+        rows: std::ops::Range<usize>,
+        h4: &[[f64; 4]],
+        acc: &mut [[f64; 4]],
+    ) {
+        use std::arch::x86_64::*;
+        let val = self.value.as_ptr() as *const f32;
+        // SAFETY (both closures): `i` is an entry of a row, so `i + 1 < value.len()` (the
+        // padding entry) and the 16 bytes from entry `i` lie in `value`; `m` is a Haar index
+        // below `n²` = `h4.len()` = `acc.len()`, checked by the slice indexing.
+        let e4 = |i: usize| unsafe { _mm256_cvtps_pd(_mm_loadu_ps(val.add(3 * i))) };
+        let h_at = |i: usize| unsafe { _mm256_loadu_pd(h4[self.index[i] as usize].as_ptr()) };
+        let dot_from = |mut x: __m256d, r: std::ops::Range<usize>| {
+            for i in r {
+                x = _mm256_add_pd(x, _mm256_mul_pd(e4(i), h_at(i)));
+            }
+            x
+        };
+        let mut scatter = |q: usize, x: __m256d| {
+            let mut r = [0.0_f64; 4];
+            // SAFETY: `r` holds four f64.
+            unsafe { _mm256_storeu_pd(r.as_mut_ptr(), x) };
+            let d = self.dw[q];
+            let uq = [r[0] * d[0], r[1] * d[1], r[2] * d[2]];
+            if uq == [0.0; 3] {
+                return;
+            }
+            let u = _mm256_setr_pd(uq[0], uq[1], uq[2], 0.0);
+            for i in self.offsets[q]..self.offsets[q + 1] {
+                let o = acc[self.index[i] as usize].as_mut_ptr();
+                // SAFETY: `o` points at four f64 of `acc`.
+                unsafe {
+                    _mm256_storeu_pd(
+                        o,
+                        _mm256_add_pd(_mm256_loadu_pd(o), _mm256_mul_pd(e4(i), u)),
+                    );
+                }
+            }
+        };
+        let mut live = rows.filter(|&q| self.dw[q] != [0.0; 3]);
+        while let Some(q) = live.next() {
+            let (a0, a1) = (self.offsets[q], self.offsets[q + 1]);
+            let Some(q2) = live.next() else {
+                scatter(q, dot_from(_mm256_setzero_pd(), a0..a1));
+                break;
+            };
+            let (b0, b1) = (self.offsets[q2], self.offsets[q2 + 1]);
+            let k = (a1 - a0).min(b1 - b0);
+            let (mut x, mut y) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+            for j in 0..k {
+                x = _mm256_add_pd(x, _mm256_mul_pd(e4(a0 + j), h_at(a0 + j)));
+                y = _mm256_add_pd(y, _mm256_mul_pd(e4(b0 + j), h_at(b0 + j)));
+            }
+            let (x, y) = (dot_from(x, a0 + k..a1), dot_from(y, b0 + k..b1));
+            scatter(q, x);
+            scatter(q2, y);
         }
     }
 
@@ -356,6 +441,17 @@ pub(crate) fn texel_diag_vec(
         }
     }
     diag
+}
+
+/// `out_c += Σ_parts part_c`, part by part in order (the first three lanes of each).
+fn add_parts<const L: usize>(parts: &[Vec<[f64; L]>], out: &mut [[f64; 3]]) {
+    for p in parts {
+        for (o, v) in out.iter_mut().zip(p) {
+            o[0] += v[0];
+            o[1] += v[1];
+            o[2] += v[2];
+        }
+    }
 }
 
 pub(crate) fn split3(x: &[f64], n2: usize) -> [Vec<f64>; 3] {
@@ -459,6 +555,57 @@ mod tests {
     }
 
     #[test]
+    fn the_avx2_product_is_the_scalar_product_bit_for_bit() {
+        // The same rows with the padding entry (the AVX2 path, where the CPU has it) and
+        // without (the scalar path): each lane does the scalar code's operations in its
+        // order, so the products must agree exactly, over four parts, with zero-weight
+        // rows and rows of every length down to empty.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let n = 32;
+        let rows = 257;
+        let (offsets, index, value) = random_rows(&mut rng, n, rows, 300);
+        let dw: Vec<[f64; 3]> = (0..rows)
+            .map(|q| {
+                [0, 1, 2].map(|_| {
+                    if q % 5 == 0 {
+                        0.0
+                    } else {
+                        rng.random_range(0.0..2.0)
+                    }
+                })
+            })
+            .collect();
+        let scalar = PhotoSystem {
+            range: 0..rows,
+            n,
+            dw,
+            chunks: entry_chunks(&offsets, PRODUCT_CHUNKS),
+            offsets,
+            index,
+            value,
+        };
+        let mut padded_value = scalar.value.clone();
+        padded_value.push([0.0; 3]);
+        let padded = PhotoSystem {
+            range: scalar.range.clone(),
+            n,
+            dw: scalar.dw.clone(),
+            offsets: scalar.offsets.clone(),
+            index: scalar.index.clone(),
+            value: padded_value,
+            chunks: scalar.chunks.clone(),
+        };
+        let h: Vec<[f64; 3]> = (0..n * n)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+            .collect();
+        let (mut a, mut b) = (vec![[0.5; 3]; n * n], vec![[0.5; 3]; n * n]);
+        scalar.normal_rows(&h, &mut a);
+        padded.normal_rows(&h, &mut b);
+        assert!(a.iter().flatten().any(|v| (v - 0.5).abs() > 1.0));
+        assert_eq!(a, b);
+    }
+
+    #[test]
     fn one_part_product_is_the_forward_scale_adjoint_sequence_exactly() {
         // With a single part (and an odd row count, so one row is left unpaired) the fused
         // product adds the same terms in the same order as the forward rows, the scaling
@@ -466,7 +613,9 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
         let n = 16;
         let rows = 301;
-        let (offsets, index, value) = random_rows(&mut rng, n, rows, 80);
+        let (offsets, index, mut value) = random_rows(&mut rng, n, rows, 80);
+        // The padding entry of `PhotoSystem::new`: the AVX2 path where the CPU has it.
+        value.push([0.0; 3]);
         let dw: Vec<[f64; 3]> = (0..rows)
             .map(|q| {
                 [0, 1, 2].map(|_| {
