@@ -123,6 +123,13 @@ pub const PILOT_GLOBAL: usize = 16;
 pub const PILOT_LOCAL: usize = 16;
 /// Pilot outer iterations.
 pub const PILOT_ITERATIONS: usize = 2;
+/// Conjugate-gradient steps per GPCG iteration of the pilot's lighting QPs (the
+/// alternation's own cap is [`crate::solve::options::ALTERNATION_CG_ITERS`], 20). The pilot
+/// compares candidates, it does not need converged lights: on the built-in example its
+/// scores move by ≤ 1.4% against 20 steps (K = 2: 6.7770e-2 → 6.7805e-2), every choice
+/// there and on the Buddha fixture is the same, and the pilot costs 27% less CPU
+/// (`bench-results/example-speed.md`); 10 steps bought nothing measurable.
+pub const PILOT_CG_ITERS: usize = 5;
 /// Largest number of materials the pilot tries.
 pub const MAX_MATERIALS: usize = 6;
 /// Condition number of the λ system above which two lobes are taken as indistinguishable.
@@ -523,6 +530,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         robust: Robust::None,
         irls_iters: 1,
         lambert_basis: inp.lambert,
+        alternation_cg_iters: Some(PILOT_CG_ITERS),
         ..inp.estimate.clone()
     };
     let all: Vec<usize> = (0..inp.basis.len()).collect();

@@ -192,3 +192,20 @@ fn thinning_keeps_small_photos_whole_and_the_data_terms_expected_size() {
         "{sampled} against {exact}"
     );
 }
+
+#[test]
+fn replay_rounds_take_every_pick_once_every_other_first() {
+    for m in 0..=LOO_PHOTOS + 3 {
+        let [first, second] = replay_rounds(m);
+        let mut all: Vec<usize> = first.iter().chain(&second).copied().collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..m).collect::<Vec<_>>(), "m = {m}");
+        // The first round spans the picks (its first and, from 3 picks on, a later one)
+        // and is never the smaller half.
+        assert!(first.len() >= second.len());
+        if m >= 3 {
+            assert_eq!(first[0], 0);
+            assert!(*first.last().unwrap() >= m / 2);
+        }
+    }
+}
