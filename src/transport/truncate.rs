@@ -9,7 +9,7 @@ use crate::sphere::haar;
 /// Reused buffers of [`truncate_global`].
 #[derive(Default)]
 pub(super) struct Selection {
-    /// `|g_m|` as IEEE bits of the non-zero coefficients (ordered as the magnitudes:
+    /// `|g_m|` as IEEE bits of every coefficient (ordered as the magnitudes:
     /// non-negative floats compare as their bit patterns, NaN above infinity as in
     /// `f64::total_cmp`).
     keys: Vec<u64>,
@@ -21,9 +21,9 @@ pub(super) struct Selection {
 /// non-zero ones for `keep == 0`) into `idx`/`val`, largest first, ties by index: the same
 /// entries in the same order as [`haar::keep_largest`], without allocating; `sel` holds
 /// the buffers. Returns how many were kept (`≤ idx.len()`).
-/// The `k`-th
-/// largest magnitude `τ` is found by a selection over the magnitudes' bit patterns alone;
-/// one pass in index order then keeps every coefficient above `τ` and the first ones
+///
+/// The `k`-th largest magnitude `τ` is found by a selection over the magnitudes' bit
+/// patterns alone; one pass in index order then keeps every coefficient above `τ` and the first ones
 /// equal to it (ties by index), and only the `k` kept are sorted.
 pub(super) fn truncate_global(
     global: &[f64],
@@ -33,17 +33,19 @@ pub(super) fn truncate_global(
     val: &mut [TransportValue],
 ) -> usize {
     let magnitude = |c: f64| c.abs().to_bits();
+    // Zeros (key 0, −0.0 included) stay in the selection: they are the smallest keys and
+    // are never kept, and skipping them would cost a hard-to-predict branch per entry.
     sel.keys.clear();
-    sel.keys
-        .extend(global.iter().filter(|&&c| c != 0.0).map(|&c| magnitude(c)));
-    let nz = sel.keys.len();
+    sel.keys.extend(global.iter().map(|&c| magnitude(c)));
+    let n = sel.keys.len();
+    let nz = sel.keys.iter().filter(|&&b| b != 0).count();
     let k = if keep == 0 { nz } else { keep }.min(nz).min(idx.len());
     if k == 0 {
         return 0;
     }
-    // Every non-zero magnitude has bits > 0: with k == nz, τ = 0 keeps them all.
+    // k < nz: τ is a non-zero magnitude; k == nz: τ = 0 keeps every non-zero one.
     let (tau, mut ties) = if k < nz {
-        let (_, &mut tau, above) = sel.keys.select_nth_unstable(nz - k);
+        let (_, &mut tau, above) = sel.keys.select_nth_unstable(n - k);
         let greater = above.iter().filter(|&&b| b > tau).count();
         (tau, k - greater)
     } else {
@@ -51,9 +53,6 @@ pub(super) fn truncate_global(
     };
     sel.kept.clear();
     for (m, &c) in global.iter().enumerate() {
-        if c == 0.0 {
-            continue;
-        }
         let b = magnitude(c);
         if b > tau || (b == tau && ties > 0) {
             if b == tau {
