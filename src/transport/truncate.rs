@@ -23,8 +23,8 @@ pub(super) struct Selection {
 /// the buffers. Returns how many were kept (`≤ idx.len()`).
 ///
 /// The `k`-th largest magnitude `τ` is found by a selection over the magnitudes' bit
-/// patterns alone; one pass in index order then keeps every coefficient above `τ` and the first ones
-/// equal to it (ties by index), and only the `k` kept are sorted.
+/// patterns alone; one pass in index order then keeps every coefficient above `τ` and the
+/// first ones equal to it (ties by index), and only the `k` kept are sorted.
 pub(super) fn truncate_global(
     global: &[f64],
     sel: &mut Selection,
