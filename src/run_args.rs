@@ -89,9 +89,12 @@ pub(crate) struct RunArgs {
     /// Light-transport terms kept per observation (0 = all): fewer is faster and coarser.
     #[arg(long, default_value_t = 128, help_heading = "Model")]
     pub(crate) keep: usize,
-    /// Shadow rays per hemisphere texel.
+    /// Shadow rays per hemisphere texel, when --edge-rays is 0.
     #[arg(long, default_value_t = 2, help_heading = "Model")]
     pub(crate) rays_per_texel: usize,
+    /// Shadow rays: one per hemisphere texel, then this many more where the shadow has an edge; 0 = --rays-per-texel everywhere.
+    #[arg(long, default_value_t = 4, help_heading = "Model")]
+    pub(crate) edge_rays: usize,
 
     /// Rounds of (fit the lighting, then fit the materials), at most.
     #[arg(long, default_value_t = 8, help_heading = "Solver")]
@@ -265,6 +268,7 @@ impl RunArgs {
         o.normal_grid = self.normal_grid;
         o.keep = self.keep;
         o.rays_per_texel = self.rays_per_texel;
+        o.edge_rays = self.edge_rays;
         o.max_iterations = self.iterations;
         o.rel_tol = self.tolerance;
         o.smoothness = self.smoothness;

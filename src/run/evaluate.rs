@@ -258,13 +258,15 @@ pub(crate) fn trace_visibility(
     let n_render = render_local_resolution(opts);
     let n_fine = opts.local_resolution.max(n_render);
     let rays = fine_rays(opts.rays_per_texel, opts.local_resolution, n_fine);
-    let fine = Arc::new(crate::transport::visibility::compute(
+    let sampling = crate::transport::visibility::Sampling::new(rays, opts.edge_rays);
+    let fine = Arc::new(crate::transport::visibility::compute_sampled(
         mesh,
         bvh,
         env_from_world,
         n_fine,
-        rays,
+        sampling,
         opts.seed,
+        true,
     ));
     let coarser = |n: usize| {
         if n < n_fine {

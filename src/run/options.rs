@@ -62,8 +62,12 @@ pub struct RunOptions {
     pub normal_grid: usize,
     /// Haar coefficients kept per transport row (0 = all).
     pub keep: usize,
-    /// Visibility rays per local texel.
+    /// Visibility rays per local texel when `edge_rays` is 0.
     pub rays_per_texel: usize,
+    /// Adaptive visibility: one ray per texel, then this many more in each texel on a
+    /// visibility edge ([`crate::transport::visibility::Sampling::Adaptive`]); 0 = uniform
+    /// `rays_per_texel`.
+    pub edge_rays: usize,
     /// Outer iterations at most.
     pub max_iterations: usize,
     /// Stop when the objective improves by less than this fraction.
@@ -204,6 +208,7 @@ impl RunOptions {
             normal_grid: 32,
             keep: 128,
             rays_per_texel: 2,
+            edge_rays: 4,
             max_iterations: 8,
             rel_tol: 1e-3,
             smoothness: 1e-3,
@@ -286,6 +291,12 @@ impl RunOptions {
             return Err(Error::Config(format!(
                 "--rays-per-texel {}: must be from 1 to 64",
                 self.rays_per_texel
+            )));
+        }
+        if self.edge_rays > 64 {
+            return Err(Error::Config(format!(
+                "--edge-rays {}: must be from 0 to 64",
+                self.edge_rays
             )));
         }
         if self.max_iterations == 0 {

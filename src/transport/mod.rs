@@ -66,7 +66,9 @@ use crate::{Error, Result, Vec3};
 /// A Haar coefficient index of the global map (`< n_global² ≤ 256² = 65,536`).
 pub type HaarIndex = u16;
 
+mod truncate;
 mod value;
+use truncate::{truncate_global, Selection};
 pub use value::TransportValue;
 
 /// Largest global map side whose Haar indices fit in [`HaarIndex`].
@@ -231,8 +233,8 @@ struct Scratch {
     local: Vec<f64>,
     global: Vec<f64>,
     v_dw: Vec<f64>,
-    /// `(|g_m|, m)` of the non-zero coefficients, for [`truncate_into`].
-    order: Vec<(f64, u32)>,
+    /// The selection buffers of [`truncate_into`].
+    sel: Selection,
     /// The view-dependent bases' `V ⊙ Δω ⊙ slice` of one observation, basis-major.
     locals: Vec<f64>,
     /// Their dense global rows, basis-major.
@@ -250,7 +252,7 @@ impl Scratch {
             local: vec![0.0; n_local * n_local],
             global: vec![0.0; n_global * n_global],
             v_dw: Vec::with_capacity(n_local * n_local),
-            order: Vec::with_capacity(n_global * n_global),
+            sel: Selection::default(),
             locals: Vec::new(),
             globals: Vec::new(),
             inter: Vec::new(),
@@ -284,40 +286,7 @@ fn truncate_into(
     idx: &mut [HaarIndex],
     val: &mut [TransportValue],
 ) -> usize {
-    truncate_global(&scratch.global, &mut scratch.order, keep, idx, val)
-}
-
-/// [`truncate_into`] of the dense row `global`, with `order` as its selection buffer.
-fn truncate_global(
-    global: &[f64],
-    order: &mut Vec<(f64, u32)>,
-    keep: usize,
-    idx: &mut [HaarIndex],
-    val: &mut [TransportValue],
-) -> usize {
-    order.clear();
-    order.extend(
-        global
-            .iter()
-            .enumerate()
-            .filter(|(_, &c)| c != 0.0)
-            .map(|(m, &c)| (c.abs(), m as u32)),
-    );
-    let cmp = |a: &(f64, u32), b: &(f64, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
-    let k = if keep == 0 { order.len() } else { keep }
-        .min(order.len())
-        .min(idx.len());
-    if k < order.len() && k > 0 {
-        order.select_nth_unstable_by(k - 1, cmp);
-    }
-    let kept = &mut order[..k];
-    kept.sort_unstable_by(cmp);
-    for ((i, v), &(_, m)) in idx.iter_mut().zip(val.iter_mut()).zip(kept.iter()) {
-        // m < n_global² ≤ 65,536 (checked in `check_inputs`).
-        *i = m as HaarIndex;
-        *v = TransportValue::from_f64(global[m as usize]);
-    }
-    k
+    truncate_global(&scratch.global, &mut scratch.sel, keep, idx, val)
 }
 
 fn check_inputs<R: LocalRotation>(
@@ -514,7 +483,7 @@ pub fn build_rows<R: LocalRotation>(
                     let span = b * stride..(b + 1) * stride;
                     ol[b] = truncate_global(
                         global,
-                        &mut scratch.order,
+                        &mut scratch.sel,
                         opts.keep,
                         &mut oi[span.clone()],
                         &mut ov[span],

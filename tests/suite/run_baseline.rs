@@ -30,6 +30,7 @@ fn tiny(workspace: PathBuf, out: PathBuf) -> RunOptions {
     o.keep = 32;
     o.max_iterations = 1;
     o.rays_per_texel = 1;
+    o.edge_rays = 0;
     o.materials = MaterialCount::Fixed(1);
     o.progress = false;
     o.render_training = false;

@@ -28,6 +28,7 @@ fn small(workspace: PathBuf, tag: &str) -> RunOptions {
     o.normal_grid = 16;
     o.keep = 32;
     o.rays_per_texel = 1;
+    o.edge_rays = 0;
     o.max_iterations = 2;
     o.irls_iterations = 1;
     o.materials = MaterialCount::Fixed(2);

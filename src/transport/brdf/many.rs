@@ -45,8 +45,28 @@ impl Samples {
 }
 
 impl LobeAt {
-    /// `out[i] = self.eval(&(x[i], y[i], z[i]))` for the samples `range` of `s`.
+    /// `out[i] = self.eval(&(x[i], y[i], z[i]))` for the samples `range` of `s`. Compiled
+    /// for AVX2 too when the CPU has it (four samples per instruction instead of two; no
+    /// fused multiply-add, so the values stay bit-identical to [`LobeAt::eval`]).
     pub(crate) fn eval_many(&self, s: &Samples, range: std::ops::Range<usize>, out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports the feature `eval_many_avx2` is compiled for.
+            return unsafe { self.eval_many_avx2(s, range, out) };
+        }
+        self.eval_many_impl(s, range, out)
+    }
+
+    /// [`LobeAt::eval_many_impl`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn eval_many_avx2(&self, s: &Samples, range: std::ops::Range<usize>, out: &mut [f64]) {
+        self.eval_many_impl(s, range, out)
+    }
+
+    /// The loops behind [`LobeAt::eval_many`].
+    #[inline(always)]
+    fn eval_many_impl(&self, s: &Samples, range: std::ops::Range<usize>, out: &mut [f64]) {
         let (x, y, z) = (&s.x[range.clone()], &s.y[range.clone()], &s.z[range]);
         let out = &mut out[..x.len()];
         match *self {
