@@ -167,23 +167,44 @@ fn mirror(i: isize, n: usize) -> usize {
 }
 
 /// Separable Gaussian filter of a `width × height` single-channel image, mirrored borders.
+/// Each output is `Σ_d k_d · in_{i+d}` summed in the order `d = −r..=r` (rows, then
+/// columns); the interior, where no tap is mirrored, reads its window directly (the same
+/// products in the same order as the mirrored border path).
 fn gaussian_filter(img: &[f64], width: usize, height: usize) -> Vec<f64> {
     let k = ssim_kernel();
-    let r = SSIM_RADIUS as isize;
+    let r = SSIM_RADIUS;
+    let mirrored = |x: usize, n: usize, at: &dyn Fn(usize) -> f64| -> f64 {
+        let mut acc = 0.0;
+        for (j, w) in k.iter().enumerate() {
+            acc += w * at(mirror(x as isize + j as isize - r as isize, n));
+        }
+        acc
+    };
     let mut rows = vec![0.0; img.len()];
-    for y in 0..height {
-        for x in 0..width {
-            rows[y * width + x] = (-r..=r)
-                .map(|d| k[(d + r) as usize] * img[y * width + mirror(x as isize + d, width)])
-                .sum();
+    for (src, dst) in img.chunks_exact(width).zip(rows.chunks_exact_mut(width)) {
+        for (x, o) in dst.iter_mut().enumerate() {
+            *o = if x >= r && x + r < width {
+                let mut acc = 0.0;
+                for (w, v) in k.iter().zip(&src[x - r..=x + r]) {
+                    acc += w * v;
+                }
+                acc
+            } else {
+                mirrored(x, width, &|i| src[i])
+            };
         }
     }
     let mut out = vec![0.0; img.len()];
-    for y in 0..height {
-        for x in 0..width {
-            out[y * width + x] = (-r..=r)
-                .map(|d| k[(d + r) as usize] * rows[mirror(y as isize + d, height) * width + x])
-                .sum();
+    for (y, dst) in out.chunks_exact_mut(width).enumerate() {
+        if y >= r && y + r < height {
+            for (j, w) in k.iter().enumerate() {
+                let src = &rows[(y + j - r) * width..(y + j - r + 1) * width];
+                dst.iter_mut().zip(src).for_each(|(o, v)| *o += w * v);
+            }
+        } else {
+            for (x, o) in dst.iter_mut().enumerate() {
+                *o = mirrored(y, height, &|i| rows[i * width + x]);
+            }
         }
     }
     out
@@ -565,6 +586,39 @@ mod tests {
             total += s / inside.iter().filter(|&&m| m).count() as f64;
         }
         assert!((total / 3.0 - c["mean"].as_f64().unwrap()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn gaussian_filter_equals_the_mirrored_convolution_by_definition() {
+        // The direct definition, every tap through `mirror`, rows then columns, on an image
+        // with an interior (17 × 13 > 2r + 1) and a thin one (all border, 4 × 3). The fast
+        // interior path adds the same products in the same order: equal to the last bit.
+        let k = ssim_kernel();
+        let r = SSIM_RADIUS as isize;
+        for (w, h) in [(17usize, 13usize), (4, 3)] {
+            let img: Vec<f64> = (0..w * h).map(|i| ((i * 37 % 101) as f64).sin()).collect();
+            let conv = |get: &dyn Fn(usize, usize) -> f64, horizontal: bool| -> Vec<f64> {
+                let mut out = vec![0.0; w * h];
+                for y in 0..h {
+                    for x in 0..w {
+                        let mut acc = 0.0;
+                        for d in -r..=r {
+                            let (xx, yy) = if horizontal {
+                                (mirror(x as isize + d, w), y)
+                            } else {
+                                (x, mirror(y as isize + d, h))
+                            };
+                            acc += k[(d + r) as usize] * get(xx, yy);
+                        }
+                        out[y * w + x] = acc;
+                    }
+                }
+                out
+            };
+            let rows = conv(&|x, y| img[y * w + x], true);
+            let want = conv(&|x, y| rows[y * w + x], false);
+            assert_eq!(gaussian_filter(&img, w, h), want, "{w} × {h}");
+        }
     }
 
     #[test]

@@ -35,13 +35,15 @@
 //! the default renders at the fit's resolution; `--render-local-resolution 64` is for
 //! relighting a known or very sharp model under novel light.
 
+pub(crate) use super::half_fit::{projected_x, span_mid, HALF_FIT_CG, HALF_FIT_GPCG};
 use super::truth::Truth;
 use super::Fitted;
 use crate::import::photo::Photo;
 use crate::observe::{self, Observations, ObserveOptions};
 use crate::render::{self, Raster};
+use crate::report::metrics::{image_metrics, MetricsEntry};
 use crate::report::{compare, psnr, HoldoutEntry};
-use crate::solve::{self, Problem};
+use crate::solve;
 use crate::sphere::envmap::OctEnv;
 use crate::transport::visibility::Visibility;
 use crate::transport::{self, TransportOptions};
@@ -206,7 +208,7 @@ pub(crate) struct Evaluation {
     /// protocol's light).
     pub render_seconds: [f64; 2],
     /// Wall and CPU seconds of protocol (b)'s light fits (observations, transport and a
-    /// capped lighting solve per view, [`HALF_FIT_GPCG`]).
+    /// capped lighting solve per view, [`super::half_fit`]).
     pub half_fit_seconds: [f64; 2],
     /// Literature metrics per held-out photo and protocol ([`crate::report::metrics`]).
     pub metrics: Vec<crate::report::metrics::MetricsEntry>,
@@ -394,83 +396,6 @@ fn object_mid_x(raster: &Raster) -> Option<f64> {
     span_mid(xs)
 }
 
-/// The middle of the span of `xs`, `(min + max) / 2` (pixel centres: the middle of the
-/// covered pixels), or `None` when empty: the left/right rule of protocol (b).
-pub(super) fn span_mid(xs: impl Iterator<Item = f64>) -> Option<f64> {
-    let (lo, hi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-        (lo.min(x), hi.max(x))
-    });
-    (lo <= hi).then_some(0.5 * (lo + hi))
-}
-
-/// The pixel `x` at which `view` sees `point`, or `None` behind the camera.
-pub(super) fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3) -> Option<f64> {
-    let cam = view.image.cam_from_world_point(point);
-    view.camera.project(&cam).map(|px| px[0])
-}
-
-/// GPCG iterations and CG steps per GPCG iteration of protocol (b)'s light fit, which
-/// starts from the mean training map. Measured on the Minerva model (2,930 vertices, 3
-/// held-out views, `bench-results/archive/pipeline-scaling.md`): against 300 × 100 from zero (which
-/// stops at its cap, not at the KKT tolerance) 4.0 instead of 10.9 CPU s, the `half` RMSEs
-/// within 0.2% (0.08649 / 0.07549 / 0.09602 against 0.08651 / 0.07559 / 0.09622); 50 × 20
-/// matches to 5 digits at 7.0 s, 5 × 20 under-solves (1–3% off).
-pub(super) const HALF_FIT_GPCG: usize = 20;
-/// See [`HALF_FIT_GPCG`].
-pub(super) const HALF_FIT_CG: usize = 20;
-
-/// Protocol (b): fit the light on the observations left of `mid_x`, frozen reflectance,
-/// from `start` (the mean training map) with the caps [`HALF_FIT_GPCG`] × [`HALF_FIT_CG`].
-fn fit_left_half(f: &Fitted, v: usize, mid_x: f64, start: &OctEnv) -> Result<Option<OctEnv>> {
-    let view = &f.scene.views[v];
-    let obs = f.observations_of(v);
-    let mut left = Observations::default();
-    for p in 0..obs.len() {
-        let x = obs.vertex[p] as usize;
-        let Some(px) = projected_x(view, &f.scene.mesh.positions[x]) else {
-            continue;
-        };
-        if px < mid_x && obs.weight[p] > 0.0 {
-            left.vertex.push(obs.vertex[p]);
-            left.photo.push(0);
-            left.rgb.push(obs.rgb[p]);
-            left.weight.push(obs.weight[p]);
-            left.dir.push(obs.dir[p]);
-        }
-    }
-    if left.is_empty() {
-        return Ok(None);
-    }
-    let all = 0..left.len();
-    left.photo_ranges = vec![all];
-    let tr = f.transport_for(&left)?;
-    let problem = Problem {
-        obs: &left,
-        transport: &tr,
-        n_vertices: f.scene.mesh.positions.len(),
-        n_photos: 1,
-    };
-    // Every left-half observation: the protocol measures the fitted reflectance, and the
-    // lighting sample (a speed lever of the estimate) moved its errors by up to 4.5% on
-    // 30K vertices (bench-results/lighting-sample.md).
-    let opts = solve::EstimateOptions {
-        qp_max_iter: HALF_FIT_GPCG,
-        qp_max_cg: HALF_FIT_CG,
-        lighting_sample: 0,
-        light_prior: f
-            .half_prior
-            .clone()
-            .or(f.estimate_options.light_prior.clone()),
-        ..f.estimate_options.clone()
-    };
-    let start = [0, 1, 2].map(|c| start.channel(c));
-    let l = solve::fit_light_frozen(&problem, &f.beta, 0, Some(&start), &opts)?;
-    Ok(Some(OctEnv::from_channels(
-        f.opts.global_resolution,
-        [&l[0], &l[1], &l[2]],
-    )))
-}
-
 /// Evaluate every held-out view under each protocol that applies; write its renders.
 pub(crate) fn evaluate(
     f: &Fitted,
@@ -508,7 +433,7 @@ pub(crate) fn evaluate(
                 .par_iter()
                 .zip(mids)
                 .map(|(&v, mid)| match mid {
-                    Some(mid) => fit_left_half(f, v, *mid, &mean),
+                    Some(mid) => super::half_fit::fit_left_half(f, v, *mid, &mean),
                     None => Ok(None),
                 })
                 .collect()
@@ -606,33 +531,37 @@ pub(crate) fn evaluate(
                 scored.insert(at, ("baseline", b.as_slice()));
             }
             // The first protocol that applies is the headline (truth, else half, else mean).
+            // Each protocol's figures and PNGs on their own thread (independent images).
+            let scored_entries: Vec<Result<(HoldoutEntry, MetricsEntry)>> = scored
+                .par_iter()
+                .map(|&(protocol, rgb)| {
+                    let mask: &[bool] = match (protocol, &right_half) {
+                        ("half" | "baseline", Some(right)) => right,
+                        _ => &valid,
+                    };
+                    let e = entry(name, protocol, photo, rgb, mask);
+                    let h = raster.height as usize;
+                    let m = MetricsEntry {
+                        image: name.to_string(),
+                        protocol: protocol.to_string(),
+                        metrics: image_metrics(&photo.rgb, rgb, w, h, mask),
+                    };
+                    let path = renders.join(format!("{stem}.{protocol}.png"));
+                    super::output::write_triptych(&path, photo, raster, rgb, e.scale)?;
+                    Ok((e, m))
+                })
+                .collect();
             let mut best: Option<f64> = None;
             let mut pair = [None, None];
-            for (protocol, rgb) in scored {
-                let mask: &[bool] = match (protocol, &right_half) {
-                    ("half" | "baseline", Some(right)) => right,
-                    _ => &valid,
-                };
-                let e = entry(name, protocol, photo, rgb, mask);
+            for scored_entry in scored_entries {
+                let (e, m) = scored_entry?;
                 best.get_or_insert(e.rmse_scaled);
-                match protocol {
+                match e.protocol.as_str() {
                     "half" => pair[0] = Some(e.rmse_scaled),
                     "baseline" => pair[1] = Some(e.rmse_scaled),
                     _ => {}
                 }
-                metrics.push(crate::report::metrics::MetricsEntry {
-                    image: name.to_string(),
-                    protocol: protocol.to_string(),
-                    metrics: crate::report::metrics::image_metrics(
-                        &photo.rgb,
-                        rgb,
-                        w,
-                        raster.height as usize,
-                        mask,
-                    ),
-                });
-                let path = renders.join(format!("{stem}.{protocol}.png"));
-                super::output::write_triptych(&path, photo, raster, rgb, e.scale)?;
+                metrics.push(m);
                 holdout.push(e);
             }
             if let [Some(m), Some(b)] = pair {

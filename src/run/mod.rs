@@ -27,6 +27,7 @@ mod baseline;
 mod evaluate;
 mod example;
 mod fit;
+mod half_fit;
 pub mod half_prior;
 mod holdout;
 mod html_inputs;
