@@ -1,0 +1,236 @@
+use super::*;
+use rand::{Rng, SeedableRng};
+
+#[test]
+fn entry_chunks_cover_the_rows_in_order_and_balance_the_entries() {
+    // 1,000 rows of 0–99 entries.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    let mut offsets = vec![0];
+    for _ in 0..1000 {
+        let len = rng.random_range(0..100);
+        offsets.push(offsets.last().unwrap() + len);
+    }
+    let chunks = entry_chunks(&offsets, 4);
+    assert_eq!(chunks.len(), 4);
+    assert_eq!(chunks[0].start, 0);
+    assert_eq!(chunks.last().unwrap().end, 1000);
+    for w in chunks.windows(2) {
+        assert_eq!(w[0].end, w[1].start);
+    }
+    let total = *offsets.last().unwrap();
+    for c in &chunks {
+        let e = offsets[c.end] - offsets[c.start];
+        // A cut lands on a row boundary, so a part is off its quarter by less than one
+        // row (< 100 entries).
+        assert!((e as i64 - total as i64 / 4).abs() < 100, "{e} of {total}");
+    }
+    // Fewer rows than parts, and no rows: no empty part.
+    assert_eq!(entry_chunks(&[0, 5, 9], 4), vec![0..1, 1..2]);
+    assert!(entry_chunks(&[0], 4).is_empty());
+}
+
+/// Rows of random lengths (0–`max_len` entries, ascending indices over `n²`) and values.
+fn random_rows(
+    rng: &mut rand::rngs::StdRng,
+    n: usize,
+    rows: usize,
+    max_len: usize,
+) -> (Vec<usize>, Vec<HaarIndex>, Vec<[f32; 3]>) {
+    let mut offsets = vec![0];
+    let (mut index, mut value) = (Vec::new(), Vec::new());
+    for _ in 0..rows {
+        let len = rng.random_range(0..=max_len);
+        let mut idx: Vec<HaarIndex> = rand::seq::index::sample(rng, n * n, len)
+            .into_iter()
+            .map(|m| m as HaarIndex)
+            .collect();
+        idx.sort_unstable();
+        for _ in &idx {
+            value.push([0, 1, 2].map(|_| rng.random_range(-1.0_f32..1.0)));
+        }
+        index.extend(idx);
+        offsets.push(index.len());
+    }
+    (offsets, index, value)
+}
+
+#[test]
+fn paired_row_dots_equal_single_row_dots_bit_for_bit() {
+    // Each row's sum runs over its own entries in its own order, so the pair must
+    // reproduce `row_dot` exactly (no tolerance), whichever row is longer.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let n = 16;
+    let (offsets, index, value) = random_rows(&mut rng, n, 200, 120);
+    let h: Vec<[f64; 3]> = (0..n * n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let row = |q: usize| {
+        (
+            &index[offsets[q]..offsets[q + 1]],
+            &value[offsets[q]..offsets[q + 1]],
+        )
+    };
+    for q in 0..199 {
+        let (a, b) = (row(q), row(q + 1));
+        let [x, y] = row_dot_pair(a, b, &h);
+        assert_eq!(x, row_dot(a.0, a.1, &h), "row {q}");
+        assert_eq!(y, row_dot(b.0, b.1, &h), "row {}", q + 1);
+    }
+}
+
+#[test]
+fn the_avx2_product_is_the_scalar_product_bit_for_bit() {
+    // The same rows with the padding entry (the AVX2 path, where the CPU has it) and
+    // without (the scalar path): each lane does the scalar code's operations in its
+    // order, so the products must agree exactly, over four parts, with zero-weight
+    // rows and rows of every length down to empty.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+    let n = 32;
+    let rows = 257;
+    let (offsets, index, value) = random_rows(&mut rng, n, rows, 300);
+    let dw: Vec<[f64; 3]> = (0..rows)
+        .map(|q| {
+            [0, 1, 2].map(|_| {
+                if q % 5 == 0 {
+                    0.0
+                } else {
+                    rng.random_range(0.0..2.0)
+                }
+            })
+        })
+        .collect();
+    let scalar = PhotoSystem {
+        range: 0..rows,
+        n,
+        dw,
+        chunks: entry_chunks(&offsets, PRODUCT_CHUNKS),
+        offsets,
+        index,
+        value,
+    };
+    let mut padded_value = scalar.value.clone();
+    padded_value.push([0.0; 3]);
+    let padded = PhotoSystem {
+        range: scalar.range.clone(),
+        n,
+        dw: scalar.dw.clone(),
+        offsets: scalar.offsets.clone(),
+        index: scalar.index.clone(),
+        value: padded_value,
+        chunks: scalar.chunks.clone(),
+    };
+    let h: Vec<[f64; 3]> = (0..n * n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let (mut a, mut b) = (vec![[0.5; 3]; n * n], vec![[0.5; 3]; n * n]);
+    scalar.normal_rows(&h, &mut a);
+    padded.normal_rows(&h, &mut b);
+    assert!(a.iter().flatten().any(|v| (v - 0.5).abs() > 1.0));
+    assert_eq!(a, b);
+}
+
+#[test]
+fn one_part_product_is_the_forward_scale_adjoint_sequence_exactly() {
+    // With a single part (and an odd row count, so one row is left unpaired) the fused
+    // product adds the same terms in the same order as the forward rows, the scaling
+    // and the adjoint rows done one after the other: equal bit for bit.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let n = 16;
+    let rows = 301;
+    let (offsets, index, mut value) = random_rows(&mut rng, n, rows, 80);
+    // The padding entry of `PhotoSystem::new`: the AVX2 path where the CPU has it.
+    value.push([0.0; 3]);
+    let dw: Vec<[f64; 3]> = (0..rows)
+        .map(|q| {
+            [0, 1, 2].map(|_| {
+                if q % 7 == 0 {
+                    0.0
+                } else {
+                    rng.random_range(0.0..2.0)
+                }
+            })
+        })
+        .collect();
+    let sys = PhotoSystem {
+        range: 0..rows,
+        n,
+        dw: dw.clone(),
+        offsets,
+        index,
+        value,
+        chunks: std::iter::once(0..rows).collect(),
+    };
+    let h: Vec<[f64; 3]> = (0..n * n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let mut fused = vec![[0.0; 3]; n * n];
+    sys.normal_rows(&h, &mut fused);
+    let mut s = vec![[0.0; 3]; rows];
+    sys.forward_rows(&h, &mut s);
+    let u: Vec<[f64; 3]> = s
+        .iter()
+        .zip(&dw)
+        .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
+        .collect();
+    let mut seq = vec![[0.0; 3]; n * n];
+    sys.adjoint_rows(&u, &mut seq);
+    assert_eq!(fused, seq);
+}
+
+#[test]
+fn the_parallel_product_is_the_forward_scale_adjoint_sequence() {
+    // Random merged rows over a 16² map; the fused, chunked `Aᵀ D A h` against the
+    // forward rows, the scaling by `D` and the adjoint rows done one after the other.
+    // Only the order of the additions differs: 1e-12 relative.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let n = 16;
+    let rows = 500;
+    let mut offsets = vec![0];
+    let (mut index, mut value) = (Vec::new(), Vec::new());
+    for _ in 0..rows {
+        let mut idx: Vec<HaarIndex> = (0..n * n)
+            .filter(|_| rng.random_bool(0.2))
+            .map(|m| m as HaarIndex)
+            .collect();
+        idx.sort_unstable();
+        for _ in &idx {
+            value.push([0, 1, 2].map(|_| rng.random_range(-1.0_f32..1.0)));
+        }
+        index.extend(idx);
+        offsets.push(index.len());
+    }
+    let dw: Vec<[f64; 3]> = (0..rows)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..2.0)))
+        .collect();
+    let chunks = entry_chunks(&offsets, PRODUCT_CHUNKS);
+    let sys = PhotoSystem {
+        range: 0..rows,
+        n,
+        dw: dw.clone(),
+        offsets,
+        index,
+        value,
+        chunks,
+    };
+    let h: Vec<[f64; 3]> = (0..n * n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let mut fused = vec![[0.0; 3]; n * n];
+    sys.normal_rows(&h, &mut fused);
+    let mut s = vec![[0.0; 3]; rows];
+    sys.forward_rows(&h, &mut s);
+    let u: Vec<[f64; 3]> = s
+        .iter()
+        .zip(&dw)
+        .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
+        .collect();
+    let mut seq = vec![[0.0; 3]; n * n];
+    sys.adjoint_rows(&u, &mut seq);
+    let scale = seq.iter().flatten().fold(0.0_f64, |a, v| a.max(v.abs()));
+    assert!(scale > 1.0);
+    for (a, b) in fused.iter().zip(&seq) {
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() <= 1e-12 * scale, "{} vs {}", a[c], b[c]);
+        }
+    }
+}
