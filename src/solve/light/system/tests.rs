@@ -154,26 +154,13 @@ fn one_part_product_is_the_forward_scale_adjoint_sequence_exactly() {
     let sys = PhotoSystem {
         range: 0..rows,
         n,
-        dw: dw.clone(),
+        dw,
         offsets,
         index,
         value,
         chunks: std::iter::once(0..rows).collect(),
     };
-    let h: Vec<[f64; 3]> = (0..n * n)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
-        .collect();
-    let mut fused = vec![[0.0; 3]; n * n];
-    sys.normal_rows(&h, &mut fused);
-    let mut s = vec![[0.0; 3]; rows];
-    sys.forward_rows(&h, &mut s);
-    let u: Vec<[f64; 3]> = s
-        .iter()
-        .zip(&dw)
-        .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
-        .collect();
-    let mut seq = vec![[0.0; 3]; n * n];
-    sys.adjoint_rows(&u, &mut seq);
+    let (fused, seq) = fused_and_sequential(&sys, &mut rng);
     assert_eq!(fused, seq);
 }
 
@@ -206,26 +193,13 @@ fn the_parallel_product_is_the_forward_scale_adjoint_sequence() {
     let sys = PhotoSystem {
         range: 0..rows,
         n,
-        dw: dw.clone(),
+        dw,
         offsets,
         index,
         value,
         chunks,
     };
-    let h: Vec<[f64; 3]> = (0..n * n)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
-        .collect();
-    let mut fused = vec![[0.0; 3]; n * n];
-    sys.normal_rows(&h, &mut fused);
-    let mut s = vec![[0.0; 3]; rows];
-    sys.forward_rows(&h, &mut s);
-    let u: Vec<[f64; 3]> = s
-        .iter()
-        .zip(&dw)
-        .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
-        .collect();
-    let mut seq = vec![[0.0; 3]; n * n];
-    sys.adjoint_rows(&u, &mut seq);
+    let (fused, seq) = fused_and_sequential(&sys, &mut rng);
     let scale = seq.iter().flatten().fold(0.0_f64, |a, v| a.max(v.abs()));
     assert!(scale > 1.0);
     for (a, b) in fused.iter().zip(&seq) {
@@ -233,4 +207,28 @@ fn the_parallel_product_is_the_forward_scale_adjoint_sequence() {
             assert!((a[c] - b[c]).abs() <= 1e-12 * scale, "{} vs {}", a[c], b[c]);
         }
     }
+}
+
+/// `Aᵀ D A h` for a random light `h`, fused ([`PhotoSystem::normal_rows`]) and as the
+/// forward rows, the scaling by `D` and the adjoint rows one after the other.
+fn fused_and_sequential(
+    sys: &PhotoSystem,
+    rng: &mut rand::rngs::StdRng,
+) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let n2 = sys.n * sys.n;
+    let h: Vec<[f64; 3]> = (0..n2)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let mut fused = vec![[0.0; 3]; n2];
+    sys.normal_rows(&h, &mut fused);
+    let mut s = vec![[0.0; 3]; sys.range.len()];
+    sys.forward_rows(&h, &mut s);
+    let u: Vec<[f64; 3]> = s
+        .iter()
+        .zip(&sys.dw)
+        .map(|(s, d)| [s[0] * d[0], s[1] * d[1], s[2] * d[2]])
+        .collect();
+    let mut seq = vec![[0.0; 3]; n2];
+    sys.adjoint_rows(&u, &mut seq);
+    (fused, seq)
 }
