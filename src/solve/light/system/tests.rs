@@ -61,9 +61,7 @@ fn paired_row_dots_equal_single_row_dots_bit_for_bit() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
     let n = 16;
     let (offsets, index, value) = random_rows(&mut rng, n, 200, 120);
-    let h: Vec<[f64; 3]> = (0..n * n)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
-        .collect();
+    let h = random_light(&mut rng, n * n);
     let row = |q: usize| {
         (
             &index[offsets[q]..offsets[q + 1]],
@@ -88,17 +86,7 @@ fn the_avx2_product_is_the_scalar_product_bit_for_bit() {
     let n = 32;
     let rows = 257;
     let (offsets, index, value) = random_rows(&mut rng, n, rows, 300);
-    let dw: Vec<[f64; 3]> = (0..rows)
-        .map(|q| {
-            [0, 1, 2].map(|_| {
-                if q % 5 == 0 {
-                    0.0
-                } else {
-                    rng.random_range(0.0..2.0)
-                }
-            })
-        })
-        .collect();
+    let dw = random_weights(&mut rng, rows, 5);
     let scalar = PhotoSystem {
         range: 0..rows,
         n,
@@ -119,9 +107,7 @@ fn the_avx2_product_is_the_scalar_product_bit_for_bit() {
         value: padded_value,
         chunks: scalar.chunks.clone(),
     };
-    let h: Vec<[f64; 3]> = (0..n * n)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
-        .collect();
+    let h = random_light(&mut rng, n * n);
     let (mut a, mut b) = (vec![[0.5; 3]; n * n], vec![[0.5; 3]; n * n]);
     scalar.normal_rows(&h, &mut a);
     padded.normal_rows(&h, &mut b);
@@ -140,17 +126,7 @@ fn one_part_product_is_the_forward_scale_adjoint_sequence_exactly() {
     let (offsets, index, mut value) = random_rows(&mut rng, n, rows, 80);
     // The padding entry of `PhotoSystem::new`: the AVX2 path where the CPU has it.
     value.push([0.0; 3]);
-    let dw: Vec<[f64; 3]> = (0..rows)
-        .map(|q| {
-            [0, 1, 2].map(|_| {
-                if q % 7 == 0 {
-                    0.0
-                } else {
-                    rng.random_range(0.0..2.0)
-                }
-            })
-        })
-        .collect();
+    let dw = random_weights(&mut rng, rows, 7);
     let sys = PhotoSystem {
         range: 0..rows,
         n,
@@ -216,9 +192,7 @@ fn fused_and_sequential(
     rng: &mut rand::rngs::StdRng,
 ) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
     let n2 = sys.n * sys.n;
-    let h: Vec<[f64; 3]> = (0..n2)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
-        .collect();
+    let h = random_light(rng, n2);
     let mut fused = vec![[0.0; 3]; n2];
     sys.normal_rows(&h, &mut fused);
     let mut s = vec![[0.0; 3]; sys.range.len()];
@@ -231,4 +205,26 @@ fn fused_and_sequential(
     let mut seq = vec![[0.0; 3]; n2];
     sys.adjoint_rows(&u, &mut seq);
     (fused, seq)
+}
+
+/// `α ω` per row in `[0, 2)`, every `zero_every`-th row 0 (rows the products skip).
+fn random_weights(rng: &mut rand::rngs::StdRng, rows: usize, zero_every: usize) -> Vec<[f64; 3]> {
+    (0..rows)
+        .map(|q| {
+            [0, 1, 2].map(|_| {
+                if q % zero_every == 0 {
+                    0.0
+                } else {
+                    rng.random_range(0.0..2.0)
+                }
+            })
+        })
+        .collect()
+}
+
+/// A random interleaved light of `n2` coefficients in `[-1, 1)`.
+fn random_light(rng: &mut rand::rngs::StdRng, n2: usize) -> Vec<[f64; 3]> {
+    (0..n2)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect()
 }
