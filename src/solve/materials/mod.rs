@@ -34,6 +34,7 @@ use crate::solve::qp::{nnls, NnlsOptions};
 use crate::{Error, Result};
 
 pub mod propagate;
+pub mod reanchor;
 
 /// The λ part of the material step.
 #[derive(Debug, Clone)]
