@@ -39,7 +39,8 @@
 //! Environment: `ABLATION_SCENES` (comma list), `ABLATION_ROWS` (`;`-separated row
 //! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
 //! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
-//! `ABLATION_NO_K=1` (skip the K search), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
+//! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss` ([`fit_start`]),
+//! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
 
@@ -49,6 +50,7 @@ mod synth_case;
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::choose::{candidates, decide, LightChoice};
 use relight_cpc::solve::materials::propagate::propagate_unseen;
+use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
 use relight_cpc::solve::{adapt, estimate, Estimate};
 use relight_cpc::solve::{EstimateOptions, Materials0};
 use serde_json::{json, Value};
@@ -191,6 +193,15 @@ fn anderson(o: Option<EstimateOptions>, m: usize) -> Option<EstimateOptions> {
     })
 }
 
+/// `o` with IRLS's robust scale floored at `floor` of the photo's RMS radiance
+/// ([`EstimateOptions::robust_floor`], default 0.05).
+fn floor(o: Option<EstimateOptions>, floor: f64) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        robust_floor: floor,
+        ..o
+    })
+}
+
 /// `o` with early stopping's patience at 4 outer iterations (default 1).
 fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     o.map(|o| EstimateOptions { patience: 4, ..o })
@@ -242,6 +253,14 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular, Anderson 3, no IRLS, patience 1000", make: |b| patience(no_irls(anderson(achromatic(sum1(choice("paper", b), 1.0)), 3)), 1000) },
         Row::Fit { label: "prior, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("prior", b), 1.0)), 1000) },
         Row::Fit { label: "prior SH η=0.3, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 0.3, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "prior SH η=1, Σw=1 prior 1", make: |b| sum1(prior(b, 1.0, 0.0), 1.0) },
+        Row::Fit { label: "prior SH η=3, Σw=1 prior 1", make: |b| sum1(prior(b, 3.0, 0.0), 1.0) },
+        Row::Fit { label: "prior SH η=3, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 3.0, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "prior SH η=10, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 10.0, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "paper, robust floor 0.15", make: |b| floor(choice("paper", b), 0.15) },
+        Row::Fit { label: "paper, Σw=1 prior 1, robust floor 0.1", make: |b| floor(sum1(choice("paper", b), 1.0), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 1, robust floor 0.15", make: |b| floor(sum1(choice("paper", b), 1.0), 0.15) },
+        Row::Fit { label: "paper, Σw=1 prior 1, robust floor 0.3", make: |b| floor(sum1(choice("paper", b), 1.0), 0.3) },
         Row::Fit { label: "prior SH η=1, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 1.0, 0.0), 1.0)), 1000) },
     ]
 }
@@ -361,10 +380,118 @@ fn start_ratio_errors(case: &Case, fl: &Floors) -> [f64; 3] {
     ratio_errors(case, &init.lambda, &init.weights, &fl.seen)
 }
 
-/// Fit `case` with options `o` from the paper's start with the true K; its figures.
+/// The fit's start: the paper's (k-means), or with `ABLATION_START=truth` the TRUE
+/// materials (a diagnosis: does the alternation leave the truth?), or with
+/// `ABLATION_START=gloss` the paper's with every glossy lobe at
+/// [`relight_cpc::solve::starts::GLOSS_FRACTION`] of the mean Lambertian weight, or with
+/// `ABLATION_START=open` the paper's clustering of [`open_corrected_colours`]; the oracle
+/// starts `truth-diffuse` (the TRUE materials without their glossy lobes) and
+/// `kmeans-true-albedo` (the k-means weights, the TRUE Lambertian weights) say which part
+/// of the start matters.
+fn fit_start(case: &Case) -> Materials0 {
+    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    match std::env::var("ABLATION_START").as_deref() {
+        Ok("truth") => case.true_materials(),
+        Ok("truth-diffuse") => {
+            // The TRUE weights and Lambertian weights, every glossy lobe 0.
+            let mut m = case.true_materials();
+            for row in &mut m.lambda {
+                for v in row.iter_mut().skip(1) {
+                    *v = [0.0; 3];
+                }
+            }
+            m
+        }
+        Ok("kmeans-true-albedo") => {
+            // The k-means start's weights with each cluster's Lambertian weight replaced by
+            // the TRUE one of the material it stands for (best order).
+            let mut m = init;
+            let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+            let est = estimate_of(&m);
+            let (_, _, perm) = metrics::best_order(case, &est, &seen);
+            for (k, row) in m.lambda.iter_mut().enumerate() {
+                row[0] = case.lambda[perm[k]][0];
+            }
+            m
+        }
+        Ok("open") => {
+            let (mean, seen) = open_corrected_colours(case);
+            let init =
+                relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
+                    .expect("k-means start");
+            Materials0::from_initial(&init, case.basis.len(), 0)
+        }
+        Ok("gloss") => relight_cpc::solve::starts::uniform_gloss(
+            &init,
+            0,
+            relight_cpc::solve::starts::GLOSS_FRACTION,
+        ),
+        _ => init,
+    }
+}
+
+/// A bare [`Estimate`] holding materials `m` (for the metrics that read one).
+fn estimate_of(m: &Materials0) -> Estimate {
+    Estimate {
+        lights: Vec::new(),
+        lambda: m.lambda.clone(),
+        weights: m.weights.clone(),
+        timeline: Vec::new(),
+        normalisation: String::new(),
+        mu: Vec::new(),
+        irls_weights: Vec::new(),
+        conditioning: Default::default(),
+        validation: None,
+        lighting_sample: None,
+    }
+}
+
+/// Per vertex `Σ_p α_p y_p / Σ_p α_p o_p` over its training observations, `o_p` the
+/// Lambertian response of the observation to a white map of radiance 1 (its
+/// cosine-weighted unoccluded fraction): the mean colour with the occlusion part of the
+/// shading divided out.
+fn open_corrected_colours(case: &Case) -> (Vec<[f64; 3]>, Vec<bool>) {
+    let white = vec![(0..case.basis.len())
+        .map(|b| if b == 0 { [1.0; 3] } else { [0.0; 3] })
+        .collect::<Vec<_>>()];
+    let maps: Vec<[Vec<f64>; 3]> = case
+        .train
+        .lights
+        .iter()
+        .map(|l| [0, 1, 2].map(|c| vec![1.0; l[c].len()]))
+        .collect();
+    let open = predict_with(&case.train, case.nv, &white, &vec![1.0; case.nv], &maps);
+    let obs = &case.train.obs;
+    let mut num = vec![[0.0; 3]; case.nv];
+    let mut den = vec![0.0; case.nv];
+    for p in 0..obs.len() {
+        let a = obs.weight[p] as f64;
+        if a <= 0.0 {
+            continue;
+        }
+        let x = obs.vertex[p] as usize;
+        for c in 0..3 {
+            num[x][c] += a * obs.rgb[p][c] as f64;
+        }
+        den[x] += a * open[p][0];
+    }
+    let seen: Vec<bool> = den.iter().map(|&d| d > 0.0).collect();
+    let mean = (0..case.nv)
+        .map(|x| {
+            if seen[x] {
+                num[x].map(|v| v / den[x])
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    (mean, seen)
+}
+
+/// Fit `case` with options `o` from [`fit_start`] with the true K; its figures.
 fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let problem = case.train.problem(case.nv);
-    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    let init = fit_start(case);
     let t0 = Instant::now();
     let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
     let seconds = t0.elapsed().as_secs_f64();
@@ -426,6 +553,48 @@ fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str, seconds:
             p.filled, p.isolated
         ),
     }
+}
+
+/// `ABLATION_RESTARTS=N`: up to N restarts of the alternation from the last kept fit's
+/// re-anchored materials ([`reanchor`], weights by `ABLATION_REWEIGHT=project|label`),
+/// each a row; a restart is kept while its validation score improves. Returns the kept fit.
+fn restarts(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    mut est: Estimate,
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
+    let n = env_usize("ABLATION_RESTARTS", 0);
+    let how = match std::env::var("ABLATION_REWEIGHT").as_deref() {
+        Ok("label") => Reweight::Label,
+        _ => Reweight::Project,
+    };
+    let problem = case.train.problem(case.nv);
+    let score = |e: &Estimate| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error());
+    for i in 1..=n {
+        let init = reanchor(&est.lambda, &est.weights, &fl.seen, how).expect("re-anchoring");
+        let t0 = Instant::now();
+        let next = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
+        let seconds = t0.elapsed().as_secs_f64();
+        let f = figures(case, fl, &next, start_ratio_errors(case, fl), seconds);
+        let row = format!("{label}, re-anchored ({how:?}) ×{i}");
+        eprintln!("  {row}: {f:?}");
+        let better = score(&next) < score(&est);
+        done.push(Done {
+            diagnosis: diagnosed(case, &next, &row),
+            label: row,
+            figures: f,
+            k: None,
+            note: format!("validation {:.5} against {:.5}", score(&next), score(&est)),
+        });
+        if !better {
+            break;
+        }
+        est = next;
+    }
+    est
 }
 
 /// The material count the pilot's rule picks with light options `o` (module docs):
@@ -514,6 +683,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     note: String::new(),
                     diagnosis: diagnosed(case, &est, label),
                 });
+                let est = restarts(case, &fl, &o, est, label, &mut done);
                 if env_flag("ABLATION_PROPAGATE") {
                     done.push(propagated(case, &fl, est, label, seconds));
                 }
