@@ -597,6 +597,96 @@ fn restarts(
     est
 }
 
+/// `ABLATION_SEARCH=1`: the fit from the k-means start with material `k ≥ 1`'s Lambertian
+/// weight scaled by `c_k f_k`, `f_k ∈ {1/s, 1, s}` (every combination; material 0 fixes the
+/// gauge), each a row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS`
+/// − 1 more rounds with `s` square-rooted around the kept `c`. Returns the fit with the
+/// lowest validation score (the base fit `est` among them).
+fn brightness_search(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    est: Estimate,
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
+    if !env_flag("ABLATION_SEARCH") {
+        return est;
+    }
+    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    let k = init.lambda.len();
+    let mut best = (est, vec![1.0; k - 1]);
+    let mut step: f64 = 2.0;
+    for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
+        let centre = best.1.clone();
+        for code in 0..3usize.pow(k as u32 - 1) {
+            let f: Vec<f64> = (1..k)
+                .map(|j| {
+                    centre[j - 1] * step.powi((code / 3usize.pow(j as u32 - 1) % 3) as i32 - 1)
+                })
+                .collect();
+            if f == centre {
+                continue;
+            }
+            let next = scaled_fit(case, fl, o, &init, &f, label, done);
+            if validation_of(&next) < validation_of(&best.0) {
+                best = (next, f);
+            }
+        }
+        eprintln!(
+            "  search kept {:?}, validation {:.5}",
+            best.1,
+            validation_of(&best.0)
+        );
+        step = step.sqrt();
+    }
+    best.0
+}
+
+/// The early-stopping validation score of a fit (NaN without validation).
+fn validation_of(e: &Estimate) -> f64 {
+    e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
+}
+
+/// One fit of [`brightness_search`] from `init` with material `j ≥ 1`'s Lambertian weight
+/// scaled by `f[j − 1]`, pushed as a row.
+fn scaled_fit(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    init: &Materials0,
+    f: &[f64],
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
+    let mut m = init.clone();
+    for (j, fj) in f.iter().enumerate() {
+        for v in m.lambda[j + 1][0].iter_mut() {
+            *v *= fj;
+        }
+    }
+    let problem = case.train.problem(case.nv);
+    let t0 = Instant::now();
+    let next = estimate(&problem, m, o, &mut |_, _| {}).unwrap();
+    let fig = figures(
+        case,
+        fl,
+        &next,
+        start_ratio_errors(case, fl),
+        t0.elapsed().as_secs_f64(),
+    );
+    let row = format!("{label}, start brightness ×{f:.3?}");
+    eprintln!("  {row}: {fig:?}");
+    done.push(Done {
+        diagnosis: None,
+        label: row,
+        figures: fig,
+        k: None,
+        note: format!("validation {:.5}", validation_of(&next)),
+    });
+    next
+}
+
 /// The material count the pilot's rule picks with light options `o` (module docs):
 /// `(K chosen, (K, held-out RMSE) per K tried)`.
 fn choose_k(case: &Case, o: &EstimateOptions) -> (usize, Vec<(usize, f64)>) {
@@ -684,6 +774,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     diagnosis: diagnosed(case, &est, label),
                 });
                 let est = restarts(case, &fl, &o, est, label, &mut done);
+                let est = brightness_search(case, &fl, &o, est, label, &mut done);
                 if env_flag("ABLATION_PROPAGATE") {
                     done.push(propagated(case, &fl, est, label, seconds));
                 }
