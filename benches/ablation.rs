@@ -49,6 +49,7 @@ mod synth_case;
 
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::choose::{candidates, decide, LightChoice};
+use relight_cpc::solve::materials::brightness::brightness_starts;
 use relight_cpc::solve::materials::propagate::propagate_unseen;
 use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
 use relight_cpc::solve::{adapt, estimate, Estimate};
@@ -597,9 +598,8 @@ fn restarts(
     est
 }
 
-/// `ABLATION_SEARCH=1`: the fit from the k-means start with material `k ≥ 1`'s Lambertian
-/// weight scaled by `c_k f_k`, `f_k ∈ {1/s, 1, s}` (every combination; material 0 fixes the
-/// gauge), each a row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS`
+/// `ABLATION_SEARCH=1`: the fit from every start of [`brightness_starts`] around the
+/// k-means start (material `k ≥ 1`'s Lambertian weight scaled by `c_k s^{e_k}`), each a row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS`
 /// − 1 more rounds with `s` square-rooted around the kept `c`. Returns the fit with the
 /// lowest validation score (the base fit `est` among them).
 fn brightness_search(
@@ -619,18 +619,10 @@ fn brightness_search(
     let mut step: f64 = 2.0;
     for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
         let centre = best.1.clone();
-        for code in 0..3usize.pow(k as u32 - 1) {
-            let f: Vec<f64> = (1..k)
-                .map(|j| {
-                    centre[j - 1] * step.powi((code / 3usize.pow(j as u32 - 1) % 3) as i32 - 1)
-                })
-                .collect();
-            if f == centre {
-                continue;
-            }
-            let next = scaled_fit(case, fl, o, &init, &f, label, done);
+        for st in brightness_starts(&init, 0, &centre, step) {
+            let next = scaled_fit(case, fl, o, st.materials, &st.factors, label, done);
             if validation_of(&next) < validation_of(&best.0) {
-                best = (next, f);
+                best = (next, st.factors);
             }
         }
         eprintln!(
@@ -648,23 +640,17 @@ fn validation_of(e: &Estimate) -> f64 {
     e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
 }
 
-/// One fit of [`brightness_search`] from `init` with material `j ≥ 1`'s Lambertian weight
-/// scaled by `f[j − 1]`, pushed as a row.
+/// One fit of [`brightness_search`] from `m` (material `j ≥ 1`'s Lambertian weight scaled
+/// by `f[j − 1]`), pushed as a row.
 fn scaled_fit(
     case: &Case,
     fl: &Floors,
     o: &EstimateOptions,
-    init: &Materials0,
+    m: Materials0,
     f: &[f64],
     label: &str,
     done: &mut Vec<Done>,
 ) -> Estimate {
-    let mut m = init.clone();
-    for (j, fj) in f.iter().enumerate() {
-        for v in m.lambda[j + 1][0].iter_mut() {
-            *v *= fj;
-        }
-    }
     let problem = case.train.problem(case.nv);
     let t0 = Instant::now();
     let next = estimate(&problem, m, o, &mut |_, _| {}).unwrap();

@@ -33,6 +33,7 @@ use crate::solve::problem::{Problem, CHUNK};
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::{Error, Result};
 
+pub mod brightness;
 pub mod propagate;
 pub mod reanchor;
 
