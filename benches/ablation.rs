@@ -49,9 +49,7 @@ mod synth_case;
 
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::choose::{candidates, decide, LightChoice};
-use relight_cpc::solve::materials::brightness::brightness_starts;
 use relight_cpc::solve::materials::propagate::propagate_unseen;
-use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
 use relight_cpc::solve::{adapt, estimate, Estimate};
 use relight_cpc::solve::{EstimateOptions, Materials0};
 use serde_json::{json, Value};
@@ -62,9 +60,15 @@ use synth_case::*;
 mod diagnose;
 #[path = "ablation/metrics.rs"]
 mod metrics;
+#[path = "ablation/search.rs"]
+mod search;
+#[path = "ablation/starts.rs"]
+mod starts;
 #[path = "ablation/table.rs"]
 mod table;
 use metrics::*;
+use search::{brightness_search, restarts};
+use starts::fit_start;
 use table::table;
 
 /// How a row's estimator options are made from the bench's base options; `None` when the
@@ -381,114 +385,6 @@ fn start_ratio_errors(case: &Case, fl: &Floors) -> [f64; 3] {
     ratio_errors(case, &init.lambda, &init.weights, &fl.seen)
 }
 
-/// The fit's start: the paper's (k-means), or with `ABLATION_START=truth` the TRUE
-/// materials (a diagnosis: does the alternation leave the truth?), or with
-/// `ABLATION_START=gloss` the paper's with every glossy lobe at
-/// [`relight_cpc::solve::starts::GLOSS_FRACTION`] of the mean Lambertian weight, or with
-/// `ABLATION_START=open` the paper's clustering of [`open_corrected_colours`]; the oracle
-/// starts `truth-diffuse` (the TRUE materials without their glossy lobes) and
-/// `kmeans-true-albedo` (the k-means weights, the TRUE Lambertian weights) say which part
-/// of the start matters.
-fn fit_start(case: &Case) -> Materials0 {
-    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
-    match std::env::var("ABLATION_START").as_deref() {
-        Ok("truth") => case.true_materials(),
-        Ok("truth-diffuse") => {
-            // The TRUE weights and Lambertian weights, every glossy lobe 0.
-            let mut m = case.true_materials();
-            for row in &mut m.lambda {
-                for v in row.iter_mut().skip(1) {
-                    *v = [0.0; 3];
-                }
-            }
-            m
-        }
-        Ok("kmeans-true-albedo") => {
-            // The k-means start's weights with each cluster's Lambertian weight replaced by
-            // the TRUE one of the material it stands for (best order).
-            let mut m = init;
-            let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
-            let est = estimate_of(&m);
-            let (_, _, perm) = metrics::best_order(case, &est, &seen);
-            for (k, row) in m.lambda.iter_mut().enumerate() {
-                row[0] = case.lambda[perm[k]][0];
-            }
-            m
-        }
-        Ok("open") => {
-            let (mean, seen) = open_corrected_colours(case);
-            let init =
-                relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
-                    .expect("k-means start");
-            Materials0::from_initial(&init, case.basis.len(), 0)
-        }
-        Ok("gloss") => relight_cpc::solve::starts::uniform_gloss(
-            &init,
-            0,
-            relight_cpc::solve::starts::GLOSS_FRACTION,
-        ),
-        _ => init,
-    }
-}
-
-/// A bare [`Estimate`] holding materials `m` (for the metrics that read one).
-fn estimate_of(m: &Materials0) -> Estimate {
-    Estimate {
-        lights: Vec::new(),
-        lambda: m.lambda.clone(),
-        weights: m.weights.clone(),
-        timeline: Vec::new(),
-        normalisation: String::new(),
-        mu: Vec::new(),
-        irls_weights: Vec::new(),
-        conditioning: Default::default(),
-        validation: None,
-        lighting_sample: None,
-    }
-}
-
-/// Per vertex `Σ_p α_p y_p / Σ_p α_p o_p` over its training observations, `o_p` the
-/// Lambertian response of the observation to a white map of radiance 1 (its
-/// cosine-weighted unoccluded fraction): the mean colour with the occlusion part of the
-/// shading divided out.
-fn open_corrected_colours(case: &Case) -> (Vec<[f64; 3]>, Vec<bool>) {
-    let white = vec![(0..case.basis.len())
-        .map(|b| if b == 0 { [1.0; 3] } else { [0.0; 3] })
-        .collect::<Vec<_>>()];
-    let maps: Vec<[Vec<f64>; 3]> = case
-        .train
-        .lights
-        .iter()
-        .map(|l| [0, 1, 2].map(|c| vec![1.0; l[c].len()]))
-        .collect();
-    let open = predict_with(&case.train, case.nv, &white, &vec![1.0; case.nv], &maps);
-    let obs = &case.train.obs;
-    let mut num = vec![[0.0; 3]; case.nv];
-    let mut den = vec![0.0; case.nv];
-    for p in 0..obs.len() {
-        let a = obs.weight[p] as f64;
-        if a <= 0.0 {
-            continue;
-        }
-        let x = obs.vertex[p] as usize;
-        for c in 0..3 {
-            num[x][c] += a * obs.rgb[p][c] as f64;
-        }
-        den[x] += a * open[p][0];
-    }
-    let seen: Vec<bool> = den.iter().map(|&d| d > 0.0).collect();
-    let mean = (0..case.nv)
-        .map(|x| {
-            if seen[x] {
-                num[x].map(|v| v / den[x])
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect();
-    (mean, seen)
-}
-
 /// Fit `case` with options `o` from [`fit_start`] with the true K; its figures.
 fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let problem = case.train.problem(case.nv);
@@ -554,123 +450,6 @@ fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str, seconds:
             p.filled, p.isolated
         ),
     }
-}
-
-/// `ABLATION_RESTARTS=N`: up to N restarts of the alternation from the last kept fit's
-/// re-anchored materials ([`reanchor`], weights by `ABLATION_REWEIGHT=project|label`),
-/// each a row; a restart is kept while its validation score improves. Returns the kept fit.
-fn restarts(
-    case: &Case,
-    fl: &Floors,
-    o: &EstimateOptions,
-    mut est: Estimate,
-    label: &str,
-    done: &mut Vec<Done>,
-) -> Estimate {
-    let n = env_usize("ABLATION_RESTARTS", 0);
-    let how = match std::env::var("ABLATION_REWEIGHT").as_deref() {
-        Ok("label") => Reweight::Label,
-        _ => Reweight::Project,
-    };
-    let problem = case.train.problem(case.nv);
-    let score = |e: &Estimate| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error());
-    for i in 1..=n {
-        let init = reanchor(&est.lambda, &est.weights, &fl.seen, how).expect("re-anchoring");
-        let t0 = Instant::now();
-        let next = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
-        let seconds = t0.elapsed().as_secs_f64();
-        let f = figures(case, fl, &next, start_ratio_errors(case, fl), seconds);
-        let row = format!("{label}, re-anchored ({how:?}) ×{i}");
-        eprintln!("  {row}: {f:?}");
-        let better = score(&next) < score(&est);
-        done.push(Done {
-            diagnosis: diagnosed(case, &next, &row),
-            label: row,
-            figures: f,
-            k: None,
-            note: format!("validation {:.5} against {:.5}", score(&next), score(&est)),
-        });
-        if !better {
-            break;
-        }
-        est = next;
-    }
-    est
-}
-
-/// `ABLATION_SEARCH=1`: the fit from every start of [`brightness_starts`] around the
-/// k-means start (material `k ≥ 1`'s Lambertian weight scaled by `c_k s^{e_k}`), each a row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS`
-/// − 1 more rounds with `s` square-rooted around the kept `c`. Returns the fit with the
-/// lowest validation score (the base fit `est` among them).
-fn brightness_search(
-    case: &Case,
-    fl: &Floors,
-    o: &EstimateOptions,
-    est: Estimate,
-    label: &str,
-    done: &mut Vec<Done>,
-) -> Estimate {
-    if !env_flag("ABLATION_SEARCH") {
-        return est;
-    }
-    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
-    let k = init.lambda.len();
-    let mut best = (est, vec![1.0; k - 1]);
-    let mut step: f64 = 2.0;
-    for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
-        let centre = best.1.clone();
-        for st in brightness_starts(&init, 0, &centre, step) {
-            let next = scaled_fit(case, fl, o, st.materials, &st.factors, label, done);
-            if validation_of(&next) < validation_of(&best.0) {
-                best = (next, st.factors);
-            }
-        }
-        eprintln!(
-            "  search kept {:?}, validation {:.5}",
-            best.1,
-            validation_of(&best.0)
-        );
-        step = step.sqrt();
-    }
-    best.0
-}
-
-/// The early-stopping validation score of a fit (NaN without validation).
-fn validation_of(e: &Estimate) -> f64 {
-    e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
-}
-
-/// One fit of [`brightness_search`] from `m` (material `j ≥ 1`'s Lambertian weight scaled
-/// by `f[j − 1]`), pushed as a row.
-fn scaled_fit(
-    case: &Case,
-    fl: &Floors,
-    o: &EstimateOptions,
-    m: Materials0,
-    f: &[f64],
-    label: &str,
-    done: &mut Vec<Done>,
-) -> Estimate {
-    let problem = case.train.problem(case.nv);
-    let t0 = Instant::now();
-    let next = estimate(&problem, m, o, &mut |_, _| {}).unwrap();
-    let fig = figures(
-        case,
-        fl,
-        &next,
-        start_ratio_errors(case, fl),
-        t0.elapsed().as_secs_f64(),
-    );
-    let row = format!("{label}, start brightness ×{f:.3?}");
-    eprintln!("  {row}: {fig:?}");
-    done.push(Done {
-        diagnosis: None,
-        label: row,
-        figures: fig,
-        k: None,
-        note: format!("validation {:.5}", validation_of(&next)),
-    });
-    next
 }
 
 /// The material count the pilot's rule picks with light options `o` (module docs):
