@@ -39,7 +39,8 @@
 //! Environment: `ABLATION_SCENES` (comma list), `ABLATION_ROWS` (`;`-separated row
 //! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
 //! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
-//! `ABLATION_NO_K=1` (skip the K search), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
+//! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss` ([`fit_start`]),
+//! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
 
@@ -59,9 +60,15 @@ use synth_case::*;
 mod diagnose;
 #[path = "ablation/metrics.rs"]
 mod metrics;
+#[path = "ablation/search.rs"]
+mod search;
+#[path = "ablation/starts.rs"]
+mod starts;
 #[path = "ablation/table.rs"]
 mod table;
 use metrics::*;
+use search::{brightness_search, restarts};
+use starts::fit_start;
 use table::table;
 
 /// How a row's estimator options are made from the bench's base options; `None` when the
@@ -191,6 +198,15 @@ fn anderson(o: Option<EstimateOptions>, m: usize) -> Option<EstimateOptions> {
     })
 }
 
+/// `o` with IRLS's robust scale floored at `floor` of the photo's RMS radiance
+/// ([`EstimateOptions::robust_floor`], default 0.05).
+fn floor(o: Option<EstimateOptions>, floor: f64) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        robust_floor: floor,
+        ..o
+    })
+}
+
 /// `o` with early stopping's patience at 4 outer iterations (default 1).
 fn patient(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
     o.map(|o| EstimateOptions { patience: 4, ..o })
@@ -242,6 +258,14 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "paper, Σw=1 prior 1, achromatic specular, Anderson 3, no IRLS, patience 1000", make: |b| patience(no_irls(anderson(achromatic(sum1(choice("paper", b), 1.0)), 3)), 1000) },
         Row::Fit { label: "prior, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(choice("prior", b), 1.0)), 1000) },
         Row::Fit { label: "prior SH η=0.3, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 0.3, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "prior SH η=1, Σw=1 prior 1", make: |b| sum1(prior(b, 1.0, 0.0), 1.0) },
+        Row::Fit { label: "prior SH η=3, Σw=1 prior 1", make: |b| sum1(prior(b, 3.0, 0.0), 1.0) },
+        Row::Fit { label: "prior SH η=3, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 3.0, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "prior SH η=10, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 10.0, 0.0), 1.0)), 1000) },
+        Row::Fit { label: "paper, robust floor 0.15", make: |b| floor(choice("paper", b), 0.15) },
+        Row::Fit { label: "paper, Σw=1 prior 1, robust floor 0.1", make: |b| floor(sum1(choice("paper", b), 1.0), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 1, robust floor 0.15", make: |b| floor(sum1(choice("paper", b), 1.0), 0.15) },
+        Row::Fit { label: "paper, Σw=1 prior 1, robust floor 0.3", make: |b| floor(sum1(choice("paper", b), 1.0), 0.3) },
         Row::Fit { label: "prior SH η=1, Σw=1 prior 1, no IRLS, patience 1000", make: |b| patience(no_irls(sum1(prior(b, 1.0, 0.0), 1.0)), 1000) },
     ]
 }
@@ -361,10 +385,10 @@ fn start_ratio_errors(case: &Case, fl: &Floors) -> [f64; 3] {
     ratio_errors(case, &init.lambda, &init.weights, &fl.seen)
 }
 
-/// Fit `case` with options `o` from the paper's start with the true K; its figures.
+/// Fit `case` with options `o` from [`fit_start`] with the true K; its figures.
 fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let problem = case.train.problem(case.nv);
-    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    let init = fit_start(case);
     let t0 = Instant::now();
     let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
     let seconds = t0.elapsed().as_secs_f64();
@@ -514,6 +538,8 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     note: String::new(),
                     diagnosis: diagnosed(case, &est, label),
                 });
+                let est = restarts(case, &fl, &o, est, label, &mut done);
+                let est = brightness_search(case, &fl, &o, est, label, &mut done);
                 if env_flag("ABLATION_PROPAGATE") {
                     done.push(propagated(case, &fl, est, label, seconds));
                 }

@@ -337,6 +337,8 @@ fn counterfactuals(case: &Case, est: &Estimate, f: &Facts) -> (String, Value) {
             relit_mixed(case, est, f, &worst(0.2), &ones),
         ),
     ];
+    let mut cases = cases;
+    cases.extend(split_counterfactuals(case, est, f));
     let mut md = String::from("| counterfactual | relit |\n|---|---|\n");
     for (l, v) in &cases {
         md.push_str(&format!("| {l} | {v:.4} |\n"));
@@ -347,4 +349,51 @@ fn counterfactuals(case: &Case, est: &Estimate, f: &Facts) -> (String, Value) {
         .map(|(l, v)| json!({"case": l, "relit": v}))
         .collect::<Vec<_>>();
     (md, Value::Array(j))
+}
+
+/// The materials against the blending weights: the relit metric with the TRUE materials
+/// (in the fit's per-channel scale, matched to the fitted ones by the order of best
+/// material accuracy) under the fitted weights, and the fitted materials under the TRUE
+/// weights (in the same order).
+fn split_counterfactuals(case: &Case, est: &Estimate, f: &Facts) -> Vec<(&'static str, f64)> {
+    let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let (_, _, perm) = crate::metrics::best_order(case, est, &seen);
+    let k = est.lambda.len();
+    if k != case.lambda.len() {
+        return Vec::new();
+    }
+    let true_lambda: Vec<Vec<[f64; 3]>> = perm
+        .iter()
+        .map(|&t| {
+            case.lambda[t]
+                .iter()
+                .map(|v| [0, 1, 2].map(|c| v[c] / f.scale[c]))
+                .collect()
+        })
+        .collect();
+    let mut true_w = vec![0.0; case.nv * k];
+    for x in 0..case.nv {
+        for j in 0..k {
+            true_w[x * k + j] = case.weights[x * k + perm[j]];
+        }
+    }
+    for (j, t) in true_lambda.iter().enumerate() {
+        eprintln!(
+            "  material {j} (true {}): fitted λ {:?}, true λ (fit's scale) {:?}",
+            perm[j], est.lambda[j], t
+        );
+    }
+    let rel = |l: &[Vec<[f64; 3]>], w: &[f64]| {
+        rel_rmse_per_channel(&case.held.obs, &case.predict_held(l, w))
+    };
+    vec![
+        (
+            "TRUE materials λ, fitted weights",
+            rel(&true_lambda, &est.weights),
+        ),
+        (
+            "fitted materials λ, TRUE weights",
+            rel(&est.lambda, &true_w),
+        ),
+    ]
 }

@@ -23,9 +23,17 @@ pub fn permutations(k: usize) -> Vec<Vec<usize>> {
 
 /// Material accuracy (all seen, pure seen) over the best order of the estimated materials.
 pub fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
+    let (a, p, _) = best_order(case, est, seen);
+    (a, p)
+}
+
+/// The order of the estimated materials with the best material accuracy: (accuracy over
+/// all seen vertices, over the pure ones, `perm` with estimated material `k` = true
+/// material `perm[k]`).
+pub fn best_order(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64, Vec<usize>) {
     let k = case.lambda.len();
     let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
-    let mut best = (0.0, 0.0);
+    let mut best = (0.0, 0.0, (0..k).collect());
     for perm in permutations(k) {
         let (mut ok, mut n, mut okp, mut np) = (0, 0, 0, 0);
         for x in (0..case.nv).filter(|&x| seen[x]) {
@@ -40,7 +48,7 @@ pub fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
         }
         let a = ok as f64 / n.max(1) as f64;
         if a > best.0 {
-            best = (a, okp as f64 / np.max(1) as f64);
+            best = (a, okp as f64 / np.max(1) as f64, perm);
         }
     }
     best

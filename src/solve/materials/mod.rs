@@ -33,7 +33,9 @@ use crate::solve::problem::{Problem, CHUNK};
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::{Error, Result};
 
+pub mod brightness;
 pub mod propagate;
+pub mod reanchor;
 
 /// The λ part of the material step.
 #[derive(Debug, Clone)]

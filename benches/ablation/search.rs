@@ -1,0 +1,124 @@
+//! Fits beyond the row's one (`ABLATION_RESTARTS`, `ABLATION_SEARCH`): restarts from
+//! re-anchored materials and the search over the start's brightness per material, each
+//! kept by the early-stopping validation score.
+
+use super::*;
+use relight_cpc::solve::materials::brightness::brightness_starts;
+use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
+
+/// `ABLATION_RESTARTS=N`: up to N restarts of the alternation from the last kept fit's
+/// re-anchored materials ([`reanchor`], weights by `ABLATION_REWEIGHT=project|label`),
+/// each a row; a restart is kept while its validation score improves. Returns the kept fit.
+pub fn restarts(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    mut est: Estimate,
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
+    let n = env_usize("ABLATION_RESTARTS", 0);
+    let how = match std::env::var("ABLATION_REWEIGHT").as_deref() {
+        Ok("label") => Reweight::Label,
+        _ => Reweight::Project,
+    };
+    let problem = case.train.problem(case.nv);
+    let score = |e: &Estimate| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error());
+    for i in 1..=n {
+        let init = reanchor(&est.lambda, &est.weights, &fl.seen, how).expect("re-anchoring");
+        let t0 = Instant::now();
+        let next = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
+        let seconds = t0.elapsed().as_secs_f64();
+        let f = figures(case, fl, &next, start_ratio_errors(case, fl), seconds);
+        let row = format!("{label}, re-anchored ({how:?}) ×{i}");
+        eprintln!("  {row}: {f:?}");
+        let better = score(&next) < score(&est);
+        done.push(Done {
+            diagnosis: diagnosed(case, &next, &row),
+            label: row,
+            figures: f,
+            k: None,
+            note: format!("validation {:.5} against {:.5}", score(&next), score(&est)),
+        });
+        if !better {
+            break;
+        }
+        est = next;
+    }
+    est
+}
+
+/// `ABLATION_SEARCH=1`: the fit from every start of [`brightness_starts`] around the
+/// k-means start (material `k ≥ 1`'s Lambertian weight scaled by `c_k s^{e_k}`), each a row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS`
+/// − 1 more rounds with `s` square-rooted around the kept `c`. Returns the fit with the
+/// lowest validation score (the base fit `est` among them).
+pub fn brightness_search(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    est: Estimate,
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
+    if !env_flag("ABLATION_SEARCH") {
+        return est;
+    }
+    let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
+    let k = init.lambda.len();
+    let mut best = (est, vec![1.0; k - 1]);
+    let mut step: f64 = 2.0;
+    for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
+        let centre = best.1.clone();
+        for st in brightness_starts(&init, 0, &centre, step) {
+            let next = scaled_fit(case, fl, o, st.materials, &st.factors, label, done);
+            if validation_of(&next) < validation_of(&best.0) {
+                best = (next, st.factors);
+            }
+        }
+        eprintln!(
+            "  search kept {:?}, validation {:.5}",
+            best.1,
+            validation_of(&best.0)
+        );
+        step = step.sqrt();
+    }
+    best.0
+}
+
+/// The early-stopping validation score of a fit (NaN without validation).
+fn validation_of(e: &Estimate) -> f64 {
+    e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
+}
+
+/// One fit of [`brightness_search`] from `m` (material `j ≥ 1`'s Lambertian weight scaled
+/// by `f[j − 1]`), pushed as a row.
+fn scaled_fit(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    m: Materials0,
+    f: &[f64],
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
+    let problem = case.train.problem(case.nv);
+    let t0 = Instant::now();
+    let next = estimate(&problem, m, o, &mut |_, _| {}).unwrap();
+    let fig = figures(
+        case,
+        fl,
+        &next,
+        start_ratio_errors(case, fl),
+        t0.elapsed().as_secs_f64(),
+    );
+    let row = format!("{label}, start brightness ×{f:.3?}");
+    eprintln!("  {row}: {fig:?}");
+    done.push(Done {
+        diagnosis: None,
+        label: row,
+        figures: fig,
+        k: None,
+        note: format!("validation {:.5}", validation_of(&next)),
+    });
+    next
+}
