@@ -2,7 +2,7 @@
 //! a full octahedral grid, blended bilinearly per normal (module docs of
 //! [`crate::sphere::rotation`] give the construction and the balancing).
 
-use super::resampling::{resampling_rows_with, ResamplingGeometry, DEFAULT_SUPERSAMPLE};
+use super::resampling::{resampling_flat_with, FlatRows, ResamplingGeometry, DEFAULT_SUPERSAMPLE};
 use super::LocalRotation;
 use crate::sphere::haar;
 use crate::sphere::SphereGrid;
@@ -21,35 +21,47 @@ pub enum RotationForm {
     },
 }
 
-/// Compressed rows, concatenated over all normals.
+/// Compressed rows of one normal's operator.
 #[derive(Debug, Clone, Default)]
 struct Csr {
-    offsets: Vec<usize>,
+    offsets: Vec<u32>,
     index: Vec<u16>,
     value: Vec<f32>,
 }
 
 impl Csr {
     fn row(&self, r: usize) -> (&[u16], &[f32]) {
-        let (lo, hi) = (self.offsets[r], self.offsets[r + 1]);
+        let (lo, hi) = (self.offsets[r] as usize, self.offsets[r + 1] as usize);
         (&self.index[lo..hi], &self.value[lo..hi])
     }
 
-    fn append(&mut self, rows: Vec<Vec<(u32, f32)>>) {
-        if self.offsets.is_empty() {
-            self.offsets.push(0);
-        }
-        for row in rows {
-            for (i, v) in row {
-                self.index.push(i as u16);
-                self.value.push(v);
-            }
-            self.offsets.push(self.index.len());
+    fn from_flat(rows: &FlatRows<f32>) -> Self {
+        Csr {
+            offsets: rows.offsets.clone(),
+            index: rows.entries.iter().map(|&(i, _)| i as u16).collect(),
+            value: rows.entries.iter().map(|&(_, v)| v).collect(),
         }
     }
 
+    fn from_rows(rows: &[Vec<(u32, f32)>]) -> Self {
+        let mut offsets = Vec::with_capacity(rows.len() + 1);
+        offsets.push(0);
+        let mut c = Csr {
+            offsets,
+            ..Csr::default()
+        };
+        for row in rows {
+            for &(i, v) in row {
+                c.index.push(i as u16);
+                c.value.push(v);
+            }
+            c.offsets.push(c.index.len() as u32);
+        }
+        c
+    }
+
     fn bytes(&self) -> usize {
-        self.offsets.len() * 8 + self.index.len() * 2 + self.value.len() * 4
+        self.offsets.len() * 4 + self.index.len() * 2 + self.value.len() * 4
     }
 }
 
@@ -65,8 +77,8 @@ pub struct Rotation {
     /// Sub-texels per side used to build `S_ν`.
     pub supersample: usize,
     form: RotationForm,
-    /// `S_ν` rows (factored form) or `R_ν` rows (sparse form); row `ν · n_local² + j`.
-    rows: Csr,
+    /// `S_ν` rows (factored form) or `R_ν` rows (sparse form) of normal `ν`: `rows[ν]`.
+    rows: Vec<Csr>,
 }
 
 thread_local! {
@@ -95,23 +107,21 @@ impl Rotation {
         );
         let gn = SphereGrid::full(n_normals);
         let geo = ResamplingGeometry::new(n_global, n_local, supersample);
-        let per: Vec<Vec<Vec<(u32, f32)>>> = (0..gn.len())
+        let rows: Vec<Csr> = (0..gn.len())
             .into_par_iter()
             .map(|nu| {
                 crate::stages::tick(1);
-                let s = resampling_rows_with(&geo, &gn.texel_dir(nu));
+                let s = resampling_flat_with(&geo, &gn.texel_dir(nu));
                 match form {
-                    RotationForm::Factored => s,
+                    RotationForm::Factored => Csr::from_flat(&s),
                     RotationForm::Sparse { threshold } => {
-                        wavelet_matrix(&s, n_global, n_local, threshold)
+                        let s: Vec<Vec<(u32, f32)>> =
+                            (0..s.len()).map(|j| s.row(j).to_vec()).collect();
+                        Csr::from_rows(&wavelet_matrix(&s, n_global, n_local, threshold))
                     }
                 }
             })
             .collect();
-        let mut rows = Csr::default();
-        for p in per {
-            rows.append(p);
-        }
         Rotation {
             n_global,
             n_local,
@@ -124,10 +134,10 @@ impl Rotation {
 
     /// Approximate bytes [`Rotation::new`] will hold in the factored form, before building
     /// it (for a memory check): `n_normals² · n_local²` rows of about 11 entries (measured
-    /// with the default 4×4 sub-texels; 6 bytes each) plus an 8-byte offset per row.
+    /// with the default 4×4 sub-texels; 6 bytes each) plus a 4-byte offset per row.
     pub fn estimate_memory_bytes(n_local: usize, n_normals: usize) -> usize {
         let rows = n_normals * n_normals * n_local * n_local;
-        rows * (11 * 6 + 8)
+        rows * (11 * 6 + 4)
     }
 
     /// The storage form.
@@ -170,7 +180,7 @@ impl Rotation {
                 continue;
             }
             for (j, out) in local.iter_mut().enumerate() {
-                let (idx, val) = self.rows.row(nu * self.nl2() + j);
+                let (idx, val) = self.rows[nu].row(j);
                 let s: f64 = idx
                     .iter()
                     .zip(val)
@@ -194,7 +204,7 @@ impl Rotation {
                     continue;
                 }
                 let wx = w * x;
-                let (idx, val) = self.rows.row(nu * self.nl2() + j);
+                let (idx, val) = self.rows[nu].row(j);
                 for (&g, &v) in idx.iter().zip(val) {
                     global[g as usize] += wx * v as f64;
                 }
@@ -258,7 +268,7 @@ impl Rotation {
                 if !any {
                     continue;
                 }
-                let (idx, val) = self.rows.row(nu * nl2 + j);
+                let (idx, val) = self.rows[nu].row(j);
                 for (&g, &v) in idx.iter().zip(val) {
                     let v = v as f64;
                     let at = g as usize * K;
@@ -296,7 +306,7 @@ impl Rotation {
     fn sparse_add(&self, nus: &[(usize, f64)], global: &[f64], local: &mut [f64]) {
         for &(nu, w) in nus {
             for (a, out) in local.iter_mut().enumerate() {
-                let (idx, val) = self.rows.row(nu * self.nl2() + a);
+                let (idx, val) = self.rows[nu].row(a);
                 let s: f64 = idx
                     .iter()
                     .zip(val)
@@ -311,7 +321,7 @@ impl Rotation {
     fn sparse_transpose_add(&self, nus: &[(usize, f64)], local: &[f64], global: &mut [f64]) {
         for &(nu, w) in nus {
             for (a, &x) in local.iter().enumerate() {
-                let (idx, val) = self.rows.row(nu * self.nl2() + a);
+                let (idx, val) = self.rows[nu].row(a);
                 for (&b, &v) in idx.iter().zip(val) {
                     global[b as usize] += w * x * v as f64;
                 }
@@ -487,12 +497,12 @@ impl Rotation {
 
     /// Number of stored matrix entries.
     pub fn nnz(&self) -> usize {
-        self.rows.index.len()
+        self.rows.iter().map(|c| c.index.len()).sum()
     }
 
     /// Bytes held by the stored operators.
     pub fn memory_bytes(&self) -> usize {
-        self.rows.bytes()
+        self.rows.iter().map(Csr::bytes).sum()
     }
 }
 

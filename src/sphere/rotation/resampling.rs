@@ -91,26 +91,67 @@ pub fn resampling_rows(
 
 /// [`resampling_rows`] with the normal-independent parts given.
 pub fn resampling_rows_with(geo: &ResamplingGeometry, normal: &Vec3) -> Vec<Vec<(u32, f32)>> {
+    let flat = resampling_flat_with(geo, normal);
+    (0..flat.len()).map(|j| flat.row(j).to_vec()).collect()
+}
+
+/// Rows of one normal's resampling stored flat: row `j` is
+/// `entries[offsets[j]..offsets[j + 1]]` (one allocation per table instead of one per row).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FlatRows<T> {
+    pub(crate) offsets: Vec<u32>,
+    pub(crate) entries: Vec<(u32, T)>,
+}
+
+impl<T> FlatRows<T> {
+    /// Number of rows.
+    pub(crate) fn len(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// Row `j`.
+    pub(crate) fn row(&self, j: usize) -> &[(u32, T)] {
+        &self.entries[self.offsets[j] as usize..self.offsets[j + 1] as usize]
+    }
+
+    fn row_mut(&mut self, j: usize) -> &mut [(u32, T)] {
+        let (lo, hi) = (self.offsets[j] as usize, self.offsets[j + 1] as usize);
+        &mut self.entries[lo..hi]
+    }
+}
+
+/// [`resampling_rows_with`] as [`FlatRows`].
+pub(crate) fn resampling_flat_with(geo: &ResamplingGeometry, normal: &Vec3) -> FlatRows<f32> {
     let frame = local_frame(&normal.normalize());
-    let rows = overlap_rows(geo, &frame);
+    let mut rows = overlap_rows(geo, &frame);
     let interior = geo.interior(&frame[2]);
-    let rows = balance(rows, &interior, &geo.omega_g, &geo.omega_l);
-    rows.into_iter()
-        .enumerate()
-        .map(|(j, row)| {
-            row.into_iter()
-                .map(|(t, a)| (t, (a / geo.omega_l[j]) as f32))
-                .collect()
+    balance(&mut rows, &interior, &geo.omega_g, &geo.omega_l);
+    let entries = (0..rows.len())
+        .flat_map(|j| {
+            let omega = geo.omega_l[j];
+            rows.row(j)
+                .iter()
+                .map(move |&(t, a)| (t, (a / omega) as f32))
         })
-        .collect()
+        .collect();
+    FlatRows {
+        offsets: rows.offsets,
+        entries,
+    }
 }
 
 /// Overlap areas `A[j][g]` (ascending `g` per local texel `j`) from the sub-texel samples
 /// and their bilinear taps in the global map.
-fn overlap_rows(geo: &ResamplingGeometry, frame: &[Vec3; 3]) -> Vec<Vec<(u32, f64)>> {
+fn overlap_rows(geo: &ResamplingGeometry, frame: &[Vec3; 3]) -> FlatRows<f64> {
     let mut acc = vec![0.0f64; geo.gg.len()];
     let mut touched: Vec<usize> = Vec::new();
-    let mut rows: Vec<Vec<(u32, f64)>> = Vec::with_capacity(geo.gl.len());
+    let s2 = geo.supersample * geo.supersample;
+    let mut rows = FlatRows {
+        offsets: Vec::with_capacity(geo.gl.len() + 1),
+        // About 11 global texels per local texel at the default 4 × 4 sub-texels.
+        entries: Vec::with_capacity(geo.gl.len() * (s2 / 2 + 4)),
+    };
+    rows.offsets.push(0);
     for j in 0..geo.gl.len() {
         for (dl, w) in geo.subs_of(j) {
             let de = from_local(frame, dl);
@@ -125,7 +166,9 @@ fn overlap_rows(geo: &ResamplingGeometry, frame: &[Vec3; 3]) -> Vec<Vec<(u32, f6
             }
         }
         touched.sort_unstable();
-        rows.push(touched.iter().map(|&t| (t as u32, acc[t])).collect());
+        rows.entries
+            .extend(touched.iter().map(|&t| (t as u32, acc[t])));
+        rows.offsets.push(rows.entries.len() as u32);
         for &t in &touched {
             acc[t] = 0.0;
         }
@@ -136,28 +179,22 @@ fn overlap_rows(geo: &ResamplingGeometry, frame: &[Vec3; 3]) -> Vec<Vec<(u32, f6
 
 /// Sinkhorn balancing of the overlap rows (module docs): rows to `Ω_l`, the columns of
 /// `interior` global texels to `Ω_g`, ending with the columns.
-fn balance(
-    mut rows: Vec<Vec<(u32, f64)>>,
-    interior: &[bool],
-    omega_g: &[f64],
-    omega_l: &[f64],
-) -> Vec<Vec<(u32, f64)>> {
+fn balance(rows: &mut FlatRows<f64>, interior: &[bool], omega_g: &[f64], omega_l: &[f64]) {
     let mut col = vec![0.0f64; omega_g.len()];
     for it in 0..BALANCE_ITERATIONS {
         if it > 0 {
-            for (j, row) in rows.iter_mut().enumerate() {
+            for (j, &om) in omega_l.iter().enumerate().take(rows.len()) {
+                let row = rows.row_mut(j);
                 let s: f64 = row.iter().map(|e| e.1).sum();
                 if s > 0.0 {
-                    let k = omega_l[j] / s;
+                    let k = om / s;
                     row.iter_mut().for_each(|e| e.1 *= k);
                 }
             }
         }
         col.iter_mut().for_each(|c| *c = 0.0);
-        for row in &rows {
-            for &(t, a) in row {
-                col[t as usize] += a;
-            }
+        for &(t, a) in &rows.entries {
+            col[t as usize] += a;
         }
         for (t, c) in col.iter_mut().enumerate() {
             *c = if interior[t] && *c > 0.0 {
@@ -166,9 +203,8 @@ fn balance(
                 1.0
             };
         }
-        for row in rows.iter_mut() {
-            row.iter_mut().for_each(|e| e.1 *= col[e.0 as usize]);
-        }
+        rows.entries
+            .iter_mut()
+            .for_each(|e| e.1 *= col[e.0 as usize]);
     }
-    rows
 }
