@@ -37,6 +37,11 @@ pub struct WaveletRenderer<'a, R: LocalRotation> {
     /// Per basis, its slice when it does not depend on `ω_o` (Lambert: computed once here,
     /// bitwise what every vertex would compute).
     fixed: Vec<Option<Vec<f64>>>,
+    /// With a [`crate::sphere::rotation::SplatRotation`] rotation: every light's texels interleaved, global texel
+    /// `g` of light `l`, channel `c` at `[g · 3L + 3l + c]`, so that one footprint walk
+    /// reads all of a vertex's lights as contiguous runs
+    /// ([`crate::sphere::rotation::SplatRotation::resample_interleaved`]).
+    interleaved: Option<Vec<f64>>,
 }
 
 /// Reusable buffers of [`WaveletRenderer::vertex_radiance_all`], one per thread: the
@@ -50,6 +55,9 @@ pub struct RadianceScratch {
     /// Per channel, `(V Δω)_t Σ_b β_{b,c} slice_{b,t}` of the view being shaded.
     kernel: [Vec<f64>; 3],
     locals: Vec<[Vec<f64>; 3]>,
+    /// The listed lights' local texels interleaved (texel-major), before they are split
+    /// into `locals`.
+    interleaved: Vec<f64>,
 }
 
 /// One light of a [`WaveletRenderer`]: Haar coefficients and texels per channel, and after
@@ -94,10 +102,12 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                 })
             })
             .collect();
+        let interleaved = rot.as_splat().map(|_| interleave_texels(envs));
         Ok(WaveletRenderer {
             rot,
             basis,
             fixed,
+            interleaved,
             lights: envs
                 .iter()
                 .map(|env| RendererLight {
@@ -219,8 +229,23 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
     /// The listed lights (in `views` order) rotated into the vertex's local frame, into
     /// `locals`: blended from the frames (every light has them or none does), or one
     /// footprint walk for all of them.
-    fn rotate_lights(&self, normal: &Vec3, views: &[VertexView], locals: &mut [[Vec<f64>; 3]]) {
+    fn rotate_lights(
+        &self,
+        normal: &Vec3,
+        views: &[VertexView],
+        locals: &mut [[Vec<f64>; 3]],
+        buffer: &mut Vec<f64>,
+    ) {
         let nl2 = self.rot.n_local() * self.rot.n_local();
+        if let (Some(splat), Some(il)) = (self.rot.as_splat(), &self.interleaved) {
+            let spans: Vec<std::ops::Range<usize>> = views
+                .iter()
+                .map(|v| 3 * v.lights.start..3 * v.lights.end)
+                .collect();
+            splat.resample_interleaved(normal, il, 3 * self.lights.len(), &spans, buffer);
+            split_interleaved(buffer, nl2, locals);
+            return;
+        }
         let listed = views
             .iter()
             .flat_map(|v| self.lights[v.lights.clone()].iter());
@@ -276,6 +301,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
             slices,
             kernel,
             locals,
+            interleaved,
         } = scratch;
         let Some((normal, frame)) =
             vertex_frame_into(normal_env, vis_row, &self.grid.solid_angle, v_dw)
@@ -291,7 +317,7 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
         slices.resize(used.len() * nl2, 0.0);
         locals.resize_with(out.len(), || [0, 1, 2].map(|_| vec![0.0; nl2]));
         let locals = &mut locals[..out.len()];
-        self.rotate_lights(&normal, views, locals);
+        self.rotate_lights(&normal, views, locals, interleaved);
         let mut at = 0;
         for view in views {
             let (lo, hi) = (at, at + view.lights.len());
@@ -312,6 +338,35 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
                     o[c] = kernel[c].iter().zip(&local[c]).map(|(k, l)| k * l).sum();
                 }
             }
+        }
+    }
+}
+
+/// Every light's texels interleaved texel-major: texel `g`, light `l`, channel `c` at
+/// `[g · 3L + 3l + c]` (`L` lights).
+fn interleave_texels(envs: &[&OctEnv]) -> Vec<f64> {
+    let width = 3 * envs.len();
+    let channels: Vec<Vec<f64>> = envs
+        .iter()
+        .flat_map(|e| [0, 1, 2].map(|c| e.channel(c)))
+        .collect();
+    let texels = channels.first().map_or(0, Vec::len);
+    let mut out = vec![0.0; texels * width];
+    for (k, ch) in channels.iter().enumerate() {
+        for (g, v) in ch.iter().enumerate() {
+            out[g * width + k] = *v;
+        }
+    }
+    out
+}
+
+/// `locals[i][c][j] = buffer[j · 3n + 3i + c]` (`n = locals.len()` lights, `nl2` texels).
+fn split_interleaved(buffer: &[f64], nl2: usize, locals: &mut [[Vec<f64>; 3]]) {
+    let w = 3 * locals.len();
+    for (i, local) in locals.iter_mut().enumerate() {
+        for (c, l) in local.iter_mut().enumerate() {
+            l.clear();
+            l.extend((0..nl2).map(|j| buffer[j * w + 3 * i + c]));
         }
     }
 }

@@ -18,6 +18,11 @@
 //! Each view is rendered by rasterising the mesh (z-buffer) and interpolating per-vertex
 //! radiance from the wavelet renderer (Eq. 5–8, untruncated) across triangles; RMSE is over
 //! object pixels that are not overexposed in the photo.
+//! The held-out photos and the truth check's training photos ([`super::truth_check`]) are
+//! shaded in one vertex-major pass ([`render::shade_views`]): a vertex's footprint is walked
+//! once for the lights of every photo that shows it, reading all lights' texels interleaved
+//! ([`crate::sphere::rotation::SplatRotation::resample_interleaved`]); every image is bit
+//! for bit the one a pass of its photo alone gives.
 //!
 //! The renderer has its own local resolution (`--render-local-resolution`, by default the
 //! estimator's: 32² at the defaults) and its own rotation
@@ -204,8 +209,9 @@ fn every_kth(obs: Observations, max: usize) -> Observations {
 pub(crate) struct Evaluation {
     pub holdout: Vec<HoldoutEntry>,
     pub mean_holdout_rmse: Option<f64>,
-    /// Wall and CPU seconds of the held-out renders (rasterising and shading every
-    /// protocol's light).
+    /// Wall and CPU seconds of the renders: rasterising and shading the held-out photos
+    /// under every protocol's light and, in the same pass, the truth check's training
+    /// photos under their true and fitted lights.
     pub render_seconds: [f64; 2],
     /// Wall and CPU seconds of protocol (b)'s light fits (observations, transport and a
     /// capped lighting solve per view, [`super::half_fit`]).
@@ -214,6 +220,9 @@ pub(crate) struct Evaluation {
     pub metrics: Vec<crate::report::metrics::MetricsEntry>,
     /// Protocol `half` against the naive baseline ([`super::baseline`]).
     pub headline: Option<crate::report::metrics::Headline>,
+    /// The truth check of the training photos ([`super::truth_check`]; empty without
+    /// `truth/`).
+    pub truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
 }
 
 /// Adds the wall and CPU seconds `f` takes to `acc`.
@@ -466,6 +475,14 @@ pub(crate) fn evaluate(
             .collect()
         })
         .collect();
+    // The truth check's training photos are shaded in the same pass: a vertex's footprint
+    // is walked once for the lights of every photo, held out or not, that shows it.
+    let checked = match truth {
+        Some(t) => timed(&mut render_seconds, || {
+            super::truth_check::checked_views(f, t)
+        })?,
+        None => Vec::new(),
+    };
     let to_shade: Vec<render::ViewToShade> = f
         .held
         .iter()
@@ -476,8 +493,10 @@ pub(crate) fn evaluate(
             image: &f.scene.views[v].image,
             envs: l.iter().map(|&(_, e)| e).collect(),
         })
+        .chain(checked.iter().map(|c| c.to_shade(f)))
         .collect();
     let shaded = timed(&mut render_seconds, || shade_views(f, &to_shade))?;
+    let truth_check = super::truth_check::score(f, &checked, &shaded, f.held.len());
     for (i, ((&v, raster), lights)) in f.held.iter().zip(&rasters).zip(&lights).enumerate() {
         {
             let view = &f.scene.views[v];
@@ -585,6 +604,7 @@ pub(crate) fn evaluate(
         half_fit_seconds,
         metrics,
         headline: crate::report::metrics::Headline::from_pairs(&versus_baseline),
+        truth_check,
     })
 }
 

@@ -95,8 +95,9 @@ pub(crate) fn evaluation_notes(
     if !fitted.held.is_empty() {
         let (r, h) = (render_seconds, half_fit_seconds);
         notes.push(format!(
-            "evaluation of {} held-out photos: renders {:.1} s wall / {:.1} CPU s, the half \
-             protocol's light fits {:.1} s / {:.1} CPU s",
+            "evaluation of {} held-out photos: renders (with the truth check's training \
+             photos when there is a truth) {:.1} s wall / {:.1} CPU s, the half protocol's \
+             light fits {:.1} s / {:.1} CPU s",
             fitted.held.len(),
             r[0],
             r[1],

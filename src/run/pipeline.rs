@@ -111,11 +111,8 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
         Some(hp.report)
     };
     let (evaluation, truth_check) = log.stages.run("evaluation", || -> Result<_> {
-        let e = evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)?;
-        let t = match &imported.truth {
-            Some(t) => super::truth_check::truth_check(&fit.fitted, t)?,
-            None => Vec::new(),
-        };
+        let mut e = evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)?;
+        let t = std::mem::take(&mut e.truth_check);
         Ok((e, t))
     })?;
     let evaluated = Evaluated {

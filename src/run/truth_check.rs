@@ -15,20 +15,40 @@
 //! the per-channel scale that best maps the recovered per-vertex diffuse albedo onto the
 //! true one (the anchor's scale is arbitrary; ratios between materials are not).
 
-use super::evaluate::{fitted_env, shade_views, valid_mask};
+use super::evaluate::{fitted_env, valid_mask};
 use super::{Fitted, Truth};
-use crate::render::ViewToShade;
+use crate::render::{Raster, ShadedViews, ViewToShade};
 use crate::report::metrics::{
     rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry,
 };
+use crate::sphere::envmap::OctEnv;
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
 
-/// The truth check of every training photo the manifest lists. All of them are shaded in
-/// one vertex-major pass ([`crate::render::shade_views`]: a vertex seen in several photos
-/// is rotated into its frame once for all their lights), each photo's two images
-/// interpolated and scored in turn.
-pub(crate) fn truth_check(f: &Fitted, truth: &Truth) -> Result<Vec<TruthCheckEntry>> {
+/// A training photo the truth check renders: its view, its two lights (the true one, then
+/// the fitted one) and its raster.
+pub(crate) struct CheckedView {
+    v: usize,
+    envs: [OctEnv; 2],
+    raster: Raster,
+}
+
+impl CheckedView {
+    /// The view as [`crate::render::shade_views`] takes it.
+    pub(crate) fn to_shade<'a>(&'a self, f: &'a Fitted) -> ViewToShade<'a> {
+        ViewToShade {
+            raster: &self.raster,
+            image: &f.scene.views[self.v].image,
+            envs: self.envs.iter().collect(),
+        }
+    }
+}
+
+/// The training photos the manifest gives a light for, with their lights and rasters.
+/// They are shaded in the held-out renders' vertex-major pass ([`super::evaluate`]: a
+/// vertex seen in several photos is rotated into its frame once for all their lights),
+/// then scored by [`score`].
+pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView>> {
     let mut checked = Vec::new();
     for (k, &v) in f.train.iter().enumerate() {
         let view = &f.scene.views[v];
@@ -37,27 +57,33 @@ pub(crate) fn truth_check(f: &Fitted, truth: &Truth) -> Result<Vec<TruthCheckEnt
             continue;
         };
         let raster = crate::render::rasterize(&f.scene.mesh, &view.camera, &view.image);
-        checked.push((v, [true_env, fitted_env(f, k)], raster));
-    }
-    let views: Vec<ViewToShade> = checked
-        .iter()
-        .map(|(v, envs, raster)| ViewToShade {
+        checked.push(CheckedView {
+            v,
+            envs: [true_env, fitted_env(f, k)],
             raster,
-            image: &f.scene.views[*v].image,
-            envs: envs.iter().collect(),
-        })
-        .collect();
-    let shaded = shade_views(f, &views)?;
+        });
+    }
+    Ok(checked)
+}
+
+/// The truth check of the `checked` photos, shaded as views `first..` of `shaded`: each
+/// photo's two images interpolated and scored in turn.
+pub(crate) fn score(
+    f: &Fitted,
+    checked: &[CheckedView],
+    shaded: &ShadedViews,
+    first: usize,
+) -> Vec<TruthCheckEntry> {
     let mut out = Vec::with_capacity(checked.len());
-    for (i, (v, _, raster)) in checked.iter().enumerate() {
-        let rgbs = shaded.images(i, raster, &f.scene.mesh);
-        let photo = &f.photos[*v];
-        let mask = valid_mask(raster, photo);
+    for (i, c) in checked.iter().enumerate() {
+        let rgbs = shaded.images(first + i, &c.raster, &f.scene.mesh);
+        let photo = &f.photos[c.v];
+        let mask = valid_mask(&c.raster, photo);
         let (rmse_t, rms, scale_t) = rmse_after_channel_scale(&photo.rgb, &rgbs[0], &mask);
         let (rmse_f, _, _) = rmse_after_channel_scale(&photo.rgb, &rgbs[1], &mask);
         let rel = |r: f64| if rms > 0.0 { r / rms } else { f64::NAN };
         out.push(TruthCheckEntry {
-            image: f.scene.views[*v].image.name.clone(),
+            image: f.scene.views[c.v].image.name.clone(),
             rmse_true_light: rmse_t,
             relative_true_light: rel(rmse_t),
             scale_true_light: scale_t,
@@ -66,7 +92,7 @@ pub(crate) fn truth_check(f: &Fitted, truth: &Truth) -> Result<Vec<TruthCheckEnt
             pixels: mask.iter().filter(|&&m| m).count(),
         });
     }
-    Ok(out)
+    out
 }
 
 /// The truth's materials: per-vertex blending weights (row-major `V × J`), names and

@@ -150,4 +150,9 @@ pub trait LocalRotation: Sync {
         let _ = normal_env;
         [(0, 0.0); 4]
     }
+    /// The rotation as a [`SplatRotation`], when it is one: its footprint walk can then
+    /// read several lights' texels interleaved ([`SplatRotation::resample_interleaved`]).
+    fn as_splat(&self) -> Option<&SplatRotation> {
+        None
+    }
 }

@@ -170,6 +170,43 @@ impl SplatRotation {
         }
     }
 
+    /// [`SplatRotation::resample_rgb_many`] with the lights' texels interleaved: global
+    /// texel `g` of value slot `k` (a light's channel) at `global[g · width + k]`, and the
+    /// `spans` of slots wanted (in order) written to `local[j · w + k']` (`j` local texel,
+    /// `w` the spans' total length, `k'` the slot's position among them). Each sub-texel
+    /// adds `ω_k` times a contiguous run of `w` values, which vectorises, instead of three
+    /// scattered values per light; every output is the same sum in the same order as
+    /// [`SplatRotation::resample_rgb_many`]'s, so equal bit for bit.
+    pub fn resample_interleaved(
+        &self,
+        normal: &Vec3,
+        global: &[f64],
+        width: usize,
+        spans: &[std::ops::Range<usize>],
+        local: &mut Vec<f64>,
+    ) {
+        let w: usize = spans.iter().map(|s| s.len()).sum();
+        local.clear();
+        local.resize(self.local.len() * w, 0.0);
+        self.for_each_sub(normal, |g, j, wk| {
+            let (src, dst) = (
+                &global[g * width..(g + 1) * width],
+                &mut local[j * w..(j + 1) * w],
+            );
+            let mut at = 0;
+            for s in spans {
+                let d = &mut dst[at..at + s.len()];
+                at += s.len();
+                for (o, v) in d.iter_mut().zip(&src[s.clone()]) {
+                    *o += wk * v;
+                }
+            }
+        });
+        for (row, iw) in local.chunks_mut(w.max(1)).zip(&self.inv_omega_local) {
+            row.iter_mut().for_each(|x| *x *= iw);
+        }
+    }
+
     /// Texel domain: `local = S_n global` (one channel).
     pub fn resample(&self, normal: &Vec3, global: &[f64], local: &mut [f64]) {
         local.fill(0.0);
@@ -242,5 +279,8 @@ impl LocalRotation for SplatRotation {
         local_texels: &mut [[Vec<f64>; 3]],
     ) {
         self.resample_rgb_many(normal_env, global_texels, local_texels);
+    }
+    fn as_splat(&self) -> Option<&SplatRotation> {
+        Some(self)
     }
 }
