@@ -27,6 +27,8 @@
 //! terms ([`crate::observe::trace`]); [`HORIZON_MARGIN`] on the sine covers that and the
 //! rounding of the bound, many orders of magnitude over.
 
+use std::collections::BinaryHeap;
+
 use crate::Vec3;
 
 /// Margin added to the horizon sine before a ray is skipped (module docs).
@@ -132,17 +134,20 @@ impl TriangleTree {
 
     /// `h(o, n)` of the module docs, floored at 0 (rays below the plane are traced
     /// anyway), without [`HORIZON_MARGIN`].
-    pub fn horizon(&self, o: &Vec3, n: &Vec3, stack: &mut Vec<(usize, f64)>) -> f64 {
+    pub fn horizon(&self, o: &Vec3, n: &Vec3, heap: &mut BinaryHeap<(u64, usize)>) -> f64 {
         let mut best = 0.0f64;
-        stack.clear();
-        if let Some(root) = self.nodes.first() {
-            if let Some(b) = box_bound(&root.lo, &root.hi, o, n) {
-                stack.push((0, b));
+        heap.clear();
+        if !self.nodes.is_empty() {
+            let b = self.bound(0, o, n);
+            if b > 0.0 {
+                heap.push((b.to_bits(), 0));
             }
         }
-        while let Some((k, bound)) = stack.pop() {
-            if bound <= best {
-                continue;
+        // Best first: nodes leave the queue by decreasing bound, so the search ends at the
+        // first node whose bound does not exceed the best maximum found.
+        while let Some((bits, k)) = heap.pop() {
+            if f64::from_bits(bits) <= best {
+                break;
             }
             match self.nodes[k].kind {
                 BoxKind::Leaf(a, b) => {
@@ -157,17 +162,10 @@ impl TriangleTree {
                     }
                 }
                 BoxKind::Inner(l, r) => {
-                    // Best first: the child with the larger bound is popped first.
-                    let bl = self.bound(l, o, n);
-                    let br = self.bound(r, o, n);
-                    let (first, second) = if bl >= br {
-                        ((l, bl), (r, br))
-                    } else {
-                        ((r, br), (l, bl))
-                    };
-                    for (c, b) in [second, first] {
+                    for c in [l, r] {
+                        let b = self.bound(c, o, n);
                         if b > best {
-                            stack.push((c, b));
+                            heap.push((b.to_bits(), c));
                         }
                     }
                 }
@@ -299,7 +297,7 @@ mod tests {
             })
             .collect();
         let tree = TriangleTree::new(tris.iter().copied());
-        let mut stack = Vec::new();
+        let mut stack = BinaryHeap::new();
         let mut below_one = 0;
         for _ in 0..200 {
             let o = Vec3::new(rng.random(), rng.random(), rng.random()) * 4.0;

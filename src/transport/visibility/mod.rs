@@ -220,7 +220,13 @@ pub fn compute_sampled(
         .zip(open.par_iter_mut())
         .enumerate()
         .map_init(
-            || (crate::stages::Ticker::default(), Vec::new(), Vec::new()),
+            || {
+                (
+                    crate::stages::Ticker::default(),
+                    Vec::new(),
+                    std::collections::BinaryHeap::new(),
+                )
+            },
             |(ticks, first, stack), (v, (out, is_open))| {
                 ticks.tick(1);
                 let x = mesh.positions[v];
@@ -523,7 +529,11 @@ mod tests {
         let capped = (0..mesh.positions.len())
             .filter(|&v| {
                 let n = mesh.normals[v].normalize();
-                tris.horizon(&(mesh.positions[v] + n * eps), &n, &mut Vec::new()) < 0.7
+                tris.horizon(
+                    &(mesh.positions[v] + n * eps),
+                    &n,
+                    &mut std::collections::BinaryHeap::new(),
+                ) < 0.7
             })
             .count();
         assert!(capped > 20, "{capped} vertices with a horizon below 0.7");
