@@ -13,9 +13,7 @@ pub(super) struct Selection {
     /// `2¹¹` buckets; non-negative floats order as their bit patterns, so a larger
     /// exponent field is a larger magnitude, NaN above infinity as in `f64::total_cmp`).
     hist: Vec<u32>,
-    /// The magnitudes' bit patterns in the bucket that holds the `k`-th largest.
-    bucket: Vec<u64>,
-    /// `(|g_m| bits, m)` of the kept coefficients.
+    /// `(|g_m| bits, m)` of the candidates, then of the kept coefficients.
     kept: Vec<(u64, u32)>,
 }
 
@@ -27,37 +25,9 @@ fn magnitude(c: f64) -> u64 {
     c.abs().to_bits()
 }
 
-/// The magnitude's exponent bucket (`< BUCKETS`: the sign bit is clear).
-fn bucket_of(b: u64) -> usize {
-    (b >> 52) as usize
-}
-
-/// The `k`-th largest magnitude `τ` of `global` (`1 ≤ k ≤ global.len()`) and how many
-/// magnitudes exceed it: a radix selection — a histogram of the exponent fields finds the
-/// bucket that holds `τ`, and a selection runs over that bucket's members only.
-fn kth_largest(global: &[f64], k: usize, sel: &mut Selection) -> (u64, usize) {
-    let mut above = 0usize;
-    let mut top = 0usize;
-    for e in (0..BUCKETS).rev() {
-        let here = sel.hist[e] as usize;
-        if above + here >= k {
-            top = e;
-            break;
-        }
-        above += here;
-    }
-    sel.bucket.clear();
-    sel.bucket.extend(
-        global
-            .iter()
-            .map(|&c| magnitude(c))
-            .filter(|&b| bucket_of(b) == top),
-    );
-    let r = k - above; // τ is the r-th largest of the bucket, 1 ≤ r ≤ its size
-    let len = sel.bucket.len();
-    let (_, &mut tau, higher) = sel.bucket.select_nth_unstable(len - r);
-    let greater = above + higher.iter().filter(|&&b| b > tau).count();
-    (tau, greater)
+/// Largest magnitude first, ties by index (the order of [`haar::keep_largest`]).
+fn larger_first(a: &(u64, u32), b: &(u64, u32)) -> std::cmp::Ordering {
+    b.0.cmp(&a.0).then(a.1.cmp(&b.1))
 }
 
 /// The `keep` largest-magnitude non-zero coefficients of the dense row `global` (all
@@ -65,9 +35,11 @@ fn kth_largest(global: &[f64], k: usize, sel: &mut Selection) -> (u64, usize) {
 /// entries in the same order as [`haar::keep_largest`], without allocating; `sel` holds
 /// the buffers. Returns how many were kept (`≤ idx.len()`).
 ///
-/// The `k`-th largest magnitude `τ` is found by a radix selection over the magnitudes' bit
-/// patterns ([`kth_largest`]); one pass in index order then keeps every coefficient above
-/// `τ` and the first ones equal to it (ties by index), and only the `k` kept are sorted.
+/// Two passes over the row: a histogram of the magnitudes' exponent fields gives the
+/// highest exponent `e` such that at least `k` coefficients have an exponent `≥ e`; the
+/// second pass gathers those candidates (every one of the `k` largest is among them, and
+/// rarely more than twice as many), and a selection and a sort of the candidates in the
+/// order above leave the `k` kept.
 pub(super) fn truncate_global(
     global: &[f64],
     sel: &mut Selection,
@@ -80,7 +52,7 @@ pub(super) fn truncate_global(
     let mut zeros = 0usize;
     for &c in global {
         let b = magnitude(c);
-        sel.hist[bucket_of(b)] += 1;
+        sel.hist[(b >> 52) as usize] += 1;
         zeros += usize::from(b == 0);
     }
     let nz = global.len() - zeros;
@@ -88,25 +60,31 @@ pub(super) fn truncate_global(
     if k == 0 {
         return 0;
     }
-    // k < nz: τ is a non-zero magnitude; k == nz: τ = 0 keeps every non-zero one.
-    let (tau, mut ties) = if k < nz {
-        let (tau, greater) = kth_largest(global, k, sel);
-        (tau, k - greater)
-    } else {
-        (0, 0)
-    };
-    sel.kept.clear();
-    for (m, &c) in global.iter().enumerate() {
-        let b = magnitude(c);
-        if b > tau || (b == tau && ties > 0) {
-            if b == tau {
-                ties -= 1;
-            }
-            sel.kept.push((b, m as u32));
+    // The exponent bucket that holds the k-th largest (bucket 0 also holds the zeros,
+    // which the threshold of at least 1 leaves out).
+    let mut above = 0usize;
+    let mut lowest = 0u64;
+    for e in (0..BUCKETS).rev() {
+        above += sel.hist[e] as usize;
+        if above >= k {
+            lowest = (e as u64) << 52;
+            break;
         }
     }
-    sel.kept
-        .sort_unstable_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+    let lowest = lowest.max(1);
+    sel.kept.clear();
+    sel.kept.extend(
+        global
+            .iter()
+            .enumerate()
+            .map(|(m, &c)| (magnitude(c), m as u32))
+            .filter(|&(b, _)| b >= lowest),
+    );
+    if sel.kept.len() > k {
+        sel.kept.select_nth_unstable_by(k - 1, larger_first);
+        sel.kept.truncate(k);
+    }
+    sel.kept.sort_unstable_by(larger_first);
     for ((i, v), &(_, m)) in idx.iter_mut().zip(val.iter_mut()).zip(sel.kept.iter()) {
         // m < n_global² ≤ 65,536 (checked in `check_inputs`).
         *i = m as HaarIndex;
