@@ -29,10 +29,7 @@
 //! so every ray with `n·ω > 0` escapes. The test is a half-space emptiness query on a
 //! bounding-box tree of the vertex positions (a node is skipped when its box's support in
 //! direction `n` is below the plane), exact and about logarithmic per vertex on convex
-//! parts. For the other vertices, [`horizon`] bounds the highest elevation of the mesh
-//! above the tangent plane through the ray origin; rays above it escape and are not
-//! traversed (their directions and random numbers are drawn all the same, so the result is
-//! the same bit for bit).
+//! parts.
 
 use nalgebra::Matrix3;
 use rand::{Rng, SeedableRng};
@@ -43,9 +40,6 @@ use crate::import::mesh::Mesh;
 use crate::observe::trace::SceneBvh;
 use crate::sphere::{from_local, local_frame, SphereGrid};
 use crate::Vec3;
-
-pub mod horizon;
-use horizon::{TriangleTree, HORIZON_MARGIN};
 
 /// Per-vertex texel visibility in the local hemi-octahedral map.
 #[derive(Debug, Clone, Default)]
@@ -162,8 +156,8 @@ pub fn compute(
     compute_sampled(mesh, bvh, env_from_world, n_local, sampling, seed, true)
 }
 
-/// [`compute`] with the open-hemisphere and horizon shortcuts switchable (`skip_open = false`
-/// traces every ray of every vertex; tests use it to check the shortcuts).
+/// [`compute`] with the open-hemisphere shortcut switchable (`skip_open = false` traces every
+/// vertex; tests use it to check the shortcut).
 pub fn compute_with(
     mesh: &Mesh,
     bvh: &SceneBvh,
@@ -188,7 +182,7 @@ pub fn compute_with(
 }
 
 /// Visibility of every vertex of `mesh` with the rays spread by `sampling` (module docs);
-/// `skip_open` enables the open-hemisphere and horizon shortcuts.
+/// `skip_open` enables the open-hemisphere shortcut.
 pub fn compute_sampled(
     mesh: &Mesh,
     bvh: &SceneBvh,
@@ -202,15 +196,6 @@ pub fn compute_sampled(
     let texels = grid.len();
     let eps = bvh.ray_offset();
     let tree = PointTree::new(&mesh.positions);
-    let tris = if skip_open {
-        TriangleTree::new(
-            mesh.faces
-                .iter()
-                .map(|f| f.map(|k| mesh.positions[k as usize])),
-        )
-    } else {
-        TriangleTree::new(std::iter::empty())
-    };
     let world_from_env = env_from_world.transpose();
     let nv = mesh.positions.len();
     let mut frac = vec![0u8; nv * texels];
@@ -220,14 +205,8 @@ pub fn compute_sampled(
         .zip(open.par_iter_mut())
         .enumerate()
         .map_init(
-            || {
-                (
-                    crate::stages::Ticker::default(),
-                    Vec::new(),
-                    std::collections::BinaryHeap::new(),
-                )
-            },
-            |(ticks, first, stack), (v, (out, is_open))| {
+            || (crate::stages::Ticker::default(), Vec::new()),
+            |(ticks, first), (v, (out, is_open))| {
                 ticks.tick(1);
                 let x = mesh.positions[v];
                 let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
@@ -241,20 +220,12 @@ pub fn compute_sampled(
                     out.fill(255);
                     return (0, 0);
                 }
-                let origin = x + n * eps;
-                let horizon = if skip_open {
-                    tris.horizon(&origin, &n, stack) + HORIZON_MARGIN
-                } else {
-                    f64::INFINITY
-                };
                 let rays = VertexRays {
                     bvh,
                     grid: &grid,
                     frame: local_frame(&(env_from_world * n)),
                     world_from_env,
-                    origin,
-                    normal: n,
-                    horizon,
+                    origin: x + n * eps,
                     eps,
                 };
                 let mut rng = Pcg64::seed_from_u64(mix(seed, v as u64));
@@ -285,10 +256,6 @@ struct VertexRays<'a> {
     frame: [Vec3; 3],
     world_from_env: Matrix3<f64>,
     origin: Vec3,
-    /// The unit normal (world) and the sine above which every ray escapes
-    /// ([`horizon`]; infinite when the shortcut is off).
-    normal: Vec3,
-    horizon: f64,
     eps: f64,
 }
 
@@ -300,9 +267,6 @@ impl VertexRays<'_> {
         let nf = n as f64;
         let local = self.grid.decode([(i + a) / nf, (j + b) / nf]);
         let dir = self.world_from_env * from_local(&self.frame, &local);
-        if self.normal.dot(&dir) > self.horizon * dir.norm() {
-            return true;
-        }
         !self
             .bvh
             .occluded(&self.origin, &dir, self.eps, f64::INFINITY)
@@ -492,65 +456,6 @@ fn build(pts: &mut [Vec3], start: usize, end: usize, nodes: &mut Vec<Node>) -> u
 mod tests {
     use super::*;
     use rand::Rng;
-
-    #[test]
-    fn shortcuts_change_no_texel_on_a_bumpy_surface() {
-        // A height field with bumps and dents (occluders in every direction, caps open
-        // above most vertices): with the open-hemisphere and horizon shortcuts every texel
-        // must equal the one found by tracing every ray (brute force), for both samplings.
-        let k = 14;
-        let mut positions = Vec::new();
-        for j in 0..k {
-            for i in 0..k {
-                let (x, y) = (i as f64 / (k - 1) as f64, j as f64 / (k - 1) as f64);
-                let z = 0.08 * (7.0 * x).sin() * (5.0 * y).cos() + 0.05 * (13.0 * x * y).sin();
-                positions.push(Vec3::new(x, y, z));
-            }
-        }
-        let mut faces = Vec::new();
-        for j in 0..k - 1 {
-            for i in 0..k - 1 {
-                let a = (j * k + i) as u32;
-                let (b, c, d) = (a + 1, a + k as u32, a + k as u32 + 1);
-                faces.push([a, b, d]);
-                faces.push([a, d, c]);
-            }
-        }
-        let (mesh, _) = Mesh::from_parts(positions, faces);
-        let bvh = SceneBvh::new(&mesh);
-        let m = Matrix3::identity();
-        // The horizon shortcut is exercised: many vertices have a cap of skipped rays.
-        let tris = TriangleTree::new(
-            mesh.faces
-                .iter()
-                .map(|f| f.map(|k| mesh.positions[k as usize])),
-        );
-        let eps = bvh.ray_offset();
-        let capped = (0..mesh.positions.len())
-            .filter(|&v| {
-                let n = mesh.normals[v].normalize();
-                tris.horizon(
-                    &(mesh.positions[v] + n * eps),
-                    &n,
-                    &mut std::collections::BinaryHeap::new(),
-                ) < 0.7
-            })
-            .count();
-        assert!(capped > 20, "{capped} vertices with a horizon below 0.7");
-        for sampling in [
-            Sampling::Uniform { rays: 2 },
-            Sampling::Adaptive { edge_rays: 4 },
-        ] {
-            let fast = compute_sampled(&mesh, &bvh, &m, 16, sampling, 3, true);
-            let slow = compute_sampled(&mesh, &bvh, &m, 16, sampling, 3, false);
-            assert_eq!(fast.frac, slow.frac);
-            let partial = slow.frac.iter().filter(|&&f| f < 255).count();
-            assert!(
-                partial > 100,
-                "the surface should occlude ({partial} texels)"
-            );
-        }
-    }
 
     #[test]
     fn point_tree_matches_brute_force() {
