@@ -55,18 +55,7 @@ pub fn fit_start(case: &Case) -> Materials0 {
 
 /// A bare [`Estimate`] holding materials `m` (for the metrics that read one).
 fn estimate_of(m: &Materials0) -> Estimate {
-    Estimate {
-        lights: Vec::new(),
-        lambda: m.lambda.clone(),
-        weights: m.weights.clone(),
-        timeline: Vec::new(),
-        normalisation: String::new(),
-        mu: Vec::new(),
-        irls_weights: Vec::new(),
-        conditioning: Default::default(),
-        validation: None,
-        lighting_sample: None,
-    }
+    Estimate::from_parts(Vec::new(), m.lambda.clone(), m.weights.clone())
 }
 
 /// Per vertex `Σ_p α_p y_p / Σ_p α_p o_p` over its training observations, `o_p` the

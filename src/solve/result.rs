@@ -163,6 +163,29 @@ pub struct Estimate {
     pub lighting_sample: Option<crate::solve::subsample::SampleCheck>,
 }
 
+impl Estimate {
+    /// An estimate holding only `lights`, `lambda` and `weights`, with no record of a fit
+    /// (empty timeline, no validation): for predicting with given reflectance and light.
+    pub fn from_parts(
+        lights: Vec<[Vec<f64>; 3]>,
+        lambda: Vec<Vec<[f64; 3]>>,
+        weights: Vec<f64>,
+    ) -> Estimate {
+        Estimate {
+            lights,
+            lambda,
+            weights,
+            timeline: Vec::new(),
+            normalisation: String::new(),
+            mu: Vec::new(),
+            irls_weights: Vec::new(),
+            conditioning: Default::default(),
+            validation: None,
+            lighting_sample: None,
+        }
+    }
+}
+
 /// The state after an outer iteration (before the final normalisation), for callers that
 /// evaluate it as it goes, e.g. the held-out error against run time.
 pub struct IterState<'a> {

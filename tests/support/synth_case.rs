@@ -359,18 +359,7 @@ pub fn predict_with(
     lights: &[[Vec<f64>; 3]],
 ) -> Vec<[f64; 3]> {
     let problem = split.problem(nv);
-    let est = Estimate {
-        lights: lights.to_vec(),
-        lambda: lambda.to_vec(),
-        weights: weights.to_vec(),
-        timeline: Vec::new(),
-        normalisation: String::new(),
-        mu: Vec::new(),
-        irls_weights: Vec::new(),
-        conditioning: Default::default(),
-        validation: None,
-        lighting_sample: None,
-    };
+    let est = Estimate::from_parts(lights.to_vec(), lambda.to_vec(), weights.to_vec());
     relight_cpc::solve::predict(&problem, &est)
 }
 
