@@ -137,8 +137,9 @@ impl PhotoSystem {
         let nb = t.n_basis;
         let n2 = n * n;
         let mut dense = vec![[0.0_f64; 3]; n2];
-        let mut seen = vec![false; n2];
-        let mut touched: Vec<HaarIndex> = Vec::new();
+        // The row's indices as a bitmap over `n²`: read word by word, lowest bit first, it
+        // gives them in ascending order without a sort.
+        let mut seen = vec![0_u64; n2.div_ceil(64)];
         let mut offsets = Vec::with_capacity(dw.len() + 1);
         offsets.push(0);
         let mut index = Vec::new();
@@ -153,10 +154,7 @@ impl PhotoSystem {
                 let (idx, val) = t.row(p, b);
                 for (&m, &g) in idx.iter().zip(val) {
                     let mu = m as usize;
-                    if !seen[mu] {
-                        seen[mu] = true;
-                        touched.push(m);
-                    }
+                    seen[mu / 64] |= 1 << (mu % 64);
                     let g = f64::from(g);
                     let d = &mut dense[mu];
                     d[0] += be[0] * g;
@@ -164,18 +162,19 @@ impl PhotoSystem {
                     d[2] += be[2] * g;
                 }
             }
-            touched.sort_unstable();
-            for &m in &touched {
-                let mu = m as usize;
-                let d = dense[mu];
-                if d != [0.0; 3] {
-                    index.push(m);
-                    value.push(d.map(|v| v as f32));
+            for (w, word) in seen.iter_mut().enumerate() {
+                let mut bits = std::mem::take(word);
+                while bits != 0 {
+                    let mu = w * 64 + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let d = std::mem::take(&mut dense[mu]);
+                    if d != [0.0; 3] {
+                        // `mu < n²`, a Haar index of the transport: it fits `HaarIndex`.
+                        index.push(mu as HaarIndex);
+                        value.push(d.map(|v| v as f32));
+                    }
                 }
-                dense[mu] = [0.0; 3];
-                seen[mu] = false;
             }
-            touched.clear();
             offsets.push(index.len());
         }
         // One entry past the last row: the AVX2 product loads each entry's three `f32`

@@ -216,3 +216,81 @@ fn random_light(rng: &mut rand::rngs::StdRng, n2: usize) -> Vec<[f64; 3]> {
         .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
         .collect()
 }
+
+#[test]
+fn merged_rows_are_the_sorted_union_of_the_blended_basis_rows() {
+    // Three bases' rows over a 32² map (random kept sets, overlapping), some bases off
+    // (β = 0) at some vertices: each merged row must be the union of the kept indices,
+    // ascending, with `Σ_b β_{x,b,c} g_{p,b,m}` summed in basis order and rounded once,
+    // and no entry whose three sums are zero; compared exactly with a sorted map.
+    use crate::observe::Observations;
+    use crate::transport::{Transport, TransportValue};
+    use std::collections::BTreeMap;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
+    let (n, nb, rows) = (32, 3, 90);
+    let mut t = Transport {
+        n_global: n,
+        n_basis: nb,
+        n_obs: rows,
+        offsets: vec![0],
+        ..Default::default()
+    };
+    let mut obs = Observations::default();
+    for p in 0..rows {
+        for _ in 0..nb {
+            let len = rng.random_range(0..=200);
+            let mut idx: Vec<HaarIndex> = rand::seq::index::sample(&mut rng, n * n, len)
+                .into_iter()
+                .map(|m| m as HaarIndex)
+                .collect();
+            idx.sort_unstable();
+            t.value.extend(
+                idx.iter()
+                    .map(|_| TransportValue::from_f32(rng.random_range(-1.0..1.0))),
+            );
+            t.index.extend(idx);
+            t.offsets.push(t.index.len());
+        }
+        obs.vertex.push(p as u32);
+        obs.photo.push(0);
+        obs.rgb.push([0.5; 3]);
+        obs.weight.push(1.0);
+        obs.dir.push([0.0, 0.0, 1.0]);
+    }
+    let all = 0..rows;
+    obs.photo_ranges = vec![all];
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: rows,
+        n_photos: 1,
+    };
+    let beta: Vec<[f64; 3]> = (0..rows * nb)
+        .map(|i| match i % 7 {
+            0 => [0.0; 3],
+            _ => [0, 1, 2].map(|_| rng.random_range(0.0..2.0)),
+        })
+        .collect();
+    let sys = PhotoSystem::new(&problem, &beta, 0..rows, n, vec![[1.0; 3]; rows]);
+    for p in 0..rows {
+        let mut union: BTreeMap<HaarIndex, [f64; 3]> = BTreeMap::new();
+        for b in 0..nb {
+            let be = beta[p * nb + b];
+            if be == [0.0; 3] {
+                continue;
+            }
+            let (idx, val) = t.row(p, b);
+            for (&m, &g) in idx.iter().zip(val) {
+                let d = union.entry(m).or_insert([0.0; 3]);
+                for c in 0..3 {
+                    d[c] += be[c] * f64::from(g);
+                }
+            }
+        }
+        union.retain(|_, d| *d != [0.0; 3]);
+        let (idx, val) = sys.merged(p);
+        assert_eq!(idx, union.keys().copied().collect::<Vec<_>>(), "row {p}");
+        let want: Vec<[f32; 3]> = union.values().map(|d| d.map(|v| v as f32)).collect();
+        assert_eq!(val, want, "row {p}");
+    }
+}
