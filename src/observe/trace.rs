@@ -65,7 +65,8 @@ impl Boundable for Prim {
 /// A BVH over a mesh's triangles. Immutable and `Sync`: share one across threads.
 pub struct SceneBvh {
     bvh: Option<CwBvh>,
-    /// Triangle corners in BVH primitive order (`tris[i]` is primitive `i`).
+    /// Triangles in BVH primitive order (`tris[i]` is primitive `i`) as the ray test reads
+    /// them: `[p0, e1 = p1 − p0, e2 = p2 − p0]`.
     tris: Vec<[Vec3; 3]>,
     /// Mesh face index of BVH primitive `i`.
     face_of: Vec<u32>,
@@ -80,21 +81,40 @@ pub fn intersect_triangle(
     t_min: f64,
     t_max: f64,
 ) -> Option<(f64, f64, f64)> {
+    let edges = edge_form(corners);
+    intersect_edges(&edges, origin, dir, t_min, t_max)
+}
+
+/// A triangle's corners as `[p0, e1 = p1 − p0, e2 = p2 − p0]`, the form the BVH stores (the
+/// edges are computed once per triangle instead of once per ray test).
+fn edge_form(corners: &[Vec3; 3]) -> [Vec3; 3] {
+    [corners[0], corners[1] - corners[0], corners[2] - corners[0]]
+}
+
+/// [`intersect_triangle`] of a triangle in [`edge_form`]: the same operations on the same
+/// values, so the same result bit for bit.
+#[inline]
+fn intersect_edges(
+    edges: &[Vec3; 3],
+    origin: &Vec3,
+    dir: &Vec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, f64, f64)> {
     const EDGE_TOL: f64 = 1e-12;
-    let e1 = corners[1] - corners[0];
-    let e2 = corners[2] - corners[0];
-    let pvec = dir.cross(&e2);
+    let [p0, e1, e2] = edges;
+    let pvec = dir.cross(e2);
     let det = e1.dot(&pvec);
     if det == 0.0 || !det.is_finite() {
         return None;
     }
     let inv = 1.0 / det;
-    let tvec = origin - corners[0];
+    let tvec = origin - p0;
     let u = tvec.dot(&pvec) * inv;
     if !(-EDGE_TOL..=1.0 + EDGE_TOL).contains(&u) {
         return None;
     }
-    let qvec = tvec.cross(&e1);
+    let qvec = tvec.cross(e1);
     let v = dir.dot(&qvec) * inv;
     if v < -EDGE_TOL || u + v > 1.0 + EDGE_TOL {
         return None;
@@ -148,7 +168,7 @@ impl SceneBvh {
         let tris = bvh
             .primitive_indices
             .iter()
-            .map(|&i| prims[i as usize].corners)
+            .map(|&i| edge_form(&prims[i as usize].corners))
             .collect();
         let face_of = bvh.primitive_indices.clone();
         SceneBvh {
@@ -167,7 +187,7 @@ impl SceneBvh {
         let mut hit = RayHit::none();
         bvh.ray_traverse(ray, &mut hit, |_, id| {
             let limit = best.map_or(t_max, |b| b.t);
-            match intersect_triangle(&self.tris[id], origin, dir, t_min, limit) {
+            match intersect_edges(&self.tris[id], origin, dir, t_min, limit) {
                 Some((t, u, v)) => {
                     best = Some(Hit {
                         t,
@@ -193,7 +213,7 @@ impl SceneBvh {
             return false;
         };
         !bvh.ray_traverse_miss(ray, |r, id| {
-            match intersect_triangle(&self.tris[id], origin, dir, t_min, t_max) {
+            match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
                 // Any value below the ray's tmax stops the traversal.
                 Some(_) => r.tmin.min(r.tmax),
                 None => f32::INFINITY,
