@@ -221,6 +221,42 @@ impl SceneBvh {
         })
     }
 
+    /// [`SceneBvh::occluded`] with a hint: `hint` names a BVH primitive that blocked an
+    /// earlier, nearby ray (`u32::MAX` for none). It is tested first with the same f64
+    /// test; when it blocks this segment too the traversal is skipped, else the ray is
+    /// traversed and `hint` becomes the primitive that blocked it, if any. Either way the
+    /// answer is whether a triangle accepted by the f64 test lies on the segment: the
+    /// hinted one when it does, else the traversal's.
+    pub fn occluded_hinted(
+        &self,
+        origin: &Vec3,
+        dir: &Vec3,
+        t_min: f64,
+        t_max: f64,
+        hint: &mut u32,
+    ) -> bool {
+        if let Some(tri) = self.tris.get(*hint as usize) {
+            if intersect_edges(tri, origin, dir, t_min, t_max).is_some() {
+                return true;
+            }
+        }
+        let Some(bvh) = self.bvh.as_ref() else {
+            return false;
+        };
+        let Some(ray) = to_ray(origin, dir, t_min, t_max) else {
+            return false;
+        };
+        !bvh.ray_traverse_miss(ray, |r, id| {
+            match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
+                Some(_) => {
+                    *hint = id as u32;
+                    r.tmin.min(r.tmax)
+                }
+                None => f32::INFINITY,
+            }
+        })
+    }
+
     /// Self-hit epsilon: `1e-5 ×` the mesh's bounding-box diagonal. Offset ray origins by
     /// this along the normal and start rays at `t_min = ray_offset()` (unit directions).
     pub fn ray_offset(&self) -> f64 {
@@ -311,6 +347,63 @@ mod tests {
             }
         }
         assert!(hits > 200, "test rays should hit often ({hits})");
+    }
+
+    #[test]
+    fn hinted_occlusion_matches_brute_force() {
+        // Against the brute-force answer (some triangle accepted by the f64 test on the
+        // segment), for random segments and hints that are stale (the last blocker of an
+        // unrelated ray), absent, or out of range; no tolerance: the same f64 test decides.
+        let mesh = soup(17, 300);
+        let bvh = SceneBvh::new(&mesh);
+        let mut rng = Pcg64::seed_from_u64(19);
+        let mut hint = u32::MAX;
+        let (mut blocked, mut hinted) = (0, 0);
+        for k in 0..3000 {
+            let o = Vec3::new(rng.random(), rng.random(), rng.random());
+            let d = Vec3::new(
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+            );
+            let t_max = if k % 3 == 0 {
+                f64::INFINITY
+            } else {
+                rng.random::<f64>()
+            };
+            let brute = mesh.faces.iter().any(|tri| {
+                let c = tri.map(|i| mesh.positions[i as usize]);
+                intersect_triangle(&c, &o, &d, 1e-9, t_max).is_some()
+            });
+            if k % 97 == 0 {
+                hint = if k % 2 == 0 { u32::MAX } else { 1_000_000 };
+            }
+            let before = hint;
+            let got = bvh.occluded_hinted(&o, &d, 1e-9, t_max, &mut hint);
+            assert_eq!(got, brute, "ray {k}");
+            assert_eq!(got, bvh.occluded(&o, &d, 1e-9, t_max), "ray {k}");
+            blocked += usize::from(got);
+            hinted += usize::from(got && hint == before && before != u32::MAX);
+            if got {
+                // The blocker just found blocks the same segment: answered by the hint
+                // alone, which stays as it was.
+                let mut again = hint;
+                assert!(bvh.occluded_hinted(&o, &d, 1e-9, t_max, &mut again));
+                assert_eq!(again, hint);
+                // A shorter segment that the brute force finds free stays free.
+                let short = 0.5
+                    * mesh
+                        .faces
+                        .iter()
+                        .filter_map(|tri| {
+                            let c = tri.map(|i| mesh.positions[i as usize]);
+                            intersect_triangle(&c, &o, &d, 1e-9, t_max).map(|h| h.0)
+                        })
+                        .fold(f64::INFINITY, f64::min);
+                assert!(!bvh.occluded_hinted(&o, &d, 1e-9, short, &mut again));
+            }
+        }
+        assert!(blocked > 100, "{blocked} blocked, {hinted} by a stale hint");
     }
 
     #[test]
