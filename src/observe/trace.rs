@@ -65,7 +65,8 @@ impl Boundable for Prim {
 /// A BVH over a mesh's triangles. Immutable and `Sync`: share one across threads.
 pub struct SceneBvh {
     bvh: Option<CwBvh>,
-    /// Triangle corners in BVH primitive order (`tris[i]` is primitive `i`).
+    /// Triangles in BVH primitive order (`tris[i]` is primitive `i`) as the ray test reads
+    /// them: `[p0, e1 = p1 − p0, e2 = p2 − p0]`.
     tris: Vec<[Vec3; 3]>,
     /// Mesh face index of BVH primitive `i`.
     face_of: Vec<u32>,
@@ -80,21 +81,40 @@ pub fn intersect_triangle(
     t_min: f64,
     t_max: f64,
 ) -> Option<(f64, f64, f64)> {
+    let edges = edge_form(corners);
+    intersect_edges(&edges, origin, dir, t_min, t_max)
+}
+
+/// A triangle's corners as `[p0, e1 = p1 − p0, e2 = p2 − p0]`, the form the BVH stores (the
+/// edges are computed once per triangle instead of once per ray test).
+fn edge_form(corners: &[Vec3; 3]) -> [Vec3; 3] {
+    [corners[0], corners[1] - corners[0], corners[2] - corners[0]]
+}
+
+/// [`intersect_triangle`] of a triangle in [`edge_form`]: the same operations on the same
+/// values, so the same result bit for bit.
+#[inline]
+fn intersect_edges(
+    edges: &[Vec3; 3],
+    origin: &Vec3,
+    dir: &Vec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, f64, f64)> {
     const EDGE_TOL: f64 = 1e-12;
-    let e1 = corners[1] - corners[0];
-    let e2 = corners[2] - corners[0];
-    let pvec = dir.cross(&e2);
+    let [p0, e1, e2] = edges;
+    let pvec = dir.cross(e2);
     let det = e1.dot(&pvec);
     if det == 0.0 || !det.is_finite() {
         return None;
     }
     let inv = 1.0 / det;
-    let tvec = origin - corners[0];
+    let tvec = origin - p0;
     let u = tvec.dot(&pvec) * inv;
     if !(-EDGE_TOL..=1.0 + EDGE_TOL).contains(&u) {
         return None;
     }
-    let qvec = tvec.cross(&e1);
+    let qvec = tvec.cross(e1);
     let v = dir.dot(&qvec) * inv;
     if v < -EDGE_TOL || u + v > 1.0 + EDGE_TOL {
         return None;
@@ -148,7 +168,7 @@ impl SceneBvh {
         let tris = bvh
             .primitive_indices
             .iter()
-            .map(|&i| prims[i as usize].corners)
+            .map(|&i| edge_form(&prims[i as usize].corners))
             .collect();
         let face_of = bvh.primitive_indices.clone();
         SceneBvh {
@@ -167,7 +187,7 @@ impl SceneBvh {
         let mut hit = RayHit::none();
         bvh.ray_traverse(ray, &mut hit, |_, id| {
             let limit = best.map_or(t_max, |b| b.t);
-            match intersect_triangle(&self.tris[id], origin, dir, t_min, limit) {
+            match intersect_edges(&self.tris[id], origin, dir, t_min, limit) {
                 Some((t, u, v)) => {
                     best = Some(Hit {
                         t,
@@ -193,9 +213,45 @@ impl SceneBvh {
             return false;
         };
         !bvh.ray_traverse_miss(ray, |r, id| {
-            match intersect_triangle(&self.tris[id], origin, dir, t_min, t_max) {
+            match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
                 // Any value below the ray's tmax stops the traversal.
                 Some(_) => r.tmin.min(r.tmax),
+                None => f32::INFINITY,
+            }
+        })
+    }
+
+    /// [`SceneBvh::occluded`] with a hint: `hint` names a BVH primitive that blocked an
+    /// earlier, nearby ray (`u32::MAX` for none). It is tested first with the same f64
+    /// test; when it blocks this segment too the traversal is skipped, else the ray is
+    /// traversed and `hint` becomes the primitive that blocked it, if any. Either way the
+    /// answer is whether a triangle accepted by the f64 test lies on the segment: the
+    /// hinted one when it does, else the traversal's.
+    pub fn occluded_hinted(
+        &self,
+        origin: &Vec3,
+        dir: &Vec3,
+        t_min: f64,
+        t_max: f64,
+        hint: &mut u32,
+    ) -> bool {
+        if let Some(tri) = self.tris.get(*hint as usize) {
+            if intersect_edges(tri, origin, dir, t_min, t_max).is_some() {
+                return true;
+            }
+        }
+        let Some(bvh) = self.bvh.as_ref() else {
+            return false;
+        };
+        let Some(ray) = to_ray(origin, dir, t_min, t_max) else {
+            return false;
+        };
+        !bvh.ray_traverse_miss(ray, |r, id| {
+            match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
+                Some(_) => {
+                    *hint = id as u32;
+                    r.tmin.min(r.tmax)
+                }
                 None => f32::INFINITY,
             }
         })
@@ -291,6 +347,63 @@ mod tests {
             }
         }
         assert!(hits > 200, "test rays should hit often ({hits})");
+    }
+
+    #[test]
+    fn hinted_occlusion_matches_brute_force() {
+        // Against the brute-force answer (some triangle accepted by the f64 test on the
+        // segment), for random segments and hints that are stale (the last blocker of an
+        // unrelated ray), absent, or out of range; no tolerance: the same f64 test decides.
+        let mesh = soup(17, 300);
+        let bvh = SceneBvh::new(&mesh);
+        let mut rng = Pcg64::seed_from_u64(19);
+        let mut hint = u32::MAX;
+        let (mut blocked, mut hinted) = (0, 0);
+        for k in 0..3000 {
+            let o = Vec3::new(rng.random(), rng.random(), rng.random());
+            let d = Vec3::new(
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+            );
+            let t_max = if k % 3 == 0 {
+                f64::INFINITY
+            } else {
+                rng.random::<f64>()
+            };
+            let brute = mesh.faces.iter().any(|tri| {
+                let c = tri.map(|i| mesh.positions[i as usize]);
+                intersect_triangle(&c, &o, &d, 1e-9, t_max).is_some()
+            });
+            if k % 97 == 0 {
+                hint = if k % 2 == 0 { u32::MAX } else { 1_000_000 };
+            }
+            let before = hint;
+            let got = bvh.occluded_hinted(&o, &d, 1e-9, t_max, &mut hint);
+            assert_eq!(got, brute, "ray {k}");
+            assert_eq!(got, bvh.occluded(&o, &d, 1e-9, t_max), "ray {k}");
+            blocked += usize::from(got);
+            hinted += usize::from(got && hint == before && before != u32::MAX);
+            if got {
+                // The blocker just found blocks the same segment: answered by the hint
+                // alone, which stays as it was.
+                let mut again = hint;
+                assert!(bvh.occluded_hinted(&o, &d, 1e-9, t_max, &mut again));
+                assert_eq!(again, hint);
+                // A shorter segment that the brute force finds free stays free.
+                let short = 0.5
+                    * mesh
+                        .faces
+                        .iter()
+                        .filter_map(|tri| {
+                            let c = tri.map(|i| mesh.positions[i as usize]);
+                            intersect_triangle(&c, &o, &d, 1e-9, t_max).map(|h| h.0)
+                        })
+                        .fold(f64::INFINITY, f64::min);
+                assert!(!bvh.occluded_hinted(&o, &d, 1e-9, short, &mut again));
+            }
+        }
+        assert!(blocked > 100, "{blocked} blocked, {hinted} by a stale hint");
     }
 
     #[test]

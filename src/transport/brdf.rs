@@ -472,11 +472,29 @@ impl BasisBrdf {
     /// cos^N θ < 10⁻¹⁸ (N+2)/(2π)`, eighteen orders below the lobe's peak and far below
     /// the `f32` rounding of the transport rows it feeds.
     pub fn slice_with(&self, grid: &SliceGrid, wo: &Vec3, out: &mut [f64]) {
-        self.slice_sampled(grid, wo, out, true);
+        self.slice_sampled(grid, wo, out, true, None);
     }
 
-    /// [`BasisBrdf::slice_with`], with the negligible texels skipped or sampled.
-    fn slice_sampled(&self, grid: &SliceGrid, wo: &Vec3, out: &mut [f64], skip_negligible: bool) {
+    /// [`BasisBrdf::slice_with`] for a consumer that multiplies the slice by `weight`
+    /// (the transport's `V ⊙ Δω`): texels with `weight[t] == 0` (occluded) are written as 0
+    /// without sampling, every other texel as [`BasisBrdf::slice_with`] writes it, bit for
+    /// bit (a texel's average sums its own sub-texels only). The product `weight ⊙ slice`
+    /// is therefore the same as with the full slice: `0 · ρ = 0` for the finite `ρ ≥ 0`.
+    pub fn slice_masked(&self, grid: &SliceGrid, wo: &Vec3, weight: &[f64], out: &mut [f64]) {
+        assert_eq!(weight.len(), out.len(), "slice: weight length");
+        self.slice_sampled(grid, wo, out, true, Some(weight));
+    }
+
+    /// [`BasisBrdf::slice_with`], with the negligible texels skipped or sampled and the
+    /// texels of zero `weight` skipped when one is given.
+    fn slice_sampled(
+        &self,
+        grid: &SliceGrid,
+        wo: &Vec3,
+        out: &mut [f64],
+        skip_negligible: bool,
+        weight: Option<&[f64]>,
+    ) {
         assert_eq!(out.len(), grid.centre.len(), "slice: output length");
         let peak = self.peak(wo);
         let sigma = self.lobe_sigma();
@@ -490,6 +508,9 @@ impl BasisBrdf {
         // Each texel's refinement level (0: written as zero without sampling).
         let levels: Vec<u8> = (0..out.len())
             .map(|t| {
+                if weight.is_some_and(|w| w[t] == 0.0) {
+                    return 0;
+                }
                 let r = grid.radius[t];
                 match self {
                     BasisBrdf::Lambert => 2,

@@ -192,6 +192,22 @@ impl SliceSource {
             SliceSource::OnDemand => b.slice_with(grid, wo, out),
         }
     }
+
+    /// [`SliceSource::slice`] for a product with `weight` (`V ⊙ Δω`): on-demand slices skip
+    /// the texels of zero weight ([`BasisBrdf::slice_masked`]; the product is unchanged).
+    fn slice_for(
+        &self,
+        b: &BasisBrdf,
+        grid: &SliceGrid,
+        wo: &Vec3,
+        weight: &[f64],
+        out: &mut [f64],
+    ) {
+        match self {
+            SliceSource::OnDemand => b.slice_masked(grid, wo, weight, out),
+            _ => self.slice(b, grid, wo, out),
+        }
+    }
 }
 
 /// Outgoing direction in the local frame, kept strictly above the horizon.
@@ -468,7 +484,7 @@ pub fn build_rows<R: LocalRotation>(
                 scratch.locals.resize(view_bases.len() * nl2, 0.0);
                 scratch.globals.resize(view_bases.len() * ng2, 0.0);
                 for (&b, local) in view_bases.iter().zip(scratch.locals.chunks_mut(nl2)) {
-                    sources[b].slice(&basis[b], &grid, &wo, local);
+                    sources[b].slice_for(&basis[b], &grid, &wo, &scratch.v_dw, local);
                     for (l, vw) in local.iter_mut().zip(&scratch.v_dw) {
                         *l *= vw;
                     }

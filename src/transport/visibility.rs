@@ -24,6 +24,11 @@
 //! with `m = 4`, 71% of the rays of two uniform ones per texel and half their texel RMS
 //! error against 64 rays.
 //!
+//! A vertex's rays run texel by texel, so a blocked ray is most often blocked by the same
+//! triangle as the previous blocked one: that triangle is tested first
+//! ([`SceneBvh::occluded_hinted`], the same f64 test, so a ray it blocks is blocked) and the
+//! BVH is traversed only when it does not block.
+//!
 //! Provably open vertices skip the rays: if no mesh vertex lies above the tangent plane,
 //! `n·(p − x) ≤ ε` for all `p`, no triangle (a convex combination of vertices) does either,
 //! so every ray with `n·ω > 0` escapes. The test is a half-space emptiness query on a
@@ -227,6 +232,7 @@ pub fn compute_sampled(
                     world_from_env,
                     origin: x + n * eps,
                     eps,
+                    blocker: std::cell::Cell::new(u32::MAX),
                 };
                 let mut rng = Pcg64::seed_from_u64(mix(seed, v as u64));
                 let traced = match sampling {
@@ -257,6 +263,10 @@ struct VertexRays<'a> {
     world_from_env: Matrix3<f64>,
     origin: Vec3,
     eps: f64,
+    /// The BVH primitive that blocked the vertex's last blocked ray, tested first for the
+    /// next one ([`SceneBvh::occluded_hinted`]): neighbouring texels' rays are mostly
+    /// blocked by the same triangle.
+    blocker: std::cell::Cell<u32>,
 }
 
 impl VertexRays<'_> {
@@ -267,9 +277,12 @@ impl VertexRays<'_> {
         let nf = n as f64;
         let local = self.grid.decode([(i + a) / nf, (j + b) / nf]);
         let dir = self.world_from_env * from_local(&self.frame, &local);
-        !self
-            .bvh
-            .occluded(&self.origin, &dir, self.eps, f64::INFINITY)
+        let mut hint = self.blocker.get();
+        let blocked =
+            self.bvh
+                .occluded_hinted(&self.origin, &dir, self.eps, f64::INFINITY, &mut hint);
+        self.blocker.set(hint);
+        !blocked
     }
 
     /// How many of `r` jittered rays through texel `t` escape: stratified on a `√r × √r`
