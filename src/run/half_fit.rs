@@ -3,21 +3,24 @@
 //! of the object, judged on the right half.
 //!
 //! The fit minimises the lighting step's objective (Eq. 10 with the Laplacian, the robust
-//! IRLS weights and the light prior, [`crate::solve::fit_light_frozen`]) over the photo's
+//! IRLS weights and the light prior, [`crate::solve::light::frozen`]) over the photo's
 //! left-half observations `p`, `Σ_p α_p ω_p (y_p − ⟨e_p, W x⟩)²` plus the priors, from the
-//! mean training map, capped at [`HALF_FIT_GPCG`] × [`HALF_FIT_CG`] per IRLS pass. Every
+//! mean training map, in the run's IRLS passes (3 by default) capped by [`half_fit_passes`] (those
+//! before the last at half its GPCG iterations: they only set the next pass's weights). Every
 //! left-half observation is used: the right half is an extrapolation of the map the left
 //! half does not pin down, and its error follows the solver's path. Measured at 100K
 //! vertices (`bench-results/speed-evaluation-2.md`): a stratified sample of 2,000–16,000 of
 //! a photo's 16,000–22,000 left-half observations (Horvitz–Thompson weighted), with or
 //! without a polish of 5–10 GPCG iterations on all of them, moved the right half's error on
 //! one photo by −16% to +18% (+0.8% to +1.3% with 16,000 of its 22,094), and one warm IRLS
-//! pass instead of three by −11%; at 30K the same error is within 0.2% of an 80-iteration
-//! fit's.
+//! pass instead of three by −11%. At 30K a fit converged in every pass (2.2–3.7× the
+//! products) is within 0.2% of the capped fits' right-half error
+//! (`bench-results/speed-evaluation-4.md`).
 
 use super::Fitted;
 use crate::observe::Observations;
-use crate::solve::{self, EstimateOptions, Problem};
+use crate::solve::light::frozen::{fit_light_scheduled, PassCaps};
+use crate::solve::{EstimateOptions, Problem};
 use crate::sphere::envmap::OctEnv;
 use crate::Result;
 
@@ -30,6 +33,27 @@ use crate::Result;
 pub(crate) const HALF_FIT_GPCG: usize = 20;
 /// See [`HALF_FIT_GPCG`].
 pub(crate) const HALF_FIT_CG: usize = 20;
+
+/// Protocol (b)'s IRLS passes ([`fit_light_scheduled`]), `irls_iters` of them (at least
+/// one): those before the last, which only set the next pass's weights, at half the last's
+/// GPCG cap. Measured on the 30K workspace's three
+/// held-out photos (`bench-results/speed-evaluation-4.md`): Hessian products 1,991 / 2,001 /
+/// 1,885 → 1,314 / 1,291 / 1,277 per fit (−34%), the right half's RMSE over its
+/// observations −1.3% / −0.3% / +0.1%; a fit converged in every pass (KKT tolerance 10⁻⁷)
+/// takes 4,373 / 7,306 / 4,624 products and moves that RMSE by +0.1% / +0.2% / −0.1%.
+pub(crate) fn half_fit_passes(irls_iters: usize) -> Vec<PassCaps> {
+    let early = PassCaps {
+        gpcg: HALF_FIT_GPCG / 2,
+        cg: HALF_FIT_CG,
+    };
+    let last = PassCaps {
+        gpcg: HALF_FIT_GPCG,
+        cg: HALF_FIT_CG,
+    };
+    let mut passes = vec![early; irls_iters.max(1) - 1];
+    passes.push(last);
+    passes
+}
 
 /// The middle of the span of `xs`, `(min + max) / 2` (pixel centres: the middle of the
 /// covered pixels), or `None` when empty: the left/right rule of protocol (b).
@@ -80,8 +104,6 @@ pub(super) fn fit_left_half(
         n_photos: 1,
     };
     let opts = EstimateOptions {
-        qp_max_iter: HALF_FIT_GPCG,
-        qp_max_cg: HALF_FIT_CG,
         lighting_sample: 0,
         light_prior: f
             .half_prior
@@ -90,9 +112,24 @@ pub(super) fn fit_left_half(
         ..f.estimate_options.clone()
     };
     let start = [0, 1, 2].map(|c| start.channel(c));
-    let l = solve::fit_light_frozen(&problem, &f.beta, 0, Some(&start), &opts)?;
+    let passes = half_fit_passes(opts.irls_iters);
+    let l = fit_light_scheduled(&problem, &f.beta, 0, Some(&start), &opts, &passes)?;
     Ok(Some(OctEnv::from_channels(
         f.opts.global_resolution,
-        [&l[0], &l[1], &l[2]],
+        [&l.light[0], &l.light[1], &l.light[2]],
     )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn half_fit_passes_halve_every_pass_but_the_last() {
+        let (early, last) = (PassCaps { gpcg: 10, cg: 20 }, PassCaps { gpcg: 20, cg: 20 });
+        assert_eq!(half_fit_passes(3), vec![early, early, last]);
+        // No robust passes asked for: one pass, the full caps.
+        assert_eq!(half_fit_passes(0), vec![last]);
+        assert_eq!(half_fit_passes(1), vec![last]);
+    }
 }

@@ -1,6 +1,11 @@
-//! The truth check of synthetic workspaces (issue 25): each training photo rendered from
-//! the fit under the **true** light it was taken in (`truth/manifest.json`: the map, the
-//! exposure and the white balance), against the photo.
+//! The truth check of synthetic workspaces (issue 25): training photos rendered from the
+//! fit under the **true** light they were taken in (`truth/manifest.json`: the map, the
+//! exposure and the white balance), against the photos. At most [`TRUTH_CHECK_PHOTOS`] of
+//! them, spread evenly over the training list ([`checked_positions`]): each is shaded at
+//! every vertex it sees like a held-out photo, which at 10 training photos of 1 MP was
+//! two thirds of the evaluation's shading; five photos estimate the mean relative error
+//! to within a few tenths of a point at 30K and 100K vertices
+//! (`bench-results/speed-evaluation-4.md`).
 //!
 //! A per-photo free light map can absorb wrong reflectance: the fit then reproduces its
 //! training photos under its *fitted* maps, yet not under the true ones. Both figures are
@@ -44,13 +49,26 @@ impl CheckedView {
     }
 }
 
-/// The training photos the manifest gives a light for, with their lights and rasters.
-/// They are shaded in the held-out renders' vertex-major pass ([`super::evaluate`]: a
-/// vertex seen in several photos is rotated into its frame once for all their lights),
-/// then scored by [`score`].
+/// Most training photos the truth check renders ([`checked_positions`]).
+pub(crate) const TRUTH_CHECK_PHOTOS: usize = 5;
+
+/// The positions in a training list of `m` photos that the truth check renders: all of
+/// them up to [`TRUTH_CHECK_PHOTOS`], else that many spread evenly over the list
+/// (`⌊i m / TRUTH_CHECK_PHOTOS⌋`, from the first). Each checked photo's figures are those
+/// of the check of every photo; the mean is over fewer photos (module docs).
+pub(crate) fn checked_positions(m: usize) -> Vec<usize> {
+    let k = m.min(TRUTH_CHECK_PHOTOS);
+    (0..k).map(|i| i * m / k).collect()
+}
+
+/// The training photos at [`checked_positions`] the manifest gives a light for, with their
+/// lights and rasters. They are shaded in the held-out renders' vertex-major pass
+/// ([`super::evaluate`]: a vertex seen in several photos is rotated into its frame once
+/// for all their lights), then scored by [`score`].
 pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView>> {
     let mut checked = Vec::new();
-    for (k, &v) in f.train.iter().enumerate() {
+    for k in checked_positions(f.train.len()) {
+        let v = f.train[k];
         let view = &f.scene.views[v];
         let name = view.image.name.as_str();
         let Some(true_env) = truth.light(name, f.opts.global_resolution, &f.env_from_world)? else {
@@ -264,4 +282,29 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
         materials,
         max_ratio_error,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checked_positions_keep_short_lists_and_spread_long_ones() {
+        // Up to the cap: every photo, in order.
+        assert_eq!(checked_positions(0), Vec::<usize>::new());
+        assert_eq!(checked_positions(3), vec![0, 1, 2]);
+        assert_eq!(checked_positions(5), vec![0, 1, 2, 3, 4]);
+        // 10 training photos: every second one.
+        assert_eq!(checked_positions(10), vec![0, 2, 4, 6, 8]);
+        // Any longer list: the cap's count, strictly increasing, inside the list, and no
+        // gap wider than ⌈m / cap⌉ (evenly spread).
+        for m in 6..200 {
+            let p = checked_positions(m);
+            assert_eq!(p.len(), TRUTH_CHECK_PHOTOS);
+            assert!(p
+                .windows(2)
+                .all(|w| w[0] < w[1] && w[1] - w[0] <= m.div_ceil(5)));
+            assert!(p[0] == 0 && p[TRUTH_CHECK_PHOTOS - 1] < m);
+        }
+    }
 }

@@ -33,6 +33,7 @@ use crate::solve::result::Conditioning;
 use crate::Result;
 
 pub mod choose;
+pub mod frozen;
 pub mod laplacian;
 pub mod paper;
 pub mod photo;

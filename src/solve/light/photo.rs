@@ -132,7 +132,7 @@ impl PhotoData {
 
     /// The α-weighted mean square of the rows' radiance (the light prior's scale); over the QP's
     /// rows, whose `α` carries the sample's weights.
-    fn mean_square(&self) -> f64 {
+    pub(super) fn mean_square(&self) -> f64 {
         let (alpha, y) = (&self.alpha, &self.y);
         let (num, den) = (0..self.pos.len()).fold((0.0, 0.0), |(a, b), q| {
             let yy = (y[q][0].powi(2) + y[q][1].powi(2) + y[q][2].powi(2)) / 3.0;
@@ -147,17 +147,17 @@ impl PhotoData {
 }
 
 /// The solver's figures over one lighting step's QPs.
-struct QpStats {
-    cond: f64,
-    converged: bool,
-    matvecs: usize,
-    qps: usize,
-    unconverged_qps: usize,
-    matvecs_max: usize,
+pub(super) struct QpStats {
+    pub(super) cond: f64,
+    pub(super) converged: bool,
+    pub(super) matvecs: usize,
+    pub(super) qps: usize,
+    pub(super) unconverged_qps: usize,
+    pub(super) matvecs_max: usize,
 }
 
 impl QpStats {
-    fn new() -> Self {
+    pub(super) fn new() -> Self {
         QpStats {
             cond: 0.0,
             converged: true,
@@ -168,7 +168,7 @@ impl QpStats {
         }
     }
 
-    fn add(&mut self, res: &QpResult) {
+    pub(super) fn add(&mut self, res: &QpResult) {
         self.converged &= res.converged;
         self.matvecs += res.matvecs;
         self.qps += 1;
@@ -371,7 +371,7 @@ pub(crate) fn lighting_step_warm(
 
 /// `μ` per channel when not given: `smoothness` × the system diagonal's largest (or mean)
 /// entry on the chosen scale ([`SmoothnessScale`]).
-fn smoothness_weights(
+pub(super) fn smoothness_weights(
     problem: &Problem,
     beta: &[[f64; 3]],
     data: &PhotoData,
@@ -397,7 +397,7 @@ fn smoothness_weights(
 
 /// The QP's Jacobi scaling `diag(Wᵀ Aᵀ α A W) + μ diag(ΔᵀΔ)`, channel-major, when
 /// [`LIGHTING_JACOBI`] is on.
-fn jacobi_scaling(
+pub(super) fn jacobi_scaling(
     tdiag: Option<&[[f64; 3]]>,
     lap: &Laplacian,
     mu: [f64; 3],
@@ -418,7 +418,7 @@ fn jacobi_scaling(
 }
 
 /// The QP's start: `start`'s texels channel-major, or zeros.
-fn start_texels(start: Option<&[Vec<f64>; 3]>, n2: usize) -> Result<Vec<f64>> {
+pub(super) fn start_texels(start: Option<&[Vec<f64>; 3]>, n2: usize) -> Result<Vec<f64>> {
     let x: Vec<f64> = match start {
         Some(s) => s.iter().flat_map(|c| c.iter().copied()).collect(),
         None => vec![0.0; 3 * n2],
@@ -486,20 +486,20 @@ pub(crate) fn reweight(
 
 /// The quadratic of one IRLS pass: the photo's system with its current weights, the
 /// Laplacian prior, the optional light prior and the scaling.
-struct PassSystem<'a> {
-    sys: &'a PhotoSystem,
-    lap: &'a Laplacian,
-    mu: [f64; 3],
-    jacobi: Option<&'a [f64]>,
+pub(super) struct PassSystem<'a> {
+    pub(super) sys: &'a PhotoSystem,
+    pub(super) lap: &'a Laplacian,
+    pub(super) mu: [f64; 3],
+    pub(super) jacobi: Option<&'a [f64]>,
     /// The light prior's options and projection, when on.
-    prior: Option<(&'a LightPriorOptions, &'a ShProjection)>,
+    pub(super) prior: Option<(&'a LightPriorOptions, &'a ShProjection)>,
     /// The rows' mean square radiance (the prior's scale).
-    y_ms: f64,
+    pub(super) y_ms: f64,
 }
 
 /// One pass's QP from `x`; `None` when no light reaches a weighted observation (the
 /// right-hand side is 0).
-fn solve_pass(
+pub(super) fn solve_pass(
     p: &PassSystem,
     data: &PhotoData,
     x: &[f64],

@@ -14,7 +14,12 @@ use crate::transport::{HaarIndex, Transport, TransportValue};
 /// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
 /// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
 /// `y` from a known smooth light plus Gaussian-like noise (`σ` relative).
-fn planted_photo(rows: usize, n: usize, noise: f64, seed: u64) -> (Observations, Transport) {
+pub(super) fn planted_photo(
+    rows: usize,
+    n: usize,
+    noise: f64,
+    seed: u64,
+) -> (Observations, Transport) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let n2 = n * n;
     let light: Vec<[f64; 3]> = {
