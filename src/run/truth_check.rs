@@ -1,10 +1,11 @@
 //! The truth check of synthetic workspaces (issue 25): training photos rendered from the
 //! fit under the **true** light they were taken in (`truth/manifest.json`: the map, the
-//! exposure and the white balance), against the photos. At most [`TRUTH_CHECK_PHOTOS`] of
-//! them, spread evenly over the training list ([`checked_positions`]): each is shaded at
-//! every vertex it sees like a held-out photo, which at 10 training photos of 1 MP was
-//! two thirds of the evaluation's shading; five photos estimate the mean relative error
-//! to within a few tenths of a point at 30K and 100K vertices
+//! exposure and the white balance), against the photos. Every training photo while their
+//! pixels fit in [`TRUTH_CHECK_PIXELS`] (five megapixel photos), else as many as fit,
+//! spread evenly over the training list ([`checked_positions`]): each is shaded at every
+//! vertex it sees like a held-out photo, which at 10 training photos of 1 MP was two
+//! thirds of the evaluation's shading; five of them estimate the mean relative error to
+//! within a few tenths of a point at 30K and 100K vertices
 //! (`bench-results/speed-evaluation-4.md`).
 //!
 //! A per-photo free light map can absorb wrong reflectance: the fit then reproduces its
@@ -49,15 +50,23 @@ impl CheckedView {
     }
 }
 
-/// Most training photos the truth check renders ([`checked_positions`]).
-pub(crate) const TRUTH_CHECK_PHOTOS: usize = 5;
+/// The truth check's budget in photo pixels: five photos of 1024² ([`checked_positions`]).
+pub(crate) const TRUTH_CHECK_PIXELS: u64 = 5 * 1024 * 1024;
 
-/// The positions in a training list of `m` photos that the truth check renders: all of
-/// them up to [`TRUTH_CHECK_PHOTOS`], else that many spread evenly over the list
-/// (`⌊i m / TRUTH_CHECK_PHOTOS⌋`, from the first). Each checked photo's figures are those
-/// of the check of every photo; the mean is over fewer photos (module docs).
-pub(crate) fn checked_positions(m: usize) -> Vec<usize> {
-    let k = m.min(TRUTH_CHECK_PHOTOS);
+/// The positions in a training list whose photos have `pixels` pixels each that the truth
+/// check renders: all of them when their sum fits in [`TRUTH_CHECK_PIXELS`], else the `k`
+/// photos the budget buys at their mean size (`k = ⌊budget · m / Σ pixels⌋`, at least
+/// one) spread evenly over the list (`⌊i m / k⌋`, from the first). Each checked photo's
+/// figures are those of the check of every photo; the mean is over fewer photos (module
+/// docs).
+pub(crate) fn checked_positions(pixels: &[u64]) -> Vec<usize> {
+    let m = pixels.len();
+    let total: u64 = pixels.iter().sum();
+    let k = if total <= TRUTH_CHECK_PIXELS {
+        m
+    } else {
+        ((TRUTH_CHECK_PIXELS as u128 * m as u128 / total as u128) as usize).clamp(1, m)
+    };
     (0..k).map(|i| i * m / k).collect()
 }
 
@@ -67,7 +76,12 @@ pub(crate) fn checked_positions(m: usize) -> Vec<usize> {
 /// for all their lights), then scored by [`score`].
 pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView>> {
     let mut checked = Vec::new();
-    for k in checked_positions(f.train.len()) {
+    let pixels: Vec<u64> = f
+        .train
+        .iter()
+        .map(|&v| u64::from(f.photos[v].width) * u64::from(f.photos[v].height))
+        .collect();
+    for k in checked_positions(&pixels) {
         let v = f.train[k];
         let view = &f.scene.views[v];
         let name = view.image.name.as_str();
@@ -289,22 +303,25 @@ mod tests {
     use super::*;
 
     #[test]
-    fn checked_positions_keep_short_lists_and_spread_long_ones() {
-        // Up to the cap: every photo, in order.
-        assert_eq!(checked_positions(0), Vec::<usize>::new());
-        assert_eq!(checked_positions(3), vec![0, 1, 2]);
-        assert_eq!(checked_positions(5), vec![0, 1, 2, 3, 4]);
-        // 10 training photos: every second one.
-        assert_eq!(checked_positions(10), vec![0, 2, 4, 6, 8]);
-        // Any longer list: the cap's count, strictly increasing, inside the list, and no
-        // gap wider than ⌈m / cap⌉ (evenly spread).
+    fn checked_positions_keep_small_lists_and_spread_large_ones() {
+        const MP: u64 = 1024 * 1024;
+        // Within the budget: every photo, in order (the built-in example's six 192² photos).
+        assert_eq!(checked_positions(&[]), Vec::<usize>::new());
+        assert_eq!(checked_positions(&[192 * 192; 6]), vec![0, 1, 2, 3, 4, 5]);
+        assert_eq!(checked_positions(&[MP; 5]), vec![0, 1, 2, 3, 4]);
+        // 10 photos of 1 MP: the budget buys five, every second one.
+        assert_eq!(checked_positions(&[MP; 10]), vec![0, 2, 4, 6, 8]);
+        // One photo larger than the budget is still checked.
+        assert_eq!(checked_positions(&[8 * MP]), vec![0]);
+        // Any longer list of 1 MP photos: five, strictly increasing, inside the list, no
+        // gap wider than ⌈m / 5⌉ (evenly spread).
         for m in 6..200 {
-            let p = checked_positions(m);
-            assert_eq!(p.len(), TRUTH_CHECK_PHOTOS);
+            let p = checked_positions(&vec![MP; m]);
+            assert_eq!(p.len(), 5);
             assert!(p
                 .windows(2)
                 .all(|w| w[0] < w[1] && w[1] - w[0] <= m.div_ceil(5)));
-            assert!(p[0] == 0 && p[TRUTH_CHECK_PHOTOS - 1] < m);
+            assert!(p[0] == 0 && p[4] < m);
         }
     }
 }
