@@ -593,7 +593,8 @@ mod tests {
         use crate::transport::Transport;
         let (nv, per) = (6, 3);
         let mut obs = grid_obs(nv, per);
-        obs.photo_ranges = vec![0..obs.len()];
+        let all = 0..obs.len();
+        obs.photo_ranges = std::iter::once(all).collect();
         obs.photo.iter_mut().for_each(|k| *k = 0);
         let n = obs.len();
         let t = Transport {
@@ -628,7 +629,11 @@ mod tests {
             for p in 0..n {
                 obs.rgb[p] = pred[p].map(|v| ((1.0 + e) * v) as f32);
             }
-            let got = training_score(&problem_of(&obs, &t, nv), &beta, &[light.clone()]);
+            let got = training_score(
+                &problem_of(&obs, &t, nv),
+                &beta,
+                std::slice::from_ref(&light),
+            );
             let want = (e / (1.0_f64 + e)).abs();
             assert!((got - want).abs() <= 1e-6, "e = {e}: {got} against {want}");
         }
