@@ -94,25 +94,7 @@ pub fn ratio_errors(
 /// observed vertices' centroid spanned by the mean viewing direction and the world up
 /// axis: `true` = left (the light is fitted there), `false` = right (evaluated).
 pub fn left_half(case: &Case) -> Vec<bool> {
-    let obs = &case.held.obs;
-    let mut left = vec![false; obs.len()];
-    for r in &obs.photo_ranges {
-        let n = r.len().max(1) as f64;
-        let (mut c, mut d) = (relight_cpc::Vec3::zeros(), relight_cpc::Vec3::zeros());
-        for p in r.clone() {
-            c += case.positions[obs.vertex[p] as usize] / n;
-            d += relight_cpc::Vec3::new(
-                obs.dir[p][0] as f64,
-                obs.dir[p][1] as f64,
-                obs.dir[p][2] as f64,
-            );
-        }
-        let right = d.cross(&relight_cpc::Vec3::y());
-        for p in r.clone() {
-            left[p] = (case.positions[obs.vertex[p] as usize] - c).dot(&right) < 0.0;
-        }
-    }
-    left
+    relight_cpc::solve::validation::left_by_view(&case.held.obs, &case.positions)
 }
 
 /// The half protocol's error for reflectance `(lambda, weights)` (module docs).

@@ -5,6 +5,9 @@
 use super::*;
 use relight_cpc::solve::materials::brightness::brightness_starts;
 use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
+use relight_cpc::solve::validation::{
+    half_score, left_by_view, material_holdout_score, training_score,
+};
 
 /// `ABLATION_RESTARTS=N`: up to N restarts of the alternation from the last kept fit's
 /// re-anchored materials ([`reanchor`], weights by `ABLATION_REWEIGHT=project|label`),
@@ -49,9 +52,14 @@ pub fn restarts(
 }
 
 /// `ABLATION_SEARCH=1`: the fit from every start of [`brightness_starts`] around the
-/// k-means start (material `k ≥ 1`'s Lambertian weight scaled by `c_k s^{e_k}`), each a row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS`
-/// − 1 more rounds with `s` square-rooted around the kept `c`. Returns the fit with the
-/// lowest validation score (the base fit `est` among them).
+/// k-means start (material `k ≥ 1`'s Lambertian weight scaled by `c_k s^{e_k}`), each a
+/// row; `s = 2` around `c = 1` in the first round, then `ABLATION_SEARCH_ROUNDS` − 1 more
+/// rounds with `s` square-rooted around the kept `c`. Returns the fit with the lowest
+/// score (the base fit `est` among them): `ABLATION_SEARCH_SCORE=validation` (default) the
+/// early-stopping validation score, `half` protocol (b) on the training photos
+/// ([`half_score`]), `material` leave one k-means group out ([`material_holdout_score`]),
+/// `training` the data term on every training observation ([`training_score`]); every
+/// row's note carries all four.
 pub fn brightness_search(
     case: &Case,
     fl: &Floors,
@@ -63,26 +71,83 @@ pub fn brightness_search(
     if !env_flag("ABLATION_SEARCH") {
         return est;
     }
+    let by = std::env::var("ABLATION_SEARCH_SCORE").unwrap_or_default();
     let init = start(case, &case.train.obs, case.lambda.len()).expect("k-means start");
     let k = init.lambda.len();
-    let mut best = (est, vec![1.0; k - 1]);
+    let group = argmax_groups(&init.weights, k);
+    let score = |e: &Estimate| {
+        let (v, h, m, t) = (
+            validation_of(e),
+            train_half_score(case, o, e),
+            train_material_score(case, o, e, &group),
+            training_of(case, e),
+        );
+        let s = match by.as_str() {
+            "half" => h,
+            "material" => m,
+            "training" => t,
+            _ => v,
+        };
+        (
+            s,
+            format!("validation {v:.5}, half {h:.5}, material {m:.5}, training {t:.5}"),
+        )
+    };
+    let s0 = score(&est);
+    eprintln!("  base: {}", s0.1);
+    if let Some(last) = done.last_mut() {
+        last.note = s0.1.clone();
+    }
+    let mut best = (est, vec![1.0; k - 1], s0.0);
     let mut step: f64 = 2.0;
     for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
         let centre = best.1.clone();
         for st in brightness_starts(&init, 0, &centre, step) {
             let next = scaled_fit(case, fl, o, st.materials, &st.factors, label, done);
-            if validation_of(&next) < validation_of(&best.0) {
-                best = (next, st.factors);
+            let s = score(&next);
+            eprintln!("    {}", s.1);
+            if let Some(last) = done.last_mut() {
+                last.note = s.1;
+            }
+            if s.0 < best.2 {
+                best = (next, st.factors, s.0);
             }
         }
-        eprintln!(
-            "  search kept {:?}, validation {:.5}",
-            best.1,
-            validation_of(&best.0)
-        );
+        eprintln!("  search kept {:?}, score {:.5}", best.1, best.2);
         step = step.sqrt();
     }
     best.0
+}
+
+/// Protocol (b) on the training photos for fit `e` ([`half_score`]).
+fn train_half_score(case: &Case, o: &EstimateOptions, e: &Estimate) -> f64 {
+    let problem = case.train.problem(case.nv);
+    let beta = relight_cpc::solve::beta_per_vertex(&e.lambda, &e.weights, case.nv);
+    let left = left_by_view(&case.train.obs, &case.positions);
+    half_score(&problem, &beta, &e.lights, &left, o).expect("half score")
+}
+
+/// Leave one material group out on the training photos for fit `e`
+/// ([`material_holdout_score`]), the groups `group` (per vertex).
+fn train_material_score(case: &Case, o: &EstimateOptions, e: &Estimate, group: &[usize]) -> f64 {
+    let problem = case.train.problem(case.nv);
+    let beta = relight_cpc::solve::beta_per_vertex(&e.lambda, &e.weights, case.nv);
+    material_holdout_score(&problem, &beta, &e.lights, group, o).expect("material score")
+}
+
+/// The data term of fit `e` on every training observation ([`training_score`]).
+fn training_of(case: &Case, e: &Estimate) -> f64 {
+    let problem = case.train.problem(case.nv);
+    let beta = relight_cpc::solve::beta_per_vertex(&e.lambda, &e.weights, case.nv);
+    training_score(&problem, &beta, &e.lights)
+}
+
+/// Per vertex, the material with the largest weight (`weights` row-major `V × k`).
+fn argmax_groups(weights: &[f64], k: usize) -> Vec<usize> {
+    weights
+        .chunks(k)
+        .map(|r| (0..k).max_by(|&a, &b| r[a].total_cmp(&r[b])).unwrap_or(0))
+        .collect()
 }
 
 /// The early-stopping validation score of a fit (NaN without validation).
@@ -118,7 +183,7 @@ fn scaled_fit(
         label: row,
         figures: fig,
         k: None,
-        note: format!("validation {:.5}", validation_of(&next)),
+        note: String::new(),
     });
     next
 }

@@ -13,6 +13,7 @@ use crate::report::{TimelinePoint, TrainEntry};
 use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
 use crate::solve::light::choose::LightChoice;
+use crate::solve::materials::brightness;
 use crate::solve::materials::propagate::propagate_unseen;
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::validation::PhotoHalves;
@@ -263,7 +264,17 @@ pub(crate) fn fit<'a>(
         light_decision.model, light_decision.why
     ));
     let eopts = light_models[pick].options.clone();
-    let (mut est, multi) = fits.swap_remove(pick);
+    let (est, multi) = fits.swap_remove(pick);
+    let (mut est, multi) = if opts.start_search {
+        progress.stage("start search");
+        let label = multi.starts[multi.chosen].label.clone();
+        log.stages.run("start search", || {
+            let base = &family[0].materials;
+            brightness::search(&problem, est, &label, base, lambert, &eopts)
+        })?
+    } else {
+        (est, multi)
+    };
     // The vertices no training photo sees kept their start: give them their seen
     // neighbours' materials (the harmonic extension, `solve::materials::propagate`).
     let seen_now = super::mean_colours(&obs, nv).1;

@@ -92,6 +92,10 @@ pub struct RunOptions {
     /// Starts of the alternation tried, the best kept ([`crate::solve::starts`]; not in the
     /// paper): 1 = the paper's clustered start alone. Each start costs one estimate.
     pub starts: usize,
+    /// After the fit, fits from starts that differ in the materials' relative brightness
+    /// and keeps the deepest ([`crate::solve::materials::brightness::search`]; not in the
+    /// paper).
+    pub start_search: bool,
     /// Lower bound on IRLS's robust scale relative to each photo's RMS radiance
     /// ([`EstimateOptions::robust_floor`]; 0 = the residuals' MAD alone).
     pub robust_floor: f64,
@@ -218,6 +222,7 @@ impl RunOptions {
             patience: Self::default_patience(),
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
+            start_search: false,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: EstimateOptions::default().weights_sum,
             achromatic_specular: false,

@@ -114,6 +114,18 @@ pub(crate) fn validation_error(
     beta: &[[f64; 3]],
     idx: &[usize],
 ) -> f64 {
+    let (se, yy) = validation_sums(problem, obs, lights, beta, idx);
+    rel(se, yy)
+}
+
+/// `(Σ α (y − ŷ)², Σ α y²)` over the observations `idx` and channels.
+fn validation_sums(
+    problem: &Problem,
+    obs: &Observations,
+    lights: &[[Vec<f64>; 3]],
+    beta: &[[f64; 3]],
+    idx: &[usize],
+) -> (f64, f64) {
     let t = problem.transport;
     let (n, nb) = (t.n_global, t.n_basis);
     let hs: Vec<Vec<[f64; 3]>> = lights.par_iter().map(|l| haar3(l, n)).collect();
@@ -145,14 +157,172 @@ pub(crate) fn validation_error(
             (se, yy)
         })
         .collect();
-    let (se, yy) = parts
+    parts
         .into_iter()
-        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// GPCG iterations and CG steps per GPCG iteration of [`half_score`]'s light fits, which
+/// start from the fit's mean map: the caps of `run`'s protocol (b), measured there to stay
+/// within 0.2% of a fit to the KKT tolerance (`crate::run` module `half_fit`).
+pub const HALF_SCORE_GPCG: usize = 20;
+/// See [`HALF_SCORE_GPCG`].
+pub const HALF_SCORE_CG: usize = 20;
+
+/// The two halves of every photo, by viewing direction alone (no camera needed): with `c`
+/// the mean position of the photo's observed vertices and `d` the mean of its directions
+/// toward the camera, an observation is *left* when `(x − c) · (d × u) < 0`, `u` the world
+/// `y` axis (the `z` axis when `d` is within 10° of `y`). The plane through `c` spanned by
+/// `d` and `u` cuts the visible surface into two sides of the photo, as protocol (b)'s
+/// centre line does in the image.
+pub fn left_by_view(obs: &Observations, positions: &[crate::Vec3]) -> Vec<bool> {
+    use crate::Vec3;
+    let mut left = vec![false; obs.len()];
+    for r in &obs.photo_ranges {
+        let n = r.len().max(1) as f64;
+        let (mut c, mut d) = (Vec3::zeros(), Vec3::zeros());
+        for p in r.clone() {
+            c += positions[obs.vertex[p] as usize] / n;
+            d += Vec3::new(
+                obs.dir[p][0].into(),
+                obs.dir[p][1].into(),
+                obs.dir[p][2].into(),
+            );
+        }
+        let up = if d.normalize().y.abs() > 10f64.to_radians().cos() {
+            Vec3::z()
+        } else {
+            Vec3::y()
+        };
+        let right = d.cross(&up);
+        for p in r.clone() {
+            left[p] = (positions[obs.vertex[p] as usize] - c).dot(&right) < 0.0;
+        }
+    }
+    left
+}
+
+/// The data term of a fit on every training observation, a score for comparing fits of
+/// one model from different starts (not in the paper): `sqrt(Σ_p α_p ‖y_p − ŷ_p‖²) /
+/// sqrt(Σ_p α_p ‖y_p‖²)` over all `α > 0` observations, the early-stopping ones included,
+/// with the fit's own maps `lights` (Eq. 9 without the Laplacian, the priors and the IRLS
+/// weights). Fits of the same model with the same unknowns differ in it only by the local
+/// minimum they reached: the lowest is the deepest, the criterion of a multi-start local
+/// optimisation.
+pub fn training_score(problem: &Problem, beta: &[[f64; 3]], lights: &[[Vec<f64>; 3]]) -> f64 {
+    let obs = problem.obs;
+    let idx: Vec<usize> = (0..obs.len()).filter(|&p| obs.weight[p] > 0.0).collect();
+    validation_error(problem, obs, lights, beta, &idx)
+}
+
+/// Protocol (b) on the training photos, a score for comparing fits (not in the paper):
+/// for every photo the light is refitted with the reflectance `beta` frozen on the
+/// observations marked `left` and the other half is predicted ([`refit_sums`]):
+/// `sqrt(Σ_{p right} α_p ‖y_p − ŷ_p‖²) / sqrt(Σ_{p right} α_p ‖y_p‖²)`.
+///
+/// The reflectance has seen both halves, so this ranks fits of the same observations; it
+/// is not an estimate of the held-out error.
+pub fn half_score(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    lights: &[[Vec<f64>; 3]],
+    left: &[bool],
+    opts: &EstimateOptions,
+) -> crate::Result<f64> {
+    let held: Vec<bool> = left.iter().map(|&l| !l).collect();
+    let (se, yy) = refit_sums(problem, beta, lights, &held, opts)?;
+    Ok(rel(se, yy))
+}
+
+/// Leave one material group out, a score for comparing fits that differ in their albedo
+/// ratios (not in the paper): the vertices are cut into groups (`group[x]`, e.g. the
+/// paper's clusters); for every group `g` each photo's light is refitted with the
+/// reflectance `beta` frozen on the observations of the other groups and predicts group
+/// `g`'s ([`refit_sums`]); the score is `sqrt(Σ_g Σ_{p ∈ g} α_p ‖y_p − ŷ_p‖² / Σ_g Σ_{p ∈ g}
+/// α_p ‖y_p‖²)`.
+///
+/// A fit's own maps adapt to its albedo ratios: a free map per photo brightens the
+/// directions one material faces (Eq. 9's valley). A map fitted on the other materials
+/// only has to predict this one's radiance where their normals overlap, which it does
+/// only with the right ratio.
+pub fn material_holdout_score(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    lights: &[[Vec<f64>; 3]],
+    group: &[usize],
+    opts: &EstimateOptions,
+) -> crate::Result<f64> {
+    let obs = problem.obs;
+    let n_groups = group.iter().copied().max().map_or(0, |g| g + 1);
+    let (mut se, mut yy) = (0.0, 0.0);
+    for g in 0..n_groups {
+        let held: Vec<bool> = obs.vertex.iter().map(|&x| group[x as usize] == g).collect();
+        if !held.iter().any(|&h| h) || held.iter().all(|&h| h) {
+            continue;
+        }
+        let (a, b) = refit_sums(problem, beta, lights, &held, opts)?;
+        se += a;
+        yy += b;
+    }
+    Ok(rel(se, yy))
+}
+
+/// `sqrt(se / yy)` (`sqrt(se)` when `yy` is 0).
+fn rel(se: f64, yy: f64) -> f64 {
     if yy > 0.0 {
         (se / yy).sqrt()
     } else {
         se.sqrt()
     }
+}
+
+/// Every photo's light refitted with the reflectance `beta` frozen on the observations not
+/// marked `held` (the lighting step's objective, Eq. 10 with the Laplacian and the
+/// options' priors, from the mean of `lights`, capped at [`HALF_SCORE_GPCG`] ×
+/// [`HALF_SCORE_CG`]); `(Σ α (y − ŷ)², Σ α y²)` over the held observations.
+fn refit_sums(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    lights: &[[Vec<f64>; 3]],
+    held: &[bool],
+    opts: &EstimateOptions,
+) -> crate::Result<(f64, f64)> {
+    let obs = problem.obs;
+    let mut fit_obs = obs.clone();
+    for (w, &h) in fit_obs.weight.iter_mut().zip(held) {
+        if h {
+            *w = 0.0;
+        }
+    }
+    let fit_problem = Problem {
+        obs: &fit_obs,
+        ..*problem
+    };
+    let start = mean_map(lights);
+    let o = EstimateOptions {
+        qp_max_iter: HALF_SCORE_GPCG,
+        qp_max_cg: HALF_SCORE_CG,
+        lighting_sample: 0,
+        ..opts.clone()
+    };
+    let refit: Vec<[Vec<f64>; 3]> = (0..problem.n_photos)
+        .map(|i| crate::solve::fit_light_frozen(&fit_problem, beta, i, start.as_ref(), &o))
+        .collect::<crate::Result<_>>()?;
+    let idx: Vec<usize> = (0..obs.len())
+        .filter(|&p| held[p] && obs.weight[p] > 0.0)
+        .collect();
+    Ok(validation_sums(problem, obs, &refit, beta, &idx))
+}
+
+/// The texel-wise mean of `maps` (`None` when empty).
+fn mean_map(maps: &[[Vec<f64>; 3]]) -> Option<[Vec<f64>; 3]> {
+    let first = maps.first()?;
+    let n = maps.len() as f64;
+    Some([0, 1, 2].map(|c| {
+        (0..first[c].len())
+            .map(|t| maps.iter().map(|m| m[c][t]).sum::<f64>() / n)
+            .collect()
+    }))
 }
 
 /// The validation observations of early stopping and the fitted copy of the observations,
@@ -410,5 +580,91 @@ mod tests {
             .count();
         assert_eq!(held.len(), expected);
         assert!(photo_halves_split(&obs, &PhotoHalves::default()).is_empty());
+    }
+
+    /// `training_score` is the relative RMSE of the prediction: with every observation the
+    /// model's own prediction times `1 + e` it is `e / (1 + e)` exactly (the residual is
+    /// `e ŷ`, the observation `(1 + e) ŷ`), whatever the transport. The prediction comes
+    /// from [`crate::solve::predict`], a separate code path; the tolerance 1e-6 is the
+    /// `f32` storage of the observations (relative rounding 6e-8).
+    #[test]
+    fn training_score_is_the_relative_rmse_of_a_scaled_prediction() {
+        use crate::solve::{predict, Estimate};
+        use crate::transport::Transport;
+        let (nv, per) = (6, 3);
+        let mut obs = grid_obs(nv, per);
+        let all = 0..obs.len();
+        obs.photo_ranges = std::iter::once(all).collect();
+        obs.photo.iter_mut().for_each(|k| *k = 0);
+        let n = obs.len();
+        let t = Transport {
+            n_global: 2,
+            n_basis: 1,
+            n_obs: n,
+            offsets: (0..=n).collect(),
+            index: (0..n).map(|p| (p % 4) as u16).collect(),
+            value: (0..n)
+                .map(|p| crate::transport::TransportValue::from_f64(0.5 + 0.1 * p as f64))
+                .collect(),
+        };
+        let light = [
+            vec![1.0, 2.0, 0.5, 3.0],
+            vec![0.7; 4],
+            vec![1.5, 0.2, 0.9, 1.1],
+        ];
+        let lambda = vec![vec![[0.8, 0.5, 0.3]], vec![[0.2, 0.6, 0.9]]];
+        let weights: Vec<f64> = (0..nv * 2).map(|i| 0.1 + 0.15 * i as f64).collect();
+        let est = Estimate::from_parts(vec![light.clone()], lambda.clone(), weights.clone());
+        fn problem_of<'a>(obs: &'a Observations, t: &'a Transport, nv: usize) -> Problem<'a> {
+            Problem {
+                obs,
+                transport: t,
+                n_vertices: nv,
+                n_photos: 1,
+            }
+        }
+        let pred = predict(&problem_of(&obs, &t, nv), &est);
+        let beta = crate::solve::beta_per_vertex(&lambda, &weights, nv);
+        for e in [0.0, 0.1, -0.3] {
+            for p in 0..n {
+                obs.rgb[p] = pred[p].map(|v| ((1.0 + e) * v) as f32);
+            }
+            let got = training_score(
+                &problem_of(&obs, &t, nv),
+                &beta,
+                std::slice::from_ref(&light),
+            );
+            let want = (e / (1.0_f64 + e)).abs();
+            assert!((got - want).abs() <= 1e-6, "e = {e}: {got} against {want}");
+        }
+    }
+
+    /// `left_by_view` cuts each photo by the plane through its observed vertices' centroid
+    /// spanned by the mean viewing direction and world `y`: vertices on a line along `x`
+    /// seen from `+z` split at the centroid (left = `x` below it, since `z × y = −x`); seen
+    /// from `+y` (within 10° of up) the plane is spanned by `y` and `z` instead. Exact
+    /// (no vertex lies on a plane).
+    #[test]
+    fn left_by_view_splits_each_photo_at_its_centroid() {
+        let positions: Vec<crate::Vec3> = (0..6)
+            .map(|i| crate::Vec3::new(i as f64 + 0.5, 0.1 * i as f64, 0.0))
+            .collect();
+        let mut obs = Observations::default();
+        for (k, dir) in [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]].iter().enumerate() {
+            let lo = obs.len();
+            for x in 0..6 {
+                obs.vertex.push(x);
+                obs.photo.push(k as u32);
+                obs.rgb.push([0.5; 3]);
+                obs.weight.push(1.0);
+                obs.dir.push(*dir);
+            }
+            obs.photo_ranges.push(lo..obs.len());
+        }
+        let left = left_by_view(&obs, &positions);
+        // Photo 0: centroid x = 3, right = z × y = −x, so left is x > 3.
+        assert_eq!(&left[..6], &[false, false, false, true, true, true]);
+        // Photo 1: d = y, right = y × z = x, so left is x < 3.
+        assert_eq!(&left[6..], &[true, true, true, false, false, false]);
     }
 }

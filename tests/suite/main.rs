@@ -56,6 +56,7 @@ mod run_baseline;
 mod run_example;
 mod run_fixtures;
 mod scene_import;
+mod start_search;
 mod synth_data;
 mod synth_workspace;
 mod transport_agreement;
