@@ -219,6 +219,13 @@ pub(crate) fn fit<'a>(
     let family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
     let n_starts = family.len();
     let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
+    let say = |line: &str| {
+        if bar.is_hidden() {
+            progress.line(line);
+        } else {
+            bar.println(format!("          {line}"));
+        }
+    };
     let mut timeline: Vec<TimelinePoint> = Vec::new();
     let light_models = crate::solve::light::choose::candidates(opts.light, &eopts)?;
     let mut fits = Vec::with_capacity(light_models.len());
@@ -235,20 +242,8 @@ pub(crate) fn fit<'a>(
                     .map(|t| t.rmse(state, nv))
                     .filter(|v| v.is_finite());
                 let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                let line = iteration_line(n_starts, si, n_it, it, holdout_rmse);
-                if bar.is_hidden() {
-                    progress.line(&line);
-                } else {
-                    bar.println(format!("          {line}"));
-                }
-                timeline.push(TimelinePoint {
-                    start: si,
-                    seconds: it.seconds,
-                    objective: it.objective,
-                    train_rmse: it.train_rmse,
-                    holdout_rmse,
-                    steps: it.steps,
-                });
+                say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
+                timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
             })
         })?);
         timeline_ranges.push(first..timeline.len());
@@ -265,12 +260,43 @@ pub(crate) fn fit<'a>(
     ));
     let eopts = light_models[pick].options.clone();
     let (est, multi) = fits.swap_remove(pick);
+    // The timeline of the model kept.
+    let mut timeline: Vec<TimelinePoint> = timeline.drain(timeline_ranges[pick].clone()).collect();
     let (mut est, multi) = if opts.start_search {
         progress.stage("start search");
         let label = multi.starts[multi.chosen].label.clone();
+        // The timeline then follows the search's records: the kept start's iterations as
+        // start 0, each searched start's after them on the same clock.
+        timeline.retain(|p| p.start == multi.chosen);
+        timeline.iter_mut().for_each(|p| p.start = 0);
+        let (mut clock, mut current, mut last) =
+            (0.0, 0, timeline.last().map_or(0.0, |p| p.seconds));
         log.stages.run("start search", || {
             let base = &family[0].materials;
-            brightness::search(&problem, est, &label, base, lambert, &eopts)
+            brightness::search(
+                &problem,
+                est,
+                &label,
+                base,
+                lambert,
+                &eopts,
+                &mut |si, it, state| {
+                    if si != current {
+                        (clock, current) = (last, si);
+                        bar.inc_length(eff.max_iterations as u64);
+                    }
+                    bar.inc(1);
+                    let holdout_rmse = tracker
+                        .as_ref()
+                        .map(|t| t.rmse(state, nv))
+                        .filter(|v| v.is_finite());
+                    let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                    let line = iteration_line(1, si, n_it, it, holdout_rmse);
+                    say(&format!("start search, start {}: {line}", si + 1));
+                    last = clock + it.seconds;
+                    timeline.push(timeline_point(si, last, it, holdout_rmse));
+                },
+            )
         })?
     } else {
         (est, multi)
@@ -288,8 +314,6 @@ pub(crate) fn fit<'a>(
             filled.filled
         ));
     }
-    // The timeline of the model kept.
-    let timeline: Vec<TimelinePoint> = timeline.drain(timeline_ranges[pick].clone()).collect();
     bar.finish_and_clear();
     check_finite(&est, &conditioning_map(&est.conditioning))?;
     let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
@@ -362,6 +386,24 @@ fn starting_materials(
         ));
     }
     Ok(init)
+}
+
+/// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the
+/// estimator's clock.
+fn timeline_point(
+    start: usize,
+    seconds: f64,
+    it: &solve::Iteration,
+    holdout_rmse: Option<f64>,
+) -> TimelinePoint {
+    TimelinePoint {
+        start,
+        seconds,
+        objective: it.objective,
+        train_rmse: it.train_rmse,
+        holdout_rmse,
+        steps: it.steps,
+    }
 }
 
 /// The console line for outer iteration `n_it` of start `si` (of `n_starts`).

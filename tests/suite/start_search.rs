@@ -44,7 +44,17 @@ fn the_search_keeps_the_start_with_the_right_albedo_ratio() {
     let init = initial(&case, &case.train.obs, case.lambda.len(), 1);
     let paper = estimate(&problem, init.clone(), &opts, &mut |_, _| {}).unwrap();
     let before = ratio_error(&case, &paper, &seen);
-    let (kept, record) = search(&problem, paper, "paper", &init, 0, &opts).unwrap();
+    let mut seen_iterations = [0usize; 3];
+    let (kept, record) = search(
+        &problem,
+        paper,
+        "paper",
+        &init,
+        0,
+        &opts,
+        &mut |si, _, _| seen_iterations[si] += 1,
+    )
+    .unwrap();
     let after = ratio_error(&case, &kept, &seen);
     eprintln!("ratio error {before:.4} → {after:.4}; {record:?}");
     assert_eq!(
@@ -52,6 +62,17 @@ fn the_search_keeps_the_start_with_the_right_albedo_ratio() {
         3,
         "K = 2: the paper's start and ×½, ×2"
     );
+    // The callback saw every iteration of the searched starts (records 1 and 2), none of
+    // the paper's fit (made before the search).
+    assert_eq!(seen_iterations[0], 0);
+    for (si, (&seen, r)) in seen_iterations
+        .iter()
+        .zip(&record.starts)
+        .enumerate()
+        .skip(1)
+    {
+        assert_eq!(seen, r.iterations, "start {si}");
+    }
     let chosen = record.starts[record.chosen].score;
     assert!(record.starts.iter().all(|s| s.score >= chosen));
     // The true ratio lies toward ×2 of the k-means start (its clusters' colours carry their
@@ -64,4 +85,37 @@ fn the_search_keeps_the_start_with_the_right_albedo_ratio() {
         after <= 0.6 * before,
         "ratio error {after:.4} (paper's start {before:.4})"
     );
+}
+
+/// `run --start-search brightness` on the built-in example (a small model, 2 materials):
+/// the report's timeline follows the search's records, start by start — as many points
+/// per start as that start's fit had iterations, on one clock that never goes back — so
+/// the error-against-time plot shows every fit the search made.
+#[test]
+fn the_runs_timeline_holds_every_searched_start() {
+    use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
+    let dir = crate::scratch::scratch("start-search", "timeline");
+    let mut o = RunOptions::new(builtin_example().unwrap(), dir.join("out"));
+    (
+        o.global_resolution,
+        o.local_resolution,
+        o.normal_grid,
+        o.keep,
+    ) = (16, 8, 8, 32);
+    (o.max_iterations, o.rays_per_texel, o.edge_rays) = (3, 1, 0);
+    o.materials = MaterialCount::Fixed(2);
+    (o.progress, o.render_training, o.start_search) = (false, false, true);
+    let r = run(&o).expect("run with --start-search brightness").report;
+    let starts = r.starts.expect("the search's records");
+    assert_eq!(
+        starts.starts.len(),
+        3,
+        "K = 2: the paper's start, ×½ and ×2"
+    );
+    for (i, s) in starts.starts.iter().enumerate() {
+        let points = r.timeline.iter().filter(|p| p.start == i).count();
+        assert_eq!(points, s.iterations, "start {i}: {s:?}");
+    }
+    assert!(r.timeline.windows(2).all(|w| w[0].start <= w[1].start));
+    assert!(r.timeline.windows(2).all(|w| w[0].seconds <= w[1].seconds));
 }

@@ -33,7 +33,9 @@
 
 use crate::solve::starts::{MultiStart, StartRecord};
 use crate::solve::validation::training_score;
-use crate::solve::{beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem};
+use crate::solve::{
+    beta_per_vertex, estimate, Estimate, EstimateOptions, IterState, Iteration, Materials0, Problem,
+};
 use crate::{Error, Result};
 
 /// One start of the family: the scale of every material `k ≥ 1` and the materials.
@@ -114,7 +116,9 @@ pub const SEARCH_CRITERION: &str =
 /// (already made, labelled `paper_label`); the family's fits follow with `opts`, and the
 /// one with the lowest [`training_score`] is returned with the record of every start (each
 /// label also gives its early-stopping validation score against the paper start's; ties
-/// keep the earlier, so the paper's start wins them).
+/// keep the earlier, so the paper's start wins them). `on_iter` sees every iteration of
+/// the family's fits with its start's index in the returned records (from 1: record 0 is
+/// the paper's fit).
 pub fn search(
     problem: &Problem,
     paper: Estimate,
@@ -122,6 +126,7 @@ pub fn search(
     base: &Materials0,
     lambert: usize,
     opts: &EstimateOptions,
+    on_iter: &mut dyn FnMut(usize, &Iteration, &IterState),
 ) -> Result<(Estimate, MultiStart)> {
     let kk = base.lambda.len();
     let mut family =
@@ -137,7 +142,9 @@ pub fn search(
     let mut records = vec![record(paper_label.to_string(), score(&paper), &paper)];
     let mut best = (0, paper);
     for (i, st) in family.into_iter().enumerate() {
-        let est = estimate(problem, st.materials, opts, &mut |_, _| {})?;
+        let est = estimate(problem, st.materials, opts, &mut |it, state| {
+            on_iter(i + 1, it, state)
+        })?;
         let v = validation_of(&est);
         let label = format!(
             "the paper's start with the Lambertian weights of materials 2… × {:?} (validation {v:.4} against {paper_validation:.4})",
