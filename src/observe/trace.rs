@@ -206,19 +206,8 @@ impl SceneBvh {
 
     /// Whether anything lies on the segment `t ∈ [t_min, t_max]` (stops at the first hit).
     pub fn occluded(&self, origin: &Vec3, dir: &Vec3, t_min: f64, t_max: f64) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
-            return false;
-        };
-        let Some(ray) = to_ray(origin, dir, t_min, t_max) else {
-            return false;
-        };
-        !bvh.ray_traverse_miss(ray, |r, id| {
-            match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
-                // Any value below the ray's tmax stops the traversal.
-                Some(_) => r.tmin.min(r.tmax),
-                None => f32::INFINITY,
-            }
-        })
+        let mut no_hint = u32::MAX;
+        self.occluded_hinted(origin, dir, t_min, t_max, &mut no_hint)
     }
 
     /// [`SceneBvh::occluded`] with a hint: `hint` names a BVH primitive that blocked an
@@ -248,6 +237,7 @@ impl SceneBvh {
         };
         !bvh.ray_traverse_miss(ray, |r, id| {
             match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
+                // Any value below the ray's tmax stops the traversal.
                 Some(_) => {
                     *hint = id as u32;
                     r.tmin.min(r.tmax)

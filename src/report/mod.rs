@@ -13,9 +13,8 @@
 //!   the training colours), at the top of `report.md`;
 //! - `metrics`: PSNR-H, PSNR-L and SSIM per held-out photo and protocol, the Stanford-ORB
 //!   definitions over the object's pixels ([`metrics`]);
-//! - `truth_check` (synthetic workspaces): the training photos, or as many as five
-//!   megapixels buy, spread over the training list, each rendered from the fit under its true light, RMSE after the
-//!   per-channel scale, beside the same under its fitted light;
+//! - `truth_check` (synthetic workspaces): training photos (five megapixels' worth) under
+//!   their true light, RMSE after the per-channel scale, beside the same under their fitted;
 //! - error against run time (objective, training RMSE, held-out RMSE per outer iteration);
 //! - wall time, CPU time and peak memory per stage;
 //! - the model chosen (materials, basis, resolutions) and the reason for each choice.
@@ -226,8 +225,7 @@ pub struct RunReport {
     /// Literature metrics (PSNR-H, PSNR-L, SSIM) per held-out photo and protocol, on the
     /// same pixels as `holdout`.
     pub metrics: Vec<metrics::MetricsEntry>,
-    /// Synthetic workspaces: the training photos (as many as five megapixels buy, spread
-    /// over the training list), each rendered from the fit under its true light.
+    /// Synthetic workspaces: training photos (five megapixels' worth) under their true light.
     pub truth_check: Vec<metrics::TruthCheckEntry>,
     /// Synthetic workspaces: diffuse albedo per material, recovered against the truth.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -608,8 +606,7 @@ impl RunReport {
         let _ = writeln!(
             s,
             "The training photos (as many as five megapixels buy, spread over the training \
-             list), each rendered from the \
-             fit under the light it was really taken in \
+             list), each rendered from the fit under the light it was really taken in \
              (the workspace's `truth/`), against the same render under its fitted light; RMSE \
              in linear RGB after the best per-channel scale, over object pixels that are not \
              overexposed, and relative to the photo's RMS there. A large gap means the fitted \

@@ -219,6 +219,13 @@ pub(crate) fn fit<'a>(
     let family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
     let n_starts = family.len();
     let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
+    // The held-out error of an iterate, for the timeline (finite, else none).
+    let held_out = |state: &solve::IterState| {
+        tracker
+            .as_ref()
+            .map(|t| t.rmse(state, nv))
+            .filter(|v| v.is_finite())
+    };
     let say = |line: &str| {
         if bar.is_hidden() {
             progress.line(line);
@@ -237,10 +244,7 @@ pub(crate) fn fit<'a>(
         fits.push(log.stages.run("estimate", || {
             starts::estimate_best(&problem, family, eopts, &mut |si, it, state| {
                 bar.inc(1);
-                let holdout_rmse = tracker
-                    .as_ref()
-                    .map(|t| t.rmse(state, nv))
-                    .filter(|v| v.is_finite());
+                let holdout_rmse = held_out(state);
                 let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
                 say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
                 timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
@@ -286,10 +290,7 @@ pub(crate) fn fit<'a>(
                         bar.inc_length(eff.max_iterations as u64);
                     }
                     bar.inc(1);
-                    let holdout_rmse = tracker
-                        .as_ref()
-                        .map(|t| t.rmse(state, nv))
-                        .filter(|v| v.is_finite());
+                    let holdout_rmse = held_out(state);
                     let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
                     let line = iteration_line(1, si, n_it, it, holdout_rmse);
                     say(&format!("start search, start {}: {line}", si + 1));

@@ -18,8 +18,8 @@
 
 use crate::solve::light::laplacian::Laplacian;
 use crate::solve::light::photo::{
-    jacobi_scaling, reweight, smoothness_weights, solve_pass, start_texels, PassSystem, PhotoData,
-    QpStats,
+    jacobi_scaling, reweight, set_pass_weights, smoothness_weights, solve_pass, start_texels,
+    take_pass, PassSystem, PhotoData, QpStats,
 };
 use crate::solve::light::sh_prior::ShProjection;
 use crate::solve::light::system::{split3, texel_diag_vec, PhotoSystem};
@@ -80,11 +80,7 @@ pub fn fit_light_scheduled(
         if pass > 0 {
             reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
-        for (r, &q) in data.pos.iter().enumerate() {
-            for c in 0..3 {
-                sys.dw[r][c] = data.alpha[r] * omega[q][c];
-            }
-        }
+        set_pass_weights(&mut sys, &data, &omega);
         let system = PassSystem {
             sys: &sys,
             lap: &lap,
@@ -98,14 +94,8 @@ pub fn fit_light_scheduled(
             qp_max_cg: caps.cg,
             ..opts.clone()
         };
-        match solve_pass(&system, &data, &x, &pass_opts, photo)? {
-            // No light reaches any weighted observation: the minimiser is x = 0.
-            None => x.iter_mut().for_each(|v| *v = 0.0),
-            Some(res) => {
-                stats.add(&res);
-                x = res.x;
-            }
-        }
+        let res = solve_pass(&system, &data, &x, &pass_opts, photo)?;
+        take_pass(res, &mut x, &mut stats);
     }
     Ok(ScheduledLight {
         light: split3(&x, n2),

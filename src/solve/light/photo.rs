@@ -334,11 +334,7 @@ pub(crate) fn lighting_step_warm(
         if pass > 0 || warm {
             reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
-        for (r, &q) in data.pos.iter().enumerate() {
-            for c in 0..3 {
-                sys.dw[r][c] = data.alpha[r] * omega[q][c];
-            }
-        }
+        set_pass_weights(&mut sys, &data, &omega);
         let system = PassSystem {
             sys: &sys,
             lap: &lap,
@@ -347,14 +343,8 @@ pub(crate) fn lighting_step_warm(
             prior: opts.light_prior.as_ref().zip(prior_proj.as_ref()),
             y_ms,
         };
-        match solve_pass(&system, &data, &x, opts, photo)? {
-            // No light reaches any weighted observation: the minimiser is x = 0.
-            None => x.iter_mut().for_each(|v| *v = 0.0),
-            Some(res) => {
-                stats.add(&res);
-                x = res.x;
-            }
-        }
+        let res = solve_pass(&system, &data, &x, opts, photo)?;
+        take_pass(res, &mut x, &mut stats);
     }
     Ok(LightingResult {
         light: split3(&x, n2),
@@ -495,6 +485,28 @@ pub(super) struct PassSystem<'a> {
     pub(super) prior: Option<(&'a LightPriorOptions, &'a ShProjection)>,
     /// The rows' mean square radiance (the prior's scale).
     pub(super) y_ms: f64,
+}
+
+/// Pass `k`'s data weights `D_k = α ω_k` into the system's rows (`omega`: the IRLS
+/// weights per observation of the photo, unit in the first pass).
+pub(super) fn set_pass_weights(sys: &mut PhotoSystem, data: &PhotoData, omega: &[[f64; 3]]) {
+    for (r, &q) in data.pos.iter().enumerate() {
+        for c in 0..3 {
+            sys.dw[r][c] = data.alpha[r] * omega[q][c];
+        }
+    }
+}
+
+/// A pass's answer ([`solve_pass`]) into `x`, its cost into `stats`; `None` (no light
+/// reaches any weighted observation) means the minimiser `x = 0`.
+pub(super) fn take_pass(res: Option<QpResult>, x: &mut Vec<f64>, stats: &mut QpStats) {
+    match res {
+        None => x.iter_mut().for_each(|v| *v = 0.0),
+        Some(res) => {
+            stats.add(&res);
+            *x = res.x;
+        }
+    }
 }
 
 /// One pass's QP from `x`; `None` when no light reaches a weighted observation (the
