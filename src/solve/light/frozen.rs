@@ -108,7 +108,7 @@ pub fn fit_light_scheduled(
 mod tests {
     use super::*;
     use crate::solve::light::photo::lighting_step_full;
-    use crate::solve::light::tests::planted_photo;
+    use crate::solve::light::tests::{one_photo, planted_photo};
 
     /// 2,000 observations over a 16² map, 1% noise, every 8th a gross outlier (× 4): the
     /// robust loss has work to do in every pass.
@@ -134,12 +134,7 @@ mod tests {
         // Capped passes (not converged: the path matters), from a non-zero start: the
         // schedule of three equal entries must be the lighting step's own three passes.
         let (obs, t) = outlier_photo();
-        let problem = Problem {
-            obs: &obs,
-            transport: &t,
-            n_vertices: obs.len(),
-            n_photos: 1,
-        };
+        let problem = one_photo(&obs, &t);
         let beta = vec![[1.0; 3]; obs.len()];
         let opts = EstimateOptions {
             smoothness: 1e-4,
@@ -171,12 +166,7 @@ mod tests {
         // nearer to it than the least-squares fit (no robust loss), which the 12.5%
         // outliers pull off.
         let (obs, t) = outlier_photo();
-        let problem = Problem {
-            obs: &obs,
-            transport: &t,
-            n_vertices: obs.len(),
-            n_photos: 1,
-        };
+        let problem = one_photo(&obs, &t);
         let beta = vec![[1.0; 3]; obs.len()];
         let long = EstimateOptions {
             smoothness: 1e-4,

@@ -11,6 +11,16 @@ use crate::solve::options::{EstimateOptions, Robust};
 use crate::solve::problem::{basis_responses, haar3, predict_from, Problem};
 use crate::transport::{HaarIndex, Transport, TransportValue};
 
+/// The problem of one photo whose observations are `obs` (one per vertex) under `t`.
+pub(super) fn one_photo<'a>(obs: &'a Observations, t: &'a Transport) -> Problem<'a> {
+    Problem {
+        obs,
+        transport: t,
+        n_vertices: obs.len(),
+        n_photos: 1,
+    }
+}
+
 /// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
 /// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
 /// `y` from a known smooth light plus Gaussian-like noise (`σ` relative).
@@ -84,12 +94,7 @@ fn a_lighting_sample_leaves_the_map_where_all_observations_put_it() {
     // it never saw must be as good as of those it saw (ratio < 1.1, the run's check).
     let n = 16;
     let (obs, t) = planted_photo(6000, n, 0.02, 11);
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: obs.len(),
-        n_photos: 1,
-    };
+    let problem = one_photo(&obs, &t);
     let beta = vec![[1.0; 3]; obs.len()];
     let opts = EstimateOptions {
         robust: Robust::None,
@@ -175,12 +180,7 @@ fn warm_irls_passes_continue_to_the_robust_fit() {
     for rgb in obs.rgb.iter_mut().step_by(8) {
         *rgb = rgb.map(|v| 4.0 * v);
     }
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: obs.len(),
-        n_photos: 1,
-    };
+    let problem = one_photo(&obs, &t);
     let beta = vec![[1.0; 3]; obs.len()];
     let robust = EstimateOptions {
         smoothness: 1e-4,
