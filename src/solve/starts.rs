@@ -148,6 +148,22 @@ pub struct StartRecord {
     pub seconds: f64,
 }
 
+impl StartRecord {
+    /// The record of fit `e`, made from the start `label`, with its `score`.
+    pub fn of(label: String, score: f64, e: &Estimate) -> Self {
+        StartRecord {
+            label,
+            score,
+            iterations: e.timeline.len(),
+            kept_iteration: e
+                .validation
+                .as_ref()
+                .map_or(e.timeline.len(), |v| v.best_iteration),
+            seconds: e.timeline.last().map_or(0.0, |t| t.seconds),
+        }
+    }
+}
+
 /// The record of [`estimate_best`].
 #[derive(Debug, Clone, Serialize)]
 pub struct MultiStart {
@@ -196,16 +212,7 @@ pub fn estimate_best(
         })?;
         let (sc, what) = score(&est);
         criterion = what;
-        records.push(StartRecord {
-            label: s.label,
-            score: sc,
-            iterations: est.timeline.len(),
-            kept_iteration: est
-                .validation
-                .as_ref()
-                .map_or(est.timeline.len(), |v| v.best_iteration),
-            seconds: est.timeline.last().map_or(0.0, |t| t.seconds),
-        });
+        records.push(StartRecord::of(s.label, sc, &est));
         offset += records[i].seconds;
         if best.as_ref().is_none_or(|(b, _)| sc < records[*b].score) {
             best = Some((i, est));

@@ -81,14 +81,7 @@ pub fn fit_light_scheduled(
             reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
         set_pass_weights(&mut sys, &data, &omega);
-        let system = PassSystem {
-            sys: &sys,
-            lap: &lap,
-            mu,
-            jacobi: jacobi.as_deref(),
-            prior: opts.light_prior.as_ref().zip(prior_proj.as_ref()),
-            y_ms,
-        };
+        let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let pass_opts = EstimateOptions {
             qp_max_iter: caps.gpcg,
             qp_max_cg: caps.cg,

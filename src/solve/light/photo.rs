@@ -335,14 +335,7 @@ pub(crate) fn lighting_step_warm(
             reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
         set_pass_weights(&mut sys, &data, &omega);
-        let system = PassSystem {
-            sys: &sys,
-            lap: &lap,
-            mu,
-            jacobi: jacobi.as_deref(),
-            prior: opts.light_prior.as_ref().zip(prior_proj.as_ref()),
-            y_ms,
-        };
+        let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let res = solve_pass(&system, &data, &x, opts, photo)?;
         take_pass(res, &mut x, &mut stats);
     }
@@ -505,6 +498,29 @@ pub(super) fn take_pass(res: Option<QpResult>, x: &mut Vec<f64>, stats: &mut QpS
         Some(res) => {
             stats.add(&res);
             *x = res.x;
+        }
+    }
+}
+
+impl<'a> PassSystem<'a> {
+    /// The pass's quadratic; the light prior from `opts` with its projection when on.
+    pub(super) fn new(
+        sys: &'a PhotoSystem,
+        lap: &'a Laplacian,
+        mu: [f64; 3],
+        jacobi: Option<&'a [f64]>,
+        opts: &'a EstimateOptions,
+        prior_proj: &'a Option<ShProjection>,
+        y_ms: f64,
+    ) -> Self {
+        let prior = opts.light_prior.as_ref().zip(prior_proj.as_ref());
+        PassSystem {
+            sys,
+            lap,
+            mu,
+            jacobi,
+            prior,
+            y_ms,
         }
     }
 }

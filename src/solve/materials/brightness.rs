@@ -139,7 +139,11 @@ pub fn search(
         training_score(problem, &beta, &e.lights)
     };
     let paper_validation = validation_of(&paper);
-    let mut records = vec![record(paper_label.to_string(), score(&paper), &paper)];
+    let mut records = vec![StartRecord::of(
+        paper_label.to_string(),
+        score(&paper),
+        &paper,
+    )];
     let mut best = (0, paper);
     for (i, st) in family.into_iter().enumerate() {
         let est = estimate(problem, st.materials, opts, &mut |it, state| {
@@ -150,7 +154,7 @@ pub fn search(
             "the paper's start with the Lambertian weights of materials 2… × {:?} (validation {v:.4} against {paper_validation:.4})",
             st.factors
         );
-        records.push(record(label, score(&est), &est));
+        records.push(StartRecord::of(label, score(&est), &est));
         if records[i + 1].score < records[best.0].score {
             best = (i + 1, est);
         }
@@ -174,20 +178,6 @@ pub fn search(
 /// The early-stopping validation score of a fit (NaN without validation).
 fn validation_of(e: &Estimate) -> f64 {
     e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
-}
-
-/// One start's record for the report.
-fn record(label: String, score: f64, e: &Estimate) -> StartRecord {
-    StartRecord {
-        label,
-        score,
-        iterations: e.timeline.len(),
-        kept_iteration: e
-            .validation
-            .as_ref()
-            .map_or(e.timeline.len(), |v| v.best_iteration),
-        seconds: e.timeline.last().map_or(0.0, |t| t.seconds),
-    }
 }
 
 #[cfg(test)]
