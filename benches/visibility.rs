@@ -94,8 +94,18 @@ fn main() {
         Sampling::Uniform { rays: 1 },
         Sampling::Uniform { rays: 2 },
         Sampling::Uniform { rays: 4 },
-        Sampling::Adaptive { edge_rays: 3 },
-        Sampling::Adaptive { edge_rays: 4 },
+        Sampling::Adaptive {
+            edge_rays: 3,
+            lattice: 1,
+        },
+        Sampling::Adaptive {
+            edge_rays: 4,
+            lattice: 1,
+        },
+        Sampling::Adaptive {
+            edge_rays: 4,
+            lattice: 2,
+        },
     ];
     let mut cpu = vec![Vec::new(); samplings.len()];
     let mut results = Vec::new();

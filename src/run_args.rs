@@ -95,6 +95,9 @@ pub(crate) struct RunArgs {
     /// Shadow rays: one per hemisphere texel, then this many more where the shadow has an edge; 0 = --rays-per-texel everywhere.
     #[arg(long, default_value_t = 4, help_heading = "Model")]
     pub(crate) edge_rays: usize,
+    /// Shadow rays: the first ray of every texel (1), or of every other texel in each direction (2), the texels between traced only where their traced neighbours disagree.
+    #[arg(long, default_value_t = 2, help_heading = "Model")]
+    pub(crate) ray_lattice: usize,
 
     /// Rounds of (fit the lighting, then fit the materials), at most.
     #[arg(long, default_value_t = 8, help_heading = "Solver")]
@@ -134,6 +137,14 @@ pub(crate) struct RunArgs {
         help_heading = "Solver"
     )]
     pub(crate) patience: usize,
+    /// Never stop for the patience before this round (the best round is still kept).
+    #[arg(
+        long,
+        default_value_t = relight_cpc::solve::options::MIN_ITERATIONS,
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    pub(crate) min_iterations: usize,
     /// Starting points to try, the best kept: 1 = materials from colour clusters; 2 adds
     /// every shiny lobe at 0.3 × the matte weight, then one lobe per material in turn.
     /// Each costs one fit.
@@ -274,6 +285,7 @@ impl RunArgs {
         o.keep = self.keep;
         o.rays_per_texel = self.rays_per_texel;
         o.edge_rays = self.edge_rays;
+        o.ray_lattice = self.ray_lattice;
         o.max_iterations = self.iterations;
         o.rel_tol = self.tolerance;
         o.smoothness = self.smoothness;
@@ -287,6 +299,7 @@ impl RunArgs {
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;
+        o.min_iterations = self.min_iterations;
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
         o.robust_floor = self.robust_floor;

@@ -269,7 +269,8 @@ pub(crate) fn trace_visibility(
     let n_render = render_local_resolution(opts);
     let n_fine = opts.local_resolution.max(n_render);
     let rays = fine_rays(opts.rays_per_texel, opts.local_resolution, n_fine);
-    let sampling = crate::transport::visibility::Sampling::new(rays, opts.edge_rays);
+    let sampling =
+        crate::transport::visibility::Sampling::new(rays, opts.edge_rays, opts.ray_lattice);
     let fine = Arc::new(crate::transport::visibility::compute_sampled(
         mesh,
         bvh,

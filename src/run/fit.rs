@@ -64,6 +64,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
         alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
         patience: o.patience,
+        min_iterations: o.min_iterations,
         lambert_basis: lambert,
         validation_seed: o.seed,
         validation_fraction: o.validation,

@@ -68,6 +68,10 @@ pub struct RunOptions {
     /// visibility edge ([`crate::transport::visibility::Sampling::Adaptive`]); 0 = uniform
     /// `rays_per_texel`.
     pub edge_rays: usize,
+    /// Adaptive visibility: the spacing of the texels whose first ray is always traced
+    /// (1 = every texel; 2 = every other one, the texels between them traced only where
+    /// their lattice neighbours disagree, [`crate::transport::visibility::Sampling::Adaptive`]).
+    pub ray_lattice: usize,
     /// Outer iterations at most.
     pub max_iterations: usize,
     /// Stop when the objective improves by less than this fraction.
@@ -86,6 +90,9 @@ pub struct RunOptions {
     /// Early stopping: outer iterations without a better validation score before the
     /// alternation stops ([`EstimateOptions::patience`]).
     pub patience: usize,
+    /// Early stopping: the first outer iteration at which the patience may stop the
+    /// alternation ([`EstimateOptions::min_iterations`]).
+    pub min_iterations: usize,
     /// At most this many observations per photo in its lighting QPs, a stratified sample
     /// ([`EstimateOptions::lighting_sample`]); 0 = all.
     pub lighting_sample: usize,
@@ -213,6 +220,7 @@ impl RunOptions {
             keep: 128,
             rays_per_texel: 2,
             edge_rays: 4,
+            ray_lattice: 2,
             max_iterations: 8,
             rel_tol: 1e-3,
             smoothness: 1e-3,
@@ -220,6 +228,7 @@ impl RunOptions {
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::default_patience(),
+            min_iterations: EstimateOptions::default().min_iterations,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_search: false,
@@ -302,6 +311,12 @@ impl RunOptions {
             return Err(Error::Config(format!(
                 "--edge-rays {}: must be from 0 to 64",
                 self.edge_rays
+            )));
+        }
+        if !(1..=2).contains(&self.ray_lattice) {
+            return Err(Error::Config(format!(
+                "--ray-lattice {}: must be 1 or 2",
+                self.ray_lattice
             )));
         }
         if self.max_iterations == 0 {

@@ -386,10 +386,11 @@ fn prepare(
     });
     drop(bar);
     log.notes.push(format!(
-        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced",
+        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({})",
         vis.open_count(),
         nv,
-        vis.rays_traced
+        vis.rays_traced,
+        visibility_sampling_note(opts)
     ));
     // Strata of the lighting step's sample: normal (8 × 8 octahedral bins) × open sky
     // (3 levels of the mean visible fraction).
@@ -636,4 +637,20 @@ fn write(
     let inputs = super::html_inputs::html_inputs(&fitted, truth, dir)?;
     crate::report::html::write(dir, &report, &inputs)?;
     Ok(report)
+}
+
+/// How the visibility rays were spread, in words for the report's notes.
+fn visibility_sampling_note(opts: &RunOptions) -> String {
+    if opts.edge_rays == 0 {
+        return format!("{} per texel", opts.rays_per_texel.max(1));
+    }
+    let first = if opts.ray_lattice >= 2 {
+        "a first ray in every other texel of each row and column, and between them where those disagree"
+    } else {
+        "a first ray in every texel"
+    };
+    format!(
+        "{first}; {} more in each texel on a shadow edge",
+        opts.edge_rays
+    )
 }

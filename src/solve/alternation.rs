@@ -88,7 +88,7 @@ pub fn estimate_with<M: LightModel>(
         };
         on_iter(&it, &state);
         timeline.push(it);
-        if stop.patience_over(outer_it, opts.patience) {
+        if stop.patience_over(outer_it, opts.patience, opts.min_iterations) {
             stop.stopped_early = outer_it < outer;
             break;
         }

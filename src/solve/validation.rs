@@ -458,11 +458,19 @@ impl<'a, P: Clone> EarlyStop<'a, P> {
         Some(e)
     }
 
-    /// Whether `patience` iterations have passed without a better score.
-    pub(crate) fn patience_over(&self, outer_it: usize, patience: usize) -> bool {
-        self.best
-            .as_ref()
-            .is_some_and(|b| outer_it >= b.iteration + patience.max(1))
+    /// Whether `patience` iterations have passed without a better score, at outer
+    /// iteration `min_iterations` or later.
+    pub(crate) fn patience_over(
+        &self,
+        outer_it: usize,
+        patience: usize,
+        min_iterations: usize,
+    ) -> bool {
+        outer_it >= min_iterations
+            && self
+                .best
+                .as_ref()
+                .is_some_and(|b| outer_it >= b.iteration + patience.max(1))
     }
 
     /// Puts the best iterate back into `alt` (light parameters, materials, IRLS weights)

@@ -24,6 +24,17 @@
 //! with `m = 4`, 71% of the rays of two uniform ones per texel and half their texel RMS
 //! error against 64 rays.
 //!
+//! The first rays can themselves be spread adaptively (`lattice = 2`, Whitted's corner
+//! sampling one level down): the first ray is traced in every other texel of each row
+//! and column (and the last row and column), the *lattice*; a texel between lattice
+//! texels is traced only when its two or four lattice corners disagree, and otherwise
+//! takes their common value (marked *inferred*). The edge test then runs on that map as
+//! above; an inferred texel on an edge stores the fraction of its `m` edge rays alone, as
+//! its first value was not a sample of it. What this can miss is an occluder, or a gap,
+//! that falls wholly between lattice texels (thinner than two texels, ~9° at 32²).
+//! Measured on the built-in example's mesh: 52% of the rays of `lattice = 1` (`m = 4`),
+//! texel RMS error against 64 rays 0.0347 against 0.0328.
+//!
 //! A vertex's rays run texel by texel, so a blocked ray is most often blocked by the same
 //! triangle as the previous blocked one: that triangle is tested first
 //! ([`SceneBvh::occluded_hinted`], the same f64 test, so a ray it blocks is blocked) and the
@@ -121,14 +132,23 @@ pub enum Sampling {
     Adaptive {
         /// Extra rays per edge texel.
         edge_rays: usize,
+        /// Spacing of the lattice of texels whose first ray is always traced: 1 traces
+        /// every texel's; 2 traces every other texel's in each direction (and the last
+        /// row and column), and a texel between lattice texels that all agree takes their
+        /// value without a ray (module docs).
+        lattice: usize,
     },
 }
 
 impl Sampling {
-    /// Adaptive with `edge_rays` extra rays when `edge_rays > 0`, else `rays` uniform rays.
-    pub fn new(rays: usize, edge_rays: usize) -> Sampling {
+    /// Adaptive with `edge_rays` extra rays and first rays on a lattice of spacing
+    /// `lattice` when `edge_rays > 0`, else `rays` uniform rays.
+    pub fn new(rays: usize, edge_rays: usize, lattice: usize) -> Sampling {
         if edge_rays > 0 {
-            Sampling::Adaptive { edge_rays }
+            Sampling::Adaptive {
+                edge_rays,
+                lattice: lattice.clamp(1, 2),
+            }
         } else {
             Sampling::Uniform { rays }
         }
@@ -210,7 +230,7 @@ pub fn compute_sampled(
         .zip(open.par_iter_mut())
         .enumerate()
         .map_init(
-            || (crate::stages::Ticker::default(), Vec::new()),
+            || (crate::stages::Ticker::default(), FirstRays::default()),
             |(ticks, first), (v, (out, is_open))| {
                 ticks.tick(1);
                 let x = mesh.positions[v];
@@ -237,8 +257,8 @@ pub fn compute_sampled(
                 let mut rng = Pcg64::seed_from_u64(mix(seed, v as u64));
                 let traced = match sampling {
                     Sampling::Uniform { rays: r } => rays.uniform(&mut rng, r.max(1), out),
-                    Sampling::Adaptive { edge_rays } => {
-                        rays.adaptive(&mut rng, edge_rays, first, out)
+                    Sampling::Adaptive { edge_rays, lattice } => {
+                        rays.adaptive(&mut rng, edge_rays, lattice, first, out)
                     }
                 };
                 (traced, 0)
@@ -314,30 +334,104 @@ impl VertexRays<'_> {
         (out.len() * r) as u64
     }
 
-    /// One ray per texel, then `edge_rays` more in the texels with a disagreeing
-    /// neighbour (8-connected, within the map); returns the rays traced.
+    /// One ray per texel (or per lattice texel, and between them where needed), then
+    /// `edge_rays` more in the texels with a disagreeing neighbour (8-connected, within
+    /// the map); returns the rays traced.
     fn adaptive(
         &self,
         rng: &mut Pcg64,
         edge_rays: usize,
-        first: &mut Vec<bool>,
+        lattice: usize,
+        first: &mut FirstRays,
         out: &mut [u8],
     ) -> u64 {
-        first.clear();
-        first.extend((0..out.len()).map(|t| self.count(rng, t, 1) == 1));
-        let mut traced = out.len() as u64;
+        let mut traced = if lattice >= 2 {
+            self.first_rays_on_lattice(rng, first)
+        } else {
+            first.reset(out.len());
+            first
+                .open
+                .extend((0..out.len()).map(|t| self.count(rng, t, 1) == 1));
+            out.len() as u64
+        };
         for (t, o) in out.iter_mut().enumerate() {
-            let seen = usize::from(first[t]);
-            if on_edge(first, self.grid.n, t) {
-                let seen = seen + self.count(rng, t, edge_rays);
-                *o = quantise(seen, edge_rays + 1);
+            let seen = usize::from(first.open[t]);
+            *o = if !on_edge(&first.open, self.grid.n, t) {
+                quantise(seen, 1)
+            } else if first.inferred[t] {
+                // Its first value was a neighbour's, not a sample of this texel: only the
+                // edge rays (uniform over the texel) estimate its fraction.
                 traced += edge_rays as u64;
+                quantise(self.count(rng, t, edge_rays), edge_rays)
             } else {
-                *o = quantise(seen, 1);
+                traced += edge_rays as u64;
+                quantise(seen + self.count(rng, t, edge_rays), edge_rays + 1)
+            };
+        }
+        traced
+    }
+
+    /// The first-ray map of [`Sampling::Adaptive`] with `lattice = 2`: the first rays of the
+    /// lattice texels (even row and column, or the last), then each other texel's first
+    /// ray only when its two or four lattice corners disagree; when they agree it takes
+    /// their value and is marked inferred. Returns the rays traced.
+    fn first_rays_on_lattice(&self, rng: &mut Pcg64, first: &mut FirstRays) -> u64 {
+        let n = self.grid.n;
+        first.reset(n * n);
+        first.open.resize(n * n, false);
+        first.inferred.resize(n * n, false);
+        let on_grid = |t: usize| on_lattice(t % n, n) && on_lattice(t / n, n);
+        let mut traced = 0;
+        for t in (0..n * n).filter(|&t| on_grid(t)) {
+            first.open[t] = self.count(rng, t, 1) == 1;
+            traced += 1;
+        }
+        // The lattice indices around `k`: itself when on the lattice, else `k ± 1`.
+        let span = |k: usize| {
+            if on_lattice(k, n) {
+                (k, k)
+            } else {
+                (k - 1, k + 1)
+            }
+        };
+        for t in (0..n * n).filter(|&t| !on_grid(t)) {
+            let ((i0, i1), (j0, j1)) = (span(t % n), span(t / n));
+            let corners = [j0 * n + i0, j0 * n + i1, j1 * n + i0, j1 * n + i1];
+            let here = first.open[corners[0]];
+            if corners.iter().all(|&c| first.open[c] == here) {
+                first.open[t] = here;
+                first.inferred[t] = true;
+            } else {
+                first.open[t] = self.count(rng, t, 1) == 1;
+                traced += 1;
             }
         }
         traced
     }
+}
+
+/// A vertex's first-ray map: per texel whether its first ray escaped, and whether that
+/// value was inferred from its lattice neighbours instead of traced (a worker's scratch).
+#[derive(Default)]
+struct FirstRays {
+    open: Vec<bool>,
+    inferred: Vec<bool>,
+}
+
+impl FirstRays {
+    /// Empty, with room for `texels`; every texel traced until marked otherwise.
+    fn reset(&mut self, texels: usize) {
+        self.open.clear();
+        self.inferred.clear();
+        self.open.reserve(texels);
+        self.inferred.resize(texels, false);
+    }
+}
+
+/// Whether row or column `k` of an `n`-texel side is on the spacing-2 lattice: even, or
+/// the last (so every other index lies between two lattice indices).
+fn on_lattice(k: usize, n: usize) -> bool {
+    k.is_multiple_of(2) || k + 1 == n
 }
 
 /// `seen / rays` as a `u8` fraction (`255` = all escaped).

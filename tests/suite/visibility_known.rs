@@ -258,7 +258,10 @@ fn adaptive_sampling_beats_two_uniform_rays_against_the_analytic_answer() {
     let m = env_matrix(Vec3::new(0.1, 0.3, 1.0));
     let n = 32;
     let texels = n * n;
-    let adaptive = Sampling::Adaptive { edge_rays: 4 };
+    let adaptive = Sampling::Adaptive {
+        edge_rays: 4,
+        lattice: 1,
+    };
     let two = Sampling::Uniform { rays: 2 };
     let brute = compute(&mesh, &bvh, &m, n, 64, 99);
     let rms = |v: &relight_cpc::transport::visibility::Visibility| {
@@ -296,4 +299,76 @@ fn adaptive_sampling_beats_two_uniform_rays_against_the_analytic_answer() {
     assert!(rms_a < 0.8 * rms_u, "texel RMS {rms_a} vs {rms_u}");
     // Both are far inside the error budget of the first test (0.03 sr).
     assert!(err_a < 0.03, "{err_a}");
+}
+
+#[test]
+fn lattice_first_rays_trace_the_lattice_alone_under_an_open_sky_and_keep_the_ceiling() {
+    // (1) An open hemisphere (the ceiling scene's ground alone, traced with the
+    // open-vertex shortcut off): every lattice texel's first ray escapes, so every texel
+    // between them is inferred open and no texel is on an edge. The rays traced are then
+    // exactly the lattice's: (n/2 + 1)² at n = 32 (even rows and columns, and the last),
+    // and every texel is 255.
+    let n = 32;
+    let texels = n * n;
+    let lattice = Sampling::Adaptive {
+        edge_rays: 4,
+        lattice: 2,
+    };
+    let full = Sampling::Adaptive {
+        edge_rays: 4,
+        lattice: 1,
+    };
+    let ground = {
+        let mesh = ceiling_scene(1.0, 1.0, &Rotation3::identity());
+        let (m, _) = Mesh::from_parts(mesh.positions.clone(), mesh.faces[..4].to_vec());
+        m
+    };
+    let bvh = SceneBvh::new(&ground);
+    let m = env_matrix(Vec3::z());
+    let open = compute_sampled(&ground, &bvh, &m, n, lattice, 3, false);
+    let lattice_side = n / 2 + 1;
+    assert_eq!(open.rays_traced as usize % (lattice_side * lattice_side), 0);
+    assert!(open.vertex(0).iter().all(|&f| f == 255));
+    let one_vertex = compute_sampled(&ground, &bvh, &m, n, full, 3, false);
+    assert!(one_vertex.vertex(0).iter().all(|&f| f == 255));
+    assert_eq!(
+        open.rays_traced * (texels as u64),
+        one_vertex.rays_traced * (lattice_side * lattice_side) as u64
+    );
+
+    // (2) The tilted square ceiling of the adaptive test, eight seeds: against the
+    // analytic visible solid angle (4π/3) and a 64-ray reference, the lattice must trace
+    // at most 70% of the full first-ray map's rays (measured ~55%: the outline's texels
+    // are traced either way) and stay within the error budget of the first test (0.03 sr),
+    // with a texel RMS error at most 1.3× the full map's (the ceiling's straight outline
+    // is at least two texels wide, so nothing falls between lattice texels; measured
+    // ~1.0×, the bound leaves room for the inferred edge texels' 4-ray fractions).
+    let expected = 2.0 * PI - 4.0 * (0.5f64).asin();
+    let rot = Rotation3::from_euler_angles(0.3, -0.2, 0.5);
+    let mesh = ceiling_scene(1.0, 1.0, &rot);
+    let bvh = SceneBvh::new(&mesh);
+    let m = env_matrix(Vec3::new(0.1, 0.3, 1.0));
+    let brute = compute(&mesh, &bvh, &m, n, 64, 99);
+    let rms = |v: &relight_cpc::transport::visibility::Visibility| {
+        let se: f64 = (0..texels)
+            .map(|t| (v.value(0, t) - brute.value(0, t)).powi(2))
+            .sum();
+        (se / texels as f64).sqrt()
+    };
+    let (mut rays_l, mut rays_f, mut err_l, mut rms_l, mut rms_f) = (0, 0, 0.0, 0.0, 0.0);
+    for seed in 0..8 {
+        let l = compute_sampled(&mesh, &bvh, &m, n, lattice, seed, true);
+        let f = compute_sampled(&mesh, &bvh, &m, n, full, seed, true);
+        rays_l += l.rays_traced;
+        rays_f += f.rays_traced;
+        err_l += (visible_solid_angle(&l, 0) - expected).abs() / 8.0;
+        rms_l += rms(&l) / 8.0;
+        rms_f += rms(&f) / 8.0;
+    }
+    assert!(
+        (rays_l as f64) < 0.7 * rays_f as f64,
+        "{rays_l} rays vs {rays_f}"
+    );
+    assert!(err_l < 0.03, "solid-angle error {err_l}");
+    assert!(rms_l < 1.3 * rms_f, "texel RMS {rms_l} vs {rms_f}");
 }
