@@ -430,3 +430,46 @@ fn early_stopping_keeps_the_truth_on_noise_free_data() {
         "returned {returned:.4}: first {first:.4}, last {last:.4}"
     );
 }
+
+/// The iteration floor (`min_iterations`) delays early stopping, never what it returns. On
+/// the noise-free case started at the truth (the previous test: the validation score is
+/// lowest at iteration 1 and rises after it), patience 1 stops at iteration 2 without a
+/// floor and at exactly the floor with one (5 here), and both return iteration 1's iterate:
+/// the same validation record's best and the same held-out error, to rounding.
+#[test]
+fn the_iteration_floor_delays_the_stop_and_keeps_the_best_iterate() {
+    let case = spot();
+    let mut obs = case.train.obs.clone();
+    replace_colours(&mut obs, &true_prediction(case, &case.train));
+    let mut held_obs = case.held.obs.clone();
+    replace_colours(&mut held_obs, &true_prediction(case, &case.held));
+    let problem = case.train_problem_with(&obs);
+    let run = |min_iterations: usize| {
+        let o = EstimateOptions {
+            max_outer: 8,
+            rel_tol: 0.0,
+            patience: 1,
+            min_iterations,
+            ..EstimateOptions::default()
+        };
+        let est = estimate(&problem, case.true_materials(), &o, &mut |_, _| {}).unwrap();
+        let v = est
+            .validation
+            .clone()
+            .expect("early stopping is on by default");
+        let hp = case.predict_held(&est.lambda, &est.weights);
+        (v, rel_rmse_per_channel(&held_obs, &hp))
+    };
+    let (free, free_err) = run(1);
+    let (floored, floored_err) = run(5);
+    assert_eq!(free.best_iteration, 1, "scores {:?}", free.errors);
+    assert_eq!(free.errors.len(), 2, "scores {:?}", free.errors);
+    assert_eq!(floored.errors.len(), 5, "scores {:?}", floored.errors);
+    assert_eq!(floored.best_iteration, 1, "scores {:?}", floored.errors);
+    // The first two iterations are the same computation in both runs.
+    assert_eq!(free.errors[..2], floored.errors[..2]);
+    assert!(
+        (free_err - floored_err).abs() <= 1e-9 * free_err.max(1e-12),
+        "returned {free_err:.6} without the floor, {floored_err:.6} with it"
+    );
+}

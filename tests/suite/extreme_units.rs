@@ -247,3 +247,26 @@ fn robust_floor_outside_its_range_is_refused() {
     };
     assert!(on.check().is_ok());
 }
+
+/// `--ray-lattice` is 1 (every texel's first ray) or 2 (every other texel's): 0 and 3 are
+/// refused, naming the flag.
+#[test]
+fn ray_lattice_outside_its_range_is_refused() {
+    use relight_cpc::run::RunOptions;
+    let base = RunOptions::new("ws".into(), "out".into());
+    for bad in [0, 3, 8] {
+        let o = RunOptions {
+            ray_lattice: bad,
+            ..base.clone()
+        };
+        let e = o.check().unwrap_err().to_string();
+        assert!(e.contains("--ray-lattice"), "{e}");
+    }
+    for good in [1, 2] {
+        let o = RunOptions {
+            ray_lattice: good,
+            ..base.clone()
+        };
+        assert!(o.check().is_ok());
+    }
+}
