@@ -106,6 +106,14 @@ fn main() {
             edge_rays: 4,
             lattice: 2,
         },
+        Sampling::Adaptive {
+            edge_rays: 3,
+            lattice: 2,
+        },
+        Sampling::Adaptive {
+            edge_rays: 8,
+            lattice: 2,
+        },
     ];
     let mut cpu = vec![Vec::new(); samplings.len()];
     let mut results = Vec::new();

@@ -96,7 +96,7 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value_t = 4, help_heading = "Model")]
     pub(crate) edge_rays: usize,
     /// Shadow rays: the first ray of every texel (1), or of every other texel in each direction (2), the texels between traced only where their traced neighbours disagree.
-    #[arg(long, default_value_t = 2, help_heading = "Model")]
+    #[arg(long, default_value_t = 1, help_heading = "Model")]
     pub(crate) ray_lattice: usize,
 
     /// Rounds of (fit the lighting, then fit the materials), at most.

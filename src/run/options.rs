@@ -220,7 +220,7 @@ impl RunOptions {
             keep: 128,
             rays_per_texel: 2,
             edge_rays: 4,
-            ray_lattice: 2,
+            ray_lattice: 1,
             max_iterations: 8,
             rel_tol: 1e-3,
             smoothness: 1e-3,

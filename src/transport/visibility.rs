@@ -24,6 +24,14 @@
 //! with `m = 4`, 71% of the rays of two uniform ones per texel and half their texel RMS
 //! error against 64 rays.
 //!
+//! When `m + 1` is a perfect square (`m` = 3, 8, …) a texel's first ray and its edge rays
+//! share one `√(m+1) × √(m+1)` grid of strata: the first ray is uniform in a stratum drawn
+//! at random (so still uniform over the texel) and the `m` edge rays take the other
+//! strata, one each, so an edge texel's `m + 1` rays are stratified. Measured on the same
+//! mesh: `m = 3` gives a texel RMS error of 0.0332 against 0.0328 for `m = 4` (a uniform
+//! first ray and 4 stratified ones) at 92% of its rays; `m = 3` without the shared strata
+//! (3 uniform rays, the rule before) gave 0.0450.
+//!
 //! The first rays can themselves be spread adaptively (`lattice = 2`, Whitted's corner
 //! sampling one level down): the first ray is traced in every other texel of each row
 //! and column (and the last row and column), the *lattice*; a texel between lattice
@@ -326,6 +334,34 @@ impl VertexRays<'_> {
             .count()
     }
 
+    /// The first ray of texel `t`: uniform over the texel when `strata` is 1, else uniform in
+    /// a stratum of the `strata × strata` grid drawn at random (so still uniform over the
+    /// texel). Returns whether it escaped and its stratum.
+    fn first_ray(&self, rng: &mut Pcg64, t: usize, strata: usize) -> (bool, usize) {
+        if strata <= 1 {
+            return (self.count(rng, t, 1) == 1, 0);
+        }
+        let k = rng.random_range(0..strata * strata);
+        let s = strata as f64;
+        let a = ((k % strata) as f64 + rng.random::<f64>()) / s;
+        let b = ((k / strata) as f64 + rng.random::<f64>()) / s;
+        (self.escapes(t, a, b), k)
+    }
+
+    /// How many of the rays through the strata of a `strata × strata` grid of texel `t`
+    /// other than `skip` escape (one uniform ray in each).
+    fn count_other_strata(&self, rng: &mut Pcg64, t: usize, strata: usize, skip: usize) -> usize {
+        let s = strata as f64;
+        (0..strata * strata)
+            .filter(|&k| k != skip)
+            .filter(|k| {
+                let a = ((k % strata) as f64 + rng.random::<f64>()) / s;
+                let b = ((k / strata) as f64 + rng.random::<f64>()) / s;
+                self.escapes(t, a, b)
+            })
+            .count()
+    }
+
     /// `r` rays in every texel; returns the rays traced.
     fn uniform(&self, rng: &mut Pcg64, r: usize, out: &mut [u8]) -> u64 {
         for (t, o) in out.iter_mut().enumerate() {
@@ -345,13 +381,16 @@ impl VertexRays<'_> {
         first: &mut FirstRays,
         out: &mut [u8],
     ) -> u64 {
+        let strata = shared_strata(edge_rays);
         let mut traced = if lattice >= 2 {
-            self.first_rays_on_lattice(rng, first)
+            self.first_rays_on_lattice(rng, strata, first)
         } else {
             first.reset(out.len());
-            first
-                .open
-                .extend((0..out.len()).map(|t| self.count(rng, t, 1) == 1));
+            for t in 0..out.len() {
+                let (open, k) = self.first_ray(rng, t, strata);
+                first.open.push(open);
+                first.stratum[t] = k;
+            }
             out.len() as u64
         };
         for (t, o) in out.iter_mut().enumerate() {
@@ -360,9 +399,18 @@ impl VertexRays<'_> {
                 quantise(seen, 1)
             } else if first.inferred[t] {
                 // Its first value was a neighbour's, not a sample of this texel: only the
-                // edge rays (uniform over the texel) estimate its fraction.
+                // edge rays (uniform over the texel, or one per stratum) estimate it.
+                let r = if strata > 1 {
+                    strata * strata
+                } else {
+                    edge_rays
+                };
+                traced += r as u64;
+                quantise(self.count(rng, t, r), r)
+            } else if strata > 1 {
                 traced += edge_rays as u64;
-                quantise(self.count(rng, t, edge_rays), edge_rays)
+                let more = self.count_other_strata(rng, t, strata, first.stratum[t]);
+                quantise(seen + more, edge_rays + 1)
             } else {
                 traced += edge_rays as u64;
                 quantise(seen + self.count(rng, t, edge_rays), edge_rays + 1)
@@ -375,7 +423,7 @@ impl VertexRays<'_> {
     /// lattice texels (even row and column, or the last), then each other texel's first
     /// ray only when its two or four lattice corners disagree; when they agree it takes
     /// their value and is marked inferred. Returns the rays traced.
-    fn first_rays_on_lattice(&self, rng: &mut Pcg64, first: &mut FirstRays) -> u64 {
+    fn first_rays_on_lattice(&self, rng: &mut Pcg64, strata: usize, first: &mut FirstRays) -> u64 {
         let n = self.grid.n;
         first.reset(n * n);
         first.open.resize(n * n, false);
@@ -383,7 +431,7 @@ impl VertexRays<'_> {
         let on_grid = |t: usize| on_lattice(t % n, n) && on_lattice(t / n, n);
         let mut traced = 0;
         for t in (0..n * n).filter(|&t| on_grid(t)) {
-            first.open[t] = self.count(rng, t, 1) == 1;
+            (first.open[t], first.stratum[t]) = self.first_ray(rng, t, strata);
             traced += 1;
         }
         // The lattice indices around `k`: itself when on the lattice, else `k ± 1`.
@@ -402,7 +450,7 @@ impl VertexRays<'_> {
                 first.open[t] = here;
                 first.inferred[t] = true;
             } else {
-                first.open[t] = self.count(rng, t, 1) == 1;
+                (first.open[t], first.stratum[t]) = self.first_ray(rng, t, strata);
                 traced += 1;
             }
         }
@@ -416,6 +464,8 @@ impl VertexRays<'_> {
 struct FirstRays {
     open: Vec<bool>,
     inferred: Vec<bool>,
+    /// The stratum of each traced first ray ([`VertexRays::first_ray`]).
+    stratum: Vec<usize>,
 }
 
 impl FirstRays {
@@ -425,6 +475,21 @@ impl FirstRays {
         self.inferred.clear();
         self.open.reserve(texels);
         self.inferred.resize(texels, false);
+        self.stratum.clear();
+        self.stratum.resize(texels, 0);
+    }
+}
+
+/// The side of the stratum grid that a texel's first ray and its `edge_rays` share when
+/// `edge_rays + 1` is a perfect square of at least 4 (3, 8, …: the first ray takes one
+/// stratum at random, the edge rays the others, so an edge texel's rays are stratified);
+/// else 1 (the first ray uniform over the texel, the edge rays stratified among themselves).
+fn shared_strata(edge_rays: usize) -> usize {
+    let s = ((edge_rays + 1) as f64).sqrt().round() as usize;
+    if s >= 2 && s * s == edge_rays + 1 {
+        s
+    } else {
+        1
     }
 }
 
