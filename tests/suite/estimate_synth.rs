@@ -382,6 +382,21 @@ fn early_stopping_returns_the_validation_best_iterate() {
     );
 }
 
+/// The case's training and held-out observations with every colour replaced by the TRUE
+/// reflectance under the TRUE light through the case's own transport (a floor of 0).
+fn noise_free(
+    case: &Case,
+) -> (
+    relight_cpc::observe::Observations,
+    relight_cpc::observe::Observations,
+) {
+    let mut obs = case.train.obs.clone();
+    replace_colours(&mut obs, &true_prediction(case, &case.train));
+    let mut held_obs = case.held.obs.clone();
+    replace_colours(&mut held_obs, &true_prediction(case, &case.held));
+    (obs, held_obs)
+}
+
 /// Noise-free data (every observation replaced by the TRUE reflectance under the TRUE
 /// light through the case's own transport, so the floor is 0), started AT the true
 /// materials: the 10⁻³ Laplacian's bias moves the minimiser off the truth, and the
@@ -391,10 +406,7 @@ fn early_stopping_returns_the_validation_best_iterate() {
 #[test]
 fn early_stopping_keeps_the_truth_on_noise_free_data() {
     let case = spot();
-    let mut obs = case.train.obs.clone();
-    replace_colours(&mut obs, &true_prediction(case, &case.train));
-    let mut held_obs = case.held.obs.clone();
-    replace_colours(&mut held_obs, &true_prediction(case, &case.held));
+    let (obs, held_obs) = noise_free(case);
     let problem = case.train_problem_with(&obs);
     let init = case.true_materials();
     let o = EstimateOptions {
@@ -439,10 +451,7 @@ fn early_stopping_keeps_the_truth_on_noise_free_data() {
 #[test]
 fn the_iteration_floor_delays_the_stop_and_keeps_the_best_iterate() {
     let case = spot();
-    let mut obs = case.train.obs.clone();
-    replace_colours(&mut obs, &true_prediction(case, &case.train));
-    let mut held_obs = case.held.obs.clone();
-    replace_colours(&mut held_obs, &true_prediction(case, &case.held));
+    let (obs, held_obs) = noise_free(case);
     let problem = case.train_problem_with(&obs);
     let run = |min_iterations: usize| {
         let o = EstimateOptions {

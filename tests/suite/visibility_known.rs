@@ -4,7 +4,9 @@ use nalgebra::{Matrix3, Rotation3};
 use relight_cpc::import::mesh::Mesh;
 use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::sphere::{env_frame, SphereGrid};
-use relight_cpc::transport::visibility::{compute, compute_sampled, compute_with, Sampling};
+use relight_cpc::transport::visibility::{
+    compute, compute_sampled, compute_with, Sampling, Visibility,
+};
 use relight_cpc::Vec3;
 use std::f64::consts::PI;
 
@@ -44,9 +46,30 @@ fn env_matrix(up: Vec3) -> Matrix3<f64> {
 }
 
 /// Visible solid angle `Σ_t V_t Δω_t` of vertex `v`.
-fn visible_solid_angle(vis: &relight_cpc::transport::visibility::Visibility, v: usize) -> f64 {
+fn visible_solid_angle(vis: &Visibility, v: usize) -> f64 {
     let sa = SphereGrid::hemi(vis.n_local).solid_angles();
     (0..sa.len()).map(|t| vis.value(v, t) * sa[t]).sum()
+}
+
+/// The tilted square ceiling of the sampling tests (a = h: the vertex sees 4π/3 sr), its
+/// BVH, environment matrix and a brute-force 64-ray reference at `n`²: `(mesh, bvh, m,
+/// reference)`.
+fn tilted_ceiling(n: usize) -> (Mesh, SceneBvh, Matrix3<f64>, Visibility) {
+    let rot = Rotation3::from_euler_angles(0.3, -0.2, 0.5);
+    let mesh = ceiling_scene(1.0, 1.0, &rot);
+    let bvh = SceneBvh::new(&mesh);
+    let m = env_matrix(Vec3::new(0.1, 0.3, 1.0));
+    let brute = compute(&mesh, &bvh, &m, n, 64, 99);
+    (mesh, bvh, m, brute)
+}
+
+/// Texel RMS difference of vertex 0 between `v` and `reference`.
+fn texel_rms(v: &Visibility, reference: &Visibility) -> f64 {
+    let texels = v.texels();
+    let se: f64 = (0..texels)
+        .map(|t| (v.value(0, t) - reference.value(0, t)).powi(2))
+        .sum();
+    (se / texels as f64).sqrt()
 }
 
 #[test]
@@ -252,24 +275,15 @@ fn adaptive_sampling_beats_two_uniform_rays_against_the_analytic_answer() {
     // rays do, on average over the seeds (measured: ~0.4× their error; the bound is 0.8×),
     // and (4) lie closer, texel by texel, to a brute-force 64-ray reference (RMS).
     let expected = 2.0 * PI - 4.0 * (0.5f64).asin();
-    let rot = Rotation3::from_euler_angles(0.3, -0.2, 0.5);
-    let mesh = ceiling_scene(1.0, 1.0, &rot);
-    let bvh = SceneBvh::new(&mesh);
-    let m = env_matrix(Vec3::new(0.1, 0.3, 1.0));
     let n = 32;
     let texels = n * n;
+    let (mesh, bvh, m, brute) = tilted_ceiling(n);
+    let rms = |v: &Visibility| texel_rms(v, &brute);
     let adaptive = Sampling::Adaptive {
         edge_rays: 4,
         lattice: 1,
     };
     let two = Sampling::Uniform { rays: 2 };
-    let brute = compute(&mesh, &bvh, &m, n, 64, 99);
-    let rms = |v: &relight_cpc::transport::visibility::Visibility| {
-        let se: f64 = (0..texels)
-            .map(|t| (v.value(0, t) - brute.value(0, t)).powi(2))
-            .sum();
-        (se / texels as f64).sqrt()
-    };
     let (mut err_a, mut err_u, mut rms_a, mut rms_u) = (0.0, 0.0, 0.0, 0.0);
     for seed in 0..8 {
         let a = compute_sampled(&mesh, &bvh, &m, n, adaptive, seed, true);
@@ -344,17 +358,8 @@ fn lattice_first_rays_trace_the_lattice_alone_under_an_open_sky_and_keep_the_cei
     // wider than two texels, so nothing falls between lattice texels; measured 1.02×, the
     // bound leaves room for the inferred edge texels' 4-ray fractions).
     let expected = 2.0 * PI - 4.0 * (0.5f64).asin();
-    let rot = Rotation3::from_euler_angles(0.3, -0.2, 0.5);
-    let mesh = ceiling_scene(1.0, 1.0, &rot);
-    let bvh = SceneBvh::new(&mesh);
-    let m = env_matrix(Vec3::new(0.1, 0.3, 1.0));
-    let brute = compute(&mesh, &bvh, &m, n, 64, 99);
-    let rms = |v: &relight_cpc::transport::visibility::Visibility| {
-        let se: f64 = (0..texels)
-            .map(|t| (v.value(0, t) - brute.value(0, t)).powi(2))
-            .sum();
-        (se / texels as f64).sqrt()
-    };
+    let (mesh, bvh, m, brute) = tilted_ceiling(n);
+    let rms = |v: &Visibility| texel_rms(v, &brute);
     let (mut rays_l, mut rays_f, mut err_l, mut rms_l, mut rms_f) = (0, 0, 0.0, 0.0, 0.0);
     for seed in 0..8 {
         let l = compute_sampled(&mesh, &bvh, &m, n, lattice, seed, true);
@@ -384,18 +389,8 @@ fn edge_rays_that_complete_a_square_share_the_first_rays_strata() {
     // (5 rays; measured 1.01× on the example's mesh, 1.02× here) at fewer rays (3 per edge texel
     // instead of 4). Uniform 3 edge rays (no shared strata, the rule before) was 1.37×.
     let n = 32;
-    let texels = n * n;
-    let rot = Rotation3::from_euler_angles(0.3, -0.2, 0.5);
-    let mesh = ceiling_scene(1.0, 1.0, &rot);
-    let bvh = SceneBvh::new(&mesh);
-    let m = env_matrix(Vec3::new(0.1, 0.3, 1.0));
-    let brute = compute(&mesh, &bvh, &m, n, 64, 99);
-    let rms = |v: &relight_cpc::transport::visibility::Visibility| {
-        let se: f64 = (0..texels)
-            .map(|t| (v.value(0, t) - brute.value(0, t)).powi(2))
-            .sum();
-        (se / texels as f64).sqrt()
-    };
+    let (mesh, bvh, m, brute) = tilted_ceiling(n);
+    let rms = |v: &Visibility| texel_rms(v, &brute);
     let shared = Sampling::Adaptive {
         edge_rays: 3,
         lattice: 1,
