@@ -228,7 +228,7 @@ impl RunOptions {
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::default_patience(),
-            min_iterations: EstimateOptions::default().min_iterations,
+            min_iterations: crate::solve::options::MIN_ITERATIONS,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_search: false,

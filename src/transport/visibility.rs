@@ -318,14 +318,10 @@ impl VertexRays<'_> {
     fn count(&self, rng: &mut Pcg64, t: usize, r: usize) -> usize {
         let strata = (r as f64).sqrt().round() as usize;
         let stratified = strata * strata == r;
-        let s = strata as f64;
         (0..r)
-            .filter(|k| {
+            .filter(|&k| {
                 let (a, b) = if stratified {
-                    (
-                        ((k % strata) as f64 + rng.random::<f64>()) / s,
-                        ((k / strata) as f64 + rng.random::<f64>()) / s,
-                    )
+                    stratum_point(rng, k, strata)
                 } else {
                     (rng.random::<f64>(), rng.random::<f64>())
                 };
@@ -342,21 +338,17 @@ impl VertexRays<'_> {
             return (self.count(rng, t, 1) == 1, 0);
         }
         let k = rng.random_range(0..strata * strata);
-        let s = strata as f64;
-        let a = ((k % strata) as f64 + rng.random::<f64>()) / s;
-        let b = ((k / strata) as f64 + rng.random::<f64>()) / s;
+        let (a, b) = stratum_point(rng, k, strata);
         (self.escapes(t, a, b), k)
     }
 
     /// How many of the rays through the strata of a `strata × strata` grid of texel `t`
     /// other than `skip` escape (one uniform ray in each).
     fn count_other_strata(&self, rng: &mut Pcg64, t: usize, strata: usize, skip: usize) -> usize {
-        let s = strata as f64;
         (0..strata * strata)
             .filter(|&k| k != skip)
-            .filter(|k| {
-                let a = ((k % strata) as f64 + rng.random::<f64>()) / s;
-                let b = ((k / strata) as f64 + rng.random::<f64>()) / s;
+            .filter(|&k| {
+                let (a, b) = stratum_point(rng, k, strata);
                 self.escapes(t, a, b)
             })
             .count()
@@ -387,9 +379,7 @@ impl VertexRays<'_> {
         } else {
             first.reset(out.len());
             for t in 0..out.len() {
-                let (open, k) = self.first_ray(rng, t, strata);
-                first.open.push(open);
-                first.stratum[t] = k;
+                (first.open[t], first.stratum[t]) = self.first_ray(rng, t, strata);
             }
             out.len() as u64
         };
@@ -426,8 +416,6 @@ impl VertexRays<'_> {
     fn first_rays_on_lattice(&self, rng: &mut Pcg64, strata: usize, first: &mut FirstRays) -> u64 {
         let n = self.grid.n;
         first.reset(n * n);
-        first.open.resize(n * n, false);
-        first.inferred.resize(n * n, false);
         let on_grid = |t: usize| on_lattice(t % n, n) && on_lattice(t / n, n);
         let mut traced = 0;
         for t in (0..n * n).filter(|&t| on_grid(t)) {
@@ -469,12 +457,13 @@ struct FirstRays {
 }
 
 impl FirstRays {
-    /// Empty, with room for `texels`; every texel traced until marked otherwise.
+    /// `texels` entries, every one blocked, traced (not inferred) and in stratum 0 until
+    /// set.
     fn reset(&mut self, texels: usize) {
-        self.open.clear();
-        self.inferred.clear();
-        self.open.reserve(texels);
-        self.inferred.resize(texels, false);
+        for v in [&mut self.open, &mut self.inferred] {
+            v.clear();
+            v.resize(texels, false);
+        }
         self.stratum.clear();
         self.stratum.resize(texels, 0);
     }
@@ -497,6 +486,15 @@ fn shared_strata(edge_rays: usize) -> usize {
 /// the last (so every other index lies between two lattice indices).
 fn on_lattice(k: usize, n: usize) -> bool {
     k.is_multiple_of(2) || k + 1 == n
+}
+
+/// A uniform point `(a, b) ∈ [0, 1)²` of stratum `k` (row-major) of a `strata × strata` grid
+/// of a texel's `uv` square (`a` drawn first).
+fn stratum_point(rng: &mut Pcg64, k: usize, strata: usize) -> (f64, f64) {
+    let s = strata as f64;
+    let a = ((k % strata) as f64 + rng.random::<f64>()) / s;
+    let b = ((k / strata) as f64 + rng.random::<f64>()) / s;
+    (a, b)
 }
 
 /// `seen / rays` as a `u8` fraction (`255` = all escaped).
