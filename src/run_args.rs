@@ -89,6 +89,11 @@ pub(crate) struct RunArgs {
     /// Light-transport terms kept per observation (0 = all): fewer is faster and coarser.
     #[arg(long, default_value_t = 128, help_heading = "Model")]
     pub(crate) keep: usize,
+    /// Fraction of each blended lighting row's energy (an observation's transport rows
+    /// summed with its material weights) its smallest entries may carry and be dropped;
+    /// 0 = the exact blend.
+    #[arg(long, default_value_t = relight_cpc::solve::options::BLEND_TOLERANCE, help_heading = "Model")]
+    pub(crate) blend_tolerance: f64,
     /// Shadow rays per hemisphere texel, when --edge-rays is 0.
     #[arg(long, default_value_t = 2, help_heading = "Model")]
     pub(crate) rays_per_texel: usize,
@@ -283,6 +288,7 @@ impl RunArgs {
         o.render_local_resolution = self.render_local_resolution;
         o.normal_grid = self.normal_grid;
         o.keep = self.keep;
+        o.blend_tolerance = self.blend_tolerance;
         o.rays_per_texel = self.rays_per_texel;
         o.edge_rays = self.edge_rays;
         o.ray_lattice = self.ray_lattice;

@@ -97,6 +97,8 @@ pub struct ModelReport {
     pub normal_grid: usize,
     /// Kept Haar coefficients per transport row (0 = all).
     pub kept_coefficients: usize,
+    /// Energy fraction each blended lighting row may drop (0 = the exact blend).
+    pub blend_tolerance: f64,
     /// One sentence per decision: what was chosen and why.
     pub reasons: Vec<String>,
     /// The adaptive model's decisions (`--adaptive on`), each against the full model.
@@ -194,6 +196,17 @@ impl ModelReport {
                 match self.kept_coefficients {
                     0 => "all".to_string(),
                     n => n.to_string(),
+                },
+            ),
+            (
+                "blended lighting rows",
+                if self.blend_tolerance > 0.0 {
+                    format!(
+                        "smallest terms dropped up to {:e} of each row's energy",
+                        self.blend_tolerance
+                    )
+                } else {
+                    "exact".to_string()
                 },
             ),
         ]

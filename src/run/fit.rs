@@ -70,6 +70,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         validation_fraction: o.validation,
         validation_block: o.validation_block,
         lighting_sample: o.lighting_sample,
+        blend_tolerance: o.blend_tolerance,
         lighting_strata: strata.to_vec(),
         scale_anchor: o.scale_anchor,
         ..EstimateOptions::default()

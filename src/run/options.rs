@@ -62,6 +62,9 @@ pub struct RunOptions {
     pub normal_grid: usize,
     /// Haar coefficients kept per transport row (0 = all).
     pub keep: usize,
+    /// Energy tolerance of the blended lighting rows
+    /// ([`EstimateOptions::blend_tolerance`]; 0 = the exact blend).
+    pub blend_tolerance: f64,
     /// Visibility rays per local texel when `edge_rays` is 0.
     pub rays_per_texel: usize,
     /// Adaptive visibility: one ray per texel, then this many more in each texel on a
@@ -218,6 +221,7 @@ impl RunOptions {
             render_local_resolution: None,
             normal_grid: 32,
             keep: 128,
+            blend_tolerance: crate::solve::options::BLEND_TOLERANCE,
             rays_per_texel: 2,
             edge_rays: 4,
             ray_lattice: 1,
@@ -328,6 +332,12 @@ impl RunOptions {
             return Err(Error::Config(
                 "--irls-iterations 0: at least one (plain least squares) is needed".into(),
             ));
+        }
+        if !(0.0..1.0).contains(&self.blend_tolerance) {
+            return Err(Error::Config(format!(
+                "--blend-tolerance {}: must be in [0, 1) (a fraction of each row's energy)",
+                self.blend_tolerance
+            )));
         }
         if !(0.0..1.0).contains(&self.robust_floor) {
             return Err(Error::Config(format!(

@@ -589,6 +589,7 @@ fn write(
             render_local_resolution: fitted.render_vis.n_local,
             normal_grid: eff.normal_grid,
             kept_coefficients: eff.keep,
+            blend_tolerance: fitted.estimate_options.blend_tolerance,
             reasons,
             adaptive: if opts.adaptive { Some(decisions) } else { None },
             light: Some(light_decision),

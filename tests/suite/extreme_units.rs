@@ -248,6 +248,29 @@ fn robust_floor_outside_its_range_is_refused() {
     assert!(on.check().is_ok());
 }
 
+/// `--blend-tolerance` is a fraction of each lighting row's energy: outside [0, 1) (or NaN)
+/// refused, naming the flag; 0 (the exact blend) and the default accepted.
+#[test]
+fn blend_tolerance_outside_its_range_is_refused() {
+    use relight_cpc::run::RunOptions;
+    let base = RunOptions::new("ws".into(), "out".into());
+    for bad in [-1e-3, 1.0, f64::NAN, f64::INFINITY] {
+        let o = RunOptions {
+            blend_tolerance: bad,
+            ..base.clone()
+        };
+        let e = o.check().unwrap_err().to_string();
+        assert!(e.contains("--blend-tolerance"), "{e}");
+    }
+    for good in [0.0, relight_cpc::solve::options::BLEND_TOLERANCE] {
+        let o = RunOptions {
+            blend_tolerance: good,
+            ..base.clone()
+        };
+        assert!(o.check().is_ok(), "{good}");
+    }
+}
+
 /// `--ray-lattice` is 1 (every texel's first ray) or 2 (every other texel's): 0 and 3 are
 /// refused, naming the flag.
 #[test]

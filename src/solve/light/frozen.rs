@@ -62,7 +62,7 @@ pub fn fit_light_scheduled(
     let n2 = n * n;
     let data = PhotoData::new(problem, photo, None);
     let dw0 = data.alpha.iter().map(|&a| [a; 3]).collect();
-    let mut sys = PhotoSystem::new(problem, beta, data.rows(), n, dw0);
+    let mut sys = PhotoSystem::new(problem, beta, data.rows(), n, dw0, opts.blend_tolerance);
     let tdiag = texel_diag_vec(problem, beta, data.rows(), &data.alpha);
     let mu = smoothness_weights(problem, beta, &data, &sys, Some(&tdiag), opts);
     let lap = Laplacian::new(n);

@@ -298,7 +298,7 @@ pub(crate) fn lighting_step_warm(
     let n2 = n * n;
     let data = PhotoData::new(problem, photo, sample);
     let dw0 = data.alpha.iter().map(|&a| [a; 3]).collect();
-    let mut sys = PhotoSystem::new(problem, beta, data.rows(), n, dw0);
+    let mut sys = PhotoSystem::new(problem, beta, data.rows(), n, dw0, opts.blend_tolerance);
     // The texel-basis diagonal of the data term (α, without IRLS weights): the Jacobi
     // scaling of the QP (LIGHTING_JACOBI) and, for the default smoothness scale, μ.
     let tdiag = (LIGHTING_JACOBI

@@ -341,11 +341,17 @@ fn balance(params: &mut SharedParams, members: &[Vec<usize>]) {
 }
 
 impl PhotoWork {
-    fn new(problem: &Problem, beta: &[[f64; 3]], photo: usize, sample: Option<&Subsample>) -> Self {
+    fn new(
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        photo: usize,
+        sample: Option<&Subsample>,
+        blend_tolerance: f64,
+    ) -> Self {
         let n = problem.transport.n_global;
         let data = PhotoData::new(problem, photo, sample);
         let dw = data.alpha.iter().map(|&a| [a; 3]).collect();
-        let sys = PhotoSystem::new(problem, beta, data.rows(), n, dw);
+        let sys = PhotoSystem::new(problem, beta, data.rows(), n, dw, blend_tolerance);
         let tdiag = texel_diag_vec(problem, beta, data.rows(), &data.alpha);
         let omega = vec![[1.0; 3]; data.range.len()];
         PhotoWork {
@@ -381,7 +387,13 @@ impl LightModel for SharedLight {
         });
         let samples = &*samples;
         let mut work: Vec<PhotoWork> = par_largest_first(&sizes, |i| {
-            PhotoWork::new(problem, beta, i, samples[i].as_ref())
+            PhotoWork::new(
+                problem,
+                beta,
+                i,
+                samples[i].as_ref(),
+                self.opts.blend_tolerance,
+            )
         });
         let passes = if self.opts.robust == Robust::None {
             1

@@ -307,7 +307,14 @@ impl SkyLight {
         let prev = &self.params[photo];
         let rows = Rows::new(problem, photo);
         let dw: Vec<[f64; 3]> = rows.alpha.iter().map(|&a| [a; 3]).collect();
-        let sys = PhotoSystem::new(problem, beta, rows.range.clone(), n, dw);
+        let sys = PhotoSystem::new(
+            problem,
+            beta,
+            rows.range.clone(),
+            n,
+            dw,
+            self.opts.blend_tolerance,
+        );
         // 1. θ with the residual fixed.
         let mut resid_pred = vec![[0.0; 3]; rows.y.len()];
         sys.forward_rows(&haar3(&prev.residual, n), &mut resid_pred);

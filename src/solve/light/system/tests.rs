@@ -217,16 +217,18 @@ fn random_light(rng: &mut rand::rngs::StdRng, n2: usize) -> Vec<[f64; 3]> {
         .collect()
 }
 
-#[test]
-fn merged_rows_are_the_sorted_union_of_the_blended_basis_rows() {
-    // Three bases' rows over a 32² map (random kept sets, overlapping), some bases off
-    // (β = 0) at some vertices: each merged row must be the union of the kept indices,
-    // ascending, with `Σ_b β_{x,b,c} g_{p,b,m}` summed in basis order and rounded once,
-    // and no entry whose three sums are zero; compared exactly with a sorted map.
+/// Three bases' random rows over a 32² map (random kept sets of 0–200 entries,
+/// overlapping), one observation per vertex, and `β` with some bases off (`β = 0`) at some
+/// vertices.
+fn random_blend_problem(
+    rng: &mut rand::rngs::StdRng,
+) -> (
+    crate::transport::Transport,
+    crate::observe::Observations,
+    Vec<[f64; 3]>,
+) {
     use crate::observe::Observations;
     use crate::transport::{Transport, TransportValue};
-    use std::collections::BTreeMap;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
     let (n, nb, rows) = (32, 3, 90);
     let mut t = Transport {
         n_global: n,
@@ -239,7 +241,7 @@ fn merged_rows_are_the_sorted_union_of_the_blended_basis_rows() {
     for p in 0..rows {
         for _ in 0..nb {
             let len = rng.random_range(0..=200);
-            let mut idx: Vec<HaarIndex> = rand::seq::index::sample(&mut rng, n * n, len)
+            let mut idx: Vec<HaarIndex> = rand::seq::index::sample(rng, n * n, len)
                 .into_iter()
                 .map(|m| m as HaarIndex)
                 .collect();
@@ -257,40 +259,130 @@ fn merged_rows_are_the_sorted_union_of_the_blended_basis_rows() {
         obs.weight.push(1.0);
         obs.dir.push([0.0, 0.0, 1.0]);
     }
-    let all = 0..rows;
-    obs.photo_ranges = vec![all];
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: rows,
-        n_photos: 1,
-    };
+    obs.photo_ranges = std::iter::once(0..rows).collect();
     let beta: Vec<[f64; 3]> = (0..rows * nb)
         .map(|i| match i % 7 {
             0 => [0.0; 3],
             _ => [0, 1, 2].map(|_| rng.random_range(0.0..2.0)),
         })
         .collect();
-    let sys = PhotoSystem::new(&problem, &beta, 0..rows, n, vec![[1.0; 3]; rows]);
-    for p in 0..rows {
-        let mut union: BTreeMap<HaarIndex, [f64; 3]> = BTreeMap::new();
-        for b in 0..nb {
-            let be = beta[p * nb + b];
-            if be == [0.0; 3] {
-                continue;
-            }
-            let (idx, val) = t.row(p, b);
-            for (&m, &g) in idx.iter().zip(val) {
-                let d = union.entry(m).or_insert([0.0; 3]);
-                for c in 0..3 {
-                    d[c] += be[c] * f64::from(g);
-                }
+    (t, obs, beta)
+}
+
+/// Observation `p`'s blend `Σ_b β_{x,b,c} g_{p,b,m}` by a sorted map, summed in basis order
+/// and rounded once to `f32`, without the entries whose three sums are zero.
+fn union_row(
+    t: &crate::transport::Transport,
+    beta: &[[f64; 3]],
+    p: usize,
+) -> std::collections::BTreeMap<HaarIndex, [f32; 3]> {
+    let nb = t.n_basis;
+    let mut union = std::collections::BTreeMap::new();
+    for b in 0..nb {
+        let be = beta[p * nb + b];
+        if be == [0.0; 3] {
+            continue;
+        }
+        let (idx, val) = t.row(p, b);
+        for (&m, &g) in idx.iter().zip(val) {
+            let d: &mut [f64; 3] = union.entry(m).or_insert([0.0; 3]);
+            for c in 0..3 {
+                d[c] += be[c] * f64::from(g);
             }
         }
-        union.retain(|_, d| *d != [0.0; 3]);
+    }
+    union
+        .into_iter()
+        .filter(|(_, d)| *d != [0.0; 3])
+        .map(|(m, d)| (m, d.map(|v| v as f32)))
+        .collect()
+}
+
+#[test]
+fn merged_rows_are_the_sorted_union_of_the_blended_basis_rows() {
+    // Each merged row must be the union of the kept indices, ascending, with the blend
+    // summed in basis order and rounded once, and no entry whose three sums are zero;
+    // compared exactly with a sorted map.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
+    let (t, obs, beta) = random_blend_problem(&mut rng);
+    let rows = obs.vertex.len();
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: rows,
+        n_photos: 1,
+    };
+    let sys = PhotoSystem::new(
+        &problem,
+        &beta,
+        0..rows,
+        t.n_global,
+        vec![[1.0; 3]; rows],
+        0.0,
+    );
+    for p in 0..rows {
+        let union = union_row(&t, &beta, p);
         let (idx, val) = sys.merged(p);
         assert_eq!(idx, union.keys().copied().collect::<Vec<_>>(), "row {p}");
-        let want: Vec<[f32; 3]> = union.values().map(|d| d.map(|v| v as f32)).collect();
-        assert_eq!(val, want, "row {p}");
+        assert_eq!(val, union.values().copied().collect::<Vec<_>>(), "row {p}");
     }
+}
+
+#[test]
+fn an_energy_cut_drops_the_most_entries_whose_energy_fits_the_tolerance() {
+    // At ε = 10⁻² every merged row must (1) be a subset of the exact union, with its values;
+    // (2) have dropped at most ε of the union's energy `Σ_m Σ_c e_{m,c}²`; (3) have dropped
+    // no entry of more energy than one it kept; and (4) not fit one more drop: the dropped
+    // energy plus the smallest kept entry's exceeds ε. (3) and (4) make the cut the
+    // largest one within the tolerance; checked against the union built by a sorted map.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(23);
+    let (t, obs, beta) = random_blend_problem(&mut rng);
+    let rows = obs.vertex.len();
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: rows,
+        n_photos: 1,
+    };
+    let eps = 1e-2;
+    let sys = PhotoSystem::new(
+        &problem,
+        &beta,
+        0..rows,
+        t.n_global,
+        vec![[1.0; 3]; rows],
+        eps,
+    );
+    let energy = |e: &[f32; 3]| e.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>();
+    let mut cut_rows = 0;
+    for p in 0..rows {
+        let union = union_row(&t, &beta, p);
+        let (idx, val) = sys.merged(p);
+        for (m, v) in idx.iter().zip(val) {
+            assert_eq!(union.get(m), Some(v), "row {p}: entry {m} not the union's");
+        }
+        let total: f64 = union.values().map(energy).sum();
+        let kept: Vec<f64> = val.iter().map(energy).collect();
+        let dropped = total - kept.iter().sum::<f64>();
+        let min_kept = kept.iter().copied().fold(f64::INFINITY, f64::min);
+        let max_dropped = union
+            .iter()
+            .filter(|(m, _)| idx.binary_search(m).is_err())
+            .map(|(_, v)| energy(v))
+            .fold(0.0, f64::max);
+        // 1e-12 relative: the two energy sums differ by their order of addition only.
+        assert!(
+            dropped <= eps * total * (1.0 + 1e-12),
+            "row {p}: dropped {dropped} of {total}"
+        );
+        assert!(max_dropped <= min_kept || union.is_empty(), "row {p}");
+        if !union.is_empty() {
+            assert!(
+                dropped + min_kept > eps * total * (1.0 - 1e-12),
+                "row {p}: one more fits"
+            );
+        }
+        cut_rows += usize::from(idx.len() < union.len());
+    }
+    assert!(cut_rows > rows / 2, "{cut_rows} of {rows} rows cut");
 }
