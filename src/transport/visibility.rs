@@ -40,8 +40,12 @@
 //! above; an inferred texel on an edge stores the fraction of its `m` edge rays alone, as
 //! its first value was not a sample of it. What this can miss is an occluder, or a gap,
 //! that falls wholly between lattice texels (thinner than two texels, ~9° at 32²).
-//! Measured on the built-in example's mesh: 52% of the rays of `lattice = 1` (`m = 4`),
-//! texel RMS error against 64 rays 0.0347 against 0.0328.
+//! Such thin occluders sit mostly near the horizon (a surface's own bumps and folds), so
+//! texels in the [`HORIZON_BAND`] (map coordinate `max(|2u − 1|, |2v − 1|) ≥ 0.85`, within
+//! ~10–14° of the horizon) always trace their first ray. Measured on the Buddha fixture's
+//! mesh against 64 rays (`bench-results/visibility-horizon-band.md`): the lattice over the
+//! whole map traced 62% of the rays of `lattice = 1` at a mean visible solid-angle error
+//! of 0.0190 sr against 0.0105; with the band 70% at 0.0138.
 //!
 //! A vertex's rays run texel by texel, so a blocked ray is most often blocked by the same
 //! triangle as the previous blocked one: that triangle is tested first
@@ -411,7 +415,8 @@ impl VertexRays<'_> {
 
     /// The first-ray map of [`Sampling::Adaptive`] with `lattice = 2`: the first rays of the
     /// lattice texels (even row and column, or the last), then each other texel's first
-    /// ray only when its two or four lattice corners disagree; when they agree it takes
+    /// ray only when its two or four lattice corners disagree or it lies in the
+    /// [`HORIZON_BAND`]; when they agree it takes
     /// their value and is marked inferred. Returns the rays traced.
     fn first_rays_on_lattice(&self, rng: &mut Pcg64, strata: usize, first: &mut FirstRays) -> u64 {
         let n = self.grid.n;
@@ -434,7 +439,8 @@ impl VertexRays<'_> {
             let ((i0, i1), (j0, j1)) = (span(t % n), span(t / n));
             let corners = [j0 * n + i0, j0 * n + i1, j1 * n + i0, j1 * n + i1];
             let here = first.open[corners[0]];
-            if corners.iter().all(|&c| first.open[c] == here) {
+            let agree = corners.iter().all(|&c| first.open[c] == here);
+            if agree && !near_horizon(t % n, t / n, n) {
                 first.open[t] = here;
                 first.inferred[t] = true;
             } else {
@@ -480,6 +486,18 @@ fn shared_strata(edge_rays: usize) -> usize {
     } else {
         1
     }
+}
+
+/// Inner edge of the band of hemi-octahedral texels near the horizon whose first ray the
+/// lattice always traces: a texel centre's `max(|2u − 1|, |2v − 1|)`, which is `1 − z/ℓ₁`
+/// of its direction ([`crate::sphere::hemi_oct_decode`]; 1 on the horizon). At 0.85 the band
+/// is the outer 4 texels of each 32-texel row and column, 23% of the map.
+pub const HORIZON_BAND: f64 = 0.85;
+
+/// Whether texel `(i, j)` of an `n × n` hemi-octahedral map lies in the [`HORIZON_BAND`].
+fn near_horizon(i: usize, j: usize, n: usize) -> bool {
+    let coord = |k: usize| (2.0 * (k as f64 + 0.5) / n as f64 - 1.0).abs();
+    coord(i).max(coord(j)) >= HORIZON_BAND
 }
 
 /// Whether row or column `k` of an `n`-texel side is on the spacing-2 lattice: even, or
