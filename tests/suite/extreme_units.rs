@@ -204,92 +204,73 @@ fn zero_starts_are_refused() {
     assert!(two.check().is_ok());
 }
 
+/// `flag` (set on the defaults by `set`) is refused for every `bad` value, with an error
+/// naming it, and accepted for every `good` one.
+fn assert_range_checked<T: Copy + std::fmt::Debug>(
+    flag: &str,
+    set: impl Fn(&mut relight_cpc::run::RunOptions, T),
+    bad: &[T],
+    good: &[T],
+) {
+    let base = relight_cpc::run::RunOptions::new("ws".into(), "out".into());
+    let with = |v: T| {
+        let mut o = base.clone();
+        set(&mut o, v);
+        o.check()
+    };
+    for &v in bad {
+        let e = with(v).unwrap_err().to_string();
+        assert!(e.contains(flag), "{flag} {v:?}: {e}");
+    }
+    for &v in good {
+        assert!(with(v).is_ok(), "{flag} {v:?}");
+    }
+}
+
 /// `--weights-sum` is a non-negative multiple of the data's charge: negative, NaN or
 /// infinite refused, naming the flag; 0 (off) and positive values pass.
 #[test]
 fn weights_sum_outside_its_range_is_refused() {
-    use relight_cpc::run::RunOptions;
-    let base = RunOptions::new("ws".into(), "out".into());
-    for bad in [-0.5, f64::NAN, f64::INFINITY] {
-        let o = RunOptions {
-            weights_sum: bad,
-            ..base.clone()
-        };
-        let e = o.check().unwrap_err().to_string();
-        assert!(e.contains("--weights-sum"), "{e}");
-    }
-    for good in [0.0, 1.0, 10.0] {
-        let o = RunOptions {
-            weights_sum: good,
-            ..base.clone()
-        };
-        assert!(o.check().is_ok(), "{good}");
-    }
+    assert_range_checked(
+        "--weights-sum",
+        |o, v| o.weights_sum = v,
+        &[-0.5, f64::NAN, f64::INFINITY],
+        &[0.0, 1.0, 10.0],
+    );
 }
 
 /// `--robust-floor` is a fraction of the RMS radiance: outside [0, 1) (or NaN) refused,
 /// naming the flag.
 #[test]
 fn robust_floor_outside_its_range_is_refused() {
-    use relight_cpc::run::RunOptions;
-    let base = RunOptions::new("ws".into(), "out".into());
-    for bad in [-0.1, 1.0, f64::NAN, f64::INFINITY] {
-        let o = RunOptions {
-            robust_floor: bad,
-            ..base.clone()
-        };
-        let e = o.check().unwrap_err().to_string();
-        assert!(e.contains("--robust-floor"), "{e}");
-    }
-    let on = RunOptions {
-        robust_floor: 0.1,
-        ..base
-    };
-    assert!(on.check().is_ok());
+    assert_range_checked(
+        "--robust-floor",
+        |o, v| o.robust_floor = v,
+        &[-0.1, 1.0, f64::NAN, f64::INFINITY],
+        &[0.1],
+    );
 }
 
 /// `--blend-tolerance` is a fraction of each lighting row's energy: outside [0, 1) (or NaN)
 /// refused, naming the flag; 0 (the exact blend) and the default accepted.
 #[test]
 fn blend_tolerance_outside_its_range_is_refused() {
-    use relight_cpc::run::RunOptions;
-    let base = RunOptions::new("ws".into(), "out".into());
-    for bad in [-1e-3, 1.0, f64::NAN, f64::INFINITY] {
-        let o = RunOptions {
-            blend_tolerance: bad,
-            ..base.clone()
-        };
-        let e = o.check().unwrap_err().to_string();
-        assert!(e.contains("--blend-tolerance"), "{e}");
-    }
-    for good in [0.0, relight_cpc::solve::options::BLEND_TOLERANCE] {
-        let o = RunOptions {
-            blend_tolerance: good,
-            ..base.clone()
-        };
-        assert!(o.check().is_ok(), "{good}");
-    }
+    assert_range_checked(
+        "--blend-tolerance",
+        |o, v| o.blend_tolerance = v,
+        &[-1e-3, 1.0, f64::NAN, f64::INFINITY],
+        &[0.0, relight_cpc::solve::options::BLEND_TOLERANCE],
+    );
 }
 
 /// `--ray-lattice` is 1 (every texel's first ray) or 2 (every other texel's): 0 and 3 are
 /// refused, naming the flag.
 #[test]
 fn ray_lattice_outside_its_range_is_refused() {
-    use relight_cpc::run::RunOptions;
-    let base = RunOptions::new("ws".into(), "out".into());
-    for bad in [0, 3, 8] {
-        let o = RunOptions {
-            ray_lattice: bad,
-            ..base.clone()
-        };
-        let e = o.check().unwrap_err().to_string();
-        assert!(e.contains("--ray-lattice"), "{e}");
-    }
-    for good in [1, 2] {
-        let o = RunOptions {
-            ray_lattice: good,
-            ..base.clone()
-        };
-        assert!(o.check().is_ok());
-    }
+    assert_range_checked(
+        "--ray-lattice",
+        |o, v| o.ray_lattice = v,
+        &[0, 3, 8],
+        &[1, 2],
+    );
 }

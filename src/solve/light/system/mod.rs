@@ -156,7 +156,7 @@ impl PhotoSystem {
         offsets.push(0);
         let mut index = Vec::new();
         let mut value = Vec::new();
-        let mut cut = CutScratch::default();
+        let mut sorted = Vec::new();
         for p in rows {
             let x = problem.obs.vertex[p] as usize;
             for b in 0..nb {
@@ -190,7 +190,7 @@ impl PhotoSystem {
             }
             if eps > 0.0 {
                 let start = *offsets.last().unwrap_or(&0);
-                cut_to_energy(&mut index, &mut value, start, eps, &mut cut);
+                cut_to_energy(&mut index, &mut value, start, eps, &mut sorted);
             }
             offsets.push(index.len());
         }
@@ -463,14 +463,6 @@ pub(crate) fn texel_diag_vec(
     diag
 }
 
-/// Reused buffers of [`cut_to_energy`].
-#[derive(Default)]
-struct CutScratch {
-    /// The row's entry energies in row order, then sorted.
-    energy: Vec<f64>,
-    sorted: Vec<f64>,
-}
-
 /// An entry's energy `Σ_c e_c²`.
 #[inline]
 fn entry_energy(e: &[f32; 3]) -> f64 {
@@ -479,21 +471,20 @@ fn entry_energy(e: &[f32; 3]) -> f64 {
 
 /// Drop from the row `start..` of `index`/`value` its lowest-energy entries, as many as fit
 /// in `eps` of the row's energy `Σ_m Σ_c e_{m,c}²` (entries of equal energy dropped in row
-/// order); the kept ones stay in ascending index order.
+/// order); the kept ones stay in ascending index order. `sorted` is a reused buffer.
 fn cut_to_energy(
     index: &mut Vec<HaarIndex>,
     value: &mut Vec<[f32; 3]>,
     start: usize,
     eps: f64,
-    cut: &mut CutScratch,
+    sorted: &mut Vec<f64>,
 ) {
-    cut.energy.clear();
-    cut.energy.extend(value[start..].iter().map(entry_energy));
-    cut.sorted.clone_from(&cut.energy);
-    cut.sorted.sort_unstable_by(f64::total_cmp);
-    let budget = eps * cut.sorted.iter().sum::<f64>();
+    sorted.clear();
+    sorted.extend(value[start..].iter().map(entry_energy));
+    sorted.sort_unstable_by(f64::total_cmp);
+    let budget = eps * sorted.iter().sum::<f64>();
     let (mut dropped, mut n_drop) = (0.0, 0);
-    for &m in &cut.sorted {
+    for &m in sorted.iter() {
         if dropped + m > budget {
             break;
         }
@@ -505,10 +496,11 @@ fn cut_to_energy(
     }
     // Drop every entry below the last dropped energy, and of those equal to it as many
     // as the count leaves.
-    let th = cut.sorted[n_drop - 1];
-    let mut ties = n_drop - cut.sorted.partition_point(|&m| m < th);
+    let th = sorted[n_drop - 1];
+    let mut ties = n_drop - sorted.partition_point(|&m| m < th);
     let mut w = start;
-    for (r, &m) in (start..index.len()).zip(&cut.energy) {
+    for r in start..index.len() {
+        let m = entry_energy(&value[r]);
         let drop = m < th || (m == th && ties > 0);
         if m == th && drop {
             ties -= 1;

@@ -269,6 +269,32 @@ fn random_blend_problem(
     (t, obs, beta)
 }
 
+/// [`random_blend_problem`] from `seed`, merged into a [`PhotoSystem`] at tolerance `eps`
+/// (unit weights, every observation): the transport, `β` and the system.
+fn random_blend_system(
+    seed: u64,
+    eps: f64,
+) -> (crate::transport::Transport, Vec<[f64; 3]>, PhotoSystem) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let (t, obs, beta) = random_blend_problem(&mut rng);
+    let rows = obs.vertex.len();
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: rows,
+        n_photos: 1,
+    };
+    let sys = PhotoSystem::new(
+        &problem,
+        &beta,
+        0..rows,
+        t.n_global,
+        vec![[1.0; 3]; rows],
+        eps,
+    );
+    (t, beta, sys)
+}
+
 /// Observation `p`'s blend `Σ_b β_{x,b,c} g_{p,b,m}` by a sorted map, summed in basis order
 /// and rounded once to `f32`, without the entries whose three sums are zero.
 fn union_row(
@@ -303,23 +329,8 @@ fn merged_rows_are_the_sorted_union_of_the_blended_basis_rows() {
     // Each merged row must be the union of the kept indices, ascending, with the blend
     // summed in basis order and rounded once, and no entry whose three sums are zero;
     // compared exactly with a sorted map.
-    let mut rng = rand::rngs::StdRng::seed_from_u64(17);
-    let (t, obs, beta) = random_blend_problem(&mut rng);
-    let rows = obs.vertex.len();
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: rows,
-        n_photos: 1,
-    };
-    let sys = PhotoSystem::new(
-        &problem,
-        &beta,
-        0..rows,
-        t.n_global,
-        vec![[1.0; 3]; rows],
-        0.0,
-    );
+    let (t, beta, sys) = random_blend_system(17, 0.0);
+    let rows = t.n_obs;
     for p in 0..rows {
         let union = union_row(&t, &beta, p);
         let (idx, val) = sys.merged(p);
@@ -335,25 +346,10 @@ fn an_energy_cut_drops_the_most_entries_whose_energy_fits_the_tolerance() {
     // no entry of more energy than one it kept; and (4) not fit one more drop: the dropped
     // energy plus the smallest kept entry's exceeds ε. (3) and (4) make the cut the
     // largest one within the tolerance; checked against the union built by a sorted map.
-    let mut rng = rand::rngs::StdRng::seed_from_u64(23);
-    let (t, obs, beta) = random_blend_problem(&mut rng);
-    let rows = obs.vertex.len();
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: rows,
-        n_photos: 1,
-    };
     let eps = 1e-2;
-    let sys = PhotoSystem::new(
-        &problem,
-        &beta,
-        0..rows,
-        t.n_global,
-        vec![[1.0; 3]; rows],
-        eps,
-    );
-    let energy = |e: &[f32; 3]| e.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>();
+    let (t, beta, sys) = random_blend_system(23, eps);
+    let rows = t.n_obs;
+    let energy = super::entry_energy;
     let mut cut_rows = 0;
     for p in 0..rows {
         let union = union_row(&t, &beta, p);
