@@ -26,10 +26,14 @@
 //! where for piecewise-constant functions on one grid it is exact and costs `O(n_local²)`.
 //! `g` is then truncated to its `keep` largest-magnitude coefficients, which minimises the
 //! `ℓ²` norm of what is dropped and hence the worst-case response error `‖g_drop‖ ‖L̃‖`.
-//! The Lambert row depends only on the vertex and is computed once per vertex; an
-//! observation's view-dependent rows go through `R_nᵀ` together
-//! ([`LocalRotation::texel_transpose_many`]: the rotation's rows are read once for all of
-//! them, the sums are those of one row at a time).
+//! The build goes a vertex at a time (the observations grouped by vertex): the Lambert
+//! row depends only on the vertex and is computed and truncated once, and the vertex's
+//! rows (its Lambert row and every observation's view-dependent rows) go through `R_nᵀ`
+//! in one call ([`LocalRotation::texel_transpose_many`]: the blended rotation reads its
+//! four frames' rows once per group of 8 vectors; each row's sums are those of the row
+//! alone, so a row does not depend on which other observations are built with it).
+//! Measured at 100K vertices × 13 photos (`bench-results/transport-by-vertex.md`): the
+//! transport stage 118.4 → 106.2 CPU s, every row bit for bit the same.
 //! Memory grows as observations × basis × `keep`: 4 bytes per kept entry (a `u16` Haar
 //! index, which addresses every map up to 256², and an IEEE half-precision value,
 //! [`TransportValue`]) plus an 8-byte offset per row. The rows are written by the workers straight into their slots of the final
@@ -43,9 +47,11 @@
 //! default lobes only Lambert (one slice) and GGX 0.4 use tables.
 //!
 //! Known limit: the blended rotation (Eq. 6) is only as good as the continuity of
-//! [`crate::sphere::local_frame`] between neighbouring grid normals; that frame flips by
-//! 180° about `n` across `n_z = 0` (environment frame), which breaks glossy rows of
-//! vertices with near-horizontal normals (tests/suite/transport_blended.rs, ignored test).
+//! [`crate::sphere::local_frame`] between neighbouring grid normals; that frame is
+//! continuous except for normals pointing straight down in the environment frame
+//! (tests/suite/transport_blended.rs checks glossy rows on both sides of `n_z = 0`). The
+//! renderer's splat of the exact normal has no such limit, but as the transport's rotation
+//! it raised the held-out error (`bench-results/transport-by-vertex.md`).
 
 pub mod brdf;
 pub mod reference;
@@ -245,16 +251,22 @@ pub(crate) fn vertex_frame_into(
 
 /// Scratch buffers for one thread (allocated once per worker, never per row).
 struct Scratch {
-    slice: Vec<f64>,
-    local: Vec<f64>,
-    global: Vec<f64>,
     v_dw: Vec<f64>,
-    /// The selection buffers of [`truncate_into`].
+    /// The selection buffers of [`truncate_global`].
     sel: Selection,
-    /// The view-dependent bases' `V ⊙ Δω ⊙ slice` of one observation, basis-major.
+    /// The vertex's observations: `(p, ω_o in the local frame)`, `None` when degenerate.
+    seen: Vec<(usize, Option<Vec3>)>,
+    /// Per entry of `seen`, the first of its view-dependent rows in `locals`/`globals`.
+    first_row: Vec<usize>,
+    /// The vertex's `V ⊙ Δω ⊙ slice` per row: its fixed rows, then each observation's
+    /// view-dependent rows.
     locals: Vec<f64>,
-    /// Their dense global rows, basis-major.
+    /// Their dense global rows, in the same order.
     globals: Vec<f64>,
+    /// The fixed rows truncated once per vertex: `stride` slots per fixed basis.
+    fixed_idx: Vec<HaarIndex>,
+    fixed_val: Vec<TransportValue>,
+    fixed_len: Vec<usize>,
     /// The rotation's interleaving buffer ([`LocalRotation::texel_transpose_many`]).
     inter: Vec<f64>,
     /// Progress, passed on per chunk of observations.
@@ -262,47 +274,209 @@ struct Scratch {
 }
 
 impl Scratch {
-    fn new(n_local: usize, n_global: usize) -> Self {
+    fn new(n_local: usize, _n_global: usize) -> Self {
         Scratch {
-            slice: vec![0.0; n_local * n_local],
-            local: vec![0.0; n_local * n_local],
-            global: vec![0.0; n_global * n_global],
             v_dw: Vec::with_capacity(n_local * n_local),
             sel: Selection::default(),
+            seen: Vec::new(),
+            first_row: Vec::new(),
             locals: Vec::new(),
             globals: Vec::new(),
+            fixed_idx: Vec::new(),
+            fixed_val: Vec::new(),
+            fixed_len: Vec::new(),
             inter: Vec::new(),
             ticks: Default::default(),
         }
     }
 }
 
-/// `g = R_nᵀ W_l (V ⊙ Δω ⊙ slice)` into `scratch.global` (dense; `scratch.local` is
-/// clobbered), for a vertex of unit normal `normal` whose `V ⊙ Δω` is in `scratch.v_dw`.
-fn dense_row<R: LocalRotation>(normal: &Vec3, rot: &R, scratch: &mut Scratch) {
-    for ((l, s), vw) in scratch
-        .local
-        .iter_mut()
-        .zip(&scratch.slice)
-        .zip(&scratch.v_dw)
-    {
-        *l = s * vw;
-    }
-    rot.texel_transpose(normal, &mut scratch.local, &mut scratch.global);
+/// The observations of each vertex (a counting sort of the observations by vertex).
+struct VertexGroups {
+    start: Vec<usize>,
+    obs: Vec<u32>,
 }
 
-/// The `keep` largest-magnitude non-zero coefficients of `scratch.global` (all non-zero
-/// ones for `keep == 0`) into `idx`/`val`, largest first, ties by index: the same entries
-/// in the same order as [`haar::keep_largest`], without allocating (a selection over the
-/// non-zero coefficients, then a sort of the kept part only). Returns how many were kept
-/// (`≤ idx.len()`).
-fn truncate_into(
-    scratch: &mut Scratch,
+impl VertexGroups {
+    fn new(obs_vertex: &[u32], n_vertices: usize) -> Self {
+        let mut start = vec![0usize; n_vertices + 1];
+        for &v in obs_vertex {
+            start[v as usize + 1] += 1;
+        }
+        for v in 0..n_vertices {
+            start[v + 1] += start[v];
+        }
+        let mut next = start.clone();
+        let mut obs = vec![0u32; obs_vertex.len()];
+        for (p, &v) in obs_vertex.iter().enumerate() {
+            obs[next[v as usize]] = p as u32;
+            next[v as usize] += 1;
+        }
+        VertexGroups { start, obs }
+    }
+
+    /// The observations of vertex `v`, in observation order.
+    fn of(&self, v: usize) -> &[u32] {
+        &self.obs[self.start[v]..self.start[v + 1]]
+    }
+}
+
+/// The row slots of the final arrays, written by the workers in place: observation `p`
+/// owns `stride` entries per basis from `p · n_basis · stride` and `n_basis` lengths.
+struct RowSlots {
+    index: *mut HaarIndex,
+    value: *mut TransportValue,
+    lens: *mut usize,
+    n_basis: usize,
+    stride: usize,
+}
+
+// SAFETY: the workers write disjoint observations' slots ([`RowSlots::row`]'s contract);
+// the arrays outlive the parallel loop that holds the pointers.
+unsafe impl Sync for RowSlots {}
+unsafe impl Send for RowSlots {}
+
+impl RowSlots {
+    fn new(
+        index: &mut [HaarIndex],
+        value: &mut [TransportValue],
+        lens: &mut [usize],
+        n_basis: usize,
+        stride: usize,
+    ) -> Self {
+        assert!(index.len() == value.len() && index.len() == lens.len() * stride);
+        RowSlots {
+            index: index.as_mut_ptr(),
+            value: value.as_mut_ptr(),
+            lens: lens.as_mut_ptr(),
+            n_basis,
+            stride,
+        }
+    }
+
+    /// Observation `p`'s slots.
+    ///
+    /// # Safety
+    /// `p` is in range, and no two live borrows name the same `p`.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn row(&self, p: usize) -> (&mut [HaarIndex], &mut [TransportValue], &mut [usize]) {
+        let (nb, stride) = (self.n_basis, self.stride);
+        unsafe {
+            (
+                std::slice::from_raw_parts_mut(self.index.add(p * nb * stride), nb * stride),
+                std::slice::from_raw_parts_mut(self.value.add(p * nb * stride), nb * stride),
+                std::slice::from_raw_parts_mut(self.lens.add(p * nb), nb),
+            )
+        }
+    }
+}
+
+/// What every vertex's rows are built with: the bases, their slice sources, the rotation
+/// and the truncation.
+struct RowKernel<'a, R> {
+    basis: &'a [BasisBrdf],
+    sources: &'a [SliceSource],
+    grid: &'a SliceGrid,
+    fixed_bases: &'a [usize],
+    view_bases: &'a [usize],
+    rot: &'a R,
     keep: usize,
-    idx: &mut [HaarIndex],
-    val: &mut [TransportValue],
-) -> usize {
-    truncate_global(&scratch.global, &mut scratch.sel, keep, idx, val)
+    stride: usize,
+}
+
+impl<R: LocalRotation> RowKernel<'_, R> {
+    /// The dense global rows `g = R_nᵀ W_l (V ⊙ Δω ⊙ slice)` of a vertex of unit normal
+    /// `normal` whose `V ⊙ Δω` is in `scratch.v_dw` and whose observations are in
+    /// `scratch.seen`: its fixed rows once, then each observation's view-dependent rows,
+    /// all through one call of the rotation (which then reads its operator once); the
+    /// fixed rows are truncated here, once for every observation.
+    fn vertex_rows(&self, normal: &Vec3, scratch: &mut Scratch) {
+        let nl2 = scratch.v_dw.len();
+        let ng2 = self.rot.n_global() * self.rot.n_global();
+        let (nf, nview) = (self.fixed_bases.len(), self.view_bases.len());
+        scratch.first_row.clear();
+        let mut rows = nf;
+        for (_, wo) in &scratch.seen {
+            scratch.first_row.push(rows);
+            if wo.is_some() {
+                rows += nview;
+            }
+        }
+        scratch.locals.resize(rows * nl2, 0.0);
+        scratch.globals.resize(rows * ng2, 0.0);
+        let mut locals = scratch.locals.chunks_mut(nl2);
+        for &b in self.fixed_bases {
+            let local = locals.next().expect("a row per fixed basis");
+            self.sources[b].slice(&self.basis[b], self.grid, &Vec3::z(), local);
+            for (l, vw) in local.iter_mut().zip(&scratch.v_dw) {
+                *l *= vw;
+            }
+        }
+        for wo in scratch.seen.iter().filter_map(|(_, wo)| wo.as_ref()) {
+            for &b in self.view_bases {
+                let local = locals.next().expect("a row per view-dependent basis");
+                self.sources[b].slice_for(&self.basis[b], self.grid, wo, &scratch.v_dw, local);
+                for (l, vw) in local.iter_mut().zip(&scratch.v_dw) {
+                    *l *= vw;
+                }
+            }
+        }
+        self.rot.texel_transpose_many(
+            normal,
+            &mut scratch.locals,
+            &mut scratch.globals,
+            &mut scratch.inter,
+        );
+        scratch.fixed_idx.resize(nf * self.stride, 0);
+        scratch
+            .fixed_val
+            .resize(nf * self.stride, TransportValue::ZERO);
+        scratch.fixed_len.resize(nf, 0);
+        for j in 0..nf {
+            let span = j * self.stride..(j + 1) * self.stride;
+            scratch.fixed_len[j] = truncate_global(
+                &scratch.globals[j * ng2..(j + 1) * ng2],
+                &mut scratch.sel,
+                self.keep,
+                &mut scratch.fixed_idx[span.clone()],
+                &mut scratch.fixed_val[span],
+            );
+        }
+    }
+
+    /// The truncated rows of the vertex's `k`-th observation into its slots.
+    fn write_rows(
+        &self,
+        scratch: &mut Scratch,
+        k: usize,
+        oi: &mut [HaarIndex],
+        ov: &mut [TransportValue],
+        ol: &mut [usize],
+    ) {
+        let ng2 = self.rot.n_global() * self.rot.n_global();
+        for (j, &b) in self.fixed_bases.iter().enumerate() {
+            let (from, n) = (j * self.stride, scratch.fixed_len[j]);
+            let to = b * self.stride;
+            oi[to..to + n].copy_from_slice(&scratch.fixed_idx[from..from + n]);
+            ov[to..to + n].copy_from_slice(&scratch.fixed_val[from..from + n]);
+            ol[b] = n;
+        }
+        if scratch.seen[k].1.is_none() {
+            return;
+        }
+        let first = scratch.first_row[k];
+        for (i, &b) in self.view_bases.iter().enumerate() {
+            let r = first + i;
+            let span = b * self.stride..(b + 1) * self.stride;
+            ol[b] = truncate_global(
+                &scratch.globals[r * ng2..(r + 1) * ng2],
+                &mut scratch.sel,
+                self.keep,
+                &mut oi[span.clone()],
+                &mut ov[span],
+            );
+        }
+    }
 }
 
 fn check_inputs<R: LocalRotation>(
@@ -397,50 +571,19 @@ pub fn build_rows<R: LocalRotation>(
     let fixed_bases: Vec<usize> = (0..nb)
         .filter(|&b| matches!(sources[b], SliceSource::Fixed(_)))
         .collect();
-    let nf = fixed_bases.len();
     let view_bases: Vec<usize> = (0..nb).filter(|b| !fixed_bases.contains(b)).collect();
+    let kernel = RowKernel {
+        basis,
+        sources: &sources,
+        grid: &grid,
+        fixed_bases: &fixed_bases,
+        view_bases: &view_bases,
+        rot,
+        keep: opts.keep,
+        stride,
+    };
 
-    // View-independent (Lambert) rows depend only on the vertex: once per observed vertex.
-    let mut observed = vec![false; nv];
-    for &v in obs_vertex {
-        observed[v as usize] = true;
-    }
-    let mut fixed_idx: Vec<HaarIndex> = vec![0; if nf > 0 { nv * nf * stride } else { 0 }];
-    let mut fixed_val = vec![TransportValue::ZERO; fixed_idx.len()];
-    let mut fixed_len = vec![0usize; nv * nf];
-    if nf > 0 {
-        fixed_idx
-            .par_chunks_mut(nf * stride)
-            .zip(fixed_val.par_chunks_mut(nf * stride))
-            .zip(fixed_len.par_chunks_mut(nf))
-            .enumerate()
-            .with_min_len(16)
-            .for_each_init(
-                || Scratch::new(opts.n_local, opts.n_global),
-                |scratch, (v, ((fi, fv), fl))| {
-                    if !observed[v] {
-                        return;
-                    }
-                    let Some((normal, _)) = vertex_frame_into(
-                        &normals_env[v],
-                        vis.vertex(v),
-                        &grid.solid_angle,
-                        &mut scratch.v_dw,
-                    ) else {
-                        return;
-                    };
-                    for (j, &b) in fixed_bases.iter().enumerate() {
-                        sources[b].slice(&basis[b], &grid, &Vec3::z(), &mut scratch.slice);
-                        dense_row(&normal, rot, scratch);
-                        let span = j * stride..(j + 1) * stride;
-                        fl[j] =
-                            truncate_into(scratch, opts.keep, &mut fi[span.clone()], &mut fv[span]);
-                    }
-                },
-            );
-    }
-
-    // Every observation's rows, in observation order, straight into their slots.
+    // Every observation's rows straight into their slots, a vertex at a time.
     let total_slots = n_obs
         .checked_mul(nb)
         .and_then(|r| r.checked_mul(stride))
@@ -448,66 +591,40 @@ pub fn build_rows<R: LocalRotation>(
     let mut index: Vec<HaarIndex> = vec![0; total_slots];
     let mut value = vec![TransportValue::ZERO; total_slots];
     let mut lens = vec![0usize; n_obs * nb];
-    index
-        .par_chunks_mut(nb * stride)
-        .zip(value.par_chunks_mut(nb * stride))
-        .zip(lens.par_chunks_mut(nb))
-        .enumerate()
-        .with_min_len(16)
-        .for_each_init(
-            || Scratch::new(opts.n_local, opts.n_global),
-            |scratch, (p, ((oi, ov), ol))| {
-                scratch.ticks.tick(1);
-                let v = obs_vertex[p] as usize;
-                let Some((normal, frame)) = vertex_frame_into(
-                    &normals_env[v],
-                    vis.vertex(v),
-                    &grid.solid_angle,
-                    &mut scratch.v_dw,
-                ) else {
-                    return;
-                };
-                for (j, &b) in fixed_bases.iter().enumerate() {
-                    let span = b * stride..(b + 1) * stride;
-                    let k = fixed_len[v * nf + j];
-                    let from = (v * nf + j) * stride;
-                    oi[span.start..span.start + k].copy_from_slice(&fixed_idx[from..from + k]);
-                    ov[span.start..span.start + k].copy_from_slice(&fixed_val[from..from + k]);
-                    ol[b] = k;
-                }
-                let Some(wo) = local_wo(&frame, &obs_dir_env[p]) else {
-                    return;
-                };
-                // The view-dependent rows of the observation, rotated together (the
-                // rotation's rows are read once for all of them).
-                let nl2 = scratch.v_dw.len();
-                scratch.locals.resize(view_bases.len() * nl2, 0.0);
-                scratch.globals.resize(view_bases.len() * ng2, 0.0);
-                for (&b, local) in view_bases.iter().zip(scratch.locals.chunks_mut(nl2)) {
-                    sources[b].slice_for(&basis[b], &grid, &wo, &scratch.v_dw, local);
-                    for (l, vw) in local.iter_mut().zip(&scratch.v_dw) {
-                        *l *= vw;
-                    }
-                }
-                rot.texel_transpose_many(
-                    &normal,
-                    &mut scratch.locals,
-                    &mut scratch.globals,
-                    &mut scratch.inter,
-                );
-                for (&b, global) in view_bases.iter().zip(scratch.globals.chunks(ng2)) {
-                    let span = b * stride..(b + 1) * stride;
-                    ol[b] = truncate_global(
-                        global,
-                        &mut scratch.sel,
-                        opts.keep,
-                        &mut oi[span.clone()],
-                        &mut ov[span],
-                    );
-                }
-            },
-        );
-    drop((fixed_idx, fixed_val, fixed_len));
+    let groups = VertexGroups::new(obs_vertex, nv);
+    let slots = RowSlots::new(&mut index, &mut value, &mut lens, nb, stride);
+    (0..nv).into_par_iter().with_min_len(16).for_each_init(
+        || Scratch::new(opts.n_local, opts.n_global),
+        |scratch, v| {
+            let group = groups.of(v);
+            if group.is_empty() {
+                return;
+            }
+            scratch.ticks.tick(group.len() as u64);
+            let Some((normal, frame)) = vertex_frame_into(
+                &normals_env[v],
+                vis.vertex(v),
+                &grid.solid_angle,
+                &mut scratch.v_dw,
+            ) else {
+                return;
+            };
+            scratch.seen.clear();
+            scratch.seen.extend(
+                group
+                    .iter()
+                    .map(|&p| (p as usize, local_wo(&frame, &obs_dir_env[p as usize]))),
+            );
+            kernel.vertex_rows(&normal, scratch);
+            for k in 0..scratch.seen.len() {
+                let p = scratch.seen[k].0;
+                // SAFETY: observation `p` belongs to vertex `v` alone (`groups`), and
+                // only this call writes the slots of `v`'s observations.
+                let (oi, ov, ol) = unsafe { slots.row(p) };
+                kernel.write_rows(scratch, k, oi, ov, ol);
+            }
+        },
+    );
 
     // Compact the slots in place (rows shorter than `stride` are rare at `keep ≪ n_global²`)
     // and give the unused tail back.
