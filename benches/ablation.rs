@@ -39,7 +39,8 @@
 //! Environment: `ABLATION_SCENES` (comma list), `ABLATION_ROWS` (`;`-separated row
 //! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
 //! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
-//! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss` ([`fit_start`]),
+//! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
+//! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]

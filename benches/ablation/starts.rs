@@ -7,7 +7,8 @@ use super::*;
 /// materials (a diagnosis: does the alternation leave the truth?), or with
 /// `ABLATION_START=gloss` the paper's with every glossy lobe at
 /// [`relight_cpc::solve::starts::GLOSS_FRACTION`] of the mean Lambertian weight, or with
-/// `ABLATION_START=open` the paper's clustering of [`open_corrected_colours`]; the oracle
+/// `ABLATION_START=open` the paper's clustering of [`open_corrected_colours`], or with
+/// `ABLATION_START=matched` the paper's with the albedo ratios of [`matched_ratios`]; the oracle
 /// starts `truth-diffuse` (the TRUE materials without their glossy lobes) and
 /// `kmeans-true-albedo` (the k-means weights, the TRUE Lambertian weights) say which part
 /// of the start matters.
@@ -43,6 +44,11 @@ pub fn fit_start(case: &Case) -> Materials0 {
                 relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
                     .expect("k-means start");
             Materials0::from_initial(&init, case.basis.len(), 0)
+        }
+        Ok("matched") => {
+            let mut m = init;
+            matched_ratios(case, &mut m);
+            m
         }
         Ok("gloss") => relight_cpc::solve::starts::uniform_gloss(
             &init,
@@ -98,4 +104,130 @@ fn open_corrected_colours(case: &Case) -> (Vec<[f64; 3]>, Vec<bool>) {
         })
         .collect();
     (mean, seen)
+}
+
+/// The Lambertian weights of materials `k ≥ 1` rescaled per channel to the albedo ratios of
+/// matched-shading pairs: two observations in one photo whose Lambertian transport rows
+/// are nearly parallel (same normal and visibility, so the same diffuse irradiance under
+/// any light) of vertices labelled with different materials give `y_p / y_q = ρ_A / ρ_B`;
+/// the median log ratio per material pair and channel, then least squares over the pairs
+/// for each material's log albedo relative to material 0's. Pairs: each observation's most
+/// parallel partner of a later material in its photo, kept when the cosine is at least
+/// `ABLATION_MATCH_COS` (default 0.995); vertices labelled when one material holds more
+/// than 90% of their start weights.
+fn matched_ratios(case: &Case, m: &mut Materials0) {
+    let kk = m.lambda.len();
+    if kk < 2 {
+        return;
+    }
+    let obs = &case.train.obs;
+    let tr = &case.train.transport;
+    let ng2 = tr.n_global * tr.n_global;
+    let min_cos: f64 = std::env::var("ABLATION_MATCH_COS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.995);
+    let label: Vec<Option<usize>> = (0..case.nv)
+        .map(|x| {
+            let w = &m.weights[x * kk..(x + 1) * kk];
+            let (k, &best) = w
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(b.1))
+                .unwrap();
+            let sum: f64 = w.iter().map(|v| v.max(0.0)).sum();
+            (sum > 0.0 && best / sum > 0.9).then_some(k)
+        })
+        .collect();
+    // log ratios per ordered material pair (a < b) and channel.
+    let mut logs: Vec<Vec<[f64; 3]>> = vec![Vec::new(); kk * kk];
+    for range in &obs.photo_ranges {
+        let ps: Vec<usize> = range
+            .clone()
+            .filter(|&p| obs.weight[p] > 0.0 && label[obs.vertex[p] as usize].is_some())
+            .filter(|&p| obs.rgb[p].iter().all(|&v| v > 0.02))
+            .collect();
+        let dense: Vec<Vec<f64>> = ps
+            .iter()
+            .map(|&p| {
+                let mut d = vec![0.0; ng2];
+                let (idx, val) = tr.row(p, 0);
+                for (&i, &v) in idx.iter().zip(val) {
+                    d[i as usize] = f64::from(v);
+                }
+                let n = d.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
+                d.iter_mut().for_each(|v| *v /= n);
+                d
+            })
+            .collect();
+        for (i, &p) in ps.iter().enumerate() {
+            let a = label[obs.vertex[p] as usize].unwrap();
+            let mut best: Option<(f64, usize)> = None;
+            for (j, &q) in ps.iter().enumerate() {
+                let b = label[obs.vertex[q] as usize].unwrap();
+                if b <= a {
+                    continue;
+                }
+                let c: f64 = dense[i].iter().zip(&dense[j]).map(|(x, y)| x * y).sum();
+                if c >= min_cos && best.is_none_or(|(bc, _)| c > bc) {
+                    best = Some((c, q));
+                }
+            }
+            if let Some((_, q)) = best {
+                let b = label[obs.vertex[q] as usize].unwrap();
+                let r = [0, 1, 2].map(|c| (obs.rgb[p][c] as f64 / obs.rgb[q][c] as f64).ln());
+                logs[a * kk + b].push(r);
+            }
+        }
+    }
+    // Least squares for l_k = log ρ_k − log ρ_0 (l_0 = 0): l_b − l_a = median log(ρ_b/ρ_a).
+    for c in 0..3 {
+        let n = kk - 1;
+        let mut ata = vec![0.0; n * n];
+        let mut atb = vec![0.0; n];
+        for a in 0..kk {
+            for b in a + 1..kk {
+                let v = &logs[a * kk + b];
+                if v.is_empty() {
+                    continue;
+                }
+                let mut xs: Vec<f64> = v.iter().map(|r| -r[c]).collect();
+                xs.sort_by(f64::total_cmp);
+                let med = xs[xs.len() / 2];
+                let w = (xs.len() as f64).sqrt();
+                eprintln!(
+                    "matched: pair {a}-{b} channel {c}: {} pairs, median log ratio {med:.3}",
+                    xs.len()
+                );
+                // row: +1 at b, −1 at a (index k−1 for k ≥ 1).
+                let mut row = vec![0.0; n];
+                if b >= 1 {
+                    row[b - 1] += 1.0;
+                }
+                if a >= 1 {
+                    row[a - 1] -= 1.0;
+                }
+                for i in 0..n {
+                    atb[i] += w * row[i] * med;
+                    for j in 0..n {
+                        ata[i * n + j] += w * row[i] * row[j];
+                    }
+                }
+            }
+        }
+        let mat = nalgebra::DMatrix::from_row_slice(n, n, &ata)
+            + nalgebra::DMatrix::identity(n, n) * 1e-9;
+        let Some(sol) = mat.lu().solve(&nalgebra::DVector::from_vec(atb)) else {
+            continue;
+        };
+        let base = m.lambda[0][0][c];
+        for k in 1..kk {
+            let before = m.lambda[k][0][c];
+            m.lambda[k][0][c] = base * sol[k - 1].exp();
+            eprintln!(
+                "matched: material {k} channel {c}: {before:.4} -> {:.4}",
+                m.lambda[k][0][c]
+            );
+        }
+    }
 }
