@@ -44,7 +44,10 @@
 //! scale `σ` spans at least 4 table spacings, else computed on demand (adaptive, 45–105 µs
 //! at 32²). Measured (benches/transport.rs): the table's slice error is 0.6% (median
 //! relative L2) for GGX 0.4 but 3% / 10% / 19% for GGX 0.2 / 0.1 / Phong 500, so of the
-//! default lobes only Lambert (one slice) and GGX 0.4 use tables.
+//! default lobes only Lambert (one slice) and GGX 0.4 use tables. The error depends on `σ`
+//! in table spacings (test `a_slice_table_is_as_accurate_at_equal_lobe_width_in_table_spacings`:
+//! GGX 0.2 on a 64² table 0.8%); 64² tables for GGX 0.2 and 0.35 did not make the 100K
+//! transport stage faster (`bench-results/transport-by-vertex.md`).
 //!
 //! Known limit: the blended rotation (Eq. 6) is only as good as the continuity of
 //! [`crate::sphere::local_frame`] between neighbouring grid normals; that frame is
