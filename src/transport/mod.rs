@@ -33,7 +33,8 @@
 //! four frames' rows once per group of 8 vectors; each row's sums are those of the row
 //! alone, so a row does not depend on which other observations are built with it).
 //! Measured at 100K vertices × 13 photos (`bench-results/transport-by-vertex.md`): the
-//! transport stage 118.4 → 106.2 CPU s, every row bit for bit the same.
+//! transport stage −4% to −10% (118.4 → 106.2 and 120.6 → 116.1 CPU s), every row bit for
+//! bit the same.
 //! Memory grows as observations × basis × `keep`: 4 bytes per kept entry (a `u16` Haar
 //! index, which addresses every map up to 256², and an IEEE half-precision value,
 //! [`TransportValue`]) plus an 8-byte offset per row. The rows are written by the workers straight into their slots of the final
