@@ -17,14 +17,18 @@ use relight_cpc::Vec3;
 const NG: usize = 32;
 const NL: usize = 16;
 
+fn opts(keep: usize) -> TransportOptions {
+    TransportOptions {
+        n_global: NG,
+        n_local: NL,
+        keep,
+    }
+}
+
 /// Build with both rotations for random normals accepted by `keep_normal`; returns the
 /// worst relative difference of the glossy and Lambert responses under a smooth light.
 fn compare(seed: u64, keep_normal: impl Fn(&Vec3) -> bool) -> f64 {
-    let opts = TransportOptions {
-        n_global: NG,
-        n_local: NL,
-        keep: 0,
-    };
+    let opts = opts(0);
     let blended = Rotation::new(NG, NL, 16, RotationForm::Factored);
     let exact = ExactRotation::new(NG, NL, 4);
     let mut rng = Pcg64::seed_from_u64(seed);
@@ -155,11 +159,7 @@ fn blended_renderer_matches_blended_transport() {
         .collect();
     let env = OctEnv { n: NG, rgb };
     let light = light_haar(&env);
-    let opts = TransportOptions {
-        n_global: NG,
-        n_local: NL,
-        keep: 0,
-    };
+    let opts = opts(0);
     for form in [
         RotationForm::Factored,
         RotationForm::Sparse { threshold: 0.0 },
@@ -212,11 +212,7 @@ fn rows_do_not_depend_on_the_other_observations() {
         BasisBrdf::Ggx { alpha: 0.2 },
         BasisBrdf::Phong { exponent: 40.0 },
     ];
-    let opts = TransportOptions {
-        n_global: NG,
-        n_local: NL,
-        keep: 24,
-    };
+    let opts = opts(24);
     let blended = Rotation::new(NG, NL, 8, RotationForm::Factored);
     let exact = ExactRotation::new(NG, NL, 2);
     let check = |build: &dyn Fn(&[u32], &[Vec3]) -> Transport, name: &str| {
