@@ -278,7 +278,7 @@ struct Scratch {
 }
 
 impl Scratch {
-    fn new(n_local: usize, _n_global: usize) -> Self {
+    fn new(n_local: usize) -> Self {
         Scratch {
             v_dw: Vec::with_capacity(n_local * n_local),
             sel: Selection::default(),
@@ -598,7 +598,7 @@ pub fn build_rows<R: LocalRotation>(
     let groups = VertexGroups::new(obs_vertex, nv);
     let slots = RowSlots::new(&mut index, &mut value, &mut lens, nb, stride);
     (0..nv).into_par_iter().with_min_len(16).for_each_init(
-        || Scratch::new(opts.n_local, opts.n_global),
+        || Scratch::new(opts.n_local),
         |scratch, v| {
             let group = groups.of(v);
             if group.is_empty() {
