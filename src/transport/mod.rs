@@ -327,24 +327,26 @@ impl VertexGroups {
 
 /// The row slots of the final arrays, written by the workers in place: observation `p`
 /// owns `stride` entries per basis from `p · n_basis · stride` and `n_basis` lengths.
-struct RowSlots {
+struct RowSlots<'a> {
     index: *mut HaarIndex,
     value: *mut TransportValue,
     lens: *mut usize,
     n_basis: usize,
     stride: usize,
+    /// The arrays stay mutably borrowed while the slots live.
+    _arrays: std::marker::PhantomData<&'a mut [usize]>,
 }
 
-// SAFETY: the workers write disjoint observations' slots ([`RowSlots::row`]'s contract);
-// the arrays outlive the parallel loop that holds the pointers.
-unsafe impl Sync for RowSlots {}
-unsafe impl Send for RowSlots {}
+// SAFETY: the workers write disjoint observations' slots ([`RowSlots::row`]'s contract),
+// and the borrow `'a` keeps the arrays alive and otherwise untouched meanwhile.
+unsafe impl Sync for RowSlots<'_> {}
+unsafe impl Send for RowSlots<'_> {}
 
-impl RowSlots {
+impl<'a> RowSlots<'a> {
     fn new(
-        index: &mut [HaarIndex],
-        value: &mut [TransportValue],
-        lens: &mut [usize],
+        index: &'a mut [HaarIndex],
+        value: &'a mut [TransportValue],
+        lens: &'a mut [usize],
         n_basis: usize,
         stride: usize,
     ) -> Self {
@@ -355,6 +357,7 @@ impl RowSlots {
             lens: lens.as_mut_ptr(),
             n_basis,
             stride,
+            _arrays: std::marker::PhantomData,
         }
     }
 
