@@ -120,16 +120,33 @@ fn matched_ratios(case: &Case, m: &mut Materials0) {
     if kk < 2 {
         return;
     }
-    let obs = &case.train.obs;
-    let tr = &case.train.transport;
-    let ng2 = tr.n_global * tr.n_global;
     let min_cos: f64 = std::env::var("ABLATION_MATCH_COS")
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(0.995);
-    let label: Vec<Option<usize>> = (0..case.nv)
+    let label = pure_labels(&m.weights, kk, case.nv);
+    let logs = pair_log_ratios(case, &label, kk, min_cos);
+    for c in 0..3 {
+        let Some(rel) = log_albedos(&logs, kk, c) else {
+            continue;
+        };
+        let base = m.lambda[0][0][c];
+        for k in 1..kk {
+            let before = m.lambda[k][0][c];
+            m.lambda[k][0][c] = base * rel[k - 1].exp();
+            eprintln!(
+                "matched: material {k} channel {c}: {before:.4} -> {:.4}",
+                m.lambda[k][0][c]
+            );
+        }
+    }
+}
+
+/// Each vertex's material when one holds more than 90% of its start weights.
+fn pure_labels(weights: &[f64], kk: usize, nv: usize) -> Vec<Option<usize>> {
+    (0..nv)
         .map(|x| {
-            let w = &m.weights[x * kk..(x + 1) * kk];
+            let w = &weights[x * kk..(x + 1) * kk];
             let (k, &best) = w
                 .iter()
                 .enumerate()
@@ -138,96 +155,96 @@ fn matched_ratios(case: &Case, m: &mut Materials0) {
             let sum: f64 = w.iter().map(|v| v.max(0.0)).sum();
             (sum > 0.0 && best / sum > 0.9).then_some(k)
         })
-        .collect();
-    // log ratios per ordered material pair (a < b) and channel.
+        .collect()
+}
+
+/// `log(y_p / y_q)` per channel of every matched pair, listed under its material pair
+/// `a · K + b` (`a < b`, `p` of material `a`): `q` is `p`'s most parallel partner of a
+/// later material in the same photo (Lambert rows' cosine at least `min_cos`).
+fn pair_log_ratios(
+    case: &Case,
+    label: &[Option<usize>],
+    kk: usize,
+    min_cos: f64,
+) -> Vec<Vec<[f64; 3]>> {
+    let obs = &case.train.obs;
+    let tr = &case.train.transport;
+    let unit_lambert_row = |p: usize| {
+        let mut d = vec![0.0; tr.n_global * tr.n_global];
+        let (idx, val) = tr.row(p, 0);
+        for (&i, &v) in idx.iter().zip(val) {
+            d[i as usize] = f64::from(v);
+        }
+        let n = d.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
+        d.iter_mut().for_each(|v| *v /= n);
+        d
+    };
     let mut logs: Vec<Vec<[f64; 3]>> = vec![Vec::new(); kk * kk];
     for range in &obs.photo_ranges {
-        let ps: Vec<usize> = range
+        let ps: Vec<(usize, usize)> = range
             .clone()
-            .filter(|&p| obs.weight[p] > 0.0 && label[obs.vertex[p] as usize].is_some())
-            .filter(|&p| obs.rgb[p].iter().all(|&v| v > 0.02))
+            .filter(|&p| obs.weight[p] > 0.0 && obs.rgb[p].iter().all(|&v| v > 0.02))
+            .filter_map(|p| label[obs.vertex[p] as usize].map(|k| (p, k)))
             .collect();
-        let dense: Vec<Vec<f64>> = ps
-            .iter()
-            .map(|&p| {
-                let mut d = vec![0.0; ng2];
-                let (idx, val) = tr.row(p, 0);
-                for (&i, &v) in idx.iter().zip(val) {
-                    d[i as usize] = f64::from(v);
-                }
-                let n = d.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
-                d.iter_mut().for_each(|v| *v /= n);
-                d
-            })
-            .collect();
-        for (i, &p) in ps.iter().enumerate() {
-            let a = label[obs.vertex[p] as usize].unwrap();
-            let mut best: Option<(f64, usize)> = None;
-            for (j, &q) in ps.iter().enumerate() {
-                let b = label[obs.vertex[q] as usize].unwrap();
-                if b <= a {
-                    continue;
-                }
-                let c: f64 = dense[i].iter().zip(&dense[j]).map(|(x, y)| x * y).sum();
-                if c >= min_cos && best.is_none_or(|(bc, _)| c > bc) {
-                    best = Some((c, q));
-                }
-            }
-            if let Some((_, q)) = best {
-                let b = label[obs.vertex[q] as usize].unwrap();
+        let dense: Vec<Vec<f64>> = ps.iter().map(|&(p, _)| unit_lambert_row(p)).collect();
+        for (i, &(p, a)) in ps.iter().enumerate() {
+            let best = ps
+                .iter()
+                .enumerate()
+                .filter(|(_, &(_, b))| b > a)
+                .map(|(j, &(q, b))| {
+                    let c: f64 = dense[i].iter().zip(&dense[j]).map(|(x, y)| x * y).sum();
+                    (c, q, b)
+                })
+                .filter(|&(c, _, _)| c >= min_cos)
+                // The first of equal cosines.
+                .reduce(|best, x| if x.0 > best.0 { x } else { best });
+            if let Some((_, q, b)) = best {
                 let r = [0, 1, 2].map(|c| (obs.rgb[p][c] as f64 / obs.rgb[q][c] as f64).ln());
                 logs[a * kk + b].push(r);
             }
         }
     }
-    // Least squares for l_k = log ρ_k − log ρ_0 (l_0 = 0): l_b − l_a = median log(ρ_b/ρ_a).
-    for c in 0..3 {
-        let n = kk - 1;
-        let mut ata = vec![0.0; n * n];
-        let mut atb = vec![0.0; n];
-        for a in 0..kk {
-            for b in a + 1..kk {
-                let v = &logs[a * kk + b];
-                if v.is_empty() {
-                    continue;
-                }
-                let mut xs: Vec<f64> = v.iter().map(|r| -r[c]).collect();
-                xs.sort_by(f64::total_cmp);
-                let med = xs[xs.len() / 2];
-                let w = (xs.len() as f64).sqrt();
-                eprintln!(
-                    "matched: pair {a}-{b} channel {c}: {} pairs, median log ratio {med:.3}",
-                    xs.len()
-                );
-                // row: +1 at b, −1 at a (index k−1 for k ≥ 1).
-                let mut row = vec![0.0; n];
-                if b >= 1 {
-                    row[b - 1] += 1.0;
-                }
-                if a >= 1 {
-                    row[a - 1] -= 1.0;
-                }
-                for i in 0..n {
-                    atb[i] += w * row[i] * med;
-                    for j in 0..n {
-                        ata[i * n + j] += w * row[i] * row[j];
-                    }
+    logs
+}
+
+/// Least squares for channel `c`'s `l_k = log ρ_k − log ρ_0` (`k ≥ 1`, `l_0 = 0`) from
+/// `l_b − l_a = median log(ρ_b / ρ_a)` over each material pair with matches, weighted by
+/// the square root of its count; `None` when the system is singular.
+fn log_albedos(logs: &[Vec<[f64; 3]>], kk: usize, c: usize) -> Option<Vec<f64>> {
+    let n = kk - 1;
+    let mut ata = vec![0.0; n * n];
+    let mut atb = vec![0.0; n];
+    for a in 0..kk {
+        for b in a + 1..kk {
+            let v = &logs[a * kk + b];
+            if v.is_empty() {
+                continue;
+            }
+            let mut xs: Vec<f64> = v.iter().map(|r| -r[c]).collect();
+            xs.sort_by(f64::total_cmp);
+            let med = xs[xs.len() / 2];
+            let w = (xs.len() as f64).sqrt();
+            eprintln!(
+                "matched: pair {a}-{b} channel {c}: {} pairs, median log ratio {med:.3}",
+                xs.len()
+            );
+            // The row: +1 at b, −1 at a (unknown k − 1 for k ≥ 1; b ≥ 1 always).
+            let mut row = vec![0.0; n];
+            row[b - 1] += 1.0;
+            if a >= 1 {
+                row[a - 1] -= 1.0;
+            }
+            for i in 0..n {
+                atb[i] += w * row[i] * med;
+                for j in 0..n {
+                    ata[i * n + j] += w * row[i] * row[j];
                 }
             }
         }
-        let mat = nalgebra::DMatrix::from_row_slice(n, n, &ata)
-            + nalgebra::DMatrix::identity(n, n) * 1e-9;
-        let Some(sol) = mat.lu().solve(&nalgebra::DVector::from_vec(atb)) else {
-            continue;
-        };
-        let base = m.lambda[0][0][c];
-        for k in 1..kk {
-            let before = m.lambda[k][0][c];
-            m.lambda[k][0][c] = base * sol[k - 1].exp();
-            eprintln!(
-                "matched: material {k} channel {c}: {before:.4} -> {:.4}",
-                m.lambda[k][0][c]
-            );
-        }
     }
+    let mat =
+        nalgebra::DMatrix::from_row_slice(n, n, &ata) + nalgebra::DMatrix::identity(n, n) * 1e-9;
+    let sol = mat.lu().solve(&nalgebra::DVector::from_vec(atb))?;
+    Some(sol.iter().copied().collect())
 }
