@@ -258,10 +258,8 @@ struct Scratch {
     v_dw: Vec<f64>,
     /// The selection buffers of [`truncate_global`].
     sel: Selection,
-    /// The vertex's observations: `(p, ω_o in the local frame)`, `None` when degenerate.
-    seen: Vec<(usize, Option<Vec3>)>,
-    /// Per entry of `seen`, the first of its view-dependent rows in `locals`/`globals`.
-    first_row: Vec<usize>,
+    /// The vertex's observations.
+    seen: Vec<SeenObs>,
     /// The vertex's `V ⊙ Δω ⊙ slice` per row: its fixed rows, then each observation's
     /// view-dependent rows.
     locals: Vec<f64>,
@@ -283,7 +281,6 @@ impl Scratch {
             v_dw: Vec::with_capacity(n_local * n_local),
             sel: Selection::default(),
             seen: Vec::new(),
-            first_row: Vec::new(),
             locals: Vec::new(),
             globals: Vec::new(),
             fixed_idx: Vec::new(),
@@ -293,6 +290,17 @@ impl Scratch {
             ticks: Default::default(),
         }
     }
+}
+
+/// One observation of the vertex being built.
+struct SeenObs {
+    /// The observation.
+    p: usize,
+    /// `ω_o` in the vertex's local frame (`None` when degenerate: fixed rows only).
+    wo: Option<Vec3>,
+    /// Its first view-dependent row in [`Scratch::locals`] / [`Scratch::globals`] (set by
+    /// [`RowKernel::vertex_rows`]).
+    first_row: usize,
 }
 
 /// The observations of each vertex (a counting sort of the observations by vertex).
@@ -401,11 +409,10 @@ impl<R: LocalRotation> RowKernel<'_, R> {
         let nl2 = scratch.v_dw.len();
         let ng2 = self.rot.n_global() * self.rot.n_global();
         let (nf, nview) = (self.fixed_bases.len(), self.view_bases.len());
-        scratch.first_row.clear();
         let mut rows = nf;
-        for (_, wo) in &scratch.seen {
-            scratch.first_row.push(rows);
-            if wo.is_some() {
+        for o in &mut scratch.seen {
+            o.first_row = rows;
+            if o.wo.is_some() {
                 rows += nview;
             }
         }
@@ -419,7 +426,7 @@ impl<R: LocalRotation> RowKernel<'_, R> {
                 *l *= vw;
             }
         }
-        for wo in scratch.seen.iter().filter_map(|(_, wo)| wo.as_ref()) {
+        for wo in scratch.seen.iter().filter_map(|o| o.wo.as_ref()) {
             for &b in self.view_bases {
                 let local = locals.next().expect("a row per view-dependent basis");
                 self.sources[b].slice_for(&self.basis[b], self.grid, wo, &scratch.v_dw, local);
@@ -468,10 +475,14 @@ impl<R: LocalRotation> RowKernel<'_, R> {
             ov[to..to + n].copy_from_slice(&scratch.fixed_val[from..from + n]);
             ol[b] = n;
         }
-        if scratch.seen[k].1.is_none() {
+        let SeenObs {
+            wo: Some(_),
+            first_row: first,
+            ..
+        } = scratch.seen[k]
+        else {
             return;
-        }
-        let first = scratch.first_row[k];
+        };
         for (i, &b) in self.view_bases.iter().enumerate() {
             let r = first + i;
             let span = b * self.stride..(b + 1) * self.stride;
@@ -617,14 +628,14 @@ pub fn build_rows<R: LocalRotation>(
                 return;
             };
             scratch.seen.clear();
-            scratch.seen.extend(
-                group
-                    .iter()
-                    .map(|&p| (p as usize, local_wo(&frame, &obs_dir_env[p as usize]))),
-            );
+            scratch.seen.extend(group.iter().map(|&p| SeenObs {
+                p: p as usize,
+                wo: local_wo(&frame, &obs_dir_env[p as usize]),
+                first_row: 0,
+            }));
             kernel.vertex_rows(&normal, scratch);
             for k in 0..scratch.seen.len() {
-                let p = scratch.seen[k].0;
+                let p = scratch.seen[k].p;
                 // SAFETY: observation `p` belongs to vertex `v` alone (`groups`), and
                 // only this call writes the slots of `v`'s observations.
                 let (oi, ov, ol) = unsafe { slots.row(p) };

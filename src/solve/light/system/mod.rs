@@ -158,6 +158,7 @@ impl PhotoSystem {
         let mut value = Vec::new();
         let mut sorted = Vec::new();
         for p in rows {
+            let start = index.len();
             let x = problem.obs.vertex[p] as usize;
             for b in 0..nb {
                 let be = beta[x * nb + b];
@@ -189,7 +190,6 @@ impl PhotoSystem {
                 }
             }
             if eps > 0.0 {
-                let start = *offsets.last().unwrap_or(&0);
                 cut_to_energy(&mut index, &mut value, start, eps, &mut sorted);
             }
             offsets.push(index.len());
