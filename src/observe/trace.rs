@@ -365,13 +365,30 @@ mod tests {
         Mesh::from_parts(positions, faces).0
     }
 
+    /// [`soup`]`(seed, n)`, its BVH, and a random stream seeded with `rng_seed`.
+    fn soup_bvh(seed: u64, n: usize, rng_seed: u64) -> (Mesh, SceneBvh, Pcg64) {
+        let mesh = soup(seed, n);
+        let bvh = SceneBvh::new(&mesh);
+        (mesh, bvh, Pcg64::seed_from_u64(rng_seed))
+    }
+
+    /// A ray from a uniform point of the unit cube in a direction uniform in
+    /// `[−0.5, 0.5)³` (not normalised), drawn in that order.
+    fn random_ray(rng: &mut Pcg64) -> (Vec3, Vec3) {
+        let o = Vec3::new(rng.random(), rng.random(), rng.random());
+        let d = Vec3::new(
+            rng.random::<f64>() - 0.5,
+            rng.random::<f64>() - 0.5,
+            rng.random::<f64>() - 0.5,
+        );
+        (o, d)
+    }
+
     #[test]
     fn bvh_closest_hit_matches_brute_force() {
         // The BVH must return exactly the brute-force closest triangle (same f64 test, so
         // t agrees to the last bit unless two faces tie within 1e-12).
-        let mesh = soup(7, 400);
-        let bvh = SceneBvh::new(&mesh);
-        let mut rng = Pcg64::seed_from_u64(11);
+        let (mesh, bvh, mut rng) = soup_bvh(7, 400, 11);
         let mut hits = 0;
         for _ in 0..2000 {
             let o = Vec3::new(
@@ -418,18 +435,11 @@ mod tests {
         // Against the brute-force answer (some triangle accepted by the f64 test on the
         // segment), for random segments and hints that are stale (the last blocker of an
         // unrelated ray), absent, or out of range; no tolerance: the same f64 test decides.
-        let mesh = soup(17, 300);
-        let bvh = SceneBvh::new(&mesh);
-        let mut rng = Pcg64::seed_from_u64(19);
+        let (mesh, bvh, mut rng) = soup_bvh(17, 300, 19);
         let mut hint = u32::MAX;
         let (mut blocked, mut hinted) = (0, 0);
         for k in 0..3000 {
-            let o = Vec3::new(rng.random(), rng.random(), rng.random());
-            let d = Vec3::new(
-                rng.random::<f64>() - 0.5,
-                rng.random::<f64>() - 0.5,
-                rng.random::<f64>() - 0.5,
-            );
+            let (o, d) = random_ray(&mut rng);
             let t_max = if k % 3 == 0 {
                 f64::INFINITY
             } else {
@@ -477,17 +487,10 @@ mod tests {
         // same order: the same answer and the same first blocker (the hint they leave),
         // exactly, on random segments through a triangle soup. The brute-force test above
         // checks the answer of the path this CPU takes.
-        let mesh = soup(23, 400);
-        let bvh = SceneBvh::new(&mesh);
-        let mut rng = Pcg64::seed_from_u64(29);
+        let (_mesh, bvh, mut rng) = soup_bvh(23, 400, 29);
         let mut blocked = 0;
         for k in 0..3000 {
-            let o = Vec3::new(rng.random(), rng.random(), rng.random());
-            let d = Vec3::new(
-                rng.random::<f64>() - 0.5,
-                rng.random::<f64>() - 0.5,
-                rng.random::<f64>() - 0.5,
-            );
+            let (o, d) = random_ray(&mut rng);
             let t_max = if k % 2 == 0 {
                 f64::INFINITY
             } else {
