@@ -142,6 +142,22 @@ fn to_ray(origin: &Vec3, dir: &Vec3, t_min: f64, t_max: f64) -> Option<Ray> {
     Some(Ray::new(o.into(), d.into(), lo, hi))
 }
 
+/// The segment `origin + t · dir`, `t ∈ [t_min, t_max]`, of an occlusion query.
+struct Segment<'a> {
+    origin: &'a Vec3,
+    dir: &'a Vec3,
+    t_min: f64,
+    t_max: f64,
+}
+
+impl Segment<'_> {
+    /// Whether the triangle (edge form) lies on the segment: the f64 test.
+    #[inline(always)]
+    fn hits(&self, edges: &[Vec3; 3]) -> bool {
+        intersect_edges(edges, self.origin, self.dir, self.t_min, self.t_max).is_some()
+    }
+}
+
 impl SceneBvh {
     /// Builds the BVH (obvhs `fast_build` preset: PLOC + light reinsertion).
     pub fn new(mesh: &Mesh) -> SceneBvh {
@@ -216,7 +232,7 @@ impl SceneBvh {
     /// traversed and `hint` becomes the primitive that blocked it, if any. Either way the
     /// answer is whether a triangle accepted by the f64 test lies on the segment: the
     /// hinted one when it does, else the traversal's. With AVX2 the traversal runs in a
-    /// copy compiled for it ([`SceneBvh::occluded_avx2`]: −7% of the visibility stage at
+    /// copy compiled for it ([`SceneBvh::blocked_avx2`]: −7% of the visibility stage at
     /// 30K vertices, the same rays and answers, `bench-results/speed-levers-2.md`).
     pub fn occluded_hinted(
         &self,
@@ -226,45 +242,14 @@ impl SceneBvh {
         t_max: f64,
         hint: &mut u32,
     ) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has the features `occluded_avx2` is compiled for.
-            return unsafe { self.occluded_avx2(origin, dir, t_min, t_max, hint) };
-        }
-        self.occluded_with::<false>(origin, dir, t_min, t_max, hint)
-    }
-
-    /// [`SceneBvh::occluded_hinted`] compiled for AVX2: the traversal is written here with
-    /// obvhs' `traverse!` macro (its public way to a custom traversal) so that its node
-    /// tests, `#[inline(always)]` in obvhs, compile with the wider instructions; obvhs'
-    /// own `ray_traverse_miss` is a call the compiler keeps out of line. The same node
-    /// tests, the same order and the same f64 triangle test: the same answer.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn occluded_avx2(
-        &self,
-        origin: &Vec3,
-        dir: &Vec3,
-        t_min: f64,
-        t_max: f64,
-        hint: &mut u32,
-    ) -> bool {
-        self.occluded_with::<true>(origin, dir, t_min, t_max, hint)
-    }
-
-    /// The hinted triangle, then the traversal: obvhs' `ray_traverse_miss` (`WIDE =
-    /// false`) or [`Self::any_hit`] (`WIDE = true`, inlined into its AVX2 caller).
-    #[inline(always)]
-    fn occluded_with<const WIDE: bool>(
-        &self,
-        origin: &Vec3,
-        dir: &Vec3,
-        t_min: f64,
-        t_max: f64,
-        hint: &mut u32,
-    ) -> bool {
+        let seg = Segment {
+            origin,
+            dir,
+            t_min,
+            t_max,
+        };
         if let Some(tri) = self.tris.get(*hint as usize) {
-            if intersect_edges(tri, origin, dir, t_min, t_max).is_some() {
+            if seg.hits(tri) {
                 return true;
             }
         }
@@ -274,36 +259,43 @@ impl SceneBvh {
         let Some(ray) = to_ray(origin, dir, t_min, t_max) else {
             return false;
         };
-        if WIDE {
-            return self.any_hit(bvh, &ray, origin, dir, t_min, t_max, hint);
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has the feature `blocked_avx2` is compiled for.
+            return unsafe { self.blocked_avx2(bvh, &ray, &seg, hint) };
         }
+        self.blocked_obvhs(bvh, ray, &seg, hint)
+    }
+
+    /// Whether a triangle accepted by the f64 test blocks `seg`, by obvhs'
+    /// `ray_traverse_miss`; `hint` becomes the blocker.
+    fn blocked_obvhs(&self, bvh: &CwBvh, ray: Ray, seg: &Segment, hint: &mut u32) -> bool {
         !bvh.ray_traverse_miss(ray, |r, id| {
-            match intersect_edges(&self.tris[id], origin, dir, t_min, t_max) {
+            if seg.hits(&self.tris[id]) {
                 // Any value below the ray's tmax stops the traversal.
-                Some(_) => {
-                    *hint = id as u32;
-                    r.tmin.min(r.tmax)
-                }
-                None => f32::INFINITY,
+                *hint = id as u32;
+                r.tmin.min(r.tmax)
+            } else {
+                f32::INFINITY
             }
         })
     }
 
-    /// Whether a triangle accepted by the f64 test lies on the segment, by obvhs'
-    /// `traverse!` (the traversal of its `ray_traverse_miss`, inlined into the caller).
+    /// [`SceneBvh::blocked_traverse`] compiled for AVX2. obvhs' own `ray_traverse_miss` is
+    /// a call the compiler keeps out of line, so its node tests would not get the wider
+    /// instructions; written with obvhs' `traverse!` macro (its public way to a custom
+    /// traversal), they are `#[inline(always)]` and compile into this function.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn blocked_avx2(&self, bvh: &CwBvh, ray: &Ray, seg: &Segment, hint: &mut u32) -> bool {
+        self.blocked_traverse(bvh, ray, seg, hint)
+    }
+
+    /// [`SceneBvh::blocked_obvhs`] written with obvhs' `traverse!`: the same node tests in
+    /// the same order and the same f64 triangle test, so the same answer and blocker.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-    fn any_hit(
-        &self,
-        bvh: &CwBvh,
-        ray: &Ray,
-        origin: &Vec3,
-        dir: &Vec3,
-        t_min: f64,
-        t_max: f64,
-        hint: &mut u32,
-    ) -> bool {
+    fn blocked_traverse(&self, bvh: &CwBvh, ray: &Ray, seg: &Segment, hint: &mut u32) -> bool {
         use glam::UVec2;
         let mut state = bvh.new_traversal(ray.direction);
         let mut node;
@@ -311,7 +303,7 @@ impl SceneBvh {
         'traversal: {
             obvhs::traverse!(bvh, node, state, node.intersect_ray(ray, state.oct_inv4), {
                 let id = state.primitive_id as usize;
-                if intersect_edges(&self.tris[id], origin, dir, t_min, t_max).is_some() {
+                if seg.hits(&self.tris[id]) {
                     *hint = id as u32;
                     blocked = true;
                     break 'traversal;
@@ -483,11 +475,12 @@ mod tests {
     #[test]
     fn both_traversals_give_the_same_answer_and_blocker() {
         // obvhs' own `ray_traverse_miss` (the path of CPUs without AVX2) and the traversal
-        // of `traverse!` compiled for AVX2 must test the same nodes and triangles in the
-        // same order: the same answer and the same first blocker (the hint they leave),
-        // exactly, on random segments through a triangle soup. The brute-force test above
-        // checks the answer of the path this CPU takes.
-        let (_mesh, bvh, mut rng) = soup_bvh(23, 400, 29);
+        // written with `traverse!` (and its AVX2 copy, on CPUs that have it) must test the
+        // same nodes and triangles in the same order: the same answer and the same first
+        // blocker (the hint they leave), exactly, on random segments through a triangle
+        // soup. The brute-force test above checks the answer of the path this CPU takes.
+        let (_mesh, scene, mut rng) = soup_bvh(23, 400, 29);
+        let bvh = scene.bvh.as_ref().expect("a non-empty soup has a BVH");
         let mut blocked = 0;
         for k in 0..3000 {
             let (o, d) = random_ray(&mut rng);
@@ -496,10 +489,23 @@ mod tests {
             } else {
                 rng.random()
             };
-            let (mut h_plain, mut h_wide) = (u32::MAX, u32::MAX);
-            let plain = bvh.occluded_with::<false>(&o, &d, 1e-9, t_max, &mut h_plain);
-            let wide = bvh.occluded_with::<true>(&o, &d, 1e-9, t_max, &mut h_wide);
-            assert_eq!((plain, h_plain), (wide, h_wide), "ray {k}");
+            let seg = Segment {
+                origin: &o,
+                dir: &d,
+                t_min: 1e-9,
+                t_max,
+            };
+            let ray = to_ray(&o, &d, 1e-9, t_max).expect("a finite ray");
+            let mut h = [u32::MAX; 3];
+            let plain = scene.blocked_obvhs(bvh, ray, &seg, &mut h[0]);
+            let written = scene.blocked_traverse(bvh, &ray, &seg, &mut h[1]);
+            assert_eq!((plain, h[0]), (written, h[1]), "ray {k}");
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2.
+                let wide = unsafe { scene.blocked_avx2(bvh, &ray, &seg, &mut h[2]) };
+                assert_eq!((plain, h[0]), (wide, h[2]), "ray {k}");
+            }
             blocked += usize::from(plain);
         }
         assert!(blocked > 100, "{blocked} blocked");
