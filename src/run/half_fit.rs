@@ -24,15 +24,23 @@ use crate::solve::{EstimateOptions, Problem};
 use crate::sphere::envmap::OctEnv;
 use crate::Result;
 
-/// GPCG iterations and CG steps per GPCG iteration of protocol (b)'s light fit, which
-/// starts from the mean training map. Measured on the Minerva model (2,930 vertices, 3
-/// held-out views, `bench-results/archive/pipeline-scaling.md`): against 300 × 100 from zero (which
-/// stops at its cap, not at the KKT tolerance) 4.0 instead of 10.9 CPU s, the `half` RMSEs
-/// within 0.2% (0.08649 / 0.07549 / 0.09602 against 0.08651 / 0.07559 / 0.09622); 50 × 20
-/// matches to 5 digits at 7.0 s, 5 × 20 under-solves (1–3% off).
-pub(crate) const HALF_FIT_GPCG: usize = 20;
+/// GPCG iterations (of the last IRLS pass, [`half_fit_passes`]) and CG steps per GPCG
+/// iteration of protocol (b)'s light fit, which starts from the mean training map.
+///
+/// Many short face solves instead of few long ones. Measured back to back on the 30K and
+/// 100K workspaces' three held-out photos (`bench-results/speed-levers-3.md`), against the
+/// caps before (10 / 10 / 20 GPCG iterations × 20 CG steps): at 100K the light fits
+/// 52.7–53.7 → 43.4 CPU s, the right half's RMSE −0.27% / +0.23% / −0.17%; at 30K
+/// 14.0 → 11.9 CPU s, −0.15% / +0.26% / −0.05%, and the maps as near a fit converged in
+/// every pass (relative distance 0.159 / 0.253 / 0.032 against 0.137 / 0.281 / 0.050).
+/// 10 CG steps with the old GPCG caps were cheaper (100K: 38.0 CPU s) but moved one photo's
+/// right half by −2.3%; 5 CG steps, or 5 / 5 / 10 GPCG iterations, by up to 1%.
+/// The caps before were measured on the Minerva model (2,930 vertices,
+/// `bench-results/archive/pipeline-scaling.md`): 300 × 100 from zero took 10.9 CPU s
+/// against 4.0, the `half` RMSEs within 0.2%; 5 × 20 under-solved (1–3% off).
+pub(crate) const HALF_FIT_GPCG: usize = 28;
 /// See [`HALF_FIT_GPCG`].
-pub(crate) const HALF_FIT_CG: usize = 20;
+pub(crate) const HALF_FIT_CG: usize = 7;
 
 /// Protocol (b)'s IRLS passes ([`fit_light_scheduled`]), `irls_iters` of them (at least
 /// one): those before the last, which only set the next pass's weights, at half the last's
@@ -126,7 +134,7 @@ mod tests {
 
     #[test]
     fn half_fit_passes_halve_every_pass_but_the_last() {
-        let (early, last) = (PassCaps { gpcg: 10, cg: 20 }, PassCaps { gpcg: 20, cg: 20 });
+        let (early, last) = (PassCaps { gpcg: 14, cg: 7 }, PassCaps { gpcg: 28, cg: 7 });
         assert_eq!(half_fit_passes(3), vec![early, early, last]);
         // No robust passes asked for: one pass, the full caps.
         assert_eq!(half_fit_passes(0), vec![last]);
