@@ -135,6 +135,7 @@ fn build(md: &mut String) -> Value {
         open: vec![true; nv],
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     };
     let basis = default_basis();
     let mut rows = Vec::new();

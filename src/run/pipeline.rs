@@ -386,11 +386,12 @@ fn prepare(
     });
     drop(bar);
     log.notes.push(format!(
-        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({})",
+        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({}); {} more answered without tracing, their texels' cone of directions holding no triangle",
         vis.open_count(),
         nv,
         vis.rays_traced,
-        visibility_sampling_note(opts)
+        visibility_sampling_note(opts),
+        vis.rays_known_open
     ));
     // Strata of the lighting step's sample: normal (8 × 8 octahedral bins) × open sky
     // (3 levels of the mean visible fraction).

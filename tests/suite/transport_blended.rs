@@ -58,6 +58,7 @@ fn compare(seed: u64, keep_normal: impl Fn(&Vec3) -> bool) -> f64 {
         open: vec![true; nv],
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     };
     let basis = [BasisBrdf::Lambert, BasisBrdf::Ggx { alpha: 0.3 }];
     let tb = build_rows(&normals, &obs_vertex, &dirs, &vis, &basis, &blended, &opts).unwrap();
@@ -151,6 +152,7 @@ fn blended_renderer_matches_blended_transport() {
         open: vec![false; 3],
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     };
     let basis = [BasisBrdf::Lambert, BasisBrdf::Phong { exponent: 40.0 }];
     let beta = [[0.5, 0.2, 0.1], [0.1, 0.3, 0.6]];
@@ -206,6 +208,7 @@ fn rows_do_not_depend_on_the_other_observations() {
         open: vec![false; nv],
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     };
     let basis = [
         BasisBrdf::Lambert,

@@ -45,6 +45,7 @@ fn open_visibility(nv: usize) -> Visibility {
         open: vec![true; nv],
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     }
 }
 

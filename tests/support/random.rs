@@ -49,6 +49,7 @@ pub fn random_vertices(
         open: vec![false; n],
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     };
     (normals, dirs, vis)
 }

@@ -257,6 +257,7 @@ pub fn load_result(dir: &Path) -> Result<ResultModel> {
         open,
         degenerate: 0,
         rays_traced: 0,
+        rays_known_open: 0,
     };
 
     let read = |name: &str| -> Result<BufReader<std::fs::File>> {

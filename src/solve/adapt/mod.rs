@@ -227,6 +227,7 @@ pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
         open: vis.open.clone(),
         degenerate: vis.degenerate,
         rays_traced: vis.rays_traced,
+        rays_known_open: vis.rays_known_open,
     }
 }
 
