@@ -23,7 +23,11 @@
 //! `s` and radius `r` seen from `a` at distance `L = |s − a| > r` spans the cap of
 //! half-angle `α = asin(r / L)` around `s − a`, so it misses the query's cap when the angle
 //! `φ` between `s − a` and `c` exceeds `θ + α`: `cos φ < cos θ cos α − sin θ sin α`. A
-//! sphere that contains the apex is always opened.
+//! sphere that contains the apex is always opened. Up to 64 caps from one apex are answered
+//! in one traversal ([`ConeTree::empty_caps`]): a node carries the bit mask of the caps it
+//! may meet that no triangle has met yet, so the nodes near the apex, which every cap must
+//! open, are opened once (the 30K workspace's visibility on one thread: 15.7 CPU s, against
+//! 17.1–17.4 with a traversal per cap and 18.5–18.6 without cones).
 //!
 //! The visibility uses this to skip the rays of whole blocks of texels whose cone holds no
 //! triangle ([`crate::transport::visibility`]): such rays escape, whatever their jitter.
@@ -62,44 +66,78 @@ impl Cap {
 /// from the apex lies in `cap` (module docs); `true` when in doubt (the apex on a corner or
 /// nearly in the triangle's plane).
 pub fn triangle_meets_cap(q: &[Vec3; 3], cap: &Cap) -> bool {
-    let len = q.map(|v| v.norm());
-    if len.iter().any(|&l| l.is_nan() || l <= 0.0) {
-        return true;
-    }
-    let d = [q[0] / len[0], q[1] / len[1], q[2] / len[2]];
-    let c = &cap.axis;
-    // 1. A corner in the cap.
-    if d.iter().any(|dk| dk.dot(c) >= cap.cos) {
-        return true;
-    }
-    // 2. The axis among the directions to the triangle's interior.
-    let det = d[0].dot(&d[1].cross(&d[2]));
-    if det.abs() <= 1e-12 {
-        return true;
-    }
-    let lambda = [
-        c.dot(&d[1].cross(&d[2])) / det,
-        d[0].dot(&c.cross(&d[2])) / det,
-        d[0].dot(&d[1].cross(c)) / det,
-    ];
-    if lambda.iter().all(|&l| l >= -1e-12) {
-        return true;
-    }
-    // 3. An edge's arc within the cap.
-    [(0, 1), (1, 2), (2, 0)].into_iter().any(|(i, j)| {
-        let m = d[i].cross(&d[j]);
-        let norm = m.norm();
-        if norm <= 1e-15 {
-            return false; // the same direction twice: its corner was tested in 1
+    TriangleDirections::new(q).meets(cap)
+}
+
+/// The directions from an apex to a triangle, reduced once to what the test of each cap
+/// needs ([`triangle_meets_cap`]): the unit corner directions `d_k`, the cross products
+/// `d_{k+1} × d_{k+2}` (so `λ_k = c · (d_{k+1} × d_{k+2}) / det`), and per edge `i → j` its
+/// circle's unit normal `m` with `m × d_i` and `d_j × m` (the closest point
+/// `c − (c · m) m` of the circle lies between `d_i` and `d_j` when `c · (m × d_i) ≥ 0` and
+/// `c · (d_j × m) ≥ 0`).
+pub struct TriangleDirections {
+    d: [Vec3; 3],
+    cross: [Vec3; 3],
+    det: f64,
+    /// Per edge: `m`, `m × d_i`, `d_j × m`; `None` for an edge of zero angle.
+    edges: [Option<[Vec3; 3]>; 3],
+    /// The apex on a corner or nearly in the triangle's plane: every cap counts as met.
+    doubt: bool,
+}
+
+impl TriangleDirections {
+    /// The directions to the triangle `q` (corners minus the apex).
+    pub fn new(q: &[Vec3; 3]) -> TriangleDirections {
+        let len = q.map(|v| v.norm());
+        let mut dirs = TriangleDirections {
+            d: [Vec3::zeros(); 3],
+            cross: [Vec3::zeros(); 3],
+            det: 0.0,
+            edges: [None; 3],
+            doubt: true,
+        };
+        if len.iter().any(|&l| l.is_nan() || l <= 0.0) {
+            return dirs;
         }
-        let m = m / norm;
-        let cm = c.dot(&m);
-        if cm.abs() > cap.sin {
-            return false;
+        let d = [q[0] / len[0], q[1] / len[1], q[2] / len[2]];
+        let cross = [d[1].cross(&d[2]), d[2].cross(&d[0]), d[0].cross(&d[1])];
+        let det = d[0].dot(&cross[0]);
+        let edge = |i: usize, j: usize| {
+            let m = d[i].cross(&d[j]);
+            let norm = m.norm();
+            // The same direction twice: its corner stands for the edge (case 1).
+            (norm > 1e-15).then(|| {
+                let m = m / norm;
+                [m, m.cross(&d[i]), d[j].cross(&m)]
+            })
+        };
+        dirs.edges = [edge(0, 1), edge(1, 2), edge(2, 0)];
+        dirs.d = d;
+        dirs.cross = cross;
+        dirs.det = det;
+        dirs.doubt = det.abs() <= 1e-12;
+        dirs
+    }
+
+    /// Whether the triangle has a point whose direction lies in `cap` (module docs).
+    pub fn meets(&self, cap: &Cap) -> bool {
+        if self.doubt {
+            return true;
         }
-        let p = c - m * cm;
-        d[i].cross(&p).dot(&m) >= 0.0 && p.cross(&d[j]).dot(&m) >= 0.0
-    })
+        let c = &cap.axis;
+        // 1. A corner in the cap.
+        if self.d.iter().any(|dk| dk.dot(c) >= cap.cos) {
+            return true;
+        }
+        // 2. The axis among the directions to the triangle's interior.
+        if self.cross.iter().all(|x| c.dot(x) / self.det >= -1e-12) {
+            return true;
+        }
+        // 3. An edge's arc within the cap.
+        self.edges.iter().flatten().any(|[m, from, to]| {
+            c.dot(m).abs() <= cap.sin && c.dot(from) >= 0.0 && c.dot(to) >= 0.0
+        })
+    }
 }
 
 /// A node: bounding sphere, and either two children or a leaf's triangle range.
@@ -146,40 +184,83 @@ impl ConeTree {
     /// directions of a hemisphere's texels). `true` is exact (every such ray from `apex`
     /// misses every triangle); `false` may be a doubt. `stack` is scratch.
     ///
-    /// A triangle (or sphere) wholly below that plane is missed by every ray going up or
+    /// A triangle (or node) wholly below that plane is missed by every ray going up or
     /// along it: this is what lets cones that reach the horizon be empty although the
     /// vertex's own triangles (`ε` below the apex) are all around it.
-    pub fn cone_is_empty(&self, apex: &Vec3, up: &Vec3, cap: &Cap, stack: &mut Vec<u32>) -> bool {
+    pub fn cone_is_empty(
+        &self,
+        apex: &Vec3,
+        up: &Vec3,
+        cap: &Cap,
+        stack: &mut Vec<(u32, u64)>,
+    ) -> bool {
+        self.empty_caps(apex, up, std::slice::from_ref(cap), stack) == 1
+    }
+
+    /// [`ConeTree::cone_is_empty`] for up to 64 caps from one apex in one traversal: bit
+    /// `k` of the answer is set when cap `k`'s cone is empty. A node is opened with the
+    /// caps it may meet that no triangle has met yet, so the nodes near the apex, which
+    /// every cap must open, are opened once.
+    pub fn empty_caps(
+        &self,
+        apex: &Vec3,
+        up: &Vec3,
+        caps: &[Cap],
+        stack: &mut Vec<(u32, u64)>,
+    ) -> u64 {
+        assert!(caps.len() <= 64, "{} caps in one query", caps.len());
+        let all = match caps.len() {
+            0 => 0,
+            n => u64::MAX >> (64 - n),
+        };
+        let mut met = 0_u64;
         if self.nodes.is_empty() {
-            return true;
+            return all;
         }
         stack.clear();
-        stack.push(0);
-        while let Some(k) = stack.pop() {
+        stack.push((0, all));
+        while let Some((k, mask)) = stack.pop() {
             let node = &self.nodes[k as usize];
             let w = node.centre - apex;
-            if w.dot(up) + node.half.dot(&up.abs()) < -below_slack(&w, node.radius)
-                || !sphere_may_meet(&node.centre, node.radius, apex, cap)
-            {
+            if w.dot(up) + node.half.dot(&up.abs()) < -below_slack(&w, node.radius) {
+                continue;
+            }
+            let mask = sphere_may_meet(&w, node.radius, caps, mask & !met);
+            if mask == 0 {
                 continue;
             }
             let [a, b] = node.range;
-            if node.leaf {
-                let hit = self.tris[a as usize..b as usize].iter().any(|t| {
-                    let q = t.map(|p| p - apex);
-                    q.iter().any(|v| v.dot(up) >= -below_slack(v, 0.0))
-                        && triangle_meets_cap(&q, cap)
-                });
-                if hit {
-                    return false;
+            if !node.leaf {
+                stack.push((b, mask));
+                stack.push((a, mask));
+                continue;
+            }
+            for t in &self.tris[a as usize..b as usize] {
+                let q = t.map(|p| p - apex);
+                if q.iter().all(|v| v.dot(up) < -below_slack(v, 0.0)) {
+                    continue;
                 }
-            } else {
-                stack.push(b);
-                stack.push(a);
+                let dirs = TriangleDirections::new(&q);
+                for bit in bits(mask & !met) {
+                    if dirs.meets(&caps[bit]) {
+                        met |= 1 << bit;
+                    }
+                }
             }
         }
-        true
+        all & !met
     }
+}
+
+/// The indices of the set bits of `mask`, lowest first.
+fn bits(mut mask: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let b = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            b
+        })
+    })
 }
 
 /// How far below the plane a point at offset `w` (plus `radius`) from the apex must lie to
@@ -189,19 +270,23 @@ fn below_slack(w: &Vec3, radius: f64) -> f64 {
     1e-12 * (w.x.abs() + w.y.abs() + w.z.abs() + radius)
 }
 
-/// Whether the sphere (`centre`, `radius`) may have a point in `cap` from `apex`: always
-/// when it holds the apex, else unless its angular extent misses the cap (module docs),
-/// with a relative `1e-9` of slack against rounding.
-fn sphere_may_meet(centre: &Vec3, radius: f64, apex: &Vec3, cap: &Cap) -> bool {
-    let w = centre - apex;
+/// The caps of `mask` that the sphere of radius `radius` at offset `w` from the apex may
+/// meet: all when it holds the apex, else those its angular extent does not miss (module
+/// docs), with `10⁻⁹` of slack against rounding.
+fn sphere_may_meet(w: &Vec3, radius: f64, caps: &[Cap], mask: u64) -> u64 {
     let dist = w.norm();
-    if dist <= radius * (1.0 + 1e-9) {
-        return true;
+    if mask == 0 || dist <= radius * (1.0 + 1e-9) {
+        return mask;
     }
     let sin_a = radius / dist;
     let cos_a = (1.0 - sin_a * sin_a).max(0.0).sqrt();
-    let cos_phi = w.dot(&cap.axis) / dist;
-    cos_phi >= cap.cos * cos_a - cap.sin * sin_a - 1e-9
+    let dir = w / dist;
+    bits(mask)
+        .filter(|&k| {
+            let cap = &caps[k];
+            dir.dot(&cap.axis) >= cap.cos * cos_a - cap.sin * sin_a - 1e-9
+        })
+        .fold(0, |m, k| m | 1 << k)
 }
 
 /// Build the subtree over `tris[start..end]`; returns its node index.
@@ -366,5 +451,21 @@ mod tests {
             empty += usize::from(brute);
         }
         assert!(empty > 100 && empty < 1900, "{empty} of 2000 empty");
+        // 64 caps from one apex in one traversal: each bit as the cap tested alone.
+        for _ in 0..50 {
+            let apex = unit(&mut rng) * rng.random_range(0.0..3.0);
+            let up = unit(&mut rng);
+            let caps: Vec<Cap> = (0..64)
+                .map(|_| Cap::new(unit(&mut rng), rng.random_range(1.0_f64..30.0).to_radians()))
+                .collect();
+            let alone = caps.iter().enumerate().fold(0_u64, |m, (k, cap)| {
+                m | u64::from(tree.cone_is_empty(&apex, &up, cap, &mut stack)) << k
+            });
+            assert_eq!(tree.empty_caps(&apex, &up, &caps, &mut stack), alone);
+            assert_eq!(
+                tree.empty_caps(&apex, &up, &caps[..5], &mut stack),
+                alone & 31
+            );
+        }
     }
 }
