@@ -71,10 +71,14 @@ use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
 use crate::import::mesh::Mesh;
-use crate::observe::cone::{Cap, ConeTree};
 use crate::observe::trace::SceneBvh;
 use crate::sphere::{from_local, local_frame, SphereGrid};
 use crate::Vec3;
+
+mod cones;
+mod point_tree;
+use cones::{ConeScratch, OpenCones};
+use point_tree::PointTree;
 
 /// Per-vertex texel visibility in the local hemi-octahedral map.
 #[derive(Debug, Clone, Default)]
@@ -491,120 +495,6 @@ impl VertexRays<'_> {
     }
 }
 
-/// Blocks of texels whose cone of directions is tested for emptiness before any ray
-/// ([`crate::observe::cone`]): a block whose cone, from the rays' origin and above the
-/// vertex's tangent plane, holds no triangle has every ray escape, so its rays are answered
-/// without tracing and the map is the same, bit for bit (the jitter is still drawn).
-///
-/// Blocks are an eighth of the map's side (4 × 4 texels at 32²; none below 16²). Their caps
-/// are computed once, in the local frame: a block's directions are the image of its `uv`
-/// square under [`SphereGrid::decode`], whose largest angle from any axis (not antipodal to
-/// the block) lies on the square's boundary; the boundary is sampled [`CAP_SAMPLES`] times
-/// per texel side, the axis is the samples' mean direction, and the half-angle is the
-/// largest sample angle plus the largest angle between neighbouring samples (what a
-/// boundary point between two samples can add) plus `10⁻⁶`. A vertex's frame is a
-/// rotation, so its caps are the local ones with the axis rotated.
-///
-/// The 64 blocks' cones are tested in one traversal of the triangle tree
-/// ([`ConeTree::empty_caps`]). Measured on the 30K workspace's mesh (one thread,
-/// `bench-results/speed-levers-3.md`): 42% of the rays answered without tracing, the
-/// visibility 18.5 → 15.7 CPU s (−15%; the rays of open sky are the cheap ones); 2 × 2 or
-/// 8 × 8 blocks saved less.
-struct OpenCones {
-    tree: ConeTree,
-    /// Block side in texels.
-    side: usize,
-    /// The blocks' local caps, row-major.
-    caps: Vec<Cap>,
-    n: usize,
-}
-
-/// Boundary samples per texel side of a block, for its cap ([`OpenCones`]).
-const CAP_SAMPLES: usize = 16;
-
-/// A worker's scratch for [`OpenCones::mark_open`].
-#[derive(Default)]
-struct ConeScratch {
-    sure: Vec<bool>,
-    caps: Vec<Cap>,
-    stack: Vec<(u32, u64)>,
-}
-
-impl OpenCones {
-    /// `None` when the blocks would be smaller than 2 × 2 texels.
-    fn new(mesh: &Mesh, grid: &SphereGrid) -> Option<OpenCones> {
-        let side = grid.n / 8;
-        (side >= 2).then(|| OpenCones {
-            tree: ConeTree::new(mesh),
-            side,
-            caps: block_caps(grid, side),
-            n: grid.n,
-        })
-    }
-
-    /// Set `scratch.sure[t]` for the texels of every block whose cone from `origin`, above
-    /// the plane of normal `up`, is empty; `to_world` rotates local directions to world.
-    fn mark_open(
-        &self,
-        origin: &Vec3,
-        up: &Vec3,
-        to_world: impl Fn(&Vec3) -> Vec3,
-        scratch: &mut ConeScratch,
-    ) {
-        let (b, per_row) = (self.side, self.n / self.side);
-        scratch.caps.clear();
-        scratch.caps.extend(self.caps.iter().map(|local| Cap {
-            axis: to_world(&local.axis),
-            ..*local
-        }));
-        for (c, caps) in scratch.caps.chunks(64).enumerate() {
-            let empty = self.tree.empty_caps(origin, up, caps, &mut scratch.stack);
-            for k in (0..caps.len()).filter(|k| empty >> k & 1 == 1) {
-                let k = 64 * c + k;
-                let (i0, j0) = ((k % per_row) * b, (k / per_row) * b);
-                for j in j0..j0 + b {
-                    scratch.sure[j * self.n + i0..j * self.n + i0 + b].fill(true);
-                }
-            }
-        }
-    }
-}
-
-/// The local caps of the `b × b` blocks of `grid`, row-major ([`OpenCones`]).
-fn block_caps(grid: &SphereGrid, b: usize) -> Vec<Cap> {
-    let n = grid.n;
-    let per_row = n / b;
-    (0..per_row * per_row)
-        .map(|k| {
-            let (i0, j0) = ((k % per_row) * b, (k / per_row) * b);
-            let steps = b * CAP_SAMPLES;
-            let at = |s: usize| -> [f64; 2] {
-                // The boundary walked once around: four sides of `steps` samples.
-                let (side, r) = (s / steps, (s % steps) as f64 / steps as f64);
-                let (u, v) = match side {
-                    0 => (r, 0.0),
-                    1 => (1.0, r),
-                    2 => (1.0 - r, 1.0),
-                    _ => (0.0, 1.0 - r),
-                };
-                let bf = b as f64;
-                [
-                    (i0 as f64 + u * bf) / n as f64,
-                    (j0 as f64 + v * bf) / n as f64,
-                ]
-            };
-            let ring: Vec<Vec3> = (0..4 * steps).map(|s| grid.decode(at(s))).collect();
-            let axis = ring.iter().fold(Vec3::zeros(), |a, d| a + d).normalize();
-            let angle = |a: &Vec3, b: &Vec3| a.dot(b).clamp(-1.0, 1.0).acos();
-            let widest = ring.iter().map(|d| angle(&axis, d)).fold(0.0, f64::max);
-            let step = (0..ring.len())
-                .map(|s| angle(&ring[s], &ring[(s + 1) % ring.len()]))
-                .fold(0.0, f64::max);
-            Cap::new(axis, widest + step + 1e-6)
-        })
-        .collect()
-}
-
 /// A vertex's first-ray map: per texel whether its first ray escaped, and whether that
 /// value was inferred from its lattice neighbours instead of traced (a worker's scratch).
 #[derive(Default)]
@@ -691,131 +581,4 @@ fn mix(seed: u64, v: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
-}
-
-/// A bounding-box tree over points for half-space emptiness queries.
-struct PointTree {
-    points: Vec<Vec3>,
-    /// Nodes: box and either children or a leaf range.
-    nodes: Vec<Node>,
-}
-
-struct Node {
-    lo: Vec3,
-    hi: Vec3,
-    /// Leaf: `points[start..end]`; inner: `left`, `right` node indices.
-    kind: NodeKind,
-}
-
-enum NodeKind {
-    Leaf(usize, usize),
-    Inner(usize, usize),
-}
-
-const LEAF: usize = 16;
-
-impl PointTree {
-    fn new(points: &[Vec3]) -> Self {
-        let mut pts: Vec<Vec3> = points
-            .iter()
-            .filter(|p| p.iter().all(|c| c.is_finite()))
-            .copied()
-            .collect();
-        let mut nodes = Vec::new();
-        if !pts.is_empty() {
-            let len = pts.len();
-            build(&mut pts, 0, len, &mut nodes);
-        }
-        PointTree { points: pts, nodes }
-    }
-
-    /// Whether some point `p` has `n·(p − x) > eps`.
-    fn any_above(&self, x: &Vec3, n: &Vec3, eps: f64) -> bool {
-        if self.nodes.is_empty() {
-            return false;
-        }
-        let level = n.dot(x) + eps;
-        let mut stack = vec![0usize];
-        while let Some(k) = stack.pop() {
-            let node = &self.nodes[k];
-            // Support of the box in direction n.
-            let sup: f64 = (0..3)
-                .map(|i| (n[i] * node.lo[i]).max(n[i] * node.hi[i]))
-                .sum();
-            if sup <= level {
-                continue;
-            }
-            match node.kind {
-                NodeKind::Leaf(a, b) => {
-                    if self.points[a..b].iter().any(|p| n.dot(p) > level) {
-                        return true;
-                    }
-                }
-                NodeKind::Inner(l, r) => {
-                    stack.push(l);
-                    stack.push(r);
-                }
-            }
-        }
-        false
-    }
-}
-
-fn build(pts: &mut [Vec3], start: usize, end: usize, nodes: &mut Vec<Node>) -> usize {
-    let slice = &mut pts[start..end];
-    let mut lo = slice[0];
-    let mut hi = slice[0];
-    for p in slice.iter() {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
-    let id = nodes.len();
-    nodes.push(Node {
-        lo,
-        hi,
-        kind: NodeKind::Leaf(start, end),
-    });
-    if end - start > LEAF {
-        let ext = hi - lo;
-        let axis = if ext.x >= ext.y && ext.x >= ext.z {
-            0
-        } else if ext.y >= ext.z {
-            1
-        } else {
-            2
-        };
-        let mid = (end - start) / 2;
-        slice.select_nth_unstable_by(mid, |a, b| a[axis].total_cmp(&b[axis]));
-        let l = build(pts, start, start + mid, nodes);
-        let r = build(pts, start + mid, end, nodes);
-        nodes[id].kind = NodeKind::Inner(l, r);
-    }
-    id
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::Rng;
-
-    #[test]
-    fn point_tree_matches_brute_force() {
-        // The half-space query is exact: compare with a linear scan on random clouds.
-        let mut rng = Pcg64::seed_from_u64(3);
-        let pts: Vec<Vec3> = (0..500)
-            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
-            .collect();
-        let tree = PointTree::new(&pts);
-        for _ in 0..300 {
-            let x = Vec3::new(rng.random(), rng.random(), rng.random());
-            let n = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            )
-            .normalize();
-            let brute = pts.iter().any(|p| n.dot(&(p - x)) > 1e-9);
-            assert_eq!(tree.any_above(&x, &n, 1e-9), brute);
-        }
-    }
 }
