@@ -154,7 +154,7 @@ impl LobeAt {
                     return 0.0;
                 }
                 let u = h.z * h.z * (a2 - 1.0) + hh;
-                let g = ci + (a2 + (1.0 - a2) * ci * ci).sqrt();
+                let g = many::ggx_denominator(a2, ci);
                 k * hh * hh * ci / (u * u * g)
             }
         }
@@ -305,6 +305,9 @@ pub struct SliceGrid {
     pub grid: SphereGrid,
     /// Centre direction of each texel.
     pub centre: Vec<Vec3>,
+    /// `‖centre‖` of each texel (the centres are unit vectors up to rounding; the peak test
+    /// divides by the norm as computed, without a square root per texel and slice).
+    centre_norm: Vec<f64>,
     /// Exact solid angle `Δω` of each texel.
     pub solid_angle: Vec<f64>,
     /// Largest angle between a texel's centre and its corners (radians).
@@ -336,6 +339,7 @@ impl SliceGrid {
         }
         let grid = SphereGrid::hemi(n);
         let centre: Vec<Vec3> = (0..grid.len()).map(|t| grid.texel_dir(t)).collect();
+        let centre_norm = centre.iter().map(|c| c.norm()).collect();
         let solid_angle = grid.solid_angles();
         let nf = n as f64;
         let radius: Vec<f64> = (0..grid.len())
@@ -371,6 +375,7 @@ impl SliceGrid {
         Ok(SliceGrid {
             grid,
             centre,
+            centre_norm,
             solid_angle,
             radius,
             radius_cos_sin,
@@ -516,7 +521,7 @@ impl BasisBrdf {
                     BasisBrdf::Lambert => 2,
                     _ => {
                         let (cr, sr) = grid.radius_cos_sin[t];
-                        let cos_peak = grid.centre[t].dot(&peak_unit) / grid.centre[t].norm();
+                        let cos_peak = grid.centre[t].dot(&peak_unit) / grid.centre_norm[t];
                         if zero_at.is_some_and(|z| z + r < PI && cos_peak < cz * cr - sz * sr) {
                             return 0;
                         }
@@ -543,6 +548,8 @@ const TEXEL_BATCH: usize = 256;
 /// sample order.
 fn integrate_texels(lobe: &LobeAt, grid: &SliceGrid, levels: &[u8], out: &mut [f64]) {
     let mut vals = [0.0f64; TEXEL_BATCH];
+    // GGX's per-sample G1 denominators of each level, fetched once per slice.
+    let mut ggx_g: [Option<Arc<Vec<f64>>>; MAX_LEVEL] = Default::default();
     let mut t = 0;
     while t < out.len() {
         let level = levels[t] as usize;
@@ -559,9 +566,15 @@ fn integrate_texels(lobe: &LobeAt, grid: &SliceGrid, levels: &[u8], out: &mut [f
         }
         let samples = &grid.levels[level - 1];
         let dens = &grid.level_solid_angle[level - 1];
+        let g: &[f64] = match *lobe {
+            LobeAt::Ggx { a2, .. } => {
+                ggx_g[level - 1].get_or_insert_with(|| samples.ggx_denominators(a2))
+            }
+            _ => &[],
+        };
         for chunk in (t * s2..end * s2).step_by(TEXEL_BATCH) {
             let hi = (chunk + TEXEL_BATCH).min(end * s2);
-            lobe.eval_many(samples, chunk..hi, &mut vals);
+            lobe.eval_many(samples, g, chunk..hi, &mut vals);
             for (k, tex_vals) in vals[..hi - chunk].chunks(s2).enumerate() {
                 let tt = chunk / s2 + k;
                 let ws = &samples.w[tt * s2..(tt + 1) * s2];
