@@ -6,9 +6,12 @@
 //! samples per instruction. Each value is computed by the same operations in the same order
 //! as [`LobeAt::eval`], so the results are bit-identical to it (unit test below). Measured
 //! (`bench-results/speed-memory.md`, `cargo bench --bench slicetime`, CPU time): a GGX
-//! slice of the 32² local map 14–17.5 µs against 18–23 µs before. Phong is evaluated
-//! sample by sample (a branch-free Phong batch was slower: most samples return before the
-//! power); from these arrays it costs 16–18.5 µs against 13–17.5 µs before.
+//! slice of the 32² local map 14–17.5 µs against 18–23 µs before. Phong with a whole-number
+//! exponent goes four samples at a time through the same squarings (`cargo bench --bench
+//! slicetime`: Phong 50 and 500 slices 18–20.5 → 13–14 µs). A branch-free batch was slower
+//! when every texel was sampled, since most samples lie behind the mirror direction; since
+//! the texels beyond the negligible angle are skipped ([`super::BasisBrdf::negligible_angle`]),
+//! most samples left are in front of it. A fractional exponent stays sample by sample.
 //!
 //! GGX's `ω_i`-only factor, the denominator of `G1(ω_i)`, `g = cᵢ + √(α² + (1−α²) cᵢ²)`,
 //! depends on the sample and `α` alone, not on `ω_o`: it is computed once per sample array
@@ -76,6 +79,30 @@ impl Samples {
     }
 }
 
+/// Samples per step of the whole-number Phong batch.
+const PHONG_LANES: usize = 4;
+
+/// [`super::powu`] of each lane: the same multiplications in the same order, so the same
+/// bits, with the loop over the exponent's bits shared by the lanes.
+#[inline(always)]
+fn powu_lanes(mut x: [f64; PHONG_LANES], mut n: u32) -> [f64; PHONG_LANES] {
+    let mut r = [1.0f64; PHONG_LANES];
+    loop {
+        if n & 1 == 1 {
+            for l in 0..PHONG_LANES {
+                r[l] *= x[l];
+            }
+        }
+        n >>= 1;
+        if n == 0 {
+            return r;
+        }
+        for v in &mut x {
+            *v *= *v;
+        }
+    }
+}
+
 impl LobeAt {
     /// `out[i] = self.eval(&(x[i], y[i], z[i]))` for the samples `range` of `s`. A GGX
     /// lobe reads its `G1(ω_i)` denominators from `ggx_g` (all of `s`'s samples,
@@ -132,9 +159,32 @@ impl LobeAt {
                     *o = if ci <= 0.0 { 0.0 } else { ci / PI };
                 }
             }
-            // Phong stays scalar: most of its samples lie behind the mirror direction and
-            // return before the power, which a branch-free batch would compute
-            // (measured: bench-results/speed-memory.md).
+            // A whole-number exponent: four samples at a time, every lane through the same
+            // squarings (the exponent is the same for all), zero selected afterwards.
+            LobeAt::Phong {
+                mirror,
+                integer: Some(n),
+                norm,
+                ..
+            } => {
+                let lanes = out.len() / PHONG_LANES * PHONG_LANES;
+                for i in (0..lanes).step_by(PHONG_LANES) {
+                    let mut rd = [0.0f64; PHONG_LANES];
+                    for l in 0..PHONG_LANES {
+                        rd[l] = mirror.x * x[i + l] + mirror.y * y[i + l] + mirror.z * z[i + l];
+                    }
+                    let p = powu_lanes(rd, n);
+                    for l in 0..PHONG_LANES {
+                        let ci = z[i + l];
+                        let v = norm * p[l] * ci;
+                        out[i + l] = if ci <= 0.0 || rd[l] <= 0.0 { 0.0 } else { v };
+                    }
+                }
+                for i in lanes..out.len() {
+                    out[i] = self.eval(&Vec3::new(x[i], y[i], z[i]));
+                }
+            }
+            // A fractional exponent stays scalar (`powf`).
             LobeAt::Phong { .. } => {
                 for (i, o) in out.iter_mut().enumerate() {
                     *o = self.eval(&Vec3::new(x[i], y[i], z[i]));
