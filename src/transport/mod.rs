@@ -451,6 +451,7 @@ impl<R: LocalRotation> RowKernel<'_, R> {
             scratch.fixed_len[j] = truncate_global(
                 &scratch.globals[j * ng2..(j + 1) * ng2],
                 &mut scratch.sel,
+                self.fixed_bases[j],
                 self.keep,
                 &mut scratch.fixed_idx[span.clone()],
                 &mut scratch.fixed_val[span],
@@ -489,6 +490,7 @@ impl<R: LocalRotation> RowKernel<'_, R> {
             ol[b] = truncate_global(
                 &scratch.globals[r * ng2..(r + 1) * ng2],
                 &mut scratch.sel,
+                b,
                 self.keep,
                 &mut oi[span.clone()],
                 &mut ov[span],
