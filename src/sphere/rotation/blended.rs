@@ -298,7 +298,10 @@ impl Rotation {
             for (m, o) in g.iter_mut().enumerate() {
                 *o = inter[m * K + i];
             }
-            haar::forward(g, self.n_global);
+        }
+        // The interleaved sums are all read: the buffer is the transforms' scratch now.
+        for g in global.chunks_mut(ng2).take(K) {
+            haar::forward_with(g, self.n_global, inter);
         }
     }
 
