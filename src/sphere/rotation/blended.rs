@@ -292,16 +292,12 @@ impl Rotation {
     ) {
         let ng2 = self.ng2();
         inter.clear();
-        inter.resize(ng2 * K, 0.0);
-        self.resample_transpose_add_many::<K>(nus, locals, inter);
+        // The K interleaved sums, then the transforms' scratch ((n/2)² values).
+        inter.resize(ng2 * K + ng2 / 4, 0.0);
+        let (sums, scratch) = inter.split_at_mut(ng2 * K);
+        self.resample_transpose_add_many::<K>(nus, locals, sums);
         for (i, g) in global.chunks_mut(ng2).enumerate().take(K) {
-            for (m, o) in g.iter_mut().enumerate() {
-                *o = inter[m * K + i];
-            }
-        }
-        // The interleaved sums are all read: the buffer is the transforms' scratch now.
-        for g in global.chunks_mut(ng2).take(K) {
-            haar::forward_with(g, self.n_global, inter);
+            haar::forward_interleaved(sums, K, i, g, self.n_global, scratch);
         }
     }
 
