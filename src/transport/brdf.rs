@@ -308,6 +308,10 @@ pub struct SliceGrid {
     /// `‖centre‖` of each texel (the centres are unit vectors up to rounding; the peak test
     /// divides by the norm as computed, without a square root per texel and slice).
     centre_norm: Vec<f64>,
+    /// The centres' components, one array each (the level rule reads them in step).
+    centre_x: Vec<f64>,
+    centre_y: Vec<f64>,
+    centre_z: Vec<f64>,
     /// Exact solid angle `Δω` of each texel.
     pub solid_angle: Vec<f64>,
     /// Largest angle between a texel's centre and its corners (radians).
@@ -320,6 +324,8 @@ pub struct SliceGrid {
     /// `level_solid_angle[k][t]`: the sum of texel `t`'s sub-texel solid angles at `levels[k]`
     /// (summed in sample order, as the quadrature's denominator).
     level_solid_angle: Vec<Vec<f64>>,
+    /// The refinement rules of the lobes sliced so far ([`SliceGrid::lobe_texels`]).
+    rules: Mutex<Vec<(BasisBrdf, Arc<LobeTexels>)>>,
 }
 
 /// Finest refinement level: `s = 2^MAX_LEVEL` sub-texels per side.
@@ -374,6 +380,9 @@ impl SliceGrid {
         }
         Ok(SliceGrid {
             grid,
+            centre_x: centre.iter().map(|c| c.x).collect(),
+            centre_y: centre.iter().map(|c| c.y).collect(),
+            centre_z: centre.iter().map(|c| c.z).collect(),
             centre,
             centre_norm,
             solid_angle,
@@ -381,7 +390,21 @@ impl SliceGrid {
             radius_cos_sin,
             levels,
             level_solid_angle,
+            rules: Mutex::new(Vec::new()),
         })
+    }
+
+    /// Lobe `b`'s refinement rule over this grid, built on the first call for `b`.
+    fn lobe_texels(&self, b: &BasisBrdf) -> Arc<LobeTexels> {
+        // A poisoned lock only means another thread panicked while pushing: the list is
+        // still a list of complete entries.
+        let mut rules = self.rules.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, r)) = rules.iter().find(|(k, _)| k == b) {
+            return r.clone();
+        }
+        let r = Arc::new(LobeTexels::new(b, self));
+        rules.push((*b, r.clone()));
+        r
     }
 
     /// Grid side `n`.
@@ -501,41 +524,99 @@ impl BasisBrdf {
         weight: Option<&[f64]>,
     ) {
         assert_eq!(out.len(), grid.centre.len(), "slice: output length");
-        let peak = self.peak(wo);
-        let sigma = self.lobe_sigma();
-        // angle(c, peak) < 5σ + r  ⇔  ĉ·p̂ > cos(5σ + r) (for 5σ + r < π), with
-        // cos(5σ + r) = cos 5σ cos r − sin 5σ sin r from per-texel tables.
-        let (c5, s5) = ((5.0 * sigma).cos(), (5.0 * sigma).sin());
-        // The same test at the negligible angle θ_z: the texel is wholly beyond it.
-        let zero_at = self.negligible_angle().filter(|_| skip_negligible);
-        let (cz, sz) = zero_at.map_or((0.0, 0.0), |z| (z.cos(), z.sin()));
-        let peak_unit = peak.normalize();
-        // Each texel's refinement level (0: written as zero without sampling).
-        let levels: Vec<u8> = (0..out.len())
-            .map(|t| {
-                if weight.is_some_and(|w| w[t] == 0.0) {
-                    return 0;
+        let rule = grid.lobe_texels(self);
+        let p = self.peak(wo).normalize();
+        let n = out.len();
+        let (cx, cy, cz) = (
+            &grid.centre_x[..n],
+            &grid.centre_y[..n],
+            &grid.centre_z[..n],
+        );
+        let norm = &grid.centre_norm[..n];
+        let (zero_cos, near_cos) = (&rule.zero_cos[..n], &rule.near_cos[..n]);
+        let (always_near, near_level) = (&rule.always_near[..n], &rule.near_level[..n]);
+        // Each texel's refinement level (0: written as zero without sampling), branch-free
+        // over slices of one length so that the texels go several at a time.
+        let mut levels = vec![0u8; n];
+        for t in 0..n {
+            // The cosine to the peak: nalgebra's `dot` of the centre and p̂, over the norm.
+            let cos_peak = (cx[t] * p.x + cy[t] * p.y + cz[t] * p.z) / norm[t];
+            let zero = skip_negligible & (cos_peak < zero_cos[t]);
+            let near = always_near[t] | (cos_peak > near_cos[t]);
+            levels[t] = if zero {
+                0
+            } else if near {
+                near_level[t]
+            } else {
+                1
+            };
+        }
+        if let Some(w) = weight {
+            for (level, &w) in levels.iter_mut().zip(&w[..n]) {
+                if w == 0.0 {
+                    *level = 0;
                 }
-                let r = grid.radius[t];
-                match self {
-                    BasisBrdf::Lambert => 2,
-                    _ => {
-                        let (cr, sr) = grid.radius_cos_sin[t];
-                        let cos_peak = grid.centre[t].dot(&peak_unit) / grid.centre_norm[t];
-                        if zero_at.is_some_and(|z| z + r < PI && cos_peak < cz * cr - sz * sr) {
-                            return 0;
-                        }
-                        let near = 5.0 * sigma + r >= PI || cos_peak > c5 * cr - s5 * sr;
-                        if near {
-                            self.peak_level(r) as u8
-                        } else {
-                            1
-                        }
-                    }
-                }
-            })
-            .collect();
+            }
+        }
         integrate_texels(&self.at(wo), grid, &levels, out);
+    }
+}
+
+/// A lobe's refinement rule over a grid's texels ([`BasisBrdf::slice_with`]), the parts
+/// that do not depend on `ω_o`, computed once per lobe and grid
+/// ([`SliceGrid::lobe_texels`]). With `c` the cosine between a texel's centre and the
+/// peak, texel `t` is at `near_level[t]` when `always_near[t]` or `c > near_cos[t]`,
+/// written as zero when `c < zero_cos[t]`, and at level 1 otherwise.
+#[derive(Debug)]
+struct LobeTexels {
+    /// `peak_level(r_t)` (Lambert: 2 everywhere).
+    near_level: Vec<u8>,
+    /// `5σ + r_t ≥ π` (Lambert: everywhere): the texel is near whatever the peak.
+    always_near: Vec<bool>,
+    /// `cos(5σ + r_t) = cos 5σ cos r_t − sin 5σ sin r_t`: angle(c, peak) < 5σ + r_t ⇔
+    /// `c > near_cos[t]`.
+    near_cos: Vec<f64>,
+    /// The same at the negligible angle `θ_z` (the texel wholly beyond it), `−∞` when the
+    /// lobe has none or `θ_z + r_t ≥ π`.
+    zero_cos: Vec<f64>,
+}
+
+impl LobeTexels {
+    fn new(b: &BasisBrdf, grid: &SliceGrid) -> Self {
+        let n = grid.centre.len();
+        if let BasisBrdf::Lambert = b {
+            return LobeTexels {
+                near_level: vec![2; n],
+                always_near: vec![true; n],
+                near_cos: vec![f64::NEG_INFINITY; n],
+                zero_cos: vec![f64::NEG_INFINITY; n],
+            };
+        }
+        let sigma = b.lobe_sigma();
+        let (c5, s5) = ((5.0 * sigma).cos(), (5.0 * sigma).sin());
+        let zero_at = b.negligible_angle();
+        let (cz, sz) = zero_at.map_or((0.0, 0.0), |z| (z.cos(), z.sin()));
+        let texel = |t: usize| {
+            let r = grid.radius[t];
+            let (cr, sr) = grid.radius_cos_sin[t];
+            let zero = match zero_at {
+                Some(z) if z + r < PI => cz * cr - sz * sr,
+                _ => f64::NEG_INFINITY,
+            };
+            (
+                b.peak_level(r) as u8,
+                5.0 * sigma + r >= PI,
+                c5 * cr - s5 * sr,
+                zero,
+            )
+        };
+        let all: Vec<_> = (0..n).map(texel).collect();
+        LobeTexels {
+            near_level: all.iter().map(|a| a.0).collect(),
+            always_near: all.iter().map(|a| a.1).collect(),
+            near_cos: all.iter().map(|a| a.2).collect(),
+            zero_cos: all.iter().map(|a| a.3).collect(),
+        }
     }
 }
 
