@@ -9,9 +9,15 @@
 //! the dropped tail), and it stores an entry in 4 bytes with its `u16` index instead of 6
 //! (docs/benchmarks.md, "Memory").
 //!
-//! Decoding is the exact bit construction for finite halves: the 15 magnitude bits shifted
-//! into an `f32`'s exponent and significand, times `2¹¹²` (the exponent bias difference),
-//! which also maps the subnormals exactly; no branch, no table, inlined where it is read.
+//! Decoding is exact for finite halves, with no table, inlined where it is read: a normal
+//! half's 15 magnitude bits shifted into an `f32`'s exponent and significand, plus `112`
+//! on the exponent (the bias difference, an integer addition); a subnormal's 10-bit
+//! significand converted to `f32` (exactly) times `2⁻²⁴`; the two selected without a
+//! branch. No arithmetic ever sees a subnormal `f32`: the earlier decoding (the shifted
+//! bits times `2¹¹²` as an `f32` multiplication) did for every subnormal half, and on CPUs
+//! that handle a subnormal operand in microcode (Intel's, without denormals-are-zero) that
+//! multiplication cost about a hundred cycles, which the material step's responses, reading
+//! every kept coefficient of every observation, paid on each small coefficient.
 
 /// A transport coefficient stored as the bits of an IEEE 754 half (`binary16`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -41,8 +47,12 @@ impl TransportValue {
     #[inline]
     pub fn to_f32(self) -> f32 {
         let h = u32::from(self.0);
-        // 2¹¹²: the f32 exponent bias (127) minus the half's (15).
-        let magnitude = f32::from_bits((h & 0x7fff) << 13) * f32::from_bits(0x7780_0000);
+        let bits = h & 0x7fff;
+        // Normal: the exponent rebased by 127 − 15 = 112 (in the f32 exponent field).
+        let normal = f32::from_bits((bits << 13) + (112 << 23));
+        // Subnormal (or zero): significand · 2⁻²⁴, both factors exact in f32.
+        let subnormal = bits as f32 * f32::from_bits(0x3380_0000);
+        let magnitude = if bits < 0x400 { subnormal } else { normal };
         f32::from_bits(magnitude.to_bits() | ((h & 0x8000) << 16))
     }
 }
