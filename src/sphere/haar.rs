@@ -162,8 +162,22 @@ pub fn forward_interleaved<T: Real>(
         data[0] = src[i];
         return;
     }
-    let m = n / 2;
-    let at = |p: usize| src[p * k + i];
+    forward_level(|p| src[p * k + i], n, n, data, n);
+    forward_levels(data, n, n / 2, scratch);
+}
+
+/// One level of the forward transform: the `s × s` block read through `at` (row stride
+/// `n`) into its averages (top left) and horizontal, vertical and diagonal differences,
+/// written to `out` with row stride `out_n`.
+#[inline(always)]
+fn forward_level<T: Real>(
+    at: impl Fn(usize) -> T,
+    n: usize,
+    s: usize,
+    out: &mut [T],
+    out_n: usize,
+) {
+    let m = s / 2;
     for r in 0..m {
         let (top, bot) = (2 * r * n, 2 * r * n + n);
         for c in 0..m {
@@ -171,13 +185,12 @@ pub fn forward_interleaved<T: Real>(
             let (p10, p11) = (at(bot + 2 * c), at(bot + 2 * c + 1));
             let (sum0, dif0) = (p00 + p01, p00 - p01);
             let (sum1, dif1) = (p10 + p11, p10 - p11);
-            data[r * n + c] = T::HALF * (sum0 + sum1);
-            data[r * n + c + m] = T::HALF * (dif0 + dif1);
-            data[(r + m) * n + c] = T::HALF * (sum0 - sum1);
-            data[(r + m) * n + c + m] = T::HALF * (dif0 - dif1);
+            out[r * out_n + c] = T::HALF * (sum0 + sum1);
+            out[r * out_n + c + m] = T::HALF * (dif0 + dif1);
+            out[(r + m) * out_n + c] = T::HALF * (sum0 - sum1);
+            out[(r + m) * out_n + c + m] = T::HALF * (dif0 - dif1);
         }
     }
-    forward_levels(data, n, m, scratch);
 }
 
 /// The levels of the forward transform from the `s × s` top-left block of `data` (side
@@ -191,22 +204,7 @@ fn forward_levels<T: Real>(data: &mut [T], n: usize, mut s: usize, scratch: &mut
     );
     while s >= 2 {
         let m = s / 2;
-        for r in 0..m {
-            let top = 2 * r * n;
-            let bot = top + n;
-            for c in 0..m {
-                let p00 = data[top + 2 * c];
-                let p01 = data[top + 2 * c + 1];
-                let p10 = data[bot + 2 * c];
-                let p11 = data[bot + 2 * c + 1];
-                let (sum0, dif0) = (p00 + p01, p00 - p01);
-                let (sum1, dif1) = (p10 + p11, p10 - p11);
-                scratch[r * s + c] = T::HALF * (sum0 + sum1);
-                scratch[r * s + c + m] = T::HALF * (dif0 + dif1);
-                scratch[(r + m) * s + c] = T::HALF * (sum0 - sum1);
-                scratch[(r + m) * s + c + m] = T::HALF * (dif0 - dif1);
-            }
-        }
+        forward_level(|p| data[p], n, s, scratch, s);
         for r in 0..s {
             data[r * n..r * n + s].copy_from_slice(&scratch[r * s..r * s + s]);
         }
