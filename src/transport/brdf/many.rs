@@ -22,7 +22,6 @@
 use super::LobeAt;
 use crate::Vec3;
 use std::f64::consts::PI;
-use std::sync::{Arc, Mutex};
 
 /// Sample directions (unit vectors, local frame) and their solid angles, one array per
 /// component.
@@ -32,9 +31,6 @@ pub(crate) struct Samples {
     pub y: Vec<f64>,
     pub z: Vec<f64>,
     pub w: Vec<f64>,
-    /// GGX's `G1(ω_i)` denominators per sample, one array per `α²` (keyed by its bits),
-    /// built on first use ([`Samples::ggx_denominators`]).
-    ggx: Mutex<Vec<(u64, Arc<Vec<f64>>)>>,
 }
 
 /// GGX's `G1(ω_i)` denominator `g = cᵢ + √(α² + (1−α²) cᵢ²)` for `cᵢ = n·ω_i`: the
@@ -52,19 +48,10 @@ impl Samples {
         self.w.push(w);
     }
 
-    /// [`ggx_denominator`] of every sample for `α² = a2`, computed on the first call for
-    /// that `a2` and shared after it (a basis has a few GGX lobes, so the list stays short).
-    pub fn ggx_denominators(&self, a2: f64) -> Arc<Vec<f64>> {
-        let key = a2.to_bits();
-        // A poisoned lock only means another thread panicked while pushing: the list is
-        // still a list of complete entries.
-        let mut list = self.ggx.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, g)) = list.iter().find(|(k, _)| *k == key) {
-            return g.clone();
-        }
-        let g: Arc<Vec<f64>> = Arc::new(self.z.iter().map(|&ci| ggx_denominator(a2, ci)).collect());
-        list.push((key, g.clone()));
-        g
+    /// [`ggx_denominator`] of every sample for `α² = a2` (kept per lobe and level by the
+    /// slices' grid, so computed once).
+    pub fn ggx_denominators(&self, a2: f64) -> Vec<f64> {
+        self.z.iter().map(|&ci| ggx_denominator(a2, ci)).collect()
     }
 
     #[cfg(test)]
@@ -247,7 +234,7 @@ mod tests {
                 let lobe = b.at(&wo);
                 let g = match lobe {
                     LobeAt::Ggx { a2, .. } => s.ggx_denominators(a2),
-                    _ => Arc::new(Vec::new()),
+                    _ => Vec::new(),
                 };
                 lobe.eval_many(&s, &g, 0..s.len(), &mut out);
                 for (i, &o) in out.iter().enumerate() {

@@ -42,9 +42,6 @@ pub struct SliceGrid {
     pub solid_angle: Vec<f64>,
     /// Largest angle between a texel's centre and its corners (radians).
     pub radius: Vec<f64>,
-    /// `(cos, sin)` of [`SliceGrid::radius`], so that [`BasisBrdf::slice_with`] tests
-    /// "within `5σ + r` of the peak" by a dot product instead of an `acos` per texel.
-    radius_cos_sin: Vec<(f64, f64)>,
     /// `levels[k]`: sub-texels at `s = 2^(k+1)`, texel-major (`s²` per texel).
     levels: Vec<Samples>,
     /// `level_solid_angle[k][t]`: the sum of texel `t`'s sub-texel solid angles at `levels[k]`
@@ -86,7 +83,6 @@ impl SliceGrid {
                     .fold(0.0, f64::max)
             })
             .collect();
-        let radius_cos_sin = radius.iter().map(|r: &f64| (r.cos(), r.sin())).collect();
         let mut levels = Vec::new();
         let mut level_solid_angle = Vec::new();
         for k in 1..=MAX_LEVEL {
@@ -113,7 +109,6 @@ impl SliceGrid {
             centre_norm,
             solid_angle,
             radius,
-            radius_cos_sin,
             levels,
             level_solid_angle,
             rules: Mutex::new(Vec::new()),
@@ -284,7 +279,7 @@ impl BasisBrdf {
                 }
             }
         }
-        integrate_texels(&self.at(wo), grid, &levels, out);
+        integrate_texels(&self.at(wo), grid, &rule, &levels, out);
     }
 }
 
@@ -305,6 +300,9 @@ struct LobeTexels {
     /// The same at the negligible angle `θ_z` (the texel wholly beyond it), `−∞` when the
     /// lobe has none or `θ_z + r_t ≥ π`.
     zero_cos: Vec<f64>,
+    /// GGX: `α²` and, per refinement level, the `G1(ω_i)` denominator of every sample
+    /// ([`Samples::ggx_denominators`]), built on the level's first use.
+    ggx: Option<(f64, [OnceLock<Vec<f64>>; MAX_LEVEL])>,
 }
 
 impl LobeTexels {
@@ -316,6 +314,7 @@ impl LobeTexels {
                 always_near: vec![true; n],
                 near_cos: vec![f64::NEG_INFINITY; n],
                 zero_cos: vec![f64::NEG_INFINITY; n],
+                ggx: None,
             };
         }
         let sigma = b.lobe_sigma();
@@ -324,7 +323,7 @@ impl LobeTexels {
         let (cz, sz) = zero_at.map_or((0.0, 0.0), |z| (z.cos(), z.sin()));
         let texel = |t: usize| {
             let r = grid.radius[t];
-            let (cr, sr) = grid.radius_cos_sin[t];
+            let (cr, sr) = (r.cos(), r.sin());
             let zero = match zero_at {
                 Some(z) if z + r < PI => cz * cr - sz * sr,
                 _ => f64::NEG_INFINITY,
@@ -342,6 +341,22 @@ impl LobeTexels {
             always_near: all.iter().map(|a| a.1).collect(),
             near_cos: all.iter().map(|a| a.2).collect(),
             zero_cos: all.iter().map(|a| a.3).collect(),
+            // α² as `BasisBrdf::at` computes it, so the denominators are its bits.
+            ggx: match *b {
+                BasisBrdf::Ggx { alpha } => Some((alpha * alpha, Default::default())),
+                _ => None,
+            },
+        }
+    }
+
+    /// GGX's `G1(ω_i)` denominators of `samples`, the sub-texels of `level` (1-based);
+    /// empty for other lobes.
+    fn ggx_denominators(&self, level: usize, samples: &Samples) -> &[f64] {
+        match &self.ggx {
+            Some((a2, by_level)) => {
+                by_level[level - 1].get_or_init(|| samples.ggx_denominators(*a2))
+            }
+            None => &[],
         }
     }
 }
@@ -353,10 +368,14 @@ const TEXEL_BATCH: usize = 256;
 /// runs of consecutive texels at one level are contiguous in the level's sample arrays, so
 /// they are evaluated together (`LobeAt::eval_many`), then summed texel by texel in
 /// sample order.
-fn integrate_texels(lobe: &LobeAt, grid: &SliceGrid, levels: &[u8], out: &mut [f64]) {
+fn integrate_texels(
+    lobe: &LobeAt,
+    grid: &SliceGrid,
+    rule: &LobeTexels,
+    levels: &[u8],
+    out: &mut [f64],
+) {
     let mut vals = [0.0f64; TEXEL_BATCH];
-    // GGX's per-sample G1 denominators of each level, fetched once per slice.
-    let mut ggx_g: [Option<Arc<Vec<f64>>>; MAX_LEVEL] = Default::default();
     let mut t = 0;
     while t < out.len() {
         let level = levels[t] as usize;
@@ -373,12 +392,7 @@ fn integrate_texels(lobe: &LobeAt, grid: &SliceGrid, levels: &[u8], out: &mut [f
         }
         let samples = &grid.levels[level - 1];
         let dens = &grid.level_solid_angle[level - 1];
-        let g: &[f64] = match *lobe {
-            LobeAt::Ggx { a2, .. } => {
-                ggx_g[level - 1].get_or_insert_with(|| samples.ggx_denominators(a2))
-            }
-            _ => &[],
-        };
+        let g = rule.ggx_denominators(level, samples);
         for chunk in (t * s2..end * s2).step_by(TEXEL_BATCH) {
             let hi = (chunk + TEXEL_BATCH).min(end * s2);
             lobe.eval_many(samples, g, chunk..hi, &mut vals);
