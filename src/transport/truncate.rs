@@ -62,18 +62,16 @@ pub(super) fn truncate_global(
     if sel.hint.len() <= slot {
         sel.hint.resize(slot + 1, 0);
     }
-    let want = keep.min(idx.len());
-    let hinted = match sel.hint[slot] {
-        0 => None,
-        h if keep > 0 && want > 0 => hinted_threshold(global, h, want),
-        _ => None,
-    };
-    let (k, lowest) = match hinted {
-        Some(t) => (want, t),
-        None => match histogram_threshold(global, sel, keep, idx.len()) {
-            Some(kt) => kt,
-            None => return 0,
-        },
+    // `want > 0` needs `keep > 0`: keeping every coefficient (`keep == 0`) has no hint.
+    let (want, hint) = (keep.min(idx.len()), sel.hint[slot]);
+    let hinted = (want > 0 && hint != 0)
+        .then(|| hinted_threshold(global, hint, want))
+        .flatten();
+    let Some((k, lowest)) = hinted
+        .map(|t| (want, t))
+        .or_else(|| histogram_threshold(global, sel, keep, idx.len()))
+    else {
+        return 0;
     };
     sel.kept.clear();
     sel.kept.extend(
