@@ -14,6 +14,9 @@ use std::fmt::Write;
 #[path = "../tests/support/random.rs"]
 mod random;
 use random::random_unit;
+#[path = "support/today.rs"]
+mod today;
+use today::today;
 
 fn main() {
     let grid = SliceGrid::new(32).expect("grid");
@@ -30,13 +33,7 @@ fn main() {
         parse_list("lambert,ggx:0.1,ggx:0.2,ggx:0.35,ggx:0.6,phong:50,phong:500").expect("basis");
     let mut out = vec![0.0; 1024];
     let mut check = 0.0;
-    // The date of the measurement, from the system's `date` (the bench has no clock crate).
-    let date = std::process::Command::new("date")
-        .args(["-u", "+%F"])
-        .output()
-        .ok()
-        .and_then(|o| String::from_utf8(o.stdout).ok())
-        .map_or_else(|| "(date unknown)".to_string(), |d| d.trim().to_string());
+    let date = today();
     let mut md = format!("# On-demand slices, 32² local map\n\nMeasured {date} with `cargo bench --bench slicetime`; 20,000 outgoing directions per lobe, CPU µs per slice (user + system, 1/100 s ticks).\n\n| lobe | µs / slice |\n|---|---:|\n");
     for b in basis {
         let watch = Stopwatch::start();
