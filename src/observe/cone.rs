@@ -313,9 +313,9 @@ fn build(tris: &mut [[Vec3; 3]], start: usize, end: usize, nodes: &mut Vec<Node>
         return me;
     }
     let centroid = |t: &[Vec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
-    let (clo, chi) = tris[start..end].iter().fold(
+    let (clo, chi) = tris[start..end].iter().map(centroid).fold(
         (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)),
-        |(lo, hi), t| (lo.inf(&centroid(t)), hi.sup(&centroid(t))),
+        |(lo, hi), c| (lo.inf(&c), hi.sup(&c)),
     );
     let axis = (chi - clo).imax();
     let mid = start + (end - start) / 2;

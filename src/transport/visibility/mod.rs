@@ -206,10 +206,15 @@ pub fn compute(
     rays_per_texel: usize,
     seed: u64,
 ) -> Visibility {
-    let sampling = Sampling::Uniform {
-        rays: rays_per_texel,
-    };
-    compute_sampled(mesh, bvh, env_from_world, n_local, sampling, seed, true)
+    compute_with(
+        mesh,
+        bvh,
+        env_from_world,
+        n_local,
+        rays_per_texel,
+        seed,
+        true,
+    )
 }
 
 /// [`compute`] with the open-hemisphere shortcut switchable (`skip_open = false` traces every
