@@ -5,8 +5,9 @@
 use crate::sphere::envmap::{LatLong, OctEnv};
 use crate::{Error, Result, Vec3};
 use nalgebra::Matrix3;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// One photo's entry in `truth/manifest.json`.
 #[derive(Debug, Clone)]
@@ -30,7 +31,13 @@ pub struct Truth {
     pub env_from_world: Matrix3<f64>,
     /// Per photo name.
     pub photos: BTreeMap<String, TruthPhoto>,
+    /// The maps [`Truth::light`] has made, by photo, side and frame: a held-out photo's
+    /// light is asked for by the held-out tracker and again by the evaluation.
+    lights: Arc<Mutex<HashMap<LightKey, OctEnv>>>,
 }
+
+/// A photo name, a map side and the bits of the run's `env_from_world`.
+type LightKey = (String, usize, [u64; 9]);
 
 impl Truth {
     /// Read `dir/manifest.json`.
@@ -79,14 +86,39 @@ impl Truth {
             held_out,
             env_from_world,
             photos,
+            lights: Arc::default(),
         })
     }
 
     /// The light photo `name` was taken under, as this run's model sees it: the truth map
     /// resampled into the run's environment frame (`env_from_world`) on an `n × n`
     /// octahedral map, times the photo's exposure and white balance. `None` when the
-    /// manifest does not list the photo.
+    /// manifest does not list the photo. Each map is made once and kept.
     pub fn light(
+        &self,
+        name: &str,
+        n: usize,
+        env_from_world: &Matrix3<f64>,
+    ) -> Result<Option<OctEnv>> {
+        let key = (
+            name.to_string(),
+            n,
+            std::array::from_fn(|i| env_from_world.as_slice()[i].to_bits()),
+        );
+        // A poisoned lock only means another thread panicked: the maps in it are whole.
+        let lock = || self.lights.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(env) = lock().get(&key) {
+            return Ok(Some(env.clone()));
+        }
+        let env = self.make_light(name, n, env_from_world)?;
+        if let Some(env) = &env {
+            lock().insert(key, env.clone());
+        }
+        Ok(env)
+    }
+
+    /// [`Truth::light`] without the cache.
+    fn make_light(
         &self,
         name: &str,
         n: usize,
