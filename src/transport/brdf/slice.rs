@@ -248,30 +248,8 @@ impl BasisBrdf {
         let rule = grid.lobe_texels(self);
         let p = self.peak(wo).normalize();
         let n = out.len();
-        let (cx, cy, cz) = (
-            &grid.centre_x[..n],
-            &grid.centre_y[..n],
-            &grid.centre_z[..n],
-        );
-        let norm = &grid.centre_norm[..n];
-        let (zero_cos, near_cos) = (&rule.zero_cos[..n], &rule.near_cos[..n]);
-        let (always_near, near_level) = (&rule.always_near[..n], &rule.near_level[..n]);
-        // Each texel's refinement level (0: written as zero without sampling), branch-free
-        // over slices of one length so that the texels go several at a time.
         let mut levels = vec![0u8; n];
-        for t in 0..n {
-            // The cosine to the peak: nalgebra's `dot` of the centre and p̂, over the norm.
-            let cos_peak = (cx[t] * p.x + cy[t] * p.y + cz[t] * p.z) / norm[t];
-            let zero = skip_negligible & (cos_peak < zero_cos[t]);
-            let near = always_near[t] | (cos_peak > near_cos[t]);
-            levels[t] = if zero {
-                0
-            } else if near {
-                near_level[t]
-            } else {
-                1
-            };
-        }
+        texel_levels(grid, &rule, &p, skip_negligible, &mut levels);
         if let Some(w) = weight {
             for (level, &w) in levels.iter_mut().zip(&w[..n]) {
                 if w == 0.0 {
@@ -282,6 +260,78 @@ impl BasisBrdf {
         integrate_texels(&self.at(wo), grid, &rule, &levels, out);
     }
 }
+
+/// Each texel's refinement level under `rule` for the peak direction `p` (0: written as
+/// zero without sampling; `skip_negligible` allows it), compiled for AVX2 too when the CPU
+/// has it (the same operations lane by lane: the same levels).
+fn texel_levels(
+    grid: &SliceGrid,
+    rule: &LobeTexels,
+    p: &Vec3,
+    skip_negligible: bool,
+    levels: &mut [u8],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports the feature the function is compiled for.
+        return unsafe { texel_levels_avx2(grid, rule, p, skip_negligible, levels) };
+    }
+    texel_levels_impl(grid, rule, p, skip_negligible, levels)
+}
+
+/// [`texel_levels`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn texel_levels_avx2(
+    grid: &SliceGrid,
+    rule: &LobeTexels,
+    p: &Vec3,
+    skip_negligible: bool,
+    levels: &mut [u8],
+) {
+    texel_levels_impl(grid, rule, p, skip_negligible, levels)
+}
+
+/// The loops behind [`texel_levels`], in blocks of [`LEVEL_BLOCK`] texels: first every
+/// texel's cosine to the peak (the division several texels at a time), then its level,
+/// branch-free.
+#[inline(always)]
+fn texel_levels_impl(
+    grid: &SliceGrid,
+    rule: &LobeTexels,
+    p: &Vec3,
+    skip_negligible: bool,
+    levels: &mut [u8],
+) {
+    let n = levels.len();
+    let mut cos_peak = [0.0f64; LEVEL_BLOCK];
+    for start in (0..n).step_by(LEVEL_BLOCK) {
+        let end = (start + LEVEL_BLOCK).min(n);
+        let (cx, cy, cz) = (
+            &grid.centre_x[start..end],
+            &grid.centre_y[start..end],
+            &grid.centre_z[start..end],
+        );
+        let norm = &grid.centre_norm[start..end];
+        let cos_peak = &mut cos_peak[..end - start];
+        for (k, c) in cos_peak.iter_mut().enumerate() {
+            // nalgebra's `dot` of the centre and p̂ (in its order), over the norm.
+            *c = (cx[k] * p.x + cy[k] * p.y + cz[k] * p.z) / norm[k];
+        }
+        let (zero_cos, near_cos) = (&rule.zero_cos[start..end], &rule.near_cos[start..end]);
+        let always_near = &rule.always_near[start..end];
+        let near_level = &rule.near_level[start..end];
+        for (k, level) in levels[start..end].iter_mut().enumerate() {
+            let zero = skip_negligible & (cos_peak[k] < zero_cos[k]);
+            let near = always_near[k] | (cos_peak[k] > near_cos[k]);
+            let l = if near { near_level[k] } else { 1 };
+            *level = if zero { 0 } else { l };
+        }
+    }
+}
+
+/// Texels per block of [`texel_levels`] (their cosines on the stack).
+const LEVEL_BLOCK: usize = 64;
 
 /// A lobe's refinement rule over a grid's texels ([`BasisBrdf::slice_with`]), the parts
 /// that do not depend on `ω_o`, computed once per lobe and grid
