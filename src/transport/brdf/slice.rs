@@ -426,6 +426,8 @@ fn integrate_texels(
     out: &mut [f64],
 ) {
     let mut vals = [0.0f64; TEXEL_BATCH];
+    // A batch's texels' weighted sums (at least 4 samples a texel).
+    let mut nums = [0.0f64; TEXEL_BATCH / 4];
     let mut t = 0;
     while t < out.len() {
         let level = levels[t] as usize;
@@ -446,15 +448,27 @@ fn integrate_texels(
         for chunk in (t * s2..end * s2).step_by(TEXEL_BATCH) {
             let hi = (chunk + TEXEL_BATCH).min(end * s2);
             lobe.eval_many(samples, g, chunk..hi, &mut vals);
-            for (k, tex_vals) in vals[..hi - chunk].chunks(s2).enumerate() {
-                let tt = chunk / s2 + k;
-                let ws = &samples.w[tt * s2..(tt + 1) * s2];
-                let mut num = 0.0;
-                for (v, w) in tex_vals.iter().zip(ws) {
-                    num += v * w;
+            // The batch's texels are contiguous: their weighted sums, then their divisions
+            // in one loop (so that the divisions overlap instead of each ending a texel).
+            let (t0, texels) = (chunk / s2, (hi - chunk) / s2);
+            let ws = &samples.w[chunk..hi];
+            for ((num, tex_vals), tex_ws) in nums
+                .iter_mut()
+                .zip(vals[..hi - chunk].chunks_exact(s2))
+                .zip(ws.chunks_exact(s2))
+            {
+                let mut sum = 0.0;
+                for (v, w) in tex_vals.iter().zip(tex_ws) {
+                    sum += v * w;
                 }
-                let den = dens[tt];
-                out[tt] = if den > 0.0 { num / den } else { 0.0 };
+                *num = sum;
+            }
+            for ((o, &num), &den) in out[t0..t0 + texels]
+                .iter_mut()
+                .zip(&nums)
+                .zip(&dens[t0..t0 + texels])
+            {
+                *o = if den > 0.0 { num / den } else { 0.0 };
             }
         }
         t = end;
