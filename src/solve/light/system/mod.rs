@@ -58,6 +58,12 @@ pub(crate) struct PhotoSystem {
 /// `PRODUCT_CHUNKS × n²` buffer sum to a product that reads every merged row.
 pub(crate) const PRODUCT_CHUNKS: usize = 4;
 
+/// Merged entries from which [`PhotoSystem::normal_rows`] runs its parts in parallel;
+/// smaller products run them one after another on the calling thread (the same parts
+/// summed in the same order, so the same result): there a task per part costs more than
+/// it saves, and the estimate already runs its photos in parallel.
+pub(crate) const PARALLEL_PRODUCT_ENTRIES: usize = 1 << 17;
+
 /// `parts` contiguous ranges of `0..offsets.len() − 1` (rows), cut where the running entry
 /// count `offsets[q]` crosses `k/parts` of the total; empty ranges are dropped.
 pub(crate) fn entry_chunks(offsets: &[usize], parts: usize) -> Vec<std::ops::Range<usize>> {
@@ -248,17 +254,18 @@ impl PhotoSystem {
         #[cfg(target_arch = "x86_64")]
         if self.value.len() > self.index.len() && std::is_x86_feature_detected!("avx2") {
             let h4: Vec<[f64; 4]> = h.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
-            let parts: Vec<Vec<[f64; 4]>> = self
-                .chunks
-                .par_iter()
-                .map(|rows| {
-                    let mut acc = vec![[0.0_f64; 4]; out.len()];
-                    // SAFETY: the CPU has AVX2, and `value` has an entry past the last row's
-                    // (the condition above), which `normal_part_avx2` needs.
-                    unsafe { self.normal_part_avx2(rows.clone(), &h4, &mut acc) };
-                    acc
-                })
-                .collect();
+            let part = |rows: &std::ops::Range<usize>| {
+                let mut acc = vec![[0.0_f64; 4]; out.len()];
+                // SAFETY: the CPU has AVX2, and `value` has an entry past the last row's
+                // (the condition above), which `normal_part_avx2` needs.
+                unsafe { self.normal_part_avx2(rows.clone(), &h4, &mut acc) };
+                acc
+            };
+            let parts: Vec<Vec<[f64; 4]>> = if self.index.len() >= PARALLEL_PRODUCT_ENTRIES {
+                self.chunks.par_iter().map(part).collect()
+            } else {
+                self.chunks.iter().map(part).collect()
+            };
             add_parts(&parts, out);
             return;
         }
@@ -284,7 +291,11 @@ impl PhotoSystem {
             }
             acc
         };
-        let parts: Vec<Vec<[f64; 3]>> = self.chunks.par_iter().map(part).collect();
+        let parts: Vec<Vec<[f64; 3]>> = if self.index.len() >= PARALLEL_PRODUCT_ENTRIES {
+            self.chunks.par_iter().map(part).collect()
+        } else {
+            self.chunks.iter().map(part).collect()
+        };
         add_parts(&parts, out);
     }
 
