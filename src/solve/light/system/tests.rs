@@ -382,3 +382,55 @@ fn an_energy_cut_drops_the_most_entries_whose_energy_fits_the_tolerance() {
     }
     assert!(cut_rows > rows / 2, "{cut_rows} of {rows} rows cut");
 }
+
+#[test]
+fn parallel_and_sequential_parts_give_the_same_product_bit_for_bit() {
+    // A system above `PARALLEL_PRODUCT_ENTRIES` (its parts run in parallel) against the
+    // same parts each run as a one-part system (sequential, on this thread) and added in
+    // part order: the same additions in the same order, so equal bit for bit.
+    let mut rng = rand::rngs::StdRng::seed_from_u64(13);
+    let n = 32;
+    let rows = 1200;
+    let (offsets, index, mut value) = random_rows(&mut rng, n, rows, 300);
+    value.push([0.0; 3]);
+    assert!(
+        index.len() >= PARALLEL_PRODUCT_ENTRIES,
+        "{} entries",
+        index.len()
+    );
+    let dw = random_weights(&mut rng, rows, 5);
+    let sys = PhotoSystem {
+        range: 0..rows,
+        n,
+        dw,
+        chunks: entry_chunks(&offsets, PRODUCT_CHUNKS),
+        offsets,
+        index,
+        value,
+    };
+    let h = random_light(&mut rng, n * n);
+    let mut parallel = vec![[0.25; 3]; n * n];
+    sys.normal_rows(&h, &mut parallel);
+    let mut by_part = vec![[0.25; 3]; n * n];
+    assert_eq!(sys.chunks.len(), PRODUCT_CHUNKS);
+    for rows in &sys.chunks {
+        let one = PhotoSystem {
+            range: sys.range.clone(),
+            n,
+            dw: sys.dw.clone(),
+            offsets: sys.offsets.clone(),
+            index: sys.index.clone(),
+            value: sys.value.clone(),
+            chunks: vec![rows.clone()],
+        };
+        let mut part = vec![[0.0; 3]; n * n];
+        one.normal_rows(&h, &mut part);
+        for (o, p) in by_part.iter_mut().zip(&part) {
+            for c in 0..3 {
+                o[c] += p[c];
+            }
+        }
+    }
+    assert!(parallel.iter().flatten().any(|v| (v - 0.25).abs() > 1.0));
+    assert_eq!(parallel, by_part);
+}
