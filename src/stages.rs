@@ -86,6 +86,19 @@ pub struct StageRecord {
     pub memory_exact: bool,
 }
 
+impl StageRecord {
+    /// The stage's peak memory for a report's table: MiB to one decimal, marked when it is
+    /// the process peak so far rather than the stage's own.
+    pub fn peak_mib_label(&self) -> String {
+        let mib = self.peak_memory_bytes as f64 / (1u64 << 20) as f64;
+        if self.memory_exact {
+            format!("{mib:.1}")
+        } else {
+            format!("{mib:.1} (process peak)")
+        }
+    }
+}
+
 /// Wall and CPU seconds (user + system, all threads, [`cpu_seconds`]' 1/100 s ticks) since
 /// it was started.
 #[derive(Debug, Clone, Copy)]

@@ -334,16 +334,11 @@ fn stages_section(s: &mut String, r: &RunReport) {
     for st in &r.stage_details {
         let _ = writeln!(
             s,
-            "<tr><td class=\"l\">{}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1}{}</td></tr>",
+            "<tr><td class=\"l\">{}</td><td>{:.2}</td><td>{:.2}</td><td>{}</td></tr>",
             esc(&st.name),
             st.seconds,
             st.cpu_seconds,
-            st.peak_memory_bytes as f64 / (1u64 << 20) as f64,
-            if st.memory_exact {
-                ""
-            } else {
-                " (process peak)"
-            }
+            st.peak_mib_label()
         );
     }
     let _ = writeln!(s, "</table>");

@@ -126,16 +126,11 @@ impl RunReport {
         for st in &self.stage_details {
             let _ = writeln!(
                 s,
-                "| {} | {:.2} | {:.2} | {:.1}{} |",
+                "| {} | {:.2} | {:.2} | {} |",
                 st.name,
                 st.seconds,
                 st.cpu_seconds,
-                st.peak_memory_bytes as f64 / (1u64 << 20) as f64,
-                if st.memory_exact {
-                    ""
-                } else {
-                    " (process peak)"
-                }
+                st.peak_mib_label()
             );
         }
         let _ = writeln!(
