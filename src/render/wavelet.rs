@@ -238,10 +238,16 @@ impl<'a, R: LocalRotation> WaveletRenderer<'a, R> {
     ) {
         let nl2 = self.rot.n_local() * self.rot.n_local();
         if let (Some(splat), Some(il)) = (self.rot.as_splat(), &self.interleaved) {
-            let spans: Vec<std::ops::Range<usize>> = views
-                .iter()
-                .map(|v| 3 * v.lights.start..3 * v.lights.end)
-                .collect();
+            // The views' slots, those of consecutive views as one run (the same slots in
+            // the same places, fewer and longer loops per sub-texel).
+            let mut spans: Vec<std::ops::Range<usize>> = Vec::with_capacity(views.len());
+            for v in views.iter().filter(|v| !v.lights.is_empty()) {
+                let s = 3 * v.lights.start..3 * v.lights.end;
+                match spans.last_mut() {
+                    Some(last) if last.end == s.start => last.end = s.end,
+                    _ => spans.push(s),
+                }
+            }
             splat.resample_interleaved(normal, il, 3 * self.lights.len(), &spans, buffer);
             split_interleaved(buffer, nl2, locals);
             return;

@@ -188,22 +188,13 @@ impl SplatRotation {
         let w: usize = spans.iter().map(|s| s.len()).sum();
         local.clear();
         local.resize(self.local.len() * w, 0.0);
-        // Spans that follow one another (the lights of consecutive views) as one run: the
-        // same slots in the same places, fewer and longer loops per sub-texel.
-        let mut runs: Vec<std::ops::Range<usize>> = Vec::with_capacity(spans.len());
-        for s in spans.iter().filter(|s| !s.is_empty()) {
-            match runs.last_mut() {
-                Some(last) if last.end == s.start => last.end = s.end,
-                _ => runs.push(s.clone()),
-            }
-        }
         self.for_each_sub(normal, |g, j, wk| {
             let (src, dst) = (
                 &global[g * width..(g + 1) * width],
                 &mut local[j * w..(j + 1) * w],
             );
             let mut at = 0;
-            for s in &runs {
+            for s in spans {
                 let d = &mut dst[at..at + s.len()];
                 at += s.len();
                 for (o, v) in d.iter_mut().zip(&src[s.clone()]) {
