@@ -261,12 +261,7 @@ impl PhotoSystem {
                 unsafe { self.normal_part_avx2(rows.clone(), &h4, &mut acc) };
                 acc
             };
-            let parts: Vec<Vec<[f64; 4]>> = if self.index.len() >= PARALLEL_PRODUCT_ENTRIES {
-                self.chunks.par_iter().map(part).collect()
-            } else {
-                self.chunks.iter().map(part).collect()
-            };
-            add_parts(&parts, out);
+            add_parts(&self.map_parts(part), out);
             return;
         }
         let part = |rows: &std::ops::Range<usize>| {
@@ -291,12 +286,20 @@ impl PhotoSystem {
             }
             acc
         };
-        let parts: Vec<Vec<[f64; 3]>> = if self.index.len() >= PARALLEL_PRODUCT_ENTRIES {
+        add_parts(&self.map_parts(part), out);
+    }
+
+    /// `part` of every one of the product's parts, in part order: in parallel from
+    /// [`PARALLEL_PRODUCT_ENTRIES`] merged entries, else one after another on this thread.
+    fn map_parts<T: Send>(
+        &self,
+        part: impl Fn(&std::ops::Range<usize>) -> T + Sync + Send,
+    ) -> Vec<T> {
+        if self.index.len() >= PARALLEL_PRODUCT_ENTRIES {
             self.chunks.par_iter().map(part).collect()
         } else {
-            self.chunks.iter().map(part).collect()
-        };
-        add_parts(&parts, out);
+            self.chunks.iter().map(&part).collect()
+        }
     }
 
     /// `acc += e_q (d_q ⊙ r)` for merged row `q` = `row` and its response `r`, skipped when
