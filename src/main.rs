@@ -212,6 +212,9 @@ enum Command {
         /// Also fit each vertex-scaling scene with the adaptive model (`--adaptive on`).
         #[arg(long)]
         adaptive_rows: bool,
+        /// Fit with `run --large-mesh` (its lighting step cap replaces the sweep's).
+        #[arg(long)]
+        large_mesh: bool,
         /// No per-stage progress of the runs.
         #[arg(long)]
         quiet: bool,
@@ -458,6 +461,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             materials,
             basis,
             adaptive_rows,
+            large_mesh,
             quiet,
             iterations,
             name,
@@ -497,6 +501,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
             if basis.is_some() {
                 opts.model.basis = basis;
             }
+            opts.model.large_mesh = large_mesh;
             opts.adaptive_rows = adaptive_rows;
             opts.progress = !quiet && !quick;
             if iterations == Some(0) {
@@ -555,6 +560,50 @@ mod tests {
         want.adaptive = true;
         // Debug prints every field, floats to the last bit, so this is exact equality.
         assert_eq!(format!("{got:?}"), format!("{want:?}"));
+    }
+
+    /// `--large-mesh` means exactly the four flags its help names, and refuses to be
+    /// combined with any of them (the user would not know which value won).
+    #[test]
+    fn large_mesh_means_the_flags_its_help_names() {
+        use clap::CommandFactory;
+        let cli = Cli::command();
+        let run = cli.find_subcommand("run").unwrap();
+        let help = run
+            .get_arguments()
+            .find(|a| a.get_long() == Some("large-mesh"))
+            .and_then(|a| a.get_help())
+            .unwrap()
+            .to_string();
+        // The help lists the flags after "and more:" up to the parenthesis.
+        let named = help
+            .split("more: ")
+            .nth(1)
+            .unwrap()
+            .split(" (")
+            .next()
+            .unwrap();
+        let flags: Vec<&str> = named.split_whitespace().collect();
+        assert_eq!(flags.len(), 8, "four flags with values in {help:?}");
+        let options = |extra: &[&str]| {
+            let base = ["relight-cpc", "run", "ws", "--out", "o"];
+            let args = base.iter().chain(extra).copied();
+            let Command::Run(args) = Cli::try_parse_from(args).unwrap().command else {
+                panic!("`run` parsed as another subcommand");
+            };
+            format!("{:?}", args.options().unwrap())
+        };
+        assert_eq!(options(&["--large-mesh"]), options(&flags));
+        assert_ne!(options(&["--large-mesh"]), options(&[]));
+        for pair in flags.chunks(2) {
+            let args = ["relight-cpc", "run", "ws", "--large-mesh", pair[0], pair[1]];
+            let err = Cli::try_parse_from(args).err().expect("a conflict");
+            assert_eq!(
+                err.kind(),
+                clap::error::ErrorKind::ArgumentConflict,
+                "{pair:?}"
+            );
+        }
     }
 
     /// `run --help` groups its flags under the six headings, in plain words: none of the

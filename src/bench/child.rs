@@ -28,6 +28,9 @@ pub(crate) fn measure(
     o.keep = knobs.keep;
     o.max_iterations = knobs.iterations;
     o.lighting_qp_iterations = knobs.lighting_qp;
+    if model.large_mesh {
+        crate::run::LARGE_MESH.apply(&mut o);
+    }
     o.progress = opts.progress;
     o.force = true;
     o.render_training = false;
@@ -176,9 +179,15 @@ pub(crate) fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
         ("--normal-grid", o.normal_grid),
         ("--keep", o.keep),
         ("--iterations", o.max_iterations),
-        ("--lighting-qp-iterations", o.lighting_qp_iterations),
     ] {
         a.extend([flag.into(), v.to_string()]);
+    }
+    // `--large-mesh` sets the lighting step cap itself and refuses the flag beside it.
+    if model.large_mesh {
+        a.push("--large-mesh".into());
+    } else {
+        let cap = o.lighting_qp_iterations.to_string();
+        a.extend(["--lighting-qp-iterations".into(), cap]);
     }
     if !o.progress {
         a.push("--quiet".into());

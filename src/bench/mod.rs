@@ -88,7 +88,8 @@ pub struct BenchOptions {
     pub executable: Option<PathBuf>,
 }
 
-/// The model the bench's runs fit (the `run` flags `--materials`, `--basis`, `--adaptive`).
+/// The model the bench's runs fit (the `run` flags `--materials`, `--basis`, `--adaptive`,
+/// `--large-mesh`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Model {
     /// Number of materials; `None` = `auto`.
@@ -97,6 +98,9 @@ pub struct Model {
     pub basis: Option<String>,
     /// `run --adaptive`.
     pub adaptive: bool,
+    /// `run --large-mesh` ([`crate::run::LARGE_MESH`]; its lighting step cap replaces the
+    /// knobs').
+    pub large_mesh: bool,
 }
 
 impl Default for Model {
@@ -106,6 +110,7 @@ impl Default for Model {
             materials: None,
             basis: None,
             adaptive: false,
+            large_mesh: false,
         }
     }
 }
@@ -118,6 +123,7 @@ impl Model {
             materials: Some(6),
             basis: Some("lambert,ggx:0.1,ggx:0.2,ggx:0.35,ggx:0.6,phong:50,phong:500".into()),
             adaptive: false,
+            large_mesh: false,
         }
     }
 
@@ -128,10 +134,11 @@ impl Model {
             .as_deref()
             .map_or(3, |s| s.split(',').filter(|t| !t.trim().is_empty()).count());
         format!(
-            "K{} B{} adaptive {}",
+            "K{} B{} adaptive {}{}",
             self.materials.map_or("auto".into(), |k| k.to_string()),
             b,
-            if self.adaptive { "on" } else { "off" }
+            if self.adaptive { "on" } else { "off" },
+            if self.large_mesh { " large-mesh" } else { "" }
         )
     }
 }

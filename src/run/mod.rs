@@ -45,8 +45,8 @@ pub use evaluate::{fine_rays, render_local_resolution};
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    Holdout, MaterialCount, RunOptions, DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_GROUP_MINUTES,
-    LIGHTING_SAMPLE_MAX_RATIO,
+    Holdout, LargeMeshSettings, MaterialCount, RunOptions, DEFAULT_LIGHTING_SAMPLE,
+    DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;
 pub use truth::{Truth, TruthPhoto};
