@@ -2,7 +2,7 @@
 //! sentences on what the figures alone do not say.
 
 use super::pipeline::RunLog;
-use super::{Fitted, RunOptions, LIGHTING_SAMPLE_MAX_RATIO};
+use super::{Fitted, LargeMeshSettings, RunOptions, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO};
 
 /// The report's notes on the fit: ill-conditioned solves, the starts tried, the scale
 /// normalisation, early stopping and the lighting sample.
@@ -45,6 +45,12 @@ pub(crate) fn fit_notes(
     }
     log.notes
         .push(format!("scale normalisation: {}", fitted.est.normalisation));
+    let vertices = fitted.scene.mesh.positions.len();
+    if vertices >= LargeMeshSettings::SUGGEST_FROM_VERTICES && !LARGE_MESH.in_effect(opts) {
+        log.notes.push(format!(
+            "the mesh has {vertices} vertices: --large-mesh takes about 12% less time on meshes this size at the same held-out error (measured at 100K vertices; on small meshes it costs accuracy)"
+        ));
+    }
     if let Some(v) = &fitted.est.validation {
         log.notes.push(format!(
             "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",

@@ -227,12 +227,23 @@ pub const LARGE_MESH: LargeMeshSettings = LargeMeshSettings {
 };
 
 impl LargeMeshSettings {
+    /// Mesh size from which a run without these settings suggests them in a note.
+    pub const SUGGEST_FROM_VERTICES: usize = 50_000;
+
     /// Set these four options of `o`, leaving every other one as it is.
     pub fn apply(&self, o: &mut RunOptions) {
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.blend_tolerance = self.blend_tolerance;
         o.edge_rays = self.edge_rays;
         o.ray_lattice = self.ray_lattice;
+    }
+
+    /// Whether `o` has all four of these settings.
+    pub fn in_effect(&self, o: &RunOptions) -> bool {
+        o.lighting_qp_iterations == self.lighting_qp_iterations
+            && o.blend_tolerance == self.blend_tolerance
+            && o.edge_rays == self.edge_rays
+            && o.ray_lattice == self.ray_lattice
     }
 }
 
@@ -436,5 +447,39 @@ impl RunOptions {
             )));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `apply` sets the four options and nothing else, each differs from its default (or
+    /// the flag would not change it), and `in_effect` needs all four.
+    #[test]
+    fn large_mesh_settings_set_four_options_and_need_all_four() {
+        let default = RunOptions::new("ws".into(), "o".into());
+        assert!(!LARGE_MESH.in_effect(&default));
+        let mut o = default.clone();
+        LARGE_MESH.apply(&mut o);
+        assert!(LARGE_MESH.in_effect(&o));
+        let resets: [fn(&mut RunOptions, &RunOptions); 4] = [
+            |o, d| o.lighting_qp_iterations = d.lighting_qp_iterations,
+            |o, d| o.blend_tolerance = d.blend_tolerance,
+            |o, d| o.edge_rays = d.edge_rays,
+            |o, d| o.ray_lattice = d.ray_lattice,
+        ];
+        let mut all_reset = o.clone();
+        for reset in resets {
+            let mut one = o.clone();
+            reset(&mut one, &default);
+            assert!(
+                !LARGE_MESH.in_effect(&one),
+                "an option equal to its default"
+            );
+            reset(&mut all_reset, &default);
+        }
+        // Debug prints every field, floats to the last bit: nothing else was touched.
+        assert_eq!(format!("{all_reset:?}"), format!("{default:?}"));
     }
 }
