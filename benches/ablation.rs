@@ -40,7 +40,9 @@
 //! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
 //! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
 //! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
-//! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`),
+//! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`), `ABLATION_SEARCH`,
+//! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
+//! search, `ablation/search.rs`),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]

@@ -116,7 +116,58 @@ pub fn brightness_search(
         eprintln!("  search kept {:?}, score {:.5}", best.1, best.2);
         step = step.sqrt();
     }
+    if env_flag("ABLATION_SEARCH_CHANNELS") {
+        best = channel_round(case, fl, o, &init, best, label, done, &score);
+    }
     best.0
+}
+
+/// `ABLATION_SEARCH_CHANNELS=1`: one more round that scales one channel of one material
+/// `j ≥ 1`'s Lambertian weight by √2 or 1/√2 around the kept start (`2 × 3 × (K − 1)` fits),
+/// the lowest score kept. The first rounds scale R, G and B together, while the kept
+/// fits' albedo ratio errors differ per channel.
+#[allow(clippy::too_many_arguments)]
+fn channel_round(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    init: &Materials0,
+    best: (Estimate, Vec<f64>, f64),
+    label: &str,
+    done: &mut Vec<Done>,
+    score: &dyn Fn(&Estimate) -> (f64, String),
+) -> (Estimate, Vec<f64>, f64) {
+    let mut centre = init.clone();
+    for (j, f) in best.1.iter().enumerate() {
+        if let Some(v) = centre.lambda[j + 1].get_mut(0) {
+            *v = v.map(|x| x * f);
+        }
+    }
+    let mut best = best;
+    let mut kept = String::from("none");
+    for j in 1..centre.lambda.len() {
+        for ch in 0..3 {
+            for f in [std::f64::consts::SQRT_2, std::f64::consts::FRAC_1_SQRT_2] {
+                let mut m = centre.clone();
+                if let Some(v) = m.lambda[j].get_mut(0) {
+                    v[ch] *= f;
+                }
+                let what = format!("{:.3?}, material {j} channel {ch} ×{f:.3}", best.1);
+                let next = fit_from(case, fl, o, m, &what, label, done);
+                let s = score(&next);
+                eprintln!("    {}", s.1);
+                if let Some(last) = done.last_mut() {
+                    last.note = s.1;
+                }
+                if s.0 < best.2 {
+                    best = (next, best.1.clone(), s.0);
+                    kept = what;
+                }
+            }
+        }
+    }
+    eprintln!("  channel round kept {kept}, score {:.5}", best.2);
+    best
 }
 
 /// Protocol (b) on the training photos for fit `e` ([`half_score`]).
@@ -166,6 +217,19 @@ fn scaled_fit(
     label: &str,
     done: &mut Vec<Done>,
 ) -> Estimate {
+    fit_from(case, fl, o, m, &format!("{f:.3?}"), label, done)
+}
+
+/// One fit from start `m`, pushed as the row `{label}, start brightness ×{what}`.
+fn fit_from(
+    case: &Case,
+    fl: &Floors,
+    o: &EstimateOptions,
+    m: Materials0,
+    what: &str,
+    label: &str,
+    done: &mut Vec<Done>,
+) -> Estimate {
     let problem = case.train.problem(case.nv);
     let t0 = Instant::now();
     let next = estimate(&problem, m, o, &mut |_, _| {}).unwrap();
@@ -176,7 +240,7 @@ fn scaled_fit(
         start_ratio_errors(case, fl),
         t0.elapsed().as_secs_f64(),
     );
-    let row = format!("{label}, start brightness ×{f:.3?}");
+    let row = format!("{label}, start brightness ×{what}");
     eprintln!("  {row}: {fig:?}");
     done.push(Done {
         diagnosis: None,
