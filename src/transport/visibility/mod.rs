@@ -47,6 +47,10 @@
 //! whole map traced 62% of the rays of `lattice = 1` at a mean visible solid-angle error
 //! of 0.0190 sr against 0.0105; with the band 70% at 0.0138.
 //!
+//! The worker threads take the vertices along a Morton curve through the mesh's box
+//! ([`spatial_order`]), so that consecutive vertices' rays walk the same BVH nodes; a
+//! vertex's values do not depend on the order.
+//!
 //! A vertex's rays run texel by texel, so a blocked ray is most often blocked by the same
 //! triangle as the previous blocked one: that triangle is tested first
 //! ([`SceneBvh::occluded_hinted`], the same f64 test, so a ray it blocks is blocked) and the
@@ -76,8 +80,10 @@ use crate::sphere::{from_local, local_frame, SphereGrid};
 use crate::Vec3;
 
 mod cones;
+mod order;
 mod point_tree;
 use cones::{ConeScratch, OpenCones};
+pub use order::{morton_keys, spatial_order};
 use point_tree::PointTree;
 
 /// Per-vertex texel visibility in the local hemi-octahedral map.
@@ -253,6 +259,19 @@ pub fn compute_sampled(
     seed: u64,
     skip_open: bool,
 ) -> Visibility {
+    let order = spatial_order(&mesh.positions);
+    let args = (env_from_world, n_local, sampling, seed, skip_open);
+    compute_in_order(mesh, bvh, args, &order)
+}
+
+/// The options of [`compute_sampled`] that [`compute_in_order`] passes through.
+type SampledArgs<'a> = (&'a Matrix3<f64>, usize, Sampling, u64, bool);
+
+/// [`compute_sampled`] with the vertices handed to the worker threads in `order` (a
+/// permutation of the vertex indices; [`order`] module docs): the maps are the same for
+/// every order.
+fn compute_in_order(mesh: &Mesh, bvh: &SceneBvh, args: SampledArgs, order: &[u32]) -> Visibility {
+    let (env_from_world, n_local, sampling, seed, skip_open) = args;
     let grid = SphereGrid::hemi(n_local);
     let texels = grid.len();
     let eps = bvh.ray_offset();
@@ -262,10 +281,17 @@ pub fn compute_sampled(
     let nv = mesh.positions.len();
     let mut frac = vec![0u8; nv * texels];
     let mut open = vec![false; nv];
-    let stats: (u64, usize, u64) = frac
-        .par_chunks_mut(texels.max(1))
-        .zip(open.par_iter_mut())
-        .enumerate()
+    let mut slots: Vec<Option<(&mut [u8], &mut bool)>> = frac
+        .chunks_mut(texels.max(1))
+        .zip(open.iter_mut())
+        .map(Some)
+        .collect();
+    let work: Vec<(usize, (&mut [u8], &mut bool))> = order
+        .iter()
+        .filter_map(|&v| Some((v as usize, slots.get_mut(v as usize)?.take()?)))
+        .collect();
+    let stats: (u64, usize, u64) = work
+        .into_par_iter()
         .map_init(
             || {
                 let ticks = crate::stages::Ticker::default();
@@ -586,4 +612,69 @@ fn mix(seed: u64, v: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 12 × 12 ground grid under a tilted square roof: most vertices have a roof edge
+    /// somewhere in their hemisphere, so edge rays, cones and hints all take part.
+    fn roofed_grid() -> Mesh {
+        let n = 12;
+        let mut pts = Vec::new();
+        let mut faces = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                pts.push(Vec3::new(i as f64 / 11.0 - 0.5, j as f64 / 11.0 - 0.5, 0.0));
+            }
+        }
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as u32;
+                faces.push([a, a + 1, a + n as u32 + 1]);
+                faces.push([a, a + n as u32 + 1, a + n as u32]);
+            }
+        }
+        let r = pts.len() as u32;
+        for (x, y, z) in [
+            (-0.3, -0.3, 0.3),
+            (0.4, -0.3, 0.5),
+            (0.4, 0.4, 0.5),
+            (-0.3, 0.4, 0.3),
+        ] {
+            pts.push(Vec3::new(x, y, z));
+        }
+        faces.push([r, r + 2, r + 1]);
+        faces.push([r, r + 3, r + 2]);
+        Mesh::from_parts(pts, faces).0
+    }
+
+    /// The maps, ray counts and open flags are bit for bit the same whether the vertices
+    /// are traced in index order, in the spatial order or in reverse.
+    #[test]
+    fn the_tracing_order_changes_no_value() {
+        let mesh = roofed_grid();
+        let bvh = SceneBvh::new(&mesh);
+        let m = Matrix3::identity();
+        let nv = mesh.positions.len() as u32;
+        let sampling = Sampling::Adaptive {
+            edge_rays: 3,
+            lattice: 2,
+        };
+        let run = |order: &[u32]| compute_in_order(&mesh, &bvh, (&m, 16, sampling, 5, true), order);
+        let index: Vec<u32> = (0..nv).collect();
+        let reverse: Vec<u32> = (0..nv).rev().collect();
+        let a = run(&index);
+        assert!(a.rays_traced > 0 && a.frac.iter().any(|&f| f < 255));
+        for order in [spatial_order(&mesh.positions), reverse] {
+            let b = run(&order);
+            assert_eq!(a.frac, b.frac);
+            assert_eq!(a.open, b.open);
+            assert_eq!(
+                (a.rays_traced, a.rays_known_open),
+                (b.rays_traced, b.rays_known_open)
+            );
+        }
+    }
 }
