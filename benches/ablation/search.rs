@@ -3,7 +3,7 @@
 //! kept by the early-stopping validation score.
 
 use super::*;
-use relight_cpc::solve::materials::brightness::brightness_starts;
+use relight_cpc::solve::materials::brightness::{brightness_starts, scale_lambert};
 use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
 use relight_cpc::solve::validation::{
     half_score, left_by_view, material_holdout_score, training_score,
@@ -132,26 +132,23 @@ fn channel_round(
     fl: &Floors,
     o: &EstimateOptions,
     init: &Materials0,
-    best: (Estimate, Vec<f64>, f64),
+    mut best: (Estimate, Vec<f64>, f64),
     label: &str,
     done: &mut Vec<Done>,
     score: &dyn Fn(&Estimate) -> (f64, String),
 ) -> (Estimate, Vec<f64>, f64) {
     let mut centre = init.clone();
-    for (j, f) in best.1.iter().enumerate() {
-        if let Some(v) = centre.lambda[j + 1].get_mut(0) {
-            *v = v.map(|x| x * f);
-        }
+    for (j, &f) in best.1.iter().enumerate() {
+        scale_lambert(&mut centre, j + 1, 0, [f; 3]);
     }
-    let mut best = best;
     let mut kept = String::from("none");
     for j in 1..centre.lambda.len() {
         for ch in 0..3 {
             for f in [std::f64::consts::SQRT_2, std::f64::consts::FRAC_1_SQRT_2] {
                 let mut m = centre.clone();
-                if let Some(v) = m.lambda[j].get_mut(0) {
-                    v[ch] *= f;
-                }
+                let mut factor = [1.0; 3];
+                factor[ch] = f;
+                scale_lambert(&mut m, j, 0, factor);
                 let what = format!("{:.3?}, material {j} channel {ch} ×{f:.3}", best.1);
                 let next = fit_from(case, fl, o, m, &what, label, done);
                 let s = score(&next);

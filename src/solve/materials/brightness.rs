@@ -47,6 +47,16 @@ pub struct BrightnessStart {
     pub materials: Materials0,
 }
 
+/// Scale material `k`'s weight of basis `lambert` by `factor` per channel (nothing when
+/// the material has no such basis).
+pub fn scale_lambert(materials: &mut Materials0, k: usize, lambert: usize, factor: [f64; 3]) {
+    if let Some(v) = materials.lambda[k].get_mut(lambert) {
+        for (x, f) in v.iter_mut().zip(factor) {
+            *x *= f;
+        }
+    }
+}
+
 /// The family of starts around `centre` (`K − 1` scales, all 1 for the first round) with
 /// step `step` (module docs). Empty when `K < 2` or `centre` has the wrong length.
 pub fn brightness_starts(
@@ -74,10 +84,8 @@ pub fn brightness_starts(
                 .map(|(c, &ej)| c * step.powi(ej))
                 .collect();
             let mut materials = base.clone();
-            for (j, f) in factors.iter().enumerate() {
-                if let Some(v) = materials.lambda[j + 1].get_mut(lambert) {
-                    *v = v.map(|x| x * f);
-                }
+            for (j, &f) in factors.iter().enumerate() {
+                scale_lambert(&mut materials, j + 1, lambert, [f; 3]);
             }
             Some(BrightnessStart { factors, materials })
         })
@@ -93,9 +101,7 @@ pub fn axis_starts(base: &Materials0, lambert: usize, step: f64) -> Vec<Brightne
         .map(|(k, f)| {
             let factors: Vec<f64> = (1..kk).map(|j| if j == k { f } else { 1.0 }).collect();
             let mut materials = base.clone();
-            if let Some(v) = materials.lambda[k].get_mut(lambert) {
-                *v = v.map(|x| x * f);
-            }
+            scale_lambert(&mut materials, k, lambert, [f; 3]);
             BrightnessStart { factors, materials }
         })
         .collect()
