@@ -260,18 +260,36 @@ pub fn compute_sampled(
     skip_open: bool,
 ) -> Visibility {
     let order = spatial_order(&mesh.positions);
-    let args = (env_from_world, n_local, sampling, seed, skip_open);
-    compute_in_order(mesh, bvh, args, &order)
+    let tracing = Tracing {
+        env_from_world,
+        n_local,
+        sampling,
+        seed,
+        skip_open,
+    };
+    compute_in_order(mesh, bvh, &tracing, &order)
 }
 
-/// The options of [`compute_sampled`] that [`compute_in_order`] passes through.
-type SampledArgs<'a> = (&'a Matrix3<f64>, usize, Sampling, u64, bool);
+/// The options of [`compute_sampled`], as [`compute_in_order`] takes them.
+struct Tracing<'a> {
+    env_from_world: &'a Matrix3<f64>,
+    n_local: usize,
+    sampling: Sampling,
+    seed: u64,
+    skip_open: bool,
+}
 
 /// [`compute_sampled`] with the vertices handed to the worker threads in `order` (a
 /// permutation of the vertex indices; [`order`] module docs): the maps are the same for
 /// every order.
-fn compute_in_order(mesh: &Mesh, bvh: &SceneBvh, args: SampledArgs, order: &[u32]) -> Visibility {
-    let (env_from_world, n_local, sampling, seed, skip_open) = args;
+fn compute_in_order(mesh: &Mesh, bvh: &SceneBvh, tracing: &Tracing, order: &[u32]) -> Visibility {
+    let Tracing {
+        env_from_world,
+        n_local,
+        sampling,
+        seed,
+        skip_open,
+    } = *tracing;
     let grid = SphereGrid::hemi(n_local);
     let texels = grid.len();
     let eps = bvh.ray_offset();
@@ -662,7 +680,14 @@ mod tests {
             edge_rays: 3,
             lattice: 2,
         };
-        let run = |order: &[u32]| compute_in_order(&mesh, &bvh, (&m, 16, sampling, 5, true), order);
+        let tracing = Tracing {
+            env_from_world: &m,
+            n_local: 16,
+            sampling,
+            seed: 5,
+            skip_open: true,
+        };
+        let run = |order: &[u32]| compute_in_order(&mesh, &bvh, &tracing, order);
         let index: Vec<u32> = (0..nv).collect();
         let reverse: Vec<u32> = (0..nv).rev().collect();
         let a = run(&index);
