@@ -92,18 +92,18 @@ pub(crate) struct RunArgs {
     pub(crate) keep: usize,
     /// Fraction of each blended lighting row's energy (an observation's transport rows
     /// summed with its material weights) its smallest entries may carry and be dropped;
-    /// 0 = the exact blend.
-    #[arg(long, default_value_t = relight_cpc::solve::options::BLEND_TOLERANCE, help_heading = "Model")]
-    pub(crate) blend_tolerance: f64,
+    /// 0 = the exact blend. Default 0.001 (0.01 with --large-mesh).
+    #[arg(long, value_name = "FRACTION", help_heading = "Model")]
+    pub(crate) blend_tolerance: Option<f64>,
     /// Shadow rays per hemisphere texel, when --edge-rays is 0.
     #[arg(long, default_value_t = 2, help_heading = "Model")]
     pub(crate) rays_per_texel: usize,
-    /// Shadow rays: one per hemisphere texel, then this many more where the shadow has an edge; 0 = --rays-per-texel everywhere.
-    #[arg(long, default_value_t = 4, help_heading = "Model")]
-    pub(crate) edge_rays: usize,
-    /// Shadow rays: the first ray of every texel (1), or of every other texel in each direction (2), the texels between traced only where their traced neighbours disagree.
-    #[arg(long, default_value_t = 1, help_heading = "Model")]
-    pub(crate) ray_lattice: usize,
+    /// Shadow rays: one per hemisphere texel, then this many more where the shadow has an edge; 0 = --rays-per-texel everywhere. Default 4 (3 with --large-mesh).
+    #[arg(long, value_name = "N", help_heading = "Model")]
+    pub(crate) edge_rays: Option<usize>,
+    /// Shadow rays: the first ray of every texel (1), or of every other texel in each direction (2), the texels between traced only where their traced neighbours disagree. Default 1 (2 with --large-mesh).
+    #[arg(long, value_name = "N", help_heading = "Model")]
+    pub(crate) ray_lattice: Option<usize>,
 
     /// Rounds of (fit the lighting, then fit the materials), at most.
     #[arg(long, default_value_t = 8, help_heading = "Solver")]
@@ -120,14 +120,9 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
     pub(crate) irls_iterations: usize,
     /// Solver steps per lighting fit inside each round (each continues from the last);
-    /// 0 = solve each lighting fit to convergence.
-    #[arg(
-        long,
-        default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations(),
-        value_name = "N",
-        help_heading = "Solver"
-    )]
-    pub(crate) lighting_qp_iterations: usize,
+    /// 0 = solve each lighting fit to convergence. Default 5 (3 with --large-mesh).
+    #[arg(long, value_name = "N", help_heading = "Solver")]
+    pub(crate) lighting_qp_iterations: Option<usize>,
     /// Inner linear-solver steps per lighting solver step (0 = the solver's own limit).
     #[arg(
         long,
@@ -244,15 +239,31 @@ pub(crate) struct RunArgs {
     /// Worker threads (default: all cores).
     #[arg(long, help_heading = "Performance")]
     pub(crate) threads: Option<usize>,
-    /// Faster settings for meshes of about 50K vertices and more: --lighting-qp-iterations 3
-    /// --blend-tolerance 0.01 --edge-rays 3 --ray-lattice 2 (at 100K vertices 12% less
-    /// time at the same held-out error; on small meshes they cost accuracy).
+    /// Faster settings for meshes of 50K vertices and more: --lighting-qp-iterations 3
+    /// --blend-tolerance 0.01 --edge-rays 3 --ray-lattice 2 (at 50K and 100K vertices 12–15%
+    /// less time at the same held-out error; on small meshes they cost accuracy). `auto`
+    /// (the default) uses them from 50K vertices unless one of the four is given; `on`
+    /// (the flag alone) always; `off` never.
     #[arg(
         long,
-        conflicts_with_all = ["lighting_qp_iterations", "blend_tolerance", "edge_rays", "ray_lattice"],
+        value_name = "WHEN",
+        value_enum,
+        num_args = 0..=1,
+        default_missing_value = "on",
         help_heading = "Performance"
     )]
-    pub(crate) large_mesh: bool,
+    pub(crate) large_mesh: Option<LargeMesh>,
+}
+
+/// When `run` uses the large-mesh settings (`--large-mesh`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum LargeMesh {
+    /// From 50K vertices, unless one of the four settings is given.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
 }
 
 impl RunArgs {
@@ -298,15 +309,19 @@ impl RunArgs {
         o.render_local_resolution = self.render_local_resolution;
         o.normal_grid = self.normal_grid;
         o.keep = self.keep;
-        o.blend_tolerance = self.blend_tolerance;
+        // `o` holds the library's defaults; the four settings `--large-mesh` may set
+        // change only when given.
+        o.blend_tolerance = self.blend_tolerance.unwrap_or(o.blend_tolerance);
         o.rays_per_texel = self.rays_per_texel;
-        o.edge_rays = self.edge_rays;
-        o.ray_lattice = self.ray_lattice;
+        o.edge_rays = self.edge_rays.unwrap_or(o.edge_rays);
+        o.ray_lattice = self.ray_lattice.unwrap_or(o.ray_lattice);
         o.max_iterations = self.iterations;
         o.rel_tol = self.tolerance;
         o.smoothness = self.smoothness;
         o.irls_iterations = self.irls_iterations;
-        o.lighting_qp_iterations = self.lighting_qp_iterations;
+        o.lighting_qp_iterations = self
+            .lighting_qp_iterations
+            .unwrap_or(o.lighting_qp_iterations);
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
         o.validation = self.validation;
         o.validation_block = self.validation_block;
@@ -332,8 +347,22 @@ impl RunArgs {
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;
         o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
-        if self.large_mesh {
-            relight_cpc::run::LARGE_MESH.apply(&mut o);
+        let given = [
+            self.lighting_qp_iterations
+                .map(|_| "--lighting-qp-iterations"),
+            self.blend_tolerance.map(|_| "--blend-tolerance"),
+            self.edge_rays.map(|_| "--edge-rays"),
+            self.ray_lattice.map(|_| "--ray-lattice"),
+        ];
+        let given: Vec<&str> = given.into_iter().flatten().collect();
+        match self.large_mesh.unwrap_or(LargeMesh::Auto) {
+            LargeMesh::On if !given.is_empty() => anyhow::bail!(
+                "--large-mesh sets {} itself: give one or the other",
+                given.join(" and ")
+            ),
+            LargeMesh::On => relight_cpc::run::LARGE_MESH.apply(&mut o),
+            LargeMesh::Auto => o.large_mesh_auto = given.is_empty(),
+            LargeMesh::Off => {}
         }
         Ok(o)
     }
@@ -345,8 +374,9 @@ mod tests {
     use clap::Parser;
 
     /// `run`'s flags repeat most defaults as literals beside `RunOptions::new`: parsing a
-    /// bare `run WS --out OUT` must give the library's defaults, but for the one the CLI
-    /// sets on purpose (`--adaptive on`; the library's default is the full model as given).
+    /// bare `run WS --out OUT` must give the library's defaults, but for the two the CLI
+    /// sets on purpose (`--adaptive on` and `--large-mesh auto`; the library's defaults
+    /// are the full model and the options as given).
     #[test]
     fn bare_run_flags_give_the_library_defaults() {
         let cli = Cli::try_parse_from(["relight-cpc", "run", "ws", "--out", "o"]).unwrap();
@@ -357,12 +387,18 @@ mod tests {
         let mut want = relight_cpc::run::RunOptions::new("ws".into(), "o".into());
         assert!(!want.adaptive, "the library's default is the full model");
         want.adaptive = true;
+        assert!(
+            !want.large_mesh_auto,
+            "the library's default is the options as given"
+        );
+        want.large_mesh_auto = true;
         // Debug prints every field, floats to the last bit, so this is exact equality.
         assert_eq!(format!("{got:?}"), format!("{want:?}"));
     }
 
-    /// `--large-mesh` means exactly the four flags its help names, and refuses to be
-    /// combined with any of them (the user would not know which value won).
+    /// `--large-mesh` means exactly the four flags its help names and refuses to be
+    /// combined with any of them (the user would not know which value won); `auto` (no
+    /// flag) leaves the choice to the run unless one of them is given; `off` takes them.
     #[test]
     fn large_mesh_means_the_flags_its_help_names() {
         use clap::CommandFactory;
@@ -390,18 +426,37 @@ mod tests {
             let Command::Run(args) = Cli::try_parse_from(args).unwrap().command else {
                 panic!("`run` parsed as another subcommand");
             };
-            format!("{:?}", args.options().unwrap())
+            args.options()
         };
-        assert_eq!(options(&["--large-mesh"]), options(&flags));
-        assert_ne!(options(&["--large-mesh"]), options(&[]));
+        let on = options(&["--large-mesh"]).unwrap();
+        assert_eq!(format!("{on:?}"), format!("{:?}", options(&flags).unwrap()));
+        let on_named = options(&["--large-mesh", "on"]).unwrap();
+        assert_eq!(format!("{on:?}"), format!("{on_named:?}"));
+        assert!(!on.large_mesh_auto);
+        let bare = options(&[]).unwrap();
+        assert!(bare.large_mesh_auto, "auto is the default");
+        let mut off = options(&["--large-mesh", "off"]).unwrap();
+        assert!(!off.large_mesh_auto);
+        off.large_mesh_auto = true;
+        assert_eq!(
+            format!("{off:?}"),
+            format!("{bare:?}"),
+            "off changes nothing else"
+        );
+        assert!(!relight_cpc::run::LARGE_MESH.in_effect(&bare));
         for pair in flags.chunks(2) {
-            let args = ["relight-cpc", "run", "ws", "--large-mesh", pair[0], pair[1]];
-            let err = Cli::try_parse_from(args).err().expect("a conflict");
-            assert_eq!(
-                err.kind(),
-                clap::error::ErrorKind::ArgumentConflict,
-                "{pair:?}"
-            );
+            let err = options(&["--large-mesh", pair[0], pair[1]]).unwrap_err();
+            assert!(err.to_string().contains(pair[0]), "{err} names {}", pair[0]);
+            for given in [
+                &[pair[0], pair[1]][..],
+                &["--large-mesh", "off", pair[0], pair[1]],
+            ] {
+                let o = options(given).unwrap();
+                assert!(
+                    !o.large_mesh_auto,
+                    "{given:?} leaves the settings to the user"
+                );
+            }
         }
     }
 

@@ -140,6 +140,11 @@ pub struct RunOptions {
     /// resolutions and `keep` are then upper bounds. Off in [`RunOptions::new`] (the full
     /// model, as the benchmarks' knobs assume); the CLI turns it on unless `--adaptive off`.
     pub adaptive: bool,
+    /// Use [`LARGE_MESH`] when the mesh has at least
+    /// [`LargeMeshSettings::FROM_VERTICES`] vertices ([`LargeMeshSettings::for_mesh`]).
+    /// Off in [`RunOptions::new`] (the options as given); the CLI turns it on
+    /// (`--large-mesh auto`) unless `--large-mesh off` or one of the four settings is given.
+    pub large_mesh_auto: bool,
     /// The per-photo light model ([`crate::solve::light::choose`]): the paper's free map, the
     /// map under the statistical prior, or both and the lower validation score kept.
     pub light: crate::solve::light::choose::LightChoice,
@@ -205,7 +210,8 @@ pub const LIGHTING_SAMPLE_MAX_RATIO: f64 = 1.1;
 /// × 13 photos the run takes 12.5% less CPU time at a held-out error 1.4% lower; on the
 /// real Buddha photos (6.6K vertices) 21% less, the headline unchanged; on the built-in
 /// example's 2.9K-vertex mesh the held-out error under the true light rises 13–16%, which
-/// is why they are not the defaults.
+/// is why `--large-mesh auto` (the CLI's default, [`RunOptions::large_mesh_auto`]) uses
+/// them only from [`LargeMeshSettings::FROM_VERTICES`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LargeMeshSettings {
     /// [`RunOptions::lighting_qp_iterations`].
@@ -227,8 +233,24 @@ pub const LARGE_MESH: LargeMeshSettings = LargeMeshSettings {
 };
 
 impl LargeMeshSettings {
-    /// Mesh size from which a run without these settings suggests them in a note.
-    pub const SUGGEST_FROM_VERTICES: usize = 50_000;
+    /// Mesh size from which `--large-mesh auto` uses these settings, and from which a run
+    /// without them suggests them in a note. Measured at 13 photos
+    /// (`bench-results/large-mesh.md`), the held-out error under the true light and of
+    /// protocol (b): the 2.9K-vertex example +13–16% and +1%; 30K +0.7% and +2.0%; 50K
+    /// −1.4% and +0.3%; 100K −1.4% and −0.9%; 400K +0.4% and +5.8%.
+    pub const FROM_VERTICES: usize = 50_000;
+
+    /// The options a run on a mesh of `vertices` uses: `o` with these settings when
+    /// `o.large_mesh_auto` and the mesh has at least [`Self::FROM_VERTICES`] vertices
+    /// (`Some`), else `None` (`o` as it is).
+    pub fn for_mesh(&self, o: &RunOptions, vertices: usize) -> Option<RunOptions> {
+        if !o.large_mesh_auto || vertices < Self::FROM_VERTICES {
+            return None;
+        }
+        let mut sized = o.clone();
+        self.apply(&mut sized);
+        Some(sized)
+    }
 
     /// Set these four options of `o`, leaving every other one as it is.
     pub fn apply(&self, o: &mut RunOptions) {
@@ -308,6 +330,7 @@ impl RunOptions {
             force: false,
             render_training: true,
             adaptive: false,
+            large_mesh_auto: false,
             light: crate::solve::light::choose::LightChoice::Paper,
             transients: false,
             edge_margin: true,
@@ -481,5 +504,26 @@ mod tests {
         }
         // Debug prints every field, floats to the last bit: nothing else was touched.
         assert_eq!(format!("{all_reset:?}"), format!("{default:?}"));
+    }
+
+    /// `for_mesh` changes the options only with `large_mesh_auto` and from
+    /// `FROM_VERTICES` vertices, and then as `apply` does.
+    #[test]
+    fn auto_uses_the_settings_from_the_threshold_on() {
+        let from = LargeMeshSettings::FROM_VERTICES;
+        let given = RunOptions::new("ws".into(), "o".into());
+        assert!(
+            LARGE_MESH.for_mesh(&given, 10 * from).is_none(),
+            "auto is off"
+        );
+        let mut auto = given.clone();
+        auto.large_mesh_auto = true;
+        assert!(LARGE_MESH.for_mesh(&auto, from - 1).is_none());
+        for vertices in [from, 10 * from] {
+            let sized = LARGE_MESH.for_mesh(&auto, vertices).unwrap();
+            let mut want = auto.clone();
+            LARGE_MESH.apply(&mut want);
+            assert_eq!(format!("{sized:?}"), format!("{want:?}"));
+        }
     }
 }

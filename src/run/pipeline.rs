@@ -14,8 +14,8 @@ use super::fit::{estimate_options, lambert_of, Fit};
 use super::truth::Truth;
 use super::{
     adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
-    holdout_rule, holdout_views, mean_colours, output, Holdout, MaterialCount, Progress,
-    RunOptions,
+    holdout_rule, holdout_views, mean_colours, output, Holdout, LargeMeshSettings, MaterialCount,
+    Progress, RunOptions, LARGE_MESH,
 };
 use crate::import::photo::Photo;
 use crate::import::scene::{self, Scene};
@@ -95,6 +95,8 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
         notes: Vec::new(),
     };
     let imported = import(opts, &mut log, progress)?;
+    let sized = sized_for_mesh(opts, imported.scene.mesh.positions.len(), &mut log);
+    let opts = sized.as_ref().unwrap_or(opts);
     let observed = observe_training(opts, &imported, &mut log, progress)?;
     let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
     let mut fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
@@ -130,6 +132,22 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
         dir,
         progress,
     )
+}
+
+/// The run's options on a mesh of `vertices` ([`LargeMeshSettings::for_mesh`]), with a
+/// note when they differ from those given.
+fn sized_for_mesh(opts: &RunOptions, vertices: usize, log: &mut RunLog) -> Option<RunOptions> {
+    let sized = LARGE_MESH.for_mesh(opts, vertices)?;
+    let s = &LARGE_MESH;
+    log.notes.push(format!(
+        "large mesh: {vertices} vertices, at least {}, so --large-mesh auto uses --lighting-qp-iterations {} --blend-tolerance {} --edge-rays {} --ray-lattice {} (at 50K and 100K vertices 12–15% less time at the same held-out error; --large-mesh off keeps the full settings)",
+        LargeMeshSettings::FROM_VERTICES,
+        s.lighting_qp_iterations,
+        s.blend_tolerance,
+        s.edge_rays,
+        s.ray_lattice
+    ));
+    Some(sized)
 }
 
 /// Stage 1, import: the workspace, the model, the mesh and the photos; the held-out split.
