@@ -92,16 +92,16 @@ pub(crate) struct RunArgs {
     pub(crate) keep: usize,
     /// Fraction of each blended lighting row's energy (an observation's transport rows
     /// summed with its material weights) its smallest entries may carry and be dropped;
-    /// 0 = the exact blend. Default 0.001 (0.01 with --large-mesh).
+    /// 0 = the exact blend. Default 0.001 (0.01 with --large-mesh or from 50K vertices).
     #[arg(long, value_name = "FRACTION", help_heading = "Model")]
     pub(crate) blend_tolerance: Option<f64>,
     /// Shadow rays per hemisphere texel, when --edge-rays is 0.
     #[arg(long, default_value_t = 2, help_heading = "Model")]
     pub(crate) rays_per_texel: usize,
-    /// Shadow rays: one per hemisphere texel, then this many more where the shadow has an edge; 0 = --rays-per-texel everywhere. Default 4 (3 with --large-mesh).
+    /// Shadow rays: one per hemisphere texel, then this many more where the shadow has an edge; 0 = --rays-per-texel everywhere. Default 4 (3 with --large-mesh or from 50K vertices).
     #[arg(long, value_name = "N", help_heading = "Model")]
     pub(crate) edge_rays: Option<usize>,
-    /// Shadow rays: the first ray of every texel (1), or of every other texel in each direction (2), the texels between traced only where their traced neighbours disagree. Default 1 (2 with --large-mesh).
+    /// Shadow rays: the first ray of every texel (1), or of every other texel in each direction (2), the texels between traced only where their traced neighbours disagree. Default 1 (2 with --large-mesh or from 50K vertices).
     #[arg(long, value_name = "N", help_heading = "Model")]
     pub(crate) ray_lattice: Option<usize>,
 
@@ -120,7 +120,7 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
     pub(crate) irls_iterations: usize,
     /// Solver steps per lighting fit inside each round (each continues from the last);
-    /// 0 = solve each lighting fit to convergence. Default 5 (3 with --large-mesh).
+    /// 0 = solve each lighting fit to convergence. Default 5 (3 with --large-mesh or from 50K vertices).
     #[arg(long, value_name = "N", help_heading = "Solver")]
     pub(crate) lighting_qp_iterations: Option<usize>,
     /// Inner linear-solver steps per lighting solver step (0 = the solver's own limit).
@@ -241,29 +241,18 @@ pub(crate) struct RunArgs {
     pub(crate) threads: Option<usize>,
     /// Faster settings for meshes of 50K vertices and more: --lighting-qp-iterations 3
     /// --blend-tolerance 0.01 --edge-rays 3 --ray-lattice 2 (at 50K and 100K vertices 12–15%
-    /// less time at the same held-out error; on small meshes they cost accuracy). `auto`
-    /// (the default) uses them from 50K vertices unless one of the four is given; `on`
-    /// (the flag alone) always; `off` never.
+    /// less time at the same held-out error; on small meshes they cost accuracy). Without
+    /// this flag the run uses them by itself from 50K vertices, unless one of the four or
+    /// --no-large-mesh is given.
     #[arg(
         long,
-        value_name = "WHEN",
-        value_enum,
-        num_args = 0..=1,
-        default_missing_value = "on",
+        conflicts_with_all = ["lighting_qp_iterations", "blend_tolerance", "edge_rays", "ray_lattice", "no_large_mesh"],
         help_heading = "Performance"
     )]
-    pub(crate) large_mesh: Option<LargeMesh>,
-}
-
-/// When `run` uses the large-mesh settings (`--large-mesh`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub(crate) enum LargeMesh {
-    /// From 50K vertices, unless one of the four settings is given.
-    Auto,
-    /// Always.
-    On,
-    /// Never.
-    Off,
+    pub(crate) large_mesh: bool,
+    /// The full settings on any mesh: never the --large-mesh ones by themselves.
+    #[arg(long, help_heading = "Performance")]
+    pub(crate) no_large_mesh: bool,
 }
 
 impl RunArgs {
@@ -347,22 +336,16 @@ impl RunArgs {
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;
         o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
-        let given = [
-            self.lighting_qp_iterations
-                .map(|_| "--lighting-qp-iterations"),
-            self.blend_tolerance.map(|_| "--blend-tolerance"),
-            self.edge_rays.map(|_| "--edge-rays"),
-            self.ray_lattice.map(|_| "--ray-lattice"),
-        ];
-        let given: Vec<&str> = given.into_iter().flatten().collect();
-        match self.large_mesh.unwrap_or(LargeMesh::Auto) {
-            LargeMesh::On if !given.is_empty() => anyhow::bail!(
-                "--large-mesh sets {} itself: give one or the other",
-                given.join(" and ")
-            ),
-            LargeMesh::On => relight_cpc::run::LARGE_MESH.apply(&mut o),
-            LargeMesh::Auto => o.large_mesh_auto = given.is_empty(),
-            LargeMesh::Off => {}
+        // The settings chosen by mesh size, unless the user chose (clap refuses
+        // --large-mesh beside any of the four).
+        let given = self.lighting_qp_iterations.is_some()
+            || self.blend_tolerance.is_some()
+            || self.edge_rays.is_some()
+            || self.ray_lattice.is_some();
+        if self.large_mesh {
+            relight_cpc::run::LARGE_MESH.apply(&mut o);
+        } else {
+            o.large_mesh_auto = !given && !self.no_large_mesh;
         }
         Ok(o)
     }
@@ -375,8 +358,8 @@ mod tests {
 
     /// `run`'s flags repeat most defaults as literals beside `RunOptions::new`: parsing a
     /// bare `run WS --out OUT` must give the library's defaults, but for the two the CLI
-    /// sets on purpose (`--adaptive on` and `--large-mesh auto`; the library's defaults
-    /// are the full model and the options as given).
+    /// sets on purpose (`--adaptive on` and the large-mesh settings by mesh size; the
+    /// library's defaults are the full model and the options as given).
     #[test]
     fn bare_run_flags_give_the_library_defaults() {
         let cli = Cli::try_parse_from(["relight-cpc", "run", "ws", "--out", "o"]).unwrap();
@@ -397,8 +380,8 @@ mod tests {
     }
 
     /// `--large-mesh` means exactly the four flags its help names and refuses to be
-    /// combined with any of them (the user would not know which value won); `auto` (no
-    /// flag) leaves the choice to the run unless one of them is given; `off` takes them.
+    /// combined with any of them (the user would not know which value won); without it
+    /// the run chooses by mesh size unless one of them or `--no-large-mesh` is given.
     #[test]
     fn large_mesh_means_the_flags_its_help_names() {
         use clap::CommandFactory;
@@ -420,43 +403,45 @@ mod tests {
             .unwrap();
         let flags: Vec<&str> = named.split_whitespace().collect();
         assert_eq!(flags.len(), 8, "four flags with values in {help:?}");
-        let options = |extra: &[&str]| {
+        let parse = |extra: &[&str]| {
             let base = ["relight-cpc", "run", "ws", "--out", "o"];
-            let args = base.iter().chain(extra).copied();
-            let Command::Run(args) = Cli::try_parse_from(args).unwrap().command else {
+            Cli::try_parse_from(base.iter().chain(extra).copied())
+        };
+        let options = |extra: &[&str]| {
+            let Command::Run(args) = parse(extra).unwrap().command else {
                 panic!("`run` parsed as another subcommand");
             };
-            args.options()
+            args.options().unwrap()
         };
-        let on = options(&["--large-mesh"]).unwrap();
-        assert_eq!(format!("{on:?}"), format!("{:?}", options(&flags).unwrap()));
-        let on_named = options(&["--large-mesh", "on"]).unwrap();
-        assert_eq!(format!("{on:?}"), format!("{on_named:?}"));
+        let on = options(&["--large-mesh"]);
+        assert_eq!(format!("{on:?}"), format!("{:?}", options(&flags)));
         assert!(!on.large_mesh_auto);
-        let bare = options(&[]).unwrap();
-        assert!(bare.large_mesh_auto, "auto is the default");
-        let mut off = options(&["--large-mesh", "off"]).unwrap();
+        let bare = options(&[]);
+        assert!(bare.large_mesh_auto, "chosen by mesh size by default");
+        assert!(!relight_cpc::run::LARGE_MESH.in_effect(&bare));
+        let mut off = options(&["--no-large-mesh"]);
         assert!(!off.large_mesh_auto);
         off.large_mesh_auto = true;
         assert_eq!(
             format!("{off:?}"),
             format!("{bare:?}"),
-            "off changes nothing else"
+            "nothing else changes"
         );
-        assert!(!relight_cpc::run::LARGE_MESH.in_effect(&bare));
+        let conflict = |extra: &[&str]| {
+            let err = parse(extra).err().expect("a conflict");
+            assert_eq!(
+                err.kind(),
+                clap::error::ErrorKind::ArgumentConflict,
+                "{extra:?}"
+            );
+        };
+        conflict(&["--large-mesh", "--no-large-mesh"]);
         for pair in flags.chunks(2) {
-            let err = options(&["--large-mesh", pair[0], pair[1]]).unwrap_err();
-            assert!(err.to_string().contains(pair[0]), "{err} names {}", pair[0]);
-            for given in [
-                &[pair[0], pair[1]][..],
-                &["--large-mesh", "off", pair[0], pair[1]],
-            ] {
-                let o = options(given).unwrap();
-                assert!(
-                    !o.large_mesh_auto,
-                    "{given:?} leaves the settings to the user"
-                );
-            }
+            conflict(&["--large-mesh", pair[0], pair[1]]);
+            assert!(
+                !options(pair).large_mesh_auto,
+                "{pair:?} is the user's choice"
+            );
         }
     }
 

@@ -183,7 +183,7 @@ pub(crate) fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
         a.extend([flag.into(), v.to_string()]);
     }
     // `--large-mesh` sets the lighting step cap itself and refuses the flag beside it;
-    // the cap given keeps `--large-mesh auto` from choosing for the run (the model's
+    // the cap given keeps the run from choosing them by mesh size (the model's
     // settings stay as the bench gives them).
     if model.large_mesh {
         a.push("--large-mesh".into());

@@ -143,7 +143,7 @@ pub struct RunOptions {
     /// Use [`LARGE_MESH`] when the mesh has at least
     /// [`LargeMeshSettings::FROM_VERTICES`] vertices ([`LargeMeshSettings::for_mesh`]).
     /// Off in [`RunOptions::new`] (the options as given); the CLI turns it on
-    /// (`--large-mesh auto`) unless `--large-mesh off` or one of the four settings is given.
+    /// unless `--large-mesh`, `--no-large-mesh` or one of the four settings is given.
     pub large_mesh_auto: bool,
     /// The per-photo light model ([`crate::solve::light::choose`]): the paper's free map, the
     /// map under the statistical prior, or both and the lower validation score kept.
@@ -210,7 +210,7 @@ pub const LIGHTING_SAMPLE_MAX_RATIO: f64 = 1.1;
 /// × 13 photos the run takes 12.5% less CPU time at a held-out error 1.4% lower; on the
 /// real Buddha photos (6.6K vertices) 21% less, the headline unchanged; on the built-in
 /// example's 2.9K-vertex mesh the held-out error under the true light rises 13–16%, which
-/// is why `--large-mesh auto` (the CLI's default, [`RunOptions::large_mesh_auto`]) uses
+/// is why a run without `--large-mesh` ([`RunOptions::large_mesh_auto`], the CLI's default) uses
 /// them only from [`LargeMeshSettings::FROM_VERTICES`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LargeMeshSettings {
@@ -233,7 +233,7 @@ pub const LARGE_MESH: LargeMeshSettings = LargeMeshSettings {
 };
 
 impl LargeMeshSettings {
-    /// Mesh size from which `--large-mesh auto` uses these settings, and from which a run
+    /// Mesh size from which a run uses these settings by itself, and from which a run
     /// without them suggests them in a note. Measured at 13 photos
     /// (`bench-results/large-mesh.md`), the held-out error under the true light and of
     /// protocol (b): the 2.9K-vertex example +13–16% and +1%; 30K +0.7% and +2.0%; 50K

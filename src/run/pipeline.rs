@@ -140,7 +140,7 @@ fn sized_for_mesh(opts: &RunOptions, vertices: usize, log: &mut RunLog) -> Optio
     let sized = LARGE_MESH.for_mesh(opts, vertices)?;
     let s = &LARGE_MESH;
     log.notes.push(format!(
-        "large mesh: {vertices} vertices, at least {}, so --large-mesh auto uses --lighting-qp-iterations {} --blend-tolerance {} --edge-rays {} --ray-lattice {} (at 50K and 100K vertices 12–15% less time at the same held-out error; --large-mesh off keeps the full settings)",
+        "large mesh: {vertices} vertices, at least {}, so the run uses the --large-mesh settings --lighting-qp-iterations {} --blend-tolerance {} --edge-rays {} --ray-lattice {} (at 50K and 100K vertices 12–15% less time at the same held-out error; --no-large-mesh keeps the full settings)",
         LargeMeshSettings::FROM_VERTICES,
         s.lighting_qp_iterations,
         s.blend_tolerance,
