@@ -42,7 +42,8 @@
 //! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
 //! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
-//! search, `ablation/search.rs`),
+//! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
+//! round, `run --lighting-qp-iterations`; default the estimator's),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
@@ -307,13 +308,15 @@ fn sizes() -> Sizes {
 
 /// The bench's base options: the defaults with the paper's free blending weights
 /// (`weights_sum` 0: the rows that use the sum-to-one prior say so), ≤ `ABLATION_ITERS`
-/// outer iterations.
+/// outer iterations, `ABLATION_QP` solver steps per lighting fit.
 fn base_options() -> EstimateOptions {
+    let d = EstimateOptions::default();
     EstimateOptions {
         max_outer: env_usize("ABLATION_ITERS", 20),
+        alternation_qp_iters: d.alternation_qp_iters.map(|q| env_usize("ABLATION_QP", q)),
         rel_tol: 1e-5,
         weights_sum: 0.0,
-        ..EstimateOptions::default()
+        ..d
     }
 }
 
