@@ -260,6 +260,14 @@ impl LargeMeshSettings {
         o.ray_lattice = self.ray_lattice;
     }
 
+    /// These settings as the `run` flags that give them.
+    pub fn flags(&self) -> String {
+        format!(
+            "--lighting-qp-iterations {} --blend-tolerance {} --edge-rays {} --ray-lattice {}",
+            self.lighting_qp_iterations, self.blend_tolerance, self.edge_rays, self.ray_lattice
+        )
+    }
+
     /// Whether `o` has all four of these settings.
     pub fn in_effect(&self, o: &RunOptions) -> bool {
         o.lighting_qp_iterations == self.lighting_qp_iterations

@@ -138,14 +138,10 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
 /// note when they differ from those given.
 fn sized_for_mesh(opts: &RunOptions, vertices: usize, log: &mut RunLog) -> Option<RunOptions> {
     let sized = LARGE_MESH.for_mesh(opts, vertices)?;
-    let s = &LARGE_MESH;
     log.notes.push(format!(
-        "large mesh: {vertices} vertices, at least {}, so the run uses the --large-mesh settings --lighting-qp-iterations {} --blend-tolerance {} --edge-rays {} --ray-lattice {} (at 50K and 100K vertices 12–15% less time at the same held-out error; --no-large-mesh keeps the full settings)",
+        "large mesh: {vertices} vertices, at least {}, so the run uses the --large-mesh settings {} (at 50K and 100K vertices 12–15% less time at the same held-out error; --no-large-mesh keeps the full settings)",
         LargeMeshSettings::FROM_VERTICES,
-        s.lighting_qp_iterations,
-        s.blend_tolerance,
-        s.edge_rays,
-        s.ray_lattice
+        LARGE_MESH.flags()
     ));
     Some(sized)
 }
