@@ -98,50 +98,108 @@ pub fn brightness_search(
     if let Some(last) = done.last_mut() {
         last.note = s0.1.clone();
     }
-    let mut best = (est, vec![1.0; k - 1], s0.0);
+    let search = Search {
+        case,
+        fl,
+        o,
+        label,
+        score: &score,
+    };
+    let mut kept = Kept {
+        est,
+        factors: vec![1.0; k - 1],
+        score: s0.0,
+    };
     let mut step: f64 = 2.0;
     for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
-        let centre = best.1.clone();
+        let centre = kept.factors.clone();
         for st in brightness_starts(&init, 0, &centre, step) {
-            let next = scaled_fit(case, fl, o, st.materials, &st.factors, label, done);
-            let s = score(&next);
-            eprintln!("    {}", s.1);
-            if let Some(last) = done.last_mut() {
-                last.note = s.1;
-            }
-            if s.0 < best.2 {
-                best = (next, st.factors, s.0);
-            }
+            let next = search.fit(st.materials, &format!("{:.3?}", st.factors), done);
+            search.offer(&mut kept, next, st.factors, done);
         }
-        eprintln!("  search kept {:?}, score {:.5}", best.1, best.2);
+        eprintln!("  search kept {:?}, score {:.5}", kept.factors, kept.score);
         step = step.sqrt();
     }
     if env_flag("ABLATION_SEARCH_CHANNELS") {
-        best = channel_round(case, fl, o, &init, best, label, done, &score);
+        channel_round(&search, &init, &mut kept, done);
     }
-    best.0
+    kept.est
+}
+
+/// The search's best fit so far: the estimate, its start's brightness factors (material
+/// `j ≥ 1`'s Lambertian weight scaled by `factors[j − 1]`) and its score.
+struct Kept {
+    est: Estimate,
+    factors: Vec<f64>,
+    score: f64,
+}
+
+/// What every fit of [`brightness_search`] shares: the case, its floors, the options, the
+/// row's label and the score that picks the kept fit.
+struct Search<'a> {
+    case: &'a Case,
+    fl: &'a Floors,
+    o: &'a EstimateOptions,
+    label: &'a str,
+    score: &'a dyn Fn(&Estimate) -> (f64, String),
+}
+
+impl Search<'_> {
+    /// One fit from start `m`, pushed as the row `{label}, start brightness ×{what}`.
+    fn fit(&self, m: Materials0, what: &str, done: &mut Vec<Done>) -> Estimate {
+        let (case, fl) = (self.case, self.fl);
+        let problem = case.train.problem(case.nv);
+        let t0 = Instant::now();
+        let next = estimate(&problem, m, self.o, &mut |_, _| {}).unwrap();
+        let fig = figures(
+            case,
+            fl,
+            &next,
+            start_ratio_errors(case, fl),
+            t0.elapsed().as_secs_f64(),
+        );
+        let row = format!("{}, start brightness ×{what}", self.label);
+        eprintln!("  {row}: {fig:?}");
+        done.push(Done {
+            diagnosis: None,
+            label: row,
+            figures: fig,
+            k: None,
+            note: String::new(),
+        });
+        next
+    }
+
+    /// Scores `next` (the last row pushed), notes the scores on its row and keeps it, with
+    /// `factors`, when it scores lower than `kept`; returns whether it was kept.
+    fn offer(&self, kept: &mut Kept, next: Estimate, factors: Vec<f64>, done: &mut [Done]) -> bool {
+        let (score, note) = (self.score)(&next);
+        eprintln!("    {note}");
+        if let Some(last) = done.last_mut() {
+            last.note = note;
+        }
+        let better = score < kept.score;
+        if better {
+            *kept = Kept {
+                est: next,
+                factors,
+                score,
+            };
+        }
+        better
+    }
 }
 
 /// `ABLATION_SEARCH_CHANNELS=1`: one more round that scales one channel of one material
 /// `j ≥ 1`'s Lambertian weight by √2 or 1/√2 around the kept start (`2 × 3 × (K − 1)` fits),
 /// the lowest score kept. The first rounds scale R, G and B together, while the kept
 /// fits' albedo ratio errors differ per channel.
-#[allow(clippy::too_many_arguments)]
-fn channel_round(
-    case: &Case,
-    fl: &Floors,
-    o: &EstimateOptions,
-    init: &Materials0,
-    mut best: (Estimate, Vec<f64>, f64),
-    label: &str,
-    done: &mut Vec<Done>,
-    score: &dyn Fn(&Estimate) -> (f64, String),
-) -> (Estimate, Vec<f64>, f64) {
+fn channel_round(search: &Search, init: &Materials0, kept: &mut Kept, done: &mut Vec<Done>) {
     let mut centre = init.clone();
-    for (j, &f) in best.1.iter().enumerate() {
+    for (j, &f) in kept.factors.iter().enumerate() {
         scale_lambert(&mut centre, j + 1, 0, [f; 3]);
     }
-    let mut kept = String::from("none");
+    let mut kept_what = String::from("none");
     for j in 1..centre.lambda.len() {
         for ch in 0..3 {
             for f in [std::f64::consts::SQRT_2, std::f64::consts::FRAC_1_SQRT_2] {
@@ -149,22 +207,16 @@ fn channel_round(
                 let mut factor = [1.0; 3];
                 factor[ch] = f;
                 scale_lambert(&mut m, j, 0, factor);
-                let what = format!("{:.3?}, material {j} channel {ch} ×{f:.3}", best.1);
-                let next = fit_from(case, fl, o, m, &what, label, done);
-                let s = score(&next);
-                eprintln!("    {}", s.1);
-                if let Some(last) = done.last_mut() {
-                    last.note = s.1;
-                }
-                if s.0 < best.2 {
-                    best = (next, best.1.clone(), s.0);
-                    kept = what;
+                let what = format!("{:.3?}, material {j} channel {ch} ×{f:.3}", kept.factors);
+                let next = search.fit(m, &what, done);
+                let factors = kept.factors.clone();
+                if search.offer(kept, next, factors, done) {
+                    kept_what = what;
                 }
             }
         }
     }
-    eprintln!("  channel round kept {kept}, score {:.5}", best.2);
-    best
+    eprintln!("  channel round kept {kept_what}, score {:.5}", kept.score);
 }
 
 /// Protocol (b) on the training photos for fit `e` ([`half_score`]).
@@ -201,50 +253,4 @@ fn argmax_groups(weights: &[f64], k: usize) -> Vec<usize> {
 /// The early-stopping validation score of a fit (NaN without validation).
 fn validation_of(e: &Estimate) -> f64 {
     e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
-}
-
-/// One fit of [`brightness_search`] from `m` (material `j ≥ 1`'s Lambertian weight scaled
-/// by `f[j − 1]`), pushed as a row.
-fn scaled_fit(
-    case: &Case,
-    fl: &Floors,
-    o: &EstimateOptions,
-    m: Materials0,
-    f: &[f64],
-    label: &str,
-    done: &mut Vec<Done>,
-) -> Estimate {
-    fit_from(case, fl, o, m, &format!("{f:.3?}"), label, done)
-}
-
-/// One fit from start `m`, pushed as the row `{label}, start brightness ×{what}`.
-fn fit_from(
-    case: &Case,
-    fl: &Floors,
-    o: &EstimateOptions,
-    m: Materials0,
-    what: &str,
-    label: &str,
-    done: &mut Vec<Done>,
-) -> Estimate {
-    let problem = case.train.problem(case.nv);
-    let t0 = Instant::now();
-    let next = estimate(&problem, m, o, &mut |_, _| {}).unwrap();
-    let fig = figures(
-        case,
-        fl,
-        &next,
-        start_ratio_errors(case, fl),
-        t0.elapsed().as_secs_f64(),
-    );
-    let row = format!("{label}, start brightness ×{what}");
-    eprintln!("  {row}: {fig:?}");
-    done.push(Done {
-        diagnosis: None,
-        label: row,
-        figures: fig,
-        k: None,
-        note: String::new(),
-    });
-    next
 }
