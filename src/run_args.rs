@@ -120,9 +120,14 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
     pub(crate) irls_iterations: usize,
     /// Solver steps per lighting fit inside each round (each continues from the last);
-    /// 0 = solve each lighting fit to convergence. Default 5 (3 with --large-mesh or from 50K vertices).
-    #[arg(long, value_name = "N", help_heading = "Solver")]
-    pub(crate) lighting_qp_iterations: Option<usize>,
+    /// 0 = solve each lighting fit to convergence.
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::default_lighting_qp_iterations(),
+        value_name = "N",
+        help_heading = "Solver"
+    )]
+    pub(crate) lighting_qp_iterations: usize,
     /// Inner linear-solver steps per lighting solver step (0 = the solver's own limit).
     #[arg(
         long,
@@ -239,14 +244,13 @@ pub(crate) struct RunArgs {
     /// Worker threads (default: all cores).
     #[arg(long, help_heading = "Performance")]
     pub(crate) threads: Option<usize>,
-    /// Faster settings for meshes of 50K vertices and more: --lighting-qp-iterations 3
-    /// --blend-tolerance 0.01 --edge-rays 3 --ray-lattice 2 (at 50K and 100K vertices 12–15%
-    /// less time at the same held-out error; on small meshes they cost accuracy). Without
-    /// this flag the run uses them by itself from 50K vertices, unless one of the four or
-    /// --no-large-mesh is given.
+    /// Faster settings for meshes of 50K vertices and more: --blend-tolerance 0.01
+    /// --edge-rays 3 --ray-lattice 2 (at 100K vertices 9% less time at the same held-out
+    /// error; on small meshes they cost accuracy). Without this flag the run uses them by
+    /// itself from 50K vertices, unless one of the three or --no-large-mesh is given.
     #[arg(
         long,
-        conflicts_with_all = ["lighting_qp_iterations", "blend_tolerance", "edge_rays", "ray_lattice", "no_large_mesh"],
+        conflicts_with_all = ["blend_tolerance", "edge_rays", "ray_lattice", "no_large_mesh"],
         help_heading = "Performance"
     )]
     pub(crate) large_mesh: bool,
@@ -298,7 +302,7 @@ impl RunArgs {
         o.render_local_resolution = self.render_local_resolution;
         o.normal_grid = self.normal_grid;
         o.keep = self.keep;
-        // `o` holds the library's defaults; the four settings `--large-mesh` may set
+        // `o` holds the library's defaults; the three settings `--large-mesh` may set
         // change only when given.
         o.blend_tolerance = self.blend_tolerance.unwrap_or(o.blend_tolerance);
         o.rays_per_texel = self.rays_per_texel;
@@ -308,9 +312,7 @@ impl RunArgs {
         o.rel_tol = self.tolerance;
         o.smoothness = self.smoothness;
         o.irls_iterations = self.irls_iterations;
-        o.lighting_qp_iterations = self
-            .lighting_qp_iterations
-            .unwrap_or(o.lighting_qp_iterations);
+        o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
         o.validation = self.validation;
         o.validation_block = self.validation_block;
@@ -337,9 +339,8 @@ impl RunArgs {
         o.light_group_minutes = self.light_group_minutes;
         o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
         // The settings chosen by mesh size, unless the user chose (clap refuses
-        // --large-mesh beside any of the four).
-        let given = self.lighting_qp_iterations.is_some()
-            || self.blend_tolerance.is_some()
+        // --large-mesh beside any of the three).
+        let given = self.blend_tolerance.is_some()
             || self.edge_rays.is_some()
             || self.ray_lattice.is_some();
         if self.large_mesh {
@@ -379,7 +380,7 @@ mod tests {
         assert_eq!(format!("{got:?}"), format!("{want:?}"));
     }
 
-    /// `--large-mesh` means exactly the four flags its help names and refuses to be
+    /// `--large-mesh` means exactly the three flags its help names and refuses to be
     /// combined with any of them (the user would not know which value won); without it
     /// the run chooses by mesh size unless one of them or `--no-large-mesh` is given.
     #[test]
@@ -402,7 +403,7 @@ mod tests {
             .next()
             .unwrap();
         let flags: Vec<&str> = named.split_whitespace().collect();
-        assert_eq!(flags.len(), 8, "four flags with values in {help:?}");
+        assert_eq!(flags.len(), 6, "three flags with values in {help:?}");
         let parse = |extra: &[&str]| {
             let base = ["relight-cpc", "run", "ws", "--out", "o"];
             Cli::try_parse_from(base.iter().chain(extra).copied())
@@ -436,6 +437,8 @@ mod tests {
             );
         };
         conflict(&["--large-mesh", "--no-large-mesh"]);
+        // The lighting step cap is every run's choice, not one of the settings.
+        assert!(options(&["--lighting-qp-iterations", "5"]).large_mesh_auto);
         for pair in flags.chunks(2) {
             conflict(&["--large-mesh", pair[0], pair[1]]);
             assert!(

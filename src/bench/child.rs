@@ -182,15 +182,17 @@ pub(crate) fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
     ] {
         a.extend([flag.into(), v.to_string()]);
     }
-    // `--large-mesh` sets the lighting step cap itself and refuses the flag beside it;
-    // the cap given keeps the run from choosing them by mesh size (the model's
-    // settings stay as the bench gives them).
-    if model.large_mesh {
-        a.push("--large-mesh".into());
-    } else {
-        let cap = o.lighting_qp_iterations.to_string();
-        a.extend(["--lighting-qp-iterations".into(), cap]);
-    }
+    let cap = o.lighting_qp_iterations.to_string();
+    a.extend(["--lighting-qp-iterations".into(), cap]);
+    // The model's settings as the bench gives them, never chosen by mesh size.
+    a.push(
+        if model.large_mesh {
+            "--large-mesh"
+        } else {
+            "--no-large-mesh"
+        }
+        .into(),
+    );
     if !o.progress {
         a.push("--quiet".into());
     }

@@ -473,15 +473,8 @@ fn bench_in(
     t0: std::time::Instant,
 ) -> Result<BenchReport> {
     let (_, _, _, sweep_base) = mode_settings(opts.quick);
-    // `--large-mesh` runs with its own lighting step cap: the knobs record that one.
-    let lighting_qp = if opts.model.large_mesh {
-        crate::run::LARGE_MESH.lighting_qp_iterations
-    } else {
-        sweep_base.lighting_qp
-    };
     let base = Knobs {
         iterations: opts.iterations.unwrap_or(sweep_base.iterations),
-        lighting_qp,
         ..sweep_base
     };
     let mut sizes = opts.sizes.clone();

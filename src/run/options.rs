@@ -143,7 +143,7 @@ pub struct RunOptions {
     /// Use [`LARGE_MESH`] when the mesh has at least
     /// [`LargeMeshSettings::FROM_VERTICES`] vertices ([`LargeMeshSettings::for_mesh`]).
     /// Off in [`RunOptions::new`] (the options as given); the CLI turns it on
-    /// unless `--large-mesh`, `--no-large-mesh` or one of the four settings is given.
+    /// unless `--large-mesh`, `--no-large-mesh` or one of the three settings is given.
     pub large_mesh_auto: bool,
     /// The per-photo light model ([`crate::solve::light::choose`]): the paper's free map, the
     /// map under the statistical prior, or both and the lower validation score kept.
@@ -195,8 +195,6 @@ pub const LIGHTING_SAMPLE_MAX_RATIO: f64 = 1.1;
 /// Faster settings for meshes of about 50K vertices and more (`run --large-mesh`), each
 /// a flag of its own that trades a little accuracy per observation for time:
 ///
-/// - 3 solver steps per lighting fit inside a round, not 5
-///   ([`RunOptions::lighting_qp_iterations`]);
 /// - blended lighting rows cut within 1% of their energy, not 0.1%: each row within 10% in
 ///   `ℓ²` ([`RunOptions::blend_tolerance`]); protocol (b)'s light fits read every row of a
 ///   half photo, and at 100K vertices a half holds tens of thousands of them, so the cut's
@@ -207,15 +205,15 @@ pub const LIGHTING_SAMPLE_MAX_RATIO: f64 = 1.1;
 ///   ([`RunOptions::ray_lattice`] 2).
 ///
 /// What they cost and buy is measured in `bench-results/large-mesh.md`: at 100K vertices
-/// × 13 photos the run takes 12.5% less CPU time at a held-out error 1.4% lower; on the
-/// real Buddha photos (6.6K vertices) 21% less, the headline unchanged; on the built-in
-/// example's 2.9K-vertex mesh the held-out error under the true light rises 13–16%, which
-/// is why a run without `--large-mesh` ([`RunOptions::large_mesh_auto`], the CLI's default) uses
-/// them only from [`LargeMeshSettings::FROM_VERTICES`].
+/// × 13 photos the run takes 9% less CPU time than the defaults (224.8 against 247.1 CPU s,
+/// both with 3 lighting steps) at a held-out error 1.1% lower; on the real Buddha photos
+/// (6.6K vertices) less time at the headline unchanged; on the built-in example's
+/// 2.9K-vertex mesh the held-out error under the true light rises 13–16%, which is why a
+/// run without `--large-mesh` ([`RunOptions::large_mesh_auto`], the CLI's default) uses
+/// them only from [`LargeMeshSettings::FROM_VERTICES`]. (They once included 3 lighting
+/// steps instead of 5; 3 is now every run's default, [`crate::solve::options::ALTERNATION_QP_ITERS`].)
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LargeMeshSettings {
-    /// [`RunOptions::lighting_qp_iterations`].
-    pub lighting_qp_iterations: usize,
     /// [`RunOptions::blend_tolerance`].
     pub blend_tolerance: f64,
     /// [`RunOptions::edge_rays`].
@@ -226,7 +224,6 @@ pub struct LargeMeshSettings {
 
 /// The values of `run --large-mesh` ([`LargeMeshSettings`]).
 pub const LARGE_MESH: LargeMeshSettings = LargeMeshSettings {
-    lighting_qp_iterations: 3,
     blend_tolerance: 1e-2,
     edge_rays: 3,
     ray_lattice: 2,
@@ -252,9 +249,8 @@ impl LargeMeshSettings {
         Some(sized)
     }
 
-    /// Set these four options of `o`, leaving every other one as it is.
+    /// Set these three options of `o`, leaving every other one as it is.
     pub fn apply(&self, o: &mut RunOptions) {
-        o.lighting_qp_iterations = self.lighting_qp_iterations;
         o.blend_tolerance = self.blend_tolerance;
         o.edge_rays = self.edge_rays;
         o.ray_lattice = self.ray_lattice;
@@ -263,15 +259,14 @@ impl LargeMeshSettings {
     /// These settings as the `run` flags that give them.
     pub fn flags(&self) -> String {
         format!(
-            "--lighting-qp-iterations {} --blend-tolerance {} --edge-rays {} --ray-lattice {}",
-            self.lighting_qp_iterations, self.blend_tolerance, self.edge_rays, self.ray_lattice
+            "--blend-tolerance {} --edge-rays {} --ray-lattice {}",
+            self.blend_tolerance, self.edge_rays, self.ray_lattice
         )
     }
 
-    /// Whether `o` has all four of these settings.
+    /// Whether `o` has all three of these settings.
     pub fn in_effect(&self, o: &RunOptions) -> bool {
-        o.lighting_qp_iterations == self.lighting_qp_iterations
-            && o.blend_tolerance == self.blend_tolerance
+        o.blend_tolerance == self.blend_tolerance
             && o.edge_rays == self.edge_rays
             && o.ray_lattice == self.ray_lattice
     }
@@ -485,17 +480,16 @@ impl RunOptions {
 mod tests {
     use super::*;
 
-    /// `apply` sets the four options and nothing else, each differs from its default (or
-    /// the flag would not change it), and `in_effect` needs all four.
+    /// `apply` sets the three options and nothing else, each differs from its default (or
+    /// the flag would not change it), and `in_effect` needs all three.
     #[test]
-    fn large_mesh_settings_set_four_options_and_need_all_four() {
+    fn large_mesh_settings_set_three_options_and_need_all_three() {
         let default = RunOptions::new("ws".into(), "o".into());
         assert!(!LARGE_MESH.in_effect(&default));
         let mut o = default.clone();
         LARGE_MESH.apply(&mut o);
         assert!(LARGE_MESH.in_effect(&o));
-        let resets: [fn(&mut RunOptions, &RunOptions); 4] = [
-            |o, d| o.lighting_qp_iterations = d.lighting_qp_iterations,
+        let resets: [fn(&mut RunOptions, &RunOptions); 3] = [
             |o, d| o.blend_tolerance = d.blend_tolerance,
             |o, d| o.edge_rays = d.edge_rays,
             |o, d| o.ray_lattice = d.ray_lattice,

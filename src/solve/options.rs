@@ -216,13 +216,19 @@ pub struct EstimateOptions {
 /// run to the end 0.0073, free weights 0.0081) (`bench-results/weights-sum-default.md`).
 pub const WEIGHTS_SUM: f64 = 0.0;
 
-/// Default of [`EstimateOptions::alternation_qp_iters`]: 5 GPCG iterations per lighting QP
-/// (≤ ~630 Hessian products with the old CG cap of 100, ≤ ~120 with
-/// [`ALTERNATION_CG_ITERS`]). On the Minerva model (`spot-varying`, 2,930 vertices, 13
-/// photos of 1024²) the estimate took 7.3× less CPU than solving every QP to the KKT
-/// tolerance (48.8 s against 357.9 s) with held-out error 0.0765 against 0.0791 and
-/// training error 0.0340 against 0.0331 (`bench-results/archive/lighting-solver.md`).
-pub const ALTERNATION_QP_ITERS: usize = 5;
+/// Default of [`EstimateOptions::alternation_qp_iters`]: 3 GPCG iterations per lighting QP,
+/// each round continuing from the last round's lights (≤ ~75 Hessian products with
+/// [`ALTERNATION_CG_ITERS`]). Capping the QPs at all: on the Minerva model (`spot-varying`,
+/// 2,930 vertices, 13 photos of 1024²) 5 iterations took 7.3× less estimate CPU than
+/// solving every QP to the KKT tolerance (48.8 s against 357.9 s) with held-out error
+/// 0.0765 against 0.0791 (`bench-results/archive/lighting-solver.md`). 3 instead of 5,
+/// paired over 10 seeds (`bench-results/example-knobs.md`): the built-in example −11.0% ±
+/// 0.5% CPU with every held-out figure 1–4% lower; the real Buddha photos −4.9% CPU,
+/// headline +0.1% ± 0.1%; 100K vertices × 13 photos −5% CPU, `truth` 0.07637 → 0.07608
+/// (`bench-results/large-mesh.md`); the rendered ablation scenes the same or better
+/// (three materials held-out 1.71× → 1.64× the photo floor,
+/// `bench-results/estimator-ablation-qp3.md`). 4 bought less (example −6.4% CPU).
+pub const ALTERNATION_QP_ITERS: usize = 3;
 
 /// Default of [`EstimateOptions::alternation_cg_iters`]: 20 conjugate-gradient steps per
 /// GPCG iteration (≤ ~120 Hessian products per lighting QP with the 5 GPCG iterations of

@@ -133,9 +133,9 @@ pub const PILOT_ITERATIONS: usize = 2;
 /// there and on the Buddha fixture is the same, and the pilot costs 27% less CPU
 /// (`bench-results/example-speed.md`); 10 steps bought nothing measurable.
 pub const PILOT_CG_ITERS: usize = 5;
-/// GPCG iterations per lighting QP of the pilot (the alternation's own is
-/// [`crate::solve::options::ALTERNATION_QP_ITERS`], 5). Fewer under-fit the pilot's lights
-/// a little, and its held-out scores drop with it (the built-in example's K = 2: 6.7917e-2
+/// GPCG iterations per lighting QP of the pilot, at most the alternation's own
+/// ([`crate::solve::options::ALTERNATION_QP_ITERS`]). 3 instead of 5 under-fit the pilot's
+/// lights a little, and its held-out scores drop with it (the built-in example's K = 2: 6.7917e-2
 /// → 6.6408e-2): the pilot ranks candidates, and every choice on the built-in example and
 /// on the Buddha fixture is the same as with 5, for 15–20% less pilot CPU; 2 changes the
 /// example's basis choice (phong:500 kept instead of phong:50; `bench-results/example-speed.md`).
