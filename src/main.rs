@@ -212,7 +212,7 @@ enum Command {
         /// Also fit each vertex-scaling scene with the adaptive model (`--adaptive on`).
         #[arg(long)]
         adaptive_rows: bool,
-        /// Fit with `run --large-mesh` (its lighting step cap replaces the sweep's).
+        /// Fit with `run --large-mesh` (its settings beside the knobs).
         #[arg(long)]
         large_mesh: bool,
         /// No per-stage progress of the runs.

@@ -163,7 +163,7 @@ figures are exact, later ones are upper bounds. For a clean figure run one size 
         growth_table(&mut md, "photos", &report.photo_growth);
     }
     if !report.sweep.is_empty() {
-        let reference = report.reference.and_then(|i| report.sweep.get(i));
+        let reference = report.reference_run();
         let _ = writeln!(
             md,
             "## Error against run time\n\nOne scene ({} vertices, {} photos); reference: the dense untruncated model `{}`. \
@@ -261,9 +261,10 @@ renderer noise, the model's basis), and the front is decided by time.",
 }
 
 pub(crate) fn plot_sweep(report: &BenchReport, path: &Path) -> Result<()> {
-    let reference = report.reference.and_then(|i| report.sweep.get(i));
-    let Some(reference) = reference else {
-        return Ok(());
+    let Some(reference) = report.reference_run() else {
+        return Err(Error::Internal(
+            "bench: the sweep's plot needs its reference run".into(),
+        ));
     };
     // Families of the sweep: vary one knob from the default knobs (at the top resolution).
     let (_, _, _, base) = mode_settings(report.quick);

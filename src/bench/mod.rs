@@ -98,8 +98,7 @@ pub struct Model {
     pub basis: Option<String>,
     /// `run --adaptive`.
     pub adaptive: bool,
-    /// `run --large-mesh` ([`crate::run::LARGE_MESH`]; its lighting step cap replaces the
-    /// knobs').
+    /// `run --large-mesh` ([`crate::run::LARGE_MESH`], beside the knobs).
     pub large_mesh: bool,
 }
 
@@ -349,6 +348,13 @@ pub struct BenchReport {
     pub command: String,
 }
 
+impl BenchReport {
+    /// The sweep's dense reference, once it has run.
+    pub fn reference_run(&self) -> Option<&BenchRun> {
+        self.reference.and_then(|i| self.sweep.get(i))
+    }
+}
+
 /// Growth between consecutive entries of `series`: `(size, [(stage, seconds)])`, sorted by
 /// size. A stage missing from either entry, or with a non-positive time, or two equal
 /// sizes, gives no row.
@@ -592,7 +598,8 @@ fn write_outputs(report: &BenchReport, files: &crate::out_dir::OutFiles, name: &
         .map_err(|e| Error::Internal(format!("bench: could not encode the report: {e}")))?;
     files.write(&json_name, json.as_bytes())?;
     files.write(&md_name, markdown(report, name).as_bytes())?;
-    if report.sweep.len() > 1 {
+    // The plot is drawn against the reference, which the sweep runs after other settings.
+    if report.sweep.len() > 1 && report.reference_run().is_some() {
         files.write_with(&png_name, |p| plot_sweep(report, p))?;
     }
     Ok(())

@@ -110,3 +110,81 @@ fn pareto_by_hand() {
     );
     assert_eq!(pareto_front(&[(1.0, 1.0), (1.0, 1.0)]), vec![true, true]);
 }
+
+/// A sweep run with knobs `k`, `seconds` of wall time and held-out RMSE `rmse`.
+fn sweep_run(k: Knobs, seconds: f64, rmse: f64) -> BenchRun {
+    BenchRun {
+        group: "sweep".into(),
+        vertices: 100,
+        photos: 3,
+        observations: 300,
+        width: 8,
+        height: 8,
+        knobs: k,
+        model: Model::default(),
+        synth_seconds: 0.0,
+        synth_reused: false,
+        stages: Vec::new(),
+        total_seconds: seconds,
+        total_cpu_seconds: 2.0 * seconds,
+        peak_memory_bytes: 1 << 20,
+        train_rmse: rmse,
+        holdout_rmse: rmse,
+        outer_iterations: 1,
+        steps: Default::default(),
+        command: None,
+    }
+}
+
+/// The files are rewritten after every run: before the sweep reaches its reference (the
+/// plot's yardstick) the JSON and Markdown are written and the plot is not; once the
+/// reference has run the plot is a PNG. (The plot was once asked for after the second
+/// run, drew nothing and failed the whole bench on its missing staged file.)
+#[test]
+fn a_sweep_writes_its_plot_once_the_reference_has_run() {
+    let (_, _, _, base) = mode_settings(true);
+    let (list, idx) = sweep_knobs(base, true);
+    assert!(idx >= 2, "the reference comes after two settings");
+    let dir = std::env::temp_dir().join(format!("relight-bench-plot-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let names = output_names("sweep");
+    let files = crate::out_dir::OutFiles::claim(
+        &dir,
+        &names.each_ref().map(|s| s.as_str()),
+        false,
+        &[],
+        is_bench_report,
+    )
+    .unwrap();
+    let mut report = BenchReport {
+        quick: true,
+        isolated: true,
+        complete: false,
+        model: Model::default(),
+        synth: String::new(),
+        scene: "s".into(),
+        vertex_runs: Vec::new(),
+        photo_runs: Vec::new(),
+        vertex_growth: Vec::new(),
+        photo_growth: Vec::new(),
+        adaptive_runs: Vec::new(),
+        sweep: Vec::new(),
+        reference: Some(idx),
+        pareto: Vec::new(),
+        seconds: 1.0,
+        command: "bench".into(),
+    };
+    let png = dir.join(&names[2]);
+    for (i, k) in list.iter().enumerate().take(idx + 1) {
+        report
+            .sweep
+            .push(sweep_run(*k, 1.0 + i as f64, 0.1 / (1.0 + i as f64)));
+        summarise(&mut report);
+        write_outputs(&report, &files, "sweep").unwrap();
+        assert!(dir.join(&names[0]).is_file() && dir.join(&names[1]).is_file());
+        assert_eq!(png.is_file(), i == idx, "after run {i}");
+    }
+    let bytes = std::fs::read(&png).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
