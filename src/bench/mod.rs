@@ -349,6 +349,28 @@ pub struct BenchReport {
 }
 
 impl BenchReport {
+    /// The report of a bench with `opts` run by `command`, before any run.
+    pub fn started(opts: &BenchOptions, command: String) -> Self {
+        BenchReport {
+            quick: opts.quick,
+            isolated: opts.executable.is_some(),
+            complete: false,
+            model: opts.model.clone(),
+            synth: synth_label(opts.quick),
+            scene: opts.scene.clone(),
+            vertex_runs: Vec::new(),
+            photo_runs: Vec::new(),
+            vertex_growth: Vec::new(),
+            photo_growth: Vec::new(),
+            adaptive_runs: Vec::new(),
+            sweep: Vec::new(),
+            reference: None,
+            pareto: Vec::new(),
+            seconds: 0.0,
+            command,
+        }
+    }
+
     /// The sweep's dense reference, once it has run.
     pub fn reference_run(&self) -> Option<&BenchRun> {
         self.reference.and_then(|i| self.sweep.get(i))
@@ -489,24 +511,7 @@ fn bench_in(
     let mut photos = opts.photos.clone();
     photos.sort_unstable();
     photos.dedup();
-    let mut report = BenchReport {
-        quick: opts.quick,
-        isolated: opts.executable.is_some(),
-        complete: false,
-        model: opts.model.clone(),
-        synth: synth_label(opts.quick),
-        scene: opts.scene.clone(),
-        vertex_runs: Vec::new(),
-        photo_runs: Vec::new(),
-        vertex_growth: Vec::new(),
-        photo_growth: Vec::new(),
-        adaptive_runs: Vec::new(),
-        sweep: Vec::new(),
-        reference: None,
-        pareto: Vec::new(),
-        seconds: 0.0,
-        command: shell_line(std::env::args().skip(1)),
-    };
+    let mut report = BenchReport::started(opts, shell_line(std::env::args().skip(1)));
     let save = |report: &mut BenchReport| -> Result<()> {
         summarise(report);
         report.seconds = t0.elapsed().as_secs_f64();

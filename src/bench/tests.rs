@@ -156,24 +156,8 @@ fn a_sweep_writes_its_plot_once_the_reference_has_run() {
         is_bench_report,
     )
     .unwrap();
-    let mut report = BenchReport {
-        quick: true,
-        isolated: true,
-        complete: false,
-        model: Model::default(),
-        synth: String::new(),
-        scene: "s".into(),
-        vertex_runs: Vec::new(),
-        photo_runs: Vec::new(),
-        vertex_growth: Vec::new(),
-        photo_growth: Vec::new(),
-        adaptive_runs: Vec::new(),
-        sweep: Vec::new(),
-        reference: Some(idx),
-        pareto: Vec::new(),
-        seconds: 1.0,
-        command: "bench".into(),
-    };
+    let mut report = BenchReport::started(&BenchOptions::quick(dir.clone()), "bench".into());
+    report.reference = Some(idx);
     let png = dir.join(&names[2]);
     for (i, k) in list.iter().enumerate().take(idx + 1) {
         report
