@@ -375,6 +375,12 @@ impl BenchReport {
     pub fn reference_run(&self) -> Option<&BenchRun> {
         self.reference.and_then(|i| self.sweep.get(i))
     }
+
+    /// The reference the sweep's plot is drawn against, once there is a plot to draw: the
+    /// reference has run (the sweep runs it after other settings) beside another setting.
+    pub fn plot_reference(&self) -> Option<&BenchRun> {
+        self.reference_run().filter(|_| self.sweep.len() > 1)
+    }
 }
 
 /// Growth between consecutive entries of `series`: `(size, [(stage, seconds)])`, sorted by
@@ -603,9 +609,8 @@ fn write_outputs(report: &BenchReport, files: &crate::out_dir::OutFiles, name: &
         .map_err(|e| Error::Internal(format!("bench: could not encode the report: {e}")))?;
     files.write(&json_name, json.as_bytes())?;
     files.write(&md_name, markdown(report, name).as_bytes())?;
-    // The plot is drawn against the reference, which the sweep runs after other settings.
-    if report.sweep.len() > 1 && report.reference_run().is_some() {
-        files.write_with(&png_name, |p| plot_sweep(report, p))?;
+    if let Some(reference) = report.plot_reference() {
+        files.write_with(&png_name, |p| plot_sweep(report, reference, p))?;
     }
     Ok(())
 }
