@@ -3,6 +3,7 @@
 //! [`crate::sphere::rotation`] give the construction and the balancing).
 
 use super::resampling::{resampling_flat_with, FlatRows, ResamplingGeometry, DEFAULT_SUPERSAMPLE};
+use super::symmetry::NormalOrbits;
 use super::LocalRotation;
 use crate::sphere::haar;
 use crate::sphere::SphereGrid;
@@ -107,21 +108,18 @@ impl Rotation {
         );
         let gn = SphereGrid::full(n_normals);
         let geo = ResamplingGeometry::new(n_global, n_local, supersample);
-        let rows: Vec<Csr> = (0..gn.len())
-            .into_par_iter()
-            .map(|nu| {
-                crate::stages::tick(1);
-                let s = resampling_flat_with(&geo, &gn.texel_dir(nu));
-                match form {
-                    RotationForm::Factored => Csr::from_flat(&s),
-                    RotationForm::Sparse { threshold } => {
-                        let s: Vec<Vec<(u32, f32)>> =
-                            (0..s.len()).map(|j| s.row(j).to_vec()).collect();
-                        Csr::from_rows(&wavelet_matrix(&s, n_global, n_local, threshold))
-                    }
-                }
-            })
-            .collect();
+        let rows = match form {
+            RotationForm::Factored => factored_rows(&gn, &geo),
+            RotationForm::Sparse { threshold } => (0..gn.len())
+                .into_par_iter()
+                .map(|nu| {
+                    crate::stages::tick(1);
+                    let s = resampling_flat_with(&geo, &gn.texel_dir(nu));
+                    let s: Vec<Vec<(u32, f32)>> = (0..s.len()).map(|j| s.row(j).to_vec()).collect();
+                    Csr::from_rows(&wavelet_matrix(&s, n_global, n_local, threshold))
+                })
+                .collect(),
+        };
         Rotation {
             n_global,
             n_local,
@@ -506,6 +504,37 @@ impl Rotation {
 }
 
 /// `R = W_l S W_gᵀ` from the rows of `S`, thresholded: rows per local coefficient.
+/// `S_ν` of every normal of `normals`: built for one normal per orbit of the grid's mirror
+/// symmetries ([`NormalOrbits`]), copied by permutation for the others (an eighth of the
+/// construction; `symmetry.rs` gives the identity).
+fn factored_rows(normals: &SphereGrid, geo: &ResamplingGeometry) -> Vec<Csr> {
+    let orbits = NormalOrbits::new(normals, geo.global(), geo.local());
+    let built: Vec<usize> = orbits.built().collect();
+    let tables: Vec<FlatRows<f32>> = built
+        .par_iter()
+        .map(|&nu| {
+            crate::stages::tick(1);
+            resampling_flat_with(geo, &normals.texel_dir(nu))
+        })
+        .collect();
+    let mut slot = vec![usize::MAX; normals.len()];
+    for (k, &nu) in built.iter().enumerate() {
+        slot[nu] = k;
+    }
+    (0..normals.len())
+        .into_par_iter()
+        .map(|nu| {
+            let source = &tables[slot[orbits.source[nu]]];
+            if orbits.source[nu] == nu {
+                Csr::from_flat(source)
+            } else {
+                crate::stages::tick(1);
+                Csr::from_flat(&orbits.copy(nu, source))
+            }
+        })
+        .collect()
+}
+
 fn wavelet_matrix(
     s: &[Vec<(u32, f32)>],
     n_global: usize,

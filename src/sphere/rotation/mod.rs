@@ -34,6 +34,7 @@ mod blended;
 mod exact;
 mod resampling;
 mod splat;
+mod symmetry;
 #[cfg(test)]
 mod tests;
 

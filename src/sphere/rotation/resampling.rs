@@ -54,6 +54,16 @@ impl ResamplingGeometry {
         }
     }
 
+    /// The global (full octahedral) grid.
+    pub(super) fn global(&self) -> &SphereGrid {
+        &self.gg
+    }
+
+    /// The local (hemi-octahedral) grid.
+    pub(super) fn local(&self) -> &SphereGrid {
+        &self.gl
+    }
+
     /// The sub-texels of local texel `j`.
     pub(super) fn subs_of(&self, j: usize) -> &[(Vec3, f64)] {
         let k = self.supersample * self.supersample;
