@@ -189,6 +189,36 @@ impl Rotation {
         }
     }
 
+    /// [`Rotation::resample_add`] of three channels in one pass over the rows: each
+    /// channel's sums are the single-channel ones, term by term, so equal bit for bit.
+    fn resample_add_rgb(
+        &self,
+        nus: &[(usize, f64)],
+        global: [&[f64]; 3],
+        local: &mut [Vec<f64>; 3],
+    ) {
+        let [g0, g1, g2] = global;
+        let [l0, l1, l2] = local;
+        for &(nu, w) in nus {
+            if w == 0.0 {
+                continue;
+            }
+            for j in 0..l0.len() {
+                let (idx, val) = self.rows[nu].row(j);
+                let mut s = [-0.0_f64; 3];
+                for (&g, &v) in idx.iter().zip(val) {
+                    let (g, v) = (g as usize, v as f64);
+                    s[0] += v * g0[g];
+                    s[1] += v * g1[g];
+                    s[2] += v * g2[g];
+                }
+                l0[j] += w * s[0];
+                l1[j] += w * s[1];
+                l2[j] += w * s[2];
+            }
+        }
+    }
+
     /// Texel domain: `global += Σ_i w_i S_{ν_i}ᵀ local` (factored form only).
     fn resample_transpose_add(&self, nus: &[(usize, f64)], local: &[f64], global: &mut [f64]) {
         for &(nu, w) in nus {
@@ -638,6 +668,24 @@ impl LocalRotation for Rotation {
                 _ => self.texel_transpose_k::<8>(&nus, l, g, scratch),
             }
         }
+    }
+    fn light_texels_rgb(
+        &self,
+        normal_env: &Vec3,
+        global_texels: [&[f64]; 3],
+        global_haar: [&[f64]; 3],
+        local_texels: &mut [Vec<f64>; 3],
+    ) {
+        if self.form() != RotationForm::Factored {
+            for (c, l) in local_texels.iter_mut().enumerate() {
+                self.light_texels(normal_env, global_texels[c], global_haar[c], l);
+            }
+            return;
+        }
+        for l in local_texels.iter_mut() {
+            l.fill(0.0);
+        }
+        self.resample_add_rgb(&self.blend(normal_env), global_texels, local_texels);
     }
     fn light_texels(
         &self,
