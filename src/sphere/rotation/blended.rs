@@ -677,10 +677,8 @@ impl LocalRotation for Rotation {
         local_texels: &mut [Vec<f64>; 3],
     ) {
         if self.form() != RotationForm::Factored {
-            for (c, l) in local_texels.iter_mut().enumerate() {
-                self.light_texels(normal_env, global_texels[c], global_haar[c], l);
-            }
-            return;
+            let (t, h) = (global_texels, global_haar);
+            return super::light_texels_by_channel(self, normal_env, t, h, local_texels);
         }
         for l in local_texels.iter_mut() {
             l.fill(0.0);

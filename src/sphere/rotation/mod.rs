@@ -114,9 +114,7 @@ pub trait LocalRotation: Sync {
         global_haar: [&[f64]; 3],
         local_texels: &mut [Vec<f64>; 3],
     ) {
-        for (c, l) in local_texels.iter_mut().enumerate() {
-            self.light_texels(normal_env, global_texels[c], global_haar[c], l);
-        }
+        light_texels_by_channel(self, normal_env, global_texels, global_haar, local_texels);
     }
     /// [`LocalRotation::light_texels_rgb`] for several lights at once: light `i`'s channels
     /// `global_texels[i]` / `global_haar[i]` into `local_texels[i]`. A rotation that walks a
@@ -155,5 +153,19 @@ pub trait LocalRotation: Sync {
     /// read several lights' texels interleaved ([`SplatRotation::resample_interleaved`]).
     fn as_splat(&self) -> Option<&SplatRotation> {
         None
+    }
+}
+
+/// [`LocalRotation::light_texels_rgb`] as three calls of [`LocalRotation::light_texels`],
+/// one per channel (the trait's default, and the blended rotation's sparse form).
+fn light_texels_by_channel<R: LocalRotation + ?Sized>(
+    rot: &R,
+    normal_env: &Vec3,
+    global_texels: [&[f64]; 3],
+    global_haar: [&[f64]; 3],
+    local_texels: &mut [Vec<f64>; 3],
+) {
+    for (c, l) in local_texels.iter_mut().enumerate() {
+        rot.light_texels(normal_env, global_texels[c], global_haar[c], l);
     }
 }
