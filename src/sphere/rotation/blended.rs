@@ -533,7 +533,6 @@ impl Rotation {
     }
 }
 
-/// `R = W_l S W_gᵀ` from the rows of `S`, thresholded: rows per local coefficient.
 /// `S_ν` of every normal of `normals`: built for one normal per orbit of the grid's mirror
 /// symmetries ([`NormalOrbits`]), copied by permutation for the others (an eighth of the
 /// construction; `symmetry.rs` gives the identity).
@@ -565,6 +564,7 @@ fn factored_rows(normals: &SphereGrid, geo: &ResamplingGeometry) -> Vec<Csr> {
         .collect()
 }
 
+/// `R = W_l S W_gᵀ` from the rows of `S`, thresholded: rows per local coefficient.
 fn wavelet_matrix(
     s: &[Vec<(u32, f32)>],
     n_global: usize,
