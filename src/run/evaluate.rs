@@ -454,14 +454,18 @@ pub(crate) fn evaluate(
     }
     // The lights of the protocols that apply, in report order: (a) truth, (b) the
     // left-half fit (judged on the right half), (c) the mean of the training maps.
-    let mut true_envs = Vec::with_capacity(f.held.len());
-    for &v in &f.held {
-        let name = f.scene.views[v].image.name.as_str();
-        true_envs.push(match truth {
-            Some(t) => t.light(name, f.opts.global_resolution, &f.env_from_world)?,
-            None => None,
-        });
-    }
+    // Each map resampled from its lat-long file on a thread of its own.
+    let true_envs: Vec<Option<OctEnv>> = f
+        .held
+        .par_iter()
+        .map(|&v| {
+            let name = f.scene.views[v].image.name.as_str();
+            match truth {
+                Some(t) => t.light(name, f.opts.global_resolution, &f.env_from_world),
+                None => Ok(None),
+            }
+        })
+        .collect::<Result<_>>()?;
     let lights: Vec<Vec<(&str, &OctEnv)>> = true_envs
         .iter()
         .zip(&half_envs)

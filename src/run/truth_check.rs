@@ -30,6 +30,7 @@ use crate::report::metrics::{
 use crate::sphere::envmap::OctEnv;
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
+use rayon::prelude::*;
 
 /// A training photo the truth check renders: its view, its two lights (the true one, then
 /// the fitted one) and its raster.
@@ -75,27 +76,36 @@ pub(crate) fn checked_positions(pixels: &[u64]) -> Vec<usize> {
 /// ([`super::evaluate`]: a vertex seen in several photos is rotated into its frame once
 /// for all their lights), then scored by [`score`].
 pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView>> {
-    let mut checked = Vec::new();
     let pixels: Vec<u64> = f
         .train
         .iter()
         .map(|&v| u64::from(f.photos[v].width) * u64::from(f.photos[v].height))
         .collect();
-    for k in checked_positions(&pixels) {
-        let v = f.train[k];
-        let view = &f.scene.views[v];
-        let name = view.image.name.as_str();
-        let Some(true_env) = truth.light(name, f.opts.global_resolution, &f.env_from_world)? else {
-            continue;
-        };
-        let raster = crate::render::rasterize(&f.scene.mesh, &view.camera, &view.image);
-        checked.push(CheckedView {
-            v,
-            envs: [true_env, fitted_env(f, k)],
-            raster,
-        });
+    // Each photo's true map (resampled from its lat-long file) and raster on a thread of
+    // its own; kept in the photos' order.
+    let checked: Vec<Result<Option<CheckedView>>> = checked_positions(&pixels)
+        .into_par_iter()
+        .map(|k| {
+            let v = f.train[k];
+            let view = &f.scene.views[v];
+            let name = view.image.name.as_str();
+            let Some(true_env) = truth.light(name, f.opts.global_resolution, &f.env_from_world)?
+            else {
+                return Ok(None);
+            };
+            let raster = crate::render::rasterize(&f.scene.mesh, &view.camera, &view.image);
+            Ok(Some(CheckedView {
+                v,
+                envs: [true_env, fitted_env(f, k)],
+                raster,
+            }))
+        })
+        .collect();
+    let mut out = Vec::with_capacity(checked.len());
+    for c in checked {
+        out.extend(c?);
     }
-    Ok(checked)
+    Ok(out)
 }
 
 /// The truth check of the `checked` photos, shaded as views `first..` of `shaded`: each
