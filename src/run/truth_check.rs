@@ -83,7 +83,7 @@ pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView
         .collect();
     // Each photo's true map (resampled from its lat-long file) and raster on a thread of
     // its own; kept in the photos' order.
-    let checked: Vec<Result<Option<CheckedView>>> = checked_positions(&pixels)
+    let checked: Vec<Option<CheckedView>> = checked_positions(&pixels)
         .into_par_iter()
         .map(|k| {
             let v = f.train[k];
@@ -100,12 +100,8 @@ pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView
                 raster,
             }))
         })
-        .collect();
-    let mut out = Vec::with_capacity(checked.len());
-    for c in checked {
-        out.extend(c?);
-    }
-    Ok(out)
+        .collect::<Result<_>>()?;
+    Ok(checked.into_iter().flatten().collect())
 }
 
 /// The truth check of the `checked` photos, shaded as views `first..` of `shaded`: each

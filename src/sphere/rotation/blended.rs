@@ -3,7 +3,7 @@
 //! [`crate::sphere::rotation`] give the construction and the balancing).
 
 use super::resampling::{resampling_flat_with, FlatRows, ResamplingGeometry, DEFAULT_SUPERSAMPLE};
-use super::symmetry::NormalOrbits;
+use super::symmetry::by_symmetry;
 use super::LocalRotation;
 use crate::sphere::haar;
 use crate::sphere::SphereGrid;
@@ -109,7 +109,7 @@ impl Rotation {
         let gn = SphereGrid::full(n_normals);
         let geo = ResamplingGeometry::new(n_global, n_local, supersample);
         let rows = match form {
-            RotationForm::Factored => factored_rows(&gn, &geo),
+            RotationForm::Factored => by_symmetry(&gn, &geo, Csr::from_flat),
             RotationForm::Sparse { threshold } => (0..gn.len())
                 .into_par_iter()
                 .map(|nu| {
@@ -173,48 +173,34 @@ impl Rotation {
 
     /// Texel domain: `local += Σ_i w_i S_{ν_i} global` (factored form only).
     fn resample_add(&self, nus: &[(usize, f64)], global: &[f64], local: &mut [f64]) {
-        for &(nu, w) in nus {
-            if w == 0.0 {
-                continue;
-            }
-            for (j, out) in local.iter_mut().enumerate() {
-                let (idx, val) = self.rows[nu].row(j);
-                let s: f64 = idx
-                    .iter()
-                    .zip(val)
-                    .map(|(&g, &v)| v as f64 * global[g as usize])
-                    .sum();
-                *out += w * s;
-            }
-        }
+        self.resample_add_many(nus, [global], [local]);
     }
 
-    /// [`Rotation::resample_add`] of three channels in one pass over the rows: each
-    /// channel's sums are the single-channel ones, term by term, so equal bit for bit.
-    fn resample_add_rgb(
+    /// [`Rotation::resample_add`] of `C` vectors (a light's colour channels) in one pass
+    /// over the rows: each vector's sums are the ones a pass of its own makes, term by term
+    /// (from `−0.0`, as `Iterator::sum`), so equal bit for bit.
+    fn resample_add_many<const C: usize>(
         &self,
         nus: &[(usize, f64)],
-        global: [&[f64]; 3],
-        local: &mut [Vec<f64>; 3],
+        global: [&[f64]; C],
+        local: [&mut [f64]; C],
     ) {
-        let [g0, g1, g2] = global;
-        let [l0, l1, l2] = local;
         for &(nu, w) in nus {
             if w == 0.0 {
                 continue;
             }
-            for j in 0..l0.len() {
+            for j in 0..local[0].len() {
                 let (idx, val) = self.rows[nu].row(j);
-                let mut s = [-0.0_f64; 3];
+                let mut s = [-0.0_f64; C];
                 for (&g, &v) in idx.iter().zip(val) {
                     let (g, v) = (g as usize, v as f64);
-                    s[0] += v * g0[g];
-                    s[1] += v * g1[g];
-                    s[2] += v * g2[g];
+                    for c in 0..C {
+                        s[c] += v * global[c][g];
+                    }
                 }
-                l0[j] += w * s[0];
-                l1[j] += w * s[1];
-                l2[j] += w * s[2];
+                for c in 0..C {
+                    local[c][j] += w * s[c];
+                }
             }
         }
     }
@@ -533,37 +519,6 @@ impl Rotation {
     }
 }
 
-/// `S_ν` of every normal of `normals`: built for one normal per orbit of the grid's mirror
-/// symmetries ([`NormalOrbits`]), copied by permutation for the others (an eighth of the
-/// construction; `symmetry.rs` gives the identity).
-fn factored_rows(normals: &SphereGrid, geo: &ResamplingGeometry) -> Vec<Csr> {
-    let orbits = NormalOrbits::new(normals, geo.global(), geo.local());
-    let built: Vec<usize> = orbits.built().collect();
-    let tables: Vec<FlatRows<f32>> = built
-        .par_iter()
-        .map(|&nu| {
-            crate::stages::tick(1);
-            resampling_flat_with(geo, &normals.texel_dir(nu))
-        })
-        .collect();
-    let mut slot = vec![usize::MAX; normals.len()];
-    for (k, &nu) in built.iter().enumerate() {
-        slot[nu] = k;
-    }
-    (0..normals.len())
-        .into_par_iter()
-        .map(|nu| {
-            let source = &tables[slot[orbits.source[nu]]];
-            if orbits.source[nu] == nu {
-                Csr::from_flat(source)
-            } else {
-                crate::stages::tick(1);
-                Csr::from_flat(&orbits.copy(nu, source))
-            }
-        })
-        .collect()
-}
-
 /// `R = W_l S W_gᵀ` from the rows of `S`, thresholded: rows per local coefficient.
 fn wavelet_matrix(
     s: &[Vec<(u32, f32)>],
@@ -683,7 +638,9 @@ impl LocalRotation for Rotation {
         for l in local_texels.iter_mut() {
             l.fill(0.0);
         }
-        self.resample_add_rgb(&self.blend(normal_env), global_texels, local_texels);
+        let [l0, l1, l2] = local_texels;
+        let local = [l0.as_mut_slice(), l1.as_mut_slice(), l2.as_mut_slice()];
+        self.resample_add_many(&self.blend(normal_env), global_texels, local);
     }
     fn light_texels(
         &self,

@@ -27,9 +27,45 @@
 //! up to floating-point summation order (entries differ by at most an `f32` rounding;
 //! test `symmetric_copies_match_the_direct_construction`).
 
-use super::resampling::FlatRows;
+use super::resampling::{resampling_flat_with, FlatRows, ResamplingGeometry};
 use crate::sphere::SphereGrid;
 use crate::Vec3;
+use rayon::prelude::*;
+
+/// `finish(S_ν)` for every normal `ν` of `normals` (in order), `S_ν` built for one normal
+/// per orbit of the mirrors ([`NormalOrbits`]) and copied by permutation for the others;
+/// only the built tables are held at once.
+pub(super) fn by_symmetry<T: Send>(
+    normals: &SphereGrid,
+    geo: &ResamplingGeometry,
+    finish: impl Fn(&FlatRows<f32>) -> T + Sync,
+) -> Vec<T> {
+    let orbits = NormalOrbits::new(normals, geo.global(), geo.local());
+    let built: Vec<usize> = orbits.built().collect();
+    let tables: Vec<FlatRows<f32>> = built
+        .par_iter()
+        .map(|&nu| {
+            crate::stages::tick(1);
+            resampling_flat_with(geo, &normals.texel_dir(nu))
+        })
+        .collect();
+    let mut slot = vec![usize::MAX; normals.len()];
+    for (k, &nu) in built.iter().enumerate() {
+        slot[nu] = k;
+    }
+    (0..normals.len())
+        .into_par_iter()
+        .map(|nu| {
+            let source = &tables[slot[orbits.source[nu]]];
+            if orbits.source[nu] == nu {
+                finish(source)
+            } else {
+                crate::stages::tick(1);
+                finish(&orbits.copy(nu, source))
+            }
+        })
+        .collect()
+}
 
 /// `G = (s_x, s_y, swap)`: `(x, y, z) ↦ (s_x x', s_y y', z)` with `(x', y') = (y, x)` when
 /// `swap`, else `(x, y)` (module docs).
@@ -96,7 +132,7 @@ fn permutation(grid: &SphereGrid, f: impl Fn(&Vec3) -> Vec3) -> Vec<u32> {
 /// that one onto it, with each mirror's texel permutations.
 pub(super) struct NormalOrbits {
     /// `source[ν]`: the smallest index in `ν`'s orbit; `ν` itself for the built ones.
-    pub(super) source: Vec<usize>,
+    source: Vec<usize>,
     /// `mirror[ν]`: index into [`Mirror::all`] of `G` with `G (direction of source[ν]) =
     /// direction of ν`.
     mirror: Vec<usize>,

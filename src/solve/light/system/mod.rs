@@ -498,16 +498,10 @@ fn cut_to_energy(
     eps: f64,
     sorted: &mut Vec<u64>,
 ) {
-    let total: f64 = value[start..].iter().map(entry_energy).sum();
-    let budget = eps * total;
     sorted.clear();
-    sorted.extend(
-        value[start..]
-            .iter()
-            .map(entry_energy)
-            .filter(|&m| m <= budget)
-            .map(f64::to_bits),
-    );
+    sorted.extend(value[start..].iter().map(|e| entry_energy(e).to_bits()));
+    let budget = eps * sorted.iter().map(|&m| f64::from_bits(m)).sum::<f64>();
+    sorted.retain(|&m| f64::from_bits(m) <= budget);
     sorted.sort_unstable();
     let (mut dropped, mut n_drop) = (0.0, 0);
     for &m in sorted.iter() {
