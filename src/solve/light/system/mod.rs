@@ -321,10 +321,14 @@ impl PhotoSystem {
 
     /// The rows `rows` of [`Self::normal_rows`] into `acc` with AVX2: the three channels
     /// in the first three lanes of a 4-lane vector, each lane's multiplications and
-    /// additions the scalar code's, in its order (rows in pairs, zero-weight rows skipped),
-    /// so the result is bit for bit the scalar one. An entry's three `f32` are loaded as
-    /// four; the fourth (the next entry's first, or the padding entry past the last row)
-    /// meets a zero lane of `h4` or of the scattered response, and lane 3 is never read.
+    /// additions the scalar code's, in its order (zero-weight rows skipped; each row's dot
+    /// over its own entries in its own order, the scatters in row order), so the result is
+    /// bit for bit the scalar one. The rows are taken four at a time so that four dots'
+    /// dependency chains overlap (one chain waits on the add latency at every entry); the
+    /// scalar code's pairs give the same sums, since a row's dot never reads `acc`. An
+    /// entry's three `f32` are loaded as four; the fourth (the next entry's first, or the
+    /// padding entry past the last row) meets a zero lane of `h4` or of the scattered
+    /// response, and lane 3 is never read.
     ///
     /// # Safety
     /// The CPU must have AVX2, and `self.value` an entry past the last row's.
@@ -337,19 +341,27 @@ impl PhotoSystem {
         acc: &mut [[f64; 4]],
     ) {
         use std::arch::x86_64::*;
+        // Every merged index is below `n²` (`PhotoSystem::new` keeps only Haar indices of
+        // the map; the cut only drops entries), so with these lengths each `h4` and `acc`
+        // access below is in bounds.
+        let n2 = self.n * self.n;
+        assert!(h4.len() >= n2 && acc.len() >= n2 && self.value.len() > self.index.len());
         let val = self.value.as_ptr() as *const f32;
-        // SAFETY (both closures): `i` is an entry of a row, so `i + 1 < value.len()` (the
-        // padding entry) and the 16 bytes from entry `i` lie in `value`; `m` is a Haar index
-        // below `n²` = `h4.len()` = `acc.len()`, checked by the slice indexing.
+        let idx = self.index.as_ptr();
+        let hp = h4.as_ptr() as *const f64;
+        let ap = acc.as_mut_ptr() as *mut f64;
+        // SAFETY (these three closures): `i` is an entry of a row, so `i + 1 <
+        // value.len()` and the 16 bytes from entry `i` lie in `value`; its Haar index is
+        // below `n²` (above), so the 32 bytes at `4 · index` lie in `h4` and in `acc`.
         let e4 = |i: usize| unsafe { _mm256_cvtps_pd(_mm_loadu_ps(val.add(3 * i))) };
-        let h_at = |i: usize| unsafe { _mm256_loadu_pd(h4[self.index[i] as usize].as_ptr()) };
+        let h_at = |i: usize| unsafe { _mm256_loadu_pd(hp.add(4 * *idx.add(i) as usize)) };
         let dot_from = |mut x: __m256d, r: std::ops::Range<usize>| {
             for i in r {
                 x = _mm256_add_pd(x, _mm256_mul_pd(e4(i), h_at(i)));
             }
             x
         };
-        let mut scatter = |q: usize, x: __m256d| {
+        let scatter = |q: usize, x: __m256d| {
             let mut r = [0.0_f64; 4];
             // SAFETY: `r` holds four f64.
             unsafe { _mm256_storeu_pd(r.as_mut_ptr(), x) };
@@ -360,9 +372,9 @@ impl PhotoSystem {
             }
             let u = _mm256_setr_pd(uq[0], uq[1], uq[2], 0.0);
             for i in self.offsets[q]..self.offsets[q + 1] {
-                let o = acc[self.index[i] as usize].as_mut_ptr();
-                // SAFETY: `o` points at four f64 of `acc`.
+                // SAFETY: as for `h_at`.
                 unsafe {
+                    let o = ap.add(4 * *idx.add(i) as usize);
                     _mm256_storeu_pd(
                         o,
                         _mm256_add_pd(_mm256_loadu_pd(o), _mm256_mul_pd(e4(i), u)),
@@ -371,22 +383,36 @@ impl PhotoSystem {
             }
         };
         let mut live = rows.filter(|&q| self.dw[q] != [0.0; 3]);
-        while let Some(q) = live.next() {
-            let (a0, a1) = (self.offsets[q], self.offsets[q + 1]);
-            let Some(q2) = live.next() else {
-                scatter(q, dot_from(_mm256_setzero_pd(), a0..a1));
-                break;
-            };
-            let (b0, b1) = (self.offsets[q2], self.offsets[q2 + 1]);
-            let k = (a1 - a0).min(b1 - b0);
-            let (mut x, mut y) = (_mm256_setzero_pd(), _mm256_setzero_pd());
-            for j in 0..k {
-                x = _mm256_add_pd(x, _mm256_mul_pd(e4(a0 + j), h_at(a0 + j)));
-                y = _mm256_add_pd(y, _mm256_mul_pd(e4(b0 + j), h_at(b0 + j)));
+        loop {
+            let mut qs = [0_usize; 4];
+            let mut m = 0;
+            while m < 4 {
+                let Some(q) = live.next() else { break };
+                qs[m] = q;
+                m += 1;
             }
-            let (x, y) = (dot_from(x, a0 + k..a1), dot_from(y, b0 + k..b1));
-            scatter(q, x);
-            scatter(q2, y);
+            if m < 4 {
+                for &q in &qs[..m] {
+                    let x = dot_from(_mm256_setzero_pd(), self.offsets[q]..self.offsets[q + 1]);
+                    scatter(q, x);
+                }
+                break;
+            }
+            let a = qs.map(|q| self.offsets[q]);
+            let b = qs.map(|q| self.offsets[q + 1]);
+            let k = (0..4).map(|j| b[j] - a[j]).min().unwrap_or(0);
+            let mut x = [_mm256_setzero_pd(); 4];
+            for t in 0..k {
+                for j in 0..4 {
+                    x[j] = _mm256_add_pd(x[j], _mm256_mul_pd(e4(a[j] + t), h_at(a[j] + t)));
+                }
+            }
+            for j in 0..4 {
+                x[j] = dot_from(x[j], a[j] + k..b[j]);
+            }
+            for j in 0..4 {
+                scatter(qs[j], x[j]);
+            }
         }
     }
 
