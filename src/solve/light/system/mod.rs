@@ -473,7 +473,9 @@ pub(crate) fn texel_diag_vec(
     let (n, nb) = (t.n_global, t.n_basis);
     let n2 = n * n;
     let mut diag = vec![[0.0_f64; 3]; n2];
-    let mut dense = [vec![0.0_f64; n2], vec![0.0; n2], vec![0.0; n2]];
+    // The three channels interleaved and transformed together (`haar::Rgb`: the same
+    // operations per channel as three separate transforms).
+    let mut dense = vec![haar::Rgb::default(); n2];
     let mut scratch = Vec::new();
     for (q, p) in range.into_iter().enumerate() {
         let a = alpha[q];
@@ -481,22 +483,21 @@ pub(crate) fn texel_diag_vec(
             continue;
         }
         let x = problem.obs.vertex[p] as usize;
-        for d in dense.iter_mut() {
-            d.fill(0.0);
-        }
+        dense.fill(haar::Rgb::default());
         for b in 0..nb {
             let be = beta[x * nb + b];
             let (idx, val) = t.row(p, b);
             for (&m, &g) in idx.iter().zip(val) {
+                let d = &mut dense[m as usize].0;
                 for c in 0..3 {
-                    dense[c][m as usize] += be[c] * f64::from(g);
+                    d[c] += be[c] * f64::from(g);
                 }
             }
         }
-        for (c, d) in dense.iter_mut().enumerate() {
-            haar::inverse_with(d, n, &mut scratch);
-            for (o, v) in diag.iter_mut().zip(d.iter()) {
-                o[c] += a * v * v;
+        haar::inverse_with(&mut dense, n, &mut scratch);
+        for (o, v) in diag.iter_mut().zip(&dense) {
+            for c in 0..3 {
+                o[c] += a * v.0[c] * v.0[c];
             }
         }
     }
