@@ -342,19 +342,24 @@ impl PhotoSystem {
     ) {
         use std::arch::x86_64::*;
         // Every merged index is below `n²` (`PhotoSystem::new` keeps only Haar indices of
-        // the map; the cut only drops entries), so with these lengths each `h4` and `acc`
-        // access below is in bounds.
+        // the map; the cut only drops entries), and `n²` is a power of two: masked with
+        // `n² − 1` an index is unchanged, and any index, valid or not, stays in bounds of
+        // `h4` and `acc` without a check per entry.
         let n2 = self.n * self.n;
-        assert!(h4.len() >= n2 && acc.len() >= n2 && self.value.len() > self.index.len());
+        assert!(n2.is_power_of_two() && h4.len() >= n2 && acc.len() >= n2);
+        assert!(self.value.len() > self.index.len() && self.index.len() >= self.offsets[rows.end]);
+        let mask = n2 - 1;
         let val = self.value.as_ptr() as *const f32;
         let idx = self.index.as_ptr();
         let hp = h4.as_ptr() as *const f64;
         let ap = acc.as_mut_ptr() as *mut f64;
-        // SAFETY (these three closures): `i` is an entry of a row, so `i + 1 <
-        // value.len()` and the 16 bytes from entry `i` lie in `value`; its Haar index is
-        // below `n²` (above), so the 32 bytes at `4 · index` lie in `h4` and in `acc`.
+        let slot = |i: usize| 4 * (unsafe { *idx.add(i) } as usize & mask);
+        // SAFETY (these closures and `scatter`): `i` is an entry of a row of `rows`, so
+        // `i < offsets[rows.end] ≤ index.len() < value.len()`: the 16 bytes from entry `i`
+        // lie in `value`, and the masked index `< n²` puts the 32 bytes at `slot(i)` in
+        // `h4` and in `acc`.
         let e4 = |i: usize| unsafe { _mm256_cvtps_pd(_mm_loadu_ps(val.add(3 * i))) };
-        let h_at = |i: usize| unsafe { _mm256_loadu_pd(hp.add(4 * *idx.add(i) as usize)) };
+        let h_at = |i: usize| unsafe { _mm256_loadu_pd(hp.add(slot(i))) };
         let dot_from = |mut x: __m256d, r: std::ops::Range<usize>| {
             for i in r {
                 x = _mm256_add_pd(x, _mm256_mul_pd(e4(i), h_at(i)));
@@ -374,7 +379,7 @@ impl PhotoSystem {
             for i in self.offsets[q]..self.offsets[q + 1] {
                 // SAFETY: as for `h_at`.
                 unsafe {
-                    let o = ap.add(4 * *idx.add(i) as usize);
+                    let o = ap.add(slot(i));
                     _mm256_storeu_pd(
                         o,
                         _mm256_add_pd(_mm256_loadu_pd(o), _mm256_mul_pd(e4(i), u)),
