@@ -256,8 +256,7 @@ impl PhotoSystem {
             let h4: Vec<[f64; 4]> = h.iter().map(|v| [v[0], v[1], v[2], 0.0]).collect();
             let part = |rows: &std::ops::Range<usize>| {
                 let mut acc = vec![[0.0_f64; 4]; out.len()];
-                // SAFETY: the CPU has AVX2, and `value` has an entry past the last row's
-                // (the condition above), which `normal_part_avx2` needs.
+                // SAFETY: the CPU has AVX2 (the condition above).
                 unsafe { self.normal_part_avx2(rows.clone(), &h4, &mut acc) };
                 acc
             };
@@ -331,7 +330,8 @@ impl PhotoSystem {
     /// response, and lane 3 is never read.
     ///
     /// # Safety
-    /// The CPU must have AVX2, and `self.value` an entry past the last row's.
+    /// The CPU must have AVX2. (Every memory access is checked or bounded here: `value`'s
+    /// padding entry once, each row's span once, each Haar index by a mask.)
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn normal_part_avx2(
@@ -347,17 +347,26 @@ impl PhotoSystem {
         // `h4` and `acc` without a check per entry.
         let n2 = self.n * self.n;
         assert!(n2.is_power_of_two() && h4.len() >= n2 && acc.len() >= n2);
-        assert!(self.value.len() > self.index.len() && self.index.len() >= self.offsets[rows.end]);
+        assert!(self.value.len() > self.index.len(), "no padding entry");
         let mask = n2 - 1;
+        // Row `q`'s entries, checked to lie in `index` (so `value` holds one more).
+        let span = |q: usize| {
+            let (a, b) = (self.offsets[q], self.offsets[q + 1]);
+            assert!(
+                a <= b && b <= self.index.len(),
+                "row {q} outside the entries"
+            );
+            a..b
+        };
         let val = self.value.as_ptr() as *const f32;
         let idx = self.index.as_ptr();
         let hp = h4.as_ptr() as *const f64;
         let ap = acc.as_mut_ptr() as *mut f64;
+        // SAFETY (these closures and `scatter`): `i` is an entry of a `span`, so `i <
+        // index.len() < value.len()`: the 2 bytes of index `i` lie in `index`, the 16 bytes
+        // from entry `i` in `value`, and the masked index `< n²` puts the 32 bytes at
+        // `slot(i)` in `h4` and in `acc`.
         let slot = |i: usize| 4 * (unsafe { *idx.add(i) } as usize & mask);
-        // SAFETY (these closures and `scatter`): `i` is an entry of a row of `rows`, so
-        // `i < offsets[rows.end] ≤ index.len() < value.len()`: the 16 bytes from entry `i`
-        // lie in `value`, and the masked index `< n²` puts the 32 bytes at `slot(i)` in
-        // `h4` and in `acc`.
         let e4 = |i: usize| unsafe { _mm256_cvtps_pd(_mm_loadu_ps(val.add(3 * i))) };
         let h_at = |i: usize| unsafe { _mm256_loadu_pd(hp.add(slot(i))) };
         let dot_from = |mut x: __m256d, r: std::ops::Range<usize>| {
@@ -376,7 +385,7 @@ impl PhotoSystem {
                 return;
             }
             let u = _mm256_setr_pd(uq[0], uq[1], uq[2], 0.0);
-            for i in self.offsets[q]..self.offsets[q + 1] {
+            for i in span(q) {
                 // SAFETY: as for `h_at`.
                 unsafe {
                     let o = ap.add(slot(i));
@@ -398,13 +407,12 @@ impl PhotoSystem {
             }
             if m < 4 {
                 for &q in &qs[..m] {
-                    let x = dot_from(_mm256_setzero_pd(), self.offsets[q]..self.offsets[q + 1]);
-                    scatter(q, x);
+                    scatter(q, dot_from(_mm256_setzero_pd(), span(q)));
                 }
                 break;
             }
-            let a = qs.map(|q| self.offsets[q]);
-            let b = qs.map(|q| self.offsets[q + 1]);
+            let spans = qs.map(span);
+            let (a, b) = (spans.clone().map(|r| r.start), spans.map(|r| r.end));
             let k = (0..4).map(|j| b[j] - a[j]).min().unwrap_or(0);
             let mut x = [_mm256_setzero_pd(); 4];
             for t in 0..k {
