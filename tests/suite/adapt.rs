@@ -338,8 +338,8 @@ fn materials_auto_finds_more_than_one_material_on_sphere_plane() {
     let s = run::run(&adaptive(&ws, &dir.0.join("out"))).unwrap();
     let m = &s.report.model;
     assert!(m.materials >= 2, "{:#?}", m.adaptive);
-    // Every K up to the cap was scored, and the smallest within 3% (plus the quantisation
-    // floor) of the best was taken.
+    // Every K up to the cap was scored, and the smallest within `MATERIAL_TOL` (plus the
+    // quantisation floor) of the best was taken.
     let d = decision(&s, "materials");
     let scores: Vec<f64> = (1..=adapt::MAX_MATERIALS)
         .map(|k| {

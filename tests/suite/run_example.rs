@@ -108,9 +108,12 @@ fn run_rejects_a_missing_workspace_and_bad_options_with_clear_errors() {
 
 /// The CLI's default (`--adaptive on`) on the same example: the truth has two materials and
 /// lobes Lambert, Phong 50 and GGX 0.3 (no Phong 500). The adaptive model must keep the
-/// Lambertian and Phong 50 lobes the truth uses, fit at least the two materials, map no
+/// Lambertian and Phong 50 lobes the truth uses, fit the truth's two materials, map no
 /// finer than requested, and meet the same held-out and training bounds as the full model
-/// above (the same reasoning for 0.15 and 0.05 applies).
+/// above (the same reasoning for 0.15 and 0.05 applies). The count is exact here: this
+/// run's pilot scores two materials 3.9% above its best count (5), inside the 6% margin,
+/// and one material 17% above; the 3% margin took 3 (`adaptive::MATERIAL_TOL`,
+/// `bench-results/adaptive-material-margin.md`).
 #[test]
 fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
     let dir = std::env::temp_dir().join(format!("relight-run-adaptive-{}", std::process::id()));
@@ -128,7 +131,7 @@ fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
         "{:#?}",
         m.adaptive
     );
-    assert!(m.materials >= 2, "{:#?}", m.adaptive);
+    assert_eq!(m.materials, 2, "{:#?}", m.adaptive);
     assert!(m.global_resolution <= 32);
     let truth: Vec<_> = r.holdout.iter().filter(|h| h.protocol == "truth").collect();
     assert_eq!(truth.len(), 2, "{:?}", r.holdout);

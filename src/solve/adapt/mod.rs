@@ -29,13 +29,21 @@
 //!    0.0618 and 0.0616 and K = 6 0.0524, so a search that stopped at the first `K` without
 //!    a 1% gain (as a first version did) kept 2 materials, dropped the Phong 50 lobe (its
 //!    share was 1.1% in the 2-material pilot, 11% in the 6-material one) and lost 12% of
-//!    held-out error against the full model. The margin is 3%, not 1%: the pilot's scores
-//!    move by a few percent between neighbouring `K` from the k-means starts alone
-//!    (sphere-plane, 300 vertices: K = 2 0.0690, K = 3 0.0716), and on the built-in
-//!    example (`examples/spot`, two true materials) a 1% margin took K = 5 (5 is 2.4%
-//!    better than 3 in the pilot) whose full fit was 6.6% worse on the held-out photos
-//!    than the full model and no faster; 3% takes K = 3 there, still finds 4 on
-//!    sphere-plane and 1 on the one-material spheres, and stays inside issue 8's 5% budget.
+//!    held-out error against the full model. The margin is 6%: past the true count the
+//!    pilot's scores wander both ways by the k-means starts alone (sphere-plane, 300
+//!    vertices: K = 2 0.0690, K = 3 0.0716; the built-in example, two true materials, at
+//!    seed 2: K = 4, 5, 6 5.59e-2, 5.69e-2, 5.46e-2), so a margin below that spread takes
+//!    whichever larger count its starts favoured. Over 13 pilots of rendered scenes with
+//!    known truth (`bench-results/adaptive-material-margin.md`) the true count scored
+//!    0–6.8% above the best (median 3.0%) and every smaller count at least 13.8% above it;
+//!    3% took the true count in 7 of them, 6% in 12 (the example at seed 8 keeps 3 for 2).
+//!    With the true count the worst diffuse albedo ratio error fell 19–69% on every scene
+//!    whose count changed (20,000-vertex `spot-varying`: 0.608 → 0.186, held-out under the
+//!    true light 0.0450 → 0.0419) and the held-out figures moved within −8% … +5%. On the
+//!    real Buddha photos one material scores 7.6–10.7% above two (seeds 1–4), so both
+//!    margins keep 2. Earlier margins: 1% took K = 5 on the built-in example, whose full
+//!    fit was 6.6% worse on the held-out photos than the full model; 3% took 3 or 4 on
+//!    half its seeds.
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
 //!    and lights, the share of basis `b` in material `k`, channel `c` is
 //!    `C_{k,b,c} / Σ_b' C_{k,b',c}` with `C_{k,b,c} = Σ_p α_p w_k(x_p) λ_{k,b,c} s_{p,b,c}`
@@ -52,10 +60,11 @@
 //!    **held-out ablation**: each kept non-Lambertian basis, smallest share first, is left
 //!    out of a refit of the pilot (same `K`, without the bases already dropped) and goes
 //!    when the held-out RMSE stays within [`BASIS_TOL`] (3%) of the pilot with every basis —
-//!    the same Occam rule and margin as the material count, and always against the full
-//!    pilot. The margin is the material count's, not 1%, for the same reason: the pilot
-//!    (2 iterations at 16², where Phong 50 and Phong 500 are both narrower than a texel)
-//!    ranks lobes only to a few percent. On `synth spot-varying` at 20,000 vertices (truth:
+//!    the material count's Occam rule, and always against the full pilot. The margin is 3%,
+//!    not 1%: the pilot (2 iterations at 16², where Phong 50 and Phong 500 are both
+//!    narrower than a texel) ranks lobes only to a few percent. (Two refits of one count
+//!    share its k-means start, so they differ less than the counts do: the material
+//!    count's margin is wider.) On `synth spot-varying` at 20,000 vertices (truth:
 //!    Lambert, Phong 50 and GGX 0.3) leaving out Phong 500 cost the pilot 1.08% and leaving
 //!    out Phong 50 *lowered* its score 2.6%, so a 1% margin kept `lambert,phong:500`, which
 //!    forces a 64² map. With 3% the pilot keeps `lambert,phong:50` at 32², and the full
@@ -111,9 +120,10 @@ pub use redundant::{drop_photos, redundant_photos, DUPLICATE_ANGLE_DEG, DUPLICAT
 /// Largest share below which a basis BRDF counts as unused (module docs, step 4).
 pub const DROP_SHARE: f64 = 0.01;
 /// Relative held-out RMSE margin of the material count (module docs, step 3).
-pub const MATERIAL_TOL: f64 = 0.03;
+pub const MATERIAL_TOL: f64 = 0.06;
 /// Relative held-out RMSE margin of the basis ablation (module docs, step 4): the pilot's
-/// noise, as [`MATERIAL_TOL`].
+/// noise between two refits of one material count (the spread across counts is wider,
+/// [`MATERIAL_TOL`]).
 pub const BASIS_TOL: f64 = 0.03;
 /// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
 /// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains
