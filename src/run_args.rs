@@ -171,13 +171,11 @@ pub(crate) struct RunArgs {
     pub(crate) robust_floor: f64,
     /// Prior that each surface point's material weights sum to one, as a multiple of what
     /// its photos charge for a change of its brightness (0 = off: free weights, as the
-    /// paper). Keeps shading that all photos share out of the materials' colours.
-    #[arg(
-        long,
-        default_value_t = relight_cpc::solve::WEIGHTS_SUM,
-        help_heading = "Solver"
-    )]
-    pub(crate) weights_sum: f64,
+    /// paper). Keeps shading that all photos share out of the materials' colours. `auto`:
+    /// the adaptive pilot fits both and keeps the prior where it predicts held-back
+    /// observations better (free weights with --adaptive off).
+    #[arg(long, default_value = "auto", help_heading = "Solver")]
+    pub(crate) weights_sum: String,
     /// Specular lobes take the light's colour: one specular weight per material shared by
     /// R, G and B, the colour in the diffuse lobe (dielectrics).
     #[arg(long, help_heading = "Solver")]
@@ -325,7 +323,7 @@ impl RunArgs {
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
         o.robust_floor = self.robust_floor;
-        o.weights_sum = self.weights_sum;
+        o.weights_sum = relight_cpc::run::WeightsSum::parse(&self.weights_sum)?;
         o.achromatic_specular = self.achromatic_specular;
         o.clip = self.clip / 255.0;
         o.seed = self.seed;

@@ -45,7 +45,7 @@ pub use evaluate::{fine_rays, render_local_resolution};
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    Holdout, LargeMeshSettings, MaterialCount, RunOptions, DEFAULT_LIGHTING_SAMPLE,
+    Holdout, LargeMeshSettings, MaterialCount, RunOptions, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
     DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;
@@ -408,6 +408,15 @@ fn adaptive_decisions(
         chosen: outcome.materials.to_string(),
         reason: outcome.materials_reason.clone(),
     });
+    if let Some(why) = &outcome.weights_sum_reason {
+        eff.weights_sum = WeightsSum::Fixed(outcome.weights_sum);
+        d.push(Decision {
+            what: "weights_sum".into(),
+            full: "auto".into(),
+            chosen: outcome.weights_sum.to_string(),
+            reason: why.clone(),
+        });
+    }
     eff.basis = outcome.kept.iter().map(|&b| opts.basis[b]).collect();
     let labels = |b: &[BasisBrdf]| b.iter().map(|x| x.label()).collect::<Vec<_>>().join(",");
     d.push(Decision {

@@ -9,13 +9,47 @@ use std::path::PathBuf;
 /// How many materials to fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MaterialCount {
-    /// Choose from the data: with [`RunOptions::adaptive`], the smallest count within 1%
-    /// of the best held-out error of a pilot fit ([`crate::solve::adapt`]); without it, the
+    /// Choose from the data: with [`RunOptions::adaptive`], the smallest count within
+    /// [`crate::solve::adapt::MATERIAL_TOL`] of the best held-out error of a pilot fit
+    /// ([`crate::solve::adapt`]); without it, the
     /// smallest count whose k-means clustering of the hue features leaves little
     /// unexplained (see [`choose_material_count`]).
     Auto,
     /// Exactly this many.
     Fixed(usize),
+}
+
+/// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WeightsSum {
+    /// With [`RunOptions::adaptive`], the pilot's choice between free weights (the paper)
+    /// and [`crate::solve::adapt::PILOT_WEIGHTS_SUM`] by held-out error
+    /// ([`crate::solve::adapt`], step 3); without it, free weights.
+    Auto,
+    /// This strength (0 = free weights, as the paper).
+    Fixed(f64),
+}
+
+impl WeightsSum {
+    /// `auto` or a number (checked by [`RunOptions::check`]).
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(WeightsSum::Auto),
+            _ => s.parse::<f64>().map(WeightsSum::Fixed).map_err(|_| {
+                Error::Config(format!(
+                    "--weights-sum {s}: expected auto or a number ≥ 0 (0 = free weights)"
+                ))
+            }),
+        }
+    }
+
+    /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
+    pub fn value(self) -> f64 {
+        match self {
+            WeightsSum::Auto => 0.0,
+            WeightsSum::Fixed(v) => v,
+        }
+    }
 }
 
 /// Which photos are held out.
@@ -110,8 +144,9 @@ pub struct RunOptions {
     /// ([`EstimateOptions::robust_floor`]; 0 = the residuals' MAD alone).
     pub robust_floor: f64,
     /// Prior that each vertex's blending weights sum to one, relative to its data
-    /// ([`EstimateOptions::weights_sum`]; 0 = off, the paper's free weights).
-    pub weights_sum: f64,
+    /// ([`EstimateOptions::weights_sum`]; 0 = off, the paper's free weights), or the
+    /// pilot's choice ([`WeightsSum::Auto`]).
+    pub weights_sum: WeightsSum,
     /// One specular weight per material across R, G and B
     /// ([`EstimateOptions::achromatic_specular`]).
     pub achromatic_specular: bool,
@@ -325,7 +360,7 @@ impl RunOptions {
             starts: 1,
             start_search: false,
             robust_floor: EstimateOptions::default().robust_floor,
-            weights_sum: EstimateOptions::default().weights_sum,
+            weights_sum: WeightsSum::Auto,
             achromatic_specular: false,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
@@ -434,11 +469,12 @@ impl RunOptions {
                 self.robust_floor
             )));
         }
-        if !(self.weights_sum.is_finite() && self.weights_sum >= 0.0) {
-            return Err(Error::Config(format!(
-                "--weights-sum {}: must be a finite number ≥ 0 (0 = off)",
-                self.weights_sum
-            )));
+        if let WeightsSum::Fixed(v) = self.weights_sum {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::Config(format!(
+                    "--weights-sum {v}: must be auto or a finite number ≥ 0 (0 = off)"
+                )));
+            }
         }
         if self.starts == 0 {
             return Err(Error::Config(

@@ -444,6 +444,7 @@ fn prepare(
                     MaterialCount::Fixed(k) => Some(k),
                     MaterialCount::Auto => None,
                 },
+                choose_weights_sum: opts.weights_sum == super::WeightsSum::Auto,
                 seed: opts.seed,
             })
         })?;

@@ -206,11 +206,13 @@ pub struct EstimateOptions {
     pub scale_anchor: crate::solve::normalise::ScaleAnchor,
 }
 
-/// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. `1` is the
+/// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. A run with the
+/// adaptive model chooses between 0 and 1 by the pilot's held-out error
+/// ([`crate::solve::adapt`], step 3b; `--weights-sum auto`). `1` is the
 /// measured recommendation (`bench-results/estimator-ablation.md`, 8-bit photos, relit
 /// under unseen maps: diffuse Spot 0.139 → 0.107, glossy 0.175 → 0.146, three materials
 /// 0.184 → 0.149; the built-in example's held-out RMSE under the true light 0.0626 /
-/// 0.0860 → 0.0538 / 0.0675), not the default: on the real-photo Buddha fixture it does
+/// 0.0860 → 0.0538 / 0.0675), not a fixed default: on the real-photo Buddha fixture it does
 /// not help (headline 0.9109 → 0.9131), and with [`PATIENCE`] 1 the validation score stops
 /// `estimate_planted`'s joint recovery after 15 of 40 iterations (0.016 against noise 0.01;
 /// run to the end 0.0073, free weights 0.0081) (`bench-results/weights-sum-default.md`).

@@ -233,7 +233,7 @@ fn assert_range_checked<T: Copy + std::fmt::Debug>(
 fn weights_sum_outside_its_range_is_refused() {
     assert_range_checked(
         "--weights-sum",
-        |o, v| o.weights_sum = v,
+        |o, v| o.weights_sum = relight_cpc::run::WeightsSum::Fixed(v),
         &[-0.5, f64::NAN, f64::INFINITY],
         &[0.0, 1.0, 10.0],
     );
