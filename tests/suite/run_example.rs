@@ -164,14 +164,9 @@ fn the_pilot_takes_the_weights_prior_where_it_predicts_the_truth_better() {
             .report
     };
     let mean_truth = |r: &relight_cpc::report::RunReport| {
-        let t: Vec<f64> = r
-            .holdout
-            .iter()
-            .filter(|h| h.protocol == "truth")
-            .map(|h| h.rmse_scaled)
-            .collect();
-        assert_eq!(t.len(), 2, "{:?}", r.holdout);
-        t.iter().sum::<f64>() / 2.0
+        let (mean, photos) = crate::run_fixtures::truth_holdout(r);
+        assert_eq!(photos, 2, "{:?}", r.holdout);
+        mean
     };
     let auto = fit("auto", WeightsSum::Auto);
     let decisions = auto.model.adaptive.as_ref().expect("adaptive decisions");

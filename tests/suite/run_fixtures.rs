@@ -143,7 +143,7 @@ fn out_files_exist(out: &Path) -> bool {
 }
 
 /// Mean over held-out photos of the scaled RMSE under the true light (protocol (a)).
-fn truth_holdout(r: &RunReport) -> (f64, usize) {
+pub(crate) fn truth_holdout(r: &RunReport) -> (f64, usize) {
     let t: Vec<f64> = r
         .holdout
         .iter()
