@@ -52,14 +52,16 @@
 //!    ([`EstimateOptions::weights_sum`]) ties a vertex's brightness to its materials. It is
 //!    not right everywhere: on the real Buddha photos it cost the headline. So the pilot
 //!    refits the chosen count with the prior at [`PILOT_WEIGHTS_SUM`] and keeps it when its
-//!    held-out RMSE is lower by more than [`WEIGHTS_SUM_TOL`] (the paper's free weights
+//!    held-out RMSE is lower by more than [`WEIGHTS_SUM_GAIN`] (the paper's free weights
 //!    otherwise): the held-out observations are other views of the same vertices, which a
 //!    vertex brightness that absorbed shading predicts badly. Measured
 //!    (`bench-results/adaptive-weights-sum.md`): on the built-in example the pilot scores
 //!    the prior 20% lower, and the full fit's held-out error under the true light falls
-//!    0.0752 → 0.0623 (on all 10 rendered pilots measured the prior was taken and that error
-//!    fell 6–25%); on the Buddha photos it scores the prior 14% higher and keeps free
-//!    weights, every figure unchanged.
+//!    0.0752 → 0.0623; the prior is taken on 9 of 13 rendered pilots (that error 14–25%
+//!    lower, the headline 1.7–31% lower on each); on the Buddha photos it scores the prior
+//!    14% higher. Where it is left out every figure is the free weights' own. With a 3%
+//!    margin it was also taken on `spot-sky` and `sphere-plane`, whose held-out photos
+//!    got worse (`truth` +9.3%, headline +16%).
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
 //!    and lights, the share of basis `b` in material `k`, channel `c` is
 //!    `C_{k,b,c} / Σ_b' C_{k,b',c}` with `C_{k,b,c} = Σ_p α_p w_k(x_p) λ_{k,b,c} s_{p,b,c}`
@@ -144,9 +146,14 @@ pub const BASIS_TOL: f64 = 0.03;
 /// The sum-to-one prior's strength the pilot tries (step 3b): `1` charges a relative change
 /// of a vertex's brightness what its data charge for it ([`EstimateOptions::weights_sum`]).
 pub const PILOT_WEIGHTS_SUM: f64 = 1.0;
-/// Relative held-out RMSE margin by which the sum-to-one prior must beat free weights in the
-/// pilot (step 3b): the pilot's noise between two refits of one count, as [`BASIS_TOL`].
-pub const WEIGHTS_SUM_TOL: f64 = BASIS_TOL;
+/// Relative fall of the pilot's held-out RMSE the sum-to-one prior must bring to be kept
+/// (step 3b). Measured on 15 pilots (`bench-results/adaptive-weights-sum.md`): where
+/// the prior lowered the held-out photos' errors under the true light and the headline
+/// together, the pilot's fall was 17.0–27.3%; where it raised one of them (a moving sun,
+/// `spot-sky`: 9.5%; cast shadows, `sphere-plane`: 4.3%; three materials in bands: 6.0%)
+/// or helped less (`spot-ggx`: 6.5%) it was below 10%. The paper's free weights stay unless
+/// the prior clearly wins: 13%, between the two groups.
+pub const WEIGHTS_SUM_GAIN: f64 = 0.13;
 /// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
 /// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains
 /// below it cannot be told from the photos' quantisation (on a nearly black scene every
@@ -711,7 +718,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
 
 /// Step 3b: the pilot with `k` materials and free weights (`free`: strength, fit, held-out
 /// RMSE) against the same with the sum-to-one prior (`with`, at [`PILOT_WEIGHTS_SUM`]).
-/// The prior is kept when it lowers the held-out RMSE by more than [`WEIGHTS_SUM_TOL`]:
+/// The prior is kept when it lowers the held-out RMSE by more than [`WEIGHTS_SUM_GAIN`]:
 /// the paper's free weights unless the prior clearly predicts better. Returns the strength,
 /// why, and the kept fit with its held-out RMSE.
 fn choose_weights_sum(
@@ -724,7 +731,7 @@ fn choose_weights_sum(
         let why = "free weights: the pilot with the sum-to-one prior did not fit".to_string();
         return (free_ws, why, free_est, free_e);
     };
-    let prior = !as_good(free_e, with_e, WEIGHTS_SUM_TOL);
+    let prior = with_e < (1.0 - WEIGHTS_SUM_GAIN) * free_e;
     let figures = format!(
         "held-out RMSE of the pilot with {k} materials: free weights {free_e:.4e}, sum-to-one prior {with_e:.4e} ({:+.1}%)",
         100.0 * (with_e / free_e - 1.0)
@@ -732,13 +739,13 @@ fn choose_weights_sum(
     if prior {
         let why = format!(
             "the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM}: {figures}; the prior goes in when it lowers that by more than {:.0}%",
-            100.0 * WEIGHTS_SUM_TOL
+            100.0 * WEIGHTS_SUM_GAIN
         );
         (PILOT_WEIGHTS_SUM, why, with_est, with_e)
     } else {
         let why = format!(
             "free weights, as the paper: {figures}; the prior goes in only when it lowers that by more than {:.0}%",
-            100.0 * WEIGHTS_SUM_TOL
+            100.0 * WEIGHTS_SUM_GAIN
         );
         (free_ws, why, free_est, free_e)
     }
