@@ -620,13 +620,27 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         }
     };
     // Step 3b: the sum-to-one prior, at the chosen count and every basis.
-    let (weights_sum, weights_sum_reason, est, e_full) = if inp.choose_weights_sum {
-        let with = fit(materials, &all, PILOT_WEIGHTS_SUM, false)?;
-        let (ws, why, est, e) = choose_weights_sum(materials, (free, est, e_full), with);
-        (ws, Some(why), est, e)
-    } else {
-        (free, None, est, e_full)
+    let chosen = PilotFit {
+        weights_sum: free,
+        est,
+        heldout: e_full,
     };
+    let (chosen, weights_sum_reason) = if inp.choose_weights_sum {
+        let with = fit(materials, &all, PILOT_WEIGHTS_SUM, false)?.map(|(est, heldout)| PilotFit {
+            weights_sum: PILOT_WEIGHTS_SUM,
+            est,
+            heldout,
+        });
+        let (kept, why) = choose_weights_sum(materials, chosen, with);
+        (kept, Some(why))
+    } else {
+        (chosen, None)
+    };
+    let PilotFit {
+        weights_sum,
+        est,
+        heldout: e_full,
+    } = chosen;
     let shares = basis_shares(&problem, &est);
     let mut kept: Vec<usize> = (0..inp.basis.len())
         .filter(|&b| b == inp.lambert || shares[b] >= DROP_SHARE)
@@ -716,21 +730,24 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     })
 }
 
-/// Step 3b: the pilot with `k` materials and free weights (`free`: strength, fit, held-out
-/// RMSE) against the same with the sum-to-one prior (`with`, at [`PILOT_WEIGHTS_SUM`]).
-/// The prior is kept when it lowers the held-out RMSE by more than [`WEIGHTS_SUM_GAIN`]:
-/// the paper's free weights unless the prior clearly predicts better. Returns the strength,
-/// why, and the kept fit with its held-out RMSE.
-fn choose_weights_sum(
-    k: usize,
-    free: (f64, solve::Estimate, f64),
-    with: Option<(solve::Estimate, f64)>,
-) -> (f64, String, solve::Estimate, f64) {
-    let (free_ws, free_est, free_e) = free;
-    let Some((with_est, with_e)) = with else {
+/// One pilot fit at the chosen count: the weights' prior it used, the estimate, and its
+/// held-out RMSE.
+struct PilotFit {
+    weights_sum: f64,
+    est: solve::Estimate,
+    heldout: f64,
+}
+
+/// Step 3b: the pilot with `k` materials and free weights against the same with the
+/// sum-to-one prior (`with`, at [`PILOT_WEIGHTS_SUM`]). The prior is kept when it lowers
+/// the held-out RMSE by more than [`WEIGHTS_SUM_GAIN`]: the paper's free weights unless the
+/// prior clearly predicts better. Returns the fit kept and why.
+fn choose_weights_sum(k: usize, free: PilotFit, with: Option<PilotFit>) -> (PilotFit, String) {
+    let Some(with) = with else {
         let why = "free weights: the pilot with the sum-to-one prior did not fit".to_string();
-        return (free_ws, why, free_est, free_e);
+        return (free, why);
     };
+    let (free_e, with_e) = (free.heldout, with.heldout);
     let prior = with_e < (1.0 - WEIGHTS_SUM_GAIN) * free_e;
     let figures = format!(
         "held-out RMSE of the pilot with {k} materials: free weights {free_e:.4e}, sum-to-one prior {with_e:.4e} ({:+.1}%)",
@@ -741,12 +758,12 @@ fn choose_weights_sum(
             "the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM}: {figures}; the prior goes in when it lowers that by more than {:.0}%",
             100.0 * WEIGHTS_SUM_GAIN
         );
-        (PILOT_WEIGHTS_SUM, why, with_est, with_e)
+        (with, why)
     } else {
         let why = format!(
             "free weights, as the paper: {figures}; the prior goes in only when it lowers that by more than {:.0}%",
             100.0 * WEIGHTS_SUM_GAIN
         );
-        (free_ws, why, free_est, free_e)
+        (free, why)
     }
 }
