@@ -1,0 +1,388 @@
+//! The pilot fit of the adaptive model ([`super`], steps 2–4): a transport at
+//! [`PILOT_GLOBAL`]² on the observations with one in [`HELDOUT_EVERY`] held out, then one
+//! decision after the other, each scored by the held-out RMSE of short fits
+//! ([`PILOT_ITERATIONS`] outer iterations): the material count (step 3), the weights'
+//! sum-to-one prior (step 3b), the basis BRDFs (step 4).
+
+use super::*;
+
+/// What the pilot needs from the run.
+pub struct PilotInput<'a> {
+    /// Env-frame vertex normals.
+    pub normals_env: &'a [Vec3],
+    /// Training observations.
+    pub obs: &'a Observations,
+    /// World → environment frame.
+    pub env_from_world: &'a nalgebra::Matrix3<f64>,
+    /// Visibility at the run's local resolution.
+    pub vis: &'a Visibility,
+    /// The full basis list.
+    pub basis: &'a [BasisBrdf],
+    /// Index of the Lambertian basis in `basis`.
+    pub lambert: usize,
+    /// Normal grid of the run's rotation.
+    pub normal_grid: usize,
+    /// Requested global resolution (the pilot uses at most this).
+    pub global_resolution: usize,
+    /// Requested coefficient budget.
+    pub keep: usize,
+    /// The run's estimator options (smoothness, ridge, …).
+    pub estimate: EstimateOptions,
+    /// Per-vertex mean colours and whether seen (for k-means).
+    pub mean_rgb: &'a [[f64; 3]],
+    /// Whether each vertex is seen.
+    pub seen: &'a [bool],
+    /// A fixed material count, or `None` to choose it.
+    pub materials: Option<usize>,
+    /// Whether to choose the blending weights' sum-to-one prior (step 3b): free weights
+    /// (`estimate.weights_sum`) against [`PILOT_WEIGHTS_SUM`].
+    pub choose_weights_sum: bool,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// What the pilot decided.
+#[derive(Debug, Clone)]
+pub struct PilotOutcome {
+    /// Number of materials.
+    pub materials: usize,
+    /// Why.
+    pub materials_reason: String,
+    /// Held-out RMSE per material count tried (`(K, rmse)`).
+    pub material_scores: Vec<(usize, f64)>,
+    /// Indices into the full basis list that are kept.
+    pub kept: Vec<usize>,
+    /// Each basis's largest share of the predicted radiance.
+    pub shares: Vec<f64>,
+    /// The shares, the held-out ablation and why bases were dropped.
+    pub basis_reason: String,
+    /// The λ systems' condition numbers (per channel) of the chosen pilot.
+    pub kappa_lambda: [f64; 3],
+    /// Largest lighting condition lower bound of the chosen pilot.
+    pub kappa_lighting: f64,
+    /// Pilot wall time, seconds.
+    pub seconds: f64,
+    /// The blending weights' sum-to-one prior the fit uses
+    /// ([`EstimateOptions::weights_sum`]).
+    pub weights_sum: f64,
+    /// Why, when the pilot chose it ([`PilotInput::choose_weights_sum`]).
+    pub weights_sum_reason: Option<String>,
+}
+
+/// The pilot's transport, problem and held-out split, shared by all its fits.
+struct Fitter<'a> {
+    inp: &'a PilotInput<'a>,
+    problem: Problem<'a>,
+    held: &'a [usize],
+    eopts: EstimateOptions,
+}
+
+/// One pilot fit: the weights' prior it used, the estimate, and its held-out RMSE.
+struct PilotFit {
+    weights_sum: f64,
+    est: solve::Estimate,
+    heldout: f64,
+}
+
+impl Fitter<'_> {
+    /// The pilot fit with `k` materials on the bases `kept` (indices into the full list)
+    /// with the weights' prior `ws`; `strict`: `None` when k-means finds fewer than `k`
+    /// distinct clusters.
+    fn fit(&self, k: usize, kept: &[usize], ws: f64, strict: bool) -> Result<Option<PilotFit>> {
+        let inp = self.inp;
+        let init = crate::solve::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
+        if strict && init.albedo.len() < k {
+            return Ok(None);
+        }
+        let sub;
+        let problem = if kept.len() == inp.basis.len() {
+            self.problem
+        } else {
+            sub = select_bases(self.problem.transport, kept)?;
+            Problem {
+                transport: &sub,
+                ..self.problem
+            }
+        };
+        let lambert = kept
+            .iter()
+            .position(|&b| b == inp.lambert)
+            .unwrap_or(usize::MAX);
+        let m0 = Materials0::from_initial(&init, kept.len(), lambert);
+        let opts = EstimateOptions {
+            lambert_basis: lambert,
+            weights_sum: ws,
+            ..self.eopts.clone()
+        };
+        let est = solve::estimate(&problem, m0, &opts, &mut |_, _| {})?;
+        let pred = solve::predict(&problem, &est);
+        let heldout = heldout_rmse(inp.obs, self.held, &pred);
+        Ok(Some(PilotFit {
+            weights_sum: ws,
+            est,
+            heldout,
+        }))
+    }
+
+    /// Every basis of the full list.
+    fn all(&self) -> Vec<usize> {
+        (0..self.inp.basis.len()).collect()
+    }
+}
+
+/// The pilot fit (module docs, steps 2–4).
+pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
+    let t0 = std::time::Instant::now();
+    let g = PILOT_GLOBAL.min(inp.global_resolution);
+    let l = PILOT_LOCAL.min(inp.vis.n_local);
+    let vis = downsample_visibility(inp.vis, l);
+    let rot = Rotation::new(g, l, inp.normal_grid.min(16), RotationForm::Factored);
+    let topts = TransportOptions {
+        n_global: g,
+        n_local: l,
+        keep: if inp.keep == 0 {
+            g * g / 2
+        } else {
+            inp.keep.min(g * g / 2)
+        },
+    };
+    let (split, held) = holdout_split(inp.obs, inp.seed);
+    let tr = transport::build(
+        inp.normals_env,
+        &split,
+        inp.env_from_world,
+        &vis,
+        inp.basis,
+        &rot,
+        &topts,
+    )?;
+    let fitter = Fitter {
+        inp,
+        problem: Problem {
+            obs: &split,
+            transport: &tr,
+            n_vertices: inp.normals_env.len(),
+            n_photos: split.photo_ranges.len(),
+        },
+        held: &held,
+        eopts: EstimateOptions {
+            max_outer: PILOT_ITERATIONS,
+            rel_tol: 0.0,
+            robust: Robust::None,
+            irls_iters: 1,
+            lambert_basis: inp.lambert,
+            alternation_cg_iters: Some(PILOT_CG_ITERS),
+            alternation_qp_iters: Some(
+                inp.estimate
+                    .alternation_qp_iters
+                    .map_or(PILOT_QP_ITERS, |q| q.min(PILOT_QP_ITERS)),
+            ),
+            ..inp.estimate.clone()
+        },
+    };
+    let count = material_count(&fitter, g)?;
+    let (chosen, weights_sum_reason) = if inp.choose_weights_sum {
+        let with = fitter.fit(count.k, &fitter.all(), PILOT_WEIGHTS_SUM, false)?;
+        let (kept, why) = choose_weights_sum(count.k, count.fit, with);
+        (kept, Some(why))
+    } else {
+        (count.fit, None)
+    };
+    let bases = basis_choice(&fitter, count.k, &chosen)?;
+    let est = &chosen.est;
+    let kappa_lighting = est
+        .conditioning
+        .lighting
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    Ok(PilotOutcome {
+        materials: count.k,
+        materials_reason: count.reason,
+        material_scores: count.scores,
+        kept: bases.kept,
+        shares: bases.shares,
+        basis_reason: bases.reason,
+        kappa_lambda: est.conditioning.lambda,
+        kappa_lighting,
+        seconds: t0.elapsed().as_secs_f64(),
+        weights_sum: chosen.weights_sum,
+        weights_sum_reason,
+    })
+}
+
+/// The material count (step 3) and the pilot fit with it (free weights, every basis).
+struct CountChoice {
+    k: usize,
+    reason: String,
+    /// Held-out RMSE per count tried.
+    scores: Vec<(usize, f64)>,
+    fit: PilotFit,
+}
+
+/// Step 3: the count given, or the smallest within [`MATERIAL_TOL`] of the best held-out
+/// RMSE over `K = 1 …` [`MAX_MATERIALS`] (`g`: the pilot's map side, for the reason).
+fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
+    let (all, free) = (f.all(), f.eopts.weights_sum);
+    if let Some(k) = f.inp.materials {
+        let fit = f.fit(k, &all, free, false)?.ok_or_else(|| Error::Numeric {
+            stage: "adaptive pilot".into(),
+            message: format!("no fit with {k} materials"),
+        })?;
+        return Ok(CountChoice {
+            k,
+            reason: format!("materials: {k}, as given by --materials"),
+            scores: vec![(k, fit.heldout)],
+            fit,
+        });
+    }
+    let mut fits: Vec<(usize, PilotFit)> = Vec::new();
+    let mut stop = format!("{MAX_MATERIALS} is the cap");
+    for k in 1..=MAX_MATERIALS {
+        let Some(fit) = f.fit(k, &all, free, true)? else {
+            stop = format!("k-means finds no {k}th distinct colour cluster");
+            break;
+        };
+        fits.push((k, fit));
+    }
+    let scores: Vec<(usize, f64)> = fits.iter().map(|(k, f)| (*k, f.heldout)).collect();
+    let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+    let pick = scores
+        .iter()
+        .position(|s| as_good(s.1, best, MATERIAL_TOL) || !best.is_finite())
+        .unwrap_or(0);
+    let (k, fit) = fits.swap_remove(pick);
+    let table = scores
+        .iter()
+        .map(|(k, e)| format!("K={k}: {e:.4e}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let reason = format!(
+        "materials: {k} (auto), the smallest count within {:.0}% of the best held-out RMSE of a {PILOT_ITERATIONS}-iteration pilot at {g}² on 1 in {HELDOUT_EVERY} observations held out ({table}); the search ends because {stop}",
+        100.0 * MATERIAL_TOL
+    );
+    Ok(CountChoice {
+        k,
+        reason,
+        scores,
+        fit,
+    })
+}
+
+/// The basis BRDFs kept (step 4), each basis's largest share and why.
+struct BasisChoice {
+    kept: Vec<usize>,
+    shares: Vec<f64>,
+    reason: String,
+}
+
+/// Step 4: the shares of `full` (the pilot with `k` materials and every basis), then the
+/// held-out ablation of each kept non-Lambertian basis against `full`.
+fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
+    let inp = f.inp;
+    let shares = basis_shares(&f.problem, &full.est);
+    let mut kept: Vec<usize> = (0..inp.basis.len())
+        .filter(|&b| b == inp.lambert || shares[b] >= DROP_SHARE)
+        .collect();
+    let dropped: Vec<usize> = (0..inp.basis.len()).filter(|b| !kept.contains(b)).collect();
+    let mut reasons = vec![format!(
+        "largest share of a material's predicted radiance in the pilot: {}",
+        inp.basis
+            .iter()
+            .zip(&shares)
+            .map(|(b, s)| format!("{} {:.2}%", b.label(), 100.0 * s))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )];
+    if !dropped.is_empty() {
+        reasons.push(format!(
+            "dropped {}: each carries less than {:.0}% of the predicted radiance of every material and channel in the pilot (largest share {})",
+            dropped.iter().map(|&b| inp.basis[b].label()).collect::<Vec<_>>().join(", "),
+            100.0 * DROP_SHARE,
+            dropped.iter().map(|&b| format!("{} {:.2}%", inp.basis[b].label(), 100.0 * shares[b])).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    let worst = full
+        .est
+        .conditioning
+        .lambda
+        .iter()
+        .copied()
+        .fold(0.0, f64::max);
+    if worst > KAPPA_LAMBDA {
+        // Lobes the photos cannot tell apart: the ablation below drops all but one of
+        // them, since leaving one out costs no held-out error.
+        reasons.push(format!(
+            "the pilot's λ system has condition number {worst:.1e} > {KAPPA_LAMBDA:.0e}: some lobes are nearly indistinguishable in these photos"
+        ));
+    }
+    // Held-out ablation: a lobe the shares keep may still be one the data cannot tell
+    // from the others (with a free light per photo, a sharp lobe can mimic the diffuse
+    // shading of a single view). Each kept non-Lambertian basis, smallest share first, is
+    // left out in turn; it goes when the pilot without it (and without those already
+    // dropped) predicts the held-out observations within BASIS_TOL of the pilot with
+    // every basis. The comparison is always against that full pilot, so the drops together
+    // cost at most BASIS_TOL of held-out error.
+    let mut order: Vec<usize> = kept.iter().copied().filter(|&b| b != inp.lambert).collect();
+    order.sort_by(|&a, &b| shares[a].total_cmp(&shares[b]));
+    let mut ablation = Vec::new();
+    for b in order {
+        let trial: Vec<usize> = kept.iter().copied().filter(|&x| x != b).collect();
+        let Some(fit) = f.fit(k, &trial, full.weights_sum, false)? else {
+            continue;
+        };
+        let (e, ok) = (fit.heldout, as_good(fit.heldout, full.heldout, BASIS_TOL));
+        ablation.push(format!(
+            "without {} {e:.4e}{}",
+            inp.basis[b].label(),
+            if ok { " (dropped)" } else { " (kept)" }
+        ));
+        if ok {
+            kept = trial;
+        }
+    }
+    if !ablation.is_empty() {
+        reasons.push(format!(
+            "held-out RMSE of the pilot with every basis {:.4e}; {}: a basis goes when leaving it out costs at most {:.0}%",
+            full.heldout,
+            ablation.join(", "),
+            100.0 * BASIS_TOL
+        ));
+    }
+    Ok(BasisChoice {
+        kept,
+        shares,
+        reason: reasons.join("; "),
+    })
+}
+
+/// Step 3b: the pilot with `k` materials and free weights against the same with the
+/// sum-to-one prior (`with`, at [`PILOT_WEIGHTS_SUM`]). The prior is kept when it lowers
+/// the held-out RMSE by more than [`WEIGHTS_SUM_GAIN`]: the paper's free weights unless the
+/// prior clearly predicts better. Returns the fit kept and why.
+fn choose_weights_sum(k: usize, free: PilotFit, with: Option<PilotFit>) -> (PilotFit, String) {
+    let Some(with) = with else {
+        let why = "free weights: the pilot with the sum-to-one prior did not fit".to_string();
+        return (free, why);
+    };
+    let (free_e, with_e) = (free.heldout, with.heldout);
+    let prior = with_e < (1.0 - WEIGHTS_SUM_GAIN) * free_e;
+    let figures = format!(
+        "held-out RMSE of the pilot with {k} materials: free weights {free_e:.4e}, sum-to-one prior {with_e:.4e} ({:+.1}%)",
+        100.0 * (with_e / free_e - 1.0)
+    );
+    if prior {
+        let why = format!(
+            "the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM}: {figures}; the prior goes in when it lowers that by more than {:.0}%",
+            100.0 * WEIGHTS_SUM_GAIN
+        );
+        (with, why)
+    } else {
+        let why = format!(
+            "free weights, as the paper: {figures}; the prior goes in only when it lowers that by more than {:.0}%",
+            100.0 * WEIGHTS_SUM_GAIN
+        );
+        (free, why)
+    }
+}
