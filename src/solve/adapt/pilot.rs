@@ -222,7 +222,8 @@ struct CountChoice {
 }
 
 /// Step 3: the count given, or the smallest within [`MATERIAL_TOL`] of the best held-out
-/// RMSE over `K = 1 …` [`MAX_MATERIALS`] (`g`: the pilot's map side, for the reason).
+/// RMSE over `K = 1 …` [`MAX_MATERIALS`], the search ending once [`COUNT_PATIENCE`] counts
+/// past the current choice have not changed it (`g`: the pilot's map side, for the reason).
 fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
     let (all, free) = (f.all(), f.eopts.weights_sum);
     if let Some(k) = f.inp.materials {
@@ -245,13 +246,17 @@ fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
             break;
         };
         fits.push((k, fit));
+        let pick = smallest_as_good(&fits);
+        if fits.len() >= pick + 1 + COUNT_PATIENCE && k < MAX_MATERIALS {
+            stop = format!(
+                "the {COUNT_PATIENCE} counts after K={} did not change the choice",
+                fits[pick].0
+            );
+            break;
+        }
     }
     let scores: Vec<(usize, f64)> = fits.iter().map(|(k, f)| (*k, f.heldout)).collect();
-    let best = scores.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-    let pick = scores
-        .iter()
-        .position(|s| as_good(s.1, best, MATERIAL_TOL) || !best.is_finite())
-        .unwrap_or(0);
+    let pick = smallest_as_good(&fits);
     let (k, fit) = fits.swap_remove(pick);
     let table = scores
         .iter()
@@ -268,6 +273,18 @@ fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
         scores,
         fit,
     })
+}
+
+/// Index into `fits` of the smallest count whose held-out RMSE is within [`MATERIAL_TOL`]
+/// of the best (the first, when no score is finite).
+fn smallest_as_good(fits: &[(usize, PilotFit)]) -> usize {
+    let best = fits
+        .iter()
+        .map(|f| f.1.heldout)
+        .fold(f64::INFINITY, f64::min);
+    fits.iter()
+        .position(|f| as_good(f.1.heldout, best, MATERIAL_TOL) || !best.is_finite())
+        .unwrap_or(0)
 }
 
 /// The basis BRDFs kept (step 4), each basis's largest share and why.
