@@ -141,7 +141,8 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
 pub struct LightDecision {
     /// The model used.
     pub model: String,
-    /// One sentence: forced by the flag, or the validation scores compared.
+    /// One sentence: the flag's model (the default or as given), or the validation scores
+    /// compared.
     pub why: String,
     /// `(model, validation score)` per model fitted (score NaN without validation).
     pub scores: Vec<(String, f64)>,
@@ -166,7 +167,12 @@ pub fn decide(choice: LightChoice, names: &[&str], scores: &[f64]) -> (usize, Li
         LightChoice::Auto if names.len() > 1 => format!(
             "--light auto: the lower validation score (relative RMSE of the held-back observations) of {list}"
         ),
-        c => format!("--light {} (forced)", c.name()),
+        LightChoice::Auto => format!("--light auto: {} is the only model fitted", names[best]),
+        LightChoice::Paper => "--light paper, the default: the paper's \
+            free map per photo (--light auto fits every model that applies and keeps the one \
+            that predicts held-back observations best)"
+            .to_string(),
+        c => format!("--light {}, as given", c.name()),
     };
     (
         best,
@@ -196,7 +202,9 @@ mod tests {
         let (i, _) = decide(LightChoice::Auto, &["paper", "prior"], &[f64::NAN, 0.2]);
         assert_eq!(i, 1, "a NaN score never wins");
         let (i, d) = decide(LightChoice::Prior, &["prior"], &[f64::NAN]);
-        assert_eq!((i, d.why.as_str()), (0, "--light prior (forced)"));
+        assert_eq!((i, d.why.as_str()), (0, "--light prior, as given"));
+        let (_, d) = decide(LightChoice::Paper, &["paper"], &[f64::NAN]);
+        assert!(d.why.starts_with("--light paper, the default"), "{}", d.why);
     }
 
     #[test]
