@@ -25,14 +25,11 @@ const MAP_HEIGHT: usize = 64;
 const THUMB_WIDTH: u32 = 240;
 
 /// The true map of `name` in the fit's frame, when the truth has one.
-fn true_map(f: &Fitted, truth: &Truth, name: &str) -> Option<LatLong> {
-    let p = truth.photos.get(name)?;
-    let path = if p.env.is_absolute() {
-        p.env.clone()
-    } else {
-        truth.dir.join(&p.env)
+fn true_map(f: &Fitted, truth: &Truth, name: &str) -> Result<Option<LatLong>> {
+    let Some(p) = truth.photos.get(name) else {
+        return Ok(None);
     };
-    let src = LatLong::read_exr(&path).ok()?.0;
+    let src = LatLong::read_exr(&p.env)?.0;
     let m = truth.env_from_world * f.env_from_world.transpose();
     let mut out = LatLong::black(MAP_HEIGHT);
     for v in 0..out.height {
@@ -40,7 +37,7 @@ fn true_map(f: &Fitted, truth: &Truth, name: &str) -> Option<LatLong> {
             out.rgb[v * out.width + u] = src.lookup(&(m * out.dir(u, v)));
         }
     }
-    Some(out)
+    Ok(Some(out))
 }
 
 /// Material swatches: the diffuse colour of each material (normalised by the largest
@@ -83,15 +80,17 @@ pub(crate) fn html_inputs(f: &Fitted, truth: Option<&Truth>, dir: &Path) -> Resu
     for (k, &v) in f.train.iter().enumerate() {
         let name = &f.scene.views[v].image.name;
         fitted.push(fitted_env(f, k).to_latlong(MAP_HEIGHT));
-        truths.push(truth.and_then(|t| {
-            let mut m = true_map(f, t, name)?;
-            let p = t.photos.get(name)?;
+        let mut map = match truth {
+            Some(t) => true_map(f, t, name)?.zip(t.photos.get(name)),
+            None => None,
+        };
+        if let Some((m, p)) = map.as_mut() {
             let gain = p.white_balance.map(|w| (w * p.exposure) as f32);
             m.rgb
                 .iter_mut()
                 .for_each(|px| (0..3).for_each(|c| px[c] *= gain[c]));
-            Some(m)
-        }));
+        }
+        truths.push(map.map(|(m, _)| m));
     }
     let map_scale = truths
         .iter()

@@ -12,7 +12,8 @@ use std::sync::{Arc, Mutex};
 /// One photo's entry in `truth/manifest.json`.
 #[derive(Debug, Clone)]
 pub struct TruthPhoto {
-    /// Lat-long map the photo was rendered with.
+    /// Lat-long map the photo was rendered with (the manifest's entry joined to the
+    /// `truth/` folder: a path to open as it is).
     pub env: PathBuf,
     /// Linear exposure factor applied to the rendering.
     pub exposure: f64,

@@ -210,3 +210,46 @@ fn run_on_the_synth_scene_through_colmap_against_its_truth() {
         truth.1
     );
 }
+
+/// `path` written relative to the current folder (`..` up to the common root, then down).
+fn relative_to_cwd(path: &Path) -> PathBuf {
+    let cwd = std::env::current_dir().expect("current folder");
+    let common = cwd
+        .ancestors()
+        .find(|a| path.starts_with(a))
+        .expect("a common root");
+    let ups = cwd.strip_prefix(common).unwrap().components().count();
+    let mut rel: PathBuf = std::iter::repeat_n("..", ups).collect();
+    rel.push(path.strip_prefix(common).unwrap());
+    rel
+}
+
+#[test]
+fn a_workspace_given_by_a_relative_path_shows_its_true_maps() {
+    // The truth manifest's map paths are joined to the truth folder once, at load; the
+    // report's true maps once joined them a second time, which a relative workspace path
+    // turned into a path that does not exist, and the maps went missing without a word.
+    let ws = relative_to_cwd(&fixtures().join("colmap-synth/truth"));
+    assert!(ws.is_relative() && ws.is_dir(), "{}", ws.display());
+    let mut o = small(ws, "relative");
+    o.holdout = Holdout::Names(vec!["photo_003.png".into()]);
+    let s = run(&o).unwrap_or_else(|e| panic!("run: {e}"));
+    let html = std::fs::read_to_string(s.out.join("report.html")).unwrap();
+    // One recovered and one true map per training photo, each written beside the report.
+    let files = |suffix: &str| -> std::collections::BTreeSet<String> {
+        html.match_indices(suffix)
+            .map(|(at, _)| {
+                let start = html[..at].rfind('"').unwrap() + 1;
+                html[start..at + suffix.len() - 1].to_string()
+            })
+            .filter(|rel| s.out.join(rel).is_file())
+            .collect()
+    };
+    let (fitted, truth) = (files(".map.png\""), files(".true_map.png\""));
+    let training = s.report.train.len();
+    assert!(
+        training >= 2 && fitted.len() == training && truth.len() == training,
+        "{training} training photos: {fitted:?} recovered, {truth:?} true maps"
+    );
+    let _ = std::fs::remove_dir_all(&s.out);
+}
