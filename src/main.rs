@@ -533,10 +533,50 @@ fn main() {
     relight_cpc::out_dir::install_interrupt_cleanup();
     let cli = Cli::parse();
     if let Err(err) = dispatch(cli.command) {
-        eprintln!("error: {err}");
-        for cause in err.chain().skip(1) {
-            eprintln!("  caused by: {cause}");
+        for line in error_lines(&err) {
+            eprintln!("{line}");
         }
         std::process::exit(1);
+    }
+}
+
+/// What the CLI prints for a failure: `error: ` and the message, then each cause the line
+/// above does not already quote (an error naming its file carries the I/O error's words,
+/// which would otherwise come out twice).
+fn error_lines(err: &anyhow::Error) -> Vec<String> {
+    let mut lines = vec![format!("error: {err}")];
+    let mut shown = err.to_string();
+    for cause in err.chain().skip(1) {
+        let text = cause.to_string();
+        if !shown.contains(&text) {
+            lines.push(format!("  caused by: {text}"));
+        }
+        shown = text;
+    }
+    lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::error_lines;
+
+    #[test]
+    fn a_cause_the_message_already_quotes_is_not_printed_again() {
+        let path = std::path::Path::new("/no/such/map.hdr");
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file");
+        let err = anyhow::Error::from(relight_cpc::Error::io(path, io));
+        assert_eq!(
+            error_lines(&err),
+            vec!["error: /no/such/map.hdr: No such file".to_string()]
+        );
+        // A cause with words of its own is printed.
+        let err = anyhow::Error::from(std::io::Error::other("disk full")).context("writing out/");
+        assert_eq!(
+            error_lines(&err),
+            vec![
+                "error: writing out/".to_string(),
+                "  caused by: disk full".to_string()
+            ]
+        );
     }
 }
