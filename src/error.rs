@@ -12,13 +12,11 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// What went wrong, and where.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// The file could not be opened, read or written.
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The file could not be opened, read or written. The message carries the I/O error's
+    /// words, so the I/O error is not also reported as this error's source (a printer that
+    /// walks the source chain, as the CLI does, would say it twice).
+    #[error("{path}: {io}")]
+    Io { path: PathBuf, io: std::io::Error },
     /// The file was read but its content is malformed. `location` is e.g. `line 12`,
     /// `record 3 (image id 7)` or `byte 1024`.
     #[error("{path}: {location}: {message}")]
@@ -59,10 +57,10 @@ pub enum Error {
 
 impl Error {
     /// An [`Error::Io`] for `path`.
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub fn io(path: impl Into<PathBuf>, io: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            io,
         }
     }
 

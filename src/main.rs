@@ -540,19 +540,10 @@ fn main() {
     }
 }
 
-/// What the CLI prints for a failure: `error: ` and the message, then each cause the line
-/// above does not already quote (an error naming its file carries the I/O error's words,
-/// which would otherwise come out twice).
+/// What the CLI prints for a failure: `error: ` and the message, then each cause.
 fn error_lines(err: &anyhow::Error) -> Vec<String> {
     let mut lines = vec![format!("error: {err}")];
-    let mut shown = err.to_string();
-    for cause in err.chain().skip(1) {
-        let text = cause.to_string();
-        if !shown.contains(&text) {
-            lines.push(format!("  caused by: {text}"));
-        }
-        shown = text;
-    }
+    lines.extend(err.chain().skip(1).map(|c| format!("  caused by: {c}")));
     lines
 }
 
