@@ -24,17 +24,20 @@ const MAP_HEIGHT: usize = 64;
 /// Width of the photo thumbnails.
 const THUMB_WIDTH: u32 = 240;
 
-/// The true map of `name` in the fit's frame, when the truth has one.
+/// The true map of `name` in the fit's frame as its camera saw it (map × exposure × white
+/// balance), when the truth has one.
 fn true_map(f: &Fitted, truth: &Truth, name: &str) -> Result<Option<LatLong>> {
     let Some(p) = truth.photos.get(name) else {
         return Ok(None);
     };
     let src = LatLong::read_exr(&p.env)?.0;
+    let gain = p.white_balance.map(|w| (w * p.exposure) as f32);
     let m = truth.env_from_world * f.env_from_world.transpose();
     let mut out = LatLong::black(MAP_HEIGHT);
     for v in 0..out.height {
         for u in 0..out.width {
-            out.rgb[v * out.width + u] = src.lookup(&(m * out.dir(u, v)));
+            let rgb = src.lookup(&(m * out.dir(u, v)));
+            out.rgb[v * out.width + u] = std::array::from_fn(|c| rgb[c] * gain[c]);
         }
     }
     Ok(Some(out))
@@ -80,17 +83,10 @@ pub(crate) fn html_inputs(f: &Fitted, truth: Option<&Truth>, dir: &Path) -> Resu
     for (k, &v) in f.train.iter().enumerate() {
         let name = &f.scene.views[v].image.name;
         fitted.push(fitted_env(f, k).to_latlong(MAP_HEIGHT));
-        let mut map = match truth {
-            Some(t) => true_map(f, t, name)?.zip(t.photos.get(name)),
+        truths.push(match truth {
+            Some(t) => true_map(f, t, name)?,
             None => None,
-        };
-        if let Some((m, p)) = map.as_mut() {
-            let gain = p.white_balance.map(|w| (w * p.exposure) as f32);
-            m.rgb
-                .iter_mut()
-                .for_each(|px| (0..3).for_each(|c| px[c] *= gain[c]));
-        }
-        truths.push(map.map(|(m, _)| m));
+        });
     }
     let map_scale = truths
         .iter()
