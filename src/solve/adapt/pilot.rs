@@ -238,15 +238,16 @@ fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
             fit,
         });
     }
-    let mut fits: Vec<(usize, PilotFit)> = Vec::new();
+    // `fits[i]` and `heldout[i]` are of `K = i + 1`.
+    let (mut fits, mut heldout) = (Vec::new(), Vec::new());
     let mut stop = format!("{MAX_MATERIALS} is the cap");
     for k in 1..=MAX_MATERIALS {
         let Some(fit) = f.fit(k, &all, free, true)? else {
             stop = format!("k-means finds no {k}th distinct colour cluster");
             break;
         };
-        fits.push((k, fit));
-        let heldout: Vec<f64> = fits.iter().map(|f| f.1.heldout).collect();
+        heldout.push(fit.heldout);
+        fits.push(fit);
         if count_search_done(&heldout) && k < MAX_MATERIALS {
             stop = format!(
                 "the {COUNT_PATIENCE} counts after K={} did not change the choice",
@@ -255,10 +256,9 @@ fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
             break;
         }
     }
-    let scores: Vec<(usize, f64)> = fits.iter().map(|(k, f)| (*k, f.heldout)).collect();
-    let heldout: Vec<f64> = scores.iter().map(|s| s.1).collect();
+    let scores: Vec<(usize, f64)> = (1..).zip(heldout.iter().copied()).collect();
     let pick = smallest_as_good(&heldout);
-    let (k, fit) = fits.swap_remove(pick);
+    let (k, fit) = (pick + 1, fits.swap_remove(pick));
     let table = scores
         .iter()
         .map(|(k, e)| format!("K={k}: {e:.4e}"))
