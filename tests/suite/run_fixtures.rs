@@ -236,16 +236,14 @@ fn a_workspace_given_by_a_relative_path_shows_its_true_maps() {
     let s = run(&o).unwrap_or_else(|e| panic!("run: {e}"));
     let html = std::fs::read_to_string(s.out.join("report.html")).unwrap();
     // One recovered and one true map per training photo, each written beside the report.
+    let srcs = relight_cpc::report::html::image_sources(&html);
     let files = |suffix: &str| -> std::collections::BTreeSet<String> {
-        html.match_indices(suffix)
-            .map(|(at, _)| {
-                let start = html[..at].rfind('"').unwrap() + 1;
-                html[start..at + suffix.len() - 1].to_string()
-            })
-            .filter(|rel| s.out.join(rel).is_file())
+        srcs.iter()
+            .filter(|src| src.ends_with(suffix) && s.out.join(src).is_file())
+            .cloned()
             .collect()
     };
-    let (fitted, truth) = (files(".map.png\""), files(".true_map.png\""));
+    let (fitted, truth) = (files(".map.png"), files(".true_map.png"));
     let training = s.report.train.len();
     assert!(
         training >= 2 && fitted.len() == training && truth.len() == training,
