@@ -33,6 +33,11 @@
 //!   [`adapt::HELDOUT_EVERY`] held out, the smallest K within [`adapt::MATERIAL_TOL`] of
 //!   the best held-out RMSE.
 //!
+//! The row `defaults (the pilot's choices)` is what `relight-cpc run` does with no flags
+//! (`ablation/defaults.rs`): the adaptive pilot itself chooses the count, the weights'
+//! prior and the lobes from the case's basis, and the fit uses its choices; its *K* column
+//! is the pilot's own search.
+//!
 //! Every prior row uses leave-one-map-out statistics: a photo's prior never contains the
 //! map it was rendered with ([`with_case_priors`]).
 //!
@@ -60,6 +65,8 @@ use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
 
+#[path = "ablation/defaults.rs"]
+mod defaults;
 #[path = "ablation/diagnose.rs"]
 mod diagnose;
 #[path = "ablation/metrics.rs"]
@@ -89,6 +96,9 @@ enum Row {
         label: &'static str,
         among: fn() -> Vec<String>,
     },
+    /// What `run` does with no flags: the adaptive pilot's choices, then the fit
+    /// (`ablation/defaults.rs`).
+    Defaults { label: &'static str },
 }
 
 /// The row label of `--light NAME`'s model.
@@ -98,6 +108,9 @@ fn label_of(name: &str) -> String {
         other => other.to_string(),
     }
 }
+
+/// The defaults' row label.
+const DEFAULTS: &str = "defaults (the pilot's choices)";
 
 /// The `--light prior` row's label.
 const PRIOR: &str = "prior (SH 0.3 + Haar 0.03)";
@@ -153,6 +166,7 @@ fn rows() -> Vec<Row> {
         Row::Fit { label: "prior, Σw=1 prior 1", make: |b| sum1(choice("prior", b), 1.0) },
         Row::Fit { label: "sky", make: |b| choice("sky", b) },
         Row::Fit { label: "shared", make: |b| choice("shared", b) },
+        Row::Defaults { label: DEFAULTS },
         Row::Pick { label: "auto (--light auto)", among: auto_models },
         Row::Pick {
             label: "prior η by validation",
@@ -409,14 +423,24 @@ fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f
     let mut model = case.held.obs.clone();
     replace_colours(&mut model, &fl.truth_held);
     let pred = relight_cpc::solve::predict(&problem, est);
-    let (assignment, assignment_pure) = assignment(case, est, &fl.seen);
+    // Accuracy and ratios compare material by material: only with the true count.
+    let same_k = est.lambda.len() == case.lambda.len();
+    let (assignment, assignment_pure) = if same_k {
+        assignment(case, est, &fl.seen)
+    } else {
+        (f64::NAN, f64::NAN)
+    };
     Figures {
         heldout: half_error(case, &est.lambda, &est.weights, &fl.left),
         heldout_floor: fl.heldout,
         relit: rel_rmse_per_channel(&case.held.obs, &hp),
         relit_floor: fl.relit,
         relit_model: rel_rmse_per_channel(&model, &hp),
-        ratio_errors: ratio_errors(case, &est.lambda, &est.weights, &fl.seen),
+        ratio_errors: if same_k {
+            ratio_errors(case, &est.lambda, &est.weights, &fl.seen)
+        } else {
+            [f64::NAN; 3]
+        },
         start_ratio_errors: start,
         assignment,
         assignment_pure,
@@ -549,6 +573,25 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 if env_flag("ABLATION_PROPAGATE") {
                     done.push(propagated(case, &fl, est, label, seconds));
                 }
+            }
+            Row::Defaults { label } => {
+                if wanted
+                    .as_ref()
+                    .is_some_and(|w| !w.iter().any(|l| l == label))
+                {
+                    continue;
+                }
+                eprintln!("{}: {label}", case.scene);
+                let d = defaults::fit_defaults(case, &base);
+                let figures = figures(case, &fl, &d.est, start_ratio_errors(case, &fl), d.seconds);
+                eprintln!("  {figures:?} pilot {:?}", d.pilot.material_scores);
+                done.push(Done {
+                    label: label.into(),
+                    figures,
+                    k: Some((d.pilot.materials, d.pilot.material_scores.clone())),
+                    note: defaults::describe(case, &d.pilot),
+                    diagnosis: diagnosed(case, &d.est, label),
+                });
             }
             Row::Pick { label, among } => {
                 let idx: Vec<usize> = among()

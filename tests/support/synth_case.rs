@@ -26,6 +26,7 @@ use relight_cpc::sphere::rotation::{Rotation, RotationForm};
 use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::transport::brdf::BasisBrdf;
 use relight_cpc::transport::reference::{Lobe, Samples};
+use relight_cpc::transport::visibility::Visibility;
 use relight_cpc::transport::{self, Transport, TransportOptions};
 use relight_cpc::{sphere::haar, transport::visibility, Vec3};
 
@@ -116,6 +117,11 @@ pub struct Case {
     pub sizes: Sizes,
     pub seconds_synth: f64,
     pub seconds_prepare: f64,
+    /// Env-frame vertex normals, the world → environment rotation and the visibility at
+    /// `sizes.local`: what `run` hands the adaptive pilot.
+    pub normals_env: Vec<Vec3>,
+    pub env_from_world: nalgebra::Matrix3<f64>,
+    pub vis: Visibility,
 }
 
 impl Case {
@@ -324,6 +330,9 @@ pub fn prepare_in(
         sizes,
         seconds_synth,
         seconds_prepare: t1.elapsed().as_secs_f64(),
+        normals_env,
+        env_from_world,
+        vis,
     }
 }
 

@@ -1,0 +1,99 @@
+//! The row `defaults (the pilot's choices)`: what `relight-cpc run` does with no flags,
+//! on the bench's cases. The adaptive pilot ([`adapt::pilot`], the function `run` calls,
+//! with the inputs `run` gives it) chooses the material count (step 3), the blending
+//! weights' sum-to-one prior (step 3b) and which of the case's lobes to keep (step 4); the
+//! full fit then uses those choices with the paper's light model and the k-means start.
+//! The map sizes stay the bench's (16² / 8²: the pilot's resolution choice, step 5, is
+//! the only default left out), so the row compares with the others cell for cell.
+
+use crate::synth_case::*;
+use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
+use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
+
+/// The defaults' fit: its estimate over the case's full basis (a dropped lobe's weights
+/// 0) and what the pilot decided.
+pub struct DefaultsFit {
+    pub est: Estimate,
+    pub pilot: PilotOutcome,
+    pub seconds: f64,
+}
+
+/// The pilot on the case's training photos, then the fit with its choices; `base`: the
+/// bench's options (the paper's free weights, the paper's light model).
+pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
+    let t0 = std::time::Instant::now();
+    let obs = &case.train.obs;
+    let (mean_rgb, seen) = relight_cpc::run::mean_colours(obs, case.nv);
+    // The case's basis has its Lambertian lobe first (`fit_start`'s convention).
+    let lambert = 0;
+    let pilot = adapt::pilot(&PilotInput {
+        normals_env: &case.normals_env,
+        obs,
+        env_from_world: &case.env_from_world,
+        vis: &case.vis,
+        basis: &case.basis,
+        lambert,
+        normal_grid: case.sizes.normal_grid,
+        global_resolution: case.sizes.global,
+        keep: case.sizes.keep,
+        // As `run` does: the pilot holds out its own observations.
+        estimate: EstimateOptions {
+            validation_fraction: 0.0,
+            ..base.clone()
+        },
+        mean_rgb: &mean_rgb,
+        seen: &seen,
+        materials: None,
+        choose_weights_sum: true,
+        seed: 1,
+    })
+    .expect("adaptive pilot");
+    let sub = adapt::select_bases(&case.train.transport, &pilot.kept).expect("kept bases");
+    let problem = Problem {
+        transport: &sub,
+        ..case.train.problem(case.nv)
+    };
+    let init = relight_cpc::solve::cluster::initial_materials(&mean_rgb, &seen, pilot.materials, 1)
+        .expect("k-means start");
+    let m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
+    let opts = EstimateOptions {
+        weights_sum: pilot.weights_sum,
+        ..base.clone()
+    };
+    let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");
+    est.lambda = est
+        .lambda
+        .iter()
+        .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
+        .collect();
+    DefaultsFit {
+        est,
+        pilot,
+        seconds: t0.elapsed().as_secs_f64(),
+    }
+}
+
+/// A material's weights over the kept bases (`kept[i]`: index of the `i`-th in the full
+/// list) laid out over all `n` bases, 0 for a dropped one.
+fn full_basis(row: &[[f64; 3]], kept: &[usize], n: usize) -> Vec<[f64; 3]> {
+    let mut full = vec![[0.0; 3]; n];
+    for (v, &b) in row.iter().zip(kept) {
+        full[b] = *v;
+    }
+    full
+}
+
+/// The pilot's choices in a sentence, for the table's notes.
+pub fn describe(case: &Case, p: &PilotOutcome) -> String {
+    let kept: Vec<String> = p.kept.iter().map(|&b| case.basis[b].label()).collect();
+    format!(
+        "the pilot chose K = {}, the weights' sum-to-one prior at {} and the lobes {} ({}; {})",
+        p.materials,
+        p.weights_sum,
+        kept.join(", "),
+        p.weights_sum_reason
+            .as_deref()
+            .unwrap_or("weights' prior not chosen"),
+        p.basis_reason
+    )
+}
