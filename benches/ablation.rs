@@ -253,6 +253,7 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
         Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
         Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 0.3", make: |b| sum1(choice("paper", b), 0.3) },
         Row::Fit { label: "paper, Σw=1 prior 10", make: |b| sum1(choice("paper", b), 10.0) },
         Row::Fit { label: "paper, no IRLS", make: |b| no_irls(choice("paper", b)) },
         Row::Fit { label: "paper, Σw=1 prior 1, no IRLS", make: |b| no_irls(sum1(choice("paper", b), 1.0)) },
