@@ -14,7 +14,8 @@
 //!    same light. It is dropped from the fit with a note.
 //! 2. **Pilot.** The transport (Eq. 5–8) at [`PILOT_GLOBAL`]² global and at most
 //!    [`PILOT_LOCAL`]² local texels (visibility averaged down, [`downsample_visibility`]),
-//!    and [`PILOT_ITERATIONS`] outer iterations of the estimator on the observations with
+//!    and [`PILOT_ITERATIONS`] outer iterations of the estimator (its lighting steps on at
+//!    most [`PILOT_LIGHTING_SAMPLE`] observations per photo) on the observations with
 //!    every [`HELDOUT_EVERY`]-th one (a seeded hash of vertex and photo) given weight 0
 //!    ([`holdout_split`]).
 //! 3. **Number of materials** (`--materials auto`): `K = 1, 2, …` are fitted by the pilot
@@ -199,6 +200,17 @@ pub const PILOT_CG_ITERS: usize = 5;
 /// on the Buddha fixture is the same as with 5, for 15–20% less pilot CPU; 2 changes the
 /// example's basis choice (phong:500 kept instead of phong:50; `bench-results/example-speed.md`).
 pub const PILOT_QP_ITERS: usize = 3;
+/// Observations per photo the pilot's lighting steps fit at most (the estimator's
+/// stratified lighting sample, [`EstimateOptions::lighting_sample`]; the run's own, 2,000
+/// by default, when it is smaller). The held-out scores are still of every held-out
+/// observation. Measured on 19 pilots (`bench-results/pilot-lighting-sample.md`: the
+/// built-in example at seeds 1–8, seven rendered scenes of 600–12,000 vertices, the real
+/// Buddha photos at seeds 1–4): every choice the same as with the run's sample, so every
+/// figure of those runs identical; the scores within 1–5%; the pilot 10–45% less CPU
+/// (the Buddha's 6.3–7.1 → 4.1–4.6 s, `spot-three` 13.3 → 8.1 s). 250 also kept every
+/// choice tried (11 pilots) but moved the scores up to 6%, as much as the material
+/// count's margin.
+pub const PILOT_LIGHTING_SAMPLE: usize = 500;
 /// Largest number of materials the pilot tries.
 pub const MAX_MATERIALS: usize = 6;
 /// Counts past the current choice after which the material search ends when none of them

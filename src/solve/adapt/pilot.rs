@@ -177,6 +177,10 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
                     .alternation_qp_iters
                     .map_or(PILOT_QP_ITERS, |q| q.min(PILOT_QP_ITERS)),
             ),
+            lighting_sample: match inp.estimate.lighting_sample {
+                0 => PILOT_LIGHTING_SAMPLE,
+                n => n.min(PILOT_LIGHTING_SAMPLE),
+            },
             ..inp.estimate.clone()
         },
     };
