@@ -61,7 +61,7 @@ pub const LOO_PHOTOS: usize = 4;
 /// sample (2,000 before): on 12 runs (the built-in example and the real Buddha photos at
 /// seeds 1–4, four rendered scenes) every `η` chosen is the same, so every figure; the
 /// scores move by up to 0.13 in `½ ln` (the example at seed 2: +0.70 → +0.83 at `η` = 3),
-/// never across a choice; the replay costs 30–62% less CPU (the Buddha's 2.1–2.3 → 1.0–1.1
+/// never across a choice; the replay costs 22–62% less CPU (the Buddha's 2.1–2.3 → 1.0–1.1
 /// s), `bench-results/replay-sample.md`.
 pub const REPLAY_MAX_OBSERVATIONS: usize = 500;
 /// GPCG iterations of a replay's light fit at most (protocol (b)'s own fit runs 28). The
