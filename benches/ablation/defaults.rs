@@ -36,9 +36,16 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         normal_grid: case.sizes.normal_grid,
         global_resolution: case.sizes.global,
         keep: case.sizes.keep,
-        // As `run` does: the pilot holds out its own observations.
+        // As `run` does: the pilot holds out its own observations, and its lighting
+        // sample is stratified by normal (8 × 8 octahedral bins) × open sky (3 levels).
         estimate: EstimateOptions {
             validation_fraction: 0.0,
+            lighting_strata: relight_cpc::solve::subsample::vertex_strata(
+                &case.normals_env,
+                Some(&case.vis.open_fractions()),
+                8,
+                3,
+            ),
             ..base.clone()
         },
         mean_rgb: &mean_rgb,
