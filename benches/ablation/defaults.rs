@@ -37,14 +37,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         global_resolution: case.sizes.global,
         keep: case.sizes.keep,
         // As `run` does: the pilot holds out its own observations, and its lighting
-        // sample is stratified by normal (8 × 8 octahedral bins) × open sky (3 levels).
+        // sample has the run's strata.
         estimate: EstimateOptions {
             validation_fraction: 0.0,
-            lighting_strata: relight_cpc::solve::subsample::vertex_strata(
+            lighting_strata: relight_cpc::solve::subsample::lighting_strata(
                 &case.normals_env,
-                Some(&case.vis.open_fractions()),
-                8,
-                3,
+                &case.vis.open_fractions(),
             ),
             ..base.clone()
         },

@@ -408,10 +408,8 @@ fn prepare(
         visibility_sampling_note(opts),
         vis.rays_known_open
     ));
-    // Strata of the lighting step's sample: normal (8 × 8 octahedral bins) × open sky
-    // (3 levels of the mean visible fraction).
-    let strata =
-        crate::solve::subsample::vertex_strata(&normals_env, Some(&vis.open_fractions()), 8, 3);
+    // Strata of the lighting step's sample: normal × open sky.
+    let strata = crate::solve::subsample::lighting_strata(&normals_env, &vis.open_fractions());
     let (mean_rgb, seen) = mean_colours(&obs, nv);
 
     // Adaptive model (crate::solve::adapt steps 2–5): a pilot fit decides the materials, the

@@ -128,6 +128,24 @@ pub fn stratified(stratum: &[u32], eligible: &[bool], budget: usize, seed: u64) 
     }
 }
 
+/// Octahedral normal bins per side of the lighting step's strata ([`lighting_strata`]).
+pub const LIGHTING_NORMAL_BINS: usize = 8;
+/// Levels of the mean visible fraction of the lighting step's strata ([`lighting_strata`]).
+pub const LIGHTING_OPEN_LEVELS: usize = 3;
+
+/// The strata `run` gives the lighting step's sample
+/// ([`crate::solve::EstimateOptions::lighting_strata`]): the env-frame normal in
+/// [`LIGHTING_NORMAL_BINS`]² octahedral bins × the vertex's open fraction of the hemisphere
+/// (`open_fraction`, from the visibility) in [`LIGHTING_OPEN_LEVELS`] levels.
+pub fn lighting_strata(normals_env: &[crate::Vec3], open_fraction: &[f64]) -> Vec<u32> {
+    vertex_strata(
+        normals_env,
+        Some(open_fraction),
+        LIGHTING_NORMAL_BINS,
+        LIGHTING_OPEN_LEVELS,
+    )
+}
+
 /// Per-vertex stratum from the vertex normal (environment frame) binned on a
 /// `normal_bins × normal_bins` octahedral grid ([`crate::sphere::oct_encode`]) and, when
 /// given, its open fraction of the hemisphere (`0..=1`) in `open_levels` equal bins:

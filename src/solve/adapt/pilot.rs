@@ -27,9 +27,10 @@ pub struct PilotInput<'a> {
     /// Requested coefficient budget.
     pub keep: usize,
     /// The run's estimator options (smoothness, ridge, …). Their `lighting_strata` stratify
-    /// the pilot's lighting sample ([`PILOT_LIGHTING_SAMPLE`]): pass the run's (normal ×
-    /// open sky). Without strata the sample is uniform, and on a noise-free rendered scene
-    /// that took a wrong material count (`bench-results/pilot-lighting-sample.md`).
+    /// the pilot's lighting sample ([`PILOT_LIGHTING_SAMPLE`]): pass the run's
+    /// ([`crate::solve::subsample::lighting_strata`]). Without strata the sample is uniform,
+    /// and on a noise-free rendered scene that took a wrong material count
+    /// (`bench-results/pilot-lighting-sample.md`).
     pub estimate: EstimateOptions,
     /// Per-vertex mean colours and whether seen (for k-means).
     pub mean_rgb: &'a [[f64; 3]],
