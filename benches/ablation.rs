@@ -425,11 +425,13 @@ fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f
     replace_colours(&mut model, &fl.truth_held);
     let pred = relight_cpc::solve::predict(&problem, est);
     // Accuracy and ratios compare material by material: only with the true count.
-    let same_k = est.lambda.len() == case.lambda.len();
-    let (assignment, assignment_pure) = if same_k {
-        assignment(case, est, &fl.seen)
+    let ((assignment, assignment_pure), ratio_errors) = if est.lambda.len() == case.lambda.len() {
+        (
+            assignment(case, est, &fl.seen),
+            ratio_errors(case, &est.lambda, &est.weights, &fl.seen),
+        )
     } else {
-        (f64::NAN, f64::NAN)
+        ((f64::NAN, f64::NAN), [f64::NAN; 3])
     };
     Figures {
         heldout: half_error(case, &est.lambda, &est.weights, &fl.left),
@@ -437,11 +439,7 @@ fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f
         relit: rel_rmse_per_channel(&case.held.obs, &hp),
         relit_floor: fl.relit,
         relit_model: rel_rmse_per_channel(&model, &hp),
-        ratio_errors: if same_k {
-            ratio_errors(case, &est.lambda, &est.weights, &fl.seen)
-        } else {
-            [f64::NAN; 3]
-        },
+        ratio_errors,
         start_ratio_errors: start,
         assignment,
         assignment_pure,
@@ -523,6 +521,13 @@ struct Done {
     diagnosis: Option<(String, Value)>,
 }
 
+/// Whether `ABLATION_ROWS` (`wanted`) leaves the row `label` out.
+fn left_out(wanted: &Option<Vec<String>>, label: &str) -> bool {
+    wanted
+        .as_ref()
+        .is_some_and(|w| !w.iter().any(|l| l == label))
+}
+
 fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done>, Floors) {
     let fl = floors(case);
     let base = base_options();
@@ -540,10 +545,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
     for row in all {
         match row {
             Row::Fit { label, make } => {
-                if wanted
-                    .as_ref()
-                    .is_some_and(|w| !w.iter().any(|l| l == label))
-                {
+                if left_out(wanted, label) {
                     continue;
                 }
                 let Some(o) = make(&base) else {
@@ -576,10 +578,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 }
             }
             Row::Defaults { label } => {
-                if wanted
-                    .as_ref()
-                    .is_some_and(|w| !w.iter().any(|l| l == label))
-                {
+                if left_out(wanted, label) {
                     continue;
                 }
                 eprintln!("{}: {label}", case.scene);
