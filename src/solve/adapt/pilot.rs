@@ -349,13 +349,12 @@ fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
     }
     // Held-out ablation: a lobe the shares keep may still be one the data cannot tell
     // from the others (with a free light per photo, a sharp lobe can mimic the diffuse
-    // shading of a single view). Each kept non-Lambertian basis, smallest share first, is
-    // left out in turn; it goes when the pilot without it (and without those already
-    // dropped) predicts the held-out observations within BASIS_TOL of the pilot with
-    // every basis. The comparison is always against that full pilot, so the drops together
-    // cost at most BASIS_TOL of held-out error.
-    let mut order: Vec<usize> = kept.iter().copied().filter(|&b| b != inp.lambert).collect();
-    order.sort_by(|&a, &b| shares[a].total_cmp(&shares[b]));
+    // shading of a single view). Each kept non-Lambertian basis, sharpest first (smallest
+    // share first among equally sharp ones), is left out in turn; it goes when the pilot
+    // without it (and without those already dropped) predicts the held-out observations
+    // within BASIS_TOL of the pilot with every basis. The comparison is always against
+    // that full pilot, so the drops together cost at most BASIS_TOL of held-out error.
+    let order = ablation_order(inp.basis, &shares, &kept, inp.lambert);
     let mut ablation = Vec::new();
     for b in order {
         let trial: Vec<usize> = kept.iter().copied().filter(|&x| x != b).collect();
@@ -385,6 +384,26 @@ fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
         shares,
         reason: reasons.join("; "),
     })
+}
+
+/// The order in which the held-out ablation leaves out the kept non-Lambertian bases:
+/// sharpest lobe first ([`BasisBrdf::lobe_sigma`]), then smallest share. Of two lobes
+/// the pilot cannot tell apart (leaving either out costs nothing) the first one tried
+/// goes; sharpest first makes it the one the full fit pays most for (module docs, step 4).
+fn ablation_order(
+    basis: &[BasisBrdf],
+    shares: &[f64],
+    kept: &[usize],
+    lambert: usize,
+) -> Vec<usize> {
+    let mut order: Vec<usize> = kept.iter().copied().filter(|&b| b != lambert).collect();
+    order.sort_by(|&a, &b| {
+        basis[a]
+            .lobe_sigma()
+            .total_cmp(&basis[b].lobe_sigma())
+            .then(shares[a].total_cmp(&shares[b]))
+    });
+    order
 }
 
 /// Step 3b: the pilot with `k` materials and free weights against the same with the
@@ -448,5 +467,25 @@ mod tests {
         assert_eq!(search(&[6.162, 4.651, 3.256, 3.143, 3.162, 3.204]), (5, 3));
         // With no finite score the first count is kept (as the full search kept it).
         assert_eq!(search(&[f64::NAN; 6]), (3, 1));
+    }
+
+    #[test]
+    fn the_basis_ablation_tries_the_sharpest_lobe_first() {
+        let basis = [
+            BasisBrdf::Lambert,
+            BasisBrdf::Phong { exponent: 50.0 },
+            BasisBrdf::Phong { exponent: 500.0 },
+            BasisBrdf::Ggx { alpha: 0.3 },
+            BasisBrdf::Ggx { alpha: 0.3 },
+        ];
+        // The rendered spot-varying pilot that kept Phong 500 when ordered by share: Phong
+        // 500 carried the larger share (16.12% against 15.57%), so Phong 50 was tried first.
+        let shares = [0.912, 0.1557, 0.1612, 0.05, 0.02];
+        let kept = [0, 1, 2, 3, 4];
+        // σ: Phong 500 1/√500 = 0.045, Phong 50 0.141, GGX 0.3 0.3 (the two GGX lobes
+        // equally sharp: the smaller share first). Lambert is never tried.
+        assert_eq!(ablation_order(&basis, &shares, &kept, 0), vec![2, 1, 4, 3]);
+        // Only the kept bases are tried.
+        assert_eq!(ablation_order(&basis, &shares, &[0, 1, 3], 0), vec![1, 3]);
     }
 }
