@@ -155,6 +155,29 @@ fn sum1(o: Option<EstimateOptions>, tau: f64) -> Option<EstimateOptions> {
     })
 }
 
+/// `o` with the neighbour prior on the blending weights at strength `tau`
+/// ([`EstimateOptions::weights_smoothness`]; its graph filled in per case by [`with_case_graph`]).
+fn pull(o: Option<EstimateOptions>, tau: f64) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        weights_smoothness: tau,
+        ..o
+    })
+}
+
+/// `o` with the case's vertex graph when the neighbour prior is on (the run's graph:
+/// the symmetrised 8-nearest-neighbour graph of the positions).
+fn with_case_graph(case: &Case, o: EstimateOptions) -> EstimateOptions {
+    if o.weights_smoothness <= 0.0 {
+        return o;
+    }
+    use relight_cpc::solve::materials::propagate::{knn_graph, NEIGHBOURS};
+    let graph = knn_graph(&case.positions, NEIGHBOURS).expect("the case's vertex graph");
+    EstimateOptions {
+        weights_graph: std::sync::Arc::new(graph),
+        ..o
+    }
+}
+
 /// The rows, in table order. Adding a light model is one line here.
 #[rustfmt::skip]
 fn rows() -> Vec<Row> {
@@ -253,6 +276,8 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
         Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
         Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
+        Row::Fit { label: "paper, neighbour prior 0.1", make: |b| pull(choice("paper", b), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 1, neighbour prior 0.1", make: |b| pull(sum1(choice("paper", b), 1.0), 0.1) },
         Row::Fit { label: "paper, Σw=1 prior 0.3", make: |b| sum1(choice("paper", b), 0.3) },
         Row::Fit { label: "paper, Σw=1 prior 10", make: |b| sum1(choice("paper", b), 10.0) },
         Row::Fit { label: "paper, no IRLS", make: |b| no_irls(choice("paper", b)) },
@@ -554,7 +579,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     eprintln!("{label}: not available for this scene in this build, skipped");
                     continue;
                 };
-                let o = with_case_priors(case, &o);
+                let o = with_case_graph(case, with_case_priors(case, &o));
                 eprintln!(
                     "{} {}: {label}",
                     case.scene,

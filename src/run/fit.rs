@@ -60,6 +60,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         irls_iters: o.irls_iterations,
         robust_floor: o.robust_floor,
         weights_sum: o.weights_sum.value(),
+        weights_smoothness: o.weights_smoothness,
         achromatic_specular: o.achromatic_specular,
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
         alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
@@ -156,6 +157,11 @@ pub(crate) fn fit<'a>(
     let mut reasons = Vec::new();
     let mut init = starting_materials(opts, pilot_k.clone(), &mean_rgb, &seen, &mut reasons)?;
     let mut eopts = estimate_options(&eff, lambert, &strata);
+    if eopts.weights_smoothness > 0.0 {
+        // The neighbour prior's graph: the one the unseen vertices' materials spread over.
+        use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};
+        eopts.weights_graph = std::sync::Arc::new(knn_graph(&scene.mesh.positions, NEIGHBOURS)?);
+    }
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
     let transients = if eff.transients {
@@ -177,6 +183,13 @@ pub(crate) fn fit<'a>(
     } else {
         None
     };
+    if eopts.weights_smoothness > 0.0 {
+        reasons.push(format!(
+            "material weights pulled toward their {} nearest vertices' mean at {} (--weights-smoothness)",
+            crate::solve::materials::propagate::NEIGHBOURS,
+            eopts.weights_smoothness
+        ));
+    }
     let problem = Problem {
         obs: &obs,
         transport: &tr,

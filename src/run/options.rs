@@ -147,6 +147,10 @@ pub struct RunOptions {
     /// ([`EstimateOptions::weights_sum`]; 0 = off, the paper's free weights), or the
     /// pilot's choice ([`WeightsSum::Auto`]).
     pub weights_sum: WeightsSum,
+    /// Prior pulling each vertex's blending weights toward its neighbours' mean
+    /// ([`EstimateOptions::weights_smoothness`]; 0 = off), over the 8-nearest-neighbour
+    /// graph of the vertices ([`crate::solve::materials::propagate::knn_graph`]).
+    pub weights_smoothness: f64,
     /// One specular weight per material across R, G and B
     /// ([`EstimateOptions::achromatic_specular`]).
     pub achromatic_specular: bool,
@@ -361,6 +365,7 @@ impl RunOptions {
             start_search: false,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: WeightsSum::Auto,
+            weights_smoothness: 0.0,
             achromatic_specular: false,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
@@ -475,6 +480,12 @@ impl RunOptions {
                     "--weights-sum {v}: must be auto or a finite number ≥ 0 (0 = off)"
                 )));
             }
+        }
+        if !(self.weights_smoothness.is_finite() && self.weights_smoothness >= 0.0) {
+            return Err(Error::Config(format!(
+                "--weights-smoothness {}: must be a finite number ≥ 0 (0 = off)",
+                self.weights_smoothness
+            )));
         }
         if self.starts == 0 {
             return Err(Error::Config(

@@ -22,7 +22,8 @@ use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
-    data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step, LambdaCoupling,
+    data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step,
+    weights_step_pulled, LambdaCoupling, NeighbourPull,
 };
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{evaluate, gauge, Objective, Point};
@@ -163,6 +164,8 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     prev: Option<Snapshot<M::Params>>,
     /// `γ_x` of the weights' sum-to-one prior, when on ([`EstimateOptions::weights_sum`]).
     pub(crate) sum_gamma: Option<Vec<f64>>,
+    /// `η_x` of the neighbour prior, when on ([`EstimateOptions::weights_smoothness`]).
+    pub(crate) pull_eta: Option<Vec<f64>>,
     /// Anderson acceleration's history, when on ([`crate::solve::accel`]).
     pub(crate) anderson: Option<AndersonHistory>,
 }
@@ -187,6 +190,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             prev: None,
             sum_gamma: (opts.weights_sum > 0.0)
                 .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
+            pull_eta: (opts.weights_smoothness > 0.0 && !opts.weights_graph.1.is_empty()).then(
+                || sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_smoothness),
+            ),
             anderson: (opts.anderson_depth > 0).then(|| AndersonHistory::new(opts.anderson_depth)),
         }
     }
@@ -292,13 +298,14 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             }
             self.lambda = l.lambda;
             self.cond.lambda = l.cond;
-            let w = weights_step(
+            let w = weights_step_pulled(
                 problem,
                 &s,
                 &self.lambda,
                 &self.weights,
                 &dw.weights,
                 self.sum_gamma.as_deref(),
+                self.pull(),
             )?;
             self.weights = w.weights;
             self.cond.weights_max = w.cond_max;
@@ -310,11 +317,22 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         Ok(s)
     }
 
-    /// The weights' sum-to-one prior term of `F` at `weights` (0 when off).
+    /// The weights' priors' terms of `F` at `weights` (0 when off).
     fn weights_prior(&self, weights: &[f64]) -> f64 {
+        let kk = self.lambda.len();
         self.sum_gamma
             .as_ref()
-            .map_or(0.0, |g| sum_weights_penalty(g, weights, self.lambda.len()))
+            .map_or(0.0, |g| sum_weights_penalty(g, weights, kk))
+            + self.pull().map_or(0.0, |p| p.penalty(weights, kk))
+    }
+
+    /// The neighbour prior's pull, when on.
+    fn pull(&self) -> Option<NeighbourPull<'_>> {
+        self.pull_eta.as_deref().map(|eta| NeighbourPull {
+            eta,
+            offsets: &self.opts.weights_graph.0,
+            targets: &self.opts.weights_graph.1,
+        })
     }
 
     /// Per channel, `G_c = Σ_x Σ_b β_{x,b,c}` back to its start value, the lights (and

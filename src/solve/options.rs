@@ -189,6 +189,14 @@ pub struct EstimateOptions {
     /// relative change `δ` of a vertex's brightness what its data would charge for it.
     /// Default [`WEIGHTS_SUM`].
     pub weights_sum: f64,
+    /// Prior pulling each vertex's blending weights toward the mean of its neighbours'
+    /// (issue 25, not in the paper; 0 = off): the `w` step and `F` gain
+    /// `Σ_x η_x ‖w(x) − w̄_N(x)‖²` with `η_x = weights_smoothness · Σ_{p ∈ x} α_p ‖y_p‖²`
+    /// (the sum-to-one prior's scale) and `w̄_N(x)` the mean over [`Self::weights_graph`]'s
+    /// neighbours of `x`, taken at the step's start (a Jacobi sweep per material step).
+    pub weights_smoothness: f64,
+    /// The vertex graph of [`Self::weights_smoothness`] (CSR: offsets, targets); empty = off.
+    pub weights_graph: std::sync::Arc<(Vec<usize>, Vec<u32>)>,
     /// Specular lobes reflect the light's colour (issue 25, not in the paper): every basis
     /// but [`Self::lambert_basis`] gets one weight per material shared by R, G and B in the
     /// λ step ([`crate::solve::materials`], the dichromatic model of dielectrics). Default
@@ -328,6 +336,8 @@ impl Default for EstimateOptions {
             light_prior: None,
             light_sky: None,
             weights_sum: WEIGHTS_SUM,
+            weights_smoothness: 0.0,
+            weights_graph: std::sync::Arc::new((Vec::new(), Vec::new())),
             achromatic_specular: false,
             anderson_depth: 0,
             light_groups: None,

@@ -239,6 +239,18 @@ fn weights_sum_outside_its_range_is_refused() {
     );
 }
 
+/// `--weights-smoothness` is a non-negative multiple of the data's charge, like
+/// `--weights-sum`: negative, NaN or infinite refused, naming the flag.
+#[test]
+fn weights_smoothness_outside_its_range_is_refused() {
+    assert_range_checked(
+        "--weights-smoothness",
+        |o, v| o.weights_smoothness = v,
+        &[-0.1, f64::NAN, f64::INFINITY],
+        &[0.0, 0.1, 3.0],
+    );
+}
+
 /// `--robust-floor` is a fraction of the RMS radiance: outside [0, 1) (or NaN) refused,
 /// naming the flag.
 #[test]

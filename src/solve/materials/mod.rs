@@ -345,6 +345,50 @@ pub fn sum_weights_penalty(gamma: &[f64], weights: &[f64], kk: usize) -> f64 {
         .sum()
 }
 
+/// The neighbour prior's pull of [`weights_step`]: per vertex `η_x`, and the graph (CSR).
+#[derive(Clone, Copy)]
+pub struct NeighbourPull<'a> {
+    pub eta: &'a [f64],
+    pub offsets: &'a [usize],
+    pub targets: &'a [u32],
+}
+
+impl NeighbourPull<'_> {
+    /// `w̄_N(x)`, the mean of `x`'s neighbours' weights (`None` without neighbours).
+    pub fn mean(&self, x: usize, weights: &[f64], kk: usize) -> Option<Vec<f64>> {
+        // Only neighbours with fitted weights (η > 0): the others keep their start.
+        let nb = self.targets[self.offsets[x]..self.offsets[x + 1]]
+            .iter()
+            .map(|&y| y as usize)
+            .filter(|&y| self.eta[y] > 0.0);
+        let mut m = vec![0.0; kk];
+        let mut count = 0usize;
+        for y in nb {
+            count += 1;
+            for k in 0..kk {
+                m[k] += weights[y * kk + k];
+            }
+        }
+        (count > 0).then(|| m.into_iter().map(|v| v / count as f64).collect())
+    }
+
+    /// `Σ_x η_x ‖w(x) − w̄_N(x)‖²`.
+    pub fn penalty(&self, weights: &[f64], kk: usize) -> f64 {
+        (0..self.eta.len())
+            .filter(|&x| self.eta[x] > 0.0)
+            .filter_map(|x| {
+                let m = self.mean(x, weights, kk)?;
+                Some(
+                    self.eta[x]
+                        * (0..kk)
+                            .map(|k| (weights[x * kk + k] - m[k]).powi(2))
+                            .sum::<f64>(),
+                )
+            })
+            .sum()
+    }
+}
+
 /// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels,
 /// plus the sum-to-one prior `γ_x (Σ_k w_k − 1)²` when `gamma` is given (its normal
 /// equations gain `γ_x 1 1ᵀ` and `γ_x 1`, [`sum_weights_gamma`]). Vertices without weighted
@@ -358,6 +402,20 @@ pub fn weights_step(
     weights: &[f64],
     dw: &[[f64; 3]],
     gamma: Option<&[f64]>,
+) -> Result<WeightsStep> {
+    weights_step_pulled(problem, s, lambda, weights, dw, gamma, None)
+}
+
+/// [`weights_step`] with the neighbour prior ([`NeighbourPull`]): vertex `x`'s normal
+/// equations gain `η_x I` and `η_x w̄_N(x)`, the neighbours' mean at the step's start.
+pub fn weights_step_pulled(
+    problem: &Problem,
+    s: &[[f64; 3]],
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    dw: &[[f64; 3]],
+    gamma: Option<&[f64]>,
+    pull: Option<NeighbourPull>,
 ) -> Result<WeightsStep> {
     let nb = problem.transport.n_basis;
     let kk = lambda.len();
@@ -398,6 +456,14 @@ pub fn weights_step(
                     rhs[i] += g;
                     for j in 0..kk {
                         mat[(i, j)] += g;
+                    }
+                }
+            }
+            if let Some(pl) = pull.filter(|pl| pl.eta[x] > 0.0) {
+                if let Some(m) = pl.mean(x, weights, kk) {
+                    for i in 0..kk {
+                        rhs[i] += pl.eta[x] * m[i];
+                        mat[(i, i)] += pl.eta[x];
                     }
                 }
             }

@@ -322,3 +322,72 @@ fn achromatic_step_is_the_least_squares_of_the_reduced_design() {
     };
     assert!(sse(&free) <= sse(&lam) * (1.0 + 1e-12));
 }
+
+#[test]
+fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
+    let OneVertex {
+        obs,
+        transport: t,
+        s,
+        lambda,
+    } = one_vertex();
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: 1,
+        n_photos: 4,
+    };
+    let dw = vec![[1.0; 3]; 4];
+    // Vertex 0 (the fitted one) has one neighbour, vertex 1, whose weights are fixed here:
+    // the pull's mean is vertex 1's weights.
+    let m_nb = [0.2, 0.9];
+    let w0 = vec![0.5, 0.5, m_nb[0], m_nb[1]];
+    let (offsets, targets) = (vec![0, 1, 1], vec![1u32]);
+    let (m, b) = normal_equations(&obs, &s, &lambda);
+    for eta in [0.05, 1.0] {
+        let pull = NeighbourPull {
+            eta: &[eta, 1.0],
+            offsets: &offsets,
+            targets: &targets,
+        };
+        // (M + η I) w = b + η w̄: both weights positive, so NNLS gives the unconstrained
+        // solution, equal to rounding (1e-10 as above).
+        let want = solve2(
+            [[m[0][0] + eta, m[0][1]], [m[1][0], m[1][1] + eta]],
+            [b[0] + eta * m_nb[0], b[1] + eta * m_nb[1]],
+        );
+        assert!(want.iter().all(|&v| v > 0.0), "{want:?}");
+        let w = weights_step_pulled(&problem, &s, &lambda, &w0, &dw, None, Some(pull)).unwrap();
+        for k in 0..2 {
+            assert!(
+                (w.weights[k] - want[k]).abs() < 1e-10,
+                "{:?} vs {want:?}",
+                w.weights
+            );
+        }
+        // The penalty η ‖w − w̄‖² of that answer (vertex 1 has no neighbours: no term).
+        let mut both = w.weights.clone();
+        both.extend_from_slice(&m_nb);
+        let pen = eta * ((want[0] - m_nb[0]).powi(2) + (want[1] - m_nb[1]).powi(2));
+        assert!((pull.penalty(&both, 2) - pen).abs() < 1e-12);
+    }
+    // The hard limit: the neighbours' mean itself, within O(1/η) (|M| ≈ 1, η = 10⁸).
+    let pull = NeighbourPull {
+        eta: &[1e8, 1.0],
+        offsets: &offsets,
+        targets: &targets,
+    };
+    let w = weights_step_pulled(&problem, &s, &lambda, &w0, &dw, None, Some(pull)).unwrap();
+    for k in 0..2 {
+        assert!((w.weights[k] - m_nb[k]).abs() < 1e-6, "{:?}", w.weights);
+    }
+    // A neighbour without fitted weights (η = 0) is not pulled toward: no pull at all.
+    let pull = NeighbourPull {
+        eta: &[1.0, 0.0],
+        offsets: &offsets,
+        targets: &targets,
+    };
+    let free = weights_step(&problem, &s, &lambda, &w0, &dw, None).unwrap();
+    let w = weights_step_pulled(&problem, &s, &lambda, &w0, &dw, None, Some(pull)).unwrap();
+    assert_eq!(w.weights, free.weights);
+}
