@@ -173,7 +173,7 @@ fn with_case_graph(case: &Case, o: EstimateOptions) -> EstimateOptions {
     use relight_cpc::solve::materials::propagate::{knn_graph, NEIGHBOURS};
     let graph = knn_graph(&case.positions, NEIGHBOURS).expect("the case's vertex graph");
     EstimateOptions {
-        weights_graph: std::sync::Arc::new(graph),
+        weights_graph: graph.into(),
         ..o
     }
 }

@@ -160,7 +160,7 @@ pub(crate) fn fit<'a>(
     if eopts.weights_smoothness > 0.0 {
         // The neighbour prior's graph: the one the unseen vertices' materials spread over.
         use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};
-        eopts.weights_graph = std::sync::Arc::new(knn_graph(&scene.mesh.positions, NEIGHBOURS)?);
+        eopts.weights_graph = knn_graph(&scene.mesh.positions, NEIGHBOURS)?.into();
     }
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);

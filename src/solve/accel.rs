@@ -161,6 +161,7 @@ pub(crate) fn anderson_step<M: LightModel>(
             &alt.weights,
             &dw.weights,
             sum_gamma.as_deref(),
+            None,
         )?;
         alt.weights = w.weights;
         alt.lighting(outer_it)?;

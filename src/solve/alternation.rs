@@ -23,7 +23,7 @@ use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
     data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step,
-    weights_step_pulled, LambdaCoupling, NeighbourPull,
+    LambdaCoupling, NeighbourPull,
 };
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{evaluate, gauge, Objective, Point};
@@ -190,7 +190,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             prev: None,
             sum_gamma: (opts.weights_sum > 0.0)
                 .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
-            pull_eta: (opts.weights_smoothness > 0.0 && !opts.weights_graph.1.is_empty()).then(
+            pull_eta: (opts.weights_smoothness > 0.0 && !opts.weights_graph.is_empty()).then(
                 || sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_smoothness),
             ),
             anderson: (opts.anderson_depth > 0).then(|| AndersonHistory::new(opts.anderson_depth)),
@@ -265,6 +265,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             &self.weights,
             &dw.weights,
             self.sum_gamma.as_deref(),
+            None,
         )?;
         let kk = self.lambda.len();
         for &p in held {
@@ -298,7 +299,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             }
             self.lambda = l.lambda;
             self.cond.lambda = l.cond;
-            let w = weights_step_pulled(
+            let w = weights_step(
                 problem,
                 &s,
                 &self.lambda,
@@ -330,8 +331,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     fn pull(&self) -> Option<NeighbourPull<'_>> {
         self.pull_eta.as_deref().map(|eta| NeighbourPull {
             eta,
-            offsets: &self.opts.weights_graph.0,
-            targets: &self.opts.weights_graph.1,
+            graph: &self.opts.weights_graph,
         })
     }
 

@@ -195,8 +195,8 @@ pub struct EstimateOptions {
     /// (the sum-to-one prior's scale) and `w̄_N(x)` the mean over [`Self::weights_graph`]'s
     /// neighbours of `x`, taken at the step's start (a Jacobi sweep per material step).
     pub weights_smoothness: f64,
-    /// The vertex graph of [`Self::weights_smoothness`] (CSR: offsets, targets); empty = off.
-    pub weights_graph: std::sync::Arc<(Vec<usize>, Vec<u32>)>,
+    /// The vertex graph of [`Self::weights_smoothness`]; empty = off.
+    pub weights_graph: std::sync::Arc<crate::solve::materials::propagate::VertexGraph>,
     /// Specular lobes reflect the light's colour (issue 25, not in the paper): every basis
     /// but [`Self::lambert_basis`] gets one weight per material shared by R, G and B in the
     /// λ step ([`crate::solve::materials`], the dichromatic model of dielectrics). Default
@@ -337,7 +337,7 @@ impl Default for EstimateOptions {
             light_sky: None,
             weights_sum: WEIGHTS_SUM,
             weights_smoothness: 0.0,
-            weights_graph: std::sync::Arc::new((Vec::new(), Vec::new())),
+            weights_graph: Default::default(),
             achromatic_specular: false,
             anderson_depth: 0,
             light_groups: None,

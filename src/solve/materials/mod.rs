@@ -345,19 +345,20 @@ pub fn sum_weights_penalty(gamma: &[f64], weights: &[f64], kk: usize) -> f64 {
         .sum()
 }
 
-/// The neighbour prior's pull of [`weights_step`]: per vertex `η_x`, and the graph (CSR).
+/// The neighbour prior's pull of [`weights_step`]: per vertex `η_x`, and the graph.
 #[derive(Clone, Copy)]
 pub struct NeighbourPull<'a> {
     pub eta: &'a [f64],
-    pub offsets: &'a [usize],
-    pub targets: &'a [u32],
+    pub graph: &'a propagate::VertexGraph,
 }
 
 impl NeighbourPull<'_> {
     /// `w̄_N(x)`, the mean of `x`'s neighbours' weights (`None` without neighbours).
     pub fn mean(&self, x: usize, weights: &[f64], kk: usize) -> Option<Vec<f64>> {
         // Only neighbours with fitted weights (η > 0): the others keep their start.
-        let nb = self.targets[self.offsets[x]..self.offsets[x + 1]]
+        let nb = self
+            .graph
+            .neighbours(x)
             .iter()
             .map(|&y| y as usize)
             .filter(|&y| self.eta[y] > 0.0);
@@ -391,24 +392,13 @@ impl NeighbourPull<'_> {
 
 /// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels,
 /// plus the sum-to-one prior `γ_x (Σ_k w_k − 1)²` when `gamma` is given (its normal
-/// equations gain `γ_x 1 1ᵀ` and `γ_x 1`, [`sum_weights_gamma`]). Vertices without weighted
+/// equations gain `γ_x 1 1ᵀ` and `γ_x 1`, [`sum_weights_gamma`]), and the neighbour prior
+/// when `pull` is given (`η_x I` and `η_x w̄_N(x)`, the neighbours' mean at the step's
+/// start: [`NeighbourPull`]). Vertices without weighted
 /// observations keep their weights (after the fit, `run` gives the ones no training photo
 /// sees their seen neighbours' materials: [`propagate`]). Returns the new weights, the largest finite condition
 /// number and the count of singular systems.
 pub fn weights_step(
-    problem: &Problem,
-    s: &[[f64; 3]],
-    lambda: &[Vec<[f64; 3]>],
-    weights: &[f64],
-    dw: &[[f64; 3]],
-    gamma: Option<&[f64]>,
-) -> Result<WeightsStep> {
-    weights_step_pulled(problem, s, lambda, weights, dw, gamma, None)
-}
-
-/// [`weights_step`] with the neighbour prior ([`NeighbourPull`]): vertex `x`'s normal
-/// equations gain `η_x I` and `η_x w̄_N(x)`, the neighbours' mean at the step's start.
-pub fn weights_step_pulled(
     problem: &Problem,
     s: &[[f64; 3]],
     lambda: &[Vec<[f64; 3]>],

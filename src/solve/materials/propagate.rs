@@ -42,8 +42,28 @@ pub struct Propagation {
     pub iterations: usize,
 }
 
-/// The symmetrised `k`-nearest-neighbour adjacency of `positions` (CSR: offsets, targets).
-pub fn knn_graph(positions: &[Vec3], k: usize) -> Result<(Vec<usize>, Vec<u32>)> {
+/// A vertex graph in compressed rows: vertex `x`'s neighbours are
+/// `targets[offsets[x]..offsets[x + 1]]`, ascending.
+#[derive(Debug, Clone, Default)]
+pub struct VertexGraph {
+    pub offsets: Vec<usize>,
+    pub targets: Vec<u32>,
+}
+
+impl VertexGraph {
+    /// The neighbours of `x`.
+    pub fn neighbours(&self, x: usize) -> &[u32] {
+        &self.targets[self.offsets[x]..self.offsets[x + 1]]
+    }
+
+    /// Whether the graph has no edge.
+    pub fn is_empty(&self) -> bool {
+        self.targets.is_empty()
+    }
+}
+
+/// The symmetrised `k`-nearest-neighbour adjacency of `positions`.
+pub fn knn_graph(positions: &[Vec3], k: usize) -> Result<VertexGraph> {
     let n = positions.len();
     let pts: Vec<[f64; 3]> = positions.iter().map(|p| [p.x, p.y, p.z]).collect();
     let tree: ImmutableKdTree<f64, 3> =
@@ -76,7 +96,10 @@ pub fn knn_graph(positions: &[Vec3], k: usize) -> Result<(Vec<usize>, Vec<u32>)>
     for i in 0..n {
         off[i + 1] += off[i];
     }
-    Ok((off, edges.into_iter().map(|(_, b)| b).collect()))
+    Ok(VertexGraph {
+        offsets: off,
+        targets: edges.into_iter().map(|(_, b)| b).collect(),
+    })
 }
 
 /// The unseen vertices reachable from a seen one through the graph.
@@ -120,7 +143,10 @@ pub fn propagate_unseen(
             ..Propagation::default()
         });
     }
-    let (off, adj) = knn_graph(positions, NEIGHBOURS)?;
+    let VertexGraph {
+        offsets: off,
+        targets: adj,
+    } = knn_graph(positions, NEIGHBOURS)?;
     let reach = reachable(&off, &adj, seen);
     // Unknowns: the unseen vertices a seen one reaches.
     let unknown: Vec<usize> = (0..n).filter(|&x| !seen[x] && reach[x]).collect();
@@ -273,7 +299,7 @@ mod tests {
     fn knn_graph_matches_brute_force() {
         let pts = cloud(300, 1);
         let k = 5;
-        let (off, adj) = knn_graph(&pts, k).unwrap();
+        let g = knn_graph(&pts, k).unwrap();
         let nearest = |i: usize| -> Vec<usize> {
             let mut d: Vec<(f64, usize)> = (0..pts.len())
                 .filter(|&j| j != i)
@@ -289,7 +315,7 @@ mod tests {
                 .map(|j| j as u32)
                 .collect();
             want.sort_unstable();
-            assert_eq!(&adj[off[i]..off[i + 1]], &want[..], "vertex {i}");
+            assert_eq!(g.neighbours(i), &want[..], "vertex {i}");
         }
     }
 
@@ -316,7 +342,7 @@ mod tests {
         let p = propagate_unseen(&pts, &seen, &mut w, kk).unwrap();
         let unseen = seen.iter().filter(|&&s| !s).count();
         assert_eq!((p.filled, p.isolated), (unseen, 0));
-        let (off, adj) = knn_graph(&pts, NEIGHBOURS).unwrap();
+        let g = knn_graph(&pts, NEIGHBOURS).unwrap();
         for x in 0..pts.len() {
             let row = &w[x * kk..(x + 1) * kk];
             if seen[x] {
@@ -328,7 +354,7 @@ mod tests {
                 (row.iter().sum::<f64>() - 1.0).abs() < 1e-9,
                 "vertex {x}: {row:?}"
             );
-            let nb = &adj[off[x]..off[x + 1]];
+            let nb = g.neighbours(x);
             for k in 0..kk {
                 let mean =
                     nb.iter().map(|&y| w[y as usize * kk + k]).sum::<f64>() / nb.len() as f64;

@@ -10,6 +10,18 @@ struct OneVertex {
     lambda: Vec<Vec<[f64; 3]>>,
 }
 
+impl OneVertex {
+    /// The `w` step's problem over this one vertex and its four photos.
+    fn problem(&self) -> Problem<'_> {
+        Problem {
+            obs: &self.obs,
+            transport: &self.transport,
+            n_vertices: 1,
+            n_photos: 4,
+        }
+    }
+}
+
 /// One vertex seen by four observations, two materials of one basis: the `w` step's
 /// normal equations are 2 × 2, so the prior's minimiser has a closed form.
 fn one_vertex() -> OneVertex {
@@ -82,25 +94,16 @@ fn solve2(m: [[f64; 2]; 2], b: [f64; 2]) -> [f64; 2] {
 
 #[test]
 fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
-    let OneVertex {
-        obs,
-        transport: t,
-        s,
-        lambda,
-    } = one_vertex();
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: 1,
-        n_photos: 4,
-    };
+    let v = one_vertex();
+    let (obs, s, lambda) = (&v.obs, &v.s, &v.lambda);
+    let problem = v.problem();
     let dw = vec![[1.0; 3]; 4];
     let w0 = vec![0.5, 0.5];
     // γ by hand: Σ_p Σ_c y² of the four observations.
     let y2: f64 = obs.rgb.iter().flatten().map(|&v| (v as f64).powi(2)).sum();
-    let gamma = sum_weights_gamma(&obs, 1, 0.3);
+    let gamma = sum_weights_gamma(obs, 1, 0.3);
     assert!((gamma[0] - 0.3 * y2).abs() < 1e-12 * y2);
-    let (m, b) = normal_equations(&obs, &s, &lambda);
+    let (m, b) = normal_equations(obs, s, lambda);
     // Soft prior: (M + γ 1 1ᵀ) w = b + γ 1. Both weights come out positive here, so
     // the NNLS solution is the unconstrained one: equal to rounding (1e-10 relative
     // covers the active-set solver's Cholesky on a 2 × 2 system).
@@ -110,7 +113,7 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
         [b[0] + g, b[1] + g],
     );
     assert!(soft.iter().all(|&v| v > 0.0), "{soft:?}");
-    let w = weights_step(&problem, &s, &lambda, &w0, &dw, Some(&gamma)).unwrap();
+    let w = weights_step(&problem, s, lambda, &w0, &dw, Some(&gamma), None).unwrap();
     for k in 0..2 {
         assert!(
             (w.weights[k] - soft[k]).abs() < 1e-10,
@@ -120,7 +123,7 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
     }
     // Off: the plain least squares, whose weights do not sum to one.
     let free = solve2(m, b);
-    let w = weights_step(&problem, &s, &lambda, &w0, &dw, None).unwrap();
+    let w = weights_step(&problem, s, lambda, &w0, &dw, None, None).unwrap();
     for k in 0..2 {
         assert!((w.weights[k] - free[k]).abs() < 1e-10);
     }
@@ -131,8 +134,8 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
     let (mi_b, mi_1) = (solve2(m, b), solve2(m, [1.0, 1.0]));
     let nu = (mi_b[0] + mi_b[1] - 1.0) / (mi_1[0] + mi_1[1]);
     let hard = [mi_b[0] - nu * mi_1[0], mi_b[1] - nu * mi_1[1]];
-    let gamma = sum_weights_gamma(&obs, 1, 1e8);
-    let w = weights_step(&problem, &s, &lambda, &w0, &dw, Some(&gamma)).unwrap();
+    let gamma = sum_weights_gamma(obs, 1, 1e8);
+    let w = weights_step(&problem, s, lambda, &w0, &dw, Some(&gamma), None).unwrap();
     for k in 0..2 {
         assert!(
             (w.weights[k] - hard[k]).abs() < 1e-6,
@@ -325,30 +328,23 @@ fn achromatic_step_is_the_least_squares_of_the_reduced_design() {
 
 #[test]
 fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
-    let OneVertex {
-        obs,
-        transport: t,
-        s,
-        lambda,
-    } = one_vertex();
-    let problem = Problem {
-        obs: &obs,
-        transport: &t,
-        n_vertices: 1,
-        n_photos: 4,
-    };
+    let v = one_vertex();
+    let (obs, s, lambda) = (&v.obs, &v.s, &v.lambda);
+    let problem = v.problem();
     let dw = vec![[1.0; 3]; 4];
     // Vertex 0 (the fitted one) has one neighbour, vertex 1, whose weights are fixed here:
     // the pull's mean is vertex 1's weights.
     let m_nb = [0.2, 0.9];
     let w0 = vec![0.5, 0.5, m_nb[0], m_nb[1]];
-    let (offsets, targets) = (vec![0, 1, 1], vec![1u32]);
-    let (m, b) = normal_equations(&obs, &s, &lambda);
+    let graph = propagate::VertexGraph {
+        offsets: vec![0, 1, 1],
+        targets: vec![1],
+    };
+    let (m, b) = normal_equations(obs, s, lambda);
     for eta in [0.05, 1.0] {
         let pull = NeighbourPull {
             eta: &[eta, 1.0],
-            offsets: &offsets,
-            targets: &targets,
+            graph: &graph,
         };
         // (M + η I) w = b + η w̄: both weights positive, so NNLS gives the unconstrained
         // solution, equal to rounding (1e-10 as above).
@@ -357,7 +353,7 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
             [b[0] + eta * m_nb[0], b[1] + eta * m_nb[1]],
         );
         assert!(want.iter().all(|&v| v > 0.0), "{want:?}");
-        let w = weights_step_pulled(&problem, &s, &lambda, &w0, &dw, None, Some(pull)).unwrap();
+        let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
         for k in 0..2 {
             assert!(
                 (w.weights[k] - want[k]).abs() < 1e-10,
@@ -374,20 +370,18 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
     // The hard limit: the neighbours' mean itself, within O(1/η) (|M| ≈ 1, η = 10⁸).
     let pull = NeighbourPull {
         eta: &[1e8, 1.0],
-        offsets: &offsets,
-        targets: &targets,
+        graph: &graph,
     };
-    let w = weights_step_pulled(&problem, &s, &lambda, &w0, &dw, None, Some(pull)).unwrap();
+    let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
     for k in 0..2 {
         assert!((w.weights[k] - m_nb[k]).abs() < 1e-6, "{:?}", w.weights);
     }
     // A neighbour without fitted weights (η = 0) is not pulled toward: no pull at all.
     let pull = NeighbourPull {
         eta: &[1.0, 0.0],
-        offsets: &offsets,
-        targets: &targets,
+        graph: &graph,
     };
-    let free = weights_step(&problem, &s, &lambda, &w0, &dw, None).unwrap();
-    let w = weights_step_pulled(&problem, &s, &lambda, &w0, &dw, None, Some(pull)).unwrap();
+    let free = weights_step(&problem, s, lambda, &w0, &dw, None, None).unwrap();
+    let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
     assert_eq!(w.weights, free.weights);
 }
