@@ -2,8 +2,9 @@
 //! the starts, the alternation with the held-out tracker, then the fitted model
 //! ([`Fitted`]) that the evaluation and the outputs read.
 
-use super::evaluate::{self};
+use super::half_fit::{projected_x, span_mid};
 use super::pipeline::{Imported, Observed, Prepared, RunLog};
+use super::tracker::HoldoutTracker;
 use super::{
     check_finite, choose_material_count, conditioning_map, train_errors, Fitted, MaterialCount,
     Progress, RunOptions,
@@ -81,7 +82,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
 /// Early stopping's split by photo half (`--validation-halves k`): `k` training photos
 /// spread evenly over the list (the middle of each of `k` equal runs), and in each the
 /// vertices it observes projecting at or right of the middle of their `x` span
-/// ([`evaluate::span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or
+/// ([`span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or
 /// when `k` is not below the number of training photos.
 fn photo_halves(
     scene: &crate::import::scene::Scene,
@@ -106,11 +107,11 @@ fn photo_halves(
                 .filter(|&p| obs.weight[p] > 0.0)
                 .filter_map(|p| {
                     let x = obs.vertex[p] as usize;
-                    evaluate::projected_x(view, &positions[x]).map(|u| (x, u))
+                    projected_x(view, &positions[x]).map(|u| (x, u))
                 })
                 .collect();
             let mut right = vec![false; positions.len()];
-            if let Some(mid) = evaluate::span_mid(px.iter().map(|&(_, u)| u)) {
+            if let Some(mid) = span_mid(px.iter().map(|&(_, u)| u)) {
                 for &(x, u) in &px {
                     right[x] = u >= mid;
                 }
@@ -208,7 +209,7 @@ pub(crate) fn fit<'a>(
     let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
     let spinner = progress.spinner("held-out transport");
     let tracker = log.stages.run("transport", || {
-        evaluate::HoldoutTracker::new(
+        HoldoutTracker::new(
             scene,
             photos,
             &held,

@@ -10,7 +10,7 @@
 //! paper Eq. 9), and recovered and true maps share the true maps' exposure: side by side,
 //! their brightness and colour compare directly.
 
-use super::evaluate::fitted_env;
+use super::shading::fitted_env;
 use super::truth::Truth;
 use super::Fitted;
 use crate::report::html::{self, HtmlInputs, Swatch, TrainingRow};

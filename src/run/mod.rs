@@ -37,11 +37,12 @@ mod options;
 mod output;
 mod pipeline;
 pub mod progress;
+mod shading;
+mod tracker;
 mod transients;
 mod truth;
 mod truth_check;
 
-pub use evaluate::{fine_rays, render_local_resolution};
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
@@ -49,6 +50,7 @@ pub use options::{
     DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;
+pub use shading::{fine_rays, render_local_resolution};
 pub use truth::{Truth, TruthPhoto};
 
 use crate::import::scene::{self, Scene};
@@ -269,7 +271,7 @@ pub(crate) struct Fitted<'a> {
     pub normals_env: Vec<Vec3>,
     pub vis: std::sync::Arc<visibility::Visibility>,
     pub rot: Rotation,
-    /// The renderer's visibility and rotation ([`evaluate`] module docs); the same
+    /// The renderer's visibility and rotation ([`shading`] module docs); the same
     /// allocation as `vis` when both have the estimator's resolution.
     pub render_vis: std::sync::Arc<visibility::Visibility>,
     pub render_rot: crate::sphere::rotation::SplatRotation,

@@ -90,7 +90,7 @@ pub struct RunOptions {
     /// Local hemi-octahedral map side.
     pub local_resolution: usize,
     /// Local map side of the renderer (held-out views, renders, `relight.bin`); `None`:
-    /// `local_resolution` ([`evaluate::render_local_resolution`]).
+    /// `local_resolution` ([`super::shading::render_local_resolution`]).
     pub render_local_resolution: Option<usize>,
     /// Normal-grid side of the rotation.
     pub normal_grid: usize,

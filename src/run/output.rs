@@ -8,65 +8,13 @@
 //! - `renders/NAME.png` for training views: photo | render | difference (×4), the render
 //!   under the photo's fitted light.
 
-use super::evaluate::{fitted_env, render_training_view};
+use super::shading::{fitted_env, render_training_view, write_triptych};
 use super::Fitted;
-use crate::import::photo::Photo;
 use crate::render::relight::{write_render_state, RenderState};
-use crate::render::Raster;
 use crate::sphere::envmap::LatLong;
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
 use std::path::Path;
-
-/// photo | render | |difference| × 4 side by side, sRGB PNG. The render is shown after
-/// multiplying by `scale` (the best global scale), so shading differences are visible
-/// apart from the unknown overall brightness.
-pub(crate) fn write_triptych(
-    path: &Path,
-    photo: &Photo,
-    raster: &Raster,
-    rgb: &[[f32; 3]],
-    scale: f64,
-) -> Result<()> {
-    let (w, h) = (photo.width as usize, photo.height as usize);
-    let s = if scale.is_finite() && scale > 0.0 {
-        scale as f32
-    } else {
-        1.0
-    };
-    let mut out = vec![[0.0f32; 3]; 3 * w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let inside = raster.face[i] != u32::MAX;
-            let p = photo.rgb[i];
-            let q = rgb[i].map(|v| v * s);
-            out[y * 3 * w + x] = p;
-            out[y * 3 * w + w + x] = if inside { q } else { [0.0; 3] };
-            out[y * 3 * w + 2 * w + x] = if inside {
-                [0, 1, 2].map(|c| 4.0 * (p[c] - q[c]).abs())
-            } else {
-                [0.0; 3]
-            };
-        }
-    }
-    crate::render::write_png(path, (3 * w) as u32, h as u32, &out, None, 1.0)?;
-    // The same three panels as separate files, the difference as a heat map with its
-    // range, for report.html: renders/panels/STEM.{photo,render,diff}.png.
-    if let (Some(parent), Some(stem)) = (path.parent(), path.file_stem()) {
-        let panels = parent.join("panels");
-        std::fs::create_dir_all(&panels).map_err(|e| Error::io(&panels, e))?;
-        crate::report::html::write_panels(
-            &panels.join(stem),
-            (photo.width, photo.height),
-            &photo.rgb,
-            rgb,
-            &raster.mask(),
-            s,
-        )?;
-    }
-    Ok(())
-}
 
 fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     let text = serde_json::to_string_pretty(value).map_err(|e| Error::Internal(e.to_string()))?;

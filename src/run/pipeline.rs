@@ -9,8 +9,9 @@ use std::sync::Arc;
 
 use nalgebra::Matrix3;
 
-use super::evaluate::{self, render_local_resolution, Evaluation};
+use super::evaluate::{self, Evaluation};
 use super::fit::{estimate_options, lambert_of, Fit};
+use super::shading::{self, render_local_resolution};
 use super::truth::Truth;
 use super::{
     adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
@@ -397,7 +398,7 @@ fn prepare(
     progress.stage("visibility");
     let bar = progress.stage_bar(nv as u64, "vertices");
     let (vis, render_vis) = log.stages.run("visibility", || {
-        evaluate::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
+        shading::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
     });
     drop(bar);
     log.notes.push(format!(

@@ -10,8 +10,9 @@
 //!
 //! A per-photo free light map can absorb wrong reflectance: the fit then reproduces its
 //! training photos under its *fitted* maps, yet not under the true ones. Both figures are
-//! reported, with the same renderer ([`super::evaluate`]'s held-out renderer) on the same
-//! pixels (object pixels not overexposed), after the best per-channel scale
+//! reported, with the same renderer ([`super::shading::shade_views`], the held-out
+//! photos' renderer) on the same pixels (object pixels not overexposed), after the best
+//! per-channel scale
 //! `s_c = Σ y_c ŷ_c / Σ ŷ_c²` (a per-channel global scale can never be recovered from
 //! photos): `RMSE = √(Σ_c Σ_pixels (y_c − s_c ŷ_c)² / 3n)`, and relative to the photo's RMS
 //! on those pixels. Protocol `truth` of the held-out photos is the same check on photos
@@ -21,7 +22,7 @@
 //! the per-channel scale that best maps the recovered per-vertex diffuse albedo onto the
 //! true one (the anchor's scale is arbitrary; ratios between materials are not).
 
-use super::evaluate::{fitted_env, valid_mask};
+use super::shading::{fitted_env, valid_mask};
 use super::{Fitted, Truth};
 use crate::render::{Raster, ShadedViews, ViewToShade};
 use crate::report::metrics::{

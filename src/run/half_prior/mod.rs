@@ -21,7 +21,7 @@
 //! Whether the collection's lights are alike enough is a property of the collection, so
 //! `η` is chosen by replaying protocol (b) on training photos ([`choose_eta`]): for up to
 //! [`LOO_PHOTOS`] training photos `k` (spread over the list), the left half of `k`'s
-//! observations (projected `x` below the middle of their span, [`super::evaluate::span_mid`])
+//! observations (projected `x` below the middle of their span, [`super::half_fit::span_mid`])
 //! fits its map from the mean of the other training maps, the prior learnt from the other
 //! maps only (leave one out), reflectance frozen, the right half scored (α-weighted MSE).
 //! The kept `η` ∈ [`ETA_GRID`] (0 = no prior) minimises the mean over photos of
@@ -72,7 +72,7 @@ pub const REPLAY_MAX_OBSERVATIONS: usize = 500;
 pub const REPLAY_GPCG: usize = 10;
 /// CG steps per GPCG iteration of a replay's light fit: 20, the cap [`REPLAY_GPCG`] was
 /// measured with. Protocol (b)'s own fit takes more, shorter steps
-/// ([`super::evaluate::HALF_FIT_CG`]); the replay keeps its measured caps, so its `η`
+/// ([`super::half_fit::HALF_FIT_CG`]); the replay keeps its measured caps, so its `η`
 /// choices are the ones its measurements describe.
 pub const REPLAY_CG: usize = 20;
 /// IRLS passes of a replay's light fit: one, plain least squares (protocol (b)'s own fit
@@ -239,11 +239,11 @@ fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
     let px: Vec<Option<f64>> = obs
         .vertex
         .iter()
-        .map(|&x| super::evaluate::projected_x(view, &f.scene.mesh.positions[x as usize]))
+        .map(|&x| super::half_fit::projected_x(view, &f.scene.mesh.positions[x as usize]))
         .collect();
     let seen = |p: usize| obs.weight[p] > 0.0 && px[p].is_some();
     let Some(mid) =
-        super::evaluate::span_mid((0..px.len()).filter(|&p| seen(p)).filter_map(|p| px[p]))
+        super::half_fit::span_mid((0..px.len()).filter(|&p| seen(p)).filter_map(|p| px[p]))
     else {
         return Ok(None);
     };
@@ -406,8 +406,8 @@ fn only_errors(errors: &[(usize, Vec<f64>)]) -> Vec<Vec<f64>> {
 /// [`super::evaluate`]'s fit sets them: its iteration caps, every observation).
 pub(crate) fn half_fit_options(f: &super::Fitted) -> EstimateOptions {
     EstimateOptions {
-        qp_max_iter: super::evaluate::HALF_FIT_GPCG,
-        qp_max_cg: super::evaluate::HALF_FIT_CG,
+        qp_max_iter: super::half_fit::HALF_FIT_GPCG,
+        qp_max_cg: super::half_fit::HALF_FIT_CG,
         lighting_sample: 0,
         ..f.estimate_options.clone()
     }

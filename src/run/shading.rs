@@ -1,0 +1,224 @@
+//! The fitted model as images: the views a run renders and how.
+//!
+//! Each view is rendered by rasterising the mesh (z-buffer) and interpolating per-vertex
+//! radiance from the wavelet renderer (Eq. 5–8, untruncated) across triangles
+//! ([`crate::render`]). A training photo is drawn under its fitted map with the
+//! estimator's own predictions where it has observations ([`render_training_view`]); the
+//! held-out photos and the truth check's training photos are shaded in one vertex-major
+//! pass ([`shade_views`]).
+//!
+//! The renderer has its own local resolution (`--render-local-resolution`, by default the
+//! estimator's: 32² at the defaults) and its own rotation
+//! ([`crate::sphere::rotation::SplatRotation`]: the footprint of the vertex's exact normal instead
+//! of the blend of four precomputed frames, Eq. 6). Visibility is traced once, at the finer
+//! of the two resolutions ([`trace_visibility`]), and averaged down for the other.
+//! Measured (`bench-results/agreement.md`, sphere over a plane under 8 real maps, a KNOWN
+//! model): a 64² renderer draws a Phong-50 lobe closer to the Eq. 1 reference than a 32²
+//! one (3.95% against 7.17% mean), diffuse 0.93% against 1.56%. For a FITTED model the
+//! finer renderer buys nothing measurable: the Minerva model (6 materials, 7 lobes) on
+//! `spot-varying` with 13 photos of 1 MP gave held-out RMSE (true light, after scale)
+//! 0.0767 / 0.0765 at 2,930 vertices and 0.0766 / 0.0767 at 11,714 (64² / 32²), while 32²
+//! halves the visibility trace (16.3 → 8.0 CPU s at 11,714) and the evaluation (48.2 →
+//! 23.8 CPU s): the fit's own 32² transport, not the renderer, bounds what it can show. So
+//! the default renders at the fit's resolution; `--render-local-resolution 64` is for
+//! relighting a known or very sharp model under novel light.
+
+use super::Fitted;
+use crate::import::photo::Photo;
+use crate::render::{self, Raster};
+use crate::sphere::envmap::OctEnv;
+use crate::transport::visibility::Visibility;
+use crate::{Error, Result};
+use nalgebra::Matrix3;
+use std::path::Path;
+use std::sync::Arc;
+
+/// A rendered view: the raster and the linear RGB image.
+pub(crate) struct RenderedView {
+    pub raster: Raster,
+    pub rgb: Vec<[f32; 3]>,
+}
+
+/// The render's local resolution for `opts`: `--render-local-resolution`, else the
+/// estimator's local resolution (module docs: why not finer by default).
+pub fn render_local_resolution(opts: &super::RunOptions) -> usize {
+    opts.render_local_resolution
+        .unwrap_or(opts.local_resolution)
+}
+
+/// Visibility rays per texel of the finer grid so that every texel of the estimator's
+/// grid (`n_est` per side, `rays` asked for) still gets at least `rays`:
+/// `max(1, ⌈rays · (n_est / n_fine)²⌉)` (1 ray per 64² texel = 4 per 32² texel at the
+/// defaults).
+pub fn fine_rays(rays: usize, n_est: usize, n_fine: usize) -> usize {
+    let ratio = (n_fine / n_est.max(1)).max(1);
+    rays.div_ceil(ratio * ratio).max(1)
+}
+
+/// Trace visibility once at the finer of the estimator's and the renderer's local
+/// resolutions (module docs) and return `(estimator's, renderer's)`: one allocation when
+/// the two resolutions are equal (the default; 100 MB at 100K vertices and 32²).
+pub(crate) fn trace_visibility(
+    mesh: &crate::import::mesh::Mesh,
+    bvh: &crate::observe::trace::SceneBvh,
+    env_from_world: &Matrix3<f64>,
+    opts: &super::RunOptions,
+) -> (Arc<Visibility>, Arc<Visibility>) {
+    let n_render = render_local_resolution(opts);
+    let n_fine = opts.local_resolution.max(n_render);
+    let rays = fine_rays(opts.rays_per_texel, opts.local_resolution, n_fine);
+    let sampling =
+        crate::transport::visibility::Sampling::new(rays, opts.edge_rays, opts.ray_lattice);
+    let fine = Arc::new(crate::transport::visibility::compute_sampled(
+        mesh,
+        bvh,
+        env_from_world,
+        n_fine,
+        sampling,
+        opts.seed,
+        true,
+    ));
+    let coarser = |n: usize| {
+        if n < n_fine {
+            Arc::new(crate::solve::adapt::downsample_visibility(&fine, n))
+        } else {
+            fine.clone()
+        }
+    };
+    (coarser(opts.local_resolution), coarser(n_render))
+}
+
+/// The wavelet renderer's model of the fit, with visibility `vis`.
+fn wavelet_model<'a>(
+    f: &'a Fitted,
+    vis: &'a crate::transport::visibility::Visibility,
+) -> render::WaveletModel<'a> {
+    render::WaveletModel {
+        mesh: &f.scene.mesh,
+        normals_env: &f.normals_env,
+        vis,
+        env_from_world: &f.env_from_world,
+        basis: &f.basis,
+        beta: &f.beta,
+    }
+}
+
+/// Training photo `k`'s render under its fitted map: the model exactly as it was fitted.
+/// At the photo's observations the radiance is the estimator's own prediction
+/// ([`Fitted::train_predictions`], through the kept transport rows); the visible vertices
+/// that were not observed (grazing, on a depth discontinuity) are rendered with the
+/// estimator's visibility and blended rotation (Eq. 6, the light rotated once per frame)
+/// ([`render::shade_wavelet_known`]).
+pub(crate) fn render_training_view(f: &Fitted, k: usize) -> Result<RenderedView> {
+    let v = f.train[k];
+    let view = &f.scene.views[v];
+    let raster = render::rasterize(&f.scene.mesh, &view.camera, &view.image);
+    let mut given = vec![None; f.scene.mesh.positions.len()];
+    for &(x, rgb) in &f.train_predictions[k] {
+        given[x as usize] = Some(rgb);
+    }
+    let rgb = render::shade_wavelet_known(
+        &wavelet_model(f, &f.vis),
+        &raster,
+        &view.image,
+        &fitted_env(f, k),
+        &f.rot,
+        &given,
+    )?;
+    Ok(RenderedView { raster, rgb })
+}
+
+/// Shade several views (each under its lights) with the renderer's visibility and rotation
+/// (`--render-local-resolution`, [`crate::sphere::rotation::SplatRotation`]) in one
+/// vertex-major pass ([`render::shade_views`]: a vertex's footprint walked once for the
+/// lights of every view that shows it, its BRDF slices once per view).
+pub(super) fn shade_views(
+    f: &Fitted,
+    views: &[render::ViewToShade],
+) -> Result<render::ShadedViews> {
+    render::shade_views(&wavelet_model(f, &f.render_vis), views, &f.render_rot)
+}
+
+/// The texels of a photo's fitted map as an [`OctEnv`].
+pub(crate) fn fitted_env(f: &Fitted, k: usize) -> OctEnv {
+    let l = &f.est.lights[k];
+    OctEnv::from_channels(f.opts.global_resolution, [&l[0], &l[1], &l[2]])
+}
+
+/// The mean of the training maps.
+pub(crate) fn mean_env(f: &Fitted) -> OctEnv {
+    let n2 = f.opts.global_resolution * f.opts.global_resolution;
+    let mut sum = [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]];
+    for l in &f.est.lights {
+        for c in 0..3 {
+            for (s, v) in sum[c].iter_mut().zip(&l[c]) {
+                *s += v;
+            }
+        }
+    }
+    let k = f.est.lights.len().max(1) as f64;
+    for ch in sum.iter_mut() {
+        ch.iter_mut().for_each(|v| *v /= k);
+    }
+    OctEnv::from_channels(f.opts.global_resolution, [&sum[0], &sum[1], &sum[2]])
+}
+
+/// Pixels that count: object pixels not overexposed in the photo.
+pub(super) fn valid_mask(raster: &Raster, photo: &Photo) -> Vec<bool> {
+    raster
+        .face
+        .iter()
+        .zip(&photo.overexposed)
+        .map(|(&face, &over)| face != u32::MAX && !over)
+        .collect()
+}
+
+/// photo | render | |difference| × 4 side by side, sRGB PNG. The render is shown after
+/// multiplying by `scale` (the best global scale), so shading differences are visible
+/// apart from the unknown overall brightness.
+pub(crate) fn write_triptych(
+    path: &Path,
+    photo: &Photo,
+    raster: &Raster,
+    rgb: &[[f32; 3]],
+    scale: f64,
+) -> Result<()> {
+    let (w, h) = (photo.width as usize, photo.height as usize);
+    let s = if scale.is_finite() && scale > 0.0 {
+        scale as f32
+    } else {
+        1.0
+    };
+    let mut out = vec![[0.0f32; 3]; 3 * w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let inside = raster.face[i] != u32::MAX;
+            let p = photo.rgb[i];
+            let q = rgb[i].map(|v| v * s);
+            out[y * 3 * w + x] = p;
+            out[y * 3 * w + w + x] = if inside { q } else { [0.0; 3] };
+            out[y * 3 * w + 2 * w + x] = if inside {
+                [0, 1, 2].map(|c| 4.0 * (p[c] - q[c]).abs())
+            } else {
+                [0.0; 3]
+            };
+        }
+    }
+    crate::render::write_png(path, (3 * w) as u32, h as u32, &out, None, 1.0)?;
+    // The same three panels as separate files, the difference as a heat map with its
+    // range, for report.html: renders/panels/STEM.{photo,render,diff}.png.
+    if let (Some(parent), Some(stem)) = (path.parent(), path.file_stem()) {
+        let panels = parent.join("panels");
+        std::fs::create_dir_all(&panels).map_err(|e| Error::io(&panels, e))?;
+        crate::report::html::write_panels(
+            &panels.join(stem),
+            (photo.width, photo.height),
+            &photo.rgb,
+            rgb,
+            &raster.mask(),
+            s,
+        )?;
+    }
+    Ok(())
+}
