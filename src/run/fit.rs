@@ -123,6 +123,9 @@ fn photo_halves(
 }
 
 /// Stage 6, the estimate: initial materials, the starts, the alternation; the fitted model.
+/// Steps: the start and the estimator's options ([`FitStart`]), the transient pass, the
+/// held-out tracker, each candidate light model's fit ([`fit_light_models`]), the start
+/// search when asked, the unseen vertices' materials, then the [`Fitted`] model.
 pub(crate) fn fit<'a>(
     opts: &RunOptions,
     im: &'a Imported,
@@ -131,138 +134,368 @@ pub(crate) fn fit<'a>(
     log: &mut RunLog,
     progress: &Progress,
 ) -> Result<Fit<'a>> {
-    let (scene, photos, held, truth) = (&im.scene, &im.photos, im.held.clone(), &im.truth);
+    let scene = &im.scene;
     let Observed {
         bvh,
         mut obs,
         train,
         decisions,
     } = observed;
+    let p = prepared;
+    let nv = scene.mesh.positions.len();
+    let lambert = lambert_of(&p.eff.basis)?;
+    let mut start = FitStart::new(opts, &p, &scene.mesh.positions, lambert)?;
+    // The baseline is the photos' own colours: its medians ignore the transient mask.
+    let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
+    let transients = if p.eff.transients {
+        Some(start.mask_transients(opts, &mut obs, &p, scene, log, progress)?)
+    } else {
+        None
+    };
+    start.finish_options(opts, scene, &train, &obs)?;
+    let problem = Problem {
+        obs: &obs,
+        transport: &p.tr,
+        n_vertices: nv,
+        n_photos: train.len(),
+    };
+    let tracker = held_out_tracker(im, &bvh, &p, log, progress)?;
+    progress.stage("estimate");
+    let family = start.family(opts, p.eff.basis.len(), lambert);
+    let bar = progress.bar(
+        (p.eff.max_iterations * family.len()) as u64,
+        "outer iterations",
+    );
+    let monitor = Monitor {
+        bar: &bar,
+        progress,
+        tracker: tracker.as_ref(),
+        n_vertices: nv,
+    };
+    let mut est = fit_light_models(opts, &problem, &family, &mut start, &monitor, log)?;
+    if opts.start_search {
+        let search = StartSearch {
+            base: &family[0].materials,
+            lambert,
+            max_iterations: p.eff.max_iterations,
+        };
+        est = search_starts(&problem, est, &search, &monitor, log)?;
+    }
+    let Estimated {
+        est: mut estimate,
+        multi,
+        eopts,
+        light_decision,
+        timeline,
+    } = est;
+    fill_unseen(
+        &obs,
+        &scene.mesh.positions,
+        &mut estimate,
+        &mut start.reasons,
+        log,
+    )?;
+    bar.finish_and_clear();
+    check_finite(&estimate, &conditioning_map(&estimate.conditioning))?;
+    let beta = solve::beta_per_vertex(&estimate.lambda, &estimate.weights, nv);
+    let pred = solve::predict(&problem, &estimate);
+    let train_entries = train_errors(scene, &train, &obs, &pred);
+    let train_predictions = photo_predictions(&obs, &pred);
+    drop(pred);
+    // The transport rows (training and held-out) are the run's largest arrays and nothing
+    // after the estimate reads them: free them before the evaluation builds its own.
+    drop(tracker);
+    let fitted = fitted_model(
+        im,
+        p,
+        FitParts {
+            train,
+            bvh,
+            est: estimate,
+            beta,
+            train_predictions,
+            estimate_options: eopts,
+            baseline,
+        },
+    );
+    Ok(Fit {
+        fitted,
+        train_entries,
+        timeline,
+        multi,
+        reasons: start.reasons,
+        decisions,
+        light_decision,
+        transients,
+    })
+}
+
+/// What the fit adds to the prepared stage to make the [`Fitted`] model.
+struct FitParts {
+    train: Vec<usize>,
+    bvh: crate::observe::trace::SceneBvh,
+    est: solve::Estimate,
+    beta: Vec<[f64; 3]>,
+    train_predictions: Vec<Vec<(u32, [f32; 3])>>,
+    estimate_options: EstimateOptions,
+    baseline: super::baseline::VertexMedians,
+}
+
+/// The fitted model the evaluation and the outputs read. The training transport rows are
+/// the run's largest arrays and nothing after the estimate reads them: they are freed here,
+/// before the evaluation builds its own.
+fn fitted_model<'a>(im: &'a Imported, p: Prepared, parts: FitParts) -> Fitted<'a> {
     let Prepared {
         env_from_world,
         normals_env,
         vis,
         render_vis,
         eff,
-        pilot_k,
-        mean_rgb,
-        seen,
         rot,
-        topts,
         tr,
-        strata,
-    } = prepared;
-    let nv = scene.mesh.positions.len();
-    // 6. Estimate.
-    let lambert = lambert_of(&eff.basis)?;
-    let mut reasons = Vec::new();
-    let mut init = starting_materials(opts, pilot_k.clone(), &mean_rgb, &seen, &mut reasons)?;
-    let mut eopts = estimate_options(&eff, lambert, &strata);
-    if eopts.weights_smoothness > 0.0 {
-        // The neighbour prior's graph: the one the unseen vertices' materials spread over.
-        use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};
-        eopts.weights_graph = knn_graph(&scene.mesh.positions, NEIGHBOURS)?.into();
+        ..
+    } = p;
+    drop(tr);
+    Fitted {
+        scene: &im.scene,
+        photos: &im.photos,
+        train: parts.train,
+        held: im.held.clone(),
+        env_from_world,
+        normals_env,
+        vis,
+        rot,
+        render_rot: crate::sphere::rotation::SplatRotation::with_default_supersample(
+            eff.global_resolution,
+            render_vis.n_local,
+        ),
+        render_vis,
+        basis: eff.basis.clone(),
+        est: parts.est,
+        beta: parts.beta,
+        train_predictions: parts.train_predictions,
+        opts: eff,
+        estimate_options: parts.estimate_options,
+        bvh: parts.bvh,
+        baseline: parts.baseline,
+        half_prior: None,
     }
-    // The baseline is the photos' own colours: its medians ignore the transient mask.
-    let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
-    let transients = if eff.transients {
+}
+
+/// The held-out photos' observations and transport for the timeline's held-out error
+/// ([`HoldoutTracker`]; `None` without held-out photos).
+fn held_out_tracker(
+    im: &Imported,
+    bvh: &crate::observe::trace::SceneBvh,
+    p: &Prepared,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<Option<HoldoutTracker>> {
+    let _spinner = progress.spinner("held-out transport");
+    log.stages.run("transport", || {
+        HoldoutTracker::new(
+            &im.scene,
+            &im.photos,
+            &im.held,
+            bvh,
+            &p.normals_env,
+            &p.env_from_world,
+            &p.vis,
+            &p.eff.basis,
+            &p.rot,
+            &p.topts,
+            im.truth.as_ref(),
+        )
+    })
+}
+
+/// The vertices no training photo sees kept their start: give them their seen
+/// neighbours' materials (the harmonic extension, `solve::materials::propagate`).
+fn fill_unseen(
+    obs: &Observations,
+    positions: &[crate::Vec3],
+    est: &mut solve::Estimate,
+    reasons: &mut Vec<String>,
+    log: &mut RunLog,
+) -> Result<()> {
+    let seen_now = super::mean_colours(obs, positions.len()).1;
+    let k = est.lambda.len();
+    let filled = log.stages.run("estimate", || {
+        propagate_unseen(positions, &seen_now, &mut est.weights, k)
+    })?;
+    if filled.filled > 0 {
+        reasons.push(format!(
+            "materials of the {} vertices no training photo sees: from their seen neighbours",
+            filled.filled
+        ));
+    }
+    Ok(())
+}
+
+/// The fit's start: the initial materials, the estimator's options and the reasons so far.
+struct FitStart {
+    init: crate::solve::cluster::InitialMaterials,
+    eopts: EstimateOptions,
+    /// Why the model has its size (the report's reasons).
+    reasons: Vec<String>,
+}
+
+impl FitStart {
+    /// The clustered start with the pilot's count (or `--materials`, or a count from the
+    /// colours) and the estimator's options, with the neighbour prior's graph when on.
+    fn new(
+        opts: &RunOptions,
+        p: &Prepared,
+        positions: &[crate::Vec3],
+        lambert: usize,
+    ) -> Result<Self> {
+        let mut reasons = Vec::new();
+        let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
+        let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
+        if eopts.weights_smoothness > 0.0 {
+            // The neighbour prior's graph: the one the unseen vertices' materials spread over.
+            use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};
+            eopts.weights_graph = knn_graph(positions, NEIGHBOURS)?.into();
+        }
+        Ok(FitStart {
+            init,
+            eopts,
+            reasons,
+        })
+    }
+
+    /// The transient pass (`--transients`): masks occluders in `obs`; when it masked any,
+    /// the start is clustered again from the unmasked observations only (an occluder's
+    /// colour would otherwise take a material of its own).
+    fn mask_transients(
+        &mut self,
+        opts: &RunOptions,
+        obs: &mut Observations,
+        p: &Prepared,
+        scene: &crate::import::scene::Scene,
+        log: &mut RunLog,
+        progress: &Progress,
+    ) -> Result<super::transients::Transients> {
+        let lambert = self.eopts.lambert_basis;
         progress.stage("transients");
         let spinner = progress.spinner("pilot fit for transient occluders");
-        let start = Materials0::from_initial(&init, eff.basis.len(), lambert);
+        let start = Materials0::from_initial(&self.init, p.eff.basis.len(), lambert);
         let t = log.stages.run("transients", || {
-            super::transients::mask_transients(&mut obs, &tr, &scene.mesh, &start, &eopts)
+            super::transients::mask_transients(obs, &p.tr, &scene.mesh, &start, &self.eopts)
         })?;
         drop(spinner);
-        // The clustered start from the unmasked observations only: an occluder's colour
-        // would otherwise take a material of its own.
         if t.count() > 0 {
-            let (mean_rgb, seen) = super::mean_colours(&obs, nv);
-            reasons.clear();
-            init = starting_materials(opts, pilot_k, &mean_rgb, &seen, &mut reasons)?;
+            let (mean_rgb, seen) = super::mean_colours(obs, scene.mesh.positions.len());
+            self.reasons.clear();
+            self.init =
+                starting_materials(opts, p.pilot_k.clone(), &mean_rgb, &seen, &mut self.reasons)?;
         }
-        Some(t)
-    } else {
-        None
-    };
-    if eopts.weights_smoothness > 0.0 {
-        reasons.push(format!(
-            "material weights pulled toward their {} nearest vertices' mean at {} (--weights-smoothness)",
-            crate::solve::materials::propagate::NEIGHBOURS,
-            eopts.weights_smoothness
-        ));
+        Ok(t)
     }
-    let problem = Problem {
-        obs: &obs,
-        transport: &tr,
-        n_vertices: nv,
-        n_photos: train.len(),
-    };
-    if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
-        let file = opts.light_groups.as_deref();
-        eopts.light_groups =
-            super::light_groups::resolve(file, opts.light_group_minutes, scene, &train)?;
-        if let Some(g) = &eopts.light_groups {
-            reasons.push(format!("shared light: {}", g.source));
+
+    /// The options that depend on the observations kept: the shared light's groups and
+    /// early stopping's photo halves; the neighbour prior's reason.
+    fn finish_options(
+        &mut self,
+        opts: &RunOptions,
+        scene: &crate::import::scene::Scene,
+        train: &[usize],
+        obs: &Observations,
+    ) -> Result<()> {
+        if self.eopts.weights_smoothness > 0.0 {
+            self.reasons.push(format!(
+                "material weights pulled toward their {} nearest vertices' mean at {} (--weights-smoothness)",
+                crate::solve::materials::propagate::NEIGHBOURS,
+                self.eopts.weights_smoothness
+            ));
         }
+        if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
+            let file = opts.light_groups.as_deref();
+            self.eopts.light_groups =
+                super::light_groups::resolve(file, opts.light_group_minutes, scene, train)?;
+            if let Some(g) = &self.eopts.light_groups {
+                self.reasons.push(format!("shared light: {}", g.source));
+            }
+        }
+        self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);
+        Ok(())
     }
-    eopts.validation_halves = photo_halves(scene, &train, &obs, opts.validation_halves);
-    let materials0 = Materials0::from_initial(&init, eff.basis.len(), lambert);
-    let spinner = progress.spinner("held-out transport");
-    let tracker = log.stages.run("transport", || {
-        HoldoutTracker::new(
-            scene,
-            photos,
-            &held,
-            &bvh,
-            &normals_env,
-            &env_from_world,
-            &vis,
-            &eff.basis,
-            &rot,
-            &topts,
-            truth.as_ref(),
-        )
-    })?;
-    drop(spinner);
-    progress.stage("estimate");
-    let available = starts::family_len(eff.basis.len(), lambert);
-    if opts.starts > available {
-        reasons.push(format!(
-            "--starts {}: this basis gives {available} distinct starts, all tried",
-            opts.starts
-        ));
+
+    /// The starts the estimate runs from (`--starts`), and why when fewer exist.
+    fn family(&mut self, opts: &RunOptions, n_basis: usize, lambert: usize) -> Vec<starts::Start> {
+        let available = starts::family_len(n_basis, lambert);
+        if opts.starts > available {
+            self.reasons.push(format!(
+                "--starts {}: this basis gives {available} distinct starts, all tried",
+                opts.starts
+            ));
+        }
+        let materials0 = Materials0::from_initial(&self.init, n_basis, lambert);
+        starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts)
     }
-    let family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
-    let n_starts = family.len();
-    let bar = progress.bar((eff.max_iterations * n_starts) as u64, "outer iterations");
-    // The held-out error of an iterate, for the timeline (finite, else none).
-    let held_out = |state: &solve::IterState| {
-        tracker
-            .as_ref()
-            .map(|t| t.rmse(state, nv))
+}
+
+/// The estimate's progress: its bar, its console lines and the held-out error of each
+/// iterate (the report's timeline).
+struct Monitor<'a> {
+    bar: &'a indicatif::ProgressBar,
+    progress: &'a Progress,
+    tracker: Option<&'a HoldoutTracker>,
+    n_vertices: usize,
+}
+
+impl Monitor<'_> {
+    /// The held-out error of an iterate, for the timeline (finite, else none).
+    fn held_out(&self, state: &solve::IterState) -> Option<f64> {
+        self.tracker
+            .map(|t| t.rmse(state, self.n_vertices))
             .filter(|v| v.is_finite())
-    };
-    let say = |line: &str| {
-        if bar.is_hidden() {
-            progress.line(line);
+    }
+
+    /// A console line under the bar (or alone when the bar is hidden).
+    fn say(&self, line: &str) {
+        if self.bar.is_hidden() {
+            self.progress.line(line);
         } else {
-            bar.println(format!("          {line}"));
+            self.bar.println(format!("          {line}"));
         }
-    };
+    }
+}
+
+/// The estimate kept: the fit, its starts, its options and light model, its timeline.
+struct Estimated {
+    est: solve::Estimate,
+    multi: MultiStart,
+    eopts: EstimateOptions,
+    light_decision: crate::solve::light::choose::LightDecision,
+    timeline: Vec<TimelinePoint>,
+}
+
+/// Each candidate light model (`--light`) fitted from every start; the one the validation
+/// score keeps ([`crate::solve::light::choose::decide`]), its reason pushed to `start`.
+fn fit_light_models(
+    opts: &RunOptions,
+    problem: &Problem,
+    family: &[starts::Start],
+    start: &mut FitStart,
+    monitor: &Monitor,
+    log: &mut RunLog,
+) -> Result<Estimated> {
+    let n_starts = family.len();
     let mut timeline: Vec<TimelinePoint> = Vec::new();
-    let light_models = crate::solve::light::choose::candidates(opts.light, &eopts)?;
+    let light_models = crate::solve::light::choose::candidates(opts.light, &start.eopts)?;
     let mut fits = Vec::with_capacity(light_models.len());
     let mut timeline_ranges = Vec::with_capacity(light_models.len());
     for model in &light_models {
         let first = timeline.len();
-        let family = family.clone();
+        let family = family.to_vec();
         let eopts = &model.options;
         fits.push(log.stages.run("estimate", || {
-            starts::estimate_best(&problem, family, eopts, &mut |si, it, state| {
-                bar.inc(1);
-                let holdout_rmse = held_out(state);
+            starts::estimate_best(problem, family, eopts, &mut |si, it, state| {
+                monitor.bar.inc(1);
+                let holdout_rmse = monitor.held_out(state);
                 let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
+                monitor.say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
                 timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
             })
         })?);
@@ -274,108 +507,81 @@ pub(crate) fn fit<'a>(
         .collect();
     let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
     let (pick, light_decision) = crate::solve::light::choose::decide(opts.light, &names, &scores);
-    reasons.push(format!(
+    start.reasons.push(format!(
         "light model `{}`: {}",
         light_decision.model, light_decision.why
     ));
-    let eopts = light_models[pick].options.clone();
     let (est, multi) = fits.swap_remove(pick);
-    // The timeline of the model kept.
-    let mut timeline: Vec<TimelinePoint> = timeline.drain(timeline_ranges[pick].clone()).collect();
-    let (mut est, multi) = if opts.start_search {
-        progress.stage("start search");
-        let label = multi.starts[multi.chosen].label.clone();
-        // The timeline then follows the search's records: the kept start's iterations as
-        // start 0, each searched start's after them on the same clock.
-        timeline.retain(|p| p.start == multi.chosen);
-        timeline.iter_mut().for_each(|p| p.start = 0);
-        let (mut clock, mut current, mut last) =
-            (0.0, 0, timeline.last().map_or(0.0, |p| p.seconds));
-        log.stages.run("start search", || {
-            let base = &family[0].materials;
-            brightness::search(
-                &problem,
-                est,
-                &label,
-                base,
-                lambert,
-                &eopts,
-                &mut |si, it, state| {
-                    if si != current {
-                        (clock, current) = (last, si);
-                        bar.inc_length(eff.max_iterations as u64);
-                    }
-                    bar.inc(1);
-                    let holdout_rmse = held_out(state);
-                    let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                    let line = iteration_line(1, si, n_it, it, holdout_rmse);
-                    say(&format!("start search, start {}: {line}", si + 1));
-                    last = clock + it.seconds;
-                    timeline.push(timeline_point(si, last, it, holdout_rmse));
-                },
-            )
-        })?
-    } else {
-        (est, multi)
-    };
-    // The vertices no training photo sees kept their start: give them their seen
-    // neighbours' materials (the harmonic extension, `solve::materials::propagate`).
-    let seen_now = super::mean_colours(&obs, nv).1;
-    let k = est.lambda.len();
-    let filled = log.stages.run("estimate", || {
-        propagate_unseen(&scene.mesh.positions, &seen_now, &mut est.weights, k)
-    })?;
-    if filled.filled > 0 {
-        reasons.push(format!(
-            "materials of the {} vertices no training photo sees: from their seen neighbours",
-            filled.filled
-        ));
-    }
-    bar.finish_and_clear();
-    check_finite(&est, &conditioning_map(&est.conditioning))?;
-    let beta = solve::beta_per_vertex(&est.lambda, &est.weights, nv);
-    let pred = solve::predict(&problem, &est);
-    let train_entries = train_errors(scene, &train, &obs, &pred);
-    let train_predictions = photo_predictions(&obs, &pred);
-    drop(pred);
-    // The transport rows (training and held-out) are the run's largest arrays and nothing
-    // after the estimate reads them: free them before the evaluation builds its own.
-    drop(tracker);
-    drop(tr);
-
-    let fitted = Fitted {
-        scene,
-        photos,
-        train,
-        held,
-        env_from_world,
-        normals_env,
-        vis,
-        rot,
-        render_rot: crate::sphere::rotation::SplatRotation::with_default_supersample(
-            eff.global_resolution,
-            render_vis.n_local,
-        ),
-        render_vis,
-        basis: eff.basis.clone(),
+    Ok(Estimated {
         est,
-        beta,
-        train_predictions,
-        opts: eff.clone(),
-        estimate_options: eopts,
-        bvh,
-        baseline,
-        half_prior: None,
-    };
-    Ok(Fit {
-        fitted,
-        train_entries,
-        timeline,
         multi,
-        reasons,
-        decisions,
+        eopts: light_models[pick].options.clone(),
         light_decision,
-        transients,
+        // The timeline of the model kept.
+        timeline: timeline.drain(timeline_ranges[pick].clone()).collect(),
+    })
+}
+
+/// What the start search starts from: the first start's materials, the Lambertian basis,
+/// and the outer iterations each searched start may take (the bar grows by that much).
+struct StartSearch<'a> {
+    base: &'a Materials0,
+    lambert: usize,
+    max_iterations: usize,
+}
+
+/// The start search (`--start-search`, [`brightness::search`]) from the kept fit. The
+/// timeline then follows the search's records: the kept start's iterations as start 0,
+/// each searched start's after them on the same clock.
+fn search_starts(
+    problem: &Problem,
+    fitted: Estimated,
+    search: &StartSearch,
+    monitor: &Monitor,
+    log: &mut RunLog,
+) -> Result<Estimated> {
+    let Estimated {
+        est,
+        multi,
+        eopts,
+        light_decision,
+        mut timeline,
+    } = fitted;
+    monitor.progress.stage("start search");
+    let label = multi.starts[multi.chosen].label.clone();
+    timeline.retain(|p| p.start == multi.chosen);
+    timeline.iter_mut().for_each(|p| p.start = 0);
+    let (mut clock, mut current, mut last) = (0.0, 0, timeline.last().map_or(0.0, |p| p.seconds));
+    let (base, lambert) = (search.base, search.lambert);
+    let (est, multi) = log.stages.run("start search", || {
+        brightness::search(
+            problem,
+            est,
+            &label,
+            base,
+            lambert,
+            &eopts,
+            &mut |si, it, state| {
+                if si != current {
+                    (clock, current) = (last, si);
+                    monitor.bar.inc_length(search.max_iterations as u64);
+                }
+                monitor.bar.inc(1);
+                let holdout_rmse = monitor.held_out(state);
+                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                let line = iteration_line(1, si, n_it, it, holdout_rmse);
+                monitor.say(&format!("start search, start {}: {line}", si + 1));
+                last = clock + it.seconds;
+                timeline.push(timeline_point(si, last, it, holdout_rmse));
+            },
+        )
+    })?;
+    Ok(Estimated {
+        est,
+        multi,
+        eopts,
+        light_decision,
+        timeline,
     })
 }
 
