@@ -3,7 +3,7 @@
 //! ([`Fitted`]) that the evaluation and the outputs read.
 
 use super::half_fit::{projected_x, span_mid};
-use super::pipeline::{Imported, Observed, Prepared, RunLog};
+use super::state::{Imported, Observed, Prepared, RunLog};
 use super::tracker::HoldoutTracker;
 use super::{
     check_finite, choose_material_count, conditioning_map, train_errors, Fitted, MaterialCount,

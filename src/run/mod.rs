@@ -38,6 +38,7 @@ mod output;
 mod pipeline;
 pub mod progress;
 mod shading;
+mod state;
 mod tracker;
 mod transients;
 mod truth;

@@ -1,7 +1,7 @@
 //! The report's notes written after the fit and the evaluation (stage 8 of `run`): plain
 //! sentences on what the figures alone do not say.
 
-use super::pipeline::RunLog;
+use super::state::RunLog;
 use super::{Fitted, LargeMeshSettings, RunOptions, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO};
 
 /// The report's notes on the fit: ill-conditioned solves, the starts tried, the scale

@@ -1,24 +1,25 @@
-//! The stages of `run` as functions with typed inputs and outputs:
-//! [`import`] → [`Imported`] → [`observe`] → [`Observed`] → [`prepare`] → [`Prepared`] →
-//! [`fit`] → [`Fit`] (holding the [`Fitted`] model) → `evaluate` → [`write`] (the
-//! result folder and the [`RunReport`]). Each stage is timed by [`Stages`] and adds its
-//! notes to the report through [`RunLog`].
+//! The stages of `run` as functions with typed inputs and outputs (the types in
+//! [`super::state`]): [`import`] → [`Imported`] → [`observe`] → [`Observed`] →
+//! [`prepare`] → [`Prepared`] → [`fit`] → [`Fit`] (holding the [`Fitted`] model) →
+//! `evaluate` → [`Evaluated`] → [`write`] (the result folder and the [`RunReport`]). Each
+//! stage is timed by [`crate::stages::Stages`] and adds its notes to the report through
+//! [`RunLog`].
 
 use std::path::Path;
 use std::sync::Arc;
 
 use nalgebra::Matrix3;
 
-use super::evaluate::{self, Evaluation};
+use super::evaluate;
 use super::fit::{estimate_options, lambert_of, Fit};
 use super::shading::{self, render_local_resolution};
+use super::state::{Evaluated, Imported, Observed, Prepared, RunLog};
 use super::truth::Truth;
 use super::{
     adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
     holdout_rule, holdout_views, mean_colours, output, Holdout, LargeMeshSettings, MaterialCount,
     Progress, RunOptions, LARGE_MESH,
 };
-use crate::import::photo::Photo;
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
 use crate::observe::trace::SceneBvh;
@@ -32,63 +33,6 @@ use crate::transport::visibility::Visibility;
 use crate::transport::{self, Transport, TransportOptions};
 use crate::{Error, Result, Vec3};
 
-/// What every stage adds to: the stage records and the report's notes.
-pub(crate) struct RunLog {
-    pub(crate) stages: Stages,
-    pub(crate) notes: Vec<String>,
-}
-
-/// After import: the scene, its decoded photos, the truth (synthetic workspaces) and the
-/// split into training and held-out views.
-pub(crate) struct Imported {
-    pub(crate) scene: Scene,
-    pub(crate) photos: Vec<Photo>,
-    pub(crate) truth: Option<Truth>,
-    /// Held-out views (indices into `scene.views`).
-    pub(crate) held: Vec<usize>,
-    /// Training views.
-    pub(crate) train: Vec<usize>,
-    /// How the held-out photos were chosen, in words.
-    pub(crate) holdout_rule: String,
-}
-
-/// After observation extraction: the BVH, the training photos' observations, the training
-/// views kept (duplicates dropped by the adaptive model) and the adaptive decisions so far.
-pub(crate) struct Observed {
-    pub(crate) bvh: SceneBvh,
-    pub(crate) obs: Observations,
-    pub(crate) train: Vec<usize>,
-    pub(crate) decisions: Vec<Decision>,
-}
-
-/// After preparation: frames, visibility, the effective options (the adaptive pilot's
-/// choices), the rotation and the transport rows.
-pub(crate) struct Prepared {
-    pub(crate) env_from_world: Matrix3<f64>,
-    pub(crate) normals_env: Vec<Vec3>,
-    pub(crate) vis: Arc<Visibility>,
-    pub(crate) render_vis: Arc<Visibility>,
-    /// The options in effect: `opts` with the pilot's decisions.
-    pub(crate) eff: RunOptions,
-    /// The pilot's material count and its reason.
-    pub(crate) pilot_k: Option<(usize, String)>,
-    pub(crate) mean_rgb: Vec<[f64; 3]>,
-    pub(crate) seen: Vec<bool>,
-    pub(crate) rot: Rotation,
-    pub(crate) topts: TransportOptions,
-    pub(crate) tr: Transport,
-    /// Per-vertex strata of the lighting sample.
-    pub(crate) strata: Vec<u32>,
-}
-
-/// After the evaluation: the held-out figures and the truth check.
-pub(crate) struct Evaluated {
-    pub(crate) evaluation: Evaluation,
-    pub(crate) truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
-    pub(crate) holdout_rule: String,
-    pub(crate) half_fit_prior: Option<crate::report::HalfFitPriorReport>,
-}
-
 /// The pipeline into `dir` (module docs).
 pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Result<RunReport> {
     let mut log = RunLog {
@@ -101,7 +45,28 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
     let observed = observe_training(opts, &imported, &mut log, progress)?;
     let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
     let mut fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
-    // 7. Evaluation of held-out photos, and per-photo training error.
+    let evaluated = evaluation(opts, &imported, &mut fit, &mut log, dir, progress)?;
+    write(
+        opts,
+        fit,
+        evaluated,
+        imported.truth.as_ref(),
+        &mut log,
+        dir,
+        progress,
+    )
+}
+
+/// Stage 7, the held-out photos: protocol (b)'s light prior, then the evaluation
+/// ([`evaluate::evaluate`]).
+fn evaluation(
+    opts: &RunOptions,
+    imported: &Imported,
+    fit: &mut Fit,
+    log: &mut RunLog,
+    dir: &Path,
+    progress: &Progress,
+) -> Result<Evaluated> {
     progress.stage("evaluation");
     let half_fit_prior = if fit.fitted.held.is_empty() {
         None
@@ -118,21 +83,12 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
         let t = std::mem::take(&mut e.truth_check);
         Ok((e, t))
     })?;
-    let evaluated = Evaluated {
+    Ok(Evaluated {
         evaluation,
         truth_check,
         holdout_rule: imported.holdout_rule.clone(),
         half_fit_prior,
-    };
-    write(
-        opts,
-        fit,
-        evaluated,
-        imported.truth.as_ref(),
-        &mut log,
-        dir,
-        progress,
-    )
+    })
 }
 
 /// The run's options on a mesh of `vertices` ([`LargeMeshSettings::for_mesh`]), with a
@@ -384,7 +340,6 @@ fn prepare(
         mut decisions,
     } = observed;
     let nv = scene.mesh.positions.len();
-    // Frames.
     let up = world_up(opts, &scene.views, log)?;
     let env_from_world = env_from_world(&up)?;
     let normals_env: Vec<Vec3> = scene
@@ -393,68 +348,23 @@ fn prepare(
         .iter()
         .map(|n| env_from_world * n)
         .collect();
-
-    // 3. Visibility.
-    progress.stage("visibility");
-    let bar = progress.stage_bar(nv as u64, "vertices");
-    let (vis, render_vis) = log.stages.run("visibility", || {
-        shading::trace_visibility(&scene.mesh, &bvh, &env_from_world, opts)
-    });
-    drop(bar);
-    log.notes.push(format!(
-        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({}); {} more answered without tracing, their texels' cone of directions holding no triangle",
-        vis.open_count(),
-        nv,
-        vis.rays_traced,
-        visibility_sampling_note(opts),
-        vis.rays_known_open
-    ));
+    let (vis, render_vis) = visibility(opts, scene, &bvh, &env_from_world, log, progress);
     // Strata of the lighting step's sample: normal × open sky.
     let strata = crate::solve::subsample::lighting_strata(&normals_env, &vis.open_fractions());
     let (mean_rgb, seen) = mean_colours(&obs, nv);
-
-    // Adaptive model (crate::solve::adapt steps 2–5): a pilot fit decides the materials, the
-    // bases, the map resolution and the coefficient budget; `eff` holds what is used.
-    let mut eff = opts.clone();
-    let mut pilot_k: Option<(usize, String)> = None;
-    if opts.adaptive {
-        progress.stage("pilot");
-        let spinner = progress.spinner("pilot fits");
-        let lambert = lambert_of(&opts.basis)?;
-        let outcome = log.stages.run("pilot", || {
-            crate::solve::adapt::pilot(&crate::solve::adapt::PilotInput {
-                normals_env: &normals_env,
-                obs: &obs,
-                env_from_world: &env_from_world,
-                vis: &vis,
-                basis: &opts.basis,
-                lambert,
-                normal_grid: opts.normal_grid,
-                global_resolution: opts.global_resolution,
-                keep: opts.keep,
-                // The pilot holds out its own observations: no early stopping inside it.
-                estimate: EstimateOptions {
-                    validation_fraction: 0.0,
-                    ..estimate_options(opts, lambert, &strata)
-                },
-                mean_rgb: &mean_rgb,
-                seen: &seen,
-                materials: match opts.materials {
-                    MaterialCount::Fixed(k) => Some(k),
-                    MaterialCount::Auto => None,
-                },
-                choose_weights_sum: opts.weights_sum == super::WeightsSum::Auto,
-                seed: opts.seed,
-            })
-        })?;
-        drop(spinner);
-        decisions.extend(adaptive_decisions(opts, &outcome, &vis, nv, &mut eff));
-        pilot_k = Some((outcome.materials, outcome.materials_reason.clone()));
-    }
-
-    // 4. Rotation.
+    let pilot_data = PilotData {
+        normals_env: &normals_env,
+        env_from_world: &env_from_world,
+        obs: &obs,
+        vis: &vis,
+        strata: &strata,
+        mean_rgb: &mean_rgb,
+        seen: &seen,
+    };
+    let adapted = adapt(opts, &pilot_data, log, progress)?;
+    decisions.extend(adapted.decisions);
+    let eff = adapted.eff;
     let rot = rotation(&eff, log, progress);
-
     // 5. Transport.
     progress.stage("transport");
     let topts = TransportOptions {
@@ -488,7 +398,7 @@ fn prepare(
             vis,
             render_vis,
             eff,
-            pilot_k,
+            pilot_k: adapted.pilot_k,
             mean_rgb,
             seen,
             rot,
@@ -497,6 +407,109 @@ fn prepare(
             strata,
         },
     ))
+}
+
+/// Stage 3, visibility at the estimator's and the renderer's local resolutions
+/// ([`shading::trace_visibility`]), with its note.
+fn visibility(
+    opts: &RunOptions,
+    scene: &Scene,
+    bvh: &SceneBvh,
+    env_from_world: &Matrix3<f64>,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> (Arc<Visibility>, Arc<Visibility>) {
+    let nv = scene.mesh.positions.len();
+    progress.stage("visibility");
+    let bar = progress.stage_bar(nv as u64, "vertices");
+    let (vis, render_vis) = log.stages.run("visibility", || {
+        shading::trace_visibility(&scene.mesh, bvh, env_from_world, opts)
+    });
+    drop(bar);
+    log.notes.push(format!(
+        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({}); {} more answered without tracing, their texels' cone of directions holding no triangle",
+        vis.open_count(),
+        nv,
+        vis.rays_traced,
+        visibility_sampling_note(opts),
+        vis.rays_known_open
+    ));
+    (vis, render_vis)
+}
+
+/// What the adaptive pilot reads of the prepared scene.
+struct PilotData<'a> {
+    normals_env: &'a [Vec3],
+    env_from_world: &'a Matrix3<f64>,
+    obs: &'a Observations,
+    vis: &'a Visibility,
+    strata: &'a [u32],
+    mean_rgb: &'a [[f64; 3]],
+    seen: &'a [bool],
+}
+
+/// The options in effect after the adaptive model, its material count and reason (for
+/// the start) and its decisions (for the report).
+struct Adapted {
+    eff: RunOptions,
+    pilot_k: Option<(usize, String)>,
+    decisions: Vec<Decision>,
+}
+
+/// The adaptive model (`crate::solve::adapt` steps 2–5): with `--adaptive on` a pilot fit
+/// decides the materials, the bases, the map resolution and the coefficient budget;
+/// otherwise the options as given.
+fn adapt(
+    opts: &RunOptions,
+    d: &PilotData,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<Adapted> {
+    let mut eff = opts.clone();
+    if !opts.adaptive {
+        return Ok(Adapted {
+            eff,
+            pilot_k: None,
+            decisions: Vec::new(),
+        });
+    }
+    progress.stage("pilot");
+    let spinner = progress.spinner("pilot fits");
+    let lambert = lambert_of(&opts.basis)?;
+    let outcome = log.stages.run("pilot", || {
+        crate::solve::adapt::pilot(&crate::solve::adapt::PilotInput {
+            normals_env: d.normals_env,
+            obs: d.obs,
+            env_from_world: d.env_from_world,
+            vis: d.vis,
+            basis: &opts.basis,
+            lambert,
+            normal_grid: opts.normal_grid,
+            global_resolution: opts.global_resolution,
+            keep: opts.keep,
+            // The pilot holds out its own observations: no early stopping inside it.
+            estimate: EstimateOptions {
+                validation_fraction: 0.0,
+                ..estimate_options(opts, lambert, d.strata)
+            },
+            mean_rgb: d.mean_rgb,
+            seen: d.seen,
+            materials: match opts.materials {
+                MaterialCount::Fixed(k) => Some(k),
+                MaterialCount::Auto => None,
+            },
+            choose_weights_sum: opts.weights_sum == super::WeightsSum::Auto,
+            seed: opts.seed,
+        })
+    })?;
+    drop(spinner);
+    let nv = d.normals_env.len();
+    let decisions = adaptive_decisions(opts, &outcome, d.vis, nv, &mut eff);
+    Ok(Adapted {
+        eff,
+        pilot_k: Some((outcome.materials, outcome.materials_reason.clone())),
+        decisions,
+    })
 }
 
 /// World up: `--up`, or estimated from the cameras' −y axes (noted in the report).
@@ -553,40 +566,18 @@ fn write(
         light_decision,
         transients,
     } = fit;
-    let Evaluated {
-        evaluation,
-        truth_check,
-        holdout_rule,
-        half_fit_prior,
-    } = evaluated;
-    let eff = &fitted.opts;
-    // 8. Outputs.
     progress.stage("output");
     log.stages
         .run("output", || output::write_results(&fitted, dir, progress))?;
-
     if let Some(t) = &transients {
-        let folder = super::transients::write_masks(t, fitted.scene, &fitted.train, dir)?;
-        log.notes.push(format!(
-            "transient occluders: {} of {} training observations masked ({} rounds of a {}-iteration pilot fit's residuals, coherent over the mesh) in {} of {} photos; masks in {folder}/",
-            t.count(),
-            t.used_before,
-            super::transients::PILOT_ROUNDS,
-            super::transients::PILOT_ITERATIONS,
-            t.masked.iter().filter(|m| !m.is_empty()).count(),
-            t.masked.len()
-        ));
+        transients_note(t, &fitted, dir, log)?;
     }
-    let c = &fitted.est.conditioning;
-    let conditioning = conditioning_map(c);
     super::notes::fit_notes(opts, &fitted, &multi, log);
-    let conditioning_use = conditioning_use(c, &fitted.estimate_options, opts.adaptive);
-
+    let model = model_report(opts, &fitted, reasons, decisions, light_decision);
     let mut report = RunReport {
         version: env!("CARGO_PKG_VERSION").to_string(),
         workspace: opts.workspace.display().to_string(),
         seed: opts.seed,
-        holdout: evaluation.holdout,
         // The iterate returned: early stopping's choice, else the last.
         train_rmse: fitted
             .est
@@ -597,47 +588,113 @@ fn write(
             .map_or(f64::NAN, |t| t.train_rmse),
         train: train_entries,
         timeline,
-        model: ModelReport {
-            materials: fitted.est.lambda.len(),
-            basis: eff.basis.iter().map(|b| b.label()).collect(),
-            global_resolution: eff.global_resolution,
-            local_resolution: eff.local_resolution,
-            render_local_resolution: fitted.render_vis.n_local,
-            normal_grid: eff.normal_grid,
-            kept_coefficients: eff.keep,
-            blend_tolerance: fitted.estimate_options.blend_tolerance,
-            reasons,
-            adaptive: if opts.adaptive { Some(decisions) } else { None },
-            light: Some(light_decision),
-            scale_anchor: Some(crate::report::ScaleAnchorReport {
-                name: fitted.estimate_options.scale_anchor.name().to_string(),
-                rule: fitted.est.normalisation.clone(),
-            }),
-        },
+        model,
         notes: std::mem::take(&mut log.notes),
-        conditioning,
-        conditioning_use,
+        conditioning: conditioning_map(&fitted.est.conditioning),
+        conditioning_use: conditioning_use(
+            &fitted.est.conditioning,
+            &fitted.estimate_options,
+            opts.adaptive,
+        ),
         starts: (multi.starts.len() > 1).then_some(multi),
         ..Default::default()
     };
+    add_evaluation(&mut report, evaluated, &fitted, truth)?;
+    progress.stage("report");
+    write_report(&mut report, &fitted, truth, log, dir)?;
+    Ok(report)
+}
+
+/// The transient pass's masks written and its note.
+fn transients_note(
+    t: &super::transients::Transients,
+    fitted: &super::Fitted,
+    dir: &Path,
+    log: &mut RunLog,
+) -> Result<()> {
+    let folder = super::transients::write_masks(t, fitted.scene, &fitted.train, dir)?;
+    log.notes.push(format!(
+        "transient occluders: {} of {} training observations masked ({} rounds of a {}-iteration pilot fit's residuals, coherent over the mesh) in {} of {} photos; masks in {folder}/",
+        t.count(),
+        t.used_before,
+        super::transients::PILOT_ROUNDS,
+        super::transients::PILOT_ITERATIONS,
+        t.masked.iter().filter(|m| !m.is_empty()).count(),
+        t.masked.len()
+    ));
+    Ok(())
+}
+
+/// The report's model section: sizes, resolutions and why.
+fn model_report(
+    opts: &RunOptions,
+    fitted: &super::Fitted,
+    reasons: Vec<String>,
+    decisions: Vec<Decision>,
+    light_decision: crate::solve::light::choose::LightDecision,
+) -> ModelReport {
+    let eff = &fitted.opts;
+    ModelReport {
+        materials: fitted.est.lambda.len(),
+        basis: eff.basis.iter().map(|b| b.label()).collect(),
+        global_resolution: eff.global_resolution,
+        local_resolution: eff.local_resolution,
+        render_local_resolution: fitted.render_vis.n_local,
+        normal_grid: eff.normal_grid,
+        kept_coefficients: eff.keep,
+        blend_tolerance: fitted.estimate_options.blend_tolerance,
+        reasons,
+        adaptive: if opts.adaptive { Some(decisions) } else { None },
+        light: Some(light_decision),
+        scale_anchor: Some(crate::report::ScaleAnchorReport {
+            name: fitted.estimate_options.scale_anchor.name().to_string(),
+            rule: fitted.est.normalisation.clone(),
+        }),
+    }
+}
+
+/// The evaluation's figures and notes, and the albedo against the truth, into `report`.
+fn add_evaluation(
+    report: &mut RunReport,
+    evaluated: Evaluated,
+    fitted: &super::Fitted,
+    truth: Option<&Truth>,
+) -> Result<()> {
+    let Evaluated {
+        evaluation,
+        truth_check,
+        holdout_rule,
+        half_fit_prior,
+    } = evaluated;
+    report.holdout = evaluation.holdout;
     report.headline = evaluation.headline.map(|h| h.ratio);
     report.headline_detail = evaluation.headline;
     report.half_fit_prior = half_fit_prior;
     report.metrics = evaluation.metrics;
     report.truth_check = truth_check;
     report.albedo_truth = match truth {
-        Some(t) => super::truth_check::albedo_truth(&fitted, t)?,
+        Some(t) => super::truth_check::albedo_truth(fitted, t)?,
         None => None,
     };
     report.holdout_rule = holdout_rule;
     report.notes.extend(super::notes::evaluation_notes(
-        &fitted,
+        fitted,
         evaluation.render_seconds,
         evaluation.half_fit_seconds,
         evaluation.mean_holdout_rmse,
     ));
-    progress.stage("report");
-    // The report's own writing is timed but cannot appear in the file it is writing.
+    Ok(())
+}
+
+/// The stage records, `report.json`, `report.md` and `report.html` with its pictures. The
+/// report's own writing is timed but cannot appear in the file it is writing.
+fn write_report(
+    report: &mut RunReport,
+    fitted: &super::Fitted,
+    truth: Option<&Truth>,
+    log: &RunLog,
+    dir: &Path,
+) -> Result<()> {
     report.stage_details = log.stages.records.clone();
     report.stages = report
         .stage_details
@@ -645,15 +702,14 @@ fn write(
         .map(|s| (s.name.clone(), s.seconds))
         .collect();
     report.peak_memory_bytes = log.stages.peak_memory_bytes();
-    let maps = output::gallery_maps(&fitted);
+    let maps = output::gallery_maps(fitted);
     let refs: Vec<(String, usize, usize, &[[f32; 3]])> = maps
         .iter()
         .map(|(n, ll)| (n.clone(), ll.width, ll.height, ll.rgb.as_slice()))
         .collect();
     report.write(dir, &refs)?;
-    let inputs = super::html_inputs::html_inputs(&fitted, truth, dir)?;
-    crate::report::html::write(dir, &report, &inputs)?;
-    Ok(report)
+    let inputs = super::html_inputs::html_inputs(fitted, truth, dir)?;
+    crate::report::html::write(dir, report, &inputs)
 }
 
 /// How the visibility rays were spread, in words for the report's notes.
