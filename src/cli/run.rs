@@ -358,6 +358,62 @@ impl RunArgs {
     }
 }
 
+impl RunArgs {
+    /// Runs the fit on the workspace; one summary line (and with `--quiet` off, the
+    /// held-out figures) on stdout.
+    pub(crate) fn execute(self) -> anyhow::Result<()> {
+        let args = self;
+        set_threads(args.threads)?;
+        let quiet = args.quiet;
+        let opts = args.options()?;
+        let summary = relight_cpc::run::run(&opts)?;
+        let r = &summary.report;
+        let held = if r.holdout.is_empty() {
+            "no held-out photo".to_string()
+        } else {
+            let mean =
+                r.holdout.iter().map(|h| h.rmse_scaled).sum::<f64>() / r.holdout.len() as f64;
+            format!(
+                "held-out RMSE {mean:.5} (scaled, mean of {})",
+                r.holdout.len()
+            )
+        };
+        println!(
+            "training RMSE {:.5}, {held}; report.html, report.md and report.json in {}",
+            r.train_rmse,
+            summary.out.display()
+        );
+        if !quiet {
+            for h in &r.holdout {
+                println!(
+                    "held out {} ({}): RMSE {:.5} raw, {:.5} after scale {:.3}",
+                    h.image, h.protocol, h.rmse, h.rmse_scaled, h.scale
+                );
+            }
+            if let Some(h) = &r.headline_detail {
+                println!(
+                    "headline: held-out error / baseline error = {:.3} (half {:.5}, baseline {:.5}, {} photo(s))",
+                    h.ratio, h.method_rmse, h.baseline_rmse, h.photos
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Size rayon's global pool (once, before any parallel work).
+fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        if n == 0 {
+            anyhow::bail!("--threads 0: at least one thread is needed");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use crate::{Cli, Command};
@@ -558,10 +614,10 @@ mod tests {
             .filter(|l| *l != "help")
             .map(str::to_string)
             .collect();
-        let documented = check_flag_table("docs/flags.md", include_str!("../docs/flags.md"));
+        let documented = check_flag_table("docs/flags.md", include_str!("../../docs/flags.md"));
         let missing: Vec<_> = all.difference(&documented).collect();
         assert!(missing.is_empty(), "docs/flags.md lacks {missing:?}");
-        let readme = check_flag_table("README.md", include_str!("../README.md"));
+        let readme = check_flag_table("README.md", include_str!("../../README.md"));
         // The README keeps a short table of the flags a user tunes first; fewer than 8
         // means its table was lost or mangled (it has 12 today).
         assert!(readme.len() >= 8, "README names only {readme:?}");
