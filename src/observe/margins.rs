@@ -2,7 +2,7 @@
 //! object's silhouette or of a depth discontinuity in its photo is down-weighted, because a
 //! small misregistration (camera pose, mesh, lens) mixes the other surface into its colour.
 //!
-//! Per view, the mesh is rasterised ([`crate::render::rasterize`], z-buffer depth `z`).
+//! Per view, the mesh is rasterised ([`crate::observe::raster::rasterize`], z-buffer depth `z`).
 //! A covered pixel `p` is an **edge pixel** when a 4-neighbour `q` is background (the
 //! silhouette) or covered with `|z_p − z_q| > τ · min(z_p, z_q)` (a depth discontinuity,
 //! `τ` = [`EdgeMargin::depth_jump`]; both sides are marked). `d(p)` is the Euclidean distance
@@ -150,7 +150,7 @@ pub fn edge_distance(
     image: &crate::import::colmap::Image,
     depth_jump: f64,
 ) -> Vec<f32> {
-    let raster = crate::render::rasterize(mesh, camera, image);
+    let raster = crate::observe::raster::rasterize(mesh, camera, image);
     let (w, h) = (raster.width as usize, raster.height as usize);
     let edges = edge_pixels(&raster.depth, w, h, depth_jump);
     distance_to(&edges, w, h)

@@ -40,6 +40,7 @@ pub mod cone;
 pub mod inspect;
 pub mod margins;
 pub mod outliers;
+pub mod raster;
 pub mod trace;
 
 use std::ops::Range;

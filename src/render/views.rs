@@ -119,7 +119,7 @@ pub fn orbit(image: &Image, up: &Vec3, centre: &Vec3, i: usize, n: usize) -> Res
 /// The light's part of output names (module docs): the map's file stem, `+sun`, `_rotDEG`.
 pub fn light_name(env: Option<&Path>, sun: bool, rotate_deg: f64) -> String {
     let mut s = match env {
-        Some(p) => crate::render::relight::file_stem(
+        Some(p) => file_stem(
             &p.file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "map".into()),
@@ -136,9 +136,26 @@ pub fn light_name(env: Option<&Path>, sun: bool, rotate_deg: f64) -> String {
     s
 }
 
+/// A file-name-safe stem of an image name (`dir/a.jpg` → `dir_a`).
+pub fn file_stem(name: &str) -> String {
+    let base = match name.rfind('.') {
+        Some(i) if i > 0 => &name[..i],
+        _ => name,
+    };
+    base.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// The output stem of one view: `LIGHT__CAMERA`, `_orbitNNN` for turntable frame `frame`.
 pub fn output_stem(light: &str, camera_name: &str, frame: Option<usize>) -> String {
-    let cam = crate::render::relight::file_stem(camera_name);
+    let cam = file_stem(camera_name);
     match frame {
         Some(i) => format!("{light}__{cam}_orbit{i:03}"),
         None => format!("{light}__{cam}"),

@@ -131,7 +131,7 @@ fn held_out_section(s: &mut String, r: &RunReport, dir: &Path) {
     for h in &r.holdout {
         let stem = format!(
             "renders/panels/{}.{}",
-            crate::render::relight::file_stem(&h.image),
+            crate::render::views::file_stem(&h.image),
             h.protocol
         );
         let range: Option<DiffRange> =

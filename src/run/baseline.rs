@@ -19,8 +19,8 @@
 //! predict an unseen photo better than its training colours do.
 
 use crate::import::mesh::Mesh;
+use crate::observe::raster::Raster;
 use crate::observe::Observations;
-use crate::render::Raster;
 
 /// The baseline's per-vertex colours.
 #[derive(Debug, Clone)]

@@ -401,7 +401,7 @@ impl Scored<'_> {
             protocol: protocol.to_string(),
             metrics: image_metrics(&self.photo.rgb, rgb, w, h, mask),
         };
-        let stem = crate::render::relight::file_stem(self.name);
+        let stem = crate::render::views::file_stem(self.name);
         let path = self.renders.join(format!("{stem}.{protocol}.png"));
         write_triptych(&path, self.photo, self.raster, rgb, e.scale)?;
         Ok((e, m))

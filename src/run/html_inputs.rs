@@ -110,7 +110,7 @@ pub(crate) fn html_inputs(f: &Fitted, truth: Option<&Truth>, dir: &Path) -> Resu
     let mut training = Vec::new();
     for (k, &v) in f.train.iter().enumerate() {
         let name = f.scene.views[v].image.name.clone();
-        let stem = crate::render::relight::file_stem(&name);
+        let stem = crate::render::views::file_stem(&name);
         let photo = &f.photos[v];
         let thumbnail = format!("report_files/{stem}.photo.png");
         html::write_thumbnail(

@@ -54,7 +54,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     std::fs::create_dir_all(&env_dir).map_err(|e| Error::io(&env_dir, e))?;
     let height = (2 * f.opts.global_resolution).clamp(32, 512);
     for (k, &v) in f.train.iter().enumerate() {
-        let stem = crate::render::relight::file_stem(&f.scene.views[v].image.name);
+        let stem = crate::render::views::file_stem(&f.scene.views[v].image.name);
         let env = fitted_env(f, k);
         env.write_exr(&env_dir.join(format!("{stem}.oct.exr")))?;
         env.to_latlong(height)
@@ -142,7 +142,7 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         let bar = progress.bar(f.train.len() as u64, "training renders");
         for (k, &v) in f.train.iter().enumerate() {
             let r = render_training_view(f, k)?;
-            let stem = crate::render::relight::file_stem(&f.scene.views[v].image.name);
+            let stem = crate::render::views::file_stem(&f.scene.views[v].image.name);
             write_triptych(
                 &renders.join(format!("{stem}.png")),
                 &f.photos[v],

@@ -23,8 +23,8 @@ use crate::import::scene::Scene;
 use crate::observe::outliers::{
     coherent_mask, excess_over_vertex_median, scores, Adjacency, OutlierOptions,
 };
+use crate::observe::raster::Raster;
 use crate::observe::Observations;
-use crate::render::Raster;
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::transport::Transport;
 use crate::{Error, Result};
@@ -152,7 +152,7 @@ pub(crate) fn write_masks(
         for &x in t.masked.get(k).map_or(&[][..], Vec::as_slice) {
             flagged[x as usize] = true;
         }
-        let raster = crate::render::rasterize(&scene.mesh, &view.camera, &view.image);
+        let raster = crate::observe::raster::rasterize(&scene.mesh, &view.camera, &view.image);
         let pix = pixel_mask(&raster, &scene.mesh.faces, &flagged);
         let bytes: Vec<u8> = pix.iter().map(|&m| if m { 255 } else { 0 }).collect();
         let img = image::GrayImage::from_raw(raster.width, raster.height, bytes)
@@ -160,7 +160,7 @@ pub(crate) fn write_masks(
         let mut png = Vec::new();
         img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .map_err(|e| Error::Internal(format!("outlier mask PNG: {e}")))?;
-        let stem = crate::render::relight::file_stem(&view.image.name);
+        let stem = crate::render::views::file_stem(&view.image.name);
         crate::out_dir::write_atomic(&out.join(format!("{stem}.png")), &png)?;
     }
     Ok(folder)

@@ -94,7 +94,8 @@ pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView
             else {
                 return Ok(None);
             };
-            let raster = crate::render::rasterize(&f.scene.mesh, &view.camera, &view.image);
+            let raster =
+                crate::observe::raster::rasterize(&f.scene.mesh, &view.camera, &view.image);
             Ok(Some(CheckedView {
                 v,
                 envs: [true_env, fitted_env(f, k)],

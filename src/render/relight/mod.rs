@@ -219,23 +219,6 @@ pub fn load_light_latlong(opts: &RenderOptions) -> Result<LatLong> {
 // ---------------------------------------------------------------------------------------
 // Rendering.
 
-/// A file-name-safe stem of an image name (`dir/a.jpg` → `dir_a`).
-pub fn file_stem(name: &str) -> String {
-    let base = match name.rfind('.') {
-        Some(i) if i > 0 => &name[..i],
-        _ => name,
-    };
-    base.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
-}
-
 /// The renderer's rotation for `model` ([`SplatRotation`] at its global side and the
 /// stored visibility's local side, default sub-texels).
 pub fn render_rotation(model: &ResultModel) -> SplatRotation {
