@@ -63,10 +63,7 @@ pub(crate) fn mask_transients(
 ) -> Result<Transients> {
     let nv = mesh.positions.len();
     let adj = Adjacency::from_faces(&mesh.faces, nv);
-    let o = OutlierOptions {
-        floor: opts.robust_floor,
-        ..OutlierOptions::default()
-    };
+    let o = OutlierOptions::with_floor(opts.robust_floor);
     let pilot = EstimateOptions {
         max_outer: PILOT_ITERATIONS,
         validation_fraction: 0.0,

@@ -20,17 +20,12 @@
 //! when `F` is below the current iterate's, otherwise the state (lights, `λ`, `w`, IRLS
 //! weights) is restored, so `F` never rises. The history is then cleared (a rejected
 //! candidate means the local linear model is stale). Each try costs one lighting step.
+//! The step itself is the alternation's (`Alternation::anderson_step`); this module holds
+//! the history and the extrapolation.
 
 use std::collections::VecDeque;
 
 use nalgebra::{DMatrix, DVector};
-
-use crate::solve::alternation::Alternation;
-use crate::solve::light::LightModel;
-use crate::solve::materials::{data_weights, weights_step};
-use crate::solve::objective::Objective;
-use crate::solve::problem::basis_responses;
-use crate::Result;
 
 /// The pairs `(x_i, G(x_i))` Anderson acceleration extrapolates from.
 #[derive(Debug, Clone, Default)]
@@ -123,7 +118,7 @@ pub(crate) fn flatten(lambda: &[Vec<[f64; 3]>]) -> Vec<f64> {
 }
 
 /// `flat` back into `lambda`'s shape, projected to `≥ 0`.
-fn unflatten(flat: &[f64], like: &[Vec<[f64; 3]>]) -> Vec<Vec<[f64; 3]>> {
+pub(crate) fn unflatten(flat: &[f64], like: &[Vec<[f64; 3]>]) -> Vec<Vec<[f64; 3]>> {
     let mut it = flat.iter().map(|v| v.max(0.0));
     like.iter()
         .map(|l| {
@@ -132,52 +127,6 @@ fn unflatten(flat: &[f64], like: &[Vec<[f64; 3]>]) -> Vec<Vec<[f64; 3]>> {
                 .collect()
         })
         .collect()
-}
-
-/// After an outer iteration whose state has objective `current`: records the pair, tries
-/// the extrapolated `λ` (module docs) and keeps it when `F` drops. Returns the objective
-/// of the state kept.
-pub(crate) fn anderson_step<M: LightModel>(
-    alt: &mut Alternation<'_, M>,
-    outer_it: usize,
-    current: Objective,
-) -> Result<Objective> {
-    let Some(mut hist) = alt.anderson.take() else {
-        return Ok(current);
-    };
-    let mut kept = current;
-    if let Some(cand) = hist.push(flatten(&alt.lambda)) {
-        hist.tried += 1;
-        let saved = (alt.snapshot(), alt.omega.clone());
-        let problem = alt.problem;
-        alt.lambda = unflatten(&cand, &alt.lambda);
-        let dw = data_weights(problem, &alt.omega, alt.opts);
-        let s = basis_responses(problem, &alt.light.maps(alt.light.params()));
-        let sum_gamma = alt.sum_gamma.clone();
-        let w = weights_step(
-            problem,
-            &s,
-            &alt.lambda,
-            &alt.weights,
-            &dw.weights,
-            sum_gamma.as_deref(),
-            None,
-        )?;
-        alt.weights = w.weights;
-        alt.lighting(outer_it)?;
-        let obj = alt.objective(None);
-        if obj.value.is_finite() && obj.value < current.value {
-            hist.kept += 1;
-            kept = obj;
-        } else {
-            alt.restore(saved.0);
-            alt.omega = saved.1;
-            hist.clear();
-        }
-    }
-    hist.start(flatten(&alt.lambda));
-    alt.anderson = Some(hist);
-    Ok(kept)
 }
 
 #[cfg(test)]

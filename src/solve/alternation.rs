@@ -16,7 +16,7 @@
 
 use std::time::Instant;
 
-use crate::solve::accel::{anderson_step, AndersonHistory};
+use crate::solve::accel::{flatten, unflatten, AndersonHistory};
 use crate::solve::light::paper::PaperLight;
 use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
@@ -99,7 +99,11 @@ pub fn estimate_with<M: LightModel>(
         }
         prev_obj = objective;
     }
-    let validation = stop.finish(&mut alt);
+    let validation = stop.finish().map(|(best, record)| {
+        alt.restore(best.state);
+        alt.omega = best.omega;
+        record
+    });
     if held.refit {
         alt.refit_held_weights(problem, &held.idx)?;
     }
@@ -142,6 +146,12 @@ pub(crate) struct Snapshot<P> {
     pub(crate) light: P,
     pub(crate) lambda: Vec<Vec<[f64; 3]>>,
     pub(crate) weights: Vec<f64>,
+}
+
+/// What early stopping keeps of its best iterate: the parameters and the IRLS weights.
+pub(crate) struct BestIterate<P> {
+    state: Snapshot<P>,
+    omega: Vec<[f32; 3]>,
 }
 
 /// The state the alternation carries from one step to the next.
@@ -201,7 +211,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     fn iteration(
         &mut self,
         outer_it: usize,
-        stop: &mut EarlyStop<M::Params>,
+        stop: &mut EarlyStop<BestIterate<M::Params>>,
         t0: Instant,
     ) -> Result<Iteration> {
         let (lighting_seconds, lighting_cpu_seconds) = self.lighting(outer_it)?;
@@ -211,7 +221,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let mut obj = self.objective(Some(&s));
         if !self.opts.fixed_materials && self.opts.extrapolate {
             obj = self.extrapolate(outer_it, obj);
-            obj = anderson_step(self, outer_it, obj)?;
+            obj = self.anderson_step(outer_it, obj)?;
         }
         if !obj.value.is_finite() {
             return Err(Error::Numeric {
@@ -219,7 +229,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 message: "the objective became non-finite".into(),
             });
         }
-        let validation_rel = stop.score(self, outer_it);
+        let validation_rel = self.score(stop, outer_it);
         Ok(Iteration {
             seconds: t0.elapsed().as_secs_f64(),
             objective: obj.value,
@@ -273,6 +283,67 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             self.weights[x * kk..(x + 1) * kk].copy_from_slice(&w.weights[x * kk..(x + 1) * kk]);
         }
         Ok(())
+    }
+
+    /// After an outer iteration whose state has objective `current`: records the pair, tries
+    /// the extrapolated `λ` ([`crate::solve::accel`]) and keeps it when `F` drops. Returns the objective
+    /// of the state kept.
+    pub(crate) fn anderson_step(
+        &mut self,
+        outer_it: usize,
+        current: Objective,
+    ) -> Result<Objective> {
+        let alt = self;
+        let Some(mut hist) = alt.anderson.take() else {
+            return Ok(current);
+        };
+        let mut kept = current;
+        if let Some(cand) = hist.push(flatten(&alt.lambda)) {
+            hist.tried += 1;
+            let saved = (alt.snapshot(), alt.omega.clone());
+            let problem = alt.problem;
+            alt.lambda = unflatten(&cand, &alt.lambda);
+            let dw = data_weights(problem, &alt.omega, alt.opts);
+            let s = basis_responses(problem, &alt.light.maps(alt.light.params()));
+            let sum_gamma = alt.sum_gamma.clone();
+            let w = weights_step(
+                problem,
+                &s,
+                &alt.lambda,
+                &alt.weights,
+                &dw.weights,
+                sum_gamma.as_deref(),
+                None,
+            )?;
+            alt.weights = w.weights;
+            alt.lighting(outer_it)?;
+            let obj = alt.objective(None);
+            if obj.value.is_finite() && obj.value < current.value {
+                hist.kept += 1;
+                kept = obj;
+            } else {
+                alt.restore(saved.0);
+                alt.omega = saved.1;
+                hist.clear();
+            }
+        }
+        hist.start(flatten(&alt.lambda));
+        alt.anderson = Some(hist);
+        Ok(kept)
+    }
+
+    /// Early stopping's score of the current iterate, kept when it is the best so far
+    /// (`None` when early stopping is off).
+    fn score(&self, stop: &mut EarlyStop<BestIterate<M::Params>>, outer_it: usize) -> Option<f64> {
+        if !stop.is_on() {
+            return None;
+        }
+        let beta = beta_per_vertex(&self.lambda, &self.weights, self.problem.n_vertices);
+        let maps = self.light.maps(self.light.params());
+        stop.score(self.problem, &maps, &beta, outer_it, || BestIterate {
+            state: self.snapshot(),
+            omega: self.omega.clone(),
+        })
     }
 
     fn materials(&mut self) -> Result<Vec<[f64; 3]>> {

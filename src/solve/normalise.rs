@@ -22,42 +22,11 @@
 
 use crate::solve::light::LightModel;
 use crate::solve::options::EstimateOptions;
+pub use crate::solve::options::ScaleAnchor;
 use crate::solve::result::Materials0;
-use crate::{Error, Result};
 
 /// The mean diffuse albedo per channel under [`ScaleAnchor::GreyWorld`].
 pub const GREY_WORLD_ALBEDO: f64 = 0.5;
-
-/// How the per-channel scale between reflectance and light is fixed (module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum ScaleAnchor {
-    /// The start's per-channel balance; the mean Lambertian weight at its start value.
-    #[default]
-    Start,
-    /// Mean diffuse albedo over the surface = 0.5 per channel.
-    GreyWorld,
-}
-
-impl ScaleAnchor {
-    /// Parse `start` or `grey-world`.
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "start" => Ok(ScaleAnchor::Start),
-            "grey-world" => Ok(ScaleAnchor::GreyWorld),
-            other => Err(Error::Config(format!(
-                "--scale-anchor {other}: expected `start` or `grey-world`"
-            ))),
-        }
-    }
-
-    /// The name `parse` reads (the report's `scale_anchor.name`).
-    pub fn name(self) -> &'static str {
-        match self {
-            ScaleAnchor::Start => "start",
-            ScaleAnchor::GreyWorld => "grey-world",
-        }
-    }
-}
 
 /// Normalises `lambda`, `weights` and the light (module docs); the rule applied, in words
 /// ([`crate::solve::Estimate::normalisation`]).

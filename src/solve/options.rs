@@ -129,7 +129,7 @@ pub struct EstimateOptions {
     /// Hold back, instead, the right halves of a few training photos
     /// ([`crate::solve::validation::photo_halves_split`]); built by `crate::run` from the
     /// cameras. Takes precedence over `validation_block`. Default `None`.
-    pub validation_halves: Option<std::sync::Arc<crate::solve::validation::PhotoHalves>>,
+    pub validation_halves: Option<std::sync::Arc<PhotoHalves>>,
     /// Hold the per-channel scale of the reflectance (`Σ_x Σ_b β_{x,b,c}`) at its start
     /// value after every material step, the maps taking the inverse factor. Default off:
     /// on noise-free `spot-varying` it changed the held-out error after 20 iterations
@@ -208,10 +208,10 @@ pub struct EstimateOptions {
     pub anderson_depth: usize,
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
-    pub light_groups: Option<crate::solve::light::shared::LightGroups>,
+    pub light_groups: Option<LightGroups>,
     /// How the per-channel scale between reflectance and light is fixed after the
-    /// alternation ([`crate::solve::normalise::ScaleAnchor`]).
-    pub scale_anchor: crate::solve::normalise::ScaleAnchor,
+    /// alternation ([`ScaleAnchor`]).
+    pub scale_anchor: ScaleAnchor,
 }
 
 /// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. A run with the
@@ -341,7 +341,95 @@ impl Default for EstimateOptions {
             achromatic_specular: false,
             anderson_depth: 0,
             light_groups: None,
-            scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
+            scale_anchor: ScaleAnchor::Start,
+        }
+    }
+}
+
+/// A validation split by photo half: for each chosen training photo (its index in the
+/// observations' `photo`), which vertices project right of the object's middle in it.
+/// The rule is per (photo, vertex), so it applies to any observation list over the same
+/// photos; `crate::run` builds it from the cameras.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PhotoHalves {
+    /// `(photo, right)`: `right[x]` when vertex `x` projects right of the middle.
+    pub right: Vec<(u32, Vec<bool>)>,
+}
+
+/// Which photos share a map: a group index per photo of the problem (training photos, in
+/// problem order), groups numbered `0..n_groups` in order of first appearance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightGroups {
+    /// `g(I)` per photo.
+    pub group: Vec<usize>,
+    /// Where the groups came from, in words (the report's).
+    pub source: String,
+}
+
+impl LightGroups {
+    /// Groups from any labels per photo, renumbered in order of first appearance.
+    pub fn from_labels<T: PartialEq + Clone>(labels: &[T], source: String) -> Self {
+        let mut seen: Vec<T> = Vec::new();
+        let group = labels
+            .iter()
+            .map(|l| match seen.iter().position(|s| s == l) {
+                Some(g) => g,
+                None => {
+                    seen.push(l.clone());
+                    seen.len() - 1
+                }
+            })
+            .collect();
+        LightGroups { group, source }
+    }
+
+    /// The number of groups.
+    pub fn n_groups(&self) -> usize {
+        self.group.iter().max().map_or(0, |&g| g + 1)
+    }
+
+    /// The photos of each group, ascending.
+    pub fn members(&self) -> Vec<Vec<usize>> {
+        let mut m = vec![Vec::new(); self.n_groups()];
+        for (i, &g) in self.group.iter().enumerate() {
+            m[g].push(i);
+        }
+        m
+    }
+
+    /// Whether some group holds more than one photo (else the model is the paper's).
+    pub fn any_shared(&self) -> bool {
+        self.members().iter().any(|m| m.len() > 1)
+    }
+}
+
+/// How the per-channel scale between reflectance and light is fixed (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ScaleAnchor {
+    /// The start's per-channel balance; the mean Lambertian weight at its start value.
+    #[default]
+    Start,
+    /// Mean diffuse albedo over the surface = 0.5 per channel.
+    GreyWorld,
+}
+
+impl ScaleAnchor {
+    /// Parse `start` or `grey-world`.
+    pub fn parse(s: &str) -> crate::Result<Self> {
+        match s {
+            "start" => Ok(ScaleAnchor::Start),
+            "grey-world" => Ok(ScaleAnchor::GreyWorld),
+            other => Err(crate::Error::Config(format!(
+                "--scale-anchor {other}: expected `start` or `grey-world`"
+            ))),
+        }
+    }
+
+    /// The name `parse` reads (the report's `scale_anchor.name`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ScaleAnchor::Start => "start",
+            ScaleAnchor::GreyWorld => "grey-world",
         }
     }
 }

@@ -17,11 +17,9 @@
 use rayon::prelude::*;
 
 use crate::observe::Observations;
-use crate::solve::alternation::{Alternation, Snapshot};
-use crate::solve::light::LightModel;
 use crate::solve::materials::by_vertex;
-use crate::solve::options::{EstimateOptions, VALIDATION_MIN_FIT};
-use crate::solve::problem::{beta_per_vertex, haar3, Problem, CHUNK};
+use crate::solve::options::{EstimateOptions, PhotoHalves, VALIDATION_MIN_FIT};
+use crate::solve::problem::{haar3, Problem, CHUNK};
 use crate::solve::result::Validation;
 
 /// Early stopping's validation observations (sorted): per vertex in order, each of its
@@ -78,16 +76,6 @@ pub fn validation_split_blocked(
     (0..obs.len())
         .filter(|&p| obs.weight[p] > 0.0 && drawn[obs.vertex[p] as usize / block])
         .collect()
-}
-
-/// A validation split by photo half: for each chosen training photo (its index in the
-/// observations' `photo`), which vertices project right of the object's middle in it.
-/// The rule is per (photo, vertex), so it applies to any observation list over the same
-/// photos; `crate::run` builds it from the cameras.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct PhotoHalves {
-    /// `(photo, right)`: `right[x]` when vertex `x` projects right of the middle.
-    pub right: Vec<(u32, Vec<bool>)>,
 }
 
 /// Photo-half validation observations (sorted): every `α > 0` observation of a chosen
@@ -399,26 +387,26 @@ impl HeldBack {
 }
 
 /// The best iterate so far by validation score.
-struct Best<P> {
+struct Best<S> {
     /// Its outer iteration, from 1.
     iteration: usize,
-    state: Snapshot<P>,
-    omega: Vec<[f32; 3]>,
+    /// What the alternation keeps of it (its parameters and IRLS weights).
+    state: S,
 }
 
-/// Early stopping's running record.
-pub(crate) struct EarlyStop<'a, P> {
+/// Early stopping's running record; `S` is the state kept of the best iterate.
+pub(crate) struct EarlyStop<'a, S> {
     idx: &'a [usize],
     /// The unmasked observations (their `α` weigh the score).
     full_obs: &'a Observations,
     fraction: f64,
     errors: Vec<f64>,
-    best: Option<Best<P>>,
+    best: Option<Best<S>>,
     /// Whether the loop ended before `max_outer` for want of a better score.
     pub(crate) stopped_early: bool,
 }
 
-impl<'a, P: Clone> EarlyStop<'a, P> {
+impl<'a, S> EarlyStop<'a, S> {
     pub(crate) fn new(held: &'a HeldBack, full_obs: &'a Observations, fraction: f64) -> Self {
         EarlyStop {
             idx: &held.idx,
@@ -430,19 +418,26 @@ impl<'a, P: Clone> EarlyStop<'a, P> {
         }
     }
 
-    /// Scores the alternation's state after outer iteration `outer_it` and keeps it when
-    /// it is the best so far; `None` when early stopping is off.
-    pub(crate) fn score<M: LightModel<Params = P>>(
+    /// Whether early stopping is on (some observations are held back).
+    pub(crate) fn is_on(&self) -> bool {
+        !self.idx.is_empty()
+    }
+
+    /// Scores the state `(maps, beta)` after outer iteration `outer_it`
+    /// ([`validation_error`]) and keeps `keep()` when it is the best so far; `None` when
+    /// early stopping is off.
+    pub(crate) fn score(
         &mut self,
-        alt: &Alternation<M>,
+        problem: &Problem,
+        maps: &[[Vec<f64>; 3]],
+        beta: &[[f64; 3]],
         outer_it: usize,
+        keep: impl FnOnce() -> S,
     ) -> Option<f64> {
-        if self.idx.is_empty() {
+        if !self.is_on() {
             return None;
         }
-        let beta = beta_per_vertex(&alt.lambda, &alt.weights, alt.problem.n_vertices);
-        let maps = alt.light.maps(alt.light.params());
-        let e = validation_error(alt.problem, self.full_obs, &maps, &beta, self.idx);
+        let e = validation_error(problem, self.full_obs, maps, beta, self.idx);
         self.errors.push(e);
         if self
             .best
@@ -451,8 +446,7 @@ impl<'a, P: Clone> EarlyStop<'a, P> {
         {
             self.best = Some(Best {
                 iteration: outer_it,
-                state: alt.snapshot(),
-                omega: alt.omega.clone(),
+                state: keep(),
             });
         }
         Some(e)
@@ -473,24 +467,21 @@ impl<'a, P: Clone> EarlyStop<'a, P> {
                 .is_some_and(|b| outer_it >= b.iteration + patience.max(1))
     }
 
-    /// Puts the best iterate back into `alt` (light parameters, materials, IRLS weights)
-    /// and returns the record, when early stopping was on.
-    pub(crate) fn finish<M: LightModel<Params = P>>(
-        self,
-        alt: &mut Alternation<M>,
-    ) -> Option<Validation> {
+    /// The best iterate's kept state and the record, when early stopping was on.
+    pub(crate) fn finish(self) -> Option<(S, Validation)> {
         let observations = self.idx.len();
         let (errors, fraction, stopped_early) = (self.errors, self.fraction, self.stopped_early);
         self.best.map(|b| {
-            alt.restore(b.state);
-            alt.omega = b.omega;
-            Validation {
-                observations,
-                fraction,
-                errors,
-                best_iteration: b.iteration,
-                stopped_early,
-            }
+            (
+                b.state,
+                Validation {
+                    observations,
+                    fraction,
+                    errors,
+                    best_iteration: b.iteration,
+                    stopped_early,
+                },
+            )
         })
     }
 }

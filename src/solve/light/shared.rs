@@ -42,6 +42,7 @@ use crate::solve::light::laplacian::{
 use crate::solve::light::photo::{lighting_sample, reweight, PhotoData};
 use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
+pub use crate::solve::options::LightGroups;
 use crate::solve::options::{EstimateOptions, Robust};
 use crate::solve::problem::{
     basis_responses, beta_per_vertex, haar3, par_largest_first, predict_from, Problem,
@@ -54,53 +55,6 @@ use crate::{Error, Result};
 /// Map / gains rounds per IRLS pass of one lighting step. Two: the first round's map
 /// is fitted with the previous gains, the second's with gains matched to it.
 pub const INNER_ROUNDS: usize = 2;
-
-/// Which photos share a map: a group index per photo of the problem (training photos, in
-/// problem order), groups numbered `0..n_groups` in order of first appearance.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LightGroups {
-    /// `g(I)` per photo.
-    pub group: Vec<usize>,
-    /// Where the groups came from, in words (the report's).
-    pub source: String,
-}
-
-impl LightGroups {
-    /// Groups from any labels per photo, renumbered in order of first appearance.
-    pub fn from_labels<T: PartialEq + Clone>(labels: &[T], source: String) -> Self {
-        let mut seen: Vec<T> = Vec::new();
-        let group = labels
-            .iter()
-            .map(|l| match seen.iter().position(|s| s == l) {
-                Some(g) => g,
-                None => {
-                    seen.push(l.clone());
-                    seen.len() - 1
-                }
-            })
-            .collect();
-        LightGroups { group, source }
-    }
-
-    /// The number of groups.
-    pub fn n_groups(&self) -> usize {
-        self.group.iter().max().map_or(0, |&g| g + 1)
-    }
-
-    /// The photos of each group, ascending.
-    pub fn members(&self) -> Vec<Vec<usize>> {
-        let mut m = vec![Vec::new(); self.n_groups()];
-        for (i, &g) in self.group.iter().enumerate() {
-            m[g].push(i);
-        }
-        m
-    }
-
-    /// Whether some group holds more than one photo (else the model is the paper's).
-    pub fn any_shared(&self) -> bool {
-        self.members().iter().any(|m| m.len() > 1)
-    }
-}
 
 /// The shared model's parameters: a map per group and gains per photo.
 #[derive(Clone, Debug)]
