@@ -377,6 +377,10 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
 /// condition-number bound comes from Rayleigh quotients of `H` alone (the CG's Ritz
 /// values then describe `M⁻¹H`, not `H`). Entries of `m` that are not finite and positive
 /// count as 1.
+///
+/// Each outer iteration is Moré & Toraldo's two phases: gradient projection until the
+/// active face settles ([`Gpcg::projection_phase`]), then CG on the free face
+/// ([`Gpcg::face_phase`]).
 pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
     hess_mul: H,
     b: &[f64],
@@ -384,62 +388,12 @@ pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
     opts: &QpOptions,
     diag: Option<&[f64]>,
 ) -> Result<QpResult> {
-    let n = b.len();
-    if diag.is_some_and(|m| m.len() != n) {
-        return Err(Error::Numeric {
-            stage: "bound_qp".into(),
-            message: format!(
-                "scaling has {} entries, b has {n}",
-                diag.map_or(0, |m| m.len())
-            ),
-        });
-    }
-    let inv_m: Option<Vec<f64>> = diag.map(|m| {
-        m.iter()
-            .map(|&v| {
-                if v.is_finite() && v > 0.0 {
-                    1.0 / v
-                } else {
-                    1.0
-                }
-            })
-            .collect()
-    });
-    let scale = |i: usize| inv_m.as_ref().map_or(1.0, |w| w[i]);
-    if x0.len() != n {
-        return Err(Error::Numeric {
-            stage: "bound_qp".into(),
-            message: format!("start has {} entries, b has {n}", x0.len()),
-        });
-    }
-    if b.iter().chain(x0).any(|v| !v.is_finite()) {
-        return Err(Error::Numeric {
-            stage: "bound_qp".into(),
-            message: "non-finite entry in b or the start".into(),
-        });
-    }
-    let mut it = Iterate {
-        x: x0.iter().map(|v| v.max(0.0)).collect(),
-        hx: vec![0.0; n],
-        g: vec![0.0; n],
-        f: 0.0,
-    };
-    hess_mul(&it.x, &mut it.hx);
-    let mut matvecs = 1;
-    it.refresh(b);
-    // Extreme Rayleigh quotients / Ritz values seen: (min, max).
-    let mut spec = (f64::INFINITY, 0.0_f64);
-    let mut d = vec![0.0; n];
-    let mut hd = vec![0.0; n];
-    let mut p = vec![0.0; n];
-    let mut hp = vec![0.0; n];
-    let mut r = vec![0.0; n];
-    let mut z = vec![0.0; n];
-    let mut iterations = 0;
-    let mut converged = false;
-    let mut kkt = kkt_violation(&it.g, &it.x);
+    let inv_m = check_qp_inputs(b, x0, diag)?;
+    let mut s = Gpcg::new(&hess_mul, b, x0, inv_m);
+    let (mut iterations, mut converged) = (0, false);
+    let mut kkt = kkt_violation(&s.it.g, &s.it.x);
     while iterations < opts.max_iter {
-        if !kkt.is_finite() || !it.f.is_finite() {
+        if !kkt.is_finite() || !s.it.f.is_finite() {
             return Err(Error::Numeric {
                 stage: "bound_qp".into(),
                 message: "the iterate became non-finite (is H positive semi-definite?)".into(),
@@ -452,13 +406,143 @@ pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
         iterations += 1;
         // Exact products now and then, against drift of the updated H x.
         if iterations % 8 == 0 {
-            hess_mul(&it.x, &mut it.hx);
-            matvecs += 1;
-            it.refresh(b);
+            s.exact_product();
         }
+        s.projection_phase();
+        kkt = kkt_violation(&s.it.g, &s.it.x);
+        if kkt <= opts.tol {
+            converged = true;
+            break;
+        }
+        s.face_phase(opts.max_cg);
+        kkt = kkt_violation(&s.it.g, &s.it.x);
+    }
+    if !converged && kkt <= opts.tol {
+        converged = true;
+    }
+    let (lo, hi) = s.spec;
+    Ok(QpResult {
+        objective: s.it.f,
+        kkt,
+        x: s.it.x,
+        iterations,
+        matvecs: s.matvecs,
+        converged,
+        cond_lower_bound: if lo.is_finite() && lo > 0.0 {
+            hi / lo
+        } else {
+            f64::INFINITY
+        },
+    })
+}
 
-        // 1. Gradient projection phase: steepest descent with projected search until the
-        //    active face settles or progress stalls (Moré–Toraldo, η₂ = 0.25).
+/// The inputs of [`bound_qp_scaled`] checked (lengths, finite entries); the inverse of the
+/// scaling, `1/m_i` (1 where `m_i` is not finite and positive), when given.
+fn check_qp_inputs(b: &[f64], x0: &[f64], diag: Option<&[f64]>) -> Result<Option<Vec<f64>>> {
+    let n = b.len();
+    if diag.is_some_and(|m| m.len() != n) {
+        return Err(Error::Numeric {
+            stage: "bound_qp".into(),
+            message: format!(
+                "scaling has {} entries, b has {n}",
+                diag.map_or(0, |m| m.len())
+            ),
+        });
+    }
+    if x0.len() != n {
+        return Err(Error::Numeric {
+            stage: "bound_qp".into(),
+            message: format!("start has {} entries, b has {n}", x0.len()),
+        });
+    }
+    if b.iter().chain(x0).any(|v| !v.is_finite()) {
+        return Err(Error::Numeric {
+            stage: "bound_qp".into(),
+            message: "non-finite entry in b or the start".into(),
+        });
+    }
+    Ok(diag.map(|m| {
+        m.iter()
+            .map(|&v| {
+                if v.is_finite() && v > 0.0 {
+                    1.0 / v
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    }))
+}
+
+/// The GPCG solver's state: the iterate, the scaling, the product count, the extreme
+/// Rayleigh quotients / Ritz values seen `(min, max)`, and scratch vectors.
+struct Gpcg<'a, H: Fn(&[f64], &mut [f64])> {
+    hess_mul: &'a H,
+    b: &'a [f64],
+    inv_m: Option<Vec<f64>>,
+    it: Iterate,
+    matvecs: usize,
+    spec: (f64, f64),
+    d: Vec<f64>,
+    hd: Vec<f64>,
+    p: Vec<f64>,
+    hp: Vec<f64>,
+    r: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl<'a, H: Fn(&[f64], &mut [f64])> Gpcg<'a, H> {
+    /// The state at `P(x0)`, its product `H x` formed.
+    fn new(hess_mul: &'a H, b: &'a [f64], x0: &[f64], inv_m: Option<Vec<f64>>) -> Self {
+        let n = b.len();
+        let zeros = || vec![0.0; n];
+        let mut s = Gpcg {
+            hess_mul,
+            b,
+            inv_m,
+            it: Iterate {
+                x: x0.iter().map(|v| v.max(0.0)).collect(),
+                hx: zeros(),
+                g: zeros(),
+                f: 0.0,
+            },
+            matvecs: 0,
+            spec: (f64::INFINITY, 0.0),
+            d: zeros(),
+            hd: zeros(),
+            p: zeros(),
+            hp: zeros(),
+            r: zeros(),
+            z: zeros(),
+        };
+        s.exact_product();
+        s
+    }
+
+    /// `H x` formed anew (not updated), then the gradient and objective.
+    fn exact_product(&mut self) {
+        (self.hess_mul)(&self.it.x, &mut self.it.hx);
+        self.matvecs += 1;
+        self.it.refresh(self.b);
+    }
+
+    /// Phase 1, gradient projection: steepest descent (`−M⁻¹ g`, zero on the active
+    /// bounds) with a projected search, until the active face settles or progress stalls
+    /// (Moré–Toraldo, η₂ = 0.25), at most 12 steps.
+    fn projection_phase(&mut self) {
+        let n = self.b.len();
+        let Gpcg {
+            hess_mul,
+            b,
+            inv_m,
+            it,
+            matvecs,
+            spec,
+            d,
+            hd,
+            ..
+        } = self;
+        let scale = |i: usize| inv_m.as_ref().map_or(1.0, |w| w[i]);
         let mut best_dec = 0.0_f64;
         for _ in 0..12 {
             for i in 0..n {
@@ -468,20 +552,20 @@ pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
                     -it.g[i] * scale(i)
                 };
             }
-            let dd = dot(&d, &d);
+            let dd = dot(d, d);
             if dd == 0.0 {
                 break;
             }
-            hess_mul(&d, &mut hd);
-            matvecs += 1;
-            let dhd = dot(&d, &hd);
-            record(&mut spec, dhd / dd);
+            hess_mul(d, hd);
+            *matvecs += 1;
+            let dhd = dot(d, hd);
+            record(spec, dhd / dd);
             // Exact minimiser along d: −gᵀd / dᵀHd (= dᵀd / dᵀHd unscaled).
-            let gd = -dot(&it.g, &d);
+            let gd = -dot(&it.g, d);
             let alpha = if dhd > 0.0 && gd > 0.0 { gd / dhd } else { 1.0 };
             let before: Vec<bool> = it.x.iter().map(|&v| v > 0.0).collect();
             let f_old = it.f;
-            if !projected_search(&hess_mul, b, &mut it, &d, &hd, alpha, &mut matvecs) {
+            if !projected_search(*hess_mul, b, it, d, hd, alpha, matvecs) {
                 break;
             }
             let dec = f_old - it.f;
@@ -491,90 +575,88 @@ pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
                 break;
             }
         }
-        kkt = kkt_violation(&it.g, &it.x);
-        if kkt <= opts.tol {
-            converged = true;
-            break;
-        }
+    }
 
-        // 2. CG on the free face F = {x > 0}: H_FF d_F = −g_F.
+    /// Phase 2, (preconditioned) CG on the free face `F = {x > 0}`: `H_FF d_F = −g_F` to a
+    /// forcing tolerance, at most `max_cg` steps, then a projected search along `d`.
+    fn face_phase(&mut self, max_cg: usize) {
+        let n = self.b.len();
+        let Gpcg {
+            hess_mul,
+            b,
+            inv_m,
+            it,
+            matvecs,
+            spec,
+            d,
+            hd,
+            p,
+            hp,
+            r,
+            z,
+        } = self;
+        let scale = |i: usize| inv_m.as_ref().map_or(1.0, |w| w[i]);
         let free: Vec<bool> = it.x.iter().map(|&v| v > 0.0).collect();
         for i in 0..n {
             r[i] = if free[i] { -it.g[i] } else { 0.0 };
             d[i] = 0.0;
             hd[i] = 0.0;
         }
-        let rr0 = dot(&r, &r);
-        if rr0 > 0.0 {
-            // z = M⁻¹ r (z = r unscaled); rz = rᵀz drives the (P)CG recurrences, the
-            // unscaled ‖r‖ the stopping rule.
+        let rr0 = dot(r, r);
+        if rr0 <= 0.0 {
+            return;
+        }
+        // z = M⁻¹ r (z = r unscaled); rz = rᵀz drives the (P)CG recurrences, the unscaled
+        // ‖r‖ the stopping rule.
+        for i in 0..n {
+            z[i] = r[i] * scale(i);
+        }
+        p.copy_from_slice(z);
+        let mut rz = dot(r, z);
+        // Forcing term: superlinear near the solution, loose far from it.
+        let eta = (rr0.sqrt().sqrt()).clamp(1e-10, 0.1);
+        // CG's (α, β) define the Lanczos tridiagonal whose Ritz values bound the spectrum
+        // of H_FF from inside: used for the condition-number estimate.
+        let mut lanczos: Vec<(f64, f64)> = Vec::new();
+        for _ in 0..max_cg {
+            hess_mul(p, hp);
+            *matvecs += 1;
+            let php: f64 = (0..n).filter(|&i| free[i]).map(|i| p[i] * hp[i]).sum();
+            record(spec, php / dot(p, p));
+            if php <= 0.0 {
+                break;
+            }
+            let a = rz / php;
+            for i in 0..n {
+                d[i] += a * p[i];
+                hd[i] += a * hp[i];
+                if free[i] {
+                    r[i] -= a * hp[i];
+                }
+            }
+            let rr_new = dot(r, r);
+            if rr_new.sqrt() <= eta * rr0.sqrt() {
+                break;
+            }
             for i in 0..n {
                 z[i] = r[i] * scale(i);
             }
-            p.copy_from_slice(&z);
-            let mut rz = dot(&r, &z);
-            // Forcing term: superlinear near the solution, loose far from it.
-            let eta = (rr0.sqrt().sqrt()).clamp(1e-10, 0.1);
-            // CG's (α, β) define the Lanczos tridiagonal whose Ritz values bound the
-            // spectrum of H_FF from inside: used for the condition-number estimate.
-            let mut lanczos: Vec<(f64, f64)> = Vec::new();
-            for _ in 0..opts.max_cg {
-                hess_mul(&p, &mut hp);
-                matvecs += 1;
-                let php: f64 = (0..n).filter(|&i| free[i]).map(|i| p[i] * hp[i]).sum();
-                record(&mut spec, php / dot(&p, &p));
-                if php <= 0.0 {
-                    break;
-                }
-                let a = rz / php;
-                for i in 0..n {
-                    d[i] += a * p[i];
-                    hd[i] += a * hp[i];
-                    if free[i] {
-                        r[i] -= a * hp[i];
-                    }
-                }
-                let rr_new = dot(&r, &r);
-                if rr_new.sqrt() <= eta * rr0.sqrt() {
-                    break;
-                }
-                for i in 0..n {
-                    z[i] = r[i] * scale(i);
-                }
-                let rz_new = dot(&r, &z);
-                let beta = rz_new / rz;
-                lanczos.push((a, beta));
-                for i in 0..n {
-                    p[i] = z[i] + beta * p[i];
-                }
-                rz = rz_new;
+            let rz_new = dot(r, z);
+            let beta = rz_new / rz;
+            lanczos.push((a, beta));
+            for i in 0..n {
+                p[i] = z[i] + beta * p[i];
             }
-            if inv_m.is_none() {
-                if let Some((lo, hi)) = ritz_extremes(&lanczos) {
-                    record(&mut spec, lo);
-                    record(&mut spec, hi);
-                }
-            }
-            projected_search(&hess_mul, b, &mut it, &d, &hd, 1.0, &mut matvecs);
+            rz = rz_new;
         }
-        kkt = kkt_violation(&it.g, &it.x);
+        if inv_m.is_none() {
+            if let Some((lo, hi)) = ritz_extremes(&lanczos) {
+                record(spec, lo);
+                record(spec, hi);
+            }
+        }
+        projected_search(*hess_mul, b, it, d, hd, 1.0, matvecs);
     }
-    if !converged && kkt <= opts.tol {
-        converged = true;
-    }
-    Ok(QpResult {
-        objective: it.f,
-        kkt,
-        x: it.x,
-        iterations,
-        matvecs,
-        converged,
-        cond_lower_bound: if spec.0.is_finite() && spec.0 > 0.0 {
-            spec.1 / spec.0
-        } else {
-            f64::INFINITY
-        },
-    })
 }
 
 /// Dense convenience: `bound_qp` with `H` given as a matrix.
