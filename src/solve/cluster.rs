@@ -109,6 +109,8 @@ fn median(v: &mut [f64]) -> f64 {
 
 /// Initial materials from per-vertex mean linear colours (`mean_rgb`, `V` entries; only
 /// vertices with `seen[x]` count), at most `k` clusters, deterministic for a given `seed`.
+/// Steps: hue features of the seen vertices, k-means (best of 8 k-means++ starts), empty
+/// clusters dropped, each cluster's median colour, soft weights from the distances.
 ///
 /// Errors: `Config` when `k == 0` or the slices differ in length; `Numeric` when no vertex
 /// is seen or a seen colour is not finite.
@@ -118,6 +120,33 @@ pub fn initial_materials(
     k: usize,
     seed: u64,
 ) -> Result<InitialMaterials> {
+    let idx = seen_vertices(mean_rgb, seen, k)?;
+    let feats: Vec<[f64; 3]> = idx.iter().map(|&x| hue_feature(mean_rgb[x])).collect();
+    let centres = kmeans_best_of(&feats, k, seed)?;
+    // Assign, drop empty clusters, re-assign.
+    let mut count = vec![0usize; centres.len()];
+    for f in &feats {
+        count[nearest(f, &centres)] += 1;
+    }
+    let centres: Vec<[f64; 3]> = centres
+        .into_iter()
+        .zip(&count)
+        .filter(|(_, &n)| n > 0)
+        .map(|(c, _)| c)
+        .collect();
+    let member: Vec<usize> = feats.iter().map(|f| nearest(f, &centres)).collect();
+    let albedo = cluster_medians(mean_rgb, &idx, &member, centres.len());
+    let (labels, weights) = soft_weights(mean_rgb.len(), &idx, &feats, &member, &centres);
+    Ok(InitialMaterials {
+        labels,
+        albedo,
+        weights,
+        centroids: centres,
+    })
+}
+
+/// The seen vertices, after checking `k ≥ 1`, the lengths and the colours.
+fn seen_vertices(mean_rgb: &[[f64; 3]], seen: &[bool], k: usize) -> Result<Vec<usize>> {
     if k == 0 {
         return Err(Error::Internal(
             "the number of materials must be at least 1".into(),
@@ -146,11 +175,16 @@ pub fn initial_materials(
             message: format!("vertex {x} has a non-finite mean colour {:?}", mean_rgb[x]),
         });
     }
-    let feats: Vec<[f64; 3]> = idx.iter().map(|&x| hue_feature(mean_rgb[x])).collect();
+    Ok(idx)
+}
 
+/// k-means on `feats` (linfa), from 8 k-means++ starts over the distinct features, the
+/// centroids of the lowest inertia kept; at most `k` centres (as many as there are
+/// distinct features).
+fn kmeans_best_of(feats: &[[f64; 3]], k: usize, seed: u64) -> Result<Vec<[f64; 3]>> {
     // Distinct features (bitwise), in first-seen order: k-means++ cannot place more centres
     // than there are distinct points.
-    let mut distinct: Vec<[f64; 3]> = feats.clone();
+    let mut distinct: Vec<[f64; 3]> = feats.to_vec();
     distinct.sort_by(|a, b| {
         a.iter()
             .zip(b)
@@ -196,69 +230,75 @@ pub fn initial_materials(
             best = Some((inertia, centres));
         }
     }
-    let Some((_, mut centres)) = best else {
-        return Err(Error::Numeric {
+    best.map(|(_, centres)| centres)
+        .ok_or_else(|| Error::Numeric {
             stage: "initial materials (k-means)".into(),
             message: "k-means produced no finite centroids".into(),
-        });
-    };
+        })
+}
 
-    // Assign, drop empty clusters, re-assign.
-    let nearest = |f: &[f64; 3], cs: &[[f64; 3]]| {
-        let mut bi = 0;
-        for (i, c) in cs.iter().enumerate() {
-            if dist2(f, c) < dist2(f, &cs[bi]) {
-                bi = i;
-            }
+/// Index of the centre nearest `f` (the first of equals).
+fn nearest(f: &[f64; 3], cs: &[[f64; 3]]) -> usize {
+    let mut bi = 0;
+    for (i, c) in cs.iter().enumerate() {
+        if dist2(f, c) < dist2(f, &cs[bi]) {
+            bi = i;
         }
-        bi
-    };
-    let mut count = vec![0usize; centres.len()];
-    for f in &feats {
-        count[nearest(f, &centres)] += 1;
     }
-    centres = centres
-        .into_iter()
-        .zip(&count)
-        .filter(|(_, &n)| n > 0)
-        .map(|(c, _)| c)
-        .collect();
-    let kk = centres.len();
-    let member: Vec<usize> = feats.iter().map(|f| nearest(f, &centres)).collect();
+    bi
+}
 
-    // Median colour per cluster.
+/// Each cluster's median colour per channel over its member vertices (`idx[i]` in
+/// cluster `member[i]`).
+fn cluster_medians(
+    mean_rgb: &[[f64; 3]],
+    idx: &[usize],
+    member: &[usize],
+    kk: usize,
+) -> Vec<[f64; 3]> {
     let mut albedo = vec![[0.0; 3]; kk];
     for (c, alb) in albedo.iter_mut().enumerate() {
         for (ch, a) in alb.iter_mut().enumerate() {
             let mut vals: Vec<f64> = idx
                 .iter()
-                .zip(&member)
+                .zip(member)
                 .filter(|(_, &m)| m == c)
                 .map(|(&x, _)| mean_rgb[x][ch])
                 .collect();
             *a = median(&mut vals);
         }
     }
+    albedo
+}
 
-    // Soft weights from centroid distances.
+/// Per vertex its label and soft weights `w_c ∝ exp(−d_c² / 2s²)` from its feature's
+/// squared distances to the centres, `s²` the mean squared distance to the own centre
+/// (at least 0.05²); unseen vertices get uniform weights and the largest cluster's label.
+fn soft_weights(
+    nv: usize,
+    idx: &[usize],
+    feats: &[[f64; 3]],
+    member: &[usize],
+    centres: &[[f64; 3]],
+) -> (Vec<usize>, Vec<f64>) {
+    let kk = centres.len();
     let spread2 = feats
         .iter()
-        .zip(&member)
+        .zip(member)
         .map(|(f, &m)| dist2(f, &centres[m]))
         .sum::<f64>()
         / feats.len() as f64;
     let s2 = spread2.max(0.05 * 0.05);
-    let nv = mean_rgb.len();
     let mut weights = vec![1.0 / kk as f64; nv * kk];
     let mut count = vec![0usize; kk];
-    for &m in &member {
+    for &m in member {
         count[m] += 1;
     }
     let largest = (0..kk)
         .max_by_key(|&c| (count[c], usize::MAX - c))
         .unwrap_or(0);
     let mut labels = vec![largest; nv];
-    for ((&x, f), &m) in idx.iter().zip(&feats).zip(&member) {
+    for ((&x, f), &m) in idx.iter().zip(feats).zip(member) {
         labels[x] = m;
         let d2: Vec<f64> = centres.iter().map(|c| dist2(f, c)).collect();
         let dmin = d2.iter().copied().fold(f64::INFINITY, f64::min);
@@ -272,12 +312,7 @@ pub fn initial_materials(
             weights[x * kk + c] = e[c] / sum;
         }
     }
-    Ok(InitialMaterials {
-        labels,
-        albedo,
-        weights,
-        centroids: centres,
-    })
+    (labels, weights)
 }
 
 #[cfg(test)]

@@ -313,6 +313,55 @@ fn check_inputs<R: LocalRotation>(
     Ok(())
 }
 
+/// Every observation has a direction and names a vertex of the mesh (`n_vertices`).
+fn check_observations(obs_vertex: &[u32], obs_dir_env: &[Vec3], n_vertices: usize) -> Result<()> {
+    if obs_vertex.len() != obs_dir_env.len() {
+        return Err(Error::Internal(format!(
+            "transport: {} observation vertices but {} directions",
+            obs_vertex.len(),
+            obs_dir_env.len()
+        )));
+    }
+    if let Some(p) = obs_vertex.iter().position(|&v| v as usize >= n_vertices) {
+        return Err(Error::Numeric {
+            stage: "transport".into(),
+            message: format!(
+                "observation {p} names vertex {} but the mesh has {n_vertices}",
+                obs_vertex[p]
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Row `r`'s `lens[r]` entries moved from its slot at `r · stride` to follow the previous
+/// row's, in place (rows shorter than `stride` are rare at `keep ≪ n_global²`), the unused
+/// tail given back; the rows' offsets (`lens.len() + 1`, CSR).
+fn compact_rows(
+    index: &mut Vec<HaarIndex>,
+    value: &mut Vec<TransportValue>,
+    lens: &[usize],
+    stride: usize,
+) -> Vec<usize> {
+    let mut offsets = Vec::with_capacity(lens.len() + 1);
+    offsets.push(0usize);
+    let mut end = 0usize;
+    for (r, &k) in lens.iter().enumerate() {
+        let from = r * stride;
+        if from != end {
+            index.copy_within(from..from + k, end);
+            value.copy_within(from..from + k, end);
+        }
+        end += k;
+        offsets.push(end);
+    }
+    index.truncate(end);
+    index.shrink_to_fit();
+    value.truncate(end);
+    value.shrink_to_fit();
+    offsets
+}
+
 /// Build the transport for observations given by their vertex and their outgoing
 /// direction in the ENVIRONMENT frame (unit, vertex → camera). The kernel behind [`build`];
 /// generic over the rotation so tests can use [`ExactRotation`](crate::sphere::rotation::ExactRotation).
@@ -326,26 +375,7 @@ pub fn build_rows<R: LocalRotation>(
     opts: &TransportOptions,
 ) -> Result<Transport> {
     check_inputs(normals_env.len(), vis, basis, rot, opts)?;
-    if obs_vertex.len() != obs_dir_env.len() {
-        return Err(Error::Internal(format!(
-            "transport: {} observation vertices but {} directions",
-            obs_vertex.len(),
-            obs_dir_env.len()
-        )));
-    }
-    if let Some(p) = obs_vertex
-        .iter()
-        .position(|&v| v as usize >= normals_env.len())
-    {
-        return Err(Error::Numeric {
-            stage: "transport".into(),
-            message: format!(
-                "observation {p} names vertex {} but the mesh has {}",
-                obs_vertex[p],
-                normals_env.len()
-            ),
-        });
-    }
+    check_observations(obs_vertex, obs_dir_env, normals_env.len())?;
     let grid = SliceGrid::shared(opts.n_local)?;
     let nb = basis.len();
     let n_obs = obs_vertex.len();
@@ -404,24 +434,7 @@ pub fn build_rows<R: LocalRotation>(
         },
     );
 
-    // Compact the slots in place (rows shorter than `stride` are rare at `keep ≪ n_global²`)
-    // and give the unused tail back.
-    let mut offsets = Vec::with_capacity(n_obs * nb + 1);
-    offsets.push(0usize);
-    let mut end = 0usize;
-    for (r, &k) in lens.iter().enumerate() {
-        let from = r * stride;
-        if from != end {
-            index.copy_within(from..from + k, end);
-            value.copy_within(from..from + k, end);
-        }
-        end += k;
-        offsets.push(end);
-    }
-    index.truncate(end);
-    index.shrink_to_fit();
-    value.truncate(end);
-    value.shrink_to_fit();
+    let offsets = compact_rows(&mut index, &mut value, &lens, stride);
     Ok(Transport {
         n_global: opts.n_global,
         n_basis: nb,
