@@ -48,8 +48,35 @@ pub(crate) fn gallery_maps(f: &Fitted) -> Vec<(String, LatLong)> {
         .collect()
 }
 
-/// Write environment maps, materials, the coloured mesh and the training renders.
+/// Write environment maps, materials, the coloured mesh, the relighting state and the
+/// training renders.
 pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) -> Result<()> {
+    write_envmaps(f, dir)?;
+    write_materials(f, dir)?;
+    write_mesh(f, dir)?;
+    let state = RenderState {
+        views: &f.scene.views,
+        mesh: &f.scene.mesh,
+        basis: &f.basis,
+        beta: &f.beta,
+        normals_env: &f.normals_env,
+        env_from_world: f.env_from_world,
+        render_vis: &f.render_vis,
+        global_resolution: f.opts.global_resolution,
+        local_resolution: f.opts.local_resolution,
+        normal_grid: f.opts.normal_grid,
+        seed: f.opts.seed,
+    };
+    write_render_state(&state, dir)?;
+    if f.opts.render_training {
+        write_training_renders(f, dir, progress)?;
+    }
+    Ok(())
+}
+
+/// `envmaps/STEM.oct.exr` (the solver's octahedral texels) and `envmaps/STEM.latlong.exr`
+/// per training photo.
+fn write_envmaps(f: &Fitted, dir: &Path) -> Result<()> {
     let env_dir = dir.join("envmaps");
     std::fs::create_dir_all(&env_dir).map_err(|e| Error::io(&env_dir, e))?;
     let height = (2 * f.opts.global_resolution).clamp(32, 512);
@@ -60,8 +87,12 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         env.to_latlong(height)
             .write_exr(&env_dir.join(format!("{stem}.latlong.exr")))?;
     }
+    Ok(())
+}
 
-    // materials.json
+/// `materials.json`: the basis with formulas, `λ`, the scale normalisation, the
+/// environment frame, the resolutions and the training photos.
+fn write_materials(f: &Fitted, dir: &Path) -> Result<()> {
     let frame = f.env_from_world;
     let materials = serde_json::json!({
         "model": "ρ(x) = Σ_k w_k(x) Σ_b λ[k][b][c] ρ_b (paper Eq. 11); every ρ_b includes cos θi",
@@ -75,9 +106,12 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
         "resolutions": {"global": f.opts.global_resolution, "local": f.opts.local_resolution, "normal_grid": f.opts.normal_grid, "kept_coefficients": f.opts.keep},
         "photos": f.train.iter().map(|&v| f.scene.views[v].image.name.clone()).collect::<Vec<_>>(),
     });
-    write_json(&dir.join("materials.json"), &materials)?;
+    write_json(&dir.join("materials.json"), &materials)
+}
 
-    // mesh.ply: diffuse albedo (the Lambertian β) and blending weights.
+/// `mesh.ply`: the diffuse albedo (the Lambertian `β`) as sRGB colour and as floats, and
+/// the blending weights `w0 … w{K-1}`.
+fn write_mesh(f: &Fitted, dir: &Path) -> Result<()> {
     let nv = f.scene.mesh.positions.len();
     let nb = f.basis.len();
     let kk = f.est.lambda.len();
@@ -117,42 +151,29 @@ pub(crate) fn write_results(f: &Fitted, dir: &Path, progress: &super::Progress) 
     for (n, w) in names.iter().zip(&weights) {
         extra.push((n.as_str(), w.as_slice()));
     }
-    mesh.write_ply(&dir.join("mesh.ply"), &extra)?;
-    let state = RenderState {
-        views: &f.scene.views,
-        mesh: &f.scene.mesh,
-        basis: &f.basis,
-        beta: &f.beta,
-        normals_env: &f.normals_env,
-        env_from_world: f.env_from_world,
-        render_vis: &f.render_vis,
-        global_resolution: f.opts.global_resolution,
-        local_resolution: f.opts.local_resolution,
-        normal_grid: f.opts.normal_grid,
-        seed: f.opts.seed,
-    };
-    write_render_state(&state, dir)?;
+    mesh.write_ply(&dir.join("mesh.ply"), &extra)
+}
 
+/// `renders/STEM.png` per training photo: photo | render | difference.
+fn write_training_renders(f: &Fitted, dir: &Path, progress: &super::Progress) -> Result<()> {
     // Training renders: the model as fitted (the estimator's predictions at the
     // observations, its visibility and rotation elsewhere), each photo under its own fitted
     // map.
-    if f.opts.render_training {
-        let renders = dir.join("renders");
-        std::fs::create_dir_all(&renders).map_err(|e| Error::io(&renders, e))?;
-        let bar = progress.bar(f.train.len() as u64, "training renders");
-        for (k, &v) in f.train.iter().enumerate() {
-            let r = render_training_view(f, k)?;
-            let stem = crate::render::views::file_stem(&f.scene.views[v].image.name);
-            write_triptych(
-                &renders.join(format!("{stem}.png")),
-                &f.photos[v],
-                &r.raster,
-                &r.rgb,
-                1.0,
-            )?;
-            bar.inc(1);
-        }
-        bar.finish_and_clear();
+    let renders = dir.join("renders");
+    std::fs::create_dir_all(&renders).map_err(|e| Error::io(&renders, e))?;
+    let bar = progress.bar(f.train.len() as u64, "training renders");
+    for (k, &v) in f.train.iter().enumerate() {
+        let r = render_training_view(f, k)?;
+        let stem = crate::render::views::file_stem(&f.scene.views[v].image.name);
+        write_triptych(
+            &renders.join(format!("{stem}.png")),
+            &f.photos[v],
+            &r.raster,
+            &r.rgb,
+            1.0,
+        )?;
+        bar.inc(1);
     }
+    bar.finish_and_clear();
     Ok(())
 }
