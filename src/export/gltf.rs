@@ -244,10 +244,36 @@ fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
     v.flat_map(f32::to_le_bytes).collect()
 }
 
-/// Serialise `mesh` as GLB bytes (module docs), `name` naming the mesh and node.
+/// Serialise `mesh` as GLB bytes (module docs), `name` naming the mesh and node: the
+/// vertex attributes, one primitive per roughness level, the scene, then the GLB chunks.
 pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> {
-    use json::accessor::{ComponentType, Type};
-    use json::buffer::Target;
+    check_mesh(mesh)?;
+    let mut root = json::Root {
+        asset: json::Asset {
+            copyright: None,
+            extensions: None,
+            extras: Default::default(),
+            generator: Some(format!("relight-cpc {}", env!("CARGO_PKG_VERSION"))),
+            min_version: None,
+            version: "2.0".into(),
+        },
+        ..Default::default()
+    };
+    let mut bin = Vec::new();
+    let attributes = vertex_attributes(&mut root, &mut bin, mesh);
+    let (primitives, materials) = roughness_primitives(&mut root, &mut bin, mesh, &attributes);
+    let bytes = glb_of(root, bin, name, primitives)?;
+    let summary = GltfSummary {
+        vertices: mesh.positions.len(),
+        triangles: mesh.faces.len(),
+        materials,
+        bytes: bytes.len(),
+    };
+    Ok((bytes, summary))
+}
+
+/// Every per-vertex array has one entry per vertex, every face indexes a vertex.
+fn check_mesh(mesh: &GltfMesh) -> Result<()> {
     let nv = mesh.positions.len();
     if mesh.normals.len() != nv || mesh.colors.len() != nv || mesh.roughness.len() != nv {
         return Err(Error::Config(
@@ -263,18 +289,19 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
             "export: face {f:?} indexes past the {nv} vertices"
         )));
     }
-    let mut root = json::Root {
-        asset: json::Asset {
-            copyright: None,
-            extensions: None,
-            extras: Default::default(),
-            generator: Some(format!("relight-cpc {}", env!("CARGO_PKG_VERSION"))),
-            min_version: None,
-            version: "2.0".into(),
-        },
-        ..Default::default()
-    };
-    let mut bin = Vec::new();
+    Ok(())
+}
+
+/// The vertex attributes' views and accessors (position with its bounds, normal, colour
+/// and the `_ROUGHNESS` extra), shared by every primitive.
+fn vertex_attributes(
+    root: &mut json::Root,
+    bin: &mut Vec<u8>,
+    mesh: &GltfMesh,
+) -> BTreeMap<Checked<json::mesh::Semantic>, json::Index<json::Accessor>> {
+    use json::accessor::{ComponentType, Type};
+    use json::buffer::Target;
+    let nv = mesh.positions.len();
     let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
     for p in &mesh.positions {
         for c in 0..3 {
@@ -283,42 +310,27 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
         }
     }
     let flat3 = |v: &[[f32; 3]]| f32_bytes(v.iter().flatten().copied());
-    let v = push_view(
-        &mut root,
-        &mut bin,
-        &flat3(&mesh.positions),
-        Target::ArrayBuffer,
-    );
+    let v = push_view(root, bin, &flat3(&mesh.positions), Target::ArrayBuffer);
     let position = push_accessor(
-        &mut root,
+        root,
         v,
         nv,
         ComponentType::F32,
         Type::Vec3,
         Some((serde_json::json!(lo), serde_json::json!(hi))),
     );
+    let v = push_view(root, bin, &flat3(&mesh.normals), Target::ArrayBuffer);
+    let normal = push_accessor(root, v, nv, ComponentType::F32, Type::Vec3, None);
+    let v = push_view(root, bin, &flat3(&mesh.colors), Target::ArrayBuffer);
+    let color = push_accessor(root, v, nv, ComponentType::F32, Type::Vec3, None);
     let v = push_view(
-        &mut root,
-        &mut bin,
-        &flat3(&mesh.normals),
-        Target::ArrayBuffer,
-    );
-    let normal = push_accessor(&mut root, v, nv, ComponentType::F32, Type::Vec3, None);
-    let v = push_view(
-        &mut root,
-        &mut bin,
-        &flat3(&mesh.colors),
-        Target::ArrayBuffer,
-    );
-    let color = push_accessor(&mut root, v, nv, ComponentType::F32, Type::Vec3, None);
-    let v = push_view(
-        &mut root,
-        &mut bin,
+        root,
+        bin,
         &f32_bytes(mesh.roughness.iter().copied()),
         Target::ArrayBuffer,
     );
-    let rough = push_accessor(&mut root, v, nv, ComponentType::F32, Type::Scalar, None);
-    let attributes: BTreeMap<_, _> = [
+    let rough = push_accessor(root, v, nv, ComponentType::F32, Type::Scalar, None);
+    [
         (json::mesh::Semantic::Positions, position),
         (json::mesh::Semantic::Normals, normal),
         (json::mesh::Semantic::Colors(0), color),
@@ -326,9 +338,19 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
     ]
     .into_iter()
     .map(|(k, v)| (Checked::Valid(k), v))
-    .collect();
+    .collect()
+}
 
-    // Faces by roughness level of their vertices' mean.
+/// Faces grouped by the roughness level of their vertices' mean: one primitive and one
+/// material per level that has faces; each material's roughness and triangle count.
+fn roughness_primitives(
+    root: &mut json::Root,
+    bin: &mut Vec<u8>,
+    mesh: &GltfMesh,
+    attributes: &BTreeMap<Checked<json::mesh::Semantic>, json::Index<json::Accessor>>,
+) -> (Vec<json::mesh::Primitive>, Vec<(f32, usize)>) {
+    use json::accessor::{ComponentType, Type};
+    use json::buffer::Target;
     let mut levels: Vec<Vec<u32>> = vec![Vec::new(); ROUGHNESS_LEVELS];
     for f in &mesh.faces {
         let r = f.iter().map(|&i| mesh.roughness[i as usize]).sum::<f32>() / 3.0;
@@ -338,15 +360,8 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
     let mut materials = Vec::new();
     for (l, idx) in levels.iter().enumerate().filter(|(_, i)| !i.is_empty()) {
         let bytes: Vec<u8> = idx.iter().flat_map(|i| i.to_le_bytes()).collect();
-        let v = push_view(&mut root, &mut bin, &bytes, Target::ElementArrayBuffer);
-        let indices = push_accessor(
-            &mut root,
-            v,
-            idx.len(),
-            ComponentType::U32,
-            Type::Scalar,
-            None,
-        );
+        let v = push_view(root, bin, &bytes, Target::ElementArrayBuffer);
+        let indices = push_accessor(root, v, idx.len(), ComponentType::U32, Type::Scalar, None);
         let roughness = level_roughness(l);
         let material = root.push(json::Material {
             name: Some(format!("roughness {roughness:.3}")),
@@ -369,6 +384,17 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
             targets: None,
         });
     }
+    (primitives, materials)
+}
+
+/// The buffer (padded to 4 bytes), the mesh, its node and the scene, then the GLB's JSON
+/// and BIN chunks.
+fn glb_of(
+    mut root: json::Root,
+    mut bin: Vec<u8>,
+    name: &str,
+    primitives: Vec<json::mesh::Primitive>,
+) -> Result<Vec<u8>> {
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
@@ -410,16 +436,8 @@ pub fn glb_bytes(mesh: &GltfMesh, name: &str) -> Result<(Vec<u8>, GltfSummary)> 
         json: Cow::Owned(text),
         bin: Some(Cow::Owned(bin)),
     };
-    let bytes = glb
-        .to_vec()
-        .map_err(|e| Error::Config(format!("export: GLB: {e}")))?;
-    let summary = GltfSummary {
-        vertices: nv,
-        triangles: mesh.faces.len(),
-        materials,
-        bytes: bytes.len(),
-    };
-    Ok((bytes, summary))
+    glb.to_vec()
+        .map_err(|e| Error::Config(format!("export: GLB: {e}")))
 }
 
 #[cfg(test)]
