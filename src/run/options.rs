@@ -389,6 +389,16 @@ impl RunOptions {
 
     /// Reject impossible values with a message naming the option.
     pub fn check(&self) -> Result<()> {
+        self.check_resolutions()?;
+        self.check_input()?;
+        self.check_model()?;
+        self.check_visibility()?;
+        self.check_estimator()?;
+        Ok(())
+    }
+
+    /// The map and grid sides: powers of two in their ranges.
+    fn check_resolutions(&self) -> Result<()> {
         let pow2 = |name: &str, v: usize, lo: usize, hi: usize| {
             if v.is_power_of_two() && (lo..=hi).contains(&v) {
                 Ok(())
@@ -404,6 +414,40 @@ impl RunOptions {
             pow2("render-local-resolution", n, 4, 128)?;
         }
         pow2("normal-grid", self.normal_grid, 2, 128)?;
+        Ok(())
+    }
+
+    /// The input flags: the clip level, world up, the held-out rule, the light groups' window.
+    fn check_input(&self) -> Result<()> {
+        if !(self.clip > 0.0 && self.clip <= 1.0) {
+            return Err(Error::Config(format!(
+                "--clip {}: must be in (0, 1]",
+                self.clip
+            )));
+        }
+        if let Some(up) = self.up {
+            if !(up.norm() > 0.0 && up.iter().all(|v| v.is_finite())) {
+                return Err(Error::Config(
+                    "--up: must be a non-zero finite vector".into(),
+                ));
+            }
+        }
+        if let Holdout::Every(0) = self.holdout {
+            return Err(Error::Config(
+                "--holdout-every 0: must be at least 1".into(),
+            ));
+        }
+        if !(self.light_group_minutes >= 0.0 && self.light_group_minutes.is_finite()) {
+            return Err(Error::Config(format!(
+                "--light-group-minutes {}: must be a finite number of minutes, 0 or more",
+                self.light_group_minutes
+            )));
+        }
+        Ok(())
+    }
+
+    /// The model: a basis, a material count from 1 to 32.
+    fn check_model(&self) -> Result<()> {
         if self.basis.is_empty() {
             return Err(Error::Config(
                 "--basis: at least one basis BRDF is needed".into(),
@@ -416,24 +460,11 @@ impl RunOptions {
                 )));
             }
         }
-        if !(self.clip > 0.0 && self.clip <= 1.0) {
-            return Err(Error::Config(format!(
-                "--clip {}: must be in (0, 1]",
-                self.clip
-            )));
-        }
-        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
-            return Err(Error::Config(format!(
-                "--smoothness {}: must be a finite number ≥ 0",
-                self.smoothness
-            )));
-        }
-        if !(self.rel_tol >= 0.0 && self.rel_tol.is_finite()) {
-            return Err(Error::Config(format!(
-                "--tolerance {}: must be a finite number ≥ 0",
-                self.rel_tol
-            )));
-        }
+        Ok(())
+    }
+
+    /// The visibility rays.
+    fn check_visibility(&self) -> Result<()> {
         if self.rays_per_texel == 0 || self.rays_per_texel > 64 {
             return Err(Error::Config(format!(
                 "--rays-per-texel {}: must be from 1 to 64",
@@ -450,6 +481,23 @@ impl RunOptions {
             return Err(Error::Config(format!(
                 "--ray-lattice {}: must be 1 or 2",
                 self.ray_lattice
+            )));
+        }
+        Ok(())
+    }
+
+    /// The estimator: the prior strengths, tolerances, iteration counts and early stopping.
+    fn check_estimator(&self) -> Result<()> {
+        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
+            return Err(Error::Config(format!(
+                "--smoothness {}: must be a finite number ≥ 0",
+                self.smoothness
+            )));
+        }
+        if !(self.rel_tol >= 0.0 && self.rel_tol.is_finite()) {
+            return Err(Error::Config(format!(
+                "--tolerance {}: must be a finite number ≥ 0",
+                self.rel_tol
             )));
         }
         if self.max_iterations == 0 {
@@ -502,24 +550,6 @@ impl RunOptions {
                 "--validation {}: the held-back fraction must be in [0, 0.5) (0 turns early \
                  stopping off)",
                 self.validation
-            )));
-        }
-        if let Some(up) = self.up {
-            if !(up.norm() > 0.0 && up.iter().all(|v| v.is_finite())) {
-                return Err(Error::Config(
-                    "--up: must be a non-zero finite vector".into(),
-                ));
-            }
-        }
-        if let Holdout::Every(0) = self.holdout {
-            return Err(Error::Config(
-                "--holdout-every 0: must be at least 1".into(),
-            ));
-        }
-        if !(self.light_group_minutes >= 0.0 && self.light_group_minutes.is_finite()) {
-            return Err(Error::Config(format!(
-                "--light-group-minutes {}: must be a finite number of minutes, 0 or more",
-                self.light_group_minutes
             )));
         }
         Ok(())
