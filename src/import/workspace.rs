@@ -105,127 +105,167 @@ fn rel(root: &Path, p: &Path) -> String {
     }
 }
 
+/// A place a COLMAP model may be: its model folder, its photo folder, the folder its mesh
+/// would sit in, and why it is a candidate.
+struct ModelPlace {
+    model_dir: PathBuf,
+    images_dir: PathBuf,
+    dense_dir: PathBuf,
+    why: &'static str,
+}
+
+/// The place taken and its model's format.
+struct ChosenModel {
+    place: ModelPlace,
+    format: ModelFormat,
+}
+
+/// The places a model is looked for, in order of preference (module docs).
+fn model_places(root: &Path) -> Vec<ModelPlace> {
+    let mut places = vec![
+        ModelPlace {
+            model_dir: root.join("dense/sparse"),
+            images_dir: root.join("dense/images"),
+            dense_dir: root.join("dense"),
+            why: "the undistorted model with the undistorted photos (image_undistorter output)",
+        },
+        ModelPlace {
+            model_dir: root.join("sparse"),
+            images_dir: root.join("images"),
+            dense_dir: root.to_path_buf(),
+            why: "the model in sparse/",
+        },
+    ];
+    for dir in numbered_models(&root.join("sparse")) {
+        places.push(ModelPlace {
+            model_dir: dir,
+            images_dir: root.join("images"),
+            dense_dir: root.to_path_buf(),
+            why: "a numbered mapper model",
+        });
+    }
+    places
+}
+
+/// The first place with a readable model and its photo folder; what was passed over and
+/// why goes to `notes`, and into the error when no place has both.
+fn choose_model(root: &Path, notes: &mut Vec<String>) -> Result<ChosenModel> {
+    let mut chosen: Option<ChosenModel> = None;
+    let mut looked = Vec::new();
+    for place in model_places(root) {
+        let format = match model_format(&place.model_dir) {
+            Ok(format) => format,
+            Err(why_not) => {
+                looked.push(format!("{}: {why_not}", rel(root, &place.model_dir)));
+                continue;
+            }
+        };
+        if !place.images_dir.is_dir() {
+            let msg = format!(
+                "{}: has a {} model but its photo folder {} is missing",
+                rel(root, &place.model_dir),
+                format.name(),
+                rel(root, &place.images_dir)
+            );
+            looked.push(msg.clone());
+            notes.push(format!("passed over {msg}"));
+            continue;
+        }
+        if let Some(c) = &chosen {
+            notes.push(format!(
+                "also found a {} model in {}; not used (took {})",
+                format.name(),
+                rel(root, &place.model_dir),
+                rel(root, &c.place.model_dir)
+            ));
+            continue;
+        }
+        let other = match format {
+            ModelFormat::Binary if ModelFormat::Text.present_in(&place.model_dir) => {
+                ", binary read before the text copy beside it"
+            }
+            _ => "",
+        };
+        notes.push(format!(
+            "model: {} ({} format{other}): {}",
+            rel(root, &place.model_dir),
+            format.name(),
+            place.why
+        ));
+        notes.push(format!("photos: {}", rel(root, &place.images_dir)));
+        chosen = Some(ChosenModel { place, format });
+    }
+    chosen.ok_or_else(|| Error::Workspace {
+        path: root.to_path_buf(),
+        message: format!(
+            "no COLMAP sparse model with its photos; looked in {}",
+            looked.join("; ")
+        ),
+    })
+}
+
+/// Where the mesh and the fused points are looked for: next to the chosen model, then
+/// the other dense folder.
+fn mesh_dirs(root: &Path, dense_dir: &Path) -> Vec<PathBuf> {
+    let mut dirs = vec![dense_dir.to_path_buf()];
+    for d in [root.join("dense"), root.to_path_buf()] {
+        if !dirs.contains(&d) {
+            dirs.push(d);
+        }
+    }
+    dirs
+}
+
+/// The mesh: the user's (`--mesh`), else the first Poisson or Delaunay mesh in `dirs`.
+fn find_mesh(
+    root: &Path,
+    dirs: &[PathBuf],
+    mesh_override: Option<&Path>,
+    notes: &mut Vec<String>,
+) -> Result<PathBuf> {
+    if let Some(m) = mesh_override {
+        if !m.is_file() {
+            return Err(Error::Workspace {
+                path: m.to_path_buf(),
+                message: "the mesh given with --mesh does not exist or is not a file".to_string(),
+            });
+        }
+        notes.push(format!("mesh: {} (given with --mesh)", m.display()));
+        return Ok(m.to_path_buf());
+    }
+    let tried: Vec<PathBuf> = dirs
+        .iter()
+        .flat_map(|d| [d.join("meshed-poisson.ply"), d.join("meshed-delaunay.ply")])
+        .collect();
+    let Some(found) = tried.iter().find(|p| p.is_file()) else {
+        return Err(Error::Workspace {
+            path: root.to_path_buf(),
+            message: format!(
+                "no mesh: looked for {}; make one with COLMAP's poisson_mesher or name one with --mesh",
+                tried.iter().map(|p| rel(root, p)).collect::<Vec<_>>().join(", ")
+            ),
+        });
+    };
+    notes.push(format!("mesh: {}", rel(root, found)));
+    Ok(found.clone())
+}
+
 impl Workspace {
     /// Find model, photos, mesh, fused points and truth under `root` (rules in the module
     /// docs). `mesh_override` replaces the mesh search. A missing model, photo folder or
     /// mesh is an [`Error::Workspace`] saying where it looked.
     pub fn discover(root: &Path, mesh_override: Option<&Path>) -> Result<Workspace> {
-        let ws_err = |message: String| Error::Workspace {
-            path: root.to_path_buf(),
-            message,
-        };
         if !root.is_dir() {
-            return Err(ws_err("is not a folder".to_string()));
+            return Err(Error::Workspace {
+                path: root.to_path_buf(),
+                message: "is not a folder".to_string(),
+            });
         }
         let mut notes = Vec::new();
-
-        // Candidates (model folder, photo folder, dense folder for the mesh, why).
-        let mut candidates: Vec<(PathBuf, PathBuf, PathBuf, &str)> = vec![(
-            root.join("dense/sparse"),
-            root.join("dense/images"),
-            root.join("dense"),
-            "the undistorted model with the undistorted photos (image_undistorter output)",
-        )];
-        candidates.push((
-            root.join("sparse"),
-            root.join("images"),
-            root.to_path_buf(),
-            "the model in sparse/",
-        ));
-        for dir in numbered_models(&root.join("sparse")) {
-            candidates.push((
-                dir,
-                root.join("images"),
-                root.to_path_buf(),
-                "a numbered mapper model",
-            ));
-        }
-
-        let mut chosen: Option<(PathBuf, ModelFormat, PathBuf, PathBuf, &str)> = None;
-        let mut looked = Vec::new();
-        for (model_dir, images_dir, dense_dir, why) in candidates {
-            match model_format(&model_dir) {
-                Ok(format) => {
-                    if !images_dir.is_dir() {
-                        let msg = format!(
-                            "{}: has a {} model but its photo folder {} is missing",
-                            rel(root, &model_dir),
-                            format.name(),
-                            rel(root, &images_dir)
-                        );
-                        looked.push(msg.clone());
-                        notes.push(format!("passed over {msg}"));
-                        continue;
-                    }
-                    if let Some((c, ..)) = &chosen {
-                        notes.push(format!(
-                            "also found a {} model in {}; not used (took {})",
-                            format.name(),
-                            rel(root, &model_dir),
-                            rel(root, c)
-                        ));
-                        continue;
-                    }
-                    let other = match format {
-                        ModelFormat::Binary if ModelFormat::Text.present_in(&model_dir) => {
-                            ", binary read before the text copy beside it"
-                        }
-                        _ => "",
-                    };
-                    notes.push(format!(
-                        "model: {} ({} format{other}): {why}",
-                        rel(root, &model_dir),
-                        format.name()
-                    ));
-                    notes.push(format!("photos: {}", rel(root, &images_dir)));
-                    chosen = Some((model_dir, format, images_dir, dense_dir, why));
-                }
-                Err(why_not) => looked.push(format!("{}: {why_not}", rel(root, &model_dir))),
-            }
-        }
-        let Some((sparse_dir, sparse_format, images_dir, dense_dir, _)) = chosen else {
-            return Err(ws_err(format!(
-                "no COLMAP sparse model with its photos; looked in {}",
-                looked.join("; ")
-            )));
-        };
-
-        // Mesh: the user's, else next to the chosen model, then the other dense folder.
-        let mut mesh_dirs = vec![dense_dir.clone()];
-        for d in [root.join("dense"), root.to_path_buf()] {
-            if !mesh_dirs.contains(&d) {
-                mesh_dirs.push(d);
-            }
-        }
-        let mesh_path = match mesh_override {
-            Some(m) => {
-                if !m.is_file() {
-                    return Err(Error::Workspace {
-                        path: m.to_path_buf(),
-                        message: "the mesh given with --mesh does not exist or is not a file"
-                            .to_string(),
-                    });
-                }
-                notes.push(format!("mesh: {} (given with --mesh)", m.display()));
-                m.to_path_buf()
-            }
-            None => {
-                let tried: Vec<PathBuf> = mesh_dirs
-                    .iter()
-                    .flat_map(|d| [d.join("meshed-poisson.ply"), d.join("meshed-delaunay.ply")])
-                    .collect();
-                let Some(found) = tried.iter().find(|p| p.is_file()) else {
-                    return Err(ws_err(format!(
-                        "no mesh: looked for {}; make one with COLMAP's poisson_mesher or name one with --mesh",
-                        tried.iter().map(|p| rel(root, p)).collect::<Vec<_>>().join(", ")
-                    )));
-                };
-                notes.push(format!("mesh: {}", rel(root, found)));
-                found.clone()
-            }
-        };
-
-        let fused_path = mesh_dirs
+        let chosen = choose_model(root, &mut notes)?;
+        let dirs = mesh_dirs(root, &chosen.place.dense_dir);
+        let mesh_path = find_mesh(root, &dirs, mesh_override, &mut notes)?;
+        let fused_path = dirs
             .iter()
             .map(|d| d.join("fused.ply"))
             .find(|p| p.is_file());
@@ -237,12 +277,11 @@ impl Workspace {
         if truth_dir.is_some() {
             notes.push("truth: truth/ (synthetic scene with known answers)".to_string());
         }
-
         Ok(Workspace {
             root: root.to_path_buf(),
-            sparse_dir,
-            sparse_format,
-            images_dir,
+            sparse_dir: chosen.place.model_dir,
+            sparse_format: chosen.format,
+            images_dir: chosen.place.images_dir,
             mesh_path,
             fused_path,
             truth_dir,
