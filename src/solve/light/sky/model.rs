@@ -10,7 +10,7 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use super::search::SearchData;
+use super::search::{Candidate, SearchData};
 use super::{
     coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
 };
@@ -294,7 +294,9 @@ impl JointQp<'_> {
 }
 
 impl SkyLight {
-    /// One photo's lighting step: the `θ` search, then the joint QP.
+    /// One photo's lighting step: the `θ` search with the residual fixed, the residual
+    /// prior at the current light's scale, then the joint QP over the sky's colour weights
+    /// and the residual.
     fn fit_photo(
         &self,
         problem: &Problem,
@@ -303,7 +305,6 @@ impl SkyLight {
         outer_iteration: usize,
     ) -> Result<PhotoFit> {
         let n = problem.transport.n_global;
-        let n2 = n * n;
         let prev = &self.params[photo];
         let rows = Rows::new(problem, photo);
         let dw: Vec<[f64; 3]> = rows.alpha.iter().map(|&a| [a; 3]).collect();
@@ -315,7 +316,57 @@ impl SkyLight {
             dw,
             self.opts.blend_tolerance,
         );
-        // 1. θ with the residual fixed.
+        let best = self.search_theta(&sys, &rows, photo, outer_iteration)?;
+        let (scale, d) = self.residual_prior(&best, prev, &rows, n);
+        let qp = JointQp {
+            sys: &sys,
+            basis: &best.basis,
+            d,
+        };
+        let fit = self.joint_qp(&qp, problem, beta, &rows, &best, photo)?;
+        let n2 = n * n;
+        let (weights, residual, res) = match fit {
+            Some(res) => {
+                let mut weights = [[0.0; 3]; N_BASIS];
+                for j in 0..N_BASIS {
+                    for c in 0..3 {
+                        weights[j][c] = res.x[j * 3 + c];
+                    }
+                }
+                let residual = split3(&res.x[JointQp::NW..], n2);
+                (weights, residual, Some(res))
+            }
+            // No light reaches any weighted observation: the minimiser is zero.
+            None => (
+                [[0.0; 3]; N_BASIS],
+                std::array::from_fn(|_| vec![0.0; n2]),
+                None,
+            ),
+        };
+        Ok(PhotoFit {
+            photo: SkyPhoto {
+                theta: best.theta,
+                basis: Arc::new(best.basis),
+                weights,
+                residual,
+            },
+            scale,
+            qp: res,
+        })
+    }
+
+    /// Step 1, `θ` (sun direction, turbidity, sun lobe) with the residual fixed: from the
+    /// previous `θ` (and a fresh grid in the first [`REGRID_ITERATIONS`] iterations, kept
+    /// when better), or from the grid at the photo's first step, then refined.
+    fn search_theta(
+        &self,
+        sys: &PhotoSystem,
+        rows: &Rows,
+        photo: usize,
+        outer_iteration: usize,
+    ) -> Result<Candidate> {
+        let n = sys.n;
+        let prev = &self.params[photo];
         let mut resid_pred = vec![[0.0; 3]; rows.y.len()];
         sys.forward_rows(&haar3(&prev.residual, n), &mut resid_pred);
         let target: Vec<[f64; 3]> = rows
@@ -325,27 +376,35 @@ impl SkyLight {
             .map(|(y, r)| [0, 1, 2].map(|c| y[c] - r[c]))
             .collect();
         let search = SearchData {
-            sys: &sys,
+            sys,
             target: &target,
         };
-        let best = if self.searched[photo] {
-            let warm = search.evaluate(prev.theta)?;
-            let grid = if outer_iteration <= REGRID_ITERATIONS {
-                Some(search.grid(GRID_TURBIDITY, GRID_KAPPA)?)
-            } else {
-                None
-            };
-            match grid {
-                Some(g) if g.sse < warm.sse => {
-                    search.refine(g, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS)?
-                }
-                _ => search.refine(warm, WARM_STEPS, MIN_ANGLE, WARM_EVALS)?,
-            }
-        } else {
+        if !self.searched[photo] {
             let start = search.grid(GRID_TURBIDITY, GRID_KAPPA)?;
-            search.refine(start, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS)?
+            return search.refine(start, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS);
+        }
+        let warm = search.evaluate(prev.theta)?;
+        let grid = if outer_iteration <= REGRID_ITERATIONS {
+            Some(search.grid(GRID_TURBIDITY, GRID_KAPPA)?)
+        } else {
+            None
         };
-        // 2. The residual prior at the current light's scale.
+        match grid {
+            Some(g) if g.sse < warm.sse => search.refine(g, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS),
+            _ => search.refine(warm, WARM_STEPS, MIN_ANGLE, WARM_EVALS),
+        }
+    }
+
+    /// Step 2, the residual prior at the current light's scale: `σ²` from the photo's mean
+    /// square, `h0` the total light's mean per channel, and the per-coefficient weights
+    /// `d` ([`residual_weights`]).
+    fn residual_prior(
+        &self,
+        best: &Candidate,
+        prev: &SkyPhoto,
+        rows: &Rows,
+        n: usize,
+    ) -> (ResidualScale, [Vec<f64>; 3]) {
         let sigma2 = self.sky.residual_noise.powi(2) * rows.mean_square();
         let mut total = best.basis.combine(&best.weights);
         for (t, r) in total.iter_mut().zip(&prev.residual) {
@@ -359,12 +418,23 @@ impl SkyLight {
             let hc: Vec<f64> = hr.iter().map(|v| v[c]).collect();
             residual_weights(&hc, h0[c], &self.b, sigma2)
         });
-        // 3. The joint QP from the search's weights and the previous residual.
-        let qp = JointQp {
-            sys: &sys,
-            basis: &best.basis,
-            d,
-        };
+        (ResidualScale { sigma2, h0 }, d)
+    }
+
+    /// Step 3, the joint QP from the search's weights and the previous residual, Jacobi
+    /// scaled; `None` when no light reaches any weighted observation (`b = 0`).
+    fn joint_qp(
+        &self,
+        qp: &JointQp,
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        rows: &Rows,
+        best: &Candidate,
+        photo: usize,
+    ) -> Result<Option<QpResult>> {
+        let (sys, n) = (qp.sys, qp.sys.n);
+        let n2 = n * n;
+        let prev = &self.params[photo];
         let u: Vec<[f64; 3]> = (0..rows.y.len())
             .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * rows.y[q][c]))
             .collect();
@@ -374,23 +444,11 @@ impl SkyLight {
         let mut b = vec![0.0; JointQp::NW + 3 * n2];
         qp.pull_back(&bx, &mut b);
         let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        if bmax == 0.0 {
+            return Ok(None);
+        }
         let mut z0: Vec<f64> = best.weights.iter().flatten().copied().collect();
         z0.extend(prev.residual.iter().flatten());
-        let scale = ResidualScale { sigma2, h0 };
-        if bmax == 0.0 {
-            // No light reaches any weighted observation: the minimiser is zero.
-            let photo = SkyPhoto {
-                theta: best.theta,
-                basis: Arc::new(best.basis),
-                weights: [[0.0; 3]; N_BASIS],
-                residual: std::array::from_fn(|_| vec![0.0; n2]),
-            };
-            return Ok(PhotoFit {
-                photo,
-                scale,
-                qp: None,
-            });
-        }
         let tdiag = texel_diag_vec(problem, beta, rows.range.clone(), &rows.alpha);
         let jac = qp.diagonal(&tdiag);
         let opts = QpOptions {
@@ -398,30 +456,12 @@ impl SkyLight {
             max_iter: self.qp_max_iter,
             max_cg: self.qp_max_cg.max(1),
         };
-        let res =
-            bound_qp_scaled(|v, o| qp.hess(v, o), &b, &z0, &opts, Some(&jac)).map_err(|e| {
-                Error::Numeric {
-                    stage: format!("sky lighting step, photo {photo}"),
-                    message: e.to_string(),
-                }
-            })?;
-        let mut weights = [[0.0; 3]; N_BASIS];
-        for j in 0..N_BASIS {
-            for c in 0..3 {
-                weights[j][c] = res.x[j * 3 + c];
-            }
-        }
-        let residual = split3(&res.x[JointQp::NW..], n2);
-        Ok(PhotoFit {
-            photo: SkyPhoto {
-                theta: best.theta,
-                basis: Arc::new(best.basis),
-                weights,
-                residual,
-            },
-            scale,
-            qp: Some(res),
-        })
+        bound_qp_scaled(|v, o| qp.hess(v, o), &b, &z0, &opts, Some(&jac))
+            .map(Some)
+            .map_err(|e| Error::Numeric {
+                stage: format!("sky lighting step, photo {photo}"),
+                message: e.to_string(),
+            })
     }
 }
 
