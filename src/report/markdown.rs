@@ -16,6 +16,20 @@ impl RunReport {
             self.workspace, self.seed, self.version
         );
         self.markdown_headline(&mut s);
+        self.markdown_holdout(&mut s);
+        self.markdown_truth_check(&mut s);
+        self.markdown_training(&mut s);
+        if with_maps {
+            markdown_maps(&mut s);
+        }
+        self.markdown_model(&mut s);
+        self.markdown_stages(&mut s);
+        self.markdown_notes(&mut s);
+        s
+    }
+
+    /// The held-out photos: the rule, each protocol's figures and the literature metrics.
+    fn markdown_holdout(&self, s: &mut String) {
         let _ = writeln!(s, "## Held-out photos\n");
         if !self.holdout_rule.is_empty() {
             let _ = writeln!(s, "Held out: {}.\n", self.holdout_rule);
@@ -46,9 +60,12 @@ impl RunReport {
                 );
             }
             let _ = writeln!(s);
-            self.markdown_metrics(&mut s);
+            self.markdown_metrics(s);
         }
-        self.markdown_truth_check(&mut s);
+    }
+
+    /// The training fit and the error against run time.
+    fn markdown_training(&self, s: &mut String) {
         let _ = writeln!(s, "## Training fit\n");
         let _ = writeln!(
             s,
@@ -71,14 +88,10 @@ impl RunReport {
             );
         }
         let _ = writeln!(s);
-        if with_maps {
-            let _ = writeln!(s, "## Environment maps\n");
-            let _ = writeln!(
-                s,
-                "Lat-long, sky up (docs/conventions.md), tone-mapped with one shared exposure. Linear EXR files are in `envmaps/`.\n"
-            );
-            let _ = writeln!(s, "![environment maps](plots/envmaps.png)\n");
-        }
+    }
+
+    /// The model, why it has its size, the adaptive decisions and the conditioning.
+    fn markdown_model(&self, s: &mut String) {
         let _ = writeln!(s, "## Model\n");
         let m = &self.model;
         let facts: Vec<String> = m.facts().iter().map(|(l, v)| format!("{l}: {v}")).collect();
@@ -119,6 +132,10 @@ impl RunReport {
                 let _ = writeln!(s);
             }
         }
+    }
+
+    /// Time and memory per stage.
+    fn markdown_stages(&self, s: &mut String) {
         let _ = writeln!(s, "## Time and memory per stage\n");
         let _ = writeln!(s, "![stages](plots/stages.png)\n");
         let _ = writeln!(s, "| stage | wall s | CPU s | peak memory MiB |");
@@ -138,13 +155,16 @@ impl RunReport {
             "\nPeak memory of the run: {:.1} MiB.\n",
             self.peak_memory_bytes as f64 / (1u64 << 20) as f64
         );
+    }
+
+    /// The run's notes.
+    fn markdown_notes(&self, s: &mut String) {
         if !self.notes.is_empty() {
             let _ = writeln!(s, "## Notes\n");
             for n in &self.notes {
                 let _ = writeln!(s, "- {n}");
             }
         }
-        s
     }
 
     /// The headline paragraph at the top of `report.md`.
@@ -287,4 +307,14 @@ impl RunReport {
         }
         let _ = writeln!(s);
     }
+}
+
+/// The recovered environment maps' section (when the run drew them).
+fn markdown_maps(s: &mut String) {
+    let _ = writeln!(s, "## Environment maps\n");
+    let _ = writeln!(
+        s,
+        "Lat-long, sky up (docs/conventions.md), tone-mapped with one shared exposure. Linear EXR files are in `envmaps/`.\n"
+    );
+    let _ = writeln!(s, "![environment maps](plots/envmaps.png)\n");
 }
