@@ -72,16 +72,45 @@ pub fn rasterize_projected(
     faces: &[[u32; 3]],
 ) -> Raster {
     let (w, h) = (width as usize, height as usize);
-    // Screen-space triangles with their bounding boxes, skipping unusable ones.
-    struct Tri {
-        face: u32,
-        p: [[f64; 3]; 3],
-        x0: usize,
-        x1: usize,
-        y0: usize,
-        y1: usize,
+    let tris = screen_triangles(w, h, projected, faces);
+    let mut face = vec![u32::MAX; w * h];
+    let mut bary = vec![[0.0f32; 3]; w * h];
+    let mut depth = vec![f32::INFINITY; w * h];
+    face.par_chunks_mut(BAND * w.max(1))
+        .zip(bary.par_chunks_mut(BAND * w.max(1)))
+        .zip(depth.par_chunks_mut(BAND * w.max(1)))
+        .enumerate()
+        .for_each(|(band, ((face, bary), depth))| {
+            let rows = band * BAND..(band * BAND + BAND).min(h);
+            let mut out = BandOut { face, bary, depth };
+            rasterize_band(&tris, rows, w, &mut out);
+        });
+    Raster {
+        width,
+        height,
+        face,
+        bary,
+        depth,
     }
-    let tris: Vec<Tri> = faces
+}
+
+/// Image rows per parallel band of the z-buffer.
+const BAND: usize = 16;
+
+/// A projected triangle with its bounding box of pixel centres.
+struct Tri {
+    face: u32,
+    p: [[f64; 3]; 3],
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+}
+
+/// The faces whose three vertices project, with the pixel centres `x + ½` their box holds
+/// inside the `w × h` image (faces without any are skipped).
+fn screen_triangles(w: usize, h: usize, projected: &[Projected], faces: &[[u32; 3]]) -> Vec<Tri> {
+    faces
         .iter()
         .enumerate()
         .filter_map(|(fi, f)| {
@@ -110,65 +139,60 @@ pub fn rasterize_projected(
                 y1: y1 as usize,
             })
         })
-        .collect();
+        .collect()
+}
 
-    let mut face = vec![u32::MAX; w * h];
-    let mut bary = vec![[0.0f32; 3]; w * h];
-    let mut depth = vec![f32::INFINITY; w * h];
-    const BAND: usize = 16;
+/// One band's slices of the raster's arrays (rows `rows` of a `w`-wide image).
+struct BandOut<'a> {
+    face: &'a mut [u32],
+    bary: &'a mut [[f32; 3]],
+    depth: &'a mut [f32],
+}
+
+/// The z-buffer over image rows `rows`: every triangle crossing them, each covered pixel
+/// centre (edge functions, inclusive with a rounding margin) taking the nearest
+/// perspective-correct depth and barycentrics.
+fn rasterize_band(tris: &[Tri], rows: std::ops::Range<usize>, w: usize, out: &mut BandOut) {
     const EDGE_EPS: f64 = 1e-9;
-    face.par_chunks_mut(BAND * w.max(1))
-        .zip(bary.par_chunks_mut(BAND * w.max(1)))
-        .zip(depth.par_chunks_mut(BAND * w.max(1)))
-        .enumerate()
-        .for_each(|(band, ((face, bary), depth))| {
-            let (by0, by1) = (band * BAND, (band * BAND + BAND).min(h));
-            let mut zbuf = vec![f64::INFINITY; (by1 - by0) * w];
-            for t in &tris {
-                if t.y1 < by0 || t.y0 >= by1 {
+    let (by0, by1) = (rows.start, rows.end);
+    let mut zbuf = vec![f64::INFINITY; (by1 - by0) * w];
+    for t in tris {
+        if t.y1 < by0 || t.y0 >= by1 {
+            continue;
+        }
+        let [a, b, c] = t.p;
+        // Twice the signed area; edge functions normalised by it.
+        let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        if area == 0.0 || !area.is_finite() {
+            continue;
+        }
+        let inv = 1.0 / area;
+        for y in t.y0.max(by0)..=t.y1.min(by1 - 1) {
+            let py = y as f64 + 0.5;
+            for x in t.x0..=t.x1 {
+                let px = x as f64 + 0.5;
+                let l0 = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) * inv;
+                let l1 = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) * inv;
+                let l2 = 1.0 - l0 - l1;
+                // Inclusive, with a rounding margin so that pixel centres on an edge shared
+                // by two triangles are never dropped by both.
+                if l0 < -EDGE_EPS || l1 < -EDGE_EPS || l2 < -EDGE_EPS {
                     continue;
                 }
-                let [a, b, c] = t.p;
-                // Twice the signed area; edge functions normalised by it.
-                let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-                if area == 0.0 || !area.is_finite() {
-                    continue;
-                }
-                let inv = 1.0 / area;
-                for y in t.y0.max(by0)..=t.y1.min(by1 - 1) {
-                    let py = y as f64 + 0.5;
-                    for x in t.x0..=t.x1 {
-                        let px = x as f64 + 0.5;
-                        let l0 = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) * inv;
-                        let l1 = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) * inv;
-                        let l2 = 1.0 - l0 - l1;
-                        // Inclusive, with a rounding margin so that pixel centres on an
-                        // edge shared by two triangles are never dropped by both.
-                        if l0 < -EDGE_EPS || l1 < -EDGE_EPS || l2 < -EDGE_EPS {
-                            continue;
-                        }
-                        // Perspective-correct weights (1/z is affine in screen space).
-                        let (l0, l1, l2) = (l0.max(0.0), l1.max(0.0), l2.max(0.0));
-                        let q = [l0 / a[2], l1 / b[2], l2 / c[2]];
-                        let s = q[0] + q[1] + q[2];
-                        let z = 1.0 / s;
-                        let k = (y - by0) * w + x;
-                        if z < zbuf[k] {
-                            zbuf[k] = z;
-                            face[k] = t.face;
-                            bary[k] = [(q[0] * z) as f32, (q[1] * z) as f32, (q[2] * z) as f32];
-                            depth[k] = z as f32;
-                        }
-                    }
+                // Perspective-correct weights (1/z is affine in screen space).
+                let (l0, l1, l2) = (l0.max(0.0), l1.max(0.0), l2.max(0.0));
+                let q = [l0 / a[2], l1 / b[2], l2 / c[2]];
+                let s = q[0] + q[1] + q[2];
+                let z = 1.0 / s;
+                let k = (y - by0) * w + x;
+                if z < zbuf[k] {
+                    zbuf[k] = z;
+                    out.face[k] = t.face;
+                    out.bary[k] = [(q[0] * z) as f32, (q[1] * z) as f32, (q[2] * z) as f32];
+                    out.depth[k] = z as f32;
                 }
             }
-        });
-    Raster {
-        width,
-        height,
-        face,
-        bary,
-        depth,
+        }
     }
 }
 

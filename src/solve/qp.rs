@@ -99,19 +99,8 @@ fn solve_passive(ata: &DMatrix<f64>, atb: &DVector<f64>, passive: &[usize]) -> V
 /// Returns `Error::Numeric` on non-finite input. Terminates in finitely many steps; after
 /// `max_iter` outer steps the current (feasible, improved) iterate is returned.
 pub fn nnls(ata: &DMatrix<f64>, atb: &DVector<f64>, opts: &NnlsOptions) -> Result<DVector<f64>> {
+    check_nnls_inputs(ata, atb)?;
     let n = atb.len();
-    if ata.nrows() != n || ata.ncols() != n {
-        return Err(Error::Numeric {
-            stage: "nnls".into(),
-            message: format!("matrix is {}×{}, vector {n}", ata.nrows(), ata.ncols()),
-        });
-    }
-    if ata.iter().chain(atb.iter()).any(|v| !v.is_finite()) {
-        return Err(Error::Numeric {
-            stage: "nnls".into(),
-            message: "non-finite entry in the normal equations".into(),
-        });
-    }
     let mut x = DVector::<f64>::zeros(n);
     if n == 0 {
         return Ok(x);
@@ -126,24 +115,79 @@ pub fn nnls(ata: &DMatrix<f64>, atb: &DVector<f64>, opts: &NnlsOptions) -> Resul
     } else {
         opts.max_iter
     };
-    let mut passive = vec![false; n];
-    // Variables that failed to enter (rounding) are barred until the next successful step.
-    let mut barred = vec![false; n];
+    let mut sets = ActiveSets {
+        passive: vec![false; n],
+        barred: vec![false; n],
+    };
     for _ in 0..max_iter {
         // Dual variables w = Aᵀy − AᵀA x (negative gradient).
         let w = atb - ata * &x;
-        let mut best = None;
-        for j in 0..n {
-            if !passive[j] && !barred[j] && w[j] > tol && best.is_none_or(|(_, v)| w[j] > v) {
+        let Some(j) = sets.entering(&w, tol) else {
+            break;
+        };
+        sets.passive[j] = true;
+        sets.feasible_passive_solution(ata, atb, &mut x, j);
+    }
+    Ok(x)
+}
+
+/// The normal equations of [`nnls`] are square, of the vector's size, and finite.
+fn check_nnls_inputs(ata: &DMatrix<f64>, atb: &DVector<f64>) -> Result<()> {
+    let n = atb.len();
+    if ata.nrows() != n || ata.ncols() != n {
+        return Err(Error::Numeric {
+            stage: "nnls".into(),
+            message: format!("matrix is {}×{}, vector {n}", ata.nrows(), ata.ncols()),
+        });
+    }
+    if ata.iter().chain(atb.iter()).any(|v| !v.is_finite()) {
+        return Err(Error::Numeric {
+            stage: "nnls".into(),
+            message: "non-finite entry in the normal equations".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Lawson–Hanson's sets: the passive (free) variables, and the variables that failed to
+/// enter (rounding), barred until the next successful step.
+struct ActiveSets {
+    passive: Vec<bool>,
+    barred: Vec<bool>,
+}
+
+impl ActiveSets {
+    /// The variable to enter: the largest dual `w_j > tol` among those neither passive nor
+    /// barred (the first of equals).
+    fn entering(&self, w: &DVector<f64>, tol: f64) -> Option<usize> {
+        let mut best: Option<(usize, f64)> = None;
+        for j in 0..w.len() {
+            if !self.passive[j]
+                && !self.barred[j]
+                && w[j] > tol
+                && best.is_none_or(|(_, v)| w[j] > v)
+            {
                 best = Some((j, w[j]));
             }
         }
-        let Some((j, _)) = best else { break };
-        passive[j] = true;
-        // Inner loop: keep the passive solution feasible.
+        best.map(|(j, _)| j)
+    }
+
+    /// Lawson–Hanson's inner loop after `j` entered: solve on the passive set; while the
+    /// solution `z` has a non-positive entry, step from `x` toward `z` until the first
+    /// passive variable hits zero and drop it. A rounding artefact (the entering `z_j ≤ 0`)
+    /// bars `j` and keeps the iterate.
+    fn feasible_passive_solution(
+        &mut self,
+        ata: &DMatrix<f64>,
+        atb: &DVector<f64>,
+        x: &mut DVector<f64>,
+        j: usize,
+    ) {
+        let n = x.len();
         let mut first = true;
         loop {
-            let set: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+            let set: Vec<usize> = (0..n).filter(|&i| self.passive[i]).collect();
             let z = solve_passive(ata, atb, &set);
             if first {
                 first = false;
@@ -152,9 +196,9 @@ pub fn nnls(ata: &DMatrix<f64>, atb: &DVector<f64>, opts: &NnlsOptions) -> Resul
                 // dual: bar j until the next successful step and keep the iterate.
                 let pos = set.iter().position(|&i| i == j).unwrap_or(0);
                 if z[pos] <= 0.0 {
-                    passive[j] = false;
-                    barred[j] = true;
-                    break;
+                    self.passive[j] = false;
+                    self.barred[j] = true;
+                    return;
                 }
             }
             if z.iter().all(|&v| v > 0.0) {
@@ -162,46 +206,50 @@ pub fn nnls(ata: &DMatrix<f64>, atb: &DVector<f64>, opts: &NnlsOptions) -> Resul
                     x[*i] = v;
                 }
                 for i in 0..n {
-                    if !passive[i] {
+                    if !self.passive[i] {
                         x[i] = 0.0;
                     }
                 }
-                barred.iter_mut().for_each(|b| *b = false);
-                break;
+                self.barred.iter_mut().for_each(|b| *b = false);
+                return;
             }
-            // Step from x toward z until the first passive variable hits zero.
-            let mut alpha = f64::INFINITY;
-            let mut hit = set[0];
-            for (i, &v) in set.iter().zip(&z) {
-                if v <= 0.0 {
-                    let a = if x[*i] - v > 0.0 {
-                        x[*i] / (x[*i] - v)
-                    } else {
-                        0.0
-                    };
-                    if a < alpha {
-                        alpha = a;
-                        hit = *i;
-                    }
-                }
-            }
-            let alpha = alpha.min(1.0);
-            for (i, &v) in set.iter().zip(&z) {
-                x[*i] += alpha * (v - x[*i]);
-            }
-            x[hit] = 0.0;
-            for &i in &set {
-                if x[i] <= 0.0 {
-                    x[i] = 0.0;
-                    passive[i] = false;
-                }
-            }
-            if !passive.iter().any(|&p| p) {
-                break;
+            self.step_toward(x, &set, &z);
+            if !self.passive.iter().any(|&p| p) {
+                return;
             }
         }
     }
-    Ok(x)
+
+    /// Step from `x` toward `z` (on `set`) until the first passive variable hits zero; the
+    /// variables at zero leave the passive set.
+    fn step_toward(&mut self, x: &mut DVector<f64>, set: &[usize], z: &[f64]) {
+        let mut alpha = f64::INFINITY;
+        let mut hit = set[0];
+        for (i, &v) in set.iter().zip(z) {
+            if v <= 0.0 {
+                let a = if x[*i] - v > 0.0 {
+                    x[*i] / (x[*i] - v)
+                } else {
+                    0.0
+                };
+                if a < alpha {
+                    alpha = a;
+                    hit = *i;
+                }
+            }
+        }
+        let alpha = alpha.min(1.0);
+        for (i, &v) in set.iter().zip(z) {
+            x[*i] += alpha * (v - x[*i]);
+        }
+        x[hit] = 0.0;
+        for &i in set {
+            if x[i] <= 0.0 {
+                x[i] = 0.0;
+                self.passive[i] = false;
+            }
+        }
+    }
 }
 
 /// Options of [`bound_qp`].
