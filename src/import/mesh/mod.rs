@@ -314,48 +314,9 @@ fn clean(
     colors: Option<Vec<[f32; 3]>>,
     faces: Vec<[u32; 3]>,
 ) -> (Mesh, MeshCleanup) {
-    let finite: Vec<Vec3> = positions
-        .iter()
-        .copied()
-        .filter(|p| p.iter().all(|c| c.is_finite()))
-        .collect();
-    let (lo, hi) = bounding_box(&finite);
-    let d2 = (hi - lo).norm_squared();
-    let zero_area = 1e-12 * d2;
     let input_faces = faces.len();
-    let kept: Vec<[u32; 3]> = faces
-        .into_iter()
-        .filter(|&[a, b, c]| {
-            if a == b || b == c || a == c {
-                return false;
-            }
-            let (p0, p1, p2) = (
-                positions[a as usize],
-                positions[b as usize],
-                positions[c as usize],
-            );
-            if !(p0.iter().chain(p1.iter()).chain(p2.iter())).all(|v| v.is_finite()) {
-                return false;
-            }
-            (p1 - p0).cross(&(p2 - p0)).norm() > zero_area
-        })
-        .collect();
-    let degenerate = input_faces - kept.len();
-
-    // Re-index the referenced vertices in their original order.
-    let mut new_index = vec![u32::MAX; positions.len()];
-    for f in &kept {
-        for &k in f {
-            new_index[k as usize] = 0;
-        }
-    }
-    let mut next = 0u32;
-    for slot in new_index.iter_mut() {
-        if *slot == 0 {
-            *slot = next;
-            next += 1;
-        }
-    }
+    let kept = non_degenerate_faces(&positions, faces);
+    let new_index = referenced_index(positions.len(), &kept);
     let keep = |i: usize| new_index[i] != u32::MAX;
     let new_positions: Vec<Vec3> = (0..positions.len())
         .filter(|&i| keep(i))
@@ -372,33 +333,17 @@ fn clean(
             .collect::<Vec<_>>()
     });
     let computed = area_weighted_normals(&new_positions, &new_faces);
-    // Read normals are used where usable (finite, non-zero); the rest are computed.
-    let (new_normals, normals_computed) = match normals {
-        Some(read) => {
-            let read: Vec<Vec3> = (0..positions.len())
-                .filter(|&i| keep(i))
-                .map(|i| read[i])
-                .collect();
-            let mut all_read = true;
-            let merged = read
-                .iter()
-                .zip(&computed)
-                .map(|(r, c)| match r.try_normalize(1e-300) {
-                    Some(u) if u.iter().all(|v| v.is_finite()) => u,
-                    _ => {
-                        all_read = false;
-                        *c
-                    }
-                })
-                .collect();
-            (merged, !all_read)
-        }
-        None => (computed, true),
-    };
+    let read = normals.map(|read| {
+        (0..positions.len())
+            .filter(|&i| keep(i))
+            .map(|i| read[i])
+            .collect::<Vec<_>>()
+    });
+    let (new_normals, normals_computed) = merge_normals(read, computed);
     let cleanup = MeshCleanup {
         input_vertices: positions.len(),
         input_faces,
-        degenerate_faces: degenerate,
+        degenerate_faces: input_faces - kept.len(),
         invalid_faces: 0,
         polygons_triangulated: 0,
         unreferenced_vertices: positions.len() - new_positions.len(),
@@ -413,6 +358,75 @@ fn clean(
         },
         cleanup,
     )
+}
+
+/// The faces with three distinct, finite corners and an area above `10⁻¹²` of the
+/// squared diagonal of the finite vertices' bounding box.
+fn non_degenerate_faces(positions: &[Vec3], faces: Vec<[u32; 3]>) -> Vec<[u32; 3]> {
+    let finite: Vec<Vec3> = positions
+        .iter()
+        .copied()
+        .filter(|p| p.iter().all(|c| c.is_finite()))
+        .collect();
+    let (lo, hi) = bounding_box(&finite);
+    let zero_area = 1e-12 * (hi - lo).norm_squared();
+    faces
+        .into_iter()
+        .filter(|&[a, b, c]| {
+            if a == b || b == c || a == c {
+                return false;
+            }
+            let (p0, p1, p2) = (
+                positions[a as usize],
+                positions[b as usize],
+                positions[c as usize],
+            );
+            if !(p0.iter().chain(p1.iter()).chain(p2.iter())).all(|v| v.is_finite()) {
+                return false;
+            }
+            (p1 - p0).cross(&(p2 - p0)).norm() > zero_area
+        })
+        .collect()
+}
+
+/// Each vertex's new index when the vertices `faces` reference keep their order
+/// (`u32::MAX` for the unreferenced).
+fn referenced_index(n_vertices: usize, faces: &[[u32; 3]]) -> Vec<u32> {
+    let mut new_index = vec![u32::MAX; n_vertices];
+    for f in faces {
+        for &k in f {
+            new_index[k as usize] = 0;
+        }
+    }
+    let mut next = 0u32;
+    for slot in new_index.iter_mut() {
+        if *slot == 0 {
+            *slot = next;
+            next += 1;
+        }
+    }
+    new_index
+}
+
+/// Read normals where usable (finite, non-zero, normalised), computed ones elsewhere;
+/// whether any computed one was used.
+fn merge_normals(read: Option<Vec<Vec3>>, computed: Vec<Vec3>) -> (Vec<Vec3>, bool) {
+    let Some(read) = read else {
+        return (computed, true);
+    };
+    let mut all_read = true;
+    let merged = read
+        .iter()
+        .zip(&computed)
+        .map(|(r, c)| match r.try_normalize(1e-300) {
+            Some(u) if u.iter().all(|v| v.is_finite()) => u,
+            _ => {
+                all_read = false;
+                *c
+            }
+        })
+        .collect();
+    (merged, !all_read)
 }
 
 #[cfg(test)]
