@@ -15,7 +15,7 @@ use crate::solve::adapt::Decision;
 use crate::solve::cluster::initial_materials;
 use crate::solve::light::choose::LightChoice;
 use crate::solve::materials::brightness;
-use crate::solve::materials::propagate::propagate_unseen;
+use crate::solve::materials::propagate::{propagate_unseen_over, VertexGraph};
 use crate::solve::options::PhotoHalves;
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem, Robust};
@@ -174,12 +174,7 @@ pub(crate) fn fit<'a>(
     };
     let mut est = fit_light_models(opts, &problem, &family, &mut start, &monitor, log)?;
     if opts.start_search {
-        let search = StartSearch {
-            base: &family[0].materials,
-            lambert,
-            max_iterations: p.eff.max_iterations,
-        };
-        est = search_starts(&problem, est, &search, &monitor, log)?;
+        est = search_starts(&problem, est, &family[0].materials, lambert, &monitor, log)?;
     }
     let Estimated {
         est: mut estimate,
@@ -191,6 +186,7 @@ pub(crate) fn fit<'a>(
     fill_unseen(
         &obs,
         &scene.mesh.positions,
+        &eopts.weights_graph,
         &mut estimate,
         &mut start.reasons,
         log,
@@ -310,10 +306,12 @@ fn held_out_tracker(
 }
 
 /// The vertices no training photo sees kept their start: give them their seen
-/// neighbours' materials (the harmonic extension, `solve::materials::propagate`).
+/// neighbours' materials (the harmonic extension, `solve::materials::propagate`), over the
+/// neighbour prior's graph when it built one (`graph` not empty; the same graph).
 fn fill_unseen(
     obs: &Observations,
     positions: &[crate::Vec3],
+    graph: &VertexGraph,
     est: &mut solve::Estimate,
     reasons: &mut Vec<String>,
     log: &mut RunLog,
@@ -321,7 +319,8 @@ fn fill_unseen(
     let seen_now = super::mean_colours(obs, positions.len()).1;
     let k = est.lambda.len();
     let filled = log.stages.run("estimate", || {
-        propagate_unseen(positions, &seen_now, &mut est.weights, k)
+        let built = Some(graph).filter(|g| !g.is_empty());
+        propagate_unseen_over(positions, built, &seen_now, &mut est.weights, k)
     })?;
     if filled.filled > 0 {
         reasons.push(format!(
@@ -522,21 +521,15 @@ fn fit_light_models(
     })
 }
 
-/// What the start search starts from: the first start's materials, the Lambertian basis,
-/// and the outer iterations each searched start may take (the bar grows by that much).
-struct StartSearch<'a> {
-    base: &'a Materials0,
-    lambert: usize,
-    max_iterations: usize,
-}
-
-/// The start search (`--start-search`, [`brightness::search`]) from the kept fit. The
+/// The start search (`--start-search`, [`brightness::search`]) from the kept fit, around
+/// `base` (the first start's materials; `lambert` its Lambertian basis). The
 /// timeline then follows the search's records: the kept start's iterations as start 0,
 /// each searched start's after them on the same clock.
 fn search_starts(
     problem: &Problem,
     fitted: Estimated,
-    search: &StartSearch,
+    base: &Materials0,
+    lambert: usize,
     monitor: &Monitor,
     log: &mut RunLog,
 ) -> Result<Estimated> {
@@ -552,7 +545,6 @@ fn search_starts(
     timeline.retain(|p| p.start == multi.chosen);
     timeline.iter_mut().for_each(|p| p.start = 0);
     let (mut clock, mut current, mut last) = (0.0, 0, timeline.last().map_or(0.0, |p| p.seconds));
-    let (base, lambert) = (search.base, search.lambert);
     let (est, multi) = log.stages.run("start search", || {
         brightness::search(
             problem,
@@ -564,7 +556,7 @@ fn search_starts(
             &mut |si, it, state| {
                 if si != current {
                     (clock, current) = (last, si);
-                    monitor.bar.inc_length(search.max_iterations as u64);
+                    monitor.bar.inc_length(eopts.max_outer as u64);
                 }
                 monitor.bar.inc(1);
                 let holdout_rmse = monitor.held_out(state);

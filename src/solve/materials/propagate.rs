@@ -126,6 +126,19 @@ pub fn propagate_unseen(
     weights: &mut [f64],
     kk: usize,
 ) -> Result<Propagation> {
+    propagate_unseen_over(positions, None, seen, weights, kk)
+}
+
+/// [`propagate_unseen`] over `graph` when given: the `NEIGHBOURS`-nearest-neighbour graph
+/// of `positions` already built ([`knn_graph`], as the neighbour prior builds it), else
+/// built here when needed.
+pub fn propagate_unseen_over(
+    positions: &[Vec3],
+    graph: Option<&VertexGraph>,
+    seen: &[bool],
+    weights: &mut [f64],
+    kk: usize,
+) -> Result<Propagation> {
     let n = positions.len();
     if seen.len() != n || weights.len() != n * kk {
         return Err(Error::Numeric {
@@ -143,11 +156,16 @@ pub fn propagate_unseen(
             ..Propagation::default()
         });
     }
-    let VertexGraph {
-        offsets: off,
-        targets: adj,
-    } = knn_graph(positions, NEIGHBOURS)?;
-    let reach = reachable(&off, &adj, seen);
+    let built;
+    let graph = match graph {
+        Some(g) => g,
+        None => {
+            built = knn_graph(positions, NEIGHBOURS)?;
+            &built
+        }
+    };
+    let (off, adj) = (&graph.offsets, &graph.targets);
+    let reach = reachable(off, adj, seen);
     // Unknowns: the unseen vertices a seen one reaches.
     let unknown: Vec<usize> = (0..n).filter(|&x| !seen[x] && reach[x]).collect();
     let mut slot = vec![usize::MAX; n];
@@ -155,8 +173,8 @@ pub fn propagate_unseen(
         slot[x] = i;
     }
     let system = Harmonic {
-        off: &off,
-        adj: &adj,
+        off,
+        adj,
         unknown: &unknown,
         slot: &slot,
     };
