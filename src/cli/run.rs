@@ -362,10 +362,9 @@ impl RunArgs {
     /// Runs the fit on the workspace; one summary line (and with `--quiet` off, the
     /// held-out figures) on stdout.
     pub(crate) fn execute(self) -> anyhow::Result<()> {
-        let args = self;
-        set_threads(args.threads)?;
-        let quiet = args.quiet;
-        let opts = args.options()?;
+        set_threads(self.threads)?;
+        let quiet = self.quiet;
+        let opts = self.options()?;
         let summary = relight_cpc::run::run(&opts)?;
         let r = &summary.report;
         let held = if r.holdout.is_empty() {

@@ -43,6 +43,7 @@ mod tracker;
 mod transients;
 mod truth;
 mod truth_check;
+mod write;
 
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};

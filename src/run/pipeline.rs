@@ -1,9 +1,9 @@
 //! The stages of `run` as functions with typed inputs and outputs (the types in
 //! [`super::state`]): [`import`] → [`Imported`] → [`observe`] → [`Observed`] →
 //! [`prepare`] → [`Prepared`] → [`fit`] → [`Fit`] (holding the [`Fitted`] model) →
-//! `evaluate` → [`Evaluated`] → [`write`] (the result folder and the [`RunReport`]). Each
-//! stage is timed by [`crate::stages::Stages`] and adds its notes to the report through
-//! [`RunLog`].
+//! `evaluate` → [`Evaluated`] → [`super::write`] (the result folder and the
+//! [`RunReport`]). Each stage is timed by [`crate::stages::Stages`] and adds its notes to the
+//! report through [`RunLog`].
 
 use std::path::Path;
 use std::sync::Arc;
@@ -16,15 +16,14 @@ use super::shading::{self, render_local_resolution};
 use super::state::{Evaluated, Imported, Observed, Prepared, RunLog};
 use super::truth::Truth;
 use super::{
-    adaptive_decisions, conditioning_map, conditioning_use, env_from_world, estimate_up,
-    holdout_rule, holdout_views, mean_colours, output, Holdout, LargeMeshSettings, MaterialCount,
-    Progress, RunOptions, LARGE_MESH,
+    adaptive_decisions, env_from_world, estimate_up, holdout_rule, holdout_views, mean_colours,
+    Holdout, LargeMeshSettings, MaterialCount, Progress, RunOptions, LARGE_MESH,
 };
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
 use crate::observe::trace::SceneBvh;
 use crate::observe::{self, Observations};
-use crate::report::{ModelReport, RunReport};
+use crate::report::RunReport;
 use crate::solve::adapt::Decision;
 use crate::solve::EstimateOptions;
 use crate::sphere::rotation::{Rotation, RotationForm};
@@ -46,7 +45,7 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
     let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
     let mut fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
     let evaluated = evaluation(opts, &imported, &mut fit, &mut log, dir, progress)?;
-    write(
+    super::write::write(
         opts,
         fit,
         evaluated,
@@ -78,14 +77,11 @@ fn evaluation(
         fit.fitted.half_prior = hp.options;
         Some(hp.report)
     };
-    let (evaluation, truth_check) = log.stages.run("evaluation", || -> Result<_> {
-        let mut e = evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)?;
-        let t = std::mem::take(&mut e.truth_check);
-        Ok((e, t))
+    let evaluation = log.stages.run("evaluation", || {
+        evaluate::evaluate(&fit.fitted, imported.truth.as_ref(), dir, progress)
     })?;
     Ok(Evaluated {
         evaluation,
-        truth_check,
         holdout_rule: imported.holdout_rule.clone(),
         half_fit_prior,
     })
@@ -544,172 +540,6 @@ fn rotation(eff: &RunOptions, log: &mut RunLog, progress: &Progress) -> Rotation
     });
     drop(bar);
     rot
-}
-
-/// Stage 8, outputs and the report.
-fn write(
-    opts: &RunOptions,
-    fit: Fit,
-    evaluated: Evaluated,
-    truth: Option<&Truth>,
-    log: &mut RunLog,
-    dir: &Path,
-    progress: &Progress,
-) -> Result<RunReport> {
-    let Fit {
-        fitted,
-        train_entries,
-        timeline,
-        multi,
-        reasons,
-        decisions,
-        light_decision,
-        transients,
-    } = fit;
-    progress.stage("output");
-    log.stages
-        .run("output", || output::write_results(&fitted, dir, progress))?;
-    if let Some(t) = &transients {
-        transients_note(t, &fitted, dir, log)?;
-    }
-    super::notes::fit_notes(opts, &fitted, &multi, log);
-    let model = model_report(opts, &fitted, reasons, decisions, light_decision);
-    let mut report = RunReport {
-        version: env!("CARGO_PKG_VERSION").to_string(),
-        workspace: opts.workspace.display().to_string(),
-        seed: opts.seed,
-        // The iterate returned: early stopping's choice, else the last.
-        train_rmse: fitted
-            .est
-            .validation
-            .as_ref()
-            .and_then(|v| fitted.est.timeline.get(v.best_iteration - 1))
-            .or(fitted.est.timeline.last())
-            .map_or(f64::NAN, |t| t.train_rmse),
-        train: train_entries,
-        timeline,
-        model,
-        notes: std::mem::take(&mut log.notes),
-        conditioning: conditioning_map(&fitted.est.conditioning),
-        conditioning_use: conditioning_use(
-            &fitted.est.conditioning,
-            &fitted.estimate_options,
-            opts.adaptive,
-        ),
-        starts: (multi.starts.len() > 1).then_some(multi),
-        ..Default::default()
-    };
-    add_evaluation(&mut report, evaluated, &fitted, truth)?;
-    progress.stage("report");
-    write_report(&mut report, &fitted, truth, log, dir)?;
-    Ok(report)
-}
-
-/// The transient pass's masks written and its note.
-fn transients_note(
-    t: &super::transients::Transients,
-    fitted: &super::Fitted,
-    dir: &Path,
-    log: &mut RunLog,
-) -> Result<()> {
-    let folder = super::transients::write_masks(t, fitted.scene, &fitted.train, dir)?;
-    log.notes.push(format!(
-        "transient occluders: {} of {} training observations masked ({} rounds of a {}-iteration pilot fit's residuals, coherent over the mesh) in {} of {} photos; masks in {folder}/",
-        t.count(),
-        t.used_before,
-        super::transients::PILOT_ROUNDS,
-        super::transients::PILOT_ITERATIONS,
-        t.masked.iter().filter(|m| !m.is_empty()).count(),
-        t.masked.len()
-    ));
-    Ok(())
-}
-
-/// The report's model section: sizes, resolutions and why.
-fn model_report(
-    opts: &RunOptions,
-    fitted: &super::Fitted,
-    reasons: Vec<String>,
-    decisions: Vec<Decision>,
-    light_decision: crate::solve::light::choose::LightDecision,
-) -> ModelReport {
-    let eff = &fitted.opts;
-    ModelReport {
-        materials: fitted.est.lambda.len(),
-        basis: eff.basis.iter().map(|b| b.label()).collect(),
-        global_resolution: eff.global_resolution,
-        local_resolution: eff.local_resolution,
-        render_local_resolution: fitted.render_vis.n_local,
-        normal_grid: eff.normal_grid,
-        kept_coefficients: eff.keep,
-        blend_tolerance: fitted.estimate_options.blend_tolerance,
-        reasons,
-        adaptive: if opts.adaptive { Some(decisions) } else { None },
-        light: Some(light_decision),
-        scale_anchor: Some(crate::report::ScaleAnchorReport {
-            name: fitted.estimate_options.scale_anchor.name().to_string(),
-            rule: fitted.est.normalisation.clone(),
-        }),
-    }
-}
-
-/// The evaluation's figures and notes, and the albedo against the truth, into `report`.
-fn add_evaluation(
-    report: &mut RunReport,
-    evaluated: Evaluated,
-    fitted: &super::Fitted,
-    truth: Option<&Truth>,
-) -> Result<()> {
-    let Evaluated {
-        evaluation,
-        truth_check,
-        holdout_rule,
-        half_fit_prior,
-    } = evaluated;
-    report.holdout = evaluation.holdout;
-    report.headline = evaluation.headline.map(|h| h.ratio);
-    report.headline_detail = evaluation.headline;
-    report.half_fit_prior = half_fit_prior;
-    report.metrics = evaluation.metrics;
-    report.truth_check = truth_check;
-    report.albedo_truth = match truth {
-        Some(t) => super::truth_check::albedo_truth(fitted, t)?,
-        None => None,
-    };
-    report.holdout_rule = holdout_rule;
-    report.notes.extend(super::notes::evaluation_notes(
-        fitted,
-        evaluation.render_seconds,
-        evaluation.half_fit_seconds,
-        evaluation.mean_holdout_rmse,
-    ));
-    Ok(())
-}
-
-/// The stage records, `report.json`, `report.md` and `report.html` with its pictures. The
-/// report's own writing is timed but cannot appear in the file it is writing.
-fn write_report(
-    report: &mut RunReport,
-    fitted: &super::Fitted,
-    truth: Option<&Truth>,
-    log: &RunLog,
-    dir: &Path,
-) -> Result<()> {
-    report.stage_details = log.stages.records.clone();
-    report.stages = report
-        .stage_details
-        .iter()
-        .map(|s| (s.name.clone(), s.seconds))
-        .collect();
-    report.peak_memory_bytes = log.stages.peak_memory_bytes();
-    let maps = output::gallery_maps(fitted);
-    let refs: Vec<(String, usize, usize, &[[f32; 3]])> = maps
-        .iter()
-        .map(|(n, ll)| (n.clone(), ll.width, ll.height, ll.rgb.as_slice()))
-        .collect();
-    report.write(dir, &refs)?;
-    let inputs = super::html_inputs::html_inputs(fitted, truth, dir)?;
-    crate::report::html::write(dir, report, &inputs)
 }
 
 /// How the visibility rays were spread, in words for the report's notes.

@@ -71,7 +71,6 @@ pub(crate) struct Prepared {
 /// After the evaluation: the held-out figures and the truth check.
 pub(crate) struct Evaluated {
     pub(crate) evaluation: Evaluation,
-    pub(crate) truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
     pub(crate) holdout_rule: String,
     pub(crate) half_fit_prior: Option<crate::report::HalfFitPriorReport>,
 }
