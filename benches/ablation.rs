@@ -155,6 +155,17 @@ fn sum1(o: Option<EstimateOptions>, tau: f64) -> Option<EstimateOptions> {
     })
 }
 
+/// `o` with its sum-to-one prior on blended vertices only
+/// ([`relight_cpc::solve::SumScope::Blends`] at `run`'s floor).
+fn on_blends(o: Option<EstimateOptions>) -> Option<EstimateOptions> {
+    o.map(|o| EstimateOptions {
+        weights_sum_scope: relight_cpc::solve::SumScope::Blends {
+            floor: relight_cpc::solve::BLEND_FLOOR,
+        },
+        ..o
+    })
+}
+
 /// `o` with the neighbour prior on the blending weights at strength `tau`
 /// ([`EstimateOptions::weights_smoothness`]; its graph filled in per case by [`with_case_graph`]).
 fn pull(o: Option<EstimateOptions>, tau: f64) -> Option<EstimateOptions> {
@@ -276,6 +287,7 @@ fn extra_rows() -> Vec<Row> {
         Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
         Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
         Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
+        Row::Fit { label: "paper, Σw=1 prior 1 on blends", make: |b| on_blends(sum1(choice("paper", b), 1.0)) },
         Row::Fit { label: "paper, neighbour prior 0.1", make: |b| pull(choice("paper", b), 0.1) },
         Row::Fit { label: "paper, Σw=1 prior 1, neighbour prior 0.1", make: |b| pull(sum1(choice("paper", b), 1.0), 0.1) },
         Row::Fit { label: "paper, Σw=1 prior 0.3", make: |b| sum1(choice("paper", b), 0.3) },

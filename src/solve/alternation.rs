@@ -22,12 +22,12 @@ use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
-    data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty, weights_step,
-    LambdaCoupling, NeighbourPull,
+    blend_scaled_gamma, data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty,
+    weights_step, LambdaCoupling, NeighbourPull,
 };
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{evaluate, gauge, Objective, Point};
-use crate::solve::options::EstimateOptions;
+use crate::solve::options::{EstimateOptions, SumScope};
 use crate::solve::problem::{basis_responses, beta_per_vertex, Problem};
 use crate::solve::result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes};
 use crate::solve::validation::{EarlyStop, HeldBack};
@@ -174,6 +174,9 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     prev: Option<Snapshot<M::Params>>,
     /// `γ_x` of the weights' sum-to-one prior, when on ([`EstimateOptions::weights_sum`]).
     pub(crate) sum_gamma: Option<Vec<f64>>,
+    /// The full `γ_x` when the prior ties blended vertices only ([`SumScope::Blends`]):
+    /// `sum_gamma` is rescaled from it before every material step.
+    sum_gamma_full: Option<Vec<f64>>,
     /// `η_x` of the neighbour prior, when on ([`EstimateOptions::weights_smoothness`]).
     pub(crate) pull_eta: Option<Vec<f64>>,
     /// Anderson acceleration's history, when on ([`crate::solve::accel`]).
@@ -200,6 +203,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             prev: None,
             sum_gamma: (opts.weights_sum > 0.0)
                 .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
+            sum_gamma_full: (opts.weights_sum > 0.0
+                && matches!(opts.weights_sum_scope, SumScope::Blends { .. }))
+            .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
             pull_eta: (opts.weights_smoothness > 0.0 && !opts.weights_graph.is_empty()).then(
                 || sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_smoothness),
             ),
@@ -354,6 +360,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             return Ok(s);
         }
         let kk = self.lambda.len();
+        self.scope_sum_gamma();
         for _ in 0..opts.material_sweeps.max(1) {
             let l = lambda_step(
                 problem,
@@ -387,6 +394,17 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             self.fix_gauge(&mut s);
         }
         Ok(s)
+    }
+
+    /// With [`SumScope::Blends`], the sum-to-one prior's `γ_x` for the coming material step
+    /// from the current weights ([`blend_scaled_gamma`]).
+    fn scope_sum_gamma(&mut self) {
+        if let (Some(full), SumScope::Blends { floor }) =
+            (&self.sum_gamma_full, self.opts.weights_sum_scope)
+        {
+            let kk = self.lambda.len();
+            self.sum_gamma = Some(blend_scaled_gamma(full, &self.weights, kk, floor));
+        }
     }
 
     /// The weights' priors' terms of `F` at `weights` (0 when off).

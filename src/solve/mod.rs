@@ -84,8 +84,8 @@ pub use light::photo::{
 };
 pub use materials::{lambda_step, weights_step, LambdaStep, WeightsStep};
 pub use options::{
-    EstimateOptions, Robust, SmoothnessScale, ALTERNATION_CG_ITERS, ALTERNATION_QP_ITERS, PATIENCE,
-    ROBUST_FLOOR, VALIDATION_MIN_FIT, WEIGHTS_SUM,
+    EstimateOptions, Robust, SmoothnessScale, SumScope, ALTERNATION_CG_ITERS, ALTERNATION_QP_ITERS,
+    BLEND_FLOOR, PATIENCE, ROBUST_FLOOR, VALIDATION_MIN_FIT, WEIGHTS_SUM,
 };
 pub use problem::{basis_responses, beta_per_vertex, par_largest_first, predict, Problem};
 pub use result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes, Validation};

@@ -189,6 +189,8 @@ pub struct EstimateOptions {
     /// relative change `δ` of a vertex's brightness what its data would charge for it.
     /// Default [`WEIGHTS_SUM`].
     pub weights_sum: f64,
+    /// Which vertices [`Self::weights_sum`] ties ([`SumScope`]); default every vertex.
+    pub weights_sum_scope: SumScope,
     /// Prior pulling each vertex's blending weights toward the mean of its neighbours'
     /// (issue 25, not in the paper; 0 = off): the `w` step and `F` gain
     /// `Σ_x η_x ‖w(x) − w̄_N(x)‖²` with `η_x = weights_smoothness · Σ_{p ∈ x} α_p ‖y_p‖²`
@@ -213,6 +215,39 @@ pub struct EstimateOptions {
     /// alternation ([`ScaleAnchor`]).
     pub scale_anchor: ScaleAnchor,
 }
+
+/// Which vertices the blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`])
+/// ties.
+///
+/// The prior ties a vertex's brightness to its materials. Where two materials blend,
+/// `w_A + w_B = 1` also ties material A's brightness to material B's: the albedo ratio that
+/// a free map per photo leaves open. At a pure vertex it only forbids brightness the
+/// material does not explain, which on a real object is its texture (the real Buddha photos
+/// lose 3.6–8.5% of their headline with the prior everywhere,
+/// `bench-results/weights-sum-blends.md`). [`SumScope::Blends`] keeps the first tie at full
+/// strength and weakens the second.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum SumScope {
+    /// Every vertex at its full `γ_x` ([`crate::solve::materials::sum_weights_gamma`]).
+    #[default]
+    Every,
+    /// `γ_x` scaled before every `w` step by `max(b_x, floor)`, with the vertex's blend
+    /// `b_x = min(1, 2 (1 − max_k w_k / Σ_k w_k))` at the step's start: 1 where two
+    /// materials blend evenly, 0 at a pure vertex
+    /// ([`crate::solve::materials::blend_scaled_gamma`]).
+    Blends {
+        /// The smallest scale, so that a pure vertex keeps part of the tie.
+        floor: f64,
+    },
+}
+
+/// The floor of [`SumScope::Blends`] that `run` uses: measured against 0 on the real Buddha
+/// photos and five rendered scenes (`bench-results/weights-sum-blends.md`,
+/// `bench-results/weights-sum-scope.md`). With 0 the pilot's held-out score moved by
+/// 0.4–4.8% (noise between two refits is ~3%, [`crate::solve::adapt::BASIS_TOL`]), too
+/// little to choose by; with 0.2 the real photos' pilots scored it 4.6–6.1% worse and the
+/// rendered scenes' 3.4–11.5% better.
+pub const BLEND_FLOOR: f64 = 0.2;
 
 /// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. A run with the
 /// adaptive model chooses between 0 and 1 by the pilot's held-out error
@@ -336,6 +371,7 @@ impl Default for EstimateOptions {
             light_prior: None,
             light_sky: None,
             weights_sum: WEIGHTS_SUM,
+            weights_sum_scope: SumScope::Every,
             weights_smoothness: 0.0,
             weights_graph: Default::default(),
             achromatic_specular: false,

@@ -335,6 +335,29 @@ pub fn sum_weights_gamma(obs: &Observations, n_vertices: usize, tau: f64) -> Vec
     gamma
 }
 
+/// How evenly a vertex's weights `w` blend materials: `b = min(1, 2 (1 − max_k w_k / Σ_k w_k))`,
+/// 0 at a pure vertex (one material), 1 where the largest share is ½ or less; 1 when the
+/// weights are all 0 (no material yet: the tie stays whole).
+pub fn blend_share(w: &[f64]) -> f64 {
+    let sum: f64 = w.iter().sum();
+    if sum <= 0.0 {
+        return 1.0;
+    }
+    let largest = w.iter().copied().fold(0.0, f64::max);
+    (2.0 * (1.0 - largest / sum)).clamp(0.0, 1.0)
+}
+
+/// The sum-to-one prior's weights on blended vertices ([`crate::solve::SumScope::Blends`]):
+/// `γ_x max(b_x, floor)` with `b_x` the [`blend_share`] of vertex `x`'s row of `weights`
+/// (row-major `V × K`).
+pub fn blend_scaled_gamma(gamma: &[f64], weights: &[f64], kk: usize, floor: f64) -> Vec<f64> {
+    gamma
+        .iter()
+        .enumerate()
+        .map(|(x, &g)| g * blend_share(&weights[x * kk..(x + 1) * kk]).max(floor))
+        .collect()
+}
+
 /// The sum-to-one prior's value `Σ_x γ_x (Σ_k w_k(x) − 1)²` (`weights` row-major `V × K`).
 pub fn sum_weights_penalty(gamma: &[f64], weights: &[f64], kk: usize) -> f64 {
     gamma

@@ -385,3 +385,29 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
     let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
     assert_eq!(w.weights, free.weights);
 }
+
+#[test]
+fn blend_share_is_zero_at_a_pure_vertex_and_one_at_an_even_blend() {
+    // By hand from b = min(1, 2 (1 − max_k w_k / Σ_k w_k)); every value is a short
+    // binary fraction or the ratio of two, so 1e-15 only covers the last bit.
+    let cases: [(&[f64], f64); 7] = [
+        (&[1.0, 0.0], 0.0),
+        (&[0.0, 3.0], 0.0),
+        (&[0.5, 0.5], 1.0),
+        (&[0.7, 0.3], 0.6),
+        (&[1.4, 0.6], 0.6),      // invariant to the row's scale
+        (&[1.0, 1.0, 1.0], 1.0), // largest share ⅓ < ½: capped at 1
+        (&[0.0, 0.0], 1.0),      // no material yet: the tie stays whole
+    ];
+    for (w, want) in cases {
+        assert!((blend_share(w) - want).abs() < 1e-15, "{w:?}");
+    }
+    // γ scaled per vertex (rows of V × K = 3 × 2), pure vertices kept at the floor.
+    let gamma = [2.0, 3.0, 4.0];
+    let weights = [1.0, 0.0, 0.7, 0.3, 0.5, 0.5];
+    let scaled = blend_scaled_gamma(&gamma, &weights, 2, 0.2);
+    let want = [2.0 * 0.2, 3.0 * 0.6, 4.0];
+    for x in 0..3 {
+        assert!((scaled[x] - want[x]).abs() < 1e-15, "{scaled:?}");
+    }
+}
