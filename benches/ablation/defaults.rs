@@ -63,6 +63,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
     let opts = EstimateOptions {
         weights_sum: pilot.weights_sum,
+        weights_sum_scope: pilot.weights_sum_scope,
         ..base.clone()
     };
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");
@@ -92,9 +93,13 @@ fn full_basis(row: &[[f64; 3]], kept: &[usize], n: usize) -> Vec<[f64; 3]> {
 pub fn describe(case: &Case, p: &PilotOutcome) -> String {
     let kept: Vec<String> = p.kept.iter().map(|&b| case.basis[b].label()).collect();
     format!(
-        "the pilot chose K = {}, the weights' sum-to-one prior at {} and the lobes {} ({}; {})",
+        "the pilot chose K = {}, the weights' sum-to-one prior at {}{} and the lobes {} ({}; {})",
         p.materials,
         p.weights_sum,
+        match p.weights_sum_scope {
+            relight_cpc::solve::SumScope::Every => "",
+            relight_cpc::solve::SumScope::Blends { .. } => " on blended vertices",
+        },
         kept.join(", "),
         p.weights_sum_reason
             .as_deref()

@@ -176,6 +176,12 @@ pub(crate) struct RunArgs {
     /// observations at least 13% better (free weights with --adaptive off).
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) weights_sum: String,
+    /// Where a given --weights-sum applies: every surface point, or only where materials
+    /// blend (pure points keep a fifth of it, so a real object's texture stays free while
+    /// the brightness ratio between materials is tied). With --weights-sum auto the pilot
+    /// tries both.
+    #[arg(long, default_value = "every", value_parser = ["every", "blends"], help_heading = "Solver")]
+    pub(crate) weights_sum_on: String,
     /// Prior pulling each surface point's material weights toward its 8 nearest
     /// neighbours' mean, as a multiple of what its photos charge for a change of its
     /// brightness (0 = off, as the paper). For objects whose materials change smoothly
@@ -331,6 +337,12 @@ impl RunArgs {
         o.start_search = self.start_search == "brightness";
         o.robust_floor = self.robust_floor;
         o.weights_sum = relight_cpc::run::WeightsSum::parse(&self.weights_sum)?;
+        o.weights_sum_scope = match self.weights_sum_on.as_str() {
+            "blends" => relight_cpc::solve::SumScope::Blends {
+                floor: relight_cpc::solve::BLEND_FLOOR,
+            },
+            _ => relight_cpc::solve::SumScope::Every,
+        };
         o.weights_smoothness = self.weights_smoothness;
         o.achromatic_specular = self.achromatic_specular;
         o.clip = self.clip / 255.0;

@@ -61,6 +61,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         irls_iters: o.irls_iterations,
         robust_floor: o.robust_floor,
         weights_sum: o.weights_sum.value(),
+        weights_sum_scope: o.weights_sum_scope,
         weights_smoothness: o.weights_smoothness,
         achromatic_specular: o.achromatic_specular,
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),

@@ -60,7 +60,7 @@ use crate::observe::trace::SceneBvh;
 use crate::observe::Observations;
 use crate::report::RunReport;
 use crate::solve::cluster::initial_materials;
-use crate::solve::{self, EstimateOptions};
+use crate::solve::{self, EstimateOptions, SumScope};
 use crate::sphere::rotation::Rotation;
 use crate::transport::brdf::BasisBrdf;
 use crate::transport::visibility;
@@ -414,10 +414,16 @@ fn adaptive_decisions(
     });
     if let Some(why) = &outcome.weights_sum_reason {
         eff.weights_sum = WeightsSum::Fixed(outcome.weights_sum);
+        eff.weights_sum_scope = outcome.weights_sum_scope;
+        let on_blends = matches!(outcome.weights_sum_scope, SumScope::Blends { .. });
         d.push(Decision {
             what: "weights_sum".into(),
             full: "auto".into(),
-            chosen: outcome.weights_sum.to_string(),
+            chosen: if on_blends {
+                format!("{} on blended vertices", outcome.weights_sum)
+            } else {
+                outcome.weights_sum.to_string()
+            },
             reason: why.clone(),
         });
     }

@@ -1,7 +1,7 @@
 //! The options of `run` ([`RunOptions`]), their defaults and their checks (each a plain
 //! [`Error::Config`] naming the flag).
 
-use crate::solve::EstimateOptions;
+use crate::solve::{EstimateOptions, SumScope};
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result, Vec3};
 use std::path::PathBuf;
@@ -147,6 +147,9 @@ pub struct RunOptions {
     /// ([`EstimateOptions::weights_sum`]; 0 = off, the paper's free weights), or the
     /// pilot's choice ([`WeightsSum::Auto`]).
     pub weights_sum: WeightsSum,
+    /// Which vertices a given [`Self::weights_sum`] ties
+    /// ([`EstimateOptions::weights_sum_scope`]); with [`WeightsSum::Auto`] the pilot's choice.
+    pub weights_sum_scope: SumScope,
     /// Prior pulling each vertex's blending weights toward its neighbours' mean
     /// ([`EstimateOptions::weights_smoothness`]; 0 = off), over the 8-nearest-neighbour
     /// graph of the vertices ([`crate::solve::materials::propagate::knn_graph`]).
@@ -365,6 +368,7 @@ impl RunOptions {
             start_search: false,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: WeightsSum::Auto,
+            weights_sum_scope: SumScope::Every,
             weights_smoothness: 0.0,
             achromatic_specular: false,
             validation: EstimateOptions::default().validation_fraction,
@@ -528,6 +532,10 @@ impl RunOptions {
                     "--weights-sum {v}: must be auto or a finite number ≥ 0 (0 = off)"
                 )));
             }
+        } else if self.weights_sum_scope != SumScope::Every {
+            return Err(Error::Config(
+                "--weights-sum-on blends: give --weights-sum a number too (with auto the pilot chooses where the prior applies)".into(),
+            ));
         }
         if !(self.weights_smoothness.is_finite() && self.weights_smoothness >= 0.0) {
             return Err(Error::Config(format!(

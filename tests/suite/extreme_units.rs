@@ -239,6 +239,27 @@ fn weights_sum_outside_its_range_is_refused() {
     );
 }
 
+/// `--weights-sum-on blends` needs a strength to apply: with `--weights-sum auto` (the
+/// pilot chooses where the prior applies) it is refused, naming the flag; with a number it
+/// passes.
+#[test]
+fn weights_sum_on_blends_needs_a_strength() {
+    use relight_cpc::run::{RunOptions, WeightsSum};
+    use relight_cpc::solve::{SumScope, BLEND_FLOOR};
+    let blends = RunOptions {
+        weights_sum_scope: SumScope::Blends { floor: BLEND_FLOOR },
+        ..RunOptions::new("ws".into(), "out".into())
+    };
+    assert_eq!(blends.weights_sum, WeightsSum::Auto);
+    let e = blends.check().unwrap_err().to_string();
+    assert!(e.contains("--weights-sum-on"), "{e}");
+    let given = RunOptions {
+        weights_sum: WeightsSum::Fixed(1.0),
+        ..blends
+    };
+    assert!(given.check().is_ok());
+}
+
 /// `--weights-smoothness` is a non-negative multiple of the data's charge, like
 /// `--weights-sum`: negative, NaN or infinite refused, naming the flag.
 #[test]
