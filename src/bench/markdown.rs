@@ -109,6 +109,17 @@ pub(crate) fn growth_table(md: &mut String, what: &str, rows: &[Growth]) {
 /// The Markdown report; `name` is the file stem, for the link to the plot.
 pub fn markdown(report: &BenchReport, name: &str) -> String {
     let mut md = String::new();
+    header(&mut md, report);
+    scaling_sections(&mut md, report);
+    if !report.sweep.is_empty() {
+        sweep_section(&mut md, report, name);
+    }
+    md
+}
+
+/// The title, the command that regenerates the file, what was fitted and how memory was
+/// measured.
+fn header(md: &mut String, report: &BenchReport) {
     let _ = writeln!(
         md,
         "# Pipeline benchmark{}\n\nRegenerate: `{}`\n\nScene `{}` built by `synth`, fitted by `run` (no training renders). \
@@ -146,120 +157,132 @@ JSON), so each peak is that run's alone.\n\n"
 before the stage) includes heap the allocator kept from earlier runs; the first run's \
 figures are exact, later ones are upper bounds. For a clean figure run one size alone.\n\n"
     });
+}
+
+/// The vertex, adaptive and photo scaling tables, each with its growth exponents.
+fn scaling_sections(md: &mut String, report: &BenchReport) {
     if !report.vertex_runs.is_empty() {
         md.push_str("## Scaling in vertices\n\n");
-        stage_table(&mut md, &report.vertex_runs);
+        stage_table(md, &report.vertex_runs);
         md.push_str("Growth between consecutive sizes in CPU seconds (and peak MiB), against n = training observations (p = ln(t₂/t₁)/ln(n₂/n₁), 1 = linear; stages under ~0.05 s are timer noise):\n\n");
-        growth_table(&mut md, "vertices", &report.vertex_growth);
+        growth_table(md, "vertices", &report.vertex_growth);
     }
     if !report.adaptive_runs.is_empty() {
         md.push_str("## The same scenes with the adaptive model (`--adaptive on`)\n\n");
-        stage_table(&mut md, &report.adaptive_runs);
+        stage_table(md, &report.adaptive_runs);
     }
     if !report.photo_runs.is_empty() {
         md.push_str("## Scaling in photos\n\n");
-        stage_table(&mut md, &report.photo_runs);
+        stage_table(md, &report.photo_runs);
         md.push_str("Growth between consecutive photo counts in CPU seconds (and peak MiB), against n = training observations:\n\n");
-        growth_table(&mut md, "photos", &report.photo_growth);
+        growth_table(md, "photos", &report.photo_growth);
     }
-    if !report.sweep.is_empty() {
-        let reference = report.reference_run();
-        let _ = writeln!(
-            md,
-            "## Error against run time\n\nOne scene ({} vertices, {} photos); reference: the dense untruncated model `{}`. \
+}
+
+/// Error against run time: the sweep's table, its Pareto front, the fastest setting within
+/// 5% of the reference and the plot's name.
+fn sweep_section(md: &mut String, report: &BenchReport, name: &str) {
+    let reference = report.reference_run();
+    let _ = writeln!(
+        md,
+        "## Error against run time\n\nOne scene ({} vertices, {} photos); reference: the dense untruncated model `{}`. \
 `ratio` = held-out RMSE / reference's. ★ = on the Pareto front of (wall time, held-out RMSE).\n",
-            report.sweep[0].vertices,
-            report.sweep[0].photos,
-            reference.map(|r| r.knobs.label()).unwrap_or_default()
-        );
-        md.push_str("| setting | global | keep | iterations | normal grid | lighting QP cap | wall s | CPU s | peak MiB | training RMSE | held-out RMSE | ratio | front |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
-        let ref_err = reference.map(|r| r.holdout_rmse).unwrap_or(f64::NAN);
-        for (i, r) in report.sweep.iter().enumerate() {
-            let on = report.pareto.get(i).copied().unwrap_or(false);
-            let _ = writeln!(
-                md,
-                "| {}{} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} | {:.4} | {:.4} | {:.3} | {} |",
-                r.knobs.label(),
-                if Some(i) == report.reference {
-                    " (reference)"
-                } else {
-                    ""
-                },
-                r.knobs.global_resolution,
-                r.knobs.keep,
-                r.knobs.iterations,
-                r.knobs.normal_grid,
-                r.knobs.lighting_qp,
-                r.total_seconds,
-                r.total_cpu_seconds,
-                mib(r.peak_memory_bytes),
-                r.train_rmse,
-                r.holdout_rmse,
-                r.holdout_rmse / ref_err,
-                if on { "★" } else { "" }
-            );
-        }
-        let front: Vec<String> = report
-            .sweep
-            .iter()
-            .zip(&report.pareto)
-            .filter(|(_, &on)| on)
-            .map(|(r, _)| format!("`{}`", r.knobs.label()))
-            .collect();
-        let within: Vec<&BenchRun> = report
-            .sweep
-            .iter()
-            .filter(|r| r.holdout_rmse <= 1.05 * ref_err)
-            .collect();
-        let fastest = within.iter().min_by(|a, b| {
-            a.total_seconds
-                .partial_cmp(&b.total_seconds)
-                .unwrap_or(std::cmp::Ordering::Equal)
-        });
+        report.sweep[0].vertices,
+        report.sweep[0].photos,
+        reference.map(|r| r.knobs.label()).unwrap_or_default()
+    );
+    md.push_str("| setting | global | keep | iterations | normal grid | lighting QP cap | wall s | CPU s | peak MiB | training RMSE | held-out RMSE | ratio | front |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+    let ref_err = reference.map(|r| r.holdout_rmse).unwrap_or(f64::NAN);
+    for (i, r) in report.sweep.iter().enumerate() {
+        let on = report.pareto.get(i).copied().unwrap_or(false);
         let _ = writeln!(
             md,
-            "\nOn the Pareto front: {}.",
-            if front.is_empty() {
-                "none".into()
+            "| {}{} | {} | {} | {} | {} | {} | {:.2} | {:.2} | {:.0} | {:.4} | {:.4} | {:.3} | {} |",
+            r.knobs.label(),
+            if Some(i) == report.reference {
+                " (reference)"
             } else {
-                front.join(", ")
-            }
+                ""
+            },
+            r.knobs.global_resolution,
+            r.knobs.keep,
+            r.knobs.iterations,
+            r.knobs.normal_grid,
+            r.knobs.lighting_qp,
+            r.total_seconds,
+            r.total_cpu_seconds,
+            mib(r.peak_memory_bytes),
+            r.train_rmse,
+            r.holdout_rmse,
+            r.holdout_rmse / ref_err,
+            if on { "★" } else { "" }
         );
-        if let Some(f) = fastest {
-            let _ = writeln!(
-                md,
-                "Fastest setting within 5% of the reference's held-out error: `{}` ({:.2} s, ratio {:.3}).",
-                f.knobs.label(),
-                f.total_seconds,
-                f.holdout_rmse / ref_err
-            );
+    }
+    sweep_summary(md, report, ref_err);
+    if report.plot_reference().is_some() {
+        let _ = writeln!(
+            md,
+            "\nPlot: `{name}.png` (held-out RMSE against wall time, per knob family)."
+        );
+    }
+}
+
+/// The sweep's Pareto front, its fastest setting within 5% of the reference's held-out error
+/// (`ref_err`) and the spread of held-out errors.
+fn sweep_summary(md: &mut String, report: &BenchReport, ref_err: f64) {
+    let front: Vec<String> = report
+        .sweep
+        .iter()
+        .zip(&report.pareto)
+        .filter(|(_, &on)| on)
+        .map(|(r, _)| format!("`{}`", r.knobs.label()))
+        .collect();
+    let within: Vec<&BenchRun> = report
+        .sweep
+        .iter()
+        .filter(|r| r.holdout_rmse <= 1.05 * ref_err)
+        .collect();
+    let fastest = within.iter().min_by(|a, b| {
+        a.total_seconds
+            .partial_cmp(&b.total_seconds)
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let _ = writeln!(
+        md,
+        "\nOn the Pareto front: {}.",
+        if front.is_empty() {
+            "none".into()
+        } else {
+            front.join(", ")
         }
-        let errs: Vec<f64> = report
-            .sweep
-            .iter()
-            .map(|r| r.holdout_rmse)
-            .filter(|e| e.is_finite())
-            .collect();
-        let (lo, hi) = errs
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &e| (a.min(e), b.max(e)));
-        if lo > 0.0 && hi >= lo {
-            let _ = writeln!(
-                md,
-                "Held-out RMSE across all settings spans {lo:.4} to {hi:.4} ({:.1}% of the smallest): \
+    );
+    if let Some(f) = fastest {
+        let _ = writeln!(
+            md,
+            "Fastest setting within 5% of the reference's held-out error: `{}` ({:.2} s, ratio {:.3}).",
+            f.knobs.label(),
+            f.total_seconds,
+            f.holdout_rmse / ref_err
+        );
+    }
+    let errs: Vec<f64> = report
+        .sweep
+        .iter()
+        .map(|r| r.holdout_rmse)
+        .filter(|e| e.is_finite())
+        .collect();
+    let (lo, hi) = errs
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &e| (a.min(e), b.max(e)));
+    if lo > 0.0 && hi >= lo {
+        let _ = writeln!(
+            md,
+            "Held-out RMSE across all settings spans {lo:.4} to {hi:.4} ({:.1}% of the smallest): \
 when this is small, the error is set by something the knobs do not touch (photo noise, \
 renderer noise, the model's basis), and the front is decided by time.",
-                100.0 * (hi - lo) / lo
-            );
-        }
-        if report.plot_reference().is_some() {
-            let _ = writeln!(
-                md,
-                "\nPlot: `{name}.png` (held-out RMSE against wall time, per knob family)."
-            );
-        }
+            100.0 * (hi - lo) / lo
+        );
     }
-    md
 }
 
 pub(crate) fn plot_sweep(report: &BenchReport, reference: &BenchRun, path: &Path) -> Result<()> {
