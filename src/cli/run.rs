@@ -173,7 +173,8 @@ pub(crate) struct RunArgs {
     /// its photos charge for a change of its brightness (0 = off: free weights, as the
     /// paper). Keeps shading that all photos share out of the materials' colours. `auto`:
     /// the adaptive pilot fits both and keeps the prior where it predicts held-back
-    /// observations at least 13% better (free weights with --adaptive off).
+    /// observations at least 13% better, else the prior where materials blend when that
+    /// predicts them at least 3% better (free weights with --adaptive off).
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) weights_sum: String,
     /// Where a given --weights-sum applies: every surface point, or only where materials
