@@ -548,3 +548,32 @@ fn the_light_prior_lowers_its_own_term_and_keeps_the_maps_non_negative() {
     // The data fit can only be worse with the prior (same tolerance).
     assert!(clean_error(&p, &prior) >= clean_error(&p, &paper) * (1.0 - 1e-6));
 }
+
+/// The sum-to-one prior on blended vertices (`SumScope::Blends`) scales each vertex's tie by
+/// `max(b_x, floor)` with `b_x ≤ 1`: at floor 1 every scale is exactly 1, so the fit is the
+/// prior on every vertex bit for bit; at floor 0 the scales are the blends themselves, so
+/// the fit differs (the scaled tie is in effect) and stays finite.
+#[test]
+fn the_prior_on_blended_vertices_at_floor_one_is_the_prior_everywhere() {
+    use relight_cpc::solve::SumScope;
+    let p = planted(5, 0.01, 0.0, 100, 3);
+    let mut o = opts(Robust::None);
+    o.max_outer = 6;
+    o.weights_sum = 1.0;
+    let fit = |scope: SumScope| {
+        let o = EstimateOptions {
+            weights_sum_scope: scope,
+            ..o.clone()
+        };
+        estimate(&problem(&p), start(&p), &o, &mut |_, _| {}).unwrap()
+    };
+    let every = fit(SumScope::Every);
+    let one = fit(SumScope::Blends { floor: 1.0 });
+    assert_eq!(every.lights, one.lights);
+    assert_eq!(every.lambda, one.lambda);
+    assert_eq!(every.weights, one.weights);
+    let zero = fit(SumScope::Blends { floor: 0.0 });
+    assert_ne!(every.weights, zero.weights);
+    assert!(zero.weights.iter().all(|w| w.is_finite() && *w >= 0.0));
+    assert!(clean_error(&p, &zero).is_finite());
+}
