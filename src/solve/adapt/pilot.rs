@@ -2,7 +2,7 @@
 //! [`PILOT_GLOBAL`]² on the observations with one in [`HELDOUT_EVERY`] held out, then one
 //! decision after the other, each scored by the held-out RMSE of short fits
 //! ([`PILOT_ITERATIONS`] outer iterations): the material count (step 3), the weights'
-//! sum-to-one prior (step 3b), the basis BRDFs (step 4).
+//! sum-to-one prior and where it applies (step 3b), the basis BRDFs (step 4).
 
 use super::*;
 
@@ -39,7 +39,8 @@ pub struct PilotInput<'a> {
     /// A fixed material count, or `None` to choose it.
     pub materials: Option<usize>,
     /// Whether to choose the blending weights' sum-to-one prior (step 3b): free weights
-    /// (`estimate.weights_sum`) against [`PILOT_WEIGHTS_SUM`].
+    /// (`estimate.weights_sum`) against [`PILOT_WEIGHTS_SUM`] on every vertex, then on
+    /// blended vertices.
     pub choose_weights_sum: bool,
     /// Seed.
     pub seed: u64,
