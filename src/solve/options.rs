@@ -246,7 +246,7 @@ pub enum SumScope {
 /// `bench-results/weights-sum-scope.md`). With 0 the pilot's held-out score moved by
 /// 0.4–4.8% (noise between two refits is ~3%, [`crate::solve::adapt::BASIS_TOL`]), too
 /// little to choose by; with 0.2 the real photos' pilots scored it 4.6–6.1% worse and the
-/// rendered scenes' 3.4–11.5% better.
+/// rendered scenes' 3.4–14.2% better.
 pub const BLEND_FLOOR: f64 = 0.2;
 
 /// Default of [`EstimateOptions::weights_sum`]: 0, the paper's free weights. A run with the

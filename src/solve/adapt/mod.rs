@@ -186,7 +186,7 @@ pub const WEIGHTS_SUM_GAIN: f64 = 0.13;
 /// ([`crate::solve::SumScope::Blends`]) must bring to be kept (step 3b), where the prior on every
 /// vertex was not: [`BASIS_TOL`], the pilot's noise between two refits of one material
 /// count. Measured on 16 pilots (`bench-results/weights-sum-scope.md`): the real Buddha
-/// photos' pilots scored it 4.6–6.1% worse (seeds 1–4), the rendered scenes' 3.4–11.5%
+/// photos' pilots scored it 4.6–6.1% worse (seeds 1–4), the rendered scenes' 3.4–14.2%
 /// better; their full fits' held-out error under the true light fell on 6 of the 8 runs
 /// where the prior everywhere was not kept (−0.9% to −12.8%) and rose 3.1–3.7% on the moving
 /// sun of `spot-sky`.
