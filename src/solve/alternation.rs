@@ -190,6 +190,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         light: M,
         init: &Materials0,
     ) -> Self {
+        let sum_gamma = (opts.weights_sum > 0.0)
+            .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum));
+        let blends_only = matches!(opts.weights_sum_scope, SumScope::Blends { .. });
         Alternation {
             problem,
             opts,
@@ -201,11 +204,8 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             cond: Conditioning::default(),
             gauge0: gauge(&init.lambda, &init.weights, problem.n_vertices),
             prev: None,
-            sum_gamma: (opts.weights_sum > 0.0)
-                .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
-            sum_gamma_full: (opts.weights_sum > 0.0
-                && matches!(opts.weights_sum_scope, SumScope::Blends { .. }))
-            .then(|| sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_sum)),
+            sum_gamma_full: sum_gamma.clone().filter(|_| blends_only),
+            sum_gamma,
             pull_eta: (opts.weights_smoothness > 0.0 && !opts.weights_graph.is_empty()).then(
                 || sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_smoothness),
             ),

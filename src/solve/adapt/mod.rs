@@ -80,7 +80,7 @@
 //!    materials and leaves a pure vertex's brightness (a real object's texture) nearly
 //!    free; it is kept when it lowers the held-out RMSE by more than [`BLEND_GAIN`]
 //!    (`bench-results/weights-sum-scope.md`: the real Buddha photos score it 4.6–6.1%
-//!    worse, the rendered scenes 3.4–8.1% better).
+//!    worse, the rendered scenes where the prior everywhere was not kept 3.4–8.1% better).
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
 //!    and lights, the share of basis `b` in material `k`, channel `c` is
 //!    `C_{k,b,c} / Σ_b' C_{k,b',c}` with `C_{k,b,c} = Σ_p α_p w_k(x_p) λ_{k,b,c} s_{p,b,c}`

@@ -437,50 +437,61 @@ fn ablation_order(
 /// vertices ([`SumScope::Blends`] at [`BLEND_FLOOR`]), kept when it lowers it by more than
 /// [`BLEND_GAIN`]; else the paper's free weights. Returns the fit kept and why.
 fn choose_weights_sum(f: &Fitter, k: usize, free: PilotFit) -> Result<(PilotFit, String)> {
+    let (every, blends) = (100.0 * WEIGHTS_SUM_GAIN, 100.0 * BLEND_GAIN);
+    let trials = [
+        SumTrial {
+            prior: SumPrior {
+                strength: PILOT_WEIGHTS_SUM,
+                scope: SumScope::Every,
+            },
+            label: "sum-to-one prior",
+            gain: WEIGHTS_SUM_GAIN,
+            kept: format!("the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM}"),
+            rule: format!("the prior goes in when it lowers that by more than {every:.0}%"),
+        },
+        SumTrial {
+            prior: SumPrior {
+                strength: PILOT_WEIGHTS_SUM,
+                scope: SumScope::Blends { floor: BLEND_FLOOR },
+            },
+            label: "on blended vertices",
+            gain: BLEND_GAIN,
+            kept: format!("the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM} on blended vertices (pure ones at {BLEND_FLOOR} of it)"),
+            rule: format!("the prior goes in everywhere when it lowers that by more than {every:.0}%, on blended vertices by more than {blends:.0}%"),
+        },
+    ];
     let all = f.all();
-    let every = SumPrior {
-        strength: PILOT_WEIGHTS_SUM,
-        scope: SumScope::Every,
-    };
     let mut figures = vec![format!("free weights {:.4e}", free.heldout)];
-    if let Some(with) = f.fit(k, &all, every, false)? {
-        figures.push(trial_figure("sum-to-one prior", free.heldout, with.heldout));
-        if lowers(free.heldout, with.heldout, WEIGHTS_SUM_GAIN) {
+    for t in trials {
+        let Some(with) = f.fit(k, &all, t.prior, false)? else {
+            continue;
+        };
+        figures.push(trial_figure(t.label, free.heldout, with.heldout));
+        if lowers(free.heldout, with.heldout, t.gain) {
             let why = format!(
-                "the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM}: held-out RMSE of the pilot with {k} materials: {}; the prior goes in when it lowers that by more than {:.0}%",
+                "{}: held-out RMSE of the pilot with {k} materials: {}; {}",
+                t.kept,
                 figures.join(", "),
-                100.0 * WEIGHTS_SUM_GAIN
-            );
-            return Ok((with, why));
-        }
-    }
-    let blends = SumPrior {
-        strength: PILOT_WEIGHTS_SUM,
-        scope: SumScope::Blends { floor: BLEND_FLOOR },
-    };
-    if let Some(with) = f.fit(k, &all, blends, false)? {
-        figures.push(trial_figure(
-            "on blended vertices",
-            free.heldout,
-            with.heldout,
-        ));
-        if lowers(free.heldout, with.heldout, BLEND_GAIN) {
-            let why = format!(
-                "the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM} on blended vertices (pure ones at {BLEND_FLOOR} of it): held-out RMSE of the pilot with {k} materials: {}; the prior goes in everywhere when it lowers that by more than {:.0}%, on blended vertices by more than {:.0}%",
-                figures.join(", "),
-                100.0 * WEIGHTS_SUM_GAIN,
-                100.0 * BLEND_GAIN
+                t.rule
             );
             return Ok((with, why));
         }
     }
     let why = format!(
-        "free weights, as the paper: held-out RMSE of the pilot with {k} materials: {}; the prior goes in everywhere only when it lowers that by more than {:.0}%, on blended vertices by more than {:.0}%",
-        figures.join(", "),
-        100.0 * WEIGHTS_SUM_GAIN,
-        100.0 * BLEND_GAIN
+        "free weights, as the paper: held-out RMSE of the pilot with {k} materials: {}; the prior goes in everywhere only when it lowers that by more than {every:.0}%, on blended vertices by more than {blends:.0}%",
+        figures.join(", ")
     );
     Ok((free, why))
+}
+
+/// One trial of step 3b: the prior, its label among the reason's figures, the fall of the
+/// held-out RMSE it must bring, and the reason's head and rule when it is kept.
+struct SumTrial {
+    prior: SumPrior,
+    label: &'static str,
+    gain: f64,
+    kept: String,
+    rule: String,
 }
 
 /// `"{label} {with:.4e} ({change:+.1}%)"`, the change against free weights.
