@@ -45,7 +45,9 @@
 //! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
 //! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
 //! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
-//! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`), `ABLATION_SEARCH`,
+//! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`, `ABLATION_K1_ITERS` for `k1`),
+//! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
+//! of `run`'s, `ablation/defaults.rs`), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
@@ -447,6 +449,10 @@ fn start_ratio_errors(case: &Case, fl: &Floors) -> [f64; 3] {
 fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let problem = case.train.problem(case.nv);
     let init = fit_start(case);
+    eprintln!(
+        "  start ratio errors: {:?}",
+        ratio_errors(case, &init.lambda, &init.weights, &fl.seen)
+    );
     let t0 = Instant::now();
     let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
     let seconds = t0.elapsed().as_secs_f64();

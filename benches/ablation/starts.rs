@@ -8,7 +8,11 @@ use super::*;
 /// `ABLATION_START=gloss` the paper's with every glossy lobe at
 /// [`relight_cpc::solve::starts::GLOSS_FRACTION`] of the mean Lambertian weight, or with
 /// `ABLATION_START=open` the paper's clustering of [`open_corrected_colours`], or with
-/// `ABLATION_START=matched` the paper's with the albedo ratios of [`matched_ratios`]; the oracle
+/// `ABLATION_START=matched` the paper's with the albedo ratios of [`matched_ratios`], or with
+/// `ABLATION_START=k1` the paper's clustering of [`k1_corrected_colours`], or with
+/// `ABLATION_START=k1-albedo` the paper's clusters with each material's Lambertian weight
+/// the median of those colours over its vertices (both measured and not kept, section 14
+/// of `bench-results/estimator-ablation-iterations.md`); the oracle
 /// starts `truth-diffuse` (the TRUE materials without their glossy lobes) and
 /// `kmeans-true-albedo` (the k-means weights, the TRUE Lambertian weights) say which part
 /// of the start matters.
@@ -44,6 +48,37 @@ pub fn fit_start(case: &Case) -> Materials0 {
                 relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
                     .expect("k-means start");
             Materials0::from_initial(&init, case.basis.len(), 0)
+        }
+        Ok("k1") => {
+            let (mean, seen) = k1_corrected_colours(case);
+            let init =
+                relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
+                    .expect("k-means start");
+            Materials0::from_initial(&init, case.basis.len(), 0)
+        }
+        Ok("k1-albedo") => {
+            // The k-means clusters and weights; each material's Lambertian weight the
+            // median of `k1_corrected_colours` over the vertices labelled with it.
+            let (mean, seen) = k1_corrected_colours(case);
+            let mut m = init;
+            let kk = m.lambda.len();
+            for (k, row) in m.lambda.iter_mut().enumerate() {
+                let members: Vec<usize> = (0..case.nv)
+                    .filter(|&x| {
+                        seen[x] && (0..kk).all(|j| m.weights[x * kk + j] <= m.weights[x * kk + k])
+                    })
+                    .collect();
+                if members.is_empty() {
+                    continue;
+                }
+                for c in 0..3 {
+                    let mut v: Vec<f64> = members.iter().map(|&x| mean[x][c]).collect();
+                    v.sort_by(f64::total_cmp);
+                    row[0][c] = v[v.len() / 2];
+                }
+                eprintln!("k1-albedo: material {k}: {:?}", row[0]);
+            }
+            m
         }
         Ok("matched") => {
             let mut m = init;
@@ -98,6 +133,53 @@ fn open_corrected_colours(case: &Case) -> (Vec<[f64; 3]>, Vec<bool>) {
         .map(|x| {
             if seen[x] {
                 num[x].map(|v| v / den[x])
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    (mean, seen)
+}
+
+/// Per vertex and channel the least-squares Lambertian albedo under the lights of a
+/// one-material fit (`ABLATION_K1_ITERS` outer iterations, default 4): `a_c(x) = Σ_p α_p
+/// r_{p,c} s_{p,c} / Σ_p α_p s_{p,c}²`, `s` the Lambertian response to the fitted map and
+/// `r` the photo minus the fit's glossy part: the mean colour with the fitted shading
+/// divided out.
+fn k1_corrected_colours(case: &Case) -> (Vec<[f64; 3]>, Vec<bool>) {
+    let problem = case.train.problem(case.nv);
+    let init = start(case, &case.train.obs, 1).expect("one-material start");
+    let o = EstimateOptions {
+        max_outer: env_usize("ABLATION_K1_ITERS", 4),
+        ..base_options()
+    };
+    let est = estimate(&problem, init, &o, &mut |_, _| {}).unwrap();
+    let nb = case.basis.len();
+    let beta = relight_cpc::solve::beta_per_vertex(&est.lambda, &est.weights, case.nv);
+    let s = relight_cpc::solve::basis_responses(&problem, &est.lights);
+    let obs = &case.train.obs;
+    let mut num = vec![[0.0; 3]; case.nv];
+    let mut den = vec![[0.0; 3]; case.nv];
+    for p in 0..obs.len() {
+        let a = obs.weight[p] as f64;
+        if a <= 0.0 {
+            continue;
+        }
+        let x = obs.vertex[p] as usize;
+        for c in 0..3 {
+            let gloss: f64 = (1..nb)
+                .map(|b| beta[x * nb + b][c] * s[p * nb + b][c])
+                .sum();
+            let r = obs.rgb[p][c] as f64 - gloss;
+            num[x][c] += a * r * s[p * nb][c];
+            den[x][c] += a * s[p * nb][c] * s[p * nb][c];
+        }
+    }
+    let seen: Vec<bool> = den.iter().map(|d| d.iter().all(|&v| v > 0.0)).collect();
+    let mean = (0..case.nv)
+        .map(|x| {
+            if seen[x] {
+                [0, 1, 2].map(|c| (num[x][c] / den[x][c]).max(0.0))
             } else {
                 [0.0; 3]
             }
