@@ -529,7 +529,7 @@ fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str, seconds:
 fn choose_k(case: &Case, o: &EstimateOptions) -> (usize, Vec<(usize, f64)>) {
     let (split, held) = adapt::holdout_split(&case.train.obs, 1);
     // Scored as the pilot scores the count (its step 3).
-    let held = adapt::held_of_seen_vertices(&split, &held, case.nv, adapt::COUNT_MIN_SEEN);
+    let held = adapt::count_scored(&split, &held, case.nv);
     let problem = case.train_problem_with(&split);
     let opts = EstimateOptions {
         max_outer: adapt::PILOT_ITERATIONS,

@@ -57,7 +57,7 @@
 //!    saves the last two pilot fits on most scenes.
 //!    The counts are scored only on the held-out observations of vertices that at least
 //!    [`COUNT_MIN_SEEN`] (2) of the pilot's training observations see
-//!    ([`held_of_seen_vertices`]). A vertex seen once has its blending weights fitted to
+//!    ([`count_scored`]; on all of them when no vertex is seen twice). A vertex seen once has its blending weights fitted to
 //!    that one view; its held-out view then tests how well that view conditions them (a
 //!    grazing or shadowed view leaves them large), which changes from count to count with
 //!    the k-means start, not with the materials. On `spot-ggx` at seed 4, 20 of 1,603
@@ -359,9 +359,20 @@ fn held_out(obs: &Observations, p: usize, seed: u64) -> bool {
     h.is_multiple_of(HELDOUT_EVERY)
 }
 
+/// What the material count is scored on (module docs, step 3): the held-out observations
+/// of vertices [`COUNT_MIN_SEEN`] training observations see ([`held_of_seen_vertices`]), or
+/// all of `held` when there are none (photos that barely overlap).
+pub fn count_scored(train: &Observations, held: &[usize], n_vertices: usize) -> Vec<usize> {
+    let seen = held_of_seen_vertices(train, held, n_vertices, COUNT_MIN_SEEN);
+    if seen.is_empty() {
+        held.to_vec()
+    } else {
+        seen
+    }
+}
+
 /// The held-out observations among `held` whose vertex at least `min_seen` observations of
-/// `train` with `α > 0` see (`n_vertices` vertices): what the material count is scored on
-/// (module docs, step 3, [`COUNT_MIN_SEEN`]).
+/// `train` with `α > 0` see (`n_vertices` vertices).
 pub fn held_of_seen_vertices(
     train: &Observations,
     held: &[usize],

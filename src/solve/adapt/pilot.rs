@@ -81,8 +81,7 @@ struct Fitter<'a> {
     inp: &'a PilotInput<'a>,
     problem: Problem<'a>,
     held: &'a [usize],
-    /// The held-out observations the material count is scored on
-    /// ([`held_of_seen_vertices`]).
+    /// The held-out observations the material count is scored on ([`count_scored`]).
     count_held: &'a [usize],
     eopts: EstimateOptions,
 }
@@ -183,7 +182,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         },
     };
     let (split, held) = holdout_split(inp.obs, inp.seed);
-    let count_held = held_of_seen_vertices(&split, &held, inp.normals_env.len(), COUNT_MIN_SEEN);
+    let count_held = count_scored(&split, &held, inp.normals_env.len());
     let tr = transport::build(
         inp.normals_env,
         &split,
@@ -569,6 +568,10 @@ mod tests {
         assert_eq!(held_of_seen_vertices(&train, &held, 4, 2), vec![3]);
         assert_eq!(held_of_seen_vertices(&train, &held, 4, 1), vec![3, 5, 8]);
         assert_eq!(held_of_seen_vertices(&train, &held, 4, 0), held.to_vec());
+        // The count's score: the observations of vertices seen twice; with none (only the
+        // thinly seen vertices 1–3 held out), every held-out observation.
+        assert_eq!(count_scored(&train, &held, 4), vec![3]);
+        assert_eq!(count_scored(&train, &[5, 8, 9], 4), vec![5, 8, 9]);
     }
 
     #[test]
