@@ -66,21 +66,21 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let init = relight_cpc::solve::cluster::initial_materials(&mean_rgb, &seen, pilot.materials, 1)
         .expect("k-means start");
     let m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
-    let run = RunOptions::new(Default::default(), Default::default());
-    let bench_iters = std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench");
+    // `run`'s cap and tolerance, or with `ABLATION_DEFAULTS_ITERS=bench` the bench's.
+    let (max_outer, rel_tol) =
+        if std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench") {
+            (base.max_outer, base.rel_tol)
+        } else {
+            (
+                RunOptions::DEFAULT_MAX_ITERATIONS,
+                RunOptions::DEFAULT_REL_TOL,
+            )
+        };
     let opts = EstimateOptions {
         weights_sum: pilot.weights_sum,
         weights_sum_scope: pilot.weights_sum_scope,
-        max_outer: if bench_iters {
-            base.max_outer
-        } else {
-            run.max_iterations
-        },
-        rel_tol: if bench_iters {
-            base.rel_tol
-        } else {
-            run.rel_tol
-        },
+        max_outer,
+        rel_tol,
         ..base.clone()
     };
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");

@@ -57,7 +57,7 @@ pub(crate) fn mode_settings(
                 local_resolution: 32,
                 normal_grid: 32,
                 keep: 128,
-                iterations: 8,
+                iterations: RunOptions::DEFAULT_MAX_ITERATIONS,
                 lighting_qp: RunOptions::default_lighting_qp_iterations(),
             },
         )

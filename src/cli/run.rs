@@ -106,10 +106,18 @@ pub(crate) struct RunArgs {
     pub(crate) ray_lattice: Option<usize>,
 
     /// Rounds of (fit the lighting, then fit the materials), at most.
-    #[arg(long, default_value_t = 8, help_heading = "Solver")]
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::DEFAULT_MAX_ITERATIONS,
+        help_heading = "Solver"
+    )]
     pub(crate) iterations: usize,
     /// Stop when a round improves the fit by less than this fraction.
-    #[arg(long, default_value_t = 1e-3, help_heading = "Solver")]
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::DEFAULT_REL_TOL,
+        help_heading = "Solver"
+    )]
     pub(crate) tolerance: f64,
     /// How strongly the recovered lighting is smoothed, as a fraction of the system's
     /// largest value.

@@ -332,6 +332,10 @@ impl RunOptions {
     pub fn default_patience() -> usize {
         EstimateOptions::default().patience
     }
+    /// Default of [`RunOptions::max_iterations`]: outer rounds at most.
+    pub const DEFAULT_MAX_ITERATIONS: usize = 8;
+    /// Default of [`RunOptions::rel_tol`]: the relative-improvement stop.
+    pub const DEFAULT_REL_TOL: f64 = 1e-3;
     /// Defaults for a workspace (the README says why each default).
     pub fn new(workspace: PathBuf, out: PathBuf) -> Self {
         RunOptions {
@@ -355,8 +359,8 @@ impl RunOptions {
             rays_per_texel: 2,
             edge_rays: 4,
             ray_lattice: 1,
-            max_iterations: 8,
-            rel_tol: 1e-3,
+            max_iterations: Self::DEFAULT_MAX_ITERATIONS,
+            rel_tol: Self::DEFAULT_REL_TOL,
             smoothness: 1e-3,
             irls_iterations: 3,
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
