@@ -42,20 +42,8 @@ pub fn fit_start(case: &Case) -> Materials0 {
             }
             m
         }
-        Ok("open") => {
-            let (mean, seen) = open_corrected_colours(case);
-            let init =
-                relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
-                    .expect("k-means start");
-            Materials0::from_initial(&init, case.basis.len(), 0)
-        }
-        Ok("k1") => {
-            let (mean, seen) = k1_corrected_colours(case);
-            let init =
-                relight_cpc::solve::cluster::initial_materials(&mean, &seen, case.lambda.len(), 1)
-                    .expect("k-means start");
-            Materials0::from_initial(&init, case.basis.len(), 0)
-        }
+        Ok("open") => clustered(case, open_corrected_colours(case)),
+        Ok("k1") => clustered(case, k1_corrected_colours(case)),
         Ok("k1-albedo") => {
             // The k-means clusters and weights; each material's Lambertian weight the
             // median of `k1_corrected_colours` over the vertices labelled with it.
@@ -92,6 +80,15 @@ pub fn fit_start(case: &Case) -> Materials0 {
         ),
         _ => init,
     }
+}
+
+/// The paper's start (k-means, Lambertian only) on per-vertex colours other than the mean
+/// ones: `(colours, seen)`.
+fn clustered(case: &Case, (colours, seen): (Vec<[f64; 3]>, Vec<bool>)) -> Materials0 {
+    let init =
+        relight_cpc::solve::cluster::initial_materials(&colours, &seen, case.lambda.len(), 1)
+            .expect("k-means start");
+    Materials0::from_initial(&init, case.basis.len(), 0)
 }
 
 /// A bare [`Estimate`] holding materials `m` (for the metrics that read one).
