@@ -75,7 +75,8 @@ pub(crate) struct RunArgs {
     /// Detail of each photo's recovered lighting: map side in texels, a power of two.
     #[arg(long, default_value_t = 64, help_heading = "Model")]
     pub(crate) global_resolution: usize,
-    /// Detail of the per-vertex hemisphere (shadowing and reflection), a power of two.
+    /// Detail of the per-vertex hemisphere (shadowing and reflection), a power of two; an
+    /// upper bound when adaptive (the pilot takes half the global map's side, at least 16).
     #[arg(long, default_value_t = 32, help_heading = "Model")]
     pub(crate) local_resolution: usize,
     /// Hemisphere detail for the renders of held-out and training views, a power of two

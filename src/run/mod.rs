@@ -445,6 +445,14 @@ fn adaptive_decisions(
         chosen: g.to_string(),
         reason: why,
     });
+    let (l, why) = crate::solve::adapt::local_resolution_for(g, opts.local_resolution);
+    eff.local_resolution = l;
+    d.push(Decision {
+        what: "local_resolution".into(),
+        full: opts.local_resolution.to_string(),
+        chosen: l.to_string(),
+        reason: why,
+    });
     let cap = g * g;
     let keep = if opts.keep == 0 || opts.keep > cap {
         cap

@@ -344,7 +344,15 @@ fn prepare(
         .iter()
         .map(|n| env_from_world * n)
         .collect();
-    let (vis, render_vis) = visibility(opts, scene, &bvh, &env_from_world, log, progress);
+    let traced = visibility(
+        &first_trace_options(opts),
+        scene,
+        &bvh,
+        &env_from_world,
+        log,
+        progress,
+    );
+    let vis = &traced.0;
     // Strata of the lighting step's sample: normal × open sky.
     let strata = crate::solve::subsample::lighting_strata(&normals_env, &vis.open_fractions());
     let (mean_rgb, seen) = mean_colours(&obs, nv);
@@ -352,7 +360,7 @@ fn prepare(
         normals_env: &normals_env,
         env_from_world: &env_from_world,
         obs: &obs,
-        vis: &vis,
+        vis,
         strata: &strata,
         mean_rgb: &mean_rgb,
         seen: &seen,
@@ -360,6 +368,17 @@ fn prepare(
     let adapted = adapt(opts, &pilot_data, log, progress)?;
     decisions.extend(adapted.decisions);
     let eff = adapted.eff;
+    let (vis, render_vis) = fit_visibility(
+        &eff,
+        traced,
+        FitScene {
+            scene,
+            bvh: &bvh,
+            env_from_world: &env_from_world,
+        },
+        log,
+        progress,
+    );
     let rot = rotation(&eff, log, progress);
     // 5. Transport.
     progress.stage("transport");
@@ -405,6 +424,60 @@ fn prepare(
     ))
 }
 
+/// The options the visibility is first traced with (stage 3): with the adaptive model on,
+/// the local side at most the pilot's ([`crate::solve::adapt::PILOT_LOCAL`]), since the
+/// pilot chooses the fit's side after it (`crate::solve::adapt`, step 5) and the pilot
+/// itself reads no finer maps; otherwise the options as given.
+fn first_trace_options(opts: &RunOptions) -> RunOptions {
+    let mut first = opts.clone();
+    if opts.adaptive {
+        first.local_resolution = opts.local_resolution.min(crate::solve::adapt::PILOT_LOCAL);
+    }
+    first
+}
+
+/// What a visibility trace reads of the scene.
+struct FitScene<'a> {
+    scene: &'a Scene,
+    bvh: &'a SceneBvh,
+    env_from_world: &'a Matrix3<f64>,
+}
+
+/// The visibility at the fit's local sides (`eff`: the estimator's and the renderer's):
+/// the first trace `traced` as it is when its sides are the fit's, averaged down when it is
+/// finer ([`crate::solve::adapt::downsample_visibility`], as [`shading::trace_visibility`]
+/// does), else traced again at the fit's sides (the pilot chose a finer local map than its
+/// own: a sharp lobe's 64² global map).
+fn fit_visibility(
+    eff: &RunOptions,
+    traced: (Arc<Visibility>, Arc<Visibility>),
+    at: FitScene,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> (Arc<Visibility>, Arc<Visibility>) {
+    let (n_fit, n_render) = (eff.local_resolution, render_local_resolution(eff));
+    let (vis, render_vis) = traced;
+    if vis.n_local == n_fit && render_vis.n_local == n_render {
+        return (vis, render_vis);
+    }
+    let fine = if render_vis.n_local > vis.n_local {
+        render_vis
+    } else {
+        vis
+    };
+    if fine.n_local < n_fit.max(n_render) {
+        return visibility(eff, at.scene, at.bvh, at.env_from_world, log, progress);
+    }
+    let side = |n: usize| {
+        if n == fine.n_local {
+            fine.clone()
+        } else {
+            Arc::new(crate::solve::adapt::downsample_visibility(&fine, n))
+        }
+    };
+    (side(n_fit), side(n_render))
+}
+
 /// Stage 3, visibility at the estimator's and the renderer's local resolutions
 /// ([`shading::trace_visibility`]), with its note.
 fn visibility(
@@ -423,7 +496,8 @@ fn visibility(
     });
     drop(bar);
     log.notes.push(format!(
-        "visibility: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({}); {} more answered without tracing, their texels' cone of directions holding no triangle",
+        "visibility at {}² texels per vertex: {} of {} vertices have a provably open hemisphere and skipped their rays; {} rays traced ({}); {} more answered without tracing, their texels' cone of directions holding no triangle",
+        vis.n_local.max(render_vis.n_local),
         vis.open_count(),
         nv,
         vis.rays_traced,

@@ -262,6 +262,57 @@ fn global_resolution_matches_the_closed_form() {
     assert_eq!(adapt::global_resolution_for(&g, 256, false).0, want);
 }
 
+/// [`adapt::local_resolution_for`] against its closed form: half the global side, at least
+/// the pilot's, at most the request; uncapped, a hemisphere texel (`2π / side²` sr) spans
+/// exactly twice a global one (`4π / N²`).
+#[test]
+fn local_resolution_is_half_the_global_side() {
+    for global in [8, 16, 32, 64, 128, 256] {
+        for requested in [4, 8, 16, 32, 64, 128] {
+            let (got, why) = adapt::local_resolution_for(global, requested);
+            let want = (global / 2).max(adapt::PILOT_LOCAL).min(requested);
+            assert_eq!(got, want, "global {global}, requested {requested}: {why}");
+            if got == global / 2 {
+                let local_texel = 2.0 * std::f64::consts::PI / (got * got) as f64;
+                let global_texel = 4.0 * std::f64::consts::PI / (global * global) as f64;
+                // Both sides are powers of two, so the ratio is exact in f64.
+                assert_eq!(local_texel, 2.0 * global_texel);
+            }
+        }
+    }
+    // The defaults: a 32² global map (a Phong 50 lobe, or cast shadows) gets 16² local.
+    assert_eq!(adapt::local_resolution_for(32, 32).0, 16);
+    assert_eq!(adapt::local_resolution_for(64, 32).0, 32);
+}
+
+/// The visibility is first traced at the pilot's side; when the pilot keeps a lobe whose
+/// global map is 64², the fit's 32² local maps are traced again (the run would fail on a
+/// visibility of the wrong side), and both traces are in the notes.
+#[test]
+fn a_sharp_lobe_gets_finer_local_maps_traced_after_the_pilot() {
+    let dir = scratch("specular");
+    let ws = workspace(&dir.0, "sphere-specular", 6, 300);
+    let mut o = adaptive(&ws, &dir.0.join("out"));
+    o.basis = vec![BasisBrdf::Lambert, BasisBrdf::Phong { exponent: 500.0 }];
+    o.global_resolution = 64;
+    o.local_resolution = 32;
+    o.materials = MaterialCount::Fixed(1);
+    let s = run::run(&o).unwrap();
+    let m = &s.report.model;
+    assert_eq!(m.basis, vec!["lambert", "phong:500"], "{:#?}", m.adaptive);
+    assert_eq!((m.global_resolution, m.local_resolution), (64, 32));
+    assert_eq!(decision(&s, "local_resolution").chosen, "32");
+    let traced: Vec<&String> = s
+        .report
+        .notes
+        .iter()
+        .filter(|n| n.starts_with("visibility at "))
+        .collect();
+    assert_eq!(traced.len(), 2, "{traced:#?}");
+    assert!(traced[0].starts_with("visibility at 16²"), "{}", traced[0]);
+    assert!(traced[1].starts_with("visibility at 32²"), "{}", traced[1]);
+}
+
 #[test]
 fn lambert_only_scene_drops_the_phong_lobes_and_uses_one_material() {
     let dir = scratch("diffuse");
@@ -291,6 +342,7 @@ fn lambert_only_scene_drops_the_phong_lobes_and_uses_one_material() {
         "materials",
         "basis",
         "global_resolution",
+        "local_resolution",
         "keep",
         "smoothness",
     ] {
