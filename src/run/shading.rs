@@ -8,7 +8,8 @@
 //! pass ([`shade_views`]).
 //!
 //! The renderer has its own local resolution (`--render-local-resolution`, by default the
-//! estimator's: 32² at the defaults) and its own rotation
+//! estimator's: half the global side with the adaptive model, so 16² at a 32² map) and its
+//! own rotation
 //! ([`crate::sphere::rotation::SplatRotation`]: the footprint of the vertex's exact normal instead
 //! of the blend of four precomputed frames, Eq. 6). Visibility is traced once, at the finer
 //! of the two resolutions ([`trace_visibility`]), and averaged down for the other.
