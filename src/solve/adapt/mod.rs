@@ -166,7 +166,8 @@
 //!    within ±2% on 17 of the 21 rendered runs (mean +0.2%, −8.1% to +6.8%; the +6.8% is
 //!    the example at seed 3, whose pilot took 3 materials for 2), the real photos'
 //!    headline +1.1%, −0.2%, −2.5%, and the example 25% faster (wall ratio 0.755 over 8
-//!    pairs) at 42% less peak memory.
+//!    pairs) at 42% less peak memory. A quarter of the global side (8²) is one step too
+//!    far: `truth` +3.0% on average over the same runs, the Buddha's headline up to +5.6%.
 //!
 //! The transport of the kept bases is a column selection of the full one
 //! ([`select_bases`]), so a pilot transport can be reused without rebuilding.
