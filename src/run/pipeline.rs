@@ -344,14 +344,12 @@ fn prepare(
         .iter()
         .map(|n| env_from_world * n)
         .collect();
-    let traced = visibility(
-        &first_trace_options(opts),
+    let at = TraceScene {
         scene,
-        &bvh,
-        &env_from_world,
-        log,
-        progress,
-    );
+        bvh: &bvh,
+        env_from_world: &env_from_world,
+    };
+    let traced = visibility(&first_trace_options(opts), &at, log, progress);
     let vis = &traced.0;
     // Strata of the lighting step's sample: normal × open sky.
     let strata = crate::solve::subsample::lighting_strata(&normals_env, &vis.open_fractions());
@@ -368,17 +366,7 @@ fn prepare(
     let adapted = adapt(opts, &pilot_data, log, progress)?;
     decisions.extend(adapted.decisions);
     let eff = adapted.eff;
-    let (vis, render_vis) = fit_visibility(
-        &eff,
-        traced,
-        FitScene {
-            scene,
-            bvh: &bvh,
-            env_from_world: &env_from_world,
-        },
-        log,
-        progress,
-    );
+    let (vis, render_vis) = fit_visibility(&eff, traced, &at, log, progress);
     let rot = rotation(&eff, log, progress);
     // 5. Transport.
     progress.stage("transport");
@@ -437,7 +425,8 @@ fn first_trace_options(opts: &RunOptions) -> RunOptions {
 }
 
 /// What a visibility trace reads of the scene.
-struct FitScene<'a> {
+#[derive(Clone, Copy)]
+struct TraceScene<'a> {
     scene: &'a Scene,
     bvh: &'a SceneBvh,
     env_from_world: &'a Matrix3<f64>,
@@ -451,7 +440,7 @@ struct FitScene<'a> {
 fn fit_visibility(
     eff: &RunOptions,
     traced: (Arc<Visibility>, Arc<Visibility>),
-    at: FitScene,
+    at: &TraceScene,
     log: &mut RunLog,
     progress: &Progress,
 ) -> (Arc<Visibility>, Arc<Visibility>) {
@@ -460,34 +449,34 @@ fn fit_visibility(
     if vis.n_local == n_fit && render_vis.n_local == n_render {
         return (vis, render_vis);
     }
+    // The first trace is the finer of the two; the other was averaged down from it.
     let fine = if render_vis.n_local > vis.n_local {
         render_vis
     } else {
         vis
     };
     if fine.n_local < n_fit.max(n_render) {
-        return visibility(eff, at.scene, at.bvh, at.env_from_world, log, progress);
+        return visibility(eff, at, log, progress);
     }
-    let side = |n: usize| {
-        if n == fine.n_local {
-            fine.clone()
-        } else {
-            Arc::new(crate::solve::adapt::downsample_visibility(&fine, n))
-        }
-    };
-    (side(n_fit), side(n_render))
+    (
+        shading::at_side(&fine, n_fit),
+        shading::at_side(&fine, n_render),
+    )
 }
 
 /// Stage 3, visibility at the estimator's and the renderer's local resolutions
 /// ([`shading::trace_visibility`]), with its note.
 fn visibility(
     opts: &RunOptions,
-    scene: &Scene,
-    bvh: &SceneBvh,
-    env_from_world: &Matrix3<f64>,
+    at: &TraceScene,
     log: &mut RunLog,
     progress: &Progress,
 ) -> (Arc<Visibility>, Arc<Visibility>) {
+    let TraceScene {
+        scene,
+        bvh,
+        env_from_world,
+    } = *at;
     let nv = scene.mesh.positions.len();
     progress.stage("visibility");
     let bar = progress.stage_bar(nv as u64, "vertices");

@@ -79,14 +79,20 @@ pub(crate) fn trace_visibility(
         opts.seed,
         true,
     ));
-    let coarser = |n: usize| {
-        if n < n_fine {
-            Arc::new(crate::solve::adapt::downsample_visibility(&fine, n))
-        } else {
-            fine.clone()
-        }
-    };
-    (coarser(opts.local_resolution), coarser(n_render))
+    (
+        at_side(&fine, opts.local_resolution),
+        at_side(&fine, n_render),
+    )
+}
+
+/// Visibility `fine` at `n ≤ fine.n_local` texels per side: `fine` itself when `n` is its
+/// side, else averaged down ([`crate::solve::adapt::downsample_visibility`]).
+pub(crate) fn at_side(fine: &Arc<Visibility>, n: usize) -> Arc<Visibility> {
+    if n < fine.n_local {
+        Arc::new(crate::solve::adapt::downsample_visibility(fine, n))
+    } else {
+        fine.clone()
+    }
 }
 
 /// The wavelet renderer's model of the fit, with visibility `vis`.

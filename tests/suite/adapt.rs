@@ -65,6 +65,11 @@ fn decision<'a>(s: &'a RunSummary, what: &str) -> &'a adapt::Decision {
         .unwrap_or_else(|| panic!("no `{what}` decision"))
 }
 
+/// The run's report notes that satisfy `keep`, in order.
+fn notes_where(s: &RunSummary, keep: impl Fn(&str) -> bool) -> Vec<&String> {
+    s.report.notes.iter().filter(|n| keep(n)).collect()
+}
+
 /// Append a copy of image `src` named `name` (same pose, same camera, no 2D points) to
 /// `sparse/images.txt`, and write `pixels` as `images/NAME`.
 fn add_view(ws: &Path, src: &str, name: &str, pixels: image::RgbImage) {
@@ -139,12 +144,7 @@ fn a_duplicate_photo_is_skipped_and_the_same_view_under_another_light_is_kept() 
     // 4 rendered photos + the copy + the dimmed view = 6 training photos; only the copy
     // goes.
     assert_eq!((photos.full.as_str(), photos.chosen.as_str()), ("6", "5"));
-    let skipped: Vec<&String> = s
-        .report
-        .notes
-        .iter()
-        .filter(|n| n.contains("skipped, it adds no new observation"))
-        .collect();
+    let skipped = notes_where(&s, |n| n.contains("skipped, it adds no new observation"));
     assert_eq!(skipped.len(), 1, "notes: {:#?}", s.report.notes);
     assert!(
         skipped[0].starts_with("zz_copy.png") && skipped[0].contains("photo_000.png"),
@@ -302,12 +302,7 @@ fn a_sharp_lobe_gets_finer_local_maps_traced_after_the_pilot() {
     assert_eq!(m.basis, vec!["lambert", "phong:500"], "{:#?}", m.adaptive);
     assert_eq!((m.global_resolution, m.local_resolution), (64, 32));
     assert_eq!(decision(&s, "local_resolution").chosen, "32");
-    let traced: Vec<&String> = s
-        .report
-        .notes
-        .iter()
-        .filter(|n| n.starts_with("visibility at "))
-        .collect();
+    let traced = notes_where(&s, |n| n.starts_with("visibility at "));
     assert_eq!(traced.len(), 2, "{traced:#?}");
     assert!(traced[0].starts_with("visibility at 16²"), "{}", traced[0]);
     assert!(traced[1].starts_with("visibility at 32²"), "{}", traced[1]);

@@ -170,7 +170,12 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     let t0 = std::time::Instant::now();
     let g = PILOT_GLOBAL.min(inp.global_resolution);
     let l = PILOT_LOCAL.min(inp.vis.n_local);
-    let vis = downsample_visibility(inp.vis, l);
+    // The run traces at the pilot's side first: then the visibility is read as it is.
+    let vis = if inp.vis.n_local == l {
+        std::borrow::Cow::Borrowed(inp.vis)
+    } else {
+        std::borrow::Cow::Owned(downsample_visibility(inp.vis, l))
+    };
     let rot = Rotation::new(g, l, inp.normal_grid.min(16), RotationForm::Factored);
     let topts = TransportOptions {
         n_global: g,
