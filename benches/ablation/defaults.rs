@@ -55,6 +55,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         seen: &seen,
         materials: None,
         choose_weights_sum: true,
+        max_vertices: adapt::PILOT_MAX_VERTICES,
         seed: 1,
     })
     .expect("adaptive pilot");

@@ -182,6 +182,9 @@ pub struct RunOptions {
     /// resolutions and `keep` are then upper bounds. Off in [`RunOptions::new`] (the full
     /// model, as the benchmarks' knobs assume); the CLI turns it on unless `--adaptive off`.
     pub adaptive: bool,
+    /// Most seen vertices the adaptive pilot fits, a seeded sample above it (0 = every
+    /// vertex; [`crate::solve::adapt::PILOT_MAX_VERTICES`] by default).
+    pub pilot_vertices: usize,
     /// Use [`LARGE_MESH`] when the mesh has at least
     /// [`LargeMeshSettings::FROM_VERTICES`] vertices ([`LargeMeshSettings::for_mesh`]).
     /// Off in [`RunOptions::new`] (the options as given); the CLI turns it on
@@ -384,6 +387,7 @@ impl RunOptions {
             force: false,
             render_training: true,
             adaptive: false,
+            pilot_vertices: crate::solve::adapt::PILOT_MAX_VERTICES,
             large_mesh_auto: false,
             light: crate::solve::light::choose::LightChoice::Paper,
             transients: false,

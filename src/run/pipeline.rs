@@ -558,6 +558,7 @@ fn adapt(
                 MaterialCount::Auto => None,
             },
             choose_weights_sum: opts.weights_sum == super::WeightsSum::Auto,
+            max_vertices: opts.pilot_vertices,
             seed: opts.seed,
         })
     })?;

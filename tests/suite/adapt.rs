@@ -372,6 +372,46 @@ fn glossy_scene_keeps_its_phong_50_lobe() {
 }
 
 #[test]
+fn the_pilot_on_a_vertex_sample_still_finds_the_glossy_scenes_model() {
+    // The test above with the pilot capped at 150 vertices (`--pilot-vertices 150`; a
+    // run's default cap is 25,000): it fits a seeded sample of about half the seen
+    // vertices, says so in the material decision, and still finds the true model, one
+    // material with Lambert and Phong 50.
+    let dir = scratch("glossy-sample");
+    let ws = workspace(&dir.0, "sphere-glossy", 6, 300);
+    let mut o = adaptive(&ws, &dir.0.join("out"));
+    o.pilot_vertices = 150;
+    let s = run::run(&o).unwrap();
+    let m = &s.report.model;
+    assert_eq!(
+        m.basis,
+        vec!["lambert".to_string(), "phong:50".to_string()],
+        "{:#?}",
+        m.adaptive
+    );
+    assert_eq!(m.materials, 1, "{:#?}", m.adaptive);
+    let reason = &decision(&s, "materials").reason;
+    let at = reason
+        .find("every pilot fit ran on ")
+        .unwrap_or_else(|| panic!("no sample note: {reason}"));
+    let words: Vec<&str> = reason[at..].split_whitespace().collect();
+    let (fitted, seen): (usize, usize) = (words[5].parse().unwrap(), words[8].parse().unwrap());
+    // m = ⌈seen / 150⌉ buckets, each seen vertex kept with probability 1/m: the count is
+    // binomial(seen, 1/m); 5 standard deviations bound it (a fair hash fails that with
+    // probability below 10⁻⁶).
+    let buckets = seen.div_ceil(150) as f64;
+    let (mean, sd) = (
+        seen as f64 / buckets,
+        (seen as f64 / buckets * (1.0 - 1.0 / buckets)).sqrt(),
+    );
+    assert!(buckets >= 2.0, "{seen} seen vertices");
+    assert!(
+        (fitted as f64 - mean).abs() < 5.0 * sd,
+        "{fitted} of {seen} fitted"
+    );
+}
+
+#[test]
 fn materials_auto_finds_more_than_one_material_on_sphere_plane() {
     // Two true materials (an orange glossy sphere, a grey diffuse plane). The held-out
     // criterion must see more than one; it may support more than two, because extra

@@ -17,7 +17,11 @@
 //!    and [`PILOT_ITERATIONS`] outer iterations of the estimator (its lighting steps on at
 //!    most [`PILOT_LIGHTING_SAMPLE`] observations per photo) on the observations with
 //!    every [`HELDOUT_EVERY`]-th one (a seeded hash of vertex and photo) given weight 0
-//!    ([`holdout_split`]).
+//!    ([`holdout_split`]). On a mesh with more than [`PILOT_MAX_VERTICES`] seen vertices
+//!    the pilot reads only a seeded sample of about that many and their observations
+//!    ([`pilot_vertices`], [`observations_of`]): its decisions are statistics of the scene,
+//!    which that many vertices estimate, while its transport and fits would otherwise grow
+//!    with the mesh.
 //! 3. **Number of materials** (`--materials auto`): `K = 1, 2, …` are fitted by the pilot
 //!    and scored by the held-out RMSE of step 2 (the held-out observations are predicted
 //!    with their vertex's fitted weights and their photo's fitted light). `K` = 1, 2, … is
@@ -235,6 +239,14 @@ pub fn as_good(e: f64, best: f64, tol: f64) -> bool {
 pub const COUNT_MIN_SEEN: usize = 2;
 /// Every this-many-th observation is held out by the pilot.
 pub const HELDOUT_EVERY: u64 = 5;
+/// Most seen vertices the pilot fits (module docs, step 2; [`pilot_vertices`]). The pilot's
+/// cost and memory grow with the observations: at 100K vertices × 13 photos of 1 MP with
+/// every vertex it took 63 s of a 137 s run and set the run's peak (2,575 MiB, its
+/// transport of 7 bases); its decisions are statistics of the scene (colour clusters,
+/// lobe shares, held-out scores), which 25,000 vertices already estimate. Below this count
+/// every vertex is fitted, as before: the built-in example and every mesh up to it are
+/// unchanged.
+pub const PILOT_MAX_VERTICES: usize = 25_000;
 /// Pilot global map side.
 pub const PILOT_GLOBAL: usize = 16;
 /// Pilot local map side (at most).
@@ -363,15 +375,18 @@ pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
 /// Whether observation `p` is held out by the pilot: a seeded hash of (vertex, photo), so
 /// the split does not follow the photo or vertex order.
 fn held_out(obs: &Observations, p: usize, seed: u64) -> bool {
-    let mut h = seed
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add((obs.vertex[p] as u64) << 32 | obs.photo[p] as u64);
+    mix64(seed, (obs.vertex[p] as u64) << 32 | obs.photo[p] as u64).is_multiple_of(HELDOUT_EVERY)
+}
+
+/// A seeded 64-bit hash of `key` (the MurmurHash3 finaliser over `seed · φ + key`).
+fn mix64(seed: u64, key: u64) -> u64 {
+    let mut h = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(key);
     h ^= h >> 33;
     h = h.wrapping_mul(0xFF51_AFD7_ED55_8CCD);
     h ^= h >> 33;
     h = h.wrapping_mul(0xC4CE_B9FE_1A85_EC53);
     h ^= h >> 33;
-    h.is_multiple_of(HELDOUT_EVERY)
+    h
 }
 
 /// What the material count is scored on (module docs, step 3): the held-out observations
@@ -418,6 +433,33 @@ pub fn holdout_split(obs: &Observations, seed: u64) -> (Observations, Vec<usize>
         }
     }
     (train, held)
+}
+
+/// The vertices the pilot fits (module docs, step 2): `None` (every vertex) when `max` is
+/// 0 or at most `max` are seen; else the seen vertices whose seeded hash falls in one of
+/// `m = ⌈seen / max⌉` buckets, about `seen / m` of them (at most about `max`), spread over
+/// the mesh without regard to position, colour or photo.
+pub fn pilot_vertices(seen: &[bool], max: usize, seed: u64) -> Option<Vec<bool>> {
+    let n_seen = seen.iter().filter(|&&s| s).count();
+    if max == 0 || n_seen <= max {
+        return None;
+    }
+    let m = n_seen.div_ceil(max) as u64;
+    let salt = seed ^ 0xA5A5_5A5A_C3C3_3C3C;
+    Some(
+        seen.iter()
+            .enumerate()
+            .map(|(v, &s)| s && mix64(salt, v as u64).is_multiple_of(m))
+            .collect(),
+    )
+}
+
+/// The observations of the vertices `keep`, in their order ([`Observations::gather`]).
+pub fn observations_of(obs: &Observations, keep: &[bool]) -> Observations {
+    let index: Vec<usize> = (0..obs.len())
+        .filter(|&p| keep.get(obs.vertex[p] as usize).copied().unwrap_or(false))
+        .collect();
+    obs.gather(&index)
 }
 
 /// `α`-weighted RMSE of `pred` against `obs` over the observations `held`.

@@ -42,6 +42,9 @@ pub struct PilotInput<'a> {
     /// (`estimate.weights_sum`) against [`PILOT_WEIGHTS_SUM`] on every vertex, then on
     /// blended vertices.
     pub choose_weights_sum: bool,
+    /// Most seen vertices the pilot fits ([`pilot_vertices`]; 0 = every vertex); the run
+    /// passes [`PILOT_MAX_VERTICES`] unless `--pilot-vertices` says otherwise.
+    pub max_vertices: usize,
     /// Seed.
     pub seed: u64,
 }
@@ -79,6 +82,10 @@ pub struct PilotOutcome {
 /// The pilot's transport, problem and held-out split, shared by all its fits.
 struct Fitter<'a> {
     inp: &'a PilotInput<'a>,
+    /// The pilot's observations, before its held-out split ([`pilot_vertices`]).
+    obs: &'a Observations,
+    /// The seen vertices among them (k-means clusters these).
+    seen: &'a [bool],
     problem: Problem<'a>,
     held: &'a [usize],
     /// The held-out observations the material count is scored on ([`count_scored`]).
@@ -114,7 +121,7 @@ impl Fitter<'_> {
         strict: bool,
     ) -> Result<Option<PilotFit>> {
         let inp = self.inp;
-        let init = crate::solve::cluster::initial_materials(inp.mean_rgb, inp.seen, k, inp.seed)?;
+        let init = crate::solve::cluster::initial_materials(inp.mean_rgb, self.seen, k, inp.seed)?;
         if strict && init.albedo.len() < k {
             return Ok(None);
         }
@@ -141,8 +148,8 @@ impl Fitter<'_> {
         };
         let est = solve::estimate(&problem, m0, &opts, &mut |_, _| {})?;
         let pred = solve::predict(&problem, &est);
-        let heldout = heldout_rmse(inp.obs, self.held, &pred);
-        let count_score = heldout_rmse(inp.obs, self.count_held, &pred);
+        let heldout = heldout_rmse(self.obs, self.held, &pred);
+        let count_score = heldout_rmse(self.obs, self.count_held, &pred);
         Ok(Some(PilotFit {
             prior,
             est,
@@ -186,7 +193,18 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             inp.keep.min(g * g / 2)
         },
     };
-    let (split, held) = holdout_split(inp.obs, inp.seed);
+    let sample = pilot_vertices(inp.seen, inp.max_vertices, inp.seed);
+    let (obs, seen) = match &sample {
+        Some(keep) => (
+            std::borrow::Cow::Owned(observations_of(inp.obs, keep)),
+            std::borrow::Cow::Borrowed(keep.as_slice()),
+        ),
+        None => (
+            std::borrow::Cow::Borrowed(inp.obs),
+            std::borrow::Cow::Borrowed(inp.seen),
+        ),
+    };
+    let (split, held) = holdout_split(&obs, inp.seed);
     let count_held = count_scored(&split, &held, inp.normals_env.len());
     let tr = transport::build(
         inp.normals_env,
@@ -199,6 +217,8 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     )?;
     let fitter = Fitter {
         inp,
+        obs: &obs,
+        seen: &seen,
         problem: Problem {
             obs: &split,
             transport: &tr,
@@ -226,7 +246,10 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             ..inp.estimate.clone()
         },
     };
-    let count = material_count(&fitter, g)?;
+    let mut count = material_count(&fitter, g)?;
+    if sample.is_some() {
+        count.reason += &sample_note(inp.seen, &seen, inp.max_vertices);
+    }
     let (chosen, weights_sum_reason) = if inp.choose_weights_sum {
         let (kept, why) = choose_weights_sum(&fitter, count.k, count.fit)?;
         (kept, Some(why))
@@ -256,6 +279,16 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         weights_sum_scope: chosen.prior.scope,
         weights_sum_reason,
     })
+}
+
+/// `"; the pilot fitted N of the M seen vertices …"` ([`pilot_vertices`]).
+fn sample_note(seen: &[bool], kept: &[bool], max: usize) -> String {
+    let count = |s: &[bool]| s.iter().filter(|&&v| v).count();
+    format!(
+        "; every pilot fit ran on {} of the {} seen vertices (a seeded sample of about {max}, --pilot-vertices)",
+        count(kept),
+        count(seen)
+    )
 }
 
 /// The material count (step 3) and the pilot fit with it (free weights, every basis).
@@ -604,6 +637,66 @@ mod tests {
         // everywhere (−7.6%), on blends.
         assert!(!lowers(3.1128, 2.8770, WEIGHTS_SUM_GAIN));
         assert!(lowers(3.1128, 3.0072, BLEND_GAIN));
+    }
+
+    #[test]
+    fn the_pilot_samples_seen_vertices_only_above_its_cap() {
+        // 100,000 vertices, every 5th unseen: 80,000 seen.
+        let seen: Vec<bool> = (0..100_000).map(|v| v % 5 != 0).collect();
+        // At or below the cap (or with 0, no cap) every vertex is fitted.
+        assert!(pilot_vertices(&seen, 80_000, 1).is_none());
+        assert!(pilot_vertices(&seen, 0, 1).is_none());
+        let keep = pilot_vertices(&seen, PILOT_MAX_VERTICES, 1).expect("a sample");
+        // m = ⌈80,000 / 25,000⌉ = 4 buckets: each seen vertex is kept with probability
+        // 1/4, so the count is binomial(80,000, 1/4), mean 20,000, standard deviation
+        // √(80,000 · 1/4 · 3/4) = 122.5; the tolerance is 5 of them (a fair hash fails it
+        // with probability below 10⁻⁶).
+        let n = keep.iter().filter(|&&k| k).count();
+        assert!((n as f64 - 20_000.0).abs() < 5.0 * 122.5, "{n} kept");
+        assert!(n <= PILOT_MAX_VERTICES);
+        // Never an unseen vertex.
+        assert!(keep.iter().zip(&seen).all(|(&k, &s)| s || !k));
+        // Each quarter of the index range gets its share (the same binomial bound on
+        // 20,000 seen vertices: mean 5,000, standard deviation 61.2).
+        for q in keep.chunks(25_000) {
+            let c = q.iter().filter(|&&k| k).count();
+            assert!(
+                (c as f64 - 5_000.0).abs() < 5.0 * 61.2,
+                "{c} kept in a quarter"
+            );
+        }
+        // The same seed gives the same sample; another seed another one.
+        assert_eq!(
+            pilot_vertices(&seen, PILOT_MAX_VERTICES, 1),
+            Some(keep.clone())
+        );
+        let other = pilot_vertices(&seen, PILOT_MAX_VERTICES, 2).expect("a sample");
+        let shared = keep.iter().zip(&other).filter(|(&a, &b)| a && b).count();
+        // Independent samples share about 1/16 of the seen vertices (5,000).
+        assert!(
+            (shared as f64 - 5_000.0).abs() < 5.0 * 68.5,
+            "{shared} shared"
+        );
+    }
+
+    #[test]
+    fn the_pilot_reads_every_observation_of_its_vertices_and_no_other() {
+        // Two photos: photo 0 sees vertices 0, 1, 2; photo 1 sees 1, 2, 3.
+        let vertex = vec![0, 1, 2, 1, 2, 3];
+        let n = vertex.len();
+        let obs = Observations {
+            vertex,
+            photo: vec![0, 0, 0, 1, 1, 1],
+            rgb: (0..n).map(|p| [p as f32; 3]).collect(),
+            weight: vec![1.0; n],
+            dir: vec![[0.0, 0.0, 1.0]; n],
+            photo_ranges: vec![0..3, 3..6],
+        };
+        let sub = observations_of(&obs, &[false, true, false, true]);
+        assert_eq!(sub.vertex, vec![1, 1, 3]);
+        assert_eq!(sub.rgb, vec![[1.0; 3], [3.0; 3], [5.0; 3]]);
+        assert_eq!(sub.photo, vec![0, 1, 1]);
+        assert_eq!(sub.photo_ranges, vec![0..1, 1..3]);
     }
 
     #[test]
