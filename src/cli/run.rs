@@ -41,9 +41,10 @@ pub(crate) struct RunArgs {
     /// are upper bounds). `off`: the model exactly as given.
     #[arg(long, default_value = "on", value_parser = ["on", "off"], help_heading = "Model")]
     pub(crate) adaptive: String,
-    /// Most seen surface points the adaptive trial fit reads (0 = every one): on a larger
-    /// mesh it fits a seeded sample of about this many, which keeps its time and memory
-    /// flat (at 100K points every choice and figure stayed the same in under a third of its time).
+    /// Most seen surface points the adaptive trial fit reads (0 = every one, else at least
+    /// 100): on a larger mesh it fits a seeded sample of about this many, which keeps its
+    /// time and memory flat (at 100K points every choice and figure stayed the same in
+    /// under a third of its time).
     #[arg(long, value_name = "N", default_value_t = relight_cpc::solve::adapt::PILOT_MAX_VERTICES, help_heading = "Model")]
     pub(crate) pilot_vertices: usize,
     /// Model of each photo's light: `paper` (a free non-negative map, the paper's),

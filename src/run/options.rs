@@ -465,6 +465,13 @@ impl RunOptions {
                 "--basis: at least one basis BRDF is needed".into(),
             ));
         }
+        let min = crate::solve::adapt::PILOT_MIN_VERTICES;
+        if self.pilot_vertices != 0 && self.pilot_vertices < min {
+            return Err(Error::Config(format!(
+                "--pilot-vertices {}: must be 0 (every vertex) or at least {min}: the trial fit clusters up to 6 colours and scores held-back observations on that sample",
+                self.pilot_vertices
+            )));
+        }
         if let MaterialCount::Fixed(k) = self.materials {
             if k == 0 || k > 32 {
                 return Err(Error::Config(format!(

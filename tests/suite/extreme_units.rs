@@ -239,6 +239,20 @@ fn weights_sum_outside_its_range_is_refused() {
     );
 }
 
+/// `--pilot-vertices` is 0 (every vertex) or at least `PILOT_MIN_VERTICES`: with 1 the
+/// pilot's sample held no seen vertex and the run stopped in k-means with a message about
+/// the photos; now the flag is refused by name.
+#[test]
+fn a_pilot_sample_too_small_to_cluster_is_refused() {
+    let min = relight_cpc::solve::adapt::PILOT_MIN_VERTICES;
+    assert_range_checked(
+        "--pilot-vertices",
+        |o, v| o.pilot_vertices = v,
+        &[1, 5, min - 1],
+        &[0, min, 25_000, 1_000_000],
+    );
+}
+
 /// `--weights-sum-on blends` needs a strength to apply: with `--weights-sum auto` (the
 /// pilot chooses where the prior applies) it is refused, naming the flag; with a number it
 /// passes.

@@ -247,6 +247,11 @@ pub const HELDOUT_EVERY: u64 = 5;
 /// every vertex is fitted, as before: the built-in example and every mesh up to it are
 /// unchanged.
 pub const PILOT_MAX_VERTICES: usize = 25_000;
+/// Fewest vertices `--pilot-vertices` may ask for (0 aside, every vertex): the pilot
+/// clusters up to [`MAX_MATERIALS`] colours and scores every [`HELDOUT_EVERY`]-th
+/// observation, so 100 leaves about 16 vertices a material at the cap and 20 vertices'
+/// worth of held-out observations a photo sees. With 1 the sample held no seen vertex.
+pub const PILOT_MIN_VERTICES: usize = 100;
 /// Pilot global map side.
 pub const PILOT_GLOBAL: usize = 16;
 /// Pilot local map side (at most).
