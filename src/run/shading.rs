@@ -88,10 +88,9 @@ pub(crate) fn trace_visibility(
 /// Visibility `fine` at `n ≤ fine.n_local` texels per side: `fine` itself when `n` is its
 /// side, else averaged down ([`crate::solve::adapt::downsample_visibility`]).
 pub(crate) fn at_side(fine: &Arc<Visibility>, n: usize) -> Arc<Visibility> {
-    if n < fine.n_local {
-        Arc::new(crate::solve::adapt::downsample_visibility(fine, n))
-    } else {
-        fine.clone()
+    match crate::solve::adapt::downsample_visibility(fine, n) {
+        std::borrow::Cow::Borrowed(_) => fine.clone(),
+        std::borrow::Cow::Owned(v) => Arc::new(v),
     }
 }
 

@@ -179,6 +179,8 @@
 // Channel loops index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
+use std::borrow::Cow;
+
 use serde::Serialize;
 
 use crate::observe::Observations;
@@ -339,10 +341,12 @@ pub fn select_bases(t: &Transport, kept: &[usize]) -> Result<Transport> {
 
 /// Visibility averaged down to `n` texels per side (solid-angle weighted over each block
 /// of the finer hemi-octahedral grid, whose texels nest 2×2 per level); its rays per texel
-/// are what each coarse texel received (`rays · f²` for a block of `f × f`).
-pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
+/// are what each coarse texel received (`rays · f²` for a block of `f × f`). `vis` itself,
+/// borrowed, when `n` is not a coarser side it nests in (its own side among them): a
+/// visibility already at the reader's side is read as it is, not copied.
+pub fn downsample_visibility(vis: &Visibility, n: usize) -> Cow<'_, Visibility> {
     if n >= vis.n_local || n == 0 || !vis.n_local.is_multiple_of(n) {
-        return vis.clone();
+        return Cow::Borrowed(vis);
     }
     let fine = vis.n_local;
     let f = fine / n;
@@ -366,7 +370,7 @@ pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
             }
         }
     }
-    Visibility {
+    Cow::Owned(Visibility {
         n_local: n,
         rays_per_texel: vis.rays_per_texel * f * f,
         frac,
@@ -374,7 +378,7 @@ pub fn downsample_visibility(vis: &Visibility, n: usize) -> Visibility {
         degenerate: vis.degenerate,
         rays_traced: vis.rays_traced,
         rays_known_open: vis.rays_known_open,
-    }
+    })
 }
 
 /// Whether observation `p` is held out by the pilot: a seeded hash of (vertex, photo), so

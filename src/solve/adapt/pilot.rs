@@ -178,11 +178,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     let g = PILOT_GLOBAL.min(inp.global_resolution);
     let l = PILOT_LOCAL.min(inp.vis.n_local);
     // The run traces at the pilot's side first: then the visibility is read as it is.
-    let vis = if inp.vis.n_local == l {
-        std::borrow::Cow::Borrowed(inp.vis)
-    } else {
-        std::borrow::Cow::Owned(downsample_visibility(inp.vis, l))
-    };
+    let vis = downsample_visibility(inp.vis, l);
     let rot = Rotation::new(g, l, inp.normal_grid.min(16), RotationForm::Factored);
     let topts = TransportOptions {
         n_global: g,
