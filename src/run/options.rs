@@ -465,10 +465,10 @@ impl RunOptions {
                 "--basis: at least one basis BRDF is needed".into(),
             ));
         }
-        let min = crate::solve::adapt::PILOT_MIN_VERTICES;
-        if self.pilot_vertices != 0 && self.pilot_vertices < min {
+        use crate::solve::adapt::{MAX_MATERIALS, PILOT_MIN_VERTICES};
+        if self.pilot_vertices != 0 && self.pilot_vertices < PILOT_MIN_VERTICES {
             return Err(Error::Config(format!(
-                "--pilot-vertices {}: must be 0 (every vertex) or at least {min}: the trial fit clusters up to 6 colours and scores held-back observations on that sample",
+                "--pilot-vertices {}: must be 0 (every vertex) or at least {PILOT_MIN_VERTICES}: the trial fit clusters up to {MAX_MATERIALS} colours and scores held-back observations on that sample",
                 self.pilot_vertices
             )));
         }

@@ -194,8 +194,10 @@ use crate::{Error, Result, Vec3};
 
 mod pilot;
 mod redundant;
+mod sample;
 pub use pilot::{pilot, PilotInput, PilotOutcome};
 pub use redundant::{drop_photos, redundant_photos, DUPLICATE_ANGLE_DEG, DUPLICATE_RGB};
+pub use sample::{observations_of, pilot_vertices, PILOT_MAX_VERTICES, PILOT_MIN_VERTICES};
 
 /// Largest share below which a basis BRDF counts as unused (module docs, step 4).
 pub const DROP_SHARE: f64 = 0.01;
@@ -241,19 +243,6 @@ pub fn as_good(e: f64, best: f64, tol: f64) -> bool {
 pub const COUNT_MIN_SEEN: usize = 2;
 /// Every this-many-th observation is held out by the pilot.
 pub const HELDOUT_EVERY: u64 = 5;
-/// Most seen vertices the pilot fits (module docs, step 2; [`pilot_vertices`]). The pilot's
-/// cost and memory grow with the observations: at 100K vertices × 13 photos of 1 MP with
-/// every vertex it took 63 s of a 137 s run and set the run's peak (2,575 MiB, its
-/// transport of 7 bases); its decisions are statistics of the scene (colour clusters,
-/// lobe shares, held-out scores), which 25,000 vertices already estimate. Below this count
-/// every vertex is fitted, as before: the built-in example and every mesh up to it are
-/// unchanged.
-pub const PILOT_MAX_VERTICES: usize = 25_000;
-/// Fewest vertices `--pilot-vertices` may ask for (0 aside, every vertex): the pilot
-/// clusters up to [`MAX_MATERIALS`] colours and scores every [`HELDOUT_EVERY`]-th
-/// observation, so 100 leaves about 16 vertices a material at the cap and 20 vertices'
-/// worth of held-out observations a photo sees. With 1 the sample held no seen vertex.
-pub const PILOT_MIN_VERTICES: usize = 100;
 /// Pilot global map side.
 pub const PILOT_GLOBAL: usize = 16;
 /// Pilot local map side (at most).
@@ -442,33 +431,6 @@ pub fn holdout_split(obs: &Observations, seed: u64) -> (Observations, Vec<usize>
         }
     }
     (train, held)
-}
-
-/// The vertices the pilot fits (module docs, step 2): `None` (every vertex) when `max` is
-/// 0 or at most `max` are seen; else the seen vertices whose seeded hash falls in one of
-/// `m = ⌈seen / max⌉` buckets, about `seen / m` of them (at most about `max`), spread over
-/// the mesh without regard to position, colour or photo.
-pub fn pilot_vertices(seen: &[bool], max: usize, seed: u64) -> Option<Vec<bool>> {
-    let n_seen = seen.iter().filter(|&&s| s).count();
-    if max == 0 || n_seen <= max {
-        return None;
-    }
-    let m = n_seen.div_ceil(max) as u64;
-    let salt = seed ^ 0xA5A5_5A5A_C3C3_3C3C;
-    Some(
-        seen.iter()
-            .enumerate()
-            .map(|(v, &s)| s && mix64(salt, v as u64).is_multiple_of(m))
-            .collect(),
-    )
-}
-
-/// The observations of the vertices `keep`, in their order ([`Observations::gather`]).
-pub fn observations_of(obs: &Observations, keep: &[bool]) -> Observations {
-    let index: Vec<usize> = (0..obs.len())
-        .filter(|&p| keep.get(obs.vertex[p] as usize).copied().unwrap_or(false))
-        .collect();
-    obs.gather(&index)
 }
 
 /// `α`-weighted RMSE of `pred` against `obs` over the observations `held`.

@@ -4,6 +4,7 @@
 //! ([`PILOT_ITERATIONS`] outer iterations): the material count (step 3), the weights'
 //! sum-to-one prior and where it applies (step 3b), the basis BRDFs (step 4).
 
+use super::sample::PilotView;
 use super::*;
 
 /// What the pilot needs from the run.
@@ -189,17 +190,8 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
             inp.keep.min(g * g / 2)
         },
     };
-    let sample = pilot_vertices(inp.seen, inp.max_vertices, inp.seed);
-    let (obs, seen) = match &sample {
-        Some(keep) => (
-            std::borrow::Cow::Owned(observations_of(inp.obs, keep)),
-            std::borrow::Cow::Borrowed(keep.as_slice()),
-        ),
-        None => (
-            std::borrow::Cow::Borrowed(inp.obs),
-            std::borrow::Cow::Borrowed(inp.seen),
-        ),
-    };
+    let PilotView { obs, seen, note } =
+        PilotView::new(inp.obs, inp.seen, inp.max_vertices, inp.seed);
     let (split, held) = holdout_split(&obs, inp.seed);
     let count_held = count_scored(&split, &held, inp.normals_env.len());
     let tr = transport::build(
@@ -243,8 +235,8 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         },
     };
     let mut count = material_count(&fitter, g)?;
-    if sample.is_some() {
-        count.reason += &sample_note(inp.seen, &seen, inp.max_vertices);
+    if let Some(note) = &note {
+        count.reason += note;
     }
     let (chosen, weights_sum_reason) = if inp.choose_weights_sum {
         let (kept, why) = choose_weights_sum(&fitter, count.k, count.fit)?;
@@ -275,16 +267,6 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         weights_sum_scope: chosen.prior.scope,
         weights_sum_reason,
     })
-}
-
-/// `"; the pilot fitted N of the M seen vertices …"` ([`pilot_vertices`]).
-fn sample_note(seen: &[bool], kept: &[bool], max: usize) -> String {
-    let count = |s: &[bool]| s.iter().filter(|&&v| v).count();
-    format!(
-        "; every pilot fit ran on {} of the {} seen vertices (a seeded sample of about {max}, --pilot-vertices)",
-        count(kept),
-        count(seen)
-    )
 }
 
 /// The material count (step 3) and the pilot fit with it (free weights, every basis).
@@ -633,66 +615,6 @@ mod tests {
         // everywhere (−7.6%), on blends.
         assert!(!lowers(3.1128, 2.8770, WEIGHTS_SUM_GAIN));
         assert!(lowers(3.1128, 3.0072, BLEND_GAIN));
-    }
-
-    #[test]
-    fn the_pilot_samples_seen_vertices_only_above_its_cap() {
-        // 100,000 vertices, every 5th unseen: 80,000 seen.
-        let seen: Vec<bool> = (0..100_000).map(|v| v % 5 != 0).collect();
-        // At or below the cap (or with 0, no cap) every vertex is fitted.
-        assert!(pilot_vertices(&seen, 80_000, 1).is_none());
-        assert!(pilot_vertices(&seen, 0, 1).is_none());
-        let keep = pilot_vertices(&seen, PILOT_MAX_VERTICES, 1).expect("a sample");
-        // m = ⌈80,000 / 25,000⌉ = 4 buckets: each seen vertex is kept with probability
-        // 1/4, so the count is binomial(80,000, 1/4), mean 20,000, standard deviation
-        // √(80,000 · 1/4 · 3/4) = 122.5; the tolerance is 5 of them (a fair hash fails it
-        // with probability below 10⁻⁶).
-        let n = keep.iter().filter(|&&k| k).count();
-        assert!((n as f64 - 20_000.0).abs() < 5.0 * 122.5, "{n} kept");
-        assert!(n <= PILOT_MAX_VERTICES);
-        // Never an unseen vertex.
-        assert!(keep.iter().zip(&seen).all(|(&k, &s)| s || !k));
-        // Each quarter of the index range gets its share (the same binomial bound on
-        // 20,000 seen vertices: mean 5,000, standard deviation 61.2).
-        for q in keep.chunks(25_000) {
-            let c = q.iter().filter(|&&k| k).count();
-            assert!(
-                (c as f64 - 5_000.0).abs() < 5.0 * 61.2,
-                "{c} kept in a quarter"
-            );
-        }
-        // The same seed gives the same sample; another seed another one.
-        assert_eq!(
-            pilot_vertices(&seen, PILOT_MAX_VERTICES, 1),
-            Some(keep.clone())
-        );
-        let other = pilot_vertices(&seen, PILOT_MAX_VERTICES, 2).expect("a sample");
-        let shared = keep.iter().zip(&other).filter(|(&a, &b)| a && b).count();
-        // Independent samples share about 1/16 of the seen vertices (5,000).
-        assert!(
-            (shared as f64 - 5_000.0).abs() < 5.0 * 68.5,
-            "{shared} shared"
-        );
-    }
-
-    #[test]
-    fn the_pilot_reads_every_observation_of_its_vertices_and_no_other() {
-        // Two photos: photo 0 sees vertices 0, 1, 2; photo 1 sees 1, 2, 3.
-        let vertex = vec![0, 1, 2, 1, 2, 3];
-        let n = vertex.len();
-        let obs = Observations {
-            vertex,
-            photo: vec![0, 0, 0, 1, 1, 1],
-            rgb: (0..n).map(|p| [p as f32; 3]).collect(),
-            weight: vec![1.0; n],
-            dir: vec![[0.0, 0.0, 1.0]; n],
-            photo_ranges: vec![0..3, 3..6],
-        };
-        let sub = observations_of(&obs, &[false, true, false, true]);
-        assert_eq!(sub.vertex, vec![1, 1, 3]);
-        assert_eq!(sub.rgb, vec![[1.0; 3], [3.0; 3], [5.0; 3]]);
-        assert_eq!(sub.photo, vec![0, 1, 1]);
-        assert_eq!(sub.photo_ranges, vec![0..1, 1..3]);
     }
 
     #[test]
