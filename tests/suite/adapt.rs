@@ -358,8 +358,15 @@ fn glossy_scene_keeps_its_phong_50_lobe() {
     let dir = scratch("glossy");
     let ws = workspace(&dir.0, "sphere-glossy", 6, 300);
     let s = run::run(&adaptive(&ws, &dir.0.join("out"))).unwrap();
+    assert_glossy_truth(&s);
+    // Phong 50 needs 32² (closed form above); the request is 32².
+    assert_eq!(s.report.model.global_resolution, 32);
+}
+
+/// `sphere-glossy`'s true model: one material with exactly Lambert and Phong 50 (Phong 500
+/// is not in the truth).
+fn assert_glossy_truth(s: &RunSummary) {
     let m = &s.report.model;
-    // The truth has exactly these lobes: Phong 500 is not in it.
     assert_eq!(
         m.basis,
         vec!["lambert".to_string(), "phong:50".to_string()],
@@ -367,8 +374,6 @@ fn glossy_scene_keeps_its_phong_50_lobe() {
         m.adaptive
     );
     assert_eq!(m.materials, 1, "{:#?}", m.adaptive);
-    // Phong 50 needs 32² (closed form above); the request is 32².
-    assert_eq!(m.global_resolution, 32);
 }
 
 #[test]
@@ -382,14 +387,7 @@ fn the_pilot_on_a_vertex_sample_still_finds_the_glossy_scenes_model() {
     let mut o = adaptive(&ws, &dir.0.join("out"));
     o.pilot_vertices = 150;
     let s = run::run(&o).unwrap();
-    let m = &s.report.model;
-    assert_eq!(
-        m.basis,
-        vec!["lambert".to_string(), "phong:50".to_string()],
-        "{:#?}",
-        m.adaptive
-    );
-    assert_eq!(m.materials, 1, "{:#?}", m.adaptive);
+    assert_glossy_truth(&s);
     let reason = &decision(&s, "materials").reason;
     let at = reason
         .find("every pilot fit ran on ")
