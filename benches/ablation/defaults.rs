@@ -55,6 +55,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         seen: &seen,
         materials: None,
         choose_weights_sum: true,
+        start: adapt::PilotStart::Choose,
         max_vertices: adapt::PILOT_MAX_VERTICES,
         seed: 1,
     })
@@ -64,8 +65,13 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         transport: &sub,
         ..case.train.problem(case.nv)
     };
-    let init = relight_cpc::solve::cluster::initial_materials(&mean_rgb, &seen, pilot.materials, 1)
-        .expect("k-means start");
+    let mut init =
+        relight_cpc::solve::cluster::initial_materials(&mean_rgb, &seen, pilot.materials, 1)
+            .expect("k-means start");
+    if pilot.start_matched {
+        let open = case.vis.open_fractions();
+        relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open);
+    }
     let m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
     // `run`'s cap and tolerance, or with `ABLATION_DEFAULTS_ITERS=bench` the bench's.
     let (max_outer, rel_tol) =
@@ -113,8 +119,9 @@ fn full_basis(row: &[[f64; 3]], kept: &[usize], n: usize) -> Vec<[f64; 3]> {
 pub fn describe(case: &Case, p: &PilotOutcome) -> String {
     let kept: Vec<String> = p.kept.iter().map(|&b| case.basis[b].label()).collect();
     format!(
-        "the pilot chose K = {}, the weights' sum-to-one prior at {}{} and the lobes {} ({}; {})",
+        "the pilot chose K = {}, the {} start, the weights' sum-to-one prior at {}{} and the lobes {} ({}; {}; {})",
         p.materials,
+        if p.start_matched { "matched" } else { "clustered" },
         p.weights_sum,
         match p.weights_sum_scope {
             relight_cpc::solve::SumScope::Every => "",
@@ -124,6 +131,7 @@ pub fn describe(case: &Case, p: &PilotOutcome) -> String {
         p.weights_sum_reason
             .as_deref()
             .unwrap_or("weights' prior not chosen"),
+        p.start_reason.as_deref().unwrap_or("start not chosen"),
         p.basis_reason
     )
 }

@@ -176,6 +176,12 @@ pub(crate) struct RunArgs {
     /// closest to the training photos. Costs 2 fits with 2 materials, 8 with 3.
     #[arg(long, default_value = "off", value_parser = ["off", "brightness"], help_heading = "Solver")]
     pub(crate) start_search: String,
+    /// Where each material's starting brightness comes from: `clustered` (its colour
+    /// cluster's median, the paper), `matched` (compared with the other materials at
+    /// vertices of the same normal in the same photo, so shading does not darken it), or
+    /// `auto` (the pilot's choice by held-out error; clustered with `--adaptive off`).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "clustered", "matched"], help_heading = "Solver")]
+    pub(crate) start_brightness: String,
     /// Outlier threshold floor, as a fraction of each photo's mean brightness: a residual
     /// within 1.345 × this is never played down (0 = from the residuals' spread alone).
     #[arg(
@@ -351,6 +357,7 @@ impl RunArgs {
         o.min_iterations = self.min_iterations;
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
+        o.start_brightness = relight_cpc::run::StartBrightness::parse(&self.start_brightness)?;
         o.robust_floor = self.robust_floor;
         o.weights_sum = relight_cpc::run::WeightsSum::parse(&self.weights_sum)?;
         o.weights_sum_scope = match self.weights_sum_on.as_str() {

@@ -7,7 +7,7 @@ use super::state::{Imported, Observed, Prepared, RunLog};
 use super::tracker::HoldoutTracker;
 use super::{
     check_finite, choose_material_count, conditioning_map, train_errors, Fitted, MaterialCount,
-    Progress, RunOptions,
+    Progress, RunOptions, StartBrightness,
 };
 use crate::observe::Observations;
 use crate::report::{TimelinePoint, TrainEntry};
@@ -153,7 +153,7 @@ pub(crate) fn fit<'a>(
     } else {
         None
     };
-    start.finish_options(opts, scene, &train, &obs)?;
+    start.finish_options(opts, scene, &train, &obs, &p)?;
     let problem = Problem {
         obs: &obs,
         transport: &p.tr,
@@ -401,6 +401,7 @@ impl FitStart {
         scene: &crate::import::scene::Scene,
         train: &[usize],
         obs: &Observations,
+        p: &Prepared,
     ) -> Result<()> {
         if self.eopts.weights_smoothness > 0.0 {
             self.reasons.push(format!(
@@ -418,7 +419,36 @@ impl FitStart {
             }
         }
         self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);
+        if p.eff.start_brightness == StartBrightness::Matched {
+            self.match_brightness(p, obs);
+        }
         Ok(())
+    }
+
+    /// The start's material brightness matched by normal ([`crate::solve::matched`]) on
+    /// the training observations; the change, or why none, goes to the reasons.
+    fn match_brightness(&mut self, p: &Prepared, obs: &Observations) {
+        let open = p.vis.open_fractions();
+        let before: Vec<f64> = self.init.albedo.iter().map(|a| a.iter().sum()).collect();
+        if !crate::solve::matched::match_start(&mut self.init, obs, &p.normals_env, &open) {
+            self.reasons.push(
+                "start brightness: the clustered colours; fewer than two materials share a normal in one photo at open, clearly labelled vertices"
+                    .into(),
+            );
+            return;
+        }
+        let change: Vec<String> = self
+            .init
+            .albedo
+            .iter()
+            .zip(&before)
+            .map(|(a, b)| format!("×{:.2}", a.iter().sum::<f64>() / b))
+            .collect();
+        self.reasons.push(format!(
+            "start brightness matched by normal: each material's clustered colour scaled {} (materials 1–{})",
+            change.join(", "),
+            change.len()
+        ));
     }
 
     /// The starts the estimate runs from (`--starts`), and why when fewer exist.

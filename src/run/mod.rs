@@ -48,8 +48,8 @@ mod write;
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    Holdout, LargeMeshSettings, MaterialCount, RunOptions, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
-    DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
+    Holdout, LargeMeshSettings, MaterialCount, RunOptions, StartBrightness, WeightsSum,
+    DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;
 pub use shading::{fine_rays, render_local_resolution};
@@ -424,6 +424,24 @@ fn adaptive_decisions(
             } else {
                 outcome.weights_sum.to_string()
             },
+            reason: why.clone(),
+        });
+    }
+    if let Some(why) = &outcome.start_reason {
+        eff.start_brightness = if outcome.start_matched {
+            StartBrightness::Matched
+        } else {
+            StartBrightness::Clustered
+        };
+        d.push(Decision {
+            what: "start_brightness".into(),
+            full: "auto".into(),
+            chosen: if outcome.start_matched {
+                "matched"
+            } else {
+                "clustered"
+            }
+            .into(),
             reason: why.clone(),
         });
     }

@@ -19,6 +19,32 @@ pub enum MaterialCount {
     Fixed(usize),
 }
 
+/// Where the start's material brightness comes from ([`crate::solve::matched`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StartBrightness {
+    /// With [`RunOptions::adaptive`], the pilot's choice by held-out error
+    /// ([`crate::solve::adapt`], step 3c); without it, the clustered colours (the paper).
+    Auto,
+    /// Each cluster's median colour (paper Sec. 5.2).
+    Clustered,
+    /// The clustered colours with each material's brightness matched by normal.
+    Matched,
+}
+
+impl StartBrightness {
+    /// `auto`, `clustered` or `matched`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(StartBrightness::Auto),
+            "clustered" => Ok(StartBrightness::Clustered),
+            "matched" => Ok(StartBrightness::Matched),
+            _ => Err(Error::Config(format!(
+                "--start-brightness {s}: expected auto, clustered or matched"
+            ))),
+        }
+    }
+}
+
 /// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WeightsSum {
@@ -140,6 +166,9 @@ pub struct RunOptions {
     /// and keeps the deepest ([`crate::solve::materials::brightness::search`]; not in the
     /// paper).
     pub start_search: bool,
+    /// Where the start's material brightness comes from: the clustered colours, matched
+    /// by normal, or the pilot's choice ([`StartBrightness::Auto`]).
+    pub start_brightness: StartBrightness,
     /// Lower bound on IRLS's robust scale relative to each photo's RMS radiance
     /// ([`EstimateOptions::robust_floor`]; 0 = the residuals' MAD alone).
     pub robust_floor: f64,
@@ -373,6 +402,7 @@ impl RunOptions {
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_search: false,
+            start_brightness: StartBrightness::Auto,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: WeightsSum::Auto,
             weights_sum_scope: SumScope::Every,

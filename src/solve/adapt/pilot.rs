@@ -43,6 +43,8 @@ pub struct PilotInput<'a> {
     /// (`estimate.weights_sum`) against [`PILOT_WEIGHTS_SUM`] on every vertex, then on
     /// blended vertices.
     pub choose_weights_sum: bool,
+    /// The start of the pilot's fits, or whether to choose it (step 3c).
+    pub start: PilotStart,
     /// Most seen vertices the pilot fits ([`pilot_vertices`]; 0 = every vertex); the run
     /// passes [`PILOT_MAX_VERTICES`] unless `--pilot-vertices` says otherwise.
     pub max_vertices: usize,
@@ -78,6 +80,22 @@ pub struct PilotOutcome {
     pub weights_sum_scope: SumScope,
     /// Why, when the pilot chose it ([`PilotInput::choose_weights_sum`]).
     pub weights_sum_reason: Option<String>,
+    /// Whether the fit starts from the brightness matched by normal (step 3c).
+    pub start_matched: bool,
+    /// Why, when the pilot chose it ([`PilotStart::Choose`]).
+    pub start_reason: Option<String>,
+}
+
+/// The start the pilot's fits take (step 3c, [`crate::solve::matched`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PilotStart {
+    /// The clustered colours (paper Sec. 5.2).
+    Clustered,
+    /// The clustered colours with each material's brightness matched by normal.
+    Matched,
+    /// The clustered colours up to step 3c, which keeps the matched start when it lowers
+    /// the held-out RMSE.
+    Choose,
 }
 
 /// The pilot's transport, problem and held-out split, shared by all its fits.
@@ -92,6 +110,10 @@ struct Fitter<'a> {
     /// The held-out observations the material count is scored on ([`count_scored`]).
     count_held: &'a [usize],
     eopts: EstimateOptions,
+    /// Visible fraction of every vertex's hemisphere (the matched start).
+    open: &'a [f64],
+    /// Whether the fits start from the brightness matched by normal (step 3c).
+    matched: std::cell::Cell<bool>,
 }
 
 /// The weights' sum-to-one prior of one pilot fit: its strength and scope.
@@ -122,9 +144,13 @@ impl Fitter<'_> {
         strict: bool,
     ) -> Result<Option<PilotFit>> {
         let inp = self.inp;
-        let init = crate::solve::cluster::initial_materials(inp.mean_rgb, self.seen, k, inp.seed)?;
+        let mut init =
+            crate::solve::cluster::initial_materials(inp.mean_rgb, self.seen, k, inp.seed)?;
         if strict && init.albedo.len() < k {
             return Ok(None);
+        }
+        if self.matched.get() {
+            self.match_brightness(&mut init);
         }
         let sub;
         let problem = if kept.len() == inp.basis.len() {
@@ -157,6 +183,13 @@ impl Fitter<'_> {
             heldout,
             count_score,
         }))
+    }
+
+    /// `init` with its materials' brightness matched by normal on the pilot's training
+    /// observations ([`crate::solve::matched`]); whether two or more materials matched.
+    fn match_brightness(&self, init: &mut crate::solve::cluster::InitialMaterials) -> bool {
+        let normals = self.inp.normals_env;
+        crate::solve::matched::match_start(init, self.problem.obs, normals, self.open)
     }
 
     /// Every basis of the full list.
@@ -203,7 +236,10 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         &rot,
         &topts,
     )?;
+    let open = vis.open_fractions();
     let fitter = Fitter {
+        open: &open,
+        matched: std::cell::Cell::new(inp.start == PilotStart::Matched),
         inp,
         obs: &obs,
         seen: &seen,
@@ -244,6 +280,12 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     } else {
         (count.fit, None)
     };
+    let (chosen, start_reason) = if inp.start == PilotStart::Choose {
+        let (kept, why) = choose_start(&fitter, count.k, chosen)?;
+        (kept, Some(why))
+    } else {
+        (chosen, None)
+    };
     let bases = basis_choice(&fitter, count.k, &chosen)?;
     let est = &chosen.est;
     let kappa_lighting = est
@@ -266,6 +308,8 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         weights_sum: chosen.prior.strength,
         weights_sum_scope: chosen.prior.scope,
         weights_sum_reason,
+        start_matched: fitter.matched.get(),
+        start_reason,
     })
 }
 
@@ -519,6 +563,46 @@ struct SumTrial {
 }
 
 /// `"{label} {with:.4e} ({change:+.1}%)"`, the change against free weights.
+/// Step 3c: the pilot with `k` materials and `chosen`'s prior refitted from the
+/// brightness matched by normal, kept (and every later fit started so) when its held-out
+/// RMSE is lower than `chosen`'s by more than [`START_GAIN`].
+fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, String)> {
+    let mut init = crate::solve::cluster::initial_materials(f.inp.mean_rgb, f.seen, k, f.inp.seed)?;
+    if !f.match_brightness(&mut init) {
+        return Ok((
+            chosen,
+            "the clustered colours, as the paper: fewer than two materials share a normal \
+             in one photo at open, clearly labelled vertices, so none can be matched"
+                .into(),
+        ));
+    }
+    f.matched.set(true);
+    let Some(matched) = f.fit(k, &f.all(), chosen.prior, false)? else {
+        f.matched.set(false);
+        return Ok((
+            chosen,
+            "the clustered colours: the matched refit had no materials".into(),
+        ));
+    };
+    let figures = format!(
+        "held-out RMSE of the pilot with {k} materials: clustered {:.4e}, {}",
+        chosen.heldout,
+        trial_figure("matched", chosen.heldout, matched.heldout)
+    );
+    if lowers(chosen.heldout, matched.heldout, START_GAIN) {
+        Ok((
+            matched,
+            format!("each material's brightness matched by normal: {figures}"),
+        ))
+    } else {
+        f.matched.set(false);
+        Ok((
+            chosen,
+            format!("the clustered colours, as the paper: {figures}"),
+        ))
+    }
+}
+
 fn trial_figure(label: &str, free: f64, with: f64) -> String {
     format!("{label} {with:.4e} ({:+.1}%)", 100.0 * (with / free - 1.0))
 }
