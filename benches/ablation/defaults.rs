@@ -70,7 +70,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             .expect("k-means start");
     if pilot.start_matched {
         let open = case.vis.open_fractions();
-        relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open);
+        relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open, true);
     }
     let m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
     // `run`'s cap and tolerance, or with `ABLATION_DEFAULTS_ITERS=bench` the bench's.

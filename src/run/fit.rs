@@ -429,26 +429,16 @@ impl FitStart {
     /// the training observations; the change, or why none, goes to the reasons.
     fn match_brightness(&mut self, p: &Prepared, obs: &Observations) {
         let open = p.vis.open_fractions();
-        let before: Vec<f64> = self.init.albedo.iter().map(|a| a.iter().sum()).collect();
-        if !crate::solve::matched::match_start(&mut self.init, obs, &p.normals_env, &open) {
-            self.reasons.push(
-                "start brightness: the clustered colours; fewer than two materials share a normal in one photo at open, clearly labelled vertices"
-                    .into(),
-            );
-            return;
-        }
-        let change: Vec<String> = self
-            .init
-            .albedo
-            .iter()
-            .zip(&before)
-            .map(|(a, b)| format!("×{:.2}", a.iter().sum::<f64>() / b))
-            .collect();
-        self.reasons.push(format!(
-            "start brightness matched by normal: each material's clustered colour scaled {} (materials 1–{})",
-            change.join(", "),
-            change.len()
-        ));
+        let how =
+            crate::solve::matched::match_start(&mut self.init, obs, &p.normals_env, &open, true);
+        self.reasons.push(if how.applied() {
+            format!("start brightness matched by normal: {}", how.describe())
+        } else {
+            format!(
+                "start brightness: the clustered colours; {}",
+                how.describe()
+            )
+        });
     }
 
     /// The starts the estimate runs from (`--starts`), and why when fewer exist.

@@ -100,8 +100,10 @@
 //!    worse, the rendered scenes where the prior everywhere was not kept 3.4–8.1% better).
 //!
 //!    **3c. The start's brightness** (`--start-brightness auto`, `choose_start`). The
-//!    count with the prior of 3b is refitted from the clustered colours with each
-//!    material's brightness matched by normal ([`crate::solve::matched`]); when that lowers
+//!    clustered colours' brightness is matched by normal ([`crate::solve::matched`]);
+//!    where the materials' ratios are not consistent across photos and normals (residual
+//!    above [`crate::solve::matched::MAX_RESIDUAL`]) the clustered start stays. Else the
+//!    count with the prior of 3b is refitted from the matched start; when that lowers
 //!    the held-out RMSE by more than [`START_GAIN`] (any), it is kept and the later fits
 //!    (step 4) and the run's fit start so. Both fits share the clustering, the transport
 //!    and the held-out split, so they differ by the start alone.
@@ -238,8 +240,10 @@ pub const BLEND_GAIN: f64 = BASIS_TOL;
 /// kept (step 3c): any. Both fits share the clustering, the transport and the held-out
 /// split, so their difference is the start's alone, not the k-means noise the count's
 /// margin allows for; a tie keeps the paper's clustered colours. Measured on 7 scenes ×
-/// 3 seeds (`bench-results/matched-start.md`): the real Buddha photos' pilots score it
-/// 0.9–3.2% worse and the rendered scenes where it helps the full fit 0.6–9.4% better.
+/// 3 seeds (`bench-results/matched-start.md`): the rendered scenes where it helps the full
+/// fit score it 0.6–9.4% better. Alone it is not enough on real photos: the Buddha's
+/// pilots scored it −1.0% to +3.0% over seeds 1–6, and the full fit lost 3.6–4.5% where
+/// it was taken; the consistency gate before it keeps those.
 pub const START_GAIN: f64 = 0.0;
 /// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
 /// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains

@@ -150,7 +150,7 @@ impl Fitter<'_> {
             return Ok(None);
         }
         if self.matched.get() {
-            self.match_brightness(&mut init);
+            self.match_brightness(&mut init, true);
         }
         let sub;
         let problem = if kept.len() == inp.basis.len() {
@@ -186,10 +186,15 @@ impl Fitter<'_> {
     }
 
     /// `init` with its materials' brightness matched by normal on the pilot's training
-    /// observations ([`crate::solve::matched`]); whether two or more materials matched.
-    fn match_brightness(&self, init: &mut crate::solve::cluster::InitialMaterials) -> bool {
+    /// observations ([`crate::solve::matched`]); `force`: also when the materials' ratios
+    /// are inconsistent.
+    fn match_brightness(
+        &self,
+        init: &mut crate::solve::cluster::InitialMaterials,
+        force: bool,
+    ) -> crate::solve::matched::StartMatch {
         let normals = self.inp.normals_env;
-        crate::solve::matched::match_start(init, self.problem.obs, normals, self.open)
+        crate::solve::matched::match_start(init, self.problem.obs, normals, self.open, force)
     }
 
     /// Every basis of the full list.
@@ -562,18 +567,19 @@ struct SumTrial {
     rule: String,
 }
 
-/// `"{label} {with:.4e} ({change:+.1}%)"`, the change against free weights.
 /// Step 3c: the pilot with `k` materials and `chosen`'s prior refitted from the
 /// brightness matched by normal, kept (and every later fit started so) when its held-out
 /// RMSE is lower than `chosen`'s by more than [`START_GAIN`].
 fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, String)> {
     let mut init = crate::solve::cluster::initial_materials(f.inp.mean_rgb, f.seen, k, f.inp.seed)?;
-    if !f.match_brightness(&mut init) {
+    let matched_start = f.match_brightness(&mut init, false);
+    if !matched_start.applied() {
         return Ok((
             chosen,
-            "the clustered colours, as the paper: fewer than two materials share a normal \
-             in one photo at open, clearly labelled vertices, so none can be matched"
-                .into(),
+            format!(
+                "the clustered colours, as the paper: {}",
+                matched_start.describe()
+            ),
         ));
     }
     f.matched.set(true);
@@ -592,17 +598,24 @@ fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, Str
     if lowers(chosen.heldout, matched.heldout, START_GAIN) {
         Ok((
             matched,
-            format!("each material's brightness matched by normal: {figures}"),
+            format!(
+                "each material's brightness matched by normal: {figures}; {}",
+                matched_start.describe()
+            ),
         ))
     } else {
         f.matched.set(false);
         Ok((
             chosen,
-            format!("the clustered colours, as the paper: {figures}"),
+            format!(
+                "the clustered colours, as the paper: {figures} (the matched start: {})",
+                matched_start.describe()
+            ),
         ))
     }
 }
 
+/// `"{label} {with:.4e} ({change:+.1}%)"`, the change against free weights.
 fn trial_figure(label: &str, free: f64, with: f64) -> String {
     format!("{label} {with:.4e} ({:+.1}%)", 100.0 * (with / free - 1.0))
 }
