@@ -103,8 +103,8 @@
 //!    clustered colours' brightness is matched by normal ([`crate::solve::matched`]);
 //!    where the materials' ratios are not consistent across photos and normals (residual
 //!    above [`crate::solve::matched::MAX_RESIDUAL`]) the clustered start stays. Else the
-//!    count with the prior of 3b is refitted from the matched start; when that lowers
-//!    the held-out RMSE by more than [`START_GAIN`] (any), it is kept and the later fits
+//!    count with the prior of 3b is refitted from the matched start; unless that raises
+//!    the held-out RMSE by more than [`START_TOL`] (1%), it is kept and the later fits
 //!    (step 4) and the run's fit start so. Both fits share the clustering, the transport
 //!    and the held-out split, so they differ by the start alone.
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
@@ -236,15 +236,17 @@ pub const WEIGHTS_SUM_GAIN: f64 = 0.13;
 /// where the prior everywhere was not kept (−0.9% to −12.8%) and rose 3.1–3.7% on the moving
 /// sun of `spot-sky`.
 pub const BLEND_GAIN: f64 = BASIS_TOL;
-/// Relative fall of the pilot's held-out RMSE the start matched by normal must bring to be
-/// kept (step 3c): any. Both fits share the clustering, the transport and the held-out
-/// split, so their difference is the start's alone, not the k-means noise the count's
-/// margin allows for; a tie keeps the paper's clustered colours. Measured on 7 scenes ×
-/// 3 seeds (`bench-results/matched-start.md`): the rendered scenes where it helps the full
-/// fit score it 0.6–9.4% better. Alone it is not enough on real photos: the Buddha's
-/// pilots scored it −1.0% to +3.0% over seeds 1–6, and the full fit lost 3.6–4.5% where
-/// it was taken; the consistency gate before it keeps those.
-pub const START_GAIN: f64 = 0.0;
+/// Relative rise of the pilot's held-out RMSE at which a consistent matched start is
+/// refused (step 3c): 1%. Where the materials' ratios are consistent the matched start is
+/// the physically better guess, and the pilot's 2-iteration scores tell the two starts
+/// apart only roughly: on the built-in example at seed 2 the pilot scored it +0.4% while
+/// the full fit from it predicted the held-out photos under their true light 27.5% better
+/// (0.0619 → 0.0449), on `spot-varying` at seed 1 +0.4% against −3.8%, and on the
+/// ablation's glossy scene +0.6% against relit 0.1381 → 0.1373
+/// (`bench-results/matched-start.md`). Scored by validation alone (taken at any fall),
+/// the real Buddha photos' pilots took it at −1.0% and −0.2% and lost 3.6–4.5%; the
+/// consistency gate before this test keeps those.
+pub const START_TOL: f64 = 0.01;
 /// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
 /// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains
 /// below it cannot be told from the photos' quantisation (on a nearly black scene every

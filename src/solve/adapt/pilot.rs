@@ -569,7 +569,7 @@ struct SumTrial {
 
 /// Step 3c: the pilot with `k` materials and `chosen`'s prior refitted from the
 /// brightness matched by normal, kept (and every later fit started so) when its held-out
-/// RMSE is lower than `chosen`'s by more than [`START_GAIN`].
+/// RMSE is at most [`START_TOL`] above `chosen`'s.
 fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, String)> {
     let mut init = crate::solve::cluster::initial_materials(f.inp.mean_rgb, f.seen, k, f.inp.seed)?;
     let matched_start = f.match_brightness(&mut init, false);
@@ -591,11 +591,12 @@ fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, Str
         ));
     };
     let figures = format!(
-        "held-out RMSE of the pilot with {k} materials: clustered {:.4e}, {}",
+        "held-out RMSE of the pilot with {k} materials: clustered {:.4e}, {}; a consistent matched start is kept unless it raises that by more than {}%",
         chosen.heldout,
-        trial_figure("matched", chosen.heldout, matched.heldout)
+        trial_figure("matched", chosen.heldout, matched.heldout),
+        100.0 * START_TOL
     );
-    if lowers(chosen.heldout, matched.heldout, START_GAIN) {
+    if matched.heldout <= (1.0 + START_TOL) * chosen.heldout {
         Ok((
             matched,
             format!(
