@@ -281,19 +281,28 @@ impl RunReport {
             s,
             "Diffuse albedo per material against the truth, after the per-channel scale \
              ×{:.4} / {:.4} / {:.4} that best matches the recovered per-vertex diffuse albedo to \
-             the true one ({} vertices); largest ratio error {:.4}.\n",
-            a.scale[0], a.scale[1], a.scale[2], a.vertices, a.max_ratio_error
+             the true one ({} vertices); largest ratio error {:.4}. The last column compares \
+             the per-vertex diffuse albedo itself over the vertices of one true material alone \
+             (true weight ≥ {}), which does not depend on how free blending weights split \
+             brightness between `w` and `λ`; largest {:.4}.\n",
+            a.scale[0],
+            a.scale[1],
+            a.scale[2],
+            a.vertices,
+            a.max_ratio_error,
+            crate::report::metrics::PURE_WEIGHT,
+            a.max_pure_ratio_error
         );
         let _ = writeln!(
             s,
-            "| material | true material (share) | recovered | scaled | true | ratio error R / G / B |"
+            "| material | true material (share) | recovered | scaled | true | ratio error R / G / B | pure vertices: albedo error R / G / B |"
         );
-        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|");
         let rgb = |v: [f64; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
         for m in &a.materials {
             let _ = writeln!(
                 s,
-                "| {} | {} ({:.3}) | {} | {} | {} | {:+.4} / {:+.4} / {:+.4} |",
+                "| {} | {} ({:.3}) | {} | {} | {} | {:+.4} / {:+.4} / {:+.4} | {} |",
                 m.material,
                 m.true_material,
                 m.agreement,
@@ -302,7 +311,8 @@ impl RunReport {
                 rgb(m.truth),
                 m.ratio_error[0],
                 m.ratio_error[1],
-                m.ratio_error[2]
+                m.ratio_error[2],
+                metrics::pure_errors(m)
             );
         }
         let _ = writeln!(s);

@@ -397,6 +397,8 @@ pub struct AlbedoTruth {
     pub materials: Vec<AlbedoTruthEntry>,
     /// The largest `|ratio_error|` over materials and channels.
     pub max_ratio_error: f64,
+    /// The largest finite `|pure_ratio_error|` over materials and channels.
+    pub max_pure_ratio_error: f64,
 }
 
 /// One recovered material's diffuse albedo against its true material's.
@@ -417,7 +419,29 @@ pub struct AlbedoTruthEntry {
     pub truth: [f64; 3],
     /// `recovered_scaled / truth − 1` per channel.
     pub ratio_error: [f64; 3],
+    /// Vertices of the true material alone (true weight ≥ [`PURE_WEIGHT`]) that this
+    /// material dominates.
+    pub pure_vertices: usize,
+    /// Over those vertices, the mean scaled per-vertex diffuse albedo `s_c β_{x,c}` over the
+    /// truth, − 1, per channel (NaN without such vertices). Unlike [`Self::ratio_error`] it
+    /// does not depend on how free blending weights are normalised between `w` and `λ`.
+    pub pure_ratio_error: [f64; 3],
 }
+
+/// `pure_ratio_error` as `"+e / +e / +e (n)"`, or `–` without pure vertices.
+pub fn pure_errors(m: &AlbedoTruthEntry) -> String {
+    if m.pure_vertices == 0 {
+        return "–".into();
+    }
+    let e = m.pure_ratio_error;
+    format!(
+        "{:+.4} / {:+.4} / {:+.4} ({})",
+        e[0], e[1], e[2], m.pure_vertices
+    )
+}
+
+/// Least true blending weight of a vertex that counts as its true material alone.
+pub const PURE_WEIGHT: f64 = 0.95;
 
 /// RMSE over `mask`'s pixels and channels of `gt − s ⊙ pred` with the per-channel scale
 /// `s` of [`channel_scales`], and the RMS of `gt` there: `(rmse, rms, s)`.

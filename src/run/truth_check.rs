@@ -26,7 +26,7 @@ use super::shading::{fitted_env, valid_mask};
 use super::{Fitted, Truth};
 use crate::render::{Raster, ShadedViews, ViewToShade};
 use crate::report::metrics::{
-    rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry,
+    rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry, PURE_WEIGHT,
 };
 use crate::sphere::envmap::OctEnv;
 use crate::transport::brdf::BasisBrdf;
@@ -225,7 +225,9 @@ fn dominant(weights: &[f64], k: usize) -> Vec<Option<usize>> {
 /// Per channel `s_c = Σ_x b_{x,c} β_{x,c} / Σ_x β_{x,c}²` over the vertices with weights in
 /// both (`b`, `β` the true and recovered per-vertex diffuse albedo); each recovered
 /// material `k` stands for the true material most vertices it dominates are dominated by;
-/// its ratio error is `s_c λ_{k,lb,c} / λ^true_{j,lambert,c} − 1`.
+/// its ratio error is `s_c λ_{k,lb,c} / λ^true_{j,lambert,c} − 1`; its pure-vertex error is
+/// the mean of `s_c β_{x,c}` over the vertices it dominates whose true weight of `j` is at
+/// least [`PURE_WEIGHT`], over `λ^true_{j,lambert,c}`, − 1.
 pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTruth>> {
     let Some(t) = TrueMaterials::read(truth)? else {
         return Ok(None);
@@ -283,6 +285,17 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
         let recovered = f.est.lambda[k][lb];
         let recovered_scaled = [0, 1, 2].map(|c| scale[c] * recovered[c]);
         let ratio_error = [0, 1, 2].map(|c| recovered_scaled[c] / t.diffuse[j][c] - 1.0);
+        let pure: Vec<usize> = (0..nv)
+            .filter(|&x| dom_fit[x] == Some(k) && t.weights[x * jj + j] >= PURE_WEIGHT)
+            .collect();
+        let pure_ratio_error = [0, 1, 2].map(|c| {
+            let mean = pure
+                .iter()
+                .map(|&x| scale[c] * f.beta[x * nb + lb][c])
+                .sum::<f64>()
+                / pure.len() as f64;
+            mean / t.diffuse[j][c] - 1.0
+        });
         materials.push(AlbedoTruthEntry {
             material: k,
             true_material: t.names[j].clone(),
@@ -291,6 +304,8 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
             recovered_scaled,
             truth: t.diffuse[j],
             ratio_error,
+            pure_vertices: pure.len(),
+            pure_ratio_error,
         });
     }
     let max_ratio_error = materials
@@ -298,11 +313,18 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
         .flat_map(|m| m.ratio_error)
         .map(f64::abs)
         .fold(0.0, f64::max);
+    let max_pure_ratio_error = materials
+        .iter()
+        .flat_map(|m| m.pure_ratio_error)
+        .filter(|e| e.is_finite())
+        .map(f64::abs)
+        .fold(0.0, f64::max);
     Ok(Some(AlbedoTruth {
         scale,
         vertices: n,
         materials,
         max_ratio_error,
+        max_pure_ratio_error,
     }))
 }
 

@@ -291,5 +291,24 @@ fn check_albedo_truth(out: &Path) {
                 "material {k} channel {c}: report {rep}, recomputed {err}"
             );
         }
+        // The pure-vertex error: the mean scaled per-vertex albedo from mesh.ply over the
+        // vertices this material dominates whose true weight of `j` is at least 0.95.
+        let pure: Vec<usize> = (0..nv)
+            .filter(|&x| dom_fit[x] == Some(k) && tw[j][x] >= 0.95)
+            .collect();
+        assert_eq!(e["pure_vertices"].as_u64().unwrap() as usize, pure.len());
+        assert!(
+            !pure.is_empty(),
+            "the example's materials have pure vertices"
+        );
+        for c in 0..3 {
+            let mean = pure.iter().map(|&x| scale[c] * cols[c][x]).sum::<f64>() / pure.len() as f64;
+            let err = mean / tdiff[j][c] - 1.0;
+            let rep = e["pure_ratio_error"][c].as_f64().unwrap();
+            assert!(
+                (rep - err).abs() < 1e-5,
+                "material {k} channel {c}: pure-vertex error {rep}, recomputed {err}"
+            );
+        }
     }
 }
