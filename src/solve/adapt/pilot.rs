@@ -152,6 +152,18 @@ impl Fitter<'_> {
         if self.matched.get() {
             self.match_brightness(&mut init, true);
         }
+        Ok(Some(self.fit_from(&init, kept, prior)?))
+    }
+
+    /// The pilot fit from the starting materials `init` on the bases `kept` with the
+    /// weights' prior `prior`.
+    fn fit_from(
+        &self,
+        init: &crate::solve::cluster::InitialMaterials,
+        kept: &[usize],
+        prior: SumPrior,
+    ) -> Result<PilotFit> {
+        let inp = self.inp;
         let sub;
         let problem = if kept.len() == inp.basis.len() {
             self.problem
@@ -166,7 +178,7 @@ impl Fitter<'_> {
             .iter()
             .position(|&b| b == inp.lambert)
             .unwrap_or(usize::MAX);
-        let m0 = Materials0::from_initial(&init, kept.len(), lambert);
+        let m0 = Materials0::from_initial(init, kept.len(), lambert);
         let opts = EstimateOptions {
             lambert_basis: lambert,
             weights_sum: prior.strength,
@@ -177,12 +189,12 @@ impl Fitter<'_> {
         let pred = solve::predict(&problem, &est);
         let heldout = heldout_rmse(self.obs, self.held, &pred);
         let count_score = heldout_rmse(self.obs, self.count_held, &pred);
-        Ok(Some(PilotFit {
+        Ok(PilotFit {
             prior,
             est,
             heldout,
             count_score,
-        }))
+        })
     }
 
     /// `init` with its materials' brightness matched by normal on the pilot's training
@@ -582,14 +594,7 @@ fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, Str
             ),
         ));
     }
-    f.matched.set(true);
-    let Some(matched) = f.fit(k, &f.all(), chosen.prior, false)? else {
-        f.matched.set(false);
-        return Ok((
-            chosen,
-            "the clustered colours: the matched refit had no materials".into(),
-        ));
-    };
+    let matched = f.fit_from(&init, &f.all(), chosen.prior)?;
     let figures = format!(
         "held-out RMSE of the pilot with {k} materials: clustered {:.4e}, {}; a consistent matched start is kept unless it raises that by more than {}%",
         chosen.heldout,
@@ -597,6 +602,7 @@ fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, Str
         100.0 * START_TOL
     );
     if matched.heldout <= (1.0 + START_TOL) * chosen.heldout {
+        f.matched.set(true);
         Ok((
             matched,
             format!(
@@ -605,7 +611,6 @@ fn choose_start(f: &Fitter, k: usize, chosen: PilotFit) -> Result<(PilotFit, Str
             ),
         ))
     } else {
-        f.matched.set(false);
         Ok((
             chosen,
             format!(
