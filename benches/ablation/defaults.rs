@@ -55,7 +55,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         seen: &seen,
         materials: None,
         choose_weights_sum: true,
-        start: adapt::PilotStart::Choose,
+        start: relight_cpc::solve::matched::StartBrightness::Auto,
         max_vertices: adapt::PILOT_MAX_VERTICES,
         seed: 1,
     })

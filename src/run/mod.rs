@@ -428,20 +428,16 @@ fn adaptive_decisions(
         });
     }
     if let Some(why) = &outcome.start_reason {
-        eff.start_brightness = if outcome.start_matched {
-            StartBrightness::Matched
+        let (start, chosen) = if outcome.start_matched {
+            (StartBrightness::Matched, "matched")
         } else {
-            StartBrightness::Clustered
+            (StartBrightness::Clustered, "clustered")
         };
+        eff.start_brightness = start;
         d.push(Decision {
             what: "start_brightness".into(),
             full: "auto".into(),
-            chosen: if outcome.start_matched {
-                "matched"
-            } else {
-                "clustered"
-            }
-            .into(),
+            chosen: chosen.into(),
             reason: why.clone(),
         });
     }

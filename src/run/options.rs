@@ -1,6 +1,7 @@
 //! The options of `run` ([`RunOptions`]), their defaults and their checks (each a plain
 //! [`Error::Config`] naming the flag).
 
+pub use crate::solve::matched::StartBrightness;
 use crate::solve::{EstimateOptions, SumScope};
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result, Vec3};
@@ -17,32 +18,6 @@ pub enum MaterialCount {
     Auto,
     /// Exactly this many.
     Fixed(usize),
-}
-
-/// Where the start's material brightness comes from ([`crate::solve::matched`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum StartBrightness {
-    /// With [`RunOptions::adaptive`], the pilot's choice by held-out error
-    /// ([`crate::solve::adapt`], step 3c); without it, the clustered colours (the paper).
-    Auto,
-    /// Each cluster's median colour (paper Sec. 5.2).
-    Clustered,
-    /// The clustered colours with each material's brightness matched by normal.
-    Matched,
-}
-
-impl StartBrightness {
-    /// `auto`, `clustered` or `matched`.
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "auto" => Ok(StartBrightness::Auto),
-            "clustered" => Ok(StartBrightness::Clustered),
-            "matched" => Ok(StartBrightness::Matched),
-            _ => Err(Error::Config(format!(
-                "--start-brightness {s}: expected auto, clustered or matched"
-            ))),
-        }
-    }
 }
 
 /// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`]).

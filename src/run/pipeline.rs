@@ -17,14 +17,14 @@ use super::state::{Evaluated, Imported, Observed, Prepared, RunLog};
 use super::truth::Truth;
 use super::{
     adaptive_decisions, env_from_world, estimate_up, holdout_rule, holdout_views, mean_colours,
-    Holdout, LargeMeshSettings, MaterialCount, Progress, RunOptions, StartBrightness, LARGE_MESH,
+    Holdout, LargeMeshSettings, MaterialCount, Progress, RunOptions, LARGE_MESH,
 };
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
 use crate::observe::trace::SceneBvh;
 use crate::observe::{self, Observations};
 use crate::report::RunReport;
-use crate::solve::adapt::{Decision, PilotStart};
+use crate::solve::adapt::Decision;
 use crate::solve::EstimateOptions;
 use crate::sphere::rotation::{Rotation, RotationForm};
 use crate::stages::Stages;
@@ -558,11 +558,7 @@ fn adapt(
                 MaterialCount::Auto => None,
             },
             choose_weights_sum: opts.weights_sum == super::WeightsSum::Auto,
-            start: match opts.start_brightness {
-                StartBrightness::Auto => PilotStart::Choose,
-                StartBrightness::Clustered => PilotStart::Clustered,
-                StartBrightness::Matched => PilotStart::Matched,
-            },
+            start: opts.start_brightness,
             max_vertices: opts.pilot_vertices,
             seed: opts.seed,
         })

@@ -56,6 +56,32 @@ pub struct MatchedInput<'a> {
     pub k: usize,
 }
 
+/// Where the start's material brightness comes from (`--start-brightness`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StartBrightness {
+    /// With the adaptive model, the pilot's choice ([`crate::solve::adapt`], step 3c: the
+    /// consistency gate, then held-out error); without it, the clustered colours (the paper).
+    Auto,
+    /// Each cluster's median colour (paper Sec. 5.2).
+    Clustered,
+    /// The clustered colours with each material's brightness matched by normal.
+    Matched,
+}
+
+impl StartBrightness {
+    /// `auto`, `clustered` or `matched`.
+    pub fn parse(s: &str) -> crate::Result<Self> {
+        match s {
+            "auto" => Ok(StartBrightness::Auto),
+            "clustered" => Ok(StartBrightness::Clustered),
+            "matched" => Ok(StartBrightness::Matched),
+            _ => Err(crate::Error::Config(format!(
+                "--start-brightness {s}: expected auto, clustered or matched"
+            ))),
+        }
+    }
+}
+
 /// The fitted log-linear model (module docs).
 #[derive(Debug, Clone)]
 pub struct LogBrightness {

@@ -204,7 +204,7 @@ use crate::{Error, Result, Vec3};
 mod pilot;
 mod redundant;
 mod sample;
-pub use pilot::{pilot, PilotInput, PilotOutcome, PilotStart};
+pub use pilot::{pilot, PilotInput, PilotOutcome};
 pub use redundant::{drop_photos, redundant_photos, DUPLICATE_ANGLE_DEG, DUPLICATE_RGB};
 pub use sample::{observations_of, pilot_vertices, PILOT_MAX_VERTICES, PILOT_MIN_VERTICES};
 

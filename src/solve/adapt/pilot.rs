@@ -6,6 +6,7 @@
 
 use super::sample::PilotView;
 use super::*;
+use crate::solve::matched::StartBrightness;
 
 /// What the pilot needs from the run.
 pub struct PilotInput<'a> {
@@ -43,8 +44,8 @@ pub struct PilotInput<'a> {
     /// (`estimate.weights_sum`) against [`PILOT_WEIGHTS_SUM`] on every vertex, then on
     /// blended vertices.
     pub choose_weights_sum: bool,
-    /// The start of the pilot's fits, or whether to choose it (step 3c).
-    pub start: PilotStart,
+    /// The start of the pilot's fits, or [`StartBrightness::Auto`] to choose it (step 3c).
+    pub start: StartBrightness,
     /// Most seen vertices the pilot fits ([`pilot_vertices`]; 0 = every vertex); the run
     /// passes [`PILOT_MAX_VERTICES`] unless `--pilot-vertices` says otherwise.
     pub max_vertices: usize,
@@ -82,20 +83,8 @@ pub struct PilotOutcome {
     pub weights_sum_reason: Option<String>,
     /// Whether the fit starts from the brightness matched by normal (step 3c).
     pub start_matched: bool,
-    /// Why, when the pilot chose it ([`PilotStart::Choose`]).
+    /// Why, when the pilot chose it ([`StartBrightness::Auto`]).
     pub start_reason: Option<String>,
-}
-
-/// The start the pilot's fits take (step 3c, [`crate::solve::matched`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PilotStart {
-    /// The clustered colours (paper Sec. 5.2).
-    Clustered,
-    /// The clustered colours with each material's brightness matched by normal.
-    Matched,
-    /// The clustered colours up to step 3c, which keeps the matched start when it lowers
-    /// the held-out RMSE.
-    Choose,
 }
 
 /// The pilot's transport, problem and held-out split, shared by all its fits.
@@ -256,7 +245,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     let open = vis.open_fractions();
     let fitter = Fitter {
         open: &open,
-        matched: std::cell::Cell::new(inp.start == PilotStart::Matched),
+        matched: std::cell::Cell::new(inp.start == StartBrightness::Matched),
         inp,
         obs: &obs,
         seen: &seen,
@@ -297,7 +286,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     } else {
         (count.fit, None)
     };
-    let (chosen, start_reason) = if inp.start == PilotStart::Choose {
+    let (chosen, start_reason) = if inp.start == StartBrightness::Auto {
         let (kept, why) = choose_start(&fitter, count.k, chosen)?;
         (kept, Some(why))
     } else {
