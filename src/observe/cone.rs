@@ -335,20 +335,8 @@ mod tests {
     use crate::observe::trace::intersect_triangle;
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
-
-    fn unit(rng: &mut Pcg64) -> Vec3 {
-        loop {
-            let v = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            );
-            let n = v.norm();
-            if n > 0.1 && n <= 1.0 {
-                return v / n;
-            }
-        }
-    }
+    // A uniformly random unit direction.
+    use crate::sphere::random_unit as unit;
 
     /// A uniform direction in `cap`: uniform `cos` in `[cos θ, 1]`, uniform azimuth.
     fn in_cap(rng: &mut Pcg64, cap: &Cap) -> Vec3 {

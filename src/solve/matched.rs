@@ -113,14 +113,15 @@ pub fn relative_brightness(input: &MatchedInput) -> LogBrightness {
 /// radiance in every channel alike, which in its weak channels is a large fraction, so
 /// per-channel ratios would tint the start (measured on `spot-three`: the orange GGX
 /// material's blue started 0.88 of the mean against a true 0.55, the clustered 0.48).
-/// Materials that share no cell keep their clustered values. Returns whether anything
-/// changed (two or more materials were matched).
-pub fn apply(init: &mut InitialMaterials, rel: &[Option<[f64; 3]>]) -> bool {
+/// Materials that share no cell keep their clustered values. Returns each material's
+/// factor (1 where unchanged), or `None` when nothing changed (fewer than two materials
+/// were matched).
+pub fn apply(init: &mut InitialMaterials, rel: &[Option<[f64; 3]>]) -> Option<Vec<f64>> {
     let idx: Vec<usize> = (0..init.albedo.len().min(rel.len()))
         .filter(|&m| rel[m].is_some())
         .collect();
     if idx.len() < 2 {
-        return false;
+        return None;
     }
     let lum = |a: &[f64; 3]| a.iter().sum::<f64>();
     let before: f64 = idx.iter().map(|&m| lum(&init.albedo[m])).sum();
@@ -141,16 +142,17 @@ pub fn apply(init: &mut InitialMaterials, rel: &[Option<[f64; 3]>]) -> bool {
         .collect();
     let total: f64 = target.iter().sum();
     if !(before > 0.0 && total > 0.0 && total.is_finite()) {
-        return false;
+        return None;
     }
+    let mut factors = vec![1.0; init.albedo.len()];
     for (&m, t) in idx.iter().zip(&target) {
         let have = lum(&init.albedo[m]);
         if have > 0.0 {
-            let f = t / total * before / have;
-            init.albedo[m] = init.albedo[m].map(|x| x * f);
+            factors[m] = t / total * before / have;
+            init.albedo[m] = init.albedo[m].map(|x| x * factors[m]);
         }
     }
-    true
+    Some(factors)
 }
 
 /// Largest residual RMS ([`LogBrightness::residual`], natural log) at which the matched
@@ -231,16 +233,9 @@ pub fn match_start(
     if !force && fitted.a.iter().flatten().count() >= 2 && residual > MAX_RESIDUAL {
         return StartMatch::Inconsistent { residual, cells };
     }
-    let before: Vec<f64> = init.albedo.iter().map(|a| a.iter().sum()).collect();
-    if !apply(init, &fitted.a) {
+    let Some(factors) = apply(init, &fitted.a) else {
         return StartMatch::Unmatched;
-    }
-    let factors = init
-        .albedo
-        .iter()
-        .zip(&before)
-        .map(|(a, b)| a.iter().sum::<f64>() / b)
-        .collect();
+    };
     StartMatch::Applied {
         factors,
         residual,
@@ -249,7 +244,7 @@ pub fn match_start(
 }
 
 /// Every vertex's largest clustered weight (`init.weights` is row-major `V × K`).
-pub fn label_weights(init: &InitialMaterials) -> Vec<f64> {
+fn label_weights(init: &InitialMaterials) -> Vec<f64> {
     let k = init.albedo.len().max(1);
     init.weights
         .chunks(k)
@@ -374,22 +369,10 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_pcg::Pcg64;
+    // A uniformly random unit direction.
+    use crate::sphere::random_unit as unit;
 
     const TRUE_ALBEDO: [[f64; 3]; 3] = [[0.2, 0.3, 0.6], [0.25, 0.6, 0.3], [0.8, 0.45, 0.2]];
-
-    fn unit(rng: &mut Pcg64) -> Vec3 {
-        loop {
-            let v = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            );
-            let n = v.norm();
-            if n > 0.1 && n <= 1.0 {
-                return v / n;
-            }
-        }
-    }
 
     /// A Lambertian scene under a sun and a sky per photo, every vertex open: material 0
     /// mostly on upward normals, material 1 mostly downward, material 2 anywhere, so that

@@ -138,6 +138,24 @@ pub fn hemi_oct_encode(d: &Vec3) -> [f64; 2] {
     [(px + py + 1.0) * 0.5, (px - py + 1.0) * 0.5]
 }
 
+/// A uniformly random unit direction for tests: a point drawn uniformly in the cube
+/// `[−1, 1]³`, kept when it lies in the unit ball (and not within 0.1 of the centre, where
+/// rounding would bias its direction), normalised.
+#[cfg(test)]
+pub(crate) fn random_unit(rng: &mut impl rand::Rng) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let n = v.norm();
+        if n > 0.1 && n <= 1.0 {
+            return v / n;
+        }
+    }
+}
+
 /// Inverse of [`hemi_oct_encode`]: `uv ∈ [0, 1]²` to a unit direction with `z ≥ 0`.
 pub fn hemi_oct_decode(uv: [f64; 2]) -> Vec3 {
     let a = 2.0 * uv[0] - 1.0;
