@@ -120,12 +120,7 @@ fn run_rejects_a_missing_workspace_and_bad_options_with_clear_errors() {
 fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
     let dir = std::env::temp_dir().join(format!("relight-run-adaptive-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let mut o = options(&dir.join("spot"));
-    o.adaptive = true;
-    o.materials = MaterialCount::Auto;
-    let r = run(&o)
-        .expect("adaptive run on the built-in example")
-        .report;
+    let r = adaptive_example(&dir, "spot", |_| {});
     let m = &r.model;
     assert!(m.adaptive.as_ref().is_some_and(|d| !d.is_empty()));
     assert!(
@@ -145,6 +140,42 @@ fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The adaptive run of the built-in example into `dir/tag` (the small settings of
+/// [`options`], the material count chosen), after `edit` on its options.
+fn adaptive_example(
+    dir: &std::path::Path,
+    tag: &str,
+    edit: impl FnOnce(&mut RunOptions),
+) -> relight_cpc::report::RunReport {
+    let mut o = options(&dir.join(tag));
+    o.adaptive = true;
+    o.materials = MaterialCount::Auto;
+    edit(&mut o);
+    run(&o)
+        .expect("adaptive run on the built-in example")
+        .report
+}
+
+/// The pilot's decision `what` in `r` (a panic naming the decisions when there is none).
+fn decision<'a>(
+    r: &'a relight_cpc::report::RunReport,
+    what: &str,
+) -> &'a relight_cpc::solve::adapt::Decision {
+    let decisions = r.model.adaptive.as_ref().expect("adaptive decisions");
+    decisions
+        .iter()
+        .find(|d| d.what == what)
+        .unwrap_or_else(|| panic!("no {what} decision: {decisions:#?}"))
+}
+
+/// Whether `r` has adaptive decisions and none of them is `what`.
+fn no_decision(r: &relight_cpc::report::RunReport, what: &str) -> bool {
+    r.model
+        .adaptive
+        .as_ref()
+        .is_some_and(|d| d.iter().all(|d| d.what != what))
+}
+
 /// The pilot's choice of the blending weights' sum-to-one prior (`--weights-sum auto`, the
 /// CLI's default with the adaptive model), judged by the truth the pilot never sees: on
 /// the built-in example the pilot must take the prior, and the fit with it must predict
@@ -156,26 +187,14 @@ fn example_run_with_the_adaptive_model_meets_the_same_bounds() {
 fn the_pilot_takes_the_weights_prior_where_it_predicts_the_truth_better() {
     let dir = std::env::temp_dir().join(format!("relight-run-wsum-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let fit = |tag: &str, ws: WeightsSum| {
-        let mut o = options(&dir.join(tag));
-        o.adaptive = true;
-        o.materials = MaterialCount::Auto;
-        o.weights_sum = ws;
-        run(&o)
-            .expect("adaptive run on the built-in example")
-            .report
-    };
+    let fit = |tag: &str, ws: WeightsSum| adaptive_example(&dir, tag, |o| o.weights_sum = ws);
     let mean_truth = |r: &relight_cpc::report::RunReport| {
         let (mean, photos) = crate::run_fixtures::truth_holdout(r);
         assert_eq!(photos, 2, "{:?}", r.holdout);
         mean
     };
     let auto = fit("auto", WeightsSum::Auto);
-    let decisions = auto.model.adaptive.as_ref().expect("adaptive decisions");
-    let d = decisions
-        .iter()
-        .find(|d| d.what == "weights_sum")
-        .unwrap_or_else(|| panic!("no weights_sum decision: {decisions:#?}"));
+    let d = decision(&auto, "weights_sum");
     assert_eq!(d.chosen, "1", "{}", d.reason);
     assert!(
         d.reason.contains("free weights") && d.reason.contains("%"),
@@ -184,10 +203,7 @@ fn the_pilot_takes_the_weights_prior_where_it_predicts_the_truth_better() {
     );
     let free = fit("free", WeightsSum::Fixed(0.0));
     assert!(
-        free.model
-            .adaptive
-            .as_ref()
-            .is_some_and(|d| d.iter().all(|d| d.what != "weights_sum")),
+        no_decision(&free, "weights_sum"),
         "a fixed strength is not the pilot's to choose"
     );
     let (with, without) = (mean_truth(&auto), mean_truth(&free));
@@ -208,20 +224,10 @@ fn the_pilot_takes_the_matched_start_where_it_predicts_the_truth_better() {
     let dir = std::env::temp_dir().join(format!("relight-run-matched-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let fit = |tag: &str, start: StartBrightness| {
-        let mut o = options(&dir.join(tag));
-        o.adaptive = true;
-        o.materials = MaterialCount::Auto;
-        o.start_brightness = start;
-        run(&o)
-            .expect("adaptive run on the built-in example")
-            .report
+        adaptive_example(&dir, tag, |o| o.start_brightness = start)
     };
     let auto = fit("auto", StartBrightness::Auto);
-    let decisions = auto.model.adaptive.as_ref().expect("adaptive decisions");
-    let d = decisions
-        .iter()
-        .find(|d| d.what == "start_brightness")
-        .unwrap_or_else(|| panic!("no start_brightness decision: {decisions:#?}"));
+    let d = decision(&auto, "start_brightness");
     assert_eq!(d.chosen, "matched", "{}", d.reason);
     assert!(
         d.reason.contains("clustered") && d.reason.contains("%"),
@@ -238,11 +244,7 @@ fn the_pilot_takes_the_matched_start_where_it_predicts_the_truth_better() {
     );
     let clustered = fit("clustered", StartBrightness::Clustered);
     assert!(
-        clustered
-            .model
-            .adaptive
-            .as_ref()
-            .is_some_and(|d| d.iter().all(|d| d.what != "start_brightness")),
+        no_decision(&clustered, "start_brightness"),
         "a given start is not the pilot's to choose"
     );
     let mean_truth = |r: &relight_cpc::report::RunReport| crate::run_fixtures::truth_holdout(r).0;
