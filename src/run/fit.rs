@@ -153,7 +153,10 @@ pub(crate) fn fit<'a>(
     } else {
         None
     };
-    start.finish_options(opts, scene, &train, &obs, &p)?;
+    start.finish_options(opts, scene, &train, &obs)?;
+    if p.eff.start_brightness == StartBrightness::Matched {
+        start.match_brightness(&p, &obs);
+    }
     let problem = Problem {
         obs: &obs,
         transport: &p.tr,
@@ -401,7 +404,6 @@ impl FitStart {
         scene: &crate::import::scene::Scene,
         train: &[usize],
         obs: &Observations,
-        p: &Prepared,
     ) -> Result<()> {
         if self.eopts.weights_smoothness > 0.0 {
             self.reasons.push(format!(
@@ -419,9 +421,6 @@ impl FitStart {
             }
         }
         self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);
-        if p.eff.start_brightness == StartBrightness::Matched {
-            self.match_brightness(p, obs);
-        }
         Ok(())
     }
 
