@@ -269,6 +269,20 @@ impl RunReport {
             100.0 * mean(&|t| t.relative_true_light),
             100.0 * mean(&|t| t.relative_fitted_light)
         );
+        let floors: Option<Vec<f64>> = self
+            .truth_check
+            .iter()
+            .map(|t| t.relative_true_reflectance)
+            .collect();
+        if let Some(fl) = floors.filter(|v| !v.is_empty()) {
+            let _ = writeln!(
+                s,
+                "The TRUE reflectance rendered the same way under the true light: {:.1}% (the \
+                 floor of this renderer and model; the fit's distance above it under the true \
+                 light is reflectance the photos could still have told).\n",
+                100.0 * fl.iter().sum::<f64>() / fl.len() as f64
+            );
+        }
         self.markdown_albedo_truth(s);
     }
 

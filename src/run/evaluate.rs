@@ -199,7 +199,12 @@ pub(crate) fn evaluate(
     };
     let to_shade = views_to_shade(f, &rasters, &lights, &checked);
     let shaded = timed(&mut clocks.render, || shade_views(f, &to_shade))?;
-    let truth_check = truth_check::score(f, &checked, &shaded, f.held.len());
+    let mut truth_check = truth_check::score(f, &checked, &shaded, f.held.len());
+    if let Some(t) = truth {
+        timed(&mut clocks.render, || {
+            truth_check::add_true_reflectance(f, t, &checked, &mut truth_check)
+        })?;
+    }
     let mut scores = Scores::default();
     for (i, (&v, raster)) in f.held.iter().zip(&rasters).enumerate() {
         let rgbs = timed(&mut clocks.render, || {

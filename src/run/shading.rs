@@ -145,6 +145,20 @@ pub(super) fn shade_views(
     render::shade_views(&wavelet_model(f, &f.render_vis), views, &f.render_rot)
 }
 
+/// [`shade_views`] with another per-vertex reflectance `beta` (row-major `V × B` in the
+/// fit's basis) in place of the fit's.
+pub(super) fn shade_views_with(
+    f: &Fitted,
+    beta: &[[f64; 3]],
+    views: &[render::ViewToShade],
+) -> Result<render::ShadedViews> {
+    let model = render::WaveletModel {
+        beta,
+        ..wavelet_model(f, &f.render_vis)
+    };
+    render::shade_views(&model, views, &f.render_rot)
+}
+
 /// The texels of a photo's fitted map as an [`OctEnv`].
 pub(crate) fn fitted_env(f: &Fitted, k: usize) -> OctEnv {
     let l = &f.est.lights[k];

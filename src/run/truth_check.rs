@@ -42,6 +42,15 @@ pub(crate) struct CheckedView {
 }
 
 impl CheckedView {
+    /// The view with its true light alone, as [`crate::render::shade_views`] takes it.
+    pub(crate) fn to_shade_true<'a>(&'a self, f: &'a Fitted) -> ViewToShade<'a> {
+        ViewToShade {
+            raster: &self.raster,
+            image: &f.scene.views[self.v].image,
+            envs: vec![&self.envs[0]],
+        }
+    }
+
     /// The view as [`crate::render::shade_views`] takes it.
     pub(crate) fn to_shade<'a>(&'a self, f: &'a Fitted) -> ViewToShade<'a> {
         ViewToShade {
@@ -129,6 +138,8 @@ pub(crate) fn score(
             scale_true_light: scale_t,
             rmse_fitted_light: rmse_f,
             relative_fitted_light: rel(rmse_f),
+            rmse_true_reflectance: None,
+            relative_true_reflectance: None,
             pixels: mask.iter().filter(|&&m| m).count(),
         });
     }
@@ -141,6 +152,10 @@ struct TrueMaterials {
     names: Vec<String>,
     diffuse: Vec<[f64; 3]>,
     weights: Vec<f64>,
+    /// Every lobe of the truth (`None`: a type this build does not know).
+    lobes: Vec<Option<BasisBrdf>>,
+    /// `lambda[j][b]`: material `j`'s weight of lobe `b` per channel.
+    lambda: Vec<Vec<[f64; 3]>>,
 }
 
 impl TrueMaterials {
@@ -159,19 +174,29 @@ impl TrueMaterials {
         let Some(lt) = lobes.iter().position(|l| l["type"] == "lambert") else {
             return Ok(None);
         };
+        let lobe_types: Vec<Option<BasisBrdf>> = lobes.iter().map(lobe_of).collect();
         let mut names = Vec::new();
         let mut diffuse = Vec::new();
+        let mut lambda = Vec::new();
         for m in json["materials"]
             .as_array()
             .ok_or_else(|| bad("no `materials` list"))?
         {
             names.push(m["name"].as_str().unwrap_or("?").to_string());
-            let d = &m["lambda"][lt];
-            let rgb = [0, 1, 2].map(|c| d[c].as_f64());
-            if rgb.iter().any(Option::is_none) {
-                return Err(bad("a material's lambert weight is not three numbers"));
+            let mut rows = Vec::with_capacity(lobes.len());
+            for b in 0..lobes.len() {
+                let d = &m["lambda"][b];
+                let rgb = [0, 1, 2].map(|c| d[c].as_f64());
+                if rgb.iter().any(Option::is_none) {
+                    return Err(bad(&format!(
+                        "material `{}`: the weight of lobe {b} is not three numbers",
+                        names.last().map_or("?", String::as_str)
+                    )));
+                }
+                rows.push(rgb.map(|v| v.unwrap_or(0.0)));
             }
-            diffuse.push(rgb.map(|v| v.unwrap_or(0.0)));
+            diffuse.push(rows[lt]);
+            lambda.push(rows);
         }
         let wpath = truth.dir.join("weights.ply");
         let Ok(file) = std::fs::File::open(&wpath) else {
@@ -203,8 +228,97 @@ impl TrueMaterials {
             names,
             diffuse,
             weights,
+            lobes: lobe_types,
+            lambda,
         }))
     }
+
+    /// The true per-vertex weights `β_{x,b,c} = Σ_j w_j(x) λ_{j,b',c}` in the lobes of
+    /// `basis` (row-major `V × B`), each truth lobe `b'` carried by the basis lobe equal to
+    /// it; `None` when a truth lobe that any material uses is not in `basis` (or of a type
+    /// this build does not know), or the weights are not `nv` rows.
+    fn beta_in_basis(&self, basis: &[BasisBrdf], nv: usize) -> Option<Vec<[f64; 3]>> {
+        let (jj, nb) = (self.names.len(), basis.len());
+        if jj == 0 || self.weights.len() != nv * jj {
+            return None;
+        }
+        let mut to_basis = Vec::with_capacity(self.lobes.len());
+        for (bt, lobe) in self.lobes.iter().enumerate() {
+            let used = self.lambda.iter().any(|m| m[bt].iter().any(|&v| v != 0.0));
+            let at = lobe.and_then(|l| basis.iter().position(|b| same_lobe(b, &l)));
+            match (at, used) {
+                (None, true) => return None,
+                (at, _) => to_basis.push(at),
+            }
+        }
+        let mut beta = vec![[0.0; 3]; nv * nb];
+        for x in 0..nv {
+            for (j, rows) in self.lambda.iter().enumerate() {
+                let w = self.weights[x * jj + j];
+                for (bt, at) in to_basis.iter().enumerate() {
+                    if let Some(b) = at {
+                        for c in 0..3 {
+                            beta[x * nb + b][c] += w * rows[bt][c];
+                        }
+                    }
+                }
+            }
+        }
+        Some(beta)
+    }
+}
+
+/// A truth lobe of `materials.json` (`{"type": "lambert" | "phong", "exponent" | "ggx",
+/// "alpha"}`) as a basis BRDF; `None` for another type.
+fn lobe_of(l: &serde_json::Value) -> Option<BasisBrdf> {
+    match l["type"].as_str()? {
+        "lambert" => Some(BasisBrdf::Lambert),
+        "phong" => Some(BasisBrdf::Phong {
+            exponent: l["exponent"].as_f64()?,
+        }),
+        "ggx" => Some(BasisBrdf::Ggx {
+            alpha: l["alpha"].as_f64()?,
+        }),
+        _ => None,
+    }
+}
+
+/// Whether two lobes are the same BRDF (parameters within 1e-9 relative).
+fn same_lobe(a: &BasisBrdf, b: &BasisBrdf) -> bool {
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * x.abs().max(y.abs());
+    match (a, b) {
+        (BasisBrdf::Lambert, BasisBrdf::Lambert) => true,
+        (BasisBrdf::Phong { exponent: x }, BasisBrdf::Phong { exponent: y }) => close(*x, *y),
+        (BasisBrdf::Ggx { alpha: x }, BasisBrdf::Ggx { alpha: y }) => close(*x, *y),
+        _ => false,
+    }
+}
+
+/// The truth check's floor: the TRUE reflectance ([`TrueMaterials::beta_in_basis`]) shaded
+/// like the fit under each checked photo's true light and scored the same way, into each
+/// entry's `*_true_reflectance`. Nothing when the truth has a lobe the fit's basis lacks.
+pub(crate) fn add_true_reflectance(
+    f: &Fitted,
+    truth: &Truth,
+    checked: &[CheckedView],
+    entries: &mut [TruthCheckEntry],
+) -> Result<()> {
+    let Some(t) = TrueMaterials::read(truth)? else {
+        return Ok(());
+    };
+    let Some(beta) = t.beta_in_basis(&f.basis, f.scene.mesh.positions.len()) else {
+        return Ok(());
+    };
+    let views: Vec<ViewToShade> = checked.iter().map(|c| c.to_shade_true(f)).collect();
+    let shaded = super::shading::shade_views_with(f, &beta, &views)?;
+    for (i, (c, e)) in checked.iter().zip(entries.iter_mut()).enumerate() {
+        let rgbs = shaded.images(i, &c.raster, &f.scene.mesh);
+        let mask = valid_mask(&c.raster, &f.photos[c.v]);
+        let (rmse, rms, _) = rmse_after_channel_scale(&f.photos[c.v].rgb, &rgbs[0], &mask);
+        e.rmse_true_reflectance = Some(rmse);
+        e.relative_true_reflectance = Some(if rms > 0.0 { rmse / rms } else { f64::NAN });
+    }
+    Ok(())
 }
 
 /// The dominant material of each vertex with any weight (`None` elsewhere).
@@ -331,6 +445,72 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_true_reflectance_goes_into_the_fits_basis_lobe_by_lobe() {
+        // Two materials over lobes [lambert, phong 50], two vertices (one pure, one a
+        // 0.25 / 0.75 blend); β by hand: Σ_j w_j λ_{j,b}, each truth lobe at the index of
+        // the equal basis lobe, whatever the basis order.
+        let t = TrueMaterials {
+            names: vec!["a".into(), "b".into()],
+            diffuse: vec![[0.8, 0.4, 0.2], [0.2, 0.3, 0.6]],
+            weights: vec![1.0, 0.0, 0.25, 0.75],
+            lobes: vec![
+                Some(BasisBrdf::Lambert),
+                Some(BasisBrdf::Phong { exponent: 50.0 }),
+            ],
+            lambda: vec![
+                vec![[0.8, 0.4, 0.2], [0.1, 0.1, 0.1]],
+                vec![[0.2, 0.3, 0.6], [0.0, 0.0, 0.0]],
+            ],
+        };
+        let basis = [
+            BasisBrdf::Phong { exponent: 50.0 },
+            BasisBrdf::Ggx { alpha: 0.3 },
+            BasisBrdf::Lambert,
+        ];
+        let b = t.beta_in_basis(&basis, 2).unwrap();
+        let want = [
+            [0.1, 0.1, 0.1],
+            [0.0; 3],
+            [0.8, 0.4, 0.2],
+            [0.025, 0.025, 0.025],
+            [0.0; 3],
+            [0.35, 0.325, 0.5],
+        ];
+        for (got, w) in b.iter().zip(&want) {
+            for c in 0..3 {
+                assert!((got[c] - w[c]).abs() < 1e-12, "{b:?}");
+            }
+        }
+        // A lobe the truth uses and the basis lacks (phong 50, or phong 500 ≠ 50): none.
+        assert!(t.beta_in_basis(&[BasisBrdf::Lambert], 2).is_none());
+        let other = [BasisBrdf::Lambert, BasisBrdf::Phong { exponent: 500.0 }];
+        assert!(t.beta_in_basis(&other, 2).is_none());
+        // A lobe no material uses may be missing; so may an unknown type then.
+        let mut diffuse_only = t.clone_without_gloss();
+        assert!(diffuse_only
+            .beta_in_basis(&[BasisBrdf::Lambert], 2)
+            .is_some());
+        diffuse_only.lobes[1] = None;
+        assert!(diffuse_only
+            .beta_in_basis(&[BasisBrdf::Lambert], 2)
+            .is_some());
+        // Weights of another vertex count: none.
+        assert!(t.beta_in_basis(&basis, 3).is_none());
+    }
+
+    impl TrueMaterials {
+        fn clone_without_gloss(&self) -> TrueMaterials {
+            TrueMaterials {
+                names: self.names.clone(),
+                diffuse: self.diffuse.clone(),
+                weights: self.weights.clone(),
+                lobes: self.lobes.clone(),
+                lambda: self.lambda.iter().map(|m| vec![m[0], [0.0; 3]]).collect(),
+            }
+        }
+    }
 
     #[test]
     fn checked_positions_keep_small_lists_and_spread_large_ones() {

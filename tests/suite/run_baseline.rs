@@ -182,6 +182,8 @@ fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
     assert_eq!(r.truth_check.len(), train.len());
     for t in &r.truth_check {
         assert!(t.rmse_true_light.is_finite() && t.pixels > 100, "{t:?}");
+        // The example's truth has a GGX lobe, which the fit's basis lacks: no floor.
+        assert!(t.relative_true_reflectance.is_none(), "{t:?}");
     }
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -255,4 +257,46 @@ fn a_workspace_without_truth_holds_out_every_fifth_photo_by_default() {
     assert!(r.holdout.is_empty() && r.headline.is_none());
     let md = std::fs::read_to_string(dir.join("out-none").join("report.md")).unwrap();
     assert!(md.contains("**Headline: none**") && md.contains("No photo was held out."));
+}
+
+#[test]
+fn the_truth_check_floor_is_the_true_reflectance_and_explains_the_photos_better_than_a_fit() {
+    // `spot-diffuse` (two Lambertian materials): the truth's one lobe is in a Lambertian
+    // fit's basis, so the truth check also renders the TRUE reflectance under each training
+    // photo's true light, with the run's own renderer and pixels. Rendered by the reference
+    // renderer from that reflectance and light, the photos are explained by it better than
+    // by one round of the alternation from the clustered start: measured mean relative
+    // error 0.1425 for the floor against 0.1974 for the fit (64² photos, 1,000 vertices), so
+    // a floor built from the wrong weights, lobe or light would not pass.
+    let dir = crate::scratch::scratch("baseline", "floor");
+    let ws = dir.join("ws");
+    crate::synth_case::synthesize(
+        "spot-diffuse",
+        &ws,
+        crate::synth_case::Sizes::spot_small(),
+        1,
+    );
+    let mut o = tiny(ws, dir.join("out"));
+    o.basis = vec![relight_cpc::transport::brdf::BasisBrdf::Lambert];
+    o.materials = MaterialCount::Fixed(2);
+    let r = run(&o).expect("run on spot-diffuse").report;
+    assert!(!r.truth_check.is_empty());
+    let n = r.truth_check.len() as f64;
+    let (mut floor, mut fit) = (0.0, 0.0);
+    for t in &r.truth_check {
+        let f = t
+            .relative_true_reflectance
+            .expect("a floor for a Lambertian truth");
+        assert!(f.is_finite() && f > 0.0, "{t:?}");
+        assert!(t.rmse_true_reflectance.is_some_and(f64::is_finite), "{t:?}");
+        floor += f / n;
+        fit += t.relative_true_light / n;
+    }
+    eprintln!("floor {floor:.4}, fit under the true light {fit:.4}");
+    assert!(floor < fit, "floor {floor} against the fit's {fit}");
+    let md = std::fs::read_to_string(dir.join("out").join("report.md")).unwrap();
+    assert!(
+        md.contains("The TRUE reflectance rendered the same way"),
+        "{md}"
+    );
 }
