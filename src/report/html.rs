@@ -246,6 +246,70 @@ fn training_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {
         "<p>{}</p>",
         img("plots/per_photo_rmse.png", "RMSE per photo", "plot")
     );
+    truth_check_table(s, &r.truth_check);
+}
+
+/// The truth check of synthetic workspaces: training photos rendered from the fit under the
+/// light they were really taken in, beside their fitted light, and the floor (the true
+/// reflectance under the true light) where the fit's basis can express the truth.
+fn truth_check_table(s: &mut String, rows: &[crate::report::metrics::TruthCheckEntry]) {
+    if rows.is_empty() {
+        return;
+    }
+    let floor = rows.iter().all(|t| t.relative_true_reflectance.is_some());
+    let _ = writeln!(
+        s,
+        "<h3 id=\"truth-check\">Truth check: training photos under their true light</h3>\
+         <p>Each photo rendered from the fit under the light it was really taken in, against \
+         the same render under its fitted light: relative RMSE after the best per-channel \
+         scale, over object pixels that are not overexposed. A large gap means the fitted \
+         maps absorbed wrong reflectance.{}</p>",
+        if floor {
+            " The last column renders the TRUE reflectance the same way: the floor of this \
+             renderer and model; the fit's distance above it is reflectance the photos could \
+             still have told."
+        } else {
+            ""
+        }
+    );
+    let _ = writeln!(
+        s,
+        "<table><tr><th class=\"l\">training photo</th><th>true light</th><th>fitted light</th>{}<th>pixels</th></tr>",
+        if floor { "<th>true reflectance, true light</th>" } else { "" }
+    );
+    let pct = |v: f64| format!("{:.1}%", 100.0 * v);
+    for t in rows {
+        let _ = writeln!(
+            s,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td>{}<td>{}</td></tr>",
+            esc(&t.image),
+            pct(t.relative_true_light),
+            pct(t.relative_fitted_light),
+            match (floor, t.relative_true_reflectance) {
+                (true, Some(v)) => format!("<td>{}</td>", pct(v)),
+                _ => String::new(),
+            },
+            t.pixels
+        );
+    }
+    let n = rows.len() as f64;
+    let mean = |f: &dyn Fn(&crate::report::metrics::TruthCheckEntry) -> f64| {
+        rows.iter().map(f).sum::<f64>() / n
+    };
+    let _ = writeln!(
+        s,
+        "<tr><td class=\"l\"><b>mean</b></td><td><b>{}</b></td><td><b>{}</b></td>{}<td></td></tr></table>",
+        pct(mean(&|t| t.relative_true_light)),
+        pct(mean(&|t| t.relative_fitted_light)),
+        if floor {
+            format!(
+                "<td><b>{}</b></td>",
+                pct(mean(&|t| t.relative_true_reflectance.unwrap_or(f64::NAN)))
+            )
+        } else {
+            String::new()
+        }
+    );
 }
 
 fn materials_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {

@@ -68,6 +68,7 @@ fn report_html_export_and_render_of_the_example() {
     assert!(recovered >= 2 && true_maps == recovered, "{srcs:?}");
     assert!(html.contains("id=\"albedo-truth\"") && html.contains("scale anchor"));
     check_albedo_truth(&out);
+    check_truth_check_table(&out, &html);
     if must_run(&["chromium"], "report.html in headless chromium") {
         let o = Command::new("bash")
             .arg(script("check_report_html.sh"))
@@ -192,6 +193,40 @@ fn ply_columns(path: &Path, props: &[String]) -> Vec<Vec<f64>> {
 /// `report.json`'s `albedo_truth` recomputed from files alone: the truth's
 /// `materials.json` and `weights.ply`, the result's `materials.json` (λ) and `mesh.ply`
 /// (per-vertex diffuse albedo `albedo_*` and weights `w*`).
+/// The HTML's truth-check table against `report.json`: every checked photo's row with its
+/// two relative errors, and their means recomputed here (to the 0.1% the page prints); no
+/// floor column, since the example's truth has a GGX lobe its fit does not.
+fn check_truth_check_table(out: &Path, html: &str) {
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let rows = json["truth_check"].as_array().unwrap();
+    assert!(!rows.is_empty());
+    assert!(html.contains("id=\"truth-check\""));
+    assert!(
+        !html.contains("true reflectance, true light"),
+        "no floor for a GGX truth"
+    );
+    let pct = |v: f64| format!("{:.1}%", 100.0 * v);
+    let (mut t, mut f) = (0.0, 0.0);
+    for r in rows {
+        let (rt, rf) = (
+            r["relative_true_light"].as_f64().unwrap(),
+            r["relative_fitted_light"].as_f64().unwrap(),
+        );
+        let row = format!(
+            "<td class=\"l\">{}</td><td>{}</td><td>{}</td>",
+            r["image"].as_str().unwrap(),
+            pct(rt),
+            pct(rf)
+        );
+        assert!(html.contains(&row), "{row}");
+        t += rt / rows.len() as f64;
+        f += rf / rows.len() as f64;
+    }
+    let mean = format!("<td><b>{}</b></td><td><b>{}</b></td>", pct(t), pct(f));
+    assert!(html.contains(&mean), "{mean}");
+}
+
 fn check_albedo_truth(out: &Path) {
     let read = |p: PathBuf| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()

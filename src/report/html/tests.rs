@@ -50,3 +50,36 @@ fn metrics_render_what_exists() {
     metrics_section(&mut t, &serde_json::json!({}));
     assert!(t.contains("no literature metrics"));
 }
+
+#[test]
+fn the_truth_check_table_shows_the_floor_only_when_every_photo_has_one() {
+    use crate::report::metrics::TruthCheckEntry;
+    let entry = |image: &str, t: f64, f: f64, floor: Option<f64>| TruthCheckEntry {
+        image: image.into(),
+        rmse_true_light: t,
+        relative_true_light: t,
+        scale_true_light: [1.0; 3],
+        rmse_fitted_light: f,
+        relative_fitted_light: f,
+        rmse_true_reflectance: floor,
+        relative_true_reflectance: floor,
+        pixels: 100,
+    };
+    let mut s = String::new();
+    truth_check_table(&mut s, &[]);
+    assert!(s.is_empty());
+    let rows = [
+        entry("a.png", 0.10, 0.08, Some(0.05)),
+        entry("b.png", 0.20, 0.12, Some(0.07)),
+    ];
+    truth_check_table(&mut s, &rows);
+    // Rows in percent to 0.1, and the means: (10 + 20) / 2, (8 + 12) / 2, (5 + 7) / 2.
+    assert!(s.contains("<td class=\"l\">a.png</td><td>10.0%</td><td>8.0%</td><td>5.0%</td>"));
+    assert!(s.contains("<td><b>15.0%</b></td><td><b>10.0%</b></td><td><b>6.0%</b></td>"));
+    assert!(s.contains("true reflectance, true light"));
+    // One photo without a floor: no floor column at all.
+    let mut s = String::new();
+    truth_check_table(&mut s, &[rows[0].clone(), entry("c.png", 0.3, 0.2, None)]);
+    assert!(!s.contains("true reflectance, true light") && !s.contains("5.0%"));
+    assert!(s.contains("<td><b>20.0%</b></td><td><b>14.0%</b></td><td></td>"));
+}
