@@ -68,7 +68,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let mut init =
         relight_cpc::solve::cluster::initial_materials(&mean_rgb, &seen, pilot.materials, 1)
             .expect("k-means start");
-    if pilot.start_matched {
+    if pilot.start == relight_cpc::solve::matched::StartBrightness::Matched {
         let open = case.vis.open_fractions();
         relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open, true);
     }
@@ -121,7 +121,7 @@ pub fn describe(case: &Case, p: &PilotOutcome) -> String {
     format!(
         "the pilot chose K = {}, the {} start, the weights' sum-to-one prior at {}{} and the lobes {} ({}; {}; {})",
         p.materials,
-        if p.start_matched { "matched" } else { "clustered" },
+        p.start.name(),
         p.weights_sum,
         match p.weights_sum_scope {
             relight_cpc::solve::SumScope::Every => "",

@@ -56,6 +56,8 @@ pub(crate) struct Evaluation {
     /// The truth check of the training photos ([`super::truth_check`]; empty without
     /// `truth/`).
     pub truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
+    /// Diffuse albedo per material against the truth ([`super::truth_check::albedo_truth`]).
+    pub albedo_truth: Option<crate::report::metrics::AlbedoTruth>,
 }
 
 /// Adds the wall and CPU seconds `f` takes to `acc`.
@@ -145,6 +147,7 @@ impl Scores {
         self,
         clocks: Clocks,
         truth_check: Vec<crate::report::metrics::TruthCheckEntry>,
+        albedo_truth: Option<crate::report::metrics::AlbedoTruth>,
     ) -> Evaluation {
         let n = self.first.len();
         Evaluation {
@@ -155,6 +158,7 @@ impl Scores {
             metrics: self.metrics,
             headline: crate::report::metrics::Headline::from_pairs(&self.versus_baseline),
             truth_check,
+            albedo_truth,
         }
     }
 }
@@ -200,11 +204,19 @@ pub(crate) fn evaluate(
     let to_shade = views_to_shade(f, &rasters, &lights, &checked);
     let shaded = timed(&mut clocks.render, || shade_views(f, &to_shade))?;
     let mut truth_check = truth_check::score(f, &checked, &shaded, f.held.len());
-    if let Some(t) = truth {
+    // The truth's materials, read once for the floor and the albedo against the truth.
+    let true_materials = match truth {
+        Some(t) => truth_check::TrueMaterials::read(t)?,
+        None => None,
+    };
+    if let Some(tm) = &true_materials {
         timed(&mut clocks.render, || {
-            truth_check::add_true_reflectance(f, t, &checked, &mut truth_check)
+            truth_check::add_true_reflectance(f, tm, &checked, &mut truth_check)
         })?;
     }
+    let albedo_truth = true_materials
+        .as_ref()
+        .and_then(|tm| truth_check::albedo_truth(f, tm));
     let mut scores = Scores::default();
     for (i, (&v, raster)) in f.held.iter().zip(&rasters).enumerate() {
         let rgbs = timed(&mut clocks.render, || {
@@ -221,7 +233,7 @@ pub(crate) fn evaluate(
         bar.inc(1);
     }
     bar.finish_and_clear();
-    Ok(scores.into_evaluation(clocks, truth_check))
+    Ok(scores.into_evaluation(clocks, truth_check, albedo_truth))
 }
 
 /// Every held-out view's raster.

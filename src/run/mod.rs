@@ -428,16 +428,11 @@ fn adaptive_decisions(
         });
     }
     if let Some(why) = &outcome.start_reason {
-        let (start, chosen) = if outcome.start_matched {
-            (StartBrightness::Matched, "matched")
-        } else {
-            (StartBrightness::Clustered, "clustered")
-        };
-        eff.start_brightness = start;
+        eff.start_brightness = outcome.start;
         d.push(Decision {
             what: "start_brightness".into(),
-            full: "auto".into(),
-            chosen: chosen.into(),
+            full: StartBrightness::Auto.name().into(),
+            chosen: outcome.start.name().into(),
             reason: why.clone(),
         });
     }

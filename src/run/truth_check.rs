@@ -42,15 +42,6 @@ pub(crate) struct CheckedView {
 }
 
 impl CheckedView {
-    /// The view with its true light alone, as [`crate::render::shade_views`] takes it.
-    pub(crate) fn to_shade_true<'a>(&'a self, f: &'a Fitted) -> ViewToShade<'a> {
-        ViewToShade {
-            raster: &self.raster,
-            image: &f.scene.views[self.v].image,
-            envs: vec![&self.envs[0]],
-        }
-    }
-
     /// The view as [`crate::render::shade_views`] takes it.
     pub(crate) fn to_shade<'a>(&'a self, f: &'a Fitted) -> ViewToShade<'a> {
         ViewToShade {
@@ -130,7 +121,7 @@ pub(crate) fn score(
         let mask = valid_mask(&c.raster, photo);
         let (rmse_t, rms, scale_t) = rmse_after_channel_scale(&photo.rgb, &rgbs[0], &mask);
         let (rmse_f, _, _) = rmse_after_channel_scale(&photo.rgb, &rgbs[1], &mask);
-        let rel = |r: f64| if rms > 0.0 { r / rms } else { f64::NAN };
+        let rel = |r: f64| relative(r, rms);
         out.push(TruthCheckEntry {
             image: f.scene.views[c.v].image.name.clone(),
             rmse_true_light: rmse_t,
@@ -147,10 +138,12 @@ pub(crate) fn score(
 }
 
 /// The truth's materials: per-vertex blending weights (row-major `V × J`), names and
-/// diffuse albedos (`truth/weights.ply`, `truth/materials.json`).
-struct TrueMaterials {
+/// lobe weights (`truth/weights.ply`, `truth/materials.json`), read once per run for the
+/// truth check's floor and the albedo against the truth.
+pub(crate) struct TrueMaterials {
     names: Vec<String>,
-    diffuse: Vec<[f64; 3]>,
+    /// Index of the Lambertian lobe in `lobes`.
+    lambert: usize,
     weights: Vec<f64>,
     /// Every lobe of the truth (`None`: a type this build does not know).
     lobes: Vec<Option<BasisBrdf>>,
@@ -160,7 +153,7 @@ struct TrueMaterials {
 
 impl TrueMaterials {
     /// `None` when the truth has no materials file, no Lambertian lobe or no weights.
-    fn read(truth: &Truth) -> Result<Option<Self>> {
+    pub(crate) fn read(truth: &Truth) -> Result<Option<Self>> {
         let path = truth.dir.join("materials.json");
         let Ok(text) = std::fs::read_to_string(&path) else {
             return Ok(None);
@@ -176,7 +169,6 @@ impl TrueMaterials {
         };
         let lobe_types: Vec<Option<BasisBrdf>> = lobes.iter().map(lobe_of).collect();
         let mut names = Vec::new();
-        let mut diffuse = Vec::new();
         let mut lambda = Vec::new();
         for m in json["materials"]
             .as_array()
@@ -195,7 +187,6 @@ impl TrueMaterials {
                 }
                 rows.push(rgb.map(|v| v.unwrap_or(0.0)));
             }
-            diffuse.push(rows[lt]);
             lambda.push(rows);
         }
         let wpath = truth.dir.join("weights.ply");
@@ -226,11 +217,16 @@ impl TrueMaterials {
         }
         Ok(Some(TrueMaterials {
             names,
-            diffuse,
+            lambert: lt,
             weights,
             lobes: lobe_types,
             lambda,
         }))
+    }
+
+    /// Material `j`'s diffuse (Lambertian) albedo.
+    fn diffuse(&self, j: usize) -> [f64; 3] {
+        self.lambda[j][self.lambert]
     }
 
     /// The true per-vertex weights `β_{x,b,c} = Σ_j w_j(x) λ_{j,b',c}` in the lobes of
@@ -299,26 +295,40 @@ fn same_lobe(a: &BasisBrdf, b: &BasisBrdf) -> bool {
 /// entry's `*_true_reflectance`. Nothing when the truth has a lobe the fit's basis lacks.
 pub(crate) fn add_true_reflectance(
     f: &Fitted,
-    truth: &Truth,
+    t: &TrueMaterials,
     checked: &[CheckedView],
     entries: &mut [TruthCheckEntry],
 ) -> Result<()> {
-    let Some(t) = TrueMaterials::read(truth)? else {
-        return Ok(());
-    };
     let Some(beta) = t.beta_in_basis(&f.basis, f.scene.mesh.positions.len()) else {
         return Ok(());
     };
-    let views: Vec<ViewToShade> = checked.iter().map(|c| c.to_shade_true(f)).collect();
+    // Each view with its true light alone.
+    let views: Vec<ViewToShade> = checked
+        .iter()
+        .map(|c| {
+            let mut v = c.to_shade(f);
+            v.envs.truncate(1);
+            v
+        })
+        .collect();
     let shaded = super::shading::shade_views_with(f, &beta, &views)?;
     for (i, (c, e)) in checked.iter().zip(entries.iter_mut()).enumerate() {
         let rgbs = shaded.images(i, &c.raster, &f.scene.mesh);
         let mask = valid_mask(&c.raster, &f.photos[c.v]);
         let (rmse, rms, _) = rmse_after_channel_scale(&f.photos[c.v].rgb, &rgbs[0], &mask);
         e.rmse_true_reflectance = Some(rmse);
-        e.relative_true_reflectance = Some(if rms > 0.0 { rmse / rms } else { f64::NAN });
+        e.relative_true_reflectance = Some(relative(rmse, rms));
     }
     Ok(())
+}
+
+/// An RMSE over the photo's RMS on the same pixels (NaN on black pixels).
+fn relative(rmse: f64, rms: f64) -> f64 {
+    if rms > 0.0 {
+        rmse / rms
+    } else {
+        f64::NAN
+    }
 }
 
 /// The dominant material of each vertex with any weight (`None` elsewhere).
@@ -332,9 +342,8 @@ fn dominant(weights: &[f64], k: usize) -> Vec<Option<usize>> {
         .collect()
 }
 
-/// Diffuse albedo per material against the truth (`report.json` `albedo_truth`); `None`
-/// without true materials, with a mesh of another vertex count, or without a Lambertian
-/// lobe in the fit.
+/// Diffuse albedo per material against the truth `t` (`report.json` `albedo_truth`);
+/// `None` with a mesh of another vertex count or without a Lambertian lobe in the fit.
 ///
 /// Per channel `s_c = Σ_x b_{x,c} β_{x,c} / Σ_x β_{x,c}²` over the vertices with weights in
 /// both (`b`, `β` the true and recovered per-vertex diffuse albedo); each recovered
@@ -342,17 +351,15 @@ fn dominant(weights: &[f64], k: usize) -> Vec<Option<usize>> {
 /// its ratio error is `s_c λ_{k,lb,c} / λ^true_{j,lambert,c} − 1`; its pure-vertex error is
 /// the mean of `s_c β_{x,c}` over the vertices it dominates whose true weight of `j` is at
 /// least [`PURE_WEIGHT`], over `λ^true_{j,lambert,c}`, − 1.
-pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTruth>> {
-    let Some(t) = TrueMaterials::read(truth)? else {
-        return Ok(None);
-    };
+pub(crate) fn albedo_truth(f: &Fitted, t: &TrueMaterials) -> Option<AlbedoTruth> {
     let nv = f.scene.mesh.positions.len();
     let (kk, jj, nb) = (f.est.lambda.len(), t.names.len(), f.basis.len());
-    let Some(lb) = f.basis.iter().position(|b| matches!(b, BasisBrdf::Lambert)) else {
-        return Ok(None);
-    };
+    let lb = f
+        .basis
+        .iter()
+        .position(|b| matches!(b, BasisBrdf::Lambert))?;
     if jj == 0 || t.weights.len() != nv * jj || f.est.weights.len() != nv * kk {
-        return Ok(None);
+        return None;
     }
     let (dom_fit, dom_true) = (dominant(&f.est.weights, kk), dominant(&t.weights, jj));
     let (mut num, mut den, mut n) = ([0.0_f64; 3], [0.0_f64; 3], 0);
@@ -364,7 +371,7 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
         let beta = f.beta[x * nb + lb];
         for c in 0..3 {
             let b: f64 = (0..jj)
-                .map(|j| t.weights[x * jj + j] * t.diffuse[j][c])
+                .map(|j| t.weights[x * jj + j] * t.diffuse(j)[c])
                 .sum();
             num[c] += b * beta[c];
             den[c] += beta[c] * beta[c];
@@ -398,7 +405,7 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
         }
         let recovered = f.est.lambda[k][lb];
         let recovered_scaled = [0, 1, 2].map(|c| scale[c] * recovered[c]);
-        let ratio_error = [0, 1, 2].map(|c| recovered_scaled[c] / t.diffuse[j][c] - 1.0);
+        let ratio_error = [0, 1, 2].map(|c| recovered_scaled[c] / t.diffuse(j)[c] - 1.0);
         let pure: Vec<usize> = (0..nv)
             .filter(|&x| dom_fit[x] == Some(k) && t.weights[x * jj + j] >= PURE_WEIGHT)
             .collect();
@@ -408,7 +415,7 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
                 .map(|&x| scale[c] * f.beta[x * nb + lb][c])
                 .sum::<f64>()
                 / pure.len() as f64;
-            mean / t.diffuse[j][c] - 1.0
+            mean / t.diffuse(j)[c] - 1.0
         });
         materials.push(AlbedoTruthEntry {
             material: k,
@@ -416,7 +423,7 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
             agreement: v as f64 / total as f64,
             recovered,
             recovered_scaled,
-            truth: t.diffuse[j],
+            truth: t.diffuse(j),
             ratio_error,
             pure_vertices: pure.len(),
             pure_ratio_error,
@@ -433,13 +440,13 @@ pub(crate) fn albedo_truth(f: &Fitted, truth: &Truth) -> Result<Option<AlbedoTru
         .filter(|e| e.is_finite())
         .map(f64::abs)
         .fold(0.0, f64::max);
-    Ok(Some(AlbedoTruth {
+    Some(AlbedoTruth {
         scale,
         vertices: n,
         materials,
         max_ratio_error,
         max_pure_ratio_error,
-    }))
+    })
 }
 
 #[cfg(test)]
@@ -453,7 +460,7 @@ mod tests {
         // the equal basis lobe, whatever the basis order.
         let t = TrueMaterials {
             names: vec!["a".into(), "b".into()],
-            diffuse: vec![[0.8, 0.4, 0.2], [0.2, 0.3, 0.6]],
+            lambert: 0,
             weights: vec![1.0, 0.0, 0.25, 0.75],
             lobes: vec![
                 Some(BasisBrdf::Lambert),
@@ -504,7 +511,7 @@ mod tests {
         fn clone_without_gloss(&self) -> TrueMaterials {
             TrueMaterials {
                 names: self.names.clone(),
-                diffuse: self.diffuse.clone(),
+                lambert: self.lambert,
                 weights: self.weights.clone(),
                 lobes: self.lobes.clone(),
                 lambda: self.lambda.iter().map(|m| vec![m[0], [0.0; 3]]).collect(),

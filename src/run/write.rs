@@ -65,7 +65,7 @@ pub(crate) fn write(
         starts: (multi.starts.len() > 1).then_some(multi),
         ..Default::default()
     };
-    add_evaluation(&mut report, evaluated, &fitted, truth)?;
+    add_evaluation(&mut report, evaluated, &fitted);
     progress.stage("report");
     write_report(&mut report, &fitted, truth, log, dir)?;
     Ok(report)
@@ -119,13 +119,9 @@ fn model_report(
     }
 }
 
-/// The evaluation's figures and notes, and the albedo against the truth, into `report`.
-fn add_evaluation(
-    report: &mut RunReport,
-    evaluated: Evaluated,
-    fitted: &Fitted,
-    truth: Option<&Truth>,
-) -> Result<()> {
+/// The evaluation's figures and notes, the albedo against the truth among them, into
+/// `report`.
+fn add_evaluation(report: &mut RunReport, evaluated: Evaluated, fitted: &Fitted) {
     let Evaluated {
         evaluation,
         holdout_rule,
@@ -137,10 +133,7 @@ fn add_evaluation(
     report.half_fit_prior = half_fit_prior;
     report.metrics = evaluation.metrics;
     report.truth_check = evaluation.truth_check;
-    report.albedo_truth = match truth {
-        Some(t) => super::truth_check::albedo_truth(fitted, t)?,
-        None => None,
-    };
+    report.albedo_truth = evaluation.albedo_truth;
     report.holdout_rule = holdout_rule;
     report.notes.extend(super::notes::evaluation_notes(
         fitted,
@@ -148,7 +141,6 @@ fn add_evaluation(
         evaluation.half_fit_seconds,
         evaluation.mean_holdout_rmse,
     ));
-    Ok(())
 }
 
 /// The stage records, `report.json`, `report.md` and `report.html` with its pictures. The

@@ -80,6 +80,15 @@ impl StartBrightness {
             ))),
         }
     }
+
+    /// The flag's word for it: `auto`, `clustered` or `matched`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StartBrightness::Auto => "auto",
+            StartBrightness::Clustered => "clustered",
+            StartBrightness::Matched => "matched",
+        }
+    }
 }
 
 /// The fitted log-linear model (module docs).

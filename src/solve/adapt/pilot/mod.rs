@@ -81,8 +81,9 @@ pub struct PilotOutcome {
     pub weights_sum_scope: SumScope,
     /// Why, when the pilot chose it ([`PilotInput::choose_weights_sum`]).
     pub weights_sum_reason: Option<String>,
-    /// Whether the fit starts from the brightness matched by normal (step 3c).
-    pub start_matched: bool,
+    /// The fit's start (step 3c): [`StartBrightness::Matched`] or
+    /// [`StartBrightness::Clustered`].
+    pub start: StartBrightness,
     /// Why, when the pilot chose it ([`StartBrightness::Auto`]).
     pub start_reason: Option<String>,
 }
@@ -314,7 +315,11 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         weights_sum: chosen.prior.strength,
         weights_sum_scope: chosen.prior.scope,
         weights_sum_reason,
-        start_matched: fitter.matched.get(),
+        start: if fitter.matched.get() {
+            StartBrightness::Matched
+        } else {
+            StartBrightness::Clustered
+        },
         start_reason,
     })
 }
