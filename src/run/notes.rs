@@ -27,6 +27,12 @@ pub(crate) fn fit_notes(
             opts.lighting_qp_iterations
         ));
     }
+    if opts.ratio_steps > 0 && fitted.est.lambda.len() > 1 {
+        log.notes.push(format!(
+            "the ratio step ran in the first {} rounds (--ratio-steps): each material's brightness per channel moved along the valley the free maps leave, the lights re-solved at ±10% (docs/method.md, \"The ratio step\")",
+            opts.ratio_steps
+        ));
+    }
     if multi.starts.len() > 1 {
         log.notes.push(format!(
             "{} starts tried, kept start {} ({}) by the {}: {}",

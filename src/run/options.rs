@@ -131,6 +131,8 @@ pub struct RunOptions {
     /// Early stopping: the first outer iteration at which the patience may stop the
     /// alternation ([`EstimateOptions::min_iterations`]).
     pub min_iterations: usize,
+    /// The first rounds that take the ratio step ([`EstimateOptions::ratio_steps`]); 0 = off.
+    pub ratio_steps: usize,
     /// At most this many observations per photo in its lighting QPs, a stratified sample
     /// ([`EstimateOptions::lighting_sample`]); 0 = all.
     pub lighting_sample: usize,
@@ -374,6 +376,7 @@ impl RunOptions {
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::default_patience(),
             min_iterations: crate::solve::options::MIN_ITERATIONS,
+            ratio_steps: crate::solve::options::RATIO_STEPS,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_search: false,

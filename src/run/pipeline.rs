@@ -549,6 +549,8 @@ fn adapt(
             // The pilot holds out its own observations: no early stopping inside it.
             estimate: EstimateOptions {
                 validation_fraction: 0.0,
+                // The ratio step is the fit's: the pilot compares models, not converges one.
+                ratio_steps: 0,
                 ..estimate_options(opts, lambert, d.strata)
             },
             mean_rgb: d.mean_rgb,

@@ -3,7 +3,10 @@
 //! early stopping ends it; then the scale normalisation ([`crate::solve::normalise`]).
 //!
 //! One outer iteration ([`Alternation::iteration`]):
-//! 1. lighting: the light model's [`LightModel::fit`] with `β` fixed;
+//! 1. lighting: the light model's [`LightModel::fit`] with `β` fixed; in the first
+//!    [`EstimateOptions::ratio_steps`] rounds then the ratio step
+//!    ([`crate::solve::ratio_step`]: each material's brightness per channel moved along
+//!    the valley with the lights re-solved, kept only when `F` drops);
 //! 2. materials: `λ` then `w` ([`crate::solve::materials`]), `material_sweeps` times, then
 //!    the gauge `Σ_x Σ_b β_{x,b,c}` back to its start value (`fix_gauge`);
 //! 3. extrapolation (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
@@ -26,9 +29,10 @@ use crate::solve::materials::{
     weights_step, LambdaCoupling, NeighbourPull,
 };
 use crate::solve::normalise::normalise;
-use crate::solve::objective::{evaluate, gauge, Objective, Point};
+use crate::solve::objective::{channel_data_fit, evaluate, gauge, Objective, Point};
 use crate::solve::options::{EstimateOptions, SumScope};
-use crate::solve::problem::{basis_responses, beta_per_vertex, Problem};
+use crate::solve::problem::{basis_responses, beta_per_vertex, predict_from, Problem};
+use crate::solve::ratio_step;
 use crate::solve::result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes};
 use crate::solve::validation::{EarlyStop, HeldBack};
 use crate::stages::Stopwatch;
@@ -221,6 +225,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         t0: Instant,
     ) -> Result<Iteration> {
         let (lighting_seconds, lighting_cpu_seconds) = self.lighting(outer_it)?;
+        if !self.opts.fixed_materials {
+            self.ratio_step(outer_it)?;
+        }
         let watch = Stopwatch::start();
         let s = self.materials()?;
         let (material_seconds, material_cpu_seconds) = watch.elapsed();
@@ -336,6 +343,87 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         hist.start(flatten(&alt.lambda));
         alt.anderson = Some(hist);
         Ok(kept)
+    }
+
+    /// `F` per channel at the current state (data, the light model's prior, ridge), when
+    /// the light model's channels are separable.
+    fn channel_objective(&self) -> Option<[f64; 3]> {
+        let params = self.light.params();
+        let prior = self.light.channel_penalty(params)?;
+        let maps = self.light.maps(params);
+        let s = basis_responses(self.problem, &maps);
+        let beta = beta_per_vertex(&self.lambda, &self.weights, self.problem.n_vertices);
+        let pred = predict_from(self.problem, &beta, &s);
+        let data = channel_data_fit(self.problem, &pred, &self.omega);
+        let r = self.ridge.unwrap_or([0.0; 3]);
+        Some([0, 1, 2].map(|c| {
+            let rid: f64 = self
+                .lambda
+                .iter()
+                .flatten()
+                .map(|v| r[c] * v[c] * v[c])
+                .sum();
+            data[c] + prior[c] + rid
+        }))
+    }
+
+    /// The ratio step ([`crate::solve::ratio_step`]) in the first
+    /// [`EstimateOptions::ratio_steps`] rounds, right after the round's lighting step.
+    fn ratio_step(&mut self, outer_it: usize) -> Result<()> {
+        let kk = self.lambda.len();
+        if outer_it > self.opts.ratio_steps || ratio_step::directions(kk) == 0 {
+            return Ok(());
+        }
+        let Some(mut f0) = self.channel_objective() else {
+            return Ok(());
+        };
+        for j in 0..ratio_step::directions(kk) {
+            match self.ratio_move(outer_it, j, f0)? {
+                Some(f) => f0 = f,
+                None => break,
+            }
+        }
+        Ok(())
+    }
+
+    /// One direction of the ratio step from the state whose per-channel `F` is `f0`; the
+    /// per-channel `F` of the state it leaves, or `None` when the light model cannot mix
+    /// its parameters.
+    fn ratio_move(&mut self, outer_it: usize, j: usize, f0: [f64; 3]) -> Result<Option<[f64; 3]>> {
+        let delta = ratio_step::PROBE_STEP;
+        let u = ratio_step::direction(self.lambda.len(), j);
+        let (base, omega0) = (self.snapshot(), self.omega.clone());
+        let mut probe = |t: f64| -> Result<([f64; 3], M::Params)> {
+            self.restore(base.clone());
+            self.omega.clone_from(&omega0);
+            self.lambda = ratio_step::scaled(&base.lambda, &u, [t; 3]);
+            self.lighting(outer_it)?;
+            let f = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
+            Ok((f, self.light.params().clone()))
+        };
+        let (fm, lights_m) = probe(-delta)?;
+        let (fp, lights_p) = probe(delta)?;
+        let t = [0, 1, 2].map(|c| ratio_step::parabola_step(fm[c], f0[c], fp[c], delta));
+        let w = t.map(|tc| ratio_step::lagrange_weights(tc, delta));
+        let weights_of = |i: usize| [w[0][i], w[1][i], w[2][i]];
+        let mixed = self.light.combine(&[
+            (&lights_m, weights_of(0)),
+            (&base.light, weights_of(1)),
+            (&lights_p, weights_of(2)),
+        ]);
+        self.restore(base.clone());
+        self.omega.clone_from(&omega0);
+        let Some(mixed) = mixed else {
+            return Ok(None);
+        };
+        self.light.set_params(mixed);
+        self.lambda = ratio_step::scaled(&base.lambda, &u, t);
+        let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
+        if ft.iter().sum::<f64>() < f0.iter().sum::<f64>() {
+            return Ok(Some(ft));
+        }
+        self.restore(base);
+        Ok(Some(f0))
     }
 
     /// Early stopping's score of the current iterate, kept when it is the best so far

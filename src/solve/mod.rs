@@ -73,6 +73,7 @@ pub mod objective;
 pub mod options;
 pub mod problem;
 pub mod qp;
+pub mod ratio_step;
 pub mod result;
 pub mod starts;
 pub mod subsample;

@@ -49,6 +49,27 @@ pub(crate) fn data_fit(problem: &Problem, pred: &[[f64; 3]], omega: &[[f32; 3]])
     )
 }
 
+/// The data term `Σ α ω r²` per channel.
+pub(crate) fn channel_data_fit(
+    problem: &Problem,
+    pred: &[[f64; 3]],
+    omega: &[[f32; 3]],
+) -> [f64; 3] {
+    let obs = problem.obs;
+    let mut f = [0.0; 3];
+    for p in 0..obs.vertex.len() {
+        let a = obs.weight[p] as f64;
+        if a <= 0.0 {
+            continue;
+        }
+        for c in 0..3 {
+            let r = obs.rgb[p][c] as f64 - pred[p][c];
+            f[c] += a * omega[p][c] as f64 * r * r;
+        }
+    }
+    f
+}
+
 /// A state the objective is evaluated at: the light model's maps and its prior's value,
 /// and the materials.
 pub(crate) struct Point<'a> {

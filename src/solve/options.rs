@@ -208,6 +208,9 @@ pub struct EstimateOptions {
     /// ([`crate::solve::accel`], safeguarded: a candidate is kept only when `F` drops; each
     /// try costs one more lighting step); 0 = off (default).
     pub anderson_depth: usize,
+    /// The first rounds that take the ratio step ([`crate::solve::ratio_step`], issue 25,
+    /// not in the paper; two more lighting steps a round and direction); 0 = off.
+    pub ratio_steps: usize,
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
     pub light_groups: Option<LightGroups>,
@@ -306,6 +309,9 @@ pub const PATIENCE: usize = 1;
 /// score), so it stays opt-in (`bench-results/visibility-lattice.md`).
 pub const MIN_ITERATIONS: usize = 1;
 
+/// The first rounds that take the ratio step by default ([`EstimateOptions::ratio_steps`]).
+pub const RATIO_STEPS: usize = 0;
+
 /// Default of [`EstimateOptions::robust_floor`]: IRLS's robust scale is at least 5% of the
 /// photo's RMS radiance in each channel. Against the MAD alone (0), measured on `spot-varying`
 /// (`bench-results/archive/estimator-joint-floor.md`, `estimator-robust-floor.md`,
@@ -376,6 +382,7 @@ impl Default for EstimateOptions {
             weights_graph: Default::default(),
             achromatic_specular: false,
             anderson_depth: 0,
+            ratio_steps: 0,
             light_groups: None,
             scale_anchor: ScaleAnchor::Start,
         }

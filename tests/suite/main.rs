@@ -45,6 +45,7 @@ mod photo_load;
 mod propagate_synth;
 mod proptest_parsers;
 mod qp_kkt;
+mod ratio_step;
 mod realphoto_effects;
 mod reference_analytic;
 mod reference_cost;

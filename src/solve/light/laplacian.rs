@@ -92,6 +92,22 @@ pub(crate) fn maps_penalty(
         .sum()
 }
 
+/// [`maps_penalty`] per channel.
+pub(crate) fn channel_maps_penalty(
+    lap: &Laplacian,
+    maps: &[[Vec<f64>; 3]],
+    mu: &[Option<[f64; 3]>],
+) -> [f64; 3] {
+    let mut f = [0.0; 3];
+    for (l, m) in maps.iter().zip(mu) {
+        let m = m.unwrap_or([0.0; 3]);
+        for c in 0..3 {
+            f[c] += m[c] * lap.energy(&l[c]);
+        }
+    }
+    f
+}
+
 /// Maps moved along their last step, `a + σ (a − b)`, projected on `a ≥ 0`.
 pub(crate) fn extrapolate_maps(
     maps: &[[Vec<f64>; 3]],

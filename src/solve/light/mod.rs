@@ -91,6 +91,20 @@ pub trait LightModel: Send + Sync {
     /// The prior's term of the objective at `params`, with the current weights.
     fn penalty(&self, params: &Self::Params) -> f64;
 
+    /// The prior's term per channel, for a model whose channels are separable (its
+    /// lighting step fits each channel on its own); `None` otherwise.
+    fn channel_penalty(&self, params: &Self::Params) -> Option<[f64; 3]> {
+        let _ = params;
+        None
+    }
+
+    /// `Σ_i w_{i,c} θ_i` per channel, projected on the model's feasible set, for a model
+    /// whose parameters are per-channel maps; `None` otherwise.
+    fn combine(&self, parts: &[(&Self::Params, [f64; 3])]) -> Option<Self::Params> {
+        let _ = parts;
+        None
+    }
+
     /// `θ + σ (θ − θ_prev)` projected on the model's feasible set (the extrapolation of
     /// the alternation, Bro 1998).
     fn extrapolate(&self, params: &Self::Params, prev: &Self::Params, sigma: f64) -> Self::Params;

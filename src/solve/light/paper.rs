@@ -17,7 +17,7 @@
 use std::borrow::Cow;
 
 use crate::solve::light::laplacian::{
-    extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
+    channel_maps_penalty, extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
 };
 use crate::solve::light::photo::{lighting_sample, lighting_step_warm, LightingResult, WARM_IRLS};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
@@ -158,6 +158,27 @@ impl LightModel for PaperLight {
 
     fn penalty(&self, params: &Maps) -> f64 {
         maps_penalty(&self.lap, params, &self.mu)
+    }
+
+    fn combine(&self, parts: &[(&Maps, [f64; 3])]) -> Option<Maps> {
+        let first = parts.first()?.0;
+        let mut out = first.clone();
+        for (i, l) in out.iter_mut().enumerate() {
+            for c in 0..3 {
+                for (t, v) in l[c].iter_mut().enumerate() {
+                    *v = parts
+                        .iter()
+                        .map(|(p, w)| w[c] * p[i][c][t])
+                        .sum::<f64>()
+                        .max(0.0);
+                }
+            }
+        }
+        Some(out)
+    }
+
+    fn channel_penalty(&self, params: &Maps) -> Option<[f64; 3]> {
+        Some(channel_maps_penalty(&self.lap, params, &self.mu))
     }
 
     fn extrapolate(&self, params: &Maps, prev: &Maps, sigma: f64) -> Maps {
