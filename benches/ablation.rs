@@ -47,7 +47,8 @@
 //! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
 //! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`, `ABLATION_K1_ITERS` for `k1`),
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
-//! of `run`'s, `ablation/defaults.rs`), `ABLATION_SEARCH`,
+//! of `run`'s, `ablation/defaults.rs`), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
+//! `run --ratio-steps N`), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),

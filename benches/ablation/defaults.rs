@@ -88,6 +88,11 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         weights_sum_scope: pilot.weights_sum_scope,
         max_outer,
         rel_tol,
+        // `ABLATION_RATIO_STEPS=N`: `run --ratio-steps N` (bench-results/ratio-step.md).
+        ratio_steps: std::env::var("ABLATION_RATIO_STEPS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0),
         ..base.clone()
     };
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");

@@ -6,7 +6,8 @@
 //! 1. lighting: the light model's [`LightModel::fit`] with `β` fixed; in the first
 //!    [`EstimateOptions::ratio_steps`] rounds then the ratio step
 //!    ([`crate::solve::ratio_step`]: each material's brightness per channel moved along
-//!    the valley with the lights re-solved, kept only when `F` drops);
+//!    the valley with the lights re-solved, kept only when `F` drops and the held-back
+//!    observations are predicted no worse);
 //! 2. materials: `λ` then `w` ([`crate::solve::materials`]), `material_sweeps` times, then
 //!    the gauge `Σ_x Σ_b β_{x,b,c}` back to its start value (`fix_gauge`);
 //! 3. extrapolation (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
@@ -226,7 +227,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     ) -> Result<Iteration> {
         let (lighting_seconds, lighting_cpu_seconds) = self.lighting(outer_it)?;
         if !self.opts.fixed_materials {
-            self.ratio_step(outer_it)?;
+            self.ratio_step(outer_it, stop)?;
         }
         let watch = Stopwatch::start();
         let s = self.materials()?;
@@ -369,7 +370,11 @@ impl<'a, M: LightModel> Alternation<'a, M> {
 
     /// The ratio step ([`crate::solve::ratio_step`]) in the first
     /// [`EstimateOptions::ratio_steps`] rounds, right after the round's lighting step.
-    fn ratio_step(&mut self, outer_it: usize) -> Result<()> {
+    fn ratio_step(
+        &mut self,
+        outer_it: usize,
+        stop: &EarlyStop<BestIterate<M::Params>>,
+    ) -> Result<()> {
         let kk = self.lambda.len();
         if outer_it > self.opts.ratio_steps || ratio_step::directions(kk) == 0 {
             return Ok(());
@@ -378,7 +383,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             return Ok(());
         };
         for j in 0..ratio_step::directions(kk) {
-            match self.ratio_move(outer_it, j, f0)? {
+            match self.ratio_move(outer_it, j, f0, stop)? {
                 Some(f) => f0 = f,
                 None => break,
             }
@@ -389,7 +394,13 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     /// One direction of the ratio step from the state whose per-channel `F` is `f0`; the
     /// per-channel `F` of the state it leaves, or `None` when the light model cannot mix
     /// its parameters.
-    fn ratio_move(&mut self, outer_it: usize, j: usize, f0: [f64; 3]) -> Result<Option<[f64; 3]>> {
+    fn ratio_move(
+        &mut self,
+        outer_it: usize,
+        j: usize,
+        f0: [f64; 3],
+        stop: &EarlyStop<BestIterate<M::Params>>,
+    ) -> Result<Option<[f64; 3]>> {
         let delta = ratio_step::PROBE_STEP;
         let u = ratio_step::direction(self.lambda.len(), j);
         let (base, omega0) = (self.snapshot(), self.omega.clone());
@@ -419,7 +430,19 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         self.light.set_params(mixed);
         self.lambda = ratio_step::scaled(&base.lambda, &u, t);
         let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
-        if ft.iter().sum::<f64>() < f0.iter().sum::<f64>() {
+        // The held-back observations of early stopping must not get worse either: the
+        // valley's floor under a basis that cannot express the truth (the built-in
+        // example's GGX) need not be the truth's ratios.
+        let held_ok = {
+            let score = |lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
+                let beta = beta_per_vertex(lambda, &self.weights, self.problem.n_vertices);
+                stop.peek(self.problem, &self.light.maps(lights), &beta)
+            };
+            let now = score(self.light.params(), &self.lambda);
+            now.zip(score(&base.light, &base.lambda))
+                .is_none_or(|(a, b)| a <= b)
+        };
+        if held_ok && ft.iter().sum::<f64>() < f0.iter().sum::<f64>() {
             return Ok(Some(ft));
         }
         self.restore(base);

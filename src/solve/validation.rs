@@ -452,6 +452,18 @@ impl<'a, S> EarlyStop<'a, S> {
         Some(e)
     }
 
+    /// [`validation_error`] of the state `(maps, beta)` without recording it; `None` when
+    /// early stopping is off.
+    pub(crate) fn peek(
+        &self,
+        problem: &Problem,
+        maps: &[[Vec<f64>; 3]],
+        beta: &[[f64; 3]],
+    ) -> Option<f64> {
+        self.is_on()
+            .then(|| validation_error(problem, self.full_obs, maps, beta, self.idx))
+    }
+
     /// Whether `patience` iterations have passed without a better score, at outer
     /// iteration `min_iterations` or later.
     pub(crate) fn patience_over(
