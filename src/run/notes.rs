@@ -4,6 +4,24 @@
 use super::state::RunLog;
 use super::{Fitted, LargeMeshSettings, RunOptions, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO};
 
+/// What the ratio step (`--ratio-steps`) did, in words.
+fn ratio_note(rounds: usize, m: &crate::solve::result::RatioMoves) -> String {
+    if m.tried == 0 && m.unsupported == 0 {
+        return format!(
+            "the ratio step (--ratio-steps {rounds}) had nothing to move: one material"
+        );
+    }
+    let what = format!(
+        "the ratio step (--ratio-steps {rounds}) kept {} of {} moves of a material's brightness per channel along the valley the free maps leave (docs/method.md, \"The ratio step\")",
+        m.kept, m.tried
+    );
+    if m.unsupported > 0 {
+        format!("{what}; the light model could not take it in {} rounds (only the paper's free map per photo can)", m.unsupported)
+    } else {
+        what
+    }
+}
+
 /// The report's notes on the fit: ill-conditioned solves, the starts tried, the scale
 /// normalisation, early stopping and the lighting sample.
 pub(crate) fn fit_notes(
@@ -27,11 +45,9 @@ pub(crate) fn fit_notes(
             opts.lighting_qp_iterations
         ));
     }
-    if opts.ratio_steps > 0 && fitted.est.lambda.len() > 1 {
-        log.notes.push(format!(
-            "the ratio step ran in the first {} rounds (--ratio-steps): each material's brightness per channel moved along the valley the free maps leave, the lights re-solved at ±10% (docs/method.md, \"The ratio step\")",
-            opts.ratio_steps
-        ));
+    if opts.ratio_steps > 0 {
+        log.notes
+            .push(ratio_note(opts.ratio_steps, &fitted.est.ratio_moves));
     }
     if multi.starts.len() > 1 {
         log.notes.push(format!(

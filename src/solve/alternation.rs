@@ -34,7 +34,9 @@ use crate::solve::objective::{channel_data_fit, evaluate, gauge, Objective, Poin
 use crate::solve::options::{EstimateOptions, SumScope};
 use crate::solve::problem::{basis_responses, beta_per_vertex, predict_from, Problem};
 use crate::solve::ratio_step;
-use crate::solve::result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes};
+use crate::solve::result::{
+    Conditioning, Estimate, IterState, Iteration, Materials0, RatioMoves, StepTimes,
+};
 use crate::solve::validation::{EarlyStop, HeldBack};
 use crate::stages::Stopwatch;
 use crate::{Error, Result};
@@ -186,6 +188,8 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     pub(crate) pull_eta: Option<Vec<f64>>,
     /// Anderson acceleration's history, when on ([`crate::solve::accel`]).
     pub(crate) anderson: Option<AndersonHistory>,
+    /// The ratio step's record.
+    ratio_moves: RatioMoves,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -215,6 +219,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 || sum_weights_gamma(problem.obs, problem.n_vertices, opts.weights_smoothness),
             ),
             anderson: (opts.anderson_depth > 0).then(|| AndersonHistory::new(opts.anderson_depth)),
+            ratio_moves: RatioMoves::default(),
         }
     }
 
@@ -380,12 +385,18 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             return Ok(());
         }
         let Some(mut f0) = self.channel_objective() else {
+            self.ratio_moves.unsupported += 1;
             return Ok(());
         };
         for j in 0..ratio_step::directions(kk) {
+            self.ratio_moves.tried += 1;
             match self.ratio_move(outer_it, j, f0, stop)? {
                 Some(f) => f0 = f,
-                None => break,
+                None => {
+                    self.ratio_moves.tried -= 1;
+                    self.ratio_moves.unsupported += 1;
+                    break;
+                }
             }
         }
         Ok(())
@@ -443,6 +454,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 .is_none_or(|(a, b)| a <= b)
         };
         if held_ok && ft.iter().sum::<f64>() < f0.iter().sum::<f64>() {
+            self.ratio_moves.kept += 1;
             return Ok(Some(ft));
         }
         self.restore(base);
@@ -659,6 +671,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             conditioning: self.cond,
             validation,
             lighting_sample: sample_check,
+            ratio_moves: self.ratio_moves,
         })
     }
 }

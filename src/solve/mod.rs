@@ -90,5 +90,7 @@ pub use options::{
     BLEND_FLOOR, PATIENCE, ROBUST_FLOOR, VALIDATION_MIN_FIT, WEIGHTS_SUM,
 };
 pub use problem::{basis_responses, beta_per_vertex, par_largest_first, predict, Problem};
-pub use result::{Conditioning, Estimate, IterState, Iteration, Materials0, StepTimes, Validation};
+pub use result::{
+    Conditioning, Estimate, IterState, Iteration, Materials0, RatioMoves, StepTimes, Validation,
+};
 pub use validation::{validation_split, validation_split_blocked};

@@ -161,6 +161,20 @@ pub struct Estimate {
     /// The lighting sample's check, when a photo's lighting step used a sample
     /// ([`crate::solve::EstimateOptions::lighting_sample`]).
     pub lighting_sample: Option<crate::solve::subsample::SampleCheck>,
+    /// The ratio step's record ([`crate::solve::ratio_step`]).
+    pub ratio_moves: RatioMoves,
+}
+
+/// What the ratio step did over the alternation ([`crate::solve::ratio_step`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RatioMoves {
+    /// Moves tried (directions × rounds that took the step).
+    pub tried: usize,
+    /// Moves kept (`F` dropped and the held-back observations did not get worse).
+    pub kept: usize,
+    /// Rounds asked for in which the light model could not take the step (its channels
+    /// not separable, or its parameters not mixable).
+    pub unsupported: usize,
 }
 
 impl Estimate {
@@ -182,6 +196,7 @@ impl Estimate {
             conditioning: Default::default(),
             validation: None,
             lighting_sample: None,
+            ratio_moves: RatioMoves::default(),
         }
     }
 }
