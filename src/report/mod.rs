@@ -110,6 +110,19 @@ pub struct ModelReport {
     /// What fixes the per-channel scale between reflectance and light.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale_anchor: Option<ScaleAnchorReport>,
+    /// The ratio step (`--ratio-steps N`), when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ratio_step: Option<RatioStepReport>,
+}
+
+/// The ratio step's rounds and moves ([`crate::solve::ratio_step`]).
+#[derive(Debug, Clone, Serialize, Default, PartialEq, Eq)]
+pub struct RatioStepReport {
+    /// The first rounds that took it (`--ratio-steps`).
+    pub rounds: usize,
+    /// What it did.
+    #[serde(flatten)]
+    pub moves: crate::solve::RatioMoves,
 }
 
 /// The light prior of held-out protocol `half`'s light fit (`crate::run` `half_prior`

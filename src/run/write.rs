@@ -116,6 +116,10 @@ fn model_report(
             name: fitted.estimate_options.scale_anchor.name().to_string(),
             rule: fitted.est.normalisation.clone(),
         }),
+        ratio_step: (opts.ratio_steps > 0).then(|| crate::report::RatioStepReport {
+            rounds: opts.ratio_steps,
+            moves: fitted.est.ratio_moves,
+        }),
     }
 }
 

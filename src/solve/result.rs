@@ -166,7 +166,7 @@ pub struct Estimate {
 }
 
 /// What the ratio step did over the alternation ([`crate::solve::ratio_step`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct RatioMoves {
     /// Moves tried (directions × rounds that took the step).
     pub tried: usize,

@@ -4,7 +4,7 @@
 //! nearer the truth than the same number of plain rounds, and predict the held-out photos
 //! under their true light no worse.
 
-use relight_cpc::solve::{estimate, EstimateOptions};
+use relight_cpc::solve::{estimate, EstimateOptions, RatioMoves};
 
 use crate::synth_case::{initial, joint_figures, prepare, JointFigures, Sizes};
 
@@ -28,7 +28,10 @@ fn the_ratio_step_brings_the_albedo_ratio_nearer_the_truth_than_plain_rounds() {
             ..EstimateOptions::default()
         };
         let est = estimate(&problem, init.clone(), &opts, &mut |_, _| {}).unwrap();
-        joint_figures(&case, &est, &case.train.obs, 0.0)
+        (
+            joint_figures(&case, &est, &case.train.obs, 0.0),
+            est.ratio_moves,
+        )
     };
     let report = |what: &str, plain: &JointFigures, stepped: &JointFigures| {
         eprintln!(
@@ -39,8 +42,13 @@ fn the_ratio_step_brings_the_albedo_ratio_nearer_the_truth_than_plain_rounds() {
     // The step alone (no held-back observations, so no validation gate). Measured: worst
     // channel 0.383 → 0.254 (×0.66), held-out 0.1654 → 0.1389. The bound asks for a clear
     // gain (×0.85) with room for another platform's rounding in the QPs.
-    let (plain, stepped) = (fit(0, 0.0), fit(rounds, 0.0));
+    let ((plain, none), (stepped, moves)) = (fit(0, 0.0), fit(rounds, 0.0));
     report("no validation", &plain, &stepped);
+    // Two materials: one direction a round, every round (no early stop without held-back
+    // observations); the paper's free map takes every one.
+    assert_eq!(none, RatioMoves::default());
+    assert_eq!((moves.tried, moves.unsupported), (rounds, 0));
+    assert!(moves.kept >= 1 && moves.kept <= moves.tried, "{moves:?}");
     assert!(
         worst(&stepped) < 0.85 * worst(&plain),
         "worst channel {:.4} against plain rounds' {:.4}",
@@ -51,7 +59,7 @@ fn the_ratio_step_brings_the_albedo_ratio_nearer_the_truth_than_plain_rounds() {
     // With early stopping's held-back observations (the default) a move is also kept only
     // when they are predicted no worse: fewer moves, never a worse fit. Measured: 0.383 →
     // 0.341, held-out 0.1622 → 0.1517.
-    let (plain, stepped) = (
+    let ((plain, _), (stepped, _)) = (
         fit(0, EstimateOptions::default().validation_fraction),
         fit(rounds, EstimateOptions::default().validation_fraction),
     );
