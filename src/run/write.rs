@@ -116,7 +116,7 @@ fn model_report(
             name: fitted.estimate_options.scale_anchor.name().to_string(),
             rule: fitted.est.normalisation.clone(),
         }),
-        ratio_step: (opts.ratio_steps > 0).then(|| crate::report::RatioStepReport {
+        ratio_step: (opts.ratio_steps > 0).then_some(crate::report::RatioStepReport {
             rounds: opts.ratio_steps,
             moves: fitted.est.ratio_moves,
         }),
