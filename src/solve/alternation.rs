@@ -441,9 +441,8 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         self.light.set_params(mixed);
         self.lambda = ratio_step::scaled(&base.lambda, &u, t);
         let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
-        // The held-back observations of early stopping must not get worse either: the
-        // valley's floor under a basis that cannot express the truth (the built-in
-        // example's GGX) need not be the truth's ratios.
+        // The held-back observations of early stopping must not get worse either: a lower
+        // `F` along the valley need not be nearer the truth's ratios (the built-in example).
         let held_ok = {
             let score = |lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
                 let beta = beta_per_vertex(lambda, &self.weights, self.problem.n_vertices);

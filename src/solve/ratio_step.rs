@@ -24,10 +24,9 @@
 //!    not three;
 //! 4. kept when `F` at `t*` is below `F` at `t = 0` and the held-back observations of
 //!    early stopping are predicted no worse, otherwise the round goes on from `t = 0`. The
-//!    second test is there because the valley's floor need not be the truth's ratios when
-//!    the basis cannot express the truth: on the built-in example (GGX, fitted with Phong)
-//!    it took one of two seeds' loss in held-out error under the true light from
-//!    +14.4% to +1.1%.
+//!    second test is there because a lower `F` along the valley need not be nearer the
+//!    truth's ratios: on the built-in example it took one of two seeds' loss in held-out
+//!    error under the true light from +14.4% to +1.1%.
 
 /// Probe step `δ` of the log brightness: 10%, about a third of the weak-channel errors
 /// the step is for (25–47%, `bench-results/albedo-weak-channel.md`) and three times the
