@@ -389,15 +389,12 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             return Ok(());
         };
         for j in 0..ratio_step::directions(kk) {
+            let Some(f) = self.ratio_move(outer_it, j, f0, stop)? else {
+                self.ratio_moves.unsupported += 1;
+                break;
+            };
             self.ratio_moves.tried += 1;
-            match self.ratio_move(outer_it, j, f0, stop)? {
-                Some(f) => f0 = f,
-                None => {
-                    self.ratio_moves.tried -= 1;
-                    self.ratio_moves.unsupported += 1;
-                    break;
-                }
-            }
+            f0 = f;
         }
         Ok(())
     }
@@ -443,7 +440,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
         // The held-back observations of early stopping must not get worse either: a lower
         // `F` along the valley need not be nearer the truth's ratios (the built-in example).
-        let held_ok = {
+        let held_ok = || {
             let score = |lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
                 let beta = beta_per_vertex(lambda, &self.weights, self.problem.n_vertices);
                 stop.peek(self.problem, &self.light.maps(lights), &beta)
@@ -452,7 +449,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             now.zip(score(&base.light, &base.lambda))
                 .is_none_or(|(a, b)| a <= b)
         };
-        if held_ok && ft.iter().sum::<f64>() < f0.iter().sum::<f64>() {
+        // The held-back score only where `F` dropped: two predictions saved on every
+        // rejected move.
+        if ft.iter().sum::<f64>() < f0.iter().sum::<f64>() && held_ok() {
             self.ratio_moves.kept += 1;
             return Ok(Some(ft));
         }

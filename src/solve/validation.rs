@@ -434,10 +434,7 @@ impl<'a, S> EarlyStop<'a, S> {
         outer_it: usize,
         keep: impl FnOnce() -> S,
     ) -> Option<f64> {
-        if !self.is_on() {
-            return None;
-        }
-        let e = validation_error(problem, self.full_obs, maps, beta, self.idx);
+        let e = self.peek(problem, maps, beta)?;
         self.errors.push(e);
         if self
             .best
