@@ -5,7 +5,8 @@
 //! full fit then uses those choices with the paper's light model, the k-means start and
 //! `run`'s outer-iteration cap and tolerance ([`RunOptions`]: 8 and 10⁻³, where the other
 //! rows take the bench's 20 and 10⁻⁵; `ABLATION_DEFAULTS_ITERS=bench` gives it those too); then, as `run` does, the vertices no training
-//! photo sees take their seen neighbours' materials ([`propagate_unseen`]). The map sizes
+//! photo sees take their seen neighbours' materials ([`propagate_unseen`]); the ratio step
+//! runs as `--ratio-steps auto` decides ([`ratio_step::default_rounds`]). The map sizes
 //! stay the bench's (16² / 8²: the pilot's resolution choice, step 5, is the only default
 //! left out).
 
@@ -13,6 +14,7 @@ use crate::synth_case::*;
 use relight_cpc::run::RunOptions;
 use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
 use relight_cpc::solve::materials::propagate::propagate_unseen;
+use relight_cpc::solve::ratio_step;
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
 
 /// The defaults' fit: its estimate over the case's full basis (a dropped lobe's weights
@@ -88,11 +90,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         weights_sum_scope: pilot.weights_sum_scope,
         max_outer,
         rel_tol,
-        // `ABLATION_RATIO_STEPS=N`: `run --ratio-steps N` (bench-results/ratio-step.md).
+        // As `run --ratio-steps auto`, or with `ABLATION_RATIO_STEPS=N` `--ratio-steps N`
+        // (bench-results/ratio-step.md).
         ratio_steps: std::env::var("ABLATION_RATIO_STEPS")
             .ok()
             .and_then(|v| v.parse().ok())
-            .unwrap_or(0),
+            .unwrap_or_else(|| ratio_step::default_rounds(case.train.obs.photo_ranges.len())),
         ..base.clone()
     };
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");

@@ -168,14 +168,15 @@ pub(crate) struct RunArgs {
     pub(crate) min_iterations: usize,
     /// The first N rounds move each material's brightness per channel along the valley
     /// the free maps leave, with the lights re-solved (two more lighting steps a round);
-    /// 0 = off, the paper's alternation.
+    /// 0 = off, the paper's alternation; auto = 8 rounds from 9 training photos on, off
+    /// below.
     #[arg(
         long,
-        default_value_t = relight_cpc::solve::options::RATIO_STEPS,
-        value_name = "N",
+        default_value = "auto",
+        value_name = "auto|N",
         help_heading = "Solver"
     )]
-    pub(crate) ratio_steps: usize,
+    pub(crate) ratio_steps: String,
     /// Starting points to try, the best kept: 1 = materials from colour clusters; 2 adds
     /// every shiny lobe at 0.3 × the matte weight, then one lobe per material in turn.
     /// Each costs one fit.
@@ -365,7 +366,7 @@ impl RunArgs {
         o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;
         o.min_iterations = self.min_iterations;
-        o.ratio_steps = self.ratio_steps;
+        o.ratio_steps = relight_cpc::run::RatioSteps::parse(&self.ratio_steps)?;
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
         o.start_brightness = relight_cpc::run::StartBrightness::parse(&self.start_brightness)?;

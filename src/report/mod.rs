@@ -110,7 +110,7 @@ pub struct ModelReport {
     /// What fixes the per-channel scale between reflectance and light.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale_anchor: Option<ScaleAnchorReport>,
-    /// The ratio step (`--ratio-steps N`), when asked for.
+    /// The ratio step (`--ratio-steps`): whether it ran, why, and what it did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio_step: Option<RatioStepReport>,
 }
@@ -118,8 +118,12 @@ pub struct ModelReport {
 /// The ratio step's rounds and moves ([`crate::solve::ratio_step`]).
 #[derive(Debug, Clone, Serialize, Default, PartialEq, Eq)]
 pub struct RatioStepReport {
-    /// The first rounds that took it (`--ratio-steps`).
+    /// `auto` (the rounds from the training photos' count) or `fixed` (`--ratio-steps N`).
+    pub mode: String,
+    /// The first rounds that took it (0: off).
     pub rounds: usize,
+    /// The fit's training photos (what `auto` decides by).
+    pub training_photos: usize,
     /// What it did.
     #[serde(flatten)]
     pub moves: crate::solve::RatioMoves,

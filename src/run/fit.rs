@@ -76,7 +76,6 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         blend_tolerance: o.blend_tolerance,
         lighting_strata: strata.to_vec(),
         scale_anchor: o.scale_anchor,
-        ratio_steps: o.ratio_steps,
         ..EstimateOptions::default()
     }
 }
@@ -146,7 +145,7 @@ pub(crate) fn fit<'a>(
     let p = prepared;
     let nv = scene.mesh.positions.len();
     let lambert = lambert_of(&p.eff.basis)?;
-    let mut start = FitStart::new(opts, &p, &scene.mesh.positions, lambert)?;
+    let mut start = FitStart::new(opts, &p, &scene.mesh.positions, lambert, train.len())?;
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
     let transients = if p.eff.transients {
@@ -346,16 +345,19 @@ struct FitStart {
 
 impl FitStart {
     /// The clustered start with the pilot's count (or `--materials`, or a count from the
-    /// colours) and the estimator's options, with the neighbour prior's graph when on.
+    /// colours) and the estimator's options, with the ratio step's rounds for
+    /// `training_photos` and the neighbour prior's graph when on.
     fn new(
         opts: &RunOptions,
         p: &Prepared,
         positions: &[crate::Vec3],
         lambert: usize,
+        training_photos: usize,
     ) -> Result<Self> {
         let mut reasons = Vec::new();
         let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
         let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
+        eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos);
         if eopts.weights_smoothness > 0.0 {
             // The neighbour prior's graph: the one the unseen vertices' materials spread over.
             use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};

@@ -48,7 +48,7 @@ mod write;
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    Holdout, LargeMeshSettings, MaterialCount, RunOptions, StartBrightness, WeightsSum,
+    Holdout, LargeMeshSettings, MaterialCount, RatioSteps, RunOptions, StartBrightness, WeightsSum,
     DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;

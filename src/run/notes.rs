@@ -4,19 +4,38 @@
 use super::state::RunLog;
 use super::{Fitted, LargeMeshSettings, RunOptions, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO};
 
-/// What the ratio step (`--ratio-steps`) did, in words.
-fn ratio_note(rounds: usize, m: &crate::solve::result::RatioMoves) -> String {
+/// Whether the ratio step (`--ratio-steps`) ran, why, and what it did, in words.
+fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
+    let rounds = fitted.estimate_options.ratio_steps;
+    let photos = fitted.train.len();
+    let m = &fitted.est.ratio_moves;
+    let min = crate::solve::ratio_step::MIN_PHOTOS;
+    let why = match opts.ratio_steps {
+        super::RatioSteps::Fixed(n) => format!("--ratio-steps {n}"),
+        super::RatioSteps::Auto if rounds > 0 => {
+            format!("--ratio-steps auto: {rounds} rounds with {photos} training photos")
+        }
+        super::RatioSteps::Auto => {
+            return format!("the ratio step did not run: --ratio-steps auto takes it from {min} training photos on and this fit has {photos} (bench-results/ratio-step.md)");
+        }
+    };
+    if rounds == 0 {
+        return format!("the ratio step did not run ({why})");
+    }
     if m.tried == 0 && m.unsupported == 0 {
-        return format!(
-            "the ratio step (--ratio-steps {rounds}) had nothing to move: one material"
-        );
+        return format!("the ratio step ({why}) had nothing to move: one material");
     }
     let what = format!(
-        "the ratio step (--ratio-steps {rounds}) kept {} of {} moves of a material's brightness per channel along the valley the free maps leave (docs/method.md, \"The ratio step\")",
+        "the ratio step ({why}) kept {} of {} moves of a material's brightness per channel along the valley the free maps leave (docs/method.md, \"The ratio step\")",
         m.kept, m.tried
     );
     if m.unsupported > 0 {
         format!("{what}; the light model could not take it in {} rounds (only the paper's free map per photo can)", m.unsupported)
+    } else if let Some(r) = m.stopped_after {
+        format!(
+            "{what}; it stopped after round {r}, when {} rounds in a row had kept no move",
+            crate::solve::ratio_step::PATIENCE
+        )
     } else {
         what
     }
@@ -45,10 +64,7 @@ pub(crate) fn fit_notes(
             opts.lighting_qp_iterations
         ));
     }
-    if opts.ratio_steps > 0 {
-        log.notes
-            .push(ratio_note(opts.ratio_steps, &fitted.est.ratio_moves));
-    }
+    log.notes.push(ratio_note(opts, fitted));
     if multi.starts.len() > 1 {
         log.notes.push(format!(
             "{} starts tried, kept start {} ({}) by the {}: {}",

@@ -53,6 +53,38 @@ impl WeightsSum {
     }
 }
 
+/// The rounds that take the ratio step ([`EstimateOptions::ratio_steps`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RatioSteps {
+    /// [`crate::solve::ratio_step::default_rounds`] of the fit's training photos: the step
+    /// from [`crate::solve::ratio_step::MIN_PHOTOS`] of them on, off below.
+    Auto,
+    /// This many rounds (0 = off, the paper's alternation).
+    Fixed(usize),
+}
+
+impl RatioSteps {
+    /// `auto` or a whole number.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(RatioSteps::Auto),
+            _ => s.parse::<usize>().map(RatioSteps::Fixed).map_err(|_| {
+                Error::Config(format!(
+                    "--ratio-steps {s}: expected auto or a whole number of rounds (0 = off)"
+                ))
+            }),
+        }
+    }
+
+    /// The rounds for a fit on `training_photos` photos.
+    pub fn rounds(self, training_photos: usize) -> usize {
+        match self {
+            RatioSteps::Auto => crate::solve::ratio_step::default_rounds(training_photos),
+            RatioSteps::Fixed(n) => n,
+        }
+    }
+}
+
 /// Which photos are held out.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Holdout {
@@ -131,8 +163,8 @@ pub struct RunOptions {
     /// Early stopping: the first outer iteration at which the patience may stop the
     /// alternation ([`EstimateOptions::min_iterations`]).
     pub min_iterations: usize,
-    /// The first rounds that take the ratio step ([`EstimateOptions::ratio_steps`]); 0 = off.
-    pub ratio_steps: usize,
+    /// The first rounds that take the ratio step ([`EstimateOptions::ratio_steps`]).
+    pub ratio_steps: RatioSteps,
     /// At most this many observations per photo in its lighting QPs, a stratified sample
     /// ([`EstimateOptions::lighting_sample`]); 0 = all.
     pub lighting_sample: usize,
@@ -376,7 +408,7 @@ impl RunOptions {
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::default_patience(),
             min_iterations: crate::solve::options::MIN_ITERATIONS,
-            ratio_steps: crate::solve::options::RATIO_STEPS,
+            ratio_steps: RatioSteps::Auto,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_search: false,
@@ -590,6 +622,24 @@ impl RunOptions {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--ratio-steps`: `auto` follows the photo threshold, a number is taken as given
+    /// (0 included), anything else is refused in words that name the flag and the value.
+    #[test]
+    fn ratio_steps_parse_auto_or_a_count_and_auto_follows_the_photo_threshold() {
+        use crate::solve::ratio_step::{DEFAULT_ROUNDS, MIN_PHOTOS};
+        let auto = RatioSteps::parse("auto").unwrap();
+        assert_eq!(auto, RatioSteps::Auto);
+        assert_eq!(auto.rounds(MIN_PHOTOS - 1), 0);
+        assert_eq!(auto.rounds(MIN_PHOTOS), DEFAULT_ROUNDS);
+        assert_eq!(RatioSteps::parse("0").unwrap().rounds(100), 0);
+        assert_eq!(RatioSteps::parse("3").unwrap().rounds(1), 3);
+        for bad in ["eight", "-1", "2.5", ""] {
+            let err = RatioSteps::parse(bad).unwrap_err().to_string();
+            assert!(err.contains(&format!("--ratio-steps {bad}")), "{err}");
+            assert!(err.contains("expected auto or a whole number"), "{err}");
+        }
+    }
 
     /// `apply` sets the three options and nothing else, each differs from its default (or
     /// the flag would not change it), and `in_effect` needs all three.

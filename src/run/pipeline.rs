@@ -546,11 +546,11 @@ fn adapt(
             normal_grid: opts.normal_grid,
             global_resolution: opts.global_resolution,
             keep: opts.keep,
-            // The pilot holds out its own observations: no early stopping inside it.
+            // The pilot holds out its own observations: no early stopping inside it; and
+            // no ratio step (`estimate_options` leaves it off): the pilot compares models,
+            // it does not converge one.
             estimate: EstimateOptions {
                 validation_fraction: 0.0,
-                // The ratio step is the fit's: the pilot compares models, not converges one.
-                ratio_steps: 0,
                 ..estimate_options(opts, lambert, d.strata)
             },
             mean_rgb: d.mean_rgb,

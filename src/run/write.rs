@@ -116,10 +116,21 @@ fn model_report(
             name: fitted.estimate_options.scale_anchor.name().to_string(),
             rule: fitted.est.normalisation.clone(),
         }),
-        ratio_step: (opts.ratio_steps > 0).then_some(crate::report::RatioStepReport {
-            rounds: opts.ratio_steps,
-            moves: fitted.est.ratio_moves,
-        }),
+        ratio_step: Some(ratio_step_report(opts, fitted)),
+    }
+}
+
+/// The ratio step's mode, its rounds in this fit and what they did.
+fn ratio_step_report(opts: &RunOptions, fitted: &Fitted) -> crate::report::RatioStepReport {
+    crate::report::RatioStepReport {
+        mode: match opts.ratio_steps {
+            super::RatioSteps::Auto => "auto",
+            super::RatioSteps::Fixed(_) => "fixed",
+        }
+        .to_string(),
+        rounds: fitted.estimate_options.ratio_steps,
+        training_photos: fitted.train.len(),
+        moves: fitted.est.ratio_moves,
     }
 }
 

@@ -190,6 +190,8 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     pub(crate) anderson: Option<AndersonHistory>,
     /// The ratio step's record.
     ratio_moves: RatioMoves,
+    /// Rounds in a row in which the ratio step kept no move.
+    ratio_idle: usize,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -220,6 +222,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             ),
             anderson: (opts.anderson_depth > 0).then(|| AndersonHistory::new(opts.anderson_depth)),
             ratio_moves: RatioMoves::default(),
+            ratio_idle: 0,
         }
     }
 
@@ -381,20 +384,32 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         stop: &EarlyStop<BestIterate<M::Params>>,
     ) -> Result<()> {
         let kk = self.lambda.len();
-        if outer_it > self.opts.ratio_steps || ratio_step::directions(kk) == 0 {
+        if outer_it > self.opts.ratio_steps
+            || ratio_step::directions(kk) == 0
+            || self.ratio_moves.stopped_after.is_some()
+        {
             return Ok(());
         }
         let Some(mut f0) = self.channel_objective() else {
             self.ratio_moves.unsupported += 1;
             return Ok(());
         };
+        let kept_before = self.ratio_moves.kept;
         for j in 0..ratio_step::directions(kk) {
             let Some(f) = self.ratio_move(outer_it, j, f0, stop)? else {
                 self.ratio_moves.unsupported += 1;
-                break;
+                return Ok(());
             };
             self.ratio_moves.tried += 1;
             f0 = f;
+        }
+        self.ratio_idle = if self.ratio_moves.kept > kept_before {
+            0
+        } else {
+            self.ratio_idle + 1
+        };
+        if self.ratio_idle >= ratio_step::PATIENCE {
+            self.ratio_moves.stopped_after = Some(outer_it);
         }
         Ok(())
     }

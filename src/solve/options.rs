@@ -309,9 +309,6 @@ pub const PATIENCE: usize = 1;
 /// score), so it stays opt-in (`bench-results/visibility-lattice.md`).
 pub const MIN_ITERATIONS: usize = 1;
 
-/// The first rounds that take the ratio step by default ([`EstimateOptions::ratio_steps`]).
-pub const RATIO_STEPS: usize = 0;
-
 /// Default of [`EstimateOptions::robust_floor`]: IRLS's robust scale is at least 5% of the
 /// photo's RMS radiance in each channel. Against the MAD alone (0), measured on `spot-varying`
 /// (`bench-results/archive/estimator-joint-floor.md`, `estimator-robust-floor.md`,

@@ -175,6 +175,9 @@ pub struct RatioMoves {
     /// Rounds asked for in which the light model could not take the step (its channels
     /// not separable, or its parameters not mixable).
     pub unsupported: usize,
+    /// The round after which the step stopped because [`crate::solve::ratio_step::PATIENCE`]
+    /// rounds in a row kept no move (`None`: it ran every round asked for).
+    pub stopped_after: Option<usize>,
 }
 
 impl Estimate {
