@@ -7,7 +7,8 @@
 //!    [`EstimateOptions::ratio_steps`] rounds then the ratio step
 //!    ([`crate::solve::ratio_step`]: each material's brightness per channel moved along
 //!    the valley with the lights re-solved, kept only when `F` drops and the held-back
-//!    observations are predicted no worse);
+//!    observations are predicted no worse; no more after [`ratio_step::PATIENCE`] rounds
+//!    in a row that kept none);
 //! 2. materials: `λ` then `w` ([`crate::solve::materials`]), `material_sweeps` times, then
 //!    the gauge `Σ_x Σ_b β_{x,b,c}` back to its start value (`fix_gauge`);
 //! 3. extrapolation (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
