@@ -95,7 +95,9 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         ratio_steps: std::env::var("ABLATION_RATIO_STEPS")
             .ok()
             .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| ratio_step::default_rounds(case.train.obs.photo_ranges.len())),
+            .unwrap_or_else(|| {
+                ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials)
+            }),
         ..base.clone()
     };
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");

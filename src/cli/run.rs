@@ -168,8 +168,8 @@ pub(crate) struct RunArgs {
     pub(crate) min_iterations: usize,
     /// The first N rounds move each material's brightness per channel along the valley
     /// the free maps leave, with the lights re-solved (two more lighting steps a round);
-    /// 0 = off, the paper's alternation; auto = 8 rounds from 9 training photos on, off
-    /// below.
+    /// 0 = off, the paper's alternation; auto = 8 rounds from 9 training photos on with
+    /// up to 4 materials, else off.
     #[arg(
         long,
         default_value = "auto",

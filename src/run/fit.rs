@@ -346,7 +346,7 @@ struct FitStart {
 impl FitStart {
     /// The clustered start with the pilot's count (or `--materials`, or a count from the
     /// colours) and the estimator's options, with the ratio step's rounds for
-    /// `training_photos` and the neighbour prior's graph when on.
+    /// `training_photos` and the start's materials, and the neighbour prior's graph when on.
     fn new(
         opts: &RunOptions,
         p: &Prepared,
@@ -357,7 +357,7 @@ impl FitStart {
         let mut reasons = Vec::new();
         let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
         let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
-        eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos);
+        eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos, init.albedo.len());
         if eopts.weights_smoothness > 0.0 {
             // The neighbour prior's graph: the one the unseen vertices' materials spread over.
             use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};

@@ -16,7 +16,9 @@ fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
             format!("--ratio-steps auto: {rounds} rounds with {photos} training photos")
         }
         super::RatioSteps::Auto => {
-            return format!("the ratio step did not run: --ratio-steps auto takes it from {min} training photos on and this fit has {photos} (bench-results/ratio-step.md)");
+            let max = crate::solve::ratio_step::MAX_MATERIALS;
+            let k = fitted.est.lambda.len();
+            return format!("the ratio step did not run: --ratio-steps auto takes it from {min} training photos on and up to {max} materials, and this fit has {photos} photos and {k} materials (bench-results/ratio-step.md)");
         }
     };
     if rounds == 0 {

@@ -56,8 +56,9 @@ impl WeightsSum {
 /// The rounds that take the ratio step ([`EstimateOptions::ratio_steps`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RatioSteps {
-    /// [`crate::solve::ratio_step::default_rounds`] of the fit's training photos: the step
-    /// from [`crate::solve::ratio_step::MIN_PHOTOS`] of them on, off below.
+    /// [`crate::solve::ratio_step::default_rounds`] of the fit's training photos and
+    /// materials: the step from [`crate::solve::ratio_step::MIN_PHOTOS`] photos on, up to
+    /// [`crate::solve::ratio_step::MAX_MATERIALS`] materials.
     Auto,
     /// This many rounds (0 = off, the paper's alternation).
     Fixed(usize),
@@ -76,10 +77,12 @@ impl RatioSteps {
         }
     }
 
-    /// The rounds for a fit on `training_photos` photos.
-    pub fn rounds(self, training_photos: usize) -> usize {
+    /// The rounds for a fit of `materials` materials on `training_photos` photos.
+    pub fn rounds(self, training_photos: usize, materials: usize) -> usize {
         match self {
-            RatioSteps::Auto => crate::solve::ratio_step::default_rounds(training_photos),
+            RatioSteps::Auto => {
+                crate::solve::ratio_step::default_rounds(training_photos, materials)
+            }
             RatioSteps::Fixed(n) => n,
         }
     }
@@ -623,17 +626,19 @@ impl RunOptions {
 mod tests {
     use super::*;
 
-    /// `--ratio-steps`: `auto` follows the photo threshold, a number is taken as given
-    /// (0 included), anything else is refused in words that name the flag and the value.
+    /// `--ratio-steps`: `auto` follows the photo threshold and the material bound, a number
+    /// is taken as given (0 included), anything else is refused in words that name the flag
+    /// and the value.
     #[test]
-    fn ratio_steps_parse_auto_or_a_count_and_auto_follows_the_photo_threshold() {
-        use crate::solve::ratio_step::{DEFAULT_ROUNDS, MIN_PHOTOS};
+    fn ratio_steps_parse_auto_or_a_count_and_auto_follows_the_photo_and_material_bounds() {
+        use crate::solve::ratio_step::{DEFAULT_ROUNDS, MAX_MATERIALS, MIN_PHOTOS};
         let auto = RatioSteps::parse("auto").unwrap();
         assert_eq!(auto, RatioSteps::Auto);
-        assert_eq!(auto.rounds(MIN_PHOTOS - 1), 0);
-        assert_eq!(auto.rounds(MIN_PHOTOS), DEFAULT_ROUNDS);
-        assert_eq!(RatioSteps::parse("0").unwrap().rounds(100), 0);
-        assert_eq!(RatioSteps::parse("3").unwrap().rounds(1), 3);
+        assert_eq!(auto.rounds(MIN_PHOTOS - 1, 2), 0);
+        assert_eq!(auto.rounds(MIN_PHOTOS, 2), DEFAULT_ROUNDS);
+        assert_eq!(auto.rounds(MIN_PHOTOS, MAX_MATERIALS + 1), 0);
+        assert_eq!(RatioSteps::parse("0").unwrap().rounds(100, 2), 0);
+        assert_eq!(RatioSteps::parse("3").unwrap().rounds(1, 6), 3);
         for bad in ["eight", "-1", "2.5", ""] {
             let err = RatioSteps::parse(bad).unwrap_err().to_string();
             assert!(err.contains(&format!("--ratio-steps {bad}")), "{err}");

@@ -43,10 +43,20 @@ pub const DEFAULT_ROUNDS: usize = 8;
 /// still cost ~10% of a small run's CPU (`bench-results/ratio-step.md`).
 pub const MIN_PHOTOS: usize = 9;
 
-/// The rounds `run --ratio-steps auto` takes with `training_photos` training photos:
-/// [`DEFAULT_ROUNDS`] from [`MIN_PHOTOS`] on, none below.
-pub fn default_rounds(training_photos: usize) -> usize {
-    if training_photos >= MIN_PHOTOS {
+/// Materials up to which `run` takes the step by default ([`default_rounds`]). A round
+/// tries one direction per material (two lighting steps each) and the patience stops the
+/// step only after two rounds, so its least cost grows with `K`: with the paper's six
+/// Minerva materials (10K vertices × 13 photos, the Pareto sweep's defaults) its first two
+/// rounds kept none of 12 moves and took the estimate from 11.4 to 43.4 s, the run from
+/// 34.4 to 70.6 s. Its gains were measured with 2 to 4 materials
+/// (`bench-results/ratio-step.md`).
+pub const MAX_MATERIALS: usize = 4;
+
+/// The rounds `run --ratio-steps auto` takes with `training_photos` training photos and
+/// `materials` materials: [`DEFAULT_ROUNDS`] from [`MIN_PHOTOS`] photos on and up to
+/// [`MAX_MATERIALS`] materials, none otherwise.
+pub fn default_rounds(training_photos: usize, materials: usize) -> usize {
+    if training_photos >= MIN_PHOTOS && materials <= MAX_MATERIALS {
         DEFAULT_ROUNDS
     } else {
         0
@@ -132,11 +142,15 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_default_takes_the_step_from_the_photo_threshold_on() {
-        assert_eq!(default_rounds(0), 0);
-        assert_eq!(default_rounds(MIN_PHOTOS - 1), 0);
-        assert_eq!(default_rounds(MIN_PHOTOS), DEFAULT_ROUNDS);
-        assert_eq!(default_rounds(10 * MIN_PHOTOS), DEFAULT_ROUNDS);
+    fn the_default_takes_the_step_from_the_photo_threshold_on_up_to_the_material_bound() {
+        assert_eq!(default_rounds(0, 2), 0);
+        assert_eq!(default_rounds(MIN_PHOTOS - 1, 2), 0);
+        assert_eq!(default_rounds(MIN_PHOTOS, 2), DEFAULT_ROUNDS);
+        assert_eq!(
+            default_rounds(10 * MIN_PHOTOS, MAX_MATERIALS),
+            DEFAULT_ROUNDS
+        );
+        assert_eq!(default_rounds(10 * MIN_PHOTOS, MAX_MATERIALS + 1), 0);
     }
 
     #[test]
