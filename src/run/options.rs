@@ -20,6 +20,17 @@ pub enum MaterialCount {
     Fixed(usize),
 }
 
+/// A flag's value that is `auto` (`None`) or a `T`; anything else is an error naming the
+/// flag, the value and `what` a value must be.
+fn parse_auto_or<T: std::str::FromStr>(s: &str, flag: &str, what: &str) -> Result<Option<T>> {
+    if s == "auto" {
+        return Ok(None);
+    }
+    s.parse()
+        .map(Some)
+        .map_err(|_| Error::Config(format!("{flag} {s}: expected auto or {what}")))
+}
+
 /// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WeightsSum {
@@ -34,14 +45,12 @@ pub enum WeightsSum {
 impl WeightsSum {
     /// `auto` or a number (checked by [`RunOptions::check`]).
     pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "auto" => Ok(WeightsSum::Auto),
-            _ => s.parse::<f64>().map(WeightsSum::Fixed).map_err(|_| {
-                Error::Config(format!(
-                    "--weights-sum {s}: expected auto or a number ≥ 0 (0 = free weights)"
-                ))
-            }),
-        }
+        Ok(
+            match parse_auto_or(s, "--weights-sum", "a number ≥ 0 (0 = free weights)")? {
+                None => WeightsSum::Auto,
+                Some(v) => WeightsSum::Fixed(v),
+            },
+        )
     }
 
     /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
@@ -67,13 +76,19 @@ pub enum RatioSteps {
 impl RatioSteps {
     /// `auto` or a whole number.
     pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "auto" => Ok(RatioSteps::Auto),
-            _ => s.parse::<usize>().map(RatioSteps::Fixed).map_err(|_| {
-                Error::Config(format!(
-                    "--ratio-steps {s}: expected auto or a whole number of rounds (0 = off)"
-                ))
-            }),
+        Ok(
+            match parse_auto_or(s, "--ratio-steps", "a whole number of rounds (0 = off)")? {
+                None => RatioSteps::Auto,
+                Some(n) => RatioSteps::Fixed(n),
+            },
+        )
+    }
+
+    /// `auto` or `fixed`, as the report names the mode.
+    pub fn mode(self) -> &'static str {
+        match self {
+            RatioSteps::Auto => "auto",
+            RatioSteps::Fixed(_) => "fixed",
         }
     }
 

@@ -123,11 +123,7 @@ fn model_report(
 /// The ratio step's mode, its rounds in this fit and what they did.
 fn ratio_step_report(opts: &RunOptions, fitted: &Fitted) -> crate::report::RatioStepReport {
     crate::report::RatioStepReport {
-        mode: match opts.ratio_steps {
-            super::RatioSteps::Auto => "auto",
-            super::RatioSteps::Fixed(_) => "fixed",
-        }
-        .to_string(),
+        mode: opts.ratio_steps.mode().to_string(),
         rounds: fitted.estimate_options.ratio_steps,
         training_photos: fitted.train.len(),
         moves: fitted.est.ratio_moves,
