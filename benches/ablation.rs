@@ -48,10 +48,12 @@
 //! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`, `ABLATION_K1_ITERS` for `k1`),
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
 //! of `run`'s, `ablation/defaults.rs`), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
-//! `run --ratio-steps N`), `ABLATION_SEARCH`,
+//! `run --ratio-steps N`), `ABLATION_DEFAULTS_PATIENCE=N` (the `defaults` row with
+//! `run --patience N`), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
+//! `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
@@ -692,7 +694,12 @@ fn main() {
         {
             continue;
         }
-        let mut case = prepare(scene, s, 1, &format!("ablation-{scene}"));
+        let mut case = prepare(
+            scene,
+            s,
+            env_usize("ABLATION_SEED", 1) as u64,
+            &format!("ablation-{scene}"),
+        );
         eprintln!(
             "{scene}: {:.1} + {:.1} s, {} vertices, {} / {} observations",
             case.seconds_synth,
