@@ -1,0 +1,140 @@
+//! The values of `run`'s flags that are more than a number: `auto` or a value, or a choice
+//! among named cases; each parse error is a plain [`Error::Config`] naming the flag.
+
+use crate::{Error, Result};
+
+/// How many materials to fit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MaterialCount {
+    /// Choose from the data: with [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), the smallest count within
+    /// [`crate::solve::adapt::MATERIAL_TOL`] of the best held-out error of a pilot fit
+    /// ([`crate::solve::adapt`]); without it, the
+    /// smallest count whose k-means clustering of the hue features leaves little
+    /// unexplained (see [`choose_material_count`](crate::run::choose_material_count)).
+    Auto,
+    /// Exactly this many.
+    Fixed(usize),
+}
+
+/// A flag's value that is `auto` (`None`) or a `T`; anything else is an error naming the
+/// flag, the value and `what` a value must be.
+fn parse_auto_or<T: std::str::FromStr>(s: &str, flag: &str, what: &str) -> Result<Option<T>> {
+    if s == "auto" {
+        return Ok(None);
+    }
+    s.parse()
+        .map(Some)
+        .map_err(|_| Error::Config(format!("{flag} {s}: expected auto or {what}")))
+}
+
+/// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`](crate::solve::EstimateOptions::weights_sum)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WeightsSum {
+    /// With [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), the pilot's choice between free weights (the paper)
+    /// and [`crate::solve::adapt::PILOT_WEIGHTS_SUM`] by held-out error
+    /// ([`crate::solve::adapt`], step 3); without it, free weights.
+    Auto,
+    /// This strength (0 = free weights, as the paper).
+    Fixed(f64),
+}
+
+impl WeightsSum {
+    /// `auto` or a number (checked by [`RunOptions::check`](crate::run::RunOptions::check)).
+    pub fn parse(s: &str) -> Result<Self> {
+        Ok(
+            match parse_auto_or(s, "--weights-sum", "a number ≥ 0 (0 = free weights)")? {
+                None => WeightsSum::Auto,
+                Some(v) => WeightsSum::Fixed(v),
+            },
+        )
+    }
+
+    /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
+    pub fn value(self) -> f64 {
+        match self {
+            WeightsSum::Auto => 0.0,
+            WeightsSum::Fixed(v) => v,
+        }
+    }
+}
+
+/// The rounds that take the ratio step ([`EstimateOptions::ratio_steps`](crate::solve::EstimateOptions::ratio_steps)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RatioSteps {
+    /// [`crate::solve::ratio_step::default_rounds`] of the fit's training photos and
+    /// materials: the step from [`crate::solve::ratio_step::MIN_PHOTOS`] photos on, up to
+    /// [`crate::solve::ratio_step::MAX_MATERIALS`] materials.
+    Auto,
+    /// This many rounds (0 = off, the paper's alternation).
+    Fixed(usize),
+}
+
+impl RatioSteps {
+    /// `auto` or a whole number.
+    pub fn parse(s: &str) -> Result<Self> {
+        Ok(
+            match parse_auto_or(s, "--ratio-steps", "a whole number of rounds (0 = off)")? {
+                None => RatioSteps::Auto,
+                Some(n) => RatioSteps::Fixed(n),
+            },
+        )
+    }
+
+    /// `auto` or `fixed`, as the report names the mode.
+    pub fn mode(self) -> &'static str {
+        match self {
+            RatioSteps::Auto => "auto",
+            RatioSteps::Fixed(_) => "fixed",
+        }
+    }
+
+    /// The rounds for a fit of `materials` materials on `training_photos` photos.
+    pub fn rounds(self, training_photos: usize, materials: usize) -> usize {
+        match self {
+            RatioSteps::Auto => {
+                crate::solve::ratio_step::default_rounds(training_photos, materials)
+            }
+            RatioSteps::Fixed(n) => n,
+        }
+    }
+}
+
+/// Which photos are held out.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Holdout {
+    /// The workspace's `truth/manifest.json` list when present, else every 5th registered
+    /// photo, at least one ([`default_holdout`](crate::run::default_holdout)).
+    #[default]
+    Default,
+    /// No photo.
+    None,
+    /// These image names.
+    Names(Vec<String>),
+    /// Every N-th registered photo (by name order), starting with the N-th.
+    Every(usize),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--ratio-steps`: `auto` follows the photo threshold and the material bound, a number
+    /// is taken as given (0 included), anything else is refused in words that name the flag
+    /// and the value.
+    #[test]
+    fn ratio_steps_parse_auto_or_a_count_and_auto_follows_the_photo_and_material_bounds() {
+        use crate::solve::ratio_step::{DEFAULT_ROUNDS, MAX_MATERIALS, MIN_PHOTOS};
+        let auto = RatioSteps::parse("auto").unwrap();
+        assert_eq!(auto, RatioSteps::Auto);
+        assert_eq!(auto.rounds(MIN_PHOTOS - 1, 2), 0);
+        assert_eq!(auto.rounds(MIN_PHOTOS, 2), DEFAULT_ROUNDS);
+        assert_eq!(auto.rounds(MIN_PHOTOS, MAX_MATERIALS + 1), 0);
+        assert_eq!(RatioSteps::parse("0").unwrap().rounds(100, 2), 0);
+        assert_eq!(RatioSteps::parse("3").unwrap().rounds(1, 6), 3);
+        for bad in ["eight", "-1", "2.5", ""] {
+            let err = RatioSteps::parse(bad).unwrap_err().to_string();
+            assert!(err.contains(&format!("--ratio-steps {bad}")), "{err}");
+            assert!(err.contains("expected auto or a whole number"), "{err}");
+        }
+    }
+}
