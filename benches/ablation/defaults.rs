@@ -91,19 +91,14 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         weights_sum: pilot.weights_sum,
         weights_sum_scope: pilot.weights_sum_scope,
         max_outer,
-        patience: std::env::var("ABLATION_DEFAULTS_PATIENCE")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(RunOptions::default_patience),
+        patience: crate::env_usize("ABLATION_DEFAULTS_PATIENCE", RunOptions::default_patience()),
         rel_tol,
         // As `run --ratio-steps auto`, or with `ABLATION_RATIO_STEPS=N` `--ratio-steps N`
         // (bench-results/ratio-step.md).
-        ratio_steps: std::env::var("ABLATION_RATIO_STEPS")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or_else(|| {
-                ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials)
-            }),
+        ratio_steps: crate::env_usize(
+            "ABLATION_RATIO_STEPS",
+            ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials),
+        ),
         ..base.clone()
     };
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");
