@@ -7,7 +7,7 @@
 //! rows take the bench's 20 and 10⁻⁵; `ABLATION_DEFAULTS_ITERS=bench` gives it those too); then, as `run` does, the vertices no training
 //! photo sees take their seen neighbours' materials ([`propagate_unseen`]); the ratio step
 //! runs as `--ratio-steps auto` decides ([`ratio_step::default_rounds`]), and early stopping
-//! has `run`'s patience ([`RunOptions::default_patience`]; `ABLATION_DEFAULTS_PATIENCE=N`
+//! has `run`'s patience ([`RunOptions::DEFAULT_PATIENCE`]; `ABLATION_DEFAULTS_PATIENCE=N`
 //! gives it `run --patience N`). The map sizes
 //! stay the bench's (16² / 8²: the pilot's resolution choice, step 5, is the only default
 //! left out).
@@ -91,7 +91,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         weights_sum: pilot.weights_sum,
         weights_sum_scope: pilot.weights_sum_scope,
         max_outer,
-        patience: crate::env_usize("ABLATION_DEFAULTS_PATIENCE", RunOptions::default_patience()),
+        patience: crate::env_usize("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
         rel_tol,
         // As `run --ratio-steps auto`, or with `ABLATION_RATIO_STEPS=N` `--ratio-steps N`
         // (bench-results/ratio-step.md).

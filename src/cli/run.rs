@@ -154,7 +154,7 @@ pub(crate) struct RunArgs {
     /// Stop after this many rounds without a better score on the held-back observations.
     #[arg(
         long,
-        default_value_t = relight_cpc::run::RunOptions::default_patience(),
+        default_value_t = relight_cpc::run::RunOptions::DEFAULT_PATIENCE,
         help_heading = "Solver"
     )]
     pub(crate) patience: usize,

@@ -198,12 +198,9 @@ impl RunOptions {
     pub fn default_lighting_cg_iterations() -> usize {
         EstimateOptions::default().alternation_cg_iters.unwrap_or(0)
     }
-    /// Default of [`RunOptions::patience`]: [`Self::DEFAULT_PATIENCE`].
-    pub fn default_patience() -> usize {
-        Self::DEFAULT_PATIENCE
-    }
-    /// Outer rounds without a better validation score after which `run` stops the fit: 3,
-    /// where the estimator's own default is 1 ([`EstimateOptions::patience`]). The held-back
+    /// Default of [`RunOptions::patience`]: outer rounds without a better validation score
+    /// after which `run` stops the fit: 3, where the estimator's own default is 1
+    /// ([`EstimateOptions::patience`]). The held-back
     /// score can rise for a round or two and then fall below its best: in the light-model
     /// ablation's `defaults` row (`bench-results/ratio-step-directions.md`, section 4) the
     /// diffuse scene stopped at round 6 (synth seed 1) and 4 (seed 2) with patience 1, and
@@ -249,7 +246,7 @@ impl RunOptions {
             irls_iterations: 3,
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
-            patience: Self::default_patience(),
+            patience: Self::DEFAULT_PATIENCE,
             min_iterations: crate::solve::options::MIN_ITERATIONS,
             ratio_steps: RatioSteps::Auto,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
