@@ -10,6 +10,19 @@ fn fmt_ratio(v: f64, floor: f64, clean: bool) -> String {
     }
 }
 
+/// Per-material figures (albedo ratio errors, material accuracy) `v` at `prec` decimals, or
+/// "–" where they are undefined: a fit with another material count than the truth's has no
+/// material-by-material match (`figures` leaves them NaN).
+fn fmt_matched(v: &[f64], prec: usize) -> String {
+    if v.iter().any(|x| x.is_nan()) {
+        return "– (K ≠ truth's)".to_string();
+    }
+    v.iter()
+        .map(|x| format!("{x:.prec$}"))
+        .collect::<Vec<_>>()
+        .join(" / ")
+}
+
 pub fn table(md: &mut String, done: &[Done], fl: &Floors, clean: bool, k_true: usize) {
     md.push_str(&format!(
         "Floors: held-out (half protocol, true reflectance) {:.4}; relit (true reflectance under the unseen maps) {:.4}.\n\n",
@@ -30,16 +43,13 @@ pub fn table(md: &mut String, done: &[Done], fl: &Floors, clean: bool, k_true: u
             )
         });
         md.push_str(&format!(
-            "| {} | {} | {} | {:.4} | {:.3} / {:.3} / {:.3} | {:.4} / {:.4} | {k} | {:.4} | {} | {:.0} |\n",
+            "| {} | {} | {} | {:.4} | {} | {} | {k} | {:.4} | {} | {:.0} |\n",
             d.label,
             fmt_ratio(f.heldout, f.heldout_floor, clean),
             fmt_ratio(f.relit, f.relit_floor, clean),
             f.relit_model,
-            f.ratio_errors[0],
-            f.ratio_errors[1],
-            f.ratio_errors[2],
-            f.assignment,
-            f.assignment_pure,
+            fmt_matched(&f.ratio_errors, 3),
+            fmt_matched(&[f.assignment, f.assignment_pure], 4),
             f.train_rel,
             f.iterations,
             f.seconds
