@@ -24,6 +24,7 @@
 //! run never leaves a folder that looks finished.
 
 mod baseline;
+mod decisions;
 mod evaluate;
 mod example;
 mod fit;
@@ -60,7 +61,7 @@ use crate::observe::trace::SceneBvh;
 use crate::observe::Observations;
 use crate::report::RunReport;
 use crate::solve::cluster::initial_materials;
-use crate::solve::{self, EstimateOptions, SumScope};
+use crate::solve::{self, EstimateOptions};
 use crate::sphere::rotation::Rotation;
 use crate::transport::brdf::BasisBrdf;
 use crate::transport::visibility;
@@ -389,127 +390,6 @@ fn train_errors(
             }
         })
         .collect()
-}
-
-/// The adaptive model's decisions from the pilot's `outcome` (crate::solve::adapt steps 3–5),
-/// applied to `eff`.
-fn adaptive_decisions(
-    opts: &RunOptions,
-    outcome: &crate::solve::adapt::PilotOutcome,
-    vis: &visibility::Visibility,
-    nv: usize,
-    eff: &mut RunOptions,
-) -> Vec<crate::solve::adapt::Decision> {
-    use crate::solve::adapt::Decision;
-    let mut d = Vec::new();
-    let full_k = match opts.materials {
-        MaterialCount::Fixed(k) => k.to_string(),
-        MaterialCount::Auto => "auto".to_string(),
-    };
-    d.push(Decision {
-        what: "materials".into(),
-        full: full_k,
-        chosen: outcome.materials.to_string(),
-        reason: outcome.materials_reason.clone(),
-    });
-    if let Some(why) = &outcome.weights_sum_reason {
-        eff.weights_sum = WeightsSum::Fixed(outcome.weights_sum);
-        eff.weights_sum_scope = outcome.weights_sum_scope;
-        let on_blends = matches!(outcome.weights_sum_scope, SumScope::Blends { .. });
-        d.push(Decision {
-            what: "weights_sum".into(),
-            full: "auto".into(),
-            chosen: if on_blends {
-                format!("{} on blended vertices", outcome.weights_sum)
-            } else {
-                outcome.weights_sum.to_string()
-            },
-            reason: why.clone(),
-        });
-    }
-    if let Some(why) = &outcome.start_reason {
-        eff.start_brightness = outcome.start;
-        d.push(Decision {
-            what: "start_brightness".into(),
-            full: StartBrightness::Auto.name().into(),
-            chosen: outcome.start.name().into(),
-            reason: why.clone(),
-        });
-    }
-    eff.basis = outcome.kept.iter().map(|&b| opts.basis[b]).collect();
-    let labels = |b: &[BasisBrdf]| b.iter().map(|x| x.label()).collect::<Vec<_>>().join(",");
-    d.push(Decision {
-        what: "basis".into(),
-        full: labels(&opts.basis),
-        chosen: labels(&eff.basis),
-        reason: outcome.basis_reason.clone(),
-    });
-    let shadowed = vis.open_count() < nv;
-    let (g, why) =
-        crate::solve::adapt::global_resolution_for(&eff.basis, opts.global_resolution, shadowed);
-    eff.global_resolution = g;
-    d.push(Decision {
-        what: "global_resolution".into(),
-        full: opts.global_resolution.to_string(),
-        chosen: g.to_string(),
-        reason: why,
-    });
-    let (l, why) = crate::solve::adapt::local_resolution_for(g, opts.local_resolution);
-    eff.local_resolution = l;
-    d.push(Decision {
-        what: "local_resolution".into(),
-        full: opts.local_resolution.to_string(),
-        chosen: l.to_string(),
-        reason: why,
-    });
-    let cap = g * g;
-    let keep = if opts.keep == 0 || opts.keep > cap {
-        cap
-    } else {
-        opts.keep
-    };
-    eff.keep = keep;
-    d.push(Decision {
-        what: "keep".into(),
-        full: opts.keep.to_string(),
-        chosen: keep.to_string(),
-        reason: format!(
-            "{keep} of the {cap} Haar coefficients of a {g}² map per transport row ({:.0}%){}",
-            100.0 * keep as f64 / cap as f64,
-            if keep == opts.keep {
-                ", as requested".to_string()
-            } else {
-                ": the budget cannot exceed the map's coefficient count".to_string()
-            }
-        ),
-    });
-    // Conditioning (issue 8: use the condition numbers the solver sees): a lighting system
-    // beyond KAPPA_LIGHTING is regularised harder.
-    use crate::solve::adapt::KAPPA_LIGHTING;
-    if outcome.kappa_lighting > KAPPA_LIGHTING && opts.smoothness < 1e-4 {
-        eff.smoothness = 1e-4;
-        d.push(Decision {
-            what: "smoothness".into(),
-            full: format!("{:e}", opts.smoothness),
-            chosen: "1e-4".into(),
-            reason: format!(
-                "the pilot's lighting systems have condition number ≥ {:.1e} > {KAPPA_LIGHTING:.0e}: the Laplacian prior is raised to 1e-4 so the map directions the photos do not constrain are filled smoothly instead of by rounding",
-                outcome.kappa_lighting
-            ),
-        });
-    } else {
-        d.push(Decision {
-            what: "smoothness".into(),
-            full: format!("{:e}", opts.smoothness),
-            chosen: format!("{:e}", opts.smoothness),
-            reason: format!(
-                "the pilot's lighting condition number bound is {:.1e} (≤ {KAPPA_LIGHTING:.0e} or the prior is already ≥ 1e-4) and its λ systems' {:.1e}: no change",
-                outcome.kappa_lighting,
-                outcome.kappa_lambda.iter().copied().fold(0.0, f64::max)
-            ),
-        });
-    }
-    d
 }
 
 /// The condition numbers of the report, by name.

@@ -16,8 +16,8 @@ use super::shading::{self, render_local_resolution};
 use super::state::{Evaluated, Imported, Observed, Prepared, RunLog};
 use super::truth::Truth;
 use super::{
-    adaptive_decisions, env_from_world, estimate_up, holdout_rule, holdout_views, mean_colours,
-    Holdout, LargeMeshSettings, MaterialCount, Progress, RunOptions, LARGE_MESH,
+    decisions::adaptive_decisions, env_from_world, estimate_up, holdout_rule, holdout_views,
+    mean_colours, Holdout, LargeMeshSettings, MaterialCount, Progress, RunOptions, LARGE_MESH,
 };
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
