@@ -216,69 +216,25 @@ impl Fitter<'_> {
 /// The pilot fit (module docs, steps 2–4).
 pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     let t0 = std::time::Instant::now();
-    let g = PILOT_GLOBAL.min(inp.global_resolution);
-    let l = PILOT_LOCAL.min(inp.vis.n_local);
-    // The run traces at the pilot's side first: then the visibility is read as it is.
-    let vis = downsample_visibility(inp.vis, l);
-    let rot = Rotation::new(g, l, inp.normal_grid.min(16), RotationForm::Factored);
-    let topts = TransportOptions {
-        n_global: g,
-        n_local: l,
-        keep: if inp.keep == 0 {
-            g * g / 2
-        } else {
-            inp.keep.min(g * g / 2)
-        },
-    };
-    let PilotView { obs, seen, note } =
-        PilotView::new(inp.obs, inp.seen, inp.max_vertices, inp.seed);
-    let (split, held) = holdout_split(&obs, inp.seed);
-    let count_held = count_scored(&split, &held, inp.normals_env.len());
-    let tr = transport::build(
-        inp.normals_env,
-        &split,
-        inp.env_from_world,
-        &vis,
-        inp.basis,
-        &rot,
-        &topts,
-    )?;
-    let open = vis.open_fractions();
+    let data = PilotData::new(inp)?;
     let fitter = Fitter {
-        open: &open,
+        open: &data.open,
         matched: std::cell::Cell::new(inp.start == StartBrightness::Matched),
         inp,
-        obs: &obs,
-        seen: &seen,
+        obs: &data.view.obs,
+        seen: &data.view.seen,
         problem: Problem {
-            obs: &split,
-            transport: &tr,
+            obs: &data.split,
+            transport: &data.tr,
             n_vertices: inp.normals_env.len(),
-            n_photos: split.photo_ranges.len(),
+            n_photos: data.split.photo_ranges.len(),
         },
-        held: &held,
-        count_held: &count_held,
-        eopts: EstimateOptions {
-            max_outer: PILOT_ITERATIONS,
-            rel_tol: 0.0,
-            robust: Robust::None,
-            irls_iters: 1,
-            lambert_basis: inp.lambert,
-            alternation_cg_iters: Some(PILOT_CG_ITERS),
-            alternation_qp_iters: Some(
-                inp.estimate
-                    .alternation_qp_iters
-                    .map_or(PILOT_QP_ITERS, |q| q.min(PILOT_QP_ITERS)),
-            ),
-            lighting_sample: match inp.estimate.lighting_sample {
-                0 => PILOT_LIGHTING_SAMPLE,
-                n => n.min(PILOT_LIGHTING_SAMPLE),
-            },
-            ..inp.estimate.clone()
-        },
+        held: &data.held,
+        count_held: &data.count_held,
+        eopts: pilot_options(inp),
     };
-    let mut count = material_count(&fitter, g)?;
-    if let Some(note) = &note {
+    let mut count = material_count(&fitter, data.g)?;
+    if let Some(note) = &data.view.note {
         count.reason += note;
     }
     let (chosen, weights_sum_reason) = if inp.choose_weights_sum {
@@ -295,13 +251,6 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
     };
     let bases = basis_choice(&fitter, count.k, &chosen)?;
     let est = &chosen.est;
-    let kappa_lighting = est
-        .conditioning
-        .lighting
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
     Ok(PilotOutcome {
         materials: count.k,
         materials_reason: count.reason,
@@ -310,7 +259,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         shares: bases.shares,
         basis_reason: bases.reason,
         kappa_lambda: est.conditioning.lambda,
-        kappa_lighting,
+        kappa_lighting: largest_finite(&est.conditioning.lighting),
         seconds: t0.elapsed().as_secs_f64(),
         weights_sum: chosen.prior.strength,
         weights_sum_scope: chosen.prior.scope,
@@ -322,6 +271,94 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         },
         start_reason,
     })
+}
+
+/// What every pilot fit reads (step 2): the pilot's vertices and observations, their
+/// held-out split, and the transport at the pilot's map sides.
+struct PilotData<'a> {
+    /// The global side, `≤` [`PILOT_GLOBAL`].
+    g: usize,
+    view: PilotView<'a>,
+    /// The training half of the split and the held-out observations.
+    split: Observations,
+    held: Vec<usize>,
+    /// The held-out observations the material count is scored on ([`count_scored`]).
+    count_held: Vec<usize>,
+    tr: Transport,
+    /// Visible fraction of every vertex's hemisphere at the pilot's local side.
+    open: Vec<f64>,
+}
+
+impl<'a> PilotData<'a> {
+    fn new(inp: &PilotInput<'a>) -> Result<Self> {
+        let g = PILOT_GLOBAL.min(inp.global_resolution);
+        let l = PILOT_LOCAL.min(inp.vis.n_local);
+        // The run traces at the pilot's side first: then the visibility is read as it is.
+        let vis = downsample_visibility(inp.vis, l);
+        let rot = Rotation::new(g, l, inp.normal_grid.min(16), RotationForm::Factored);
+        let topts = TransportOptions {
+            n_global: g,
+            n_local: l,
+            keep: if inp.keep == 0 {
+                g * g / 2
+            } else {
+                inp.keep.min(g * g / 2)
+            },
+        };
+        let view = PilotView::new(inp.obs, inp.seen, inp.max_vertices, inp.seed);
+        let (split, held) = holdout_split(&view.obs, inp.seed);
+        let count_held = count_scored(&split, &held, inp.normals_env.len());
+        let tr = transport::build(
+            inp.normals_env,
+            &split,
+            inp.env_from_world,
+            &vis,
+            inp.basis,
+            &rot,
+            &topts,
+        )?;
+        Ok(PilotData {
+            g,
+            view,
+            split,
+            held,
+            count_held,
+            tr,
+            open: vis.open_fractions(),
+        })
+    }
+}
+
+/// The estimator's options for a pilot fit: the run's, cut to [`PILOT_ITERATIONS`] outer
+/// iterations without the robust loss, with the pilot's solver caps and lighting sample.
+fn pilot_options(inp: &PilotInput) -> EstimateOptions {
+    EstimateOptions {
+        max_outer: PILOT_ITERATIONS,
+        rel_tol: 0.0,
+        robust: Robust::None,
+        irls_iters: 1,
+        lambert_basis: inp.lambert,
+        alternation_cg_iters: Some(PILOT_CG_ITERS),
+        alternation_qp_iters: Some(
+            inp.estimate
+                .alternation_qp_iters
+                .map_or(PILOT_QP_ITERS, |q| q.min(PILOT_QP_ITERS)),
+        ),
+        lighting_sample: match inp.estimate.lighting_sample {
+            0 => PILOT_LIGHTING_SAMPLE,
+            n => n.min(PILOT_LIGHTING_SAMPLE),
+        },
+        ..inp.estimate.clone()
+    }
+}
+
+/// The largest finite value (0 when none is).
+fn largest_finite(values: &[f64]) -> f64 {
+    values
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max)
 }
 
 /// The material count (step 3) and the pilot fit with it (free weights, every basis).
