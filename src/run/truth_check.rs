@@ -353,7 +353,7 @@ fn dominant(weights: &[f64], k: usize) -> Vec<Option<usize>> {
 /// least [`PURE_WEIGHT`], over `λ^true_{j,lambert,c}`, − 1.
 pub(crate) fn albedo_truth(f: &Fitted, t: &TrueMaterials) -> Option<AlbedoTruth> {
     let nv = f.scene.mesh.positions.len();
-    let (kk, jj, nb) = (f.est.lambda.len(), t.names.len(), f.basis.len());
+    let (kk, jj) = (f.est.lambda.len(), t.names.len());
     let lb = f
         .basis
         .iter()
@@ -361,12 +361,52 @@ pub(crate) fn albedo_truth(f: &Fitted, t: &TrueMaterials) -> Option<AlbedoTruth>
     if jj == 0 || t.weights.len() != nv * jj || f.est.weights.len() != nv * kk {
         return None;
     }
-    let (dom_fit, dom_true) = (dominant(&f.est.weights, kk), dominant(&t.weights, jj));
+    let dom = Dominant {
+        fit: dominant(&f.est.weights, kk),
+        truth: dominant(&t.weights, jj),
+    };
+    let (scale, vertices) = diffuse_scale(f, t, &dom, lb);
+    let materials: Vec<AlbedoTruthEntry> = (0..kk)
+        .filter_map(|k| material_albedo(f, t, &dom, lb, scale, k))
+        .collect();
+    Some(AlbedoTruth {
+        scale,
+        vertices,
+        max_ratio_error: max_abs(materials.iter().flat_map(|m| m.ratio_error)),
+        max_pure_ratio_error: max_abs(
+            materials
+                .iter()
+                .flat_map(|m| m.pure_ratio_error)
+                .filter(|e| e.is_finite()),
+        ),
+        materials,
+    })
+}
+
+/// The largest absolute value (0 for none).
+fn max_abs(values: impl Iterator<Item = f64>) -> f64 {
+    values.map(f64::abs).fold(0.0, f64::max)
+}
+
+/// Each vertex's dominant material in the fit and in the truth ([`dominant`]).
+struct Dominant {
+    fit: Vec<Option<usize>>,
+    truth: Vec<Option<usize>>,
+}
+
+impl Dominant {
+    /// Whether vertex `x` has weights in both.
+    fn both(&self, x: usize) -> bool {
+        self.fit[x].is_some() && self.truth[x].is_some()
+    }
+}
+
+/// The per-channel scale `s_c = Σ_x b_{x,c} β_{x,c} / Σ_x β_{x,c}²` over the vertices with
+/// weights in both ([`albedo_truth`]), and how many vertices that is.
+fn diffuse_scale(f: &Fitted, t: &TrueMaterials, dom: &Dominant, lb: usize) -> ([f64; 3], usize) {
+    let (nb, jj) = (f.basis.len(), t.names.len());
     let (mut num, mut den, mut n) = ([0.0_f64; 3], [0.0_f64; 3], 0);
-    for x in 0..nv {
-        if dom_fit[x].is_none() || dom_true[x].is_none() {
-            continue;
-        }
+    for x in (0..dom.fit.len()).filter(|&x| dom.both(x)) {
         n += 1;
         let beta = f.beta[x * nb + lb];
         for c in 0..3 {
@@ -384,68 +424,55 @@ pub(crate) fn albedo_truth(f: &Fitted, t: &TrueMaterials) -> Option<AlbedoTruth>
             f64::NAN
         }
     });
-    let mut materials = Vec::new();
-    for k in 0..kk {
-        let mut votes = vec![0usize; jj];
-        for x in 0..nv {
-            if let (Some(a), Some(b)) = (dom_fit[x], dom_true[x]) {
-                if a == k {
-                    votes[b] += 1;
-                }
-            }
+    (scale, n)
+}
+
+/// Recovered material `k` against the true material most of the vertices it dominates are
+/// dominated by ([`albedo_truth`]); `None` when it dominates no vertex with true weights.
+fn material_albedo(
+    f: &Fitted,
+    t: &TrueMaterials,
+    dom: &Dominant,
+    lb: usize,
+    scale: [f64; 3],
+    k: usize,
+) -> Option<AlbedoTruthEntry> {
+    let (nb, jj, nv) = (f.basis.len(), t.names.len(), dom.fit.len());
+    let mut votes = vec![0usize; jj];
+    for x in (0..nv).filter(|&x| dom.fit[x] == Some(k)) {
+        if let Some(b) = dom.truth[x] {
+            votes[b] += 1;
         }
-        let total: usize = votes.iter().sum();
-        let (j, &v) = votes
-            .iter()
-            .enumerate()
-            .max_by_key(|e| *e.1)
-            .unwrap_or((0, &0));
-        if total == 0 {
-            continue;
-        }
-        let recovered = f.est.lambda[k][lb];
-        let recovered_scaled = [0, 1, 2].map(|c| scale[c] * recovered[c]);
-        let ratio_error = [0, 1, 2].map(|c| recovered_scaled[c] / t.diffuse(j)[c] - 1.0);
-        let pure: Vec<usize> = (0..nv)
-            .filter(|&x| dom_fit[x] == Some(k) && t.weights[x * jj + j] >= PURE_WEIGHT)
-            .collect();
-        let pure_ratio_error = [0, 1, 2].map(|c| {
-            let mean = pure
-                .iter()
-                .map(|&x| scale[c] * f.beta[x * nb + lb][c])
-                .sum::<f64>()
-                / pure.len() as f64;
-            mean / t.diffuse(j)[c] - 1.0
-        });
-        materials.push(AlbedoTruthEntry {
-            material: k,
-            true_material: t.names[j].clone(),
-            agreement: v as f64 / total as f64,
-            recovered,
-            recovered_scaled,
-            truth: t.diffuse(j),
-            ratio_error,
-            pure_vertices: pure.len(),
-            pure_ratio_error,
-        });
     }
-    let max_ratio_error = materials
-        .iter()
-        .flat_map(|m| m.ratio_error)
-        .map(f64::abs)
-        .fold(0.0, f64::max);
-    let max_pure_ratio_error = materials
-        .iter()
-        .flat_map(|m| m.pure_ratio_error)
-        .filter(|e| e.is_finite())
-        .map(f64::abs)
-        .fold(0.0, f64::max);
-    Some(AlbedoTruth {
-        scale,
-        vertices: n,
-        materials,
-        max_ratio_error,
-        max_pure_ratio_error,
+    let total: usize = votes.iter().sum();
+    if total == 0 {
+        return None;
+    }
+    let (j, &v) = votes.iter().enumerate().max_by_key(|e| *e.1)?;
+    let recovered = f.est.lambda[k][lb];
+    let recovered_scaled = [0, 1, 2].map(|c| scale[c] * recovered[c]);
+    let ratio_error = [0, 1, 2].map(|c| recovered_scaled[c] / t.diffuse(j)[c] - 1.0);
+    let pure: Vec<usize> = (0..nv)
+        .filter(|&x| dom.fit[x] == Some(k) && t.weights[x * jj + j] >= PURE_WEIGHT)
+        .collect();
+    let pure_ratio_error = [0, 1, 2].map(|c| {
+        let mean = pure
+            .iter()
+            .map(|&x| scale[c] * f.beta[x * nb + lb][c])
+            .sum::<f64>()
+            / pure.len() as f64;
+        mean / t.diffuse(j)[c] - 1.0
+    });
+    Some(AlbedoTruthEntry {
+        material: k,
+        true_material: t.names[j].clone(),
+        agreement: v as f64 / total as f64,
+        recovered,
+        recovered_scaled,
+        truth: t.diffuse(j),
+        ratio_error,
+        pure_vertices: pure.len(),
+        pure_ratio_error,
     })
 }
 
