@@ -115,107 +115,163 @@ pub fn shade_point<C: RayCaster + ?Sized>(
     n_pairs: u32,
     rng: &mut Pcg32,
 ) -> RadianceEstimate {
-    let mut sum = [0.0; 3];
-    let mut sum2 = [0.0; 3];
     let n_pairs = n_pairs.max(1);
-    // Lobe selection ∝ luminance of its blended weight.
-    let sel: Vec<f64> = beta
-        .iter()
-        .map(|b| LUMA[0] * b[0] + LUMA[1] * b[1] + LUMA[2] * b[2])
-        .collect();
-    let sel_total: f64 = sel.iter().sum();
-    let brdf_pdf = |wi: &Vec3| -> f64 {
-        if sel_total <= 0.0 {
-            return 0.0;
-        }
-        lobes
-            .iter()
-            .zip(&sel)
-            .filter(|(_, &s)| s > 0.0)
-            .map(|(l, s)| s / sel_total * l.pdf(n, wi, wo))
-            .sum()
-    };
-    let f = |wi: &Vec3| -> [f64; 3] {
-        let mut out = [0.0; 3];
-        for (l, b) in lobes.iter().zip(beta) {
-            if b.iter().all(|&x| x == 0.0) {
-                continue;
-            }
-            let r = l.eval(n, wi, wo);
-            for c in 0..3 {
-                out[c] += b[c] * r;
-            }
-        }
-        out
-    };
-    let visible = |wi: &Vec3| -> bool {
-        let side = if ng.dot(wi) >= 0.0 { 1.0 } else { -1.0 };
-        let o = x + ng * (side * offset);
-        !caster.occluded(&o, wi, 0.0, f64::INFINITY)
-    };
-    if n.dot(wo) <= 0.0 || sel_total <= 0.0 {
+    let mix = LobeMix::new(lobes, beta);
+    if n.dot(wo) <= 0.0 || mix.total <= 0.0 {
         // Seen from behind, or black: no sampling needed, the radiance is zero.
         return RadianceEstimate {
             mean: [0.0; 3],
             std_err: [0.0; 3],
         };
     }
+    let visible = |wi: &Vec3| -> bool {
+        let side = if ng.dot(wi) >= 0.0 { 1.0 } else { -1.0 };
+        let o = x + ng * (side * offset);
+        !caster.occluded(&o, wi, 0.0, f64::INFINITY)
+    };
+    let at = Outgoing { n, wo };
+    let (mut sum, mut sum2) = ([0.0; 3], [0.0; 3]);
     for _ in 0..n_pairs {
-        let mut value = [0.0; 3];
-        // Environment sample.
-        if let Some((wi, pe)) = env.sample(rng.random(), rng.random(), rng.random(), rng.random()) {
-            let fv = f(&wi);
-            if fv.iter().any(|&x| x > 0.0) && visible(&wi) {
-                let le = env.radiance(&wi);
-                let denom = pe + brdf_pdf(&wi);
-                for c in 0..3 {
-                    value[c] += fv[c] * le[c] / denom;
-                }
-            }
-        }
-        // BRDF sample: pick a lobe, then its direction.
-        let pick = rng.random::<f64>() * sel_total;
-        let (u1, u2) = (rng.random::<f64>(), rng.random::<f64>());
-        let mut acc = 0.0;
-        let mut chosen = lobes.len() - 1;
-        for (i, s) in sel.iter().enumerate() {
-            acc += s;
-            if pick < acc && *s > 0.0 {
-                chosen = i;
-                break;
-            }
-        }
-        if let Some(wi) = lobes[chosen].sample(n, wo, u1, u2) {
-            let fv = f(&wi);
-            if fv.iter().any(|&x| x > 0.0) {
-                let le = env.radiance(&wi);
-                if le.iter().any(|&x| x > 0.0) && visible(&wi) {
-                    let denom = env.pdf(&wi) + brdf_pdf(&wi);
-                    if denom > 0.0 {
-                        for c in 0..3 {
-                            value[c] += fv[c] * le[c] / denom;
-                        }
-                    }
-                }
-            }
-        }
+        let value = mis_pair(&mix, &at, env, &visible, rng);
         for c in 0..3 {
             sum[c] += value[c];
             sum2[c] += value[c] * value[c];
         }
     }
-    let nf = n_pairs as f64;
-    let mut est = RadianceEstimate {
-        mean: [0.0; 3],
-        std_err: [0.0; 3],
-    };
-    for c in 0..3 {
-        let m = sum[c] / nf;
-        est.mean[c] = m;
-        let var = (sum2[c] / nf - m * m).max(0.0) * nf / (nf - 1.0).max(1.0);
-        est.std_err[c] = (var / nf).sqrt();
+    RadianceEstimate::from_moments(sum, sum2, n_pairs)
+}
+
+/// The shading normal and the outgoing direction of [`shade_point`].
+struct Outgoing<'a> {
+    n: &'a Vec3,
+    wo: &'a Vec3,
+}
+
+/// The blended BRDF `Σ_b β_b ρ_b` of [`shade_point`], with each lobe chosen for sampling in
+/// proportion to the luminance of its weight.
+struct LobeMix<'a> {
+    lobes: &'a [Lobe],
+    beta: &'a [[f64; 3]],
+    /// Each lobe's luminance, and their sum.
+    sel: Vec<f64>,
+    total: f64,
+}
+
+impl<'a> LobeMix<'a> {
+    fn new(lobes: &'a [Lobe], beta: &'a [[f64; 3]]) -> Self {
+        let sel: Vec<f64> = beta
+            .iter()
+            .map(|b| LUMA[0] * b[0] + LUMA[1] * b[1] + LUMA[2] * b[2])
+            .collect();
+        let total = sel.iter().sum();
+        LobeMix {
+            lobes,
+            beta,
+            sel,
+            total,
+        }
     }
-    est
+
+    /// The mixture's sampling density of `wi`: `Σ_b (sel_b / total) pdf_b(wi)`.
+    fn pdf(&self, at: &Outgoing, wi: &Vec3) -> f64 {
+        if self.total <= 0.0 {
+            return 0.0;
+        }
+        self.lobes
+            .iter()
+            .zip(&self.sel)
+            .filter(|(_, &s)| s > 0.0)
+            .map(|(l, s)| s / self.total * l.pdf(at.n, wi, at.wo))
+            .sum()
+    }
+
+    /// `Σ_b β_b ρ_b(wi, wo)` per channel.
+    fn eval(&self, at: &Outgoing, wi: &Vec3) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for (l, b) in self.lobes.iter().zip(self.beta) {
+            if b.iter().all(|&x| x == 0.0) {
+                continue;
+            }
+            let r = l.eval(at.n, wi, at.wo);
+            for c in 0..3 {
+                out[c] += b[c] * r;
+            }
+        }
+        out
+    }
+
+    /// The lobe whose luminance interval holds `pick` ∈ `[0, total)`.
+    fn lobe_at(&self, pick: f64) -> &Lobe {
+        let mut acc = 0.0;
+        for (i, s) in self.sel.iter().enumerate() {
+            acc += s;
+            if pick < acc && *s > 0.0 {
+                return &self.lobes[i];
+            }
+        }
+        &self.lobes[self.lobes.len() - 1]
+    }
+}
+
+/// One multiple-importance-sampling pair (balance heuristic): a direction drawn from the
+/// environment and one from the BRDF mixture, each weighted by `1 / (p_env + p_brdf)`.
+fn mis_pair(
+    mix: &LobeMix,
+    at: &Outgoing,
+    env: &Environment,
+    visible: &impl Fn(&Vec3) -> bool,
+    rng: &mut Pcg32,
+) -> [f64; 3] {
+    let mut value = [0.0; 3];
+    // Environment sample.
+    if let Some((wi, pe)) = env.sample(rng.random(), rng.random(), rng.random(), rng.random()) {
+        let fv = mix.eval(at, &wi);
+        if fv.iter().any(|&x| x > 0.0) && visible(&wi) {
+            let le = env.radiance(&wi);
+            let denom = pe + mix.pdf(at, &wi);
+            for c in 0..3 {
+                value[c] += fv[c] * le[c] / denom;
+            }
+        }
+    }
+    // BRDF sample: pick a lobe, then its direction.
+    let pick = rng.random::<f64>() * mix.total;
+    let (u1, u2) = (rng.random::<f64>(), rng.random::<f64>());
+    let Some(wi) = mix.lobe_at(pick).sample(at.n, at.wo, u1, u2) else {
+        return value;
+    };
+    let fv = mix.eval(at, &wi);
+    if fv.iter().any(|&x| x > 0.0) {
+        let le = env.radiance(&wi);
+        if le.iter().any(|&x| x > 0.0) && visible(&wi) {
+            let denom = env.pdf(&wi) + mix.pdf(at, &wi);
+            if denom > 0.0 {
+                for c in 0..3 {
+                    value[c] += fv[c] * le[c] / denom;
+                }
+            }
+        }
+    }
+    value
+}
+
+impl RadianceEstimate {
+    /// The mean of `n` samples and its standard error from their per-channel sums `sum`
+    /// and sums of squares `sum2` (the unbiased sample variance over `n`).
+    fn from_moments(sum: [f64; 3], sum2: [f64; 3], n: u32) -> Self {
+        let nf = n as f64;
+        let mut est = RadianceEstimate {
+            mean: [0.0; 3],
+            std_err: [0.0; 3],
+        };
+        for c in 0..3 {
+            let m = sum[c] / nf;
+            est.mean[c] = m;
+            let var = (sum2[c] / nf - m * m).max(0.0) * nf / (nf - 1.0).max(1.0);
+            est.std_err[c] = (var / nf).sqrt();
+        }
+        est
+    }
 }
 
 /// Eq. 1 at one surface point by stratified quadrature over the texels of lat-long maps,
