@@ -430,47 +430,22 @@ pub fn weights_step(
     gamma: Option<&[f64]>,
     pull: Option<NeighbourPull>,
 ) -> Result<WeightsStep> {
-    let nb = problem.transport.n_basis;
     let kk = lambda.len();
-    let obs = problem.obs;
-    let (off, list) = by_vertex(obs, problem.n_vertices);
+    let (off, list) = by_vertex(problem.obs, problem.n_vertices);
+    let data = WeightsData {
+        problem,
+        s,
+        lambda,
+        dw,
+    };
     let rows: Vec<Result<(Vec<f64>, f64)>> = (0..problem.n_vertices)
         .into_par_iter()
         .map(|x| {
-            let mut mat = DMatrix::<f64>::zeros(kk, kk);
-            let mut rhs = DVector::<f64>::zeros(kk);
-            let mut a = vec![0.0; kk];
-            let mut any = false;
-            for &p in &list[off[x]..off[x + 1]] {
-                for c in 0..3 {
-                    let d = dw[p][c];
-                    if d == 0.0 {
-                        continue;
-                    }
-                    any = true;
-                    for k in 0..kk {
-                        a[k] = (0..nb).map(|b| lambda[k][b][c] * s[p * nb + b][c]).sum();
-                    }
-                    let yc = obs.rgb[p][c] as f64;
-                    for i in 0..kk {
-                        rhs[i] += d * a[i] * yc;
-                        for j in 0..kk {
-                            mat[(i, j)] += d * a[i] * a[j];
-                        }
-                    }
-                }
-            }
-            let old = weights[x * kk..(x + 1) * kk].to_vec();
-            if !any {
-                return Ok((old, 0.0));
-            }
+            let Some((mut mat, mut rhs)) = data.normal_equations(&list[off[x]..off[x + 1]]) else {
+                return Ok((weights[x * kk..(x + 1) * kk].to_vec(), 0.0));
+            };
             if let Some(g) = gamma.map(|g| g[x]).filter(|&g| g > 0.0) {
-                for i in 0..kk {
-                    rhs[i] += g;
-                    for j in 0..kk {
-                        mat[(i, j)] += g;
-                    }
-                }
+                add_sum_prior(&mut mat, &mut rhs, g);
             }
             if let Some(pl) = pull.filter(|pl| pl.eta[x] > 0.0) {
                 if let Some(m) = pl.mean(x, weights, kk) {
@@ -480,15 +455,7 @@ pub fn weights_step(
                     }
                 }
             }
-            let ev = mat.clone().symmetric_eigenvalues();
-            let (lo, hi) = ev
-                .iter()
-                .fold((f64::INFINITY, 0.0_f64), |(l, h), &v| (l.min(v), h.max(v)));
-            let cond = if lo > 1e-14 * hi && hi > 0.0 {
-                hi / lo
-            } else {
-                f64::INFINITY
-            };
+            let cond = condition_number(&mat);
             let sol = nnls(&mat, &rhs, &NnlsOptions::default()).map_err(|e| Error::Numeric {
                 stage: format!("material step (w, vertex {x})"),
                 message: e.to_string(),
@@ -512,6 +479,75 @@ pub fn weights_step(
         cond_max: cmax,
         singular,
     })
+}
+
+/// What the data term of [`weights_step`] reads: the transport responses `s` (per
+/// observation and basis), the materials `λ` and the observations' weights `dw`.
+struct WeightsData<'a> {
+    problem: &'a Problem<'a>,
+    s: &'a [[f64; 3]],
+    lambda: &'a [Vec<[f64; 3]>],
+    dw: &'a [[f64; 3]],
+}
+
+impl WeightsData<'_> {
+    /// One vertex's data term `Σ_{p,c} d_{p,c} (a_{p,c}ᵀ w − y_{p,c})²` as normal equations
+    /// `(Σ d a aᵀ, Σ d a y)`, with `a_{p,c,k} = Σ_b λ_{k,b,c} s_{p,b,c}` over its observations
+    /// `ps`; `None` when none of them has weight.
+    fn normal_equations(&self, ps: &[usize]) -> Option<(DMatrix<f64>, DVector<f64>)> {
+        let nb = self.problem.transport.n_basis;
+        let kk = self.lambda.len();
+        let mut mat = DMatrix::<f64>::zeros(kk, kk);
+        let mut rhs = DVector::<f64>::zeros(kk);
+        let mut a = vec![0.0; kk];
+        let mut any = false;
+        for &p in ps {
+            for c in 0..3 {
+                let d = self.dw[p][c];
+                if d == 0.0 {
+                    continue;
+                }
+                any = true;
+                for k in 0..kk {
+                    a[k] = (0..nb)
+                        .map(|b| self.lambda[k][b][c] * self.s[p * nb + b][c])
+                        .sum();
+                }
+                let yc = self.problem.obs.rgb[p][c] as f64;
+                for i in 0..kk {
+                    rhs[i] += d * a[i] * yc;
+                    for j in 0..kk {
+                        mat[(i, j)] += d * a[i] * a[j];
+                    }
+                }
+            }
+        }
+        any.then_some((mat, rhs))
+    }
+}
+
+/// The sum-to-one prior `γ (Σ_k w_k − 1)²` added to normal equations: `γ 1 1ᵀ` and `γ 1`.
+fn add_sum_prior(mat: &mut DMatrix<f64>, rhs: &mut DVector<f64>, g: f64) {
+    for i in 0..rhs.len() {
+        rhs[i] += g;
+        for j in 0..rhs.len() {
+            mat[(i, j)] += g;
+        }
+    }
+}
+
+/// The 2-norm condition number of a symmetric positive semi-definite `mat`, infinite when
+/// its smallest eigenvalue is below `10⁻¹⁴` of its largest (or it is 0).
+fn condition_number(mat: &DMatrix<f64>) -> f64 {
+    let ev = mat.clone().symmetric_eigenvalues();
+    let (lo, hi) = ev
+        .iter()
+        .fold((f64::INFINITY, 0.0_f64), |(l, h), &v| (l.min(v), h.max(v)));
+    if lo > 1e-14 * hi && hi > 0.0 {
+        hi / lo
+    } else {
+        f64::INFINITY
+    }
 }
 
 #[cfg(test)]
