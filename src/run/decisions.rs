@@ -92,20 +92,10 @@ fn basis_decision(opts: &RunOptions, outcome: &PilotOutcome, eff: &mut RunOption
 fn resolution_decisions(opts: &RunOptions, shadowed: bool, eff: &mut RunOptions) -> Vec<Decision> {
     let (g, why) = adapt::global_resolution_for(&eff.basis, opts.global_resolution, shadowed);
     eff.global_resolution = g;
-    let global = Decision {
-        what: "global_resolution".into(),
-        full: opts.global_resolution.to_string(),
-        chosen: g.to_string(),
-        reason: why,
-    };
+    let global = side_decision("global_resolution", opts.global_resolution, g, why);
     let (l, why) = adapt::local_resolution_for(g, opts.local_resolution);
     eff.local_resolution = l;
-    let local = Decision {
-        what: "local_resolution".into(),
-        full: opts.local_resolution.to_string(),
-        chosen: l.to_string(),
-        reason: why,
-    };
+    let local = side_decision("local_resolution", opts.local_resolution, l, why);
     let cap = g * g;
     let keep = if opts.keep == 0 || opts.keep > cap {
         cap
@@ -128,6 +118,16 @@ fn resolution_decisions(opts: &RunOptions, shadowed: bool, eff: &mut RunOptions)
         ),
     };
     vec![global, local, kept]
+}
+
+/// A map side's decision: `what`, the side asked for, the side chosen and why.
+fn side_decision(what: &str, full: usize, chosen: usize, reason: String) -> Decision {
+    Decision {
+        what: what.into(),
+        full: full.to_string(),
+        chosen: chosen.to_string(),
+        reason,
+    }
 }
 
 /// The Laplacian prior's weight (issue 8: use the condition numbers the solver sees): a
