@@ -266,49 +266,23 @@ fn mib(b: u64) -> String {
 
 /// The mildest single option change that makes the run fit, or the vertex count to
 /// decimate the mesh to.
+///
+/// Each option is lowered alone, never below the CLI's minimum: `--keep` to the largest
+/// count that fits, the map sides and the normal grid halved until they fit. The change of
+/// the smallest factor wins (the first of equal ones, in that order). When none fits, the
+/// mesh is decimated (observations scale with vertices).
 fn suggest(s: &Sizes, available: u64) -> String {
     let fits = |t: &Sizes| estimate(t).total() <= available;
-    // Halve one option at a time, never below the CLI's minimum; report the largest value
-    // that fits, per option, and pick the option whose change is the smallest factor.
-    let mut best: Option<(u64, String)> = None;
-    let mut consider = |factor: u64, text: String| {
-        if best.as_ref().is_none_or(|(f, _)| factor < *f) {
-            best = Some((factor, text));
-        }
+    let halved = |name: &str, v: u64, min: u64, set: &dyn Fn(u64) -> Sizes| {
+        halving_hint(name, v, min, &|x| fits(&set(x)))
     };
-    // --keep: any positive integer; largest that fits, by bisection.
-    let kept = s.kept();
-    if kept > 1 {
-        let (mut lo, mut hi) = (0u64, kept);
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            if fits(&Sizes { keep: mid, ..*s }) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        if lo >= 1 && fits(&Sizes { keep: lo, ..*s }) {
-            consider(kept.div_ceil(lo), format!("--keep {lo} would fit"));
-        }
-    }
-    let pow2 =
-        |name: &str, v: u64, min: u64, set: &dyn Fn(u64) -> Sizes| -> Option<(u64, String)> {
-            let mut x = v / 2;
-            while x >= min {
-                if fits(&set(x)) {
-                    return Some((v / x, format!("--{name} {x} would fit")));
-                }
-                x /= 2;
-            }
-            None
-        };
-    for (factor, text) in [
-        pow2("local-resolution", s.local_resolution, 4, &|x| Sizes {
+    let hints = [
+        keep_hint(s, &fits),
+        halved("local-resolution", s.local_resolution, 4, &|x| Sizes {
             local_resolution: x,
             ..*s
         }),
-        pow2(
+        halved(
             "render-local-resolution",
             s.render_local_resolution,
             s.local_resolution.max(4),
@@ -317,39 +291,32 @@ fn suggest(s: &Sizes, available: u64) -> String {
                 ..*s
             },
         ),
-        pow2("normal-grid", s.normal_grid, 4, &|x| Sizes {
+        halved("normal-grid", s.normal_grid, 4, &|x| Sizes {
             normal_grid: x,
             ..*s
         }),
-        pow2("global-resolution", s.global_resolution, 4, &|x| Sizes {
+        halved("global-resolution", s.global_resolution, 4, &|x| Sizes {
             global_resolution: x,
             ..*s
         }),
-    ]
-    .into_iter()
-    .flatten()
-    {
-        consider(factor, text);
+    ];
+    let mut best: Option<(u64, String)> = None;
+    for (factor, text) in hints.into_iter().flatten() {
+        if best.as_ref().is_none_or(|(f, _)| factor < *f) {
+            best = Some((factor, text));
+        }
     }
     if let Some((_, text)) = best {
         return text;
     }
-    // Decimate: observations scale with vertices.
     if s.vertices > 1 {
-        let (mut lo, mut hi) = (0u64, s.vertices);
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            let t = Sizes {
+        let lo = largest_fitting(s.vertices, |mid| {
+            fits(&Sizes {
                 vertices: mid,
                 observations: ((s.observations as u128 * mid as u128) / s.vertices as u128) as u64,
                 ..*s
-            };
-            if fits(&t) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
+            })
+        });
         if lo >= 1 {
             return format!(
                 "no single option fits; decimate the mesh (--mesh) to about {lo} vertices"
@@ -357,6 +324,44 @@ fn suggest(s: &Sizes, available: u64) -> String {
         }
     }
     "no option change fits; use fewer photos or a machine with more memory".into()
+}
+
+/// `--keep`: the largest count that fits, and the factor it lowers the kept count by.
+fn keep_hint(s: &Sizes, fits: &dyn Fn(&Sizes) -> bool) -> Option<(u64, String)> {
+    let kept = s.kept();
+    if kept <= 1 {
+        return None;
+    }
+    let lo = largest_fitting(kept, |mid| fits(&Sizes { keep: mid, ..*s }));
+    (lo >= 1 && fits(&Sizes { keep: lo, ..*s }))
+        .then(|| (kept.div_ceil(lo), format!("--keep {lo} would fit")))
+}
+
+/// `--NAME`: `v` halved until it fits (`fits`), not below `min`; the factor and the hint.
+fn halving_hint(name: &str, v: u64, min: u64, fits: &dyn Fn(u64) -> bool) -> Option<(u64, String)> {
+    let mut x = v / 2;
+    while x >= min {
+        if fits(x) {
+            return Some((v / x, format!("--{name} {x} would fit")));
+        }
+        x /= 2;
+    }
+    None
+}
+
+/// Bisection on `(0, hi)` for the largest value where `fits` holds, `fits` taken to be
+/// monotone (true up to a point, false after); 0 when it holds nowhere below `hi`.
+fn largest_fitting(hi: u64, fits: impl Fn(u64) -> bool) -> u64 {
+    let (mut lo, mut hi) = (0u64, hi);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
 }
 
 /// [`estimate`] checked against [`crate::stages::available_memory_bytes`] (× [`USABLE_FRACTION`]);
