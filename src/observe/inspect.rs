@@ -128,61 +128,9 @@ impl InspectReport {
         obs: &Observations,
         stats: &[ViewStats],
     ) -> InspectReport {
-        // Reprojection errors grouped by image: (sum of inlier errors, inliers, outliers).
-        let mut per_image_err: BTreeMap<ImageId, (f64, usize, usize)> = BTreeMap::new();
-        let (mut sum, mut inliers) = (0.0, 0usize);
-        for (_, image, e) in scene.recon.reprojection_errors() {
-            let s = per_image_err.entry(image).or_default();
-            if e <= REPROJECTION_OUTLIER_PX {
-                s.0 += e;
-                s.1 += 1;
-                sum += e;
-                inliers += 1;
-            } else {
-                s.2 += 1;
-            }
-        }
-        let mean_err = (inliers > 0).then(|| sum / inliers as f64);
-        let per_image = scene
-            .views
-            .iter()
-            .enumerate()
-            .map(|(i, v)| {
-                let range = obs.photo_ranges.get(i).cloned().unwrap_or(0..0);
-                let n = range.len();
-                let w = &obs.weight[range];
-                let s = stats.get(i).copied().unwrap_or_default();
-                let err = per_image_err.get(&v.image.id);
-                ImageReport {
-                    name: v.image.name.clone(),
-                    width: v.camera.width,
-                    height: v.camera.height,
-                    observed_vertices: n,
-                    overexposed_fraction: if n > 0 {
-                        s.overexposed as f64 / n as f64
-                    } else {
-                        0.0
-                    },
-                    overexposed_pixel_fraction: photos
-                        .get(i)
-                        .map_or(0.0, |p| p.overexposed_fraction()),
-                    mean_confidence: if n > 0 {
-                        w.iter().map(|&x| x as f64).sum::<f64>() / n as f64
-                    } else {
-                        0.0
-                    },
-                    reprojection_error_px: err.filter(|e| e.1 > 0).map(|&(s, k, _)| s / k as f64),
-                    reprojection_observations: err.map_or(0, |e| e.1),
-                    reprojection_outliers: err.map_or(0, |e| e.2),
-                    points2d_with_3d: v
-                        .image
-                        .points2d
-                        .iter()
-                        .filter(|p| p.point3d_id.is_some())
-                        .count(),
-                    candidates: s,
-                }
-            })
+        let tally = ReprojectionTally::new(scene);
+        let per_image = (0..scene.views.len())
+            .map(|i| image_report(scene, i, photos, obs, stats, &tally))
             .collect();
         let ws = &scene.workspace;
         InspectReport {
@@ -194,7 +142,7 @@ impl InspectReport {
             cameras: scene.recon.cameras.len(),
             images_registered: scene.recon.images.len(),
             points3d: scene.recon.points3d.len(),
-            mean_reprojection_error_px: mean_err,
+            mean_reprojection_error_px: tally.mean,
             mesh_vertices: scene.mesh.positions.len(),
             mesh_faces: scene.mesh.faces.len(),
             dropped_faces: scene.cleanup.degenerate_faces + scene.cleanup.invalid_faces,
@@ -216,6 +164,73 @@ impl InspectReport {
             }),
             per_image,
         }
+    }
+}
+
+/// The model's reprojection errors: per image the sum of its inlier errors, its inliers
+/// and its outliers (beyond [`REPROJECTION_OUTLIER_PX`]), and the mean over all inliers.
+struct ReprojectionTally {
+    per_image: BTreeMap<ImageId, (f64, usize, usize)>,
+    mean: Option<f64>,
+}
+
+impl ReprojectionTally {
+    fn new(scene: &Scene) -> Self {
+        let mut per_image: BTreeMap<ImageId, (f64, usize, usize)> = BTreeMap::new();
+        let (mut sum, mut inliers) = (0.0, 0usize);
+        for (_, image, e) in scene.recon.reprojection_errors() {
+            let s = per_image.entry(image).or_default();
+            if e <= REPROJECTION_OUTLIER_PX {
+                s.0 += e;
+                s.1 += 1;
+                sum += e;
+                inliers += 1;
+            } else {
+                s.2 += 1;
+            }
+        }
+        ReprojectionTally {
+            per_image,
+            mean: (inliers > 0).then(|| sum / inliers as f64),
+        }
+    }
+}
+
+/// The report of view `i` of the scene: its size, observations, overexposure, confidence,
+/// reprojection errors and how many of its keypoints have a 3D point.
+fn image_report(
+    scene: &Scene,
+    i: usize,
+    photos: &[Photo],
+    obs: &Observations,
+    stats: &[ViewStats],
+    tally: &ReprojectionTally,
+) -> ImageReport {
+    let v = &scene.views[i];
+    let range = obs.photo_ranges.get(i).cloned().unwrap_or(0..0);
+    let n = range.len();
+    let w = &obs.weight[range];
+    let s = stats.get(i).copied().unwrap_or_default();
+    let err = tally.per_image.get(&v.image.id);
+    let per_observation = |count: f64| if n > 0 { count / n as f64 } else { 0.0 };
+    ImageReport {
+        name: v.image.name.clone(),
+        width: v.camera.width,
+        height: v.camera.height,
+        observed_vertices: n,
+        overexposed_fraction: per_observation(s.overexposed as f64),
+        overexposed_pixel_fraction: photos.get(i).map_or(0.0, |p| p.overexposed_fraction()),
+        mean_confidence: per_observation(w.iter().map(|&x| x as f64).sum::<f64>()),
+        reprojection_error_px: err.filter(|e| e.1 > 0).map(|&(s, k, _)| s / k as f64),
+        reprojection_observations: err.map_or(0, |e| e.1),
+        reprojection_outliers: err.map_or(0, |e| e.2),
+        points2d_with_3d: v
+            .image
+            .points2d
+            .iter()
+            .filter(|p| p.point3d_id.is_some())
+            .count(),
+        candidates: s,
     }
 }
 
