@@ -395,13 +395,7 @@ fn train_errors(
 /// The condition numbers of the report, by name.
 fn conditioning_map(c: &solve::Conditioning) -> std::collections::BTreeMap<String, f64> {
     let mut conditioning = std::collections::BTreeMap::new();
-    if let Some(max) = c
-        .lighting
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .reduce(f64::max)
-    {
+    if let Some(max) = c.lighting_max() {
         conditioning.insert("lighting (max over photos, lower bound)".to_string(), max);
     }
     for (ch, v) in ["R", "G", "B"].iter().zip(c.lambda) {
@@ -424,12 +418,8 @@ fn conditioning_use(
 ) -> Vec<String> {
     let digits = |k: f64| k.max(1.0).log10();
     let mut out = Vec::new();
-    let lighting = c
-        .lighting
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
+    // Condition numbers are ≥ 1: 0 means no photo has a bound.
+    let lighting = c.lighting_max().unwrap_or(0.0);
     if lighting > 0.0 {
         let mut line = format!(
             "lighting (Eq. 10): κ ≥ {lighting:.2e} (largest over photos; a lower bound from the Ritz values of the conjugate-gradient steps), about {:.0} of 16 digits; the Laplacian prior μ = {:.0e} × the largest texel-basis diagonal regularises the directions the photos do not see, and the QP stops at a relative KKT residual of {:.0e}",

@@ -137,6 +137,17 @@ pub struct Conditioning {
     pub lighting_matvecs: usize,
 }
 
+impl Conditioning {
+    /// The largest finite lighting bound over the photos (`None` when no photo has one).
+    pub fn lighting_max(&self) -> Option<f64> {
+        self.lighting
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .reduce(f64::max)
+    }
+}
+
 /// The estimation result.
 #[derive(Debug, Clone)]
 pub struct Estimate {

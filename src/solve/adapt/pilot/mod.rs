@@ -259,7 +259,7 @@ pub fn pilot(inp: &PilotInput) -> Result<PilotOutcome> {
         shares: bases.shares,
         basis_reason: bases.reason,
         kappa_lambda: est.conditioning.lambda,
-        kappa_lighting: largest_finite(&est.conditioning.lighting),
+        kappa_lighting: est.conditioning.lighting_max().unwrap_or(0.0),
         seconds: t0.elapsed().as_secs_f64(),
         weights_sum: chosen.prior.strength,
         weights_sum_scope: chosen.prior.scope,
@@ -350,15 +350,6 @@ fn pilot_options(inp: &PilotInput) -> EstimateOptions {
         },
         ..inp.estimate.clone()
     }
-}
-
-/// The largest finite value (0 when none is).
-fn largest_finite(values: &[f64]) -> f64 {
-    values
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max)
 }
 
 /// The material count (step 3) and the pilot fit with it (free weights, every basis).
