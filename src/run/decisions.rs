@@ -42,35 +42,35 @@ fn material_decisions(
         MaterialCount::Fixed(k) => k.to_string(),
         MaterialCount::Auto => "auto".to_string(),
     };
-    let mut d = vec![Decision {
-        what: "materials".into(),
-        full: full_k,
-        chosen: outcome.materials.to_string(),
-        reason: outcome.materials_reason.clone(),
-    }];
+    let mut d = vec![Decision::new(
+        "materials",
+        full_k,
+        outcome.materials,
+        outcome.materials_reason.clone(),
+    )];
     if let Some(why) = &outcome.weights_sum_reason {
         eff.weights_sum = WeightsSum::Fixed(outcome.weights_sum);
         eff.weights_sum_scope = outcome.weights_sum_scope;
         let on_blends = matches!(outcome.weights_sum_scope, SumScope::Blends { .. });
-        d.push(Decision {
-            what: "weights_sum".into(),
-            full: "auto".into(),
-            chosen: if on_blends {
+        d.push(Decision::new(
+            "weights_sum",
+            "auto",
+            if on_blends {
                 format!("{} on blended vertices", outcome.weights_sum)
             } else {
                 outcome.weights_sum.to_string()
             },
-            reason: why.clone(),
-        });
+            why.clone(),
+        ));
     }
     if let Some(why) = &outcome.start_reason {
         eff.start_brightness = outcome.start;
-        d.push(Decision {
-            what: "start_brightness".into(),
-            full: StartBrightness::Auto.name().into(),
-            chosen: outcome.start.name().into(),
-            reason: why.clone(),
-        });
+        d.push(Decision::new(
+            "start_brightness",
+            StartBrightness::Auto.name(),
+            outcome.start.name(),
+            why.clone(),
+        ));
     }
     d
 }
@@ -79,12 +79,12 @@ fn material_decisions(
 fn basis_decision(opts: &RunOptions, outcome: &PilotOutcome, eff: &mut RunOptions) -> Decision {
     eff.basis = outcome.kept.iter().map(|&b| opts.basis[b]).collect();
     let labels = |b: &[BasisBrdf]| b.iter().map(|x| x.label()).collect::<Vec<_>>().join(",");
-    Decision {
-        what: "basis".into(),
-        full: labels(&opts.basis),
-        chosen: labels(&eff.basis),
-        reason: outcome.basis_reason.clone(),
-    }
+    Decision::new(
+        "basis",
+        labels(&opts.basis),
+        labels(&eff.basis),
+        outcome.basis_reason.clone(),
+    )
 }
 
 /// The global map's side for the kept basis (`shadowed`: some vertex does not see the
@@ -92,10 +92,10 @@ fn basis_decision(opts: &RunOptions, outcome: &PilotOutcome, eff: &mut RunOption
 fn resolution_decisions(opts: &RunOptions, shadowed: bool, eff: &mut RunOptions) -> Vec<Decision> {
     let (g, why) = adapt::global_resolution_for(&eff.basis, opts.global_resolution, shadowed);
     eff.global_resolution = g;
-    let global = side_decision("global_resolution", opts.global_resolution, g, why);
+    let global = Decision::new("global_resolution", opts.global_resolution, g, why);
     let (l, why) = adapt::local_resolution_for(g, opts.local_resolution);
     eff.local_resolution = l;
-    let local = side_decision("local_resolution", opts.local_resolution, l, why);
+    let local = Decision::new("local_resolution", opts.local_resolution, l, why);
     let cap = g * g;
     let keep = if opts.keep == 0 || opts.keep > cap {
         cap
@@ -103,11 +103,11 @@ fn resolution_decisions(opts: &RunOptions, shadowed: bool, eff: &mut RunOptions)
         opts.keep
     };
     eff.keep = keep;
-    let kept = Decision {
-        what: "keep".into(),
-        full: opts.keep.to_string(),
-        chosen: keep.to_string(),
-        reason: format!(
+    let kept = Decision::new(
+        "keep",
+        opts.keep,
+        keep,
+        format!(
             "{keep} of the {cap} Haar coefficients of a {g}² map per transport row ({:.0}%){}",
             100.0 * keep as f64 / cap as f64,
             if keep == opts.keep {
@@ -116,18 +116,8 @@ fn resolution_decisions(opts: &RunOptions, shadowed: bool, eff: &mut RunOptions)
                 ": the budget cannot exceed the map's coefficient count".to_string()
             }
         ),
-    };
+    );
     vec![global, local, kept]
-}
-
-/// A map side's decision: `what`, the side asked for, the side chosen and why.
-fn side_decision(what: &str, full: usize, chosen: usize, reason: String) -> Decision {
-    Decision {
-        what: what.into(),
-        full: full.to_string(),
-        chosen: chosen.to_string(),
-        reason,
-    }
 }
 
 /// The Laplacian prior's weight (issue 8: use the condition numbers the solver sees): a
@@ -140,24 +130,24 @@ fn smoothness_decision(
     let full = format!("{:e}", opts.smoothness);
     if outcome.kappa_lighting > KAPPA_LIGHTING && opts.smoothness < 1e-4 {
         eff.smoothness = 1e-4;
-        return Decision {
-            what: "smoothness".into(),
+        return Decision::new(
+            "smoothness",
             full,
-            chosen: "1e-4".into(),
-            reason: format!(
+            "1e-4",
+            format!(
                 "the pilot's lighting systems have condition number ≥ {:.1e} > {KAPPA_LIGHTING:.0e}: the Laplacian prior is raised to 1e-4 so the map directions the photos do not constrain are filled smoothly instead of by rounding",
                 outcome.kappa_lighting
             ),
-        };
+        );
     }
-    Decision {
-        what: "smoothness".into(),
-        full,
-        chosen: format!("{:e}", opts.smoothness),
-        reason: format!(
+    Decision::new(
+        "smoothness",
+        &full,
+        &full,
+        format!(
             "the pilot's lighting condition number bound is {:.1e} (≤ {KAPPA_LIGHTING:.0e} or the prior is already ≥ 1e-4) and its λ systems' {:.1e}: no change",
             outcome.kappa_lighting,
             outcome.kappa_lambda.iter().copied().fold(0.0, f64::max)
         ),
-    }
+    )
 }

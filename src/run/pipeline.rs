@@ -295,28 +295,28 @@ fn drop_duplicate_photos(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, &i)| i)
             .collect();
-        crate::solve::adapt::Decision {
-            what: "photos".into(),
-            full: n.to_string(),
-            chosen: train.len().to_string(),
-            reason: format!(
+        crate::solve::adapt::Decision::new(
+            "photos",
+            n,
+            train.len(),
+            format!(
                 "{} training photo(s) duplicate an earlier one (same view within {}°, same colour within {:.0}%): a duplicate adds a light map to estimate and no information",
                 drop.len(),
                 crate::solve::adapt::DUPLICATE_ANGLE_DEG,
                 100.0 * crate::solve::adapt::DUPLICATE_RGB
             ),
-        }
+        )
     } else {
-        crate::solve::adapt::Decision {
-            what: "photos".into(),
-            full: n.to_string(),
-            chosen: n.to_string(),
-            reason: format!(
+        crate::solve::adapt::Decision::new(
+            "photos",
+            n,
+            n,
+            format!(
                 "every training photo adds observations: none repeats an earlier photo's view (within {}°) with the same colours (within {:.0}%); a photo from the same view under another light is new information, since every photo has its own light",
                 crate::solve::adapt::DUPLICATE_ANGLE_DEG,
                 100.0 * crate::solve::adapt::DUPLICATE_RGB
             ),
-        }
+        )
     }
 }
 

@@ -320,6 +320,19 @@ pub struct Decision {
     pub reason: String,
 }
 
+impl Decision {
+    /// The decision on `what`: the full model's value `full`, the value used `chosen`, and
+    /// why.
+    pub fn new(what: &str, full: impl ToString, chosen: impl ToString, reason: String) -> Self {
+        Decision {
+            what: what.into(),
+            full: full.to_string(),
+            chosen: chosen.to_string(),
+            reason,
+        }
+    }
+}
+
 /// The rows of `t` for the bases `kept` (indices into its basis list, in the new order).
 pub fn select_bases(t: &Transport, kept: &[usize]) -> Result<Transport> {
     if let Some(&b) = kept.iter().find(|&&b| b >= t.n_basis) {
