@@ -387,18 +387,8 @@ impl RunOptions {
 
     /// The estimator: the prior strengths, tolerances, iteration counts and early stopping.
     fn check_estimator(&self) -> Result<()> {
-        if !(self.smoothness >= 0.0 && self.smoothness.is_finite()) {
-            return Err(Error::Config(format!(
-                "--smoothness {}: must be a finite number ≥ 0",
-                self.smoothness
-            )));
-        }
-        if !(self.rel_tol >= 0.0 && self.rel_tol.is_finite()) {
-            return Err(Error::Config(format!(
-                "--tolerance {}: must be a finite number ≥ 0",
-                self.rel_tol
-            )));
-        }
+        non_negative("--smoothness", self.smoothness, "")?;
+        non_negative("--tolerance", self.rel_tol, "")?;
         if self.max_iterations == 0 {
             return Err(Error::Config(
                 "--iterations 0: at least one is needed".into(),
@@ -409,18 +399,16 @@ impl RunOptions {
                 "--irls-iterations 0: at least one (plain least squares) is needed".into(),
             ));
         }
-        if !(0.0..1.0).contains(&self.blend_tolerance) {
-            return Err(Error::Config(format!(
-                "--blend-tolerance {}: must be in [0, 1) (a fraction of each row's energy)",
-                self.blend_tolerance
-            )));
-        }
-        if !(0.0..1.0).contains(&self.robust_floor) {
-            return Err(Error::Config(format!(
-                "--robust-floor {}: must be in [0, 1) (a fraction of the RMS radiance)",
-                self.robust_floor
-            )));
-        }
+        fraction(
+            "--blend-tolerance",
+            self.blend_tolerance,
+            "a fraction of each row's energy",
+        )?;
+        fraction(
+            "--robust-floor",
+            self.robust_floor,
+            "a fraction of the RMS radiance",
+        )?;
         if let WeightsSum::Fixed(v) = self.weights_sum {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::Config(format!(
@@ -432,12 +420,11 @@ impl RunOptions {
                 "--weights-sum-on blends: give --weights-sum a number too (with auto the pilot chooses where the prior applies)".into(),
             ));
         }
-        if !(self.weights_smoothness.is_finite() && self.weights_smoothness >= 0.0) {
-            return Err(Error::Config(format!(
-                "--weights-smoothness {}: must be a finite number ≥ 0 (0 = off)",
-                self.weights_smoothness
-            )));
-        }
+        non_negative(
+            "--weights-smoothness",
+            self.weights_smoothness,
+            " (0 = off)",
+        )?;
         if self.starts == 0 {
             return Err(Error::Config(
                 "--starts 0: the alternation needs at least one start".into(),
@@ -457,4 +444,26 @@ impl RunOptions {
         }
         Ok(())
     }
+}
+
+/// `Ok` when `v` is a finite number ≥ 0; else the error naming `flag` and `v`, with `note`
+/// after the rule.
+fn non_negative(flag: &str, v: f64, note: &str) -> Result<()> {
+    if v >= 0.0 && v.is_finite() {
+        return Ok(());
+    }
+    Err(Error::Config(format!(
+        "{flag} {v}: must be a finite number ≥ 0{note}"
+    )))
+}
+
+/// `Ok` when `v` is in `[0, 1)`; else the error naming `flag` and `v`, and `what` the
+/// fraction is of.
+fn fraction(flag: &str, v: f64, what: &str) -> Result<()> {
+    if (0.0..1.0).contains(&v) {
+        return Ok(());
+    }
+    Err(Error::Config(format!(
+        "{flag} {v}: must be in [0, 1) ({what})"
+    )))
 }
