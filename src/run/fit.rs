@@ -124,9 +124,10 @@ fn photo_halves(
 }
 
 /// Stage 6, the estimate: initial materials, the starts, the alternation; the fitted model.
-/// Steps: the start and the estimator's options ([`FitStart`]), the transient pass, the
-/// held-out tracker, each candidate light model's fit ([`fit_light_models`]), the start
-/// search when asked, the unseen vertices' materials, then the [`Fitted`] model.
+/// Steps: the start and the estimator's options ([`prepare_start`]), the alternation under
+/// each candidate light model with the held-out tracker ([`alternate`]), the unseen
+/// vertices' materials ([`fill_unseen`]), then the [`Fitted`] model ([`FinalEstimate`],
+/// [`fitted_model`]).
 pub(crate) fn fit<'a>(
     opts: &RunOptions,
     im: &'a Imported,
@@ -144,26 +145,100 @@ pub(crate) fn fit<'a>(
     } = observed;
     let p = prepared;
     let nv = scene.mesh.positions.len();
-    let lambert = lambert_of(&p.eff.basis)?;
-    let mut start = FitStart::new(opts, &p, &scene.mesh.positions, lambert, train.len())?;
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
-    let transients = if p.eff.transients {
-        Some(start.mask_transients(opts, &mut obs, &p, scene, log, progress)?)
-    } else {
-        None
-    };
-    start.finish_options(opts, scene, &train, &obs)?;
-    if p.eff.start_brightness == StartBrightness::Matched {
-        start.match_brightness(&p, &obs);
-    }
+    let (mut start, transients) = prepare_start(opts, im, &p, &train, &mut obs, log, progress)?;
     let problem = Problem {
         obs: &obs,
         transport: &p.tr,
         n_vertices: nv,
         n_photos: train.len(),
     };
-    let tracker = held_out_tracker(im, &bvh, &p, log, progress)?;
+    let Estimated {
+        est: mut estimate,
+        multi,
+        eopts,
+        light_decision,
+        timeline,
+    } = {
+        let tracker = held_out_tracker(im, &bvh, &p, log, progress)?;
+        alternate(opts, &p, &problem, &mut start, tracker, log, progress)?
+    };
+    fill_unseen(
+        &obs,
+        &scene.mesh.positions,
+        &eopts.weights_graph,
+        &mut estimate,
+        &mut start.reasons,
+        log,
+    )?;
+    let done = FinalEstimate::new(scene, &problem, &train, estimate)?;
+    let fitted = fitted_model(
+        im,
+        p,
+        FitParts {
+            train,
+            bvh,
+            est: done.est,
+            beta: done.beta,
+            train_predictions: done.train_predictions,
+            estimate_options: eopts,
+            baseline,
+        },
+    );
+    Ok(Fit {
+        fitted,
+        train_entries: done.train_entries,
+        timeline,
+        multi,
+        reasons: start.reasons,
+        decisions,
+        light_decision,
+        transients,
+    })
+}
+
+/// The start and the estimator's options ([`FitStart`]): the transient pass when on (it
+/// masks occluders in `obs`), the options that depend on the observations kept, and the
+/// start's brightness matched by normal when the pilot chose it.
+fn prepare_start(
+    opts: &RunOptions,
+    im: &Imported,
+    p: &Prepared,
+    train: &[usize],
+    obs: &mut Observations,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<(FitStart, Option<super::transients::Transients>)> {
+    let scene = &im.scene;
+    let lambert = lambert_of(&p.eff.basis)?;
+    let mut start = FitStart::new(opts, p, &scene.mesh.positions, lambert, train.len())?;
+    let transients = if p.eff.transients {
+        Some(start.mask_transients(opts, obs, p, scene, log, progress)?)
+    } else {
+        None
+    };
+    start.finish_options(opts, scene, train, obs)?;
+    if p.eff.start_brightness == StartBrightness::Matched {
+        start.match_brightness(p, obs);
+    }
+    Ok((start, transients))
+}
+
+/// The alternation from the start's family ([`FitStart::family`]) under each candidate
+/// light model ([`fit_light_models`]), then the start search when asked, with a progress
+/// bar and the held-out tracker ([`held_out_tracker`]) scoring every iterate for the
+/// timeline. The tracker's transport rows (the held-out photos') are freed on return.
+fn alternate(
+    opts: &RunOptions,
+    p: &Prepared,
+    problem: &Problem,
+    start: &mut FitStart,
+    tracker: Option<HoldoutTracker>,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<Estimated> {
+    let lambert = start.eopts.lambert_basis;
     progress.stage("estimate");
     let family = start.family(opts, p.eff.basis.len(), lambert);
     let bar = progress.bar(
@@ -174,60 +249,44 @@ pub(crate) fn fit<'a>(
         bar: &bar,
         progress,
         tracker: tracker.as_ref(),
-        n_vertices: nv,
+        n_vertices: problem.n_vertices,
     };
-    let mut est = fit_light_models(opts, &problem, &family, &mut start, &monitor, log)?;
+    let mut est = fit_light_models(opts, problem, &family, start, &monitor, log)?;
     if opts.start_search {
-        est = search_starts(&problem, est, &family[0].materials, lambert, &monitor, log)?;
+        est = search_starts(problem, est, &family[0].materials, lambert, &monitor, log)?;
     }
-    let Estimated {
-        est: mut estimate,
-        multi,
-        eopts,
-        light_decision,
-        timeline,
-    } = est;
-    fill_unseen(
-        &obs,
-        &scene.mesh.positions,
-        &eopts.weights_graph,
-        &mut estimate,
-        &mut start.reasons,
-        log,
-    )?;
     bar.finish_and_clear();
-    check_finite(&estimate, &conditioning_map(&estimate.conditioning))?;
-    let beta = solve::beta_per_vertex(&estimate.lambda, &estimate.weights, nv);
-    let pred = solve::predict(&problem, &estimate);
-    let train_entries = train_errors(scene, &train, &obs, &pred);
-    let train_predictions = photo_predictions(&obs, &pred);
-    drop(pred);
-    // The transport rows (training and held-out) are the run's largest arrays and nothing
-    // after the estimate reads them: free them before the evaluation builds its own.
-    drop(tracker);
-    let fitted = fitted_model(
-        im,
-        p,
-        FitParts {
-            train,
-            bvh,
-            est: estimate,
+    Ok(est)
+}
+
+/// The estimate once it is final, with what the fitted model and the report derive from
+/// it: the per-vertex diffuse albedo `β`, the training photos' predictions and errors.
+struct FinalEstimate {
+    est: solve::Estimate,
+    beta: Vec<[f64; 3]>,
+    train_predictions: Vec<Vec<(u32, [f32; 3])>>,
+    train_entries: Vec<TrainEntry>,
+}
+
+impl FinalEstimate {
+    /// `est` checked finite (else the error names the conditioning), then `β` and the
+    /// training photos' predictions.
+    fn new(
+        scene: &crate::import::scene::Scene,
+        problem: &Problem,
+        train: &[usize],
+        est: solve::Estimate,
+    ) -> Result<Self> {
+        check_finite(&est, &conditioning_map(&est.conditioning))?;
+        let beta = solve::beta_per_vertex(&est.lambda, &est.weights, problem.n_vertices);
+        let pred = solve::predict(problem, &est);
+        Ok(FinalEstimate {
+            train_entries: train_errors(scene, train, problem.obs, &pred),
+            train_predictions: photo_predictions(problem.obs, &pred),
+            est,
             beta,
-            train_predictions,
-            estimate_options: eopts,
-            baseline,
-        },
-    );
-    Ok(Fit {
-        fitted,
-        train_entries,
-        timeline,
-        multi,
-        reasons: start.reasons,
-        decisions,
-        light_decision,
-        transients,
-    })
+        })
+    }
 }
 
 /// What the fit adds to the prepared stage to make the [`Fitted`] model.
