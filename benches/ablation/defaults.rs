@@ -8,7 +8,8 @@
 //! photo sees take their seen neighbours' materials ([`propagate_unseen`]); the ratio step
 //! runs as `--ratio-steps auto` decides ([`ratio_step::default_rounds`]), and early stopping
 //! has `run`'s patience ([`RunOptions::DEFAULT_PATIENCE`]; `ABLATION_DEFAULTS_PATIENCE=N`
-//! gives it `run --patience N`). The map sizes
+//! gives it `run --patience N`; `ABLATION_DEFAULTS_NEIGHBOUR=X` gives it
+//! `run --weights-smoothness X`, the neighbour prior over the case's vertex graph). The map sizes
 //! stay the bench's (16² / 8²: the pilot's resolution choice, step 5, is the only default
 //! left out).
 
@@ -99,8 +100,14 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             "ABLATION_RATIO_STEPS",
             ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials),
         ),
+        // `run --weights-smoothness X` with `ABLATION_DEFAULTS_NEIGHBOUR=X`.
+        weights_smoothness: std::env::var("ABLATION_DEFAULTS_NEIGHBOUR")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(base.weights_smoothness),
         ..base.clone()
     };
+    let opts = crate::with_case_graph(case, opts);
     let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
