@@ -11,29 +11,8 @@ pub(crate) fn measure(
     opts: &BenchOptions,
 ) -> Result<BenchRun> {
     let (width, height, _, _) = mode_settings(opts.quick);
-    let ws = &s.dir;
-    let out = ws.with_extension("fit");
-    let mut o = RunOptions::new(ws.to_path_buf(), out.clone());
-    o.holdout = Holdout::Default;
-    o.materials = model
-        .materials
-        .map_or(MaterialCount::Auto, MaterialCount::Fixed);
-    if let Some(b) = &model.basis {
-        o.basis = crate::transport::brdf::parse_list(b)?;
-    }
-    o.adaptive = model.adaptive;
-    o.global_resolution = knobs.global_resolution;
-    o.local_resolution = knobs.local_resolution;
-    o.normal_grid = knobs.normal_grid;
-    o.keep = knobs.keep;
-    o.max_iterations = knobs.iterations;
-    o.lighting_qp_iterations = knobs.lighting_qp;
-    if model.large_mesh {
-        crate::run::LARGE_MESH.apply(&mut o);
-    }
-    o.progress = opts.progress;
-    o.force = true;
-    o.render_training = false;
+    let out = s.dir.with_extension("fit");
+    let o = bench_options(s, &out, &knobs, model, opts)?;
     eprintln!(
         "bench {group}: fitting {} vertices, {} photos, {}, {} …",
         s.vertices,
@@ -48,22 +27,7 @@ pub(crate) fn measure(
         }
         None => (Fit::from_report(&run::run(&o)?.report)?, None),
     };
-    let pick = |p: &str| -> Vec<f64> {
-        fit.holdout
-            .iter()
-            .filter(|h| h.protocol == p)
-            .filter_map(|h| h.rmse_scaled.filter(|x| x.is_finite()))
-            .collect()
-    };
-    let mut held = pick("truth");
-    if held.is_empty() {
-        held = pick("mean");
-    }
-    let holdout_rmse = if held.is_empty() {
-        f64::NAN
-    } else {
-        held.iter().sum::<f64>() / held.len() as f64
-    };
+    let holdout_rmse = fit.holdout_mean();
     let run = BenchRun {
         group: group.into(),
         vertices: s.vertices,
@@ -97,6 +61,40 @@ pub(crate) fn measure(
         run.holdout_rmse
     );
     Ok(run)
+}
+
+/// `run`'s options for one bench fit of `s` into `out`: the model's count, basis and
+/// adaptivity, the knobs' sides, budget and caps, `--large-mesh` when the model asks;
+/// no training renders, and `out` replaced.
+fn bench_options(
+    s: &BenchScene,
+    out: &std::path::Path,
+    knobs: &Knobs,
+    model: &Model,
+    opts: &BenchOptions,
+) -> Result<RunOptions> {
+    let mut o = RunOptions::new(s.dir.to_path_buf(), out.to_path_buf());
+    o.holdout = Holdout::Default;
+    o.materials = model
+        .materials
+        .map_or(MaterialCount::Auto, MaterialCount::Fixed);
+    if let Some(b) = &model.basis {
+        o.basis = crate::transport::brdf::parse_list(b)?;
+    }
+    o.adaptive = model.adaptive;
+    o.global_resolution = knobs.global_resolution;
+    o.local_resolution = knobs.local_resolution;
+    o.normal_grid = knobs.normal_grid;
+    o.keep = knobs.keep;
+    o.max_iterations = knobs.iterations;
+    o.lighting_qp_iterations = knobs.lighting_qp;
+    if model.large_mesh {
+        crate::run::LARGE_MESH.apply(&mut o);
+    }
+    o.progress = opts.progress;
+    o.force = true;
+    o.render_training = false;
+    Ok(o)
 }
 
 /// What the bench reads of a run's report (`report.json` of a child run, or the
@@ -135,6 +133,27 @@ impl Fit {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         serde_json::from_str(&text)
             .map_err(|e| Error::Internal(format!("{}: not a run report: {e}", path.display())))
+    }
+
+    /// The mean scaled RMSE of the held-out photos under their true light (`truth`), or,
+    /// without a truth, of protocol `mean`; NaN when neither has a finite figure.
+    pub(crate) fn holdout_mean(&self) -> f64 {
+        let pick = |p: &str| -> Vec<f64> {
+            self.holdout
+                .iter()
+                .filter(|h| h.protocol == p)
+                .filter_map(|h| h.rmse_scaled.filter(|x| x.is_finite()))
+                .collect()
+        };
+        let mut held = pick("truth");
+        if held.is_empty() {
+            held = pick("mean");
+        }
+        if held.is_empty() {
+            f64::NAN
+        } else {
+            held.iter().sum::<f64>() / held.len() as f64
+        }
     }
 }
 
