@@ -336,14 +336,10 @@ fn prepare(
         mut decisions,
     } = observed;
     let nv = scene.mesh.positions.len();
-    let up = world_up(opts, &scene.views, log)?;
-    let env_from_world = env_from_world(&up)?;
-    let normals_env: Vec<Vec3> = scene
-        .mesh
-        .normals
-        .iter()
-        .map(|n| env_from_world * n)
-        .collect();
+    let Frames {
+        env_from_world,
+        normals_env,
+    } = Frames::new(opts, scene, log)?;
     let at = TraceScene {
         scene,
         bvh: &bvh,
@@ -368,26 +364,24 @@ fn prepare(
     let eff = adapted.eff;
     let (vis, render_vis) = fit_visibility(&eff, traced, &at, log, progress);
     let rot = rotation(&eff, log, progress);
-    // 5. Transport.
-    progress.stage("transport");
     let topts = TransportOptions {
         n_global: eff.global_resolution,
         n_local: eff.local_resolution,
         keep: eff.keep,
     };
-    let bar = progress.stage_bar(obs.vertex.len() as u64, "observations");
-    let tr: Transport = log.stages.run("transport", || {
-        transport::build(
-            &normals_env,
-            &obs,
-            &env_from_world,
-            &vis,
-            &eff.basis,
-            &rot,
-            &topts,
-        )
-    })?;
-    drop(bar);
+    let tr = transport_rows(
+        &TransportInput {
+            normals_env: &normals_env,
+            obs: &obs,
+            env_from_world: &env_from_world,
+            vis: &vis,
+            basis: &eff.basis,
+            rot: &rot,
+            topts: &topts,
+        },
+        log,
+        progress,
+    )?;
     Ok((
         Observed {
             bvh,
@@ -410,6 +404,59 @@ fn prepare(
             strata,
         },
     ))
+}
+
+/// The environment frame (stage 3): world up (`--up` or the cameras'), the frame with that
+/// up as its z, and the vertex normals in it.
+struct Frames {
+    env_from_world: Matrix3<f64>,
+    normals_env: Vec<Vec3>,
+}
+
+impl Frames {
+    fn new(opts: &RunOptions, scene: &scene::Scene, log: &mut RunLog) -> Result<Self> {
+        let up = world_up(opts, &scene.views, log)?;
+        let env_from_world = env_from_world(&up)?;
+        let normals_env = scene
+            .mesh
+            .normals
+            .iter()
+            .map(|n| env_from_world * n)
+            .collect();
+        Ok(Frames {
+            env_from_world,
+            normals_env,
+        })
+    }
+}
+
+/// What the transport rows are built from (stage 5).
+struct TransportInput<'a> {
+    normals_env: &'a [Vec3],
+    obs: &'a Observations,
+    env_from_world: &'a Matrix3<f64>,
+    vis: &'a Visibility,
+    basis: &'a [crate::transport::brdf::BasisBrdf],
+    rot: &'a Rotation,
+    topts: &'a TransportOptions,
+}
+
+/// Stage 5: the transport row of every training observation ([`transport::build`]), with
+/// a progress bar over the observations.
+fn transport_rows(t: &TransportInput, log: &mut RunLog, progress: &Progress) -> Result<Transport> {
+    progress.stage("transport");
+    let _bar = progress.stage_bar(t.obs.vertex.len() as u64, "observations");
+    log.stages.run("transport", || {
+        transport::build(
+            t.normals_env,
+            t.obs,
+            t.env_from_world,
+            t.vis,
+            t.basis,
+            t.rot,
+            t.topts,
+        )
+    })
 }
 
 /// The options the visibility is first traced with (stage 3): with the adaptive model on,
