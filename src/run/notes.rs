@@ -51,24 +51,45 @@ pub(crate) fn fit_notes(
     multi: &crate::solve::starts::MultiStart,
     log: &mut RunLog,
 ) {
-    let c = &fitted.est.conditioning;
+    let est = &fitted.est;
+    log.notes
+        .extend(conditioning_notes(opts, &est.conditioning));
+    log.notes.push(ratio_note(opts, fitted));
+    log.notes.extend(starts_note(multi));
+    log.notes
+        .push(format!("scale normalisation: {}", est.normalisation));
+    log.notes
+        .extend(large_mesh_note(opts, fitted.scene.mesh.positions.len()));
+    log.notes
+        .extend(est.validation.as_ref().map(early_stopping_note));
+    log.notes
+        .extend(est.lighting_sample.as_ref().map(lighting_sample_note));
+}
+
+/// Vertices whose weights are minimum-norm, and lighting solves stopped at their cap.
+fn conditioning_notes(opts: &RunOptions, c: &crate::solve::Conditioning) -> Vec<String> {
+    let mut notes = Vec::new();
     if c.weights_singular > 0 {
-        log.notes.push(format!(
+        notes.push(format!(
             "{} vertices had fewer independent observations than materials (their blending weights are minimum-norm)",
             c.weights_singular
         ));
     }
     if c.qp_unconverged > 0 {
-        log.notes.push(format!(
+        notes.push(format!(
             "{} photos' lighting solves in the last outer iteration stopped at the iteration cap before the KKT tolerance ({} of the QPs, one per photo and IRLS pass, at the alternation's cap of {} GPCG iterations, by design: --lighting-qp-iterations)",
             c.qp_unconverged,
             c.qp_alternation_capped,
             opts.lighting_qp_iterations
         ));
     }
-    log.notes.push(ratio_note(opts, fitted));
-    if multi.starts.len() > 1 {
-        log.notes.push(format!(
+    notes
+}
+
+/// Which start was kept and each start's score, when more than one ran.
+fn starts_note(multi: &crate::solve::starts::MultiStart) -> Option<String> {
+    (multi.starts.len() > 1).then(|| {
+        format!(
             "{} starts tried, kept start {} ({}) by the {}: {}",
             multi.starts.len(),
             multi.chosen + 1,
@@ -81,53 +102,58 @@ pub(crate) fn fit_notes(
                 .map(|(i, r)| format!("start {} {:.4} in {:.1} s", i + 1, r.score, r.seconds))
                 .collect::<Vec<_>>()
                 .join(", ")
-        ));
-    }
-    log.notes
-        .push(format!("scale normalisation: {}", fitted.est.normalisation));
-    let vertices = fitted.scene.mesh.positions.len();
-    if vertices >= LargeMeshSettings::FROM_VERTICES && !LARGE_MESH.in_effect(opts) {
-        log.notes.push(format!(
+        )
+    })
+}
+
+/// A large mesh fitted without (all of) `--large-mesh`'s settings.
+fn large_mesh_note(opts: &RunOptions, vertices: usize) -> Option<String> {
+    (vertices >= LargeMeshSettings::FROM_VERTICES && !LARGE_MESH.in_effect(opts)).then(|| {
+        format!(
             "the mesh has {vertices} vertices, but the run kept (some of) the full settings that --large-mesh replaces (--no-large-mesh, or one of its three flags given): --large-mesh takes {}",
             LargeMeshSettings::GAIN
-        ));
-    }
-    if let Some(v) = &fitted.est.validation {
-        log.notes.push(format!(
-            "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",
-            v.observations,
-            100.0 * v.fraction,
-            v.errors
-                .iter()
-                .map(|e| format!("{e:.4}"))
-                .collect::<Vec<_>>()
-                .join(", "),
-            v.best_iteration,
-            v.errors.len(),
-            if v.stopped_early {
-                " (stopped: no lower score for the patience)"
-            } else {
-                ""
-            }
-        ));
-    }
-    if let Some(s) = &fitted.est.lighting_sample {
-        log.notes.push(format!(
-            "lighting sample: the lighting steps of {} photo(s) saw at most {} of their observations each (stratified by normal, open sky and material); relative RMSE of the fit {:.4} on the {} sampled observations and {:.4} on the {} others (ratio {:.3}){}",
-            s.photos_sampled,
-            s.budget,
-            s.rel_rmse_in,
-            s.in_sample,
-            s.rel_rmse_out,
-            s.out_of_sample,
-            s.ratio,
-            if s.ratio > LIGHTING_SAMPLE_MAX_RATIO {
-                format!(": above {LIGHTING_SAMPLE_MAX_RATIO}, the maps over-fit their samples; rerun with a larger --lighting-sample or 0 (all)")
-            } else {
-                String::new()
-            }
-        ));
-    }
+        )
+    })
+}
+
+/// The held-back observations' score per outer iteration and the iteration kept.
+fn early_stopping_note(v: &crate::solve::result::Validation) -> String {
+    format!(
+        "early stopping: {} training observations ({:.0}%) left out of the fit and scored after every outer iteration (relative RMSE {}); kept iteration {} of {}{}",
+        v.observations,
+        100.0 * v.fraction,
+        v.errors
+            .iter()
+            .map(|e| format!("{e:.4}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        v.best_iteration,
+        v.errors.len(),
+        if v.stopped_early {
+            " (stopped: no lower score for the patience)"
+        } else {
+            ""
+        }
+    )
+}
+
+/// The lighting steps' observation sample and whether the maps over-fit it.
+fn lighting_sample_note(s: &crate::solve::subsample::SampleCheck) -> String {
+    format!(
+        "lighting sample: the lighting steps of {} photo(s) saw at most {} of their observations each (stratified by normal, open sky and material); relative RMSE of the fit {:.4} on the {} sampled observations and {:.4} on the {} others (ratio {:.3}){}",
+        s.photos_sampled,
+        s.budget,
+        s.rel_rmse_in,
+        s.in_sample,
+        s.rel_rmse_out,
+        s.out_of_sample,
+        s.ratio,
+        if s.ratio > LIGHTING_SAMPLE_MAX_RATIO {
+            format!(": above {LIGHTING_SAMPLE_MAX_RATIO}, the maps over-fit their samples; rerun with a larger --lighting-sample or 0 (all)")
+        } else {
+            String::new()
+        }
+    )
 }
 
 /// The report's notes on the evaluation: its cost, the baseline's unseen vertices and the
