@@ -211,6 +211,24 @@ struct ViewGeometry<'a> {
     scale: [f64; 2],
 }
 
+impl<'a> ViewGeometry<'a> {
+    /// The view's camera pose and the camera → photo pixel scale.
+    fn new(view: &'a View, photo: &'a Photo) -> Self {
+        let cam = &view.camera;
+        ViewGeometry {
+            rot: *view.image.cam_from_world_rotation().matrix(),
+            t: Vec3::from(view.image.tvec),
+            center: view.image.center(),
+            view,
+            photo,
+            scale: [
+                photo.width as f64 / cam.width.max(1) as f64,
+                photo.height as f64 / cam.height.max(1) as f64,
+            ],
+        }
+    }
+}
+
 impl ViewGeometry<'_> {
     /// Whether the probe through camera pixel `px` meets the tangent plane `(x, n)` where the
     /// mesh is (module docs, test 4).
@@ -348,77 +366,115 @@ pub fn extract_with_stats<P: std::borrow::Borrow<Photo>>(
     let reach = mean_edge_lengths(mesh);
     for (i, view) in views.iter().enumerate() {
         let start = obs.len();
-        let Some(photo) = photos.get(i).map(|p| p.borrow()) else {
-            obs.photo_ranges.push(start..start);
-            stats.push(ViewStats::default());
-            continue;
-        };
-        let cam = &view.camera;
-        let geo = ViewGeometry {
-            rot: *view.image.cam_from_world_rotation().matrix(),
-            t: Vec3::from(view.image.tvec),
-            center: view.image.center(),
-            view,
-            photo,
-            scale: [
-                photo.width as f64 / cam.width.max(1) as f64,
-                photo.height as f64 / cam.height.max(1) as f64,
-            ],
-        };
-        let outcomes: Vec<Outcome> = (0..mesh.positions.len())
-            .into_par_iter()
-            .with_min_len(512)
-            .map(|v| geo.test(mesh, bvh, v, reach[v], opts))
-            .collect();
-        let edge_distance = opts
-            .edge_margin
-            .map(|m| margins::edge_distance(mesh, cam, &view.image, m.depth_jump));
-        let mut s = ViewStats::default();
-        for o in outcomes {
-            match o {
-                Outcome::Outside => {}
-                Outcome::BackFacing => s.inside += 1,
-                Outcome::Occluded => {
-                    s.inside += 1;
-                    s.facing += 1;
-                    s.occluded += 1;
-                }
-                Outcome::Discontinuity => {
-                    s.inside += 1;
-                    s.facing += 1;
-                    s.discontinuity += 1;
-                }
-                Outcome::Kept(mut r, over) => {
-                    if let (Some(m), Some(d)) = (&opts.edge_margin, &edge_distance) {
-                        let (ix, iy) = (r.px[0].floor(), r.px[1].floor());
-                        let (w, h) = (cam.width as f64, cam.height as f64);
-                        let dist = if ix >= 0.0 && iy >= 0.0 && ix < w && iy < h {
-                            d[iy as usize * cam.width as usize + ix as usize] as f64
-                        } else {
-                            0.0
-                        };
-                        let f = margins::margin_factor(dist, m) as f32;
-                        if r.weight > 0.0 && f == 0.0 {
-                            s.near_edge += 1;
-                        }
-                        r.weight *= f;
-                    }
-                    s.inside += 1;
-                    s.facing += 1;
-                    s.observed += 1;
-                    s.overexposed += over as usize;
-                    obs.vertex.push(r.vertex);
-                    obs.photo.push(i as u32);
-                    obs.rgb.push(r.rgb);
-                    obs.weight.push(r.weight);
-                    obs.dir.push(r.dir);
-                }
+        let s = match photos.get(i).map(|p| p.borrow()) {
+            Some(photo) => {
+                let geo = ViewGeometry::new(view, photo);
+                let outcomes: Vec<Outcome> = (0..mesh.positions.len())
+                    .into_par_iter()
+                    .with_min_len(512)
+                    .map(|v| geo.test(mesh, bvh, v, reach[v], opts))
+                    .collect();
+                let margin = ViewMargin::new(mesh, view, opts);
+                keep_outcomes(outcomes, i as u32, margin.as_ref(), &mut obs)
             }
-        }
+            None => ViewStats::default(),
+        };
         obs.photo_ranges.push(start..obs.len());
         stats.push(s);
     }
     (obs, stats)
+}
+
+/// One view's tested vertices tallied ([`ViewStats`]); the kept ones, their weight scaled
+/// by the edge margin when on, appended to `obs` as photo `photo`.
+fn keep_outcomes(
+    outcomes: Vec<Outcome>,
+    photo: u32,
+    margin: Option<&ViewMargin>,
+    obs: &mut Observations,
+) -> ViewStats {
+    let mut s = ViewStats::default();
+    for o in outcomes {
+        let Some((mut r, over)) = s.tally(o) else {
+            continue;
+        };
+        if let Some(m) = margin {
+            let f = m.factor(r.px);
+            if r.weight > 0.0 && f == 0.0 {
+                s.near_edge += 1;
+            }
+            r.weight *= f;
+        }
+        s.overexposed += over as usize;
+        obs.vertex.push(r.vertex);
+        obs.photo.push(photo);
+        obs.rgb.push(r.rgb);
+        obs.weight.push(r.weight);
+        obs.dir.push(r.dir);
+    }
+    s
+}
+
+impl ViewStats {
+    /// Count one vertex's outcome; a kept one is returned with whether it is overexposed.
+    fn tally(&mut self, o: Outcome) -> Option<(Record, bool)> {
+        let (inside, facing) = (
+            !matches!(o, Outcome::Outside),
+            !matches!(o, Outcome::Outside | Outcome::BackFacing),
+        );
+        self.inside += inside as usize;
+        self.facing += facing as usize;
+        match o {
+            Outcome::Outside | Outcome::BackFacing => None,
+            Outcome::Occluded => {
+                self.occluded += 1;
+                None
+            }
+            Outcome::Discontinuity => {
+                self.discontinuity += 1;
+                None
+            }
+            Outcome::Kept(r, over) => {
+                self.observed += 1;
+                Some((r, over))
+            }
+        }
+    }
+}
+
+/// The edge margin of one view ([`margins`]): each camera pixel's distance to the nearest
+/// silhouette or depth edge, and the margin that turns it into a weight factor.
+struct ViewMargin<'a> {
+    margin: &'a margins::EdgeMargin,
+    distance: Vec<f32>,
+    width: usize,
+    height: usize,
+}
+
+impl<'a> ViewMargin<'a> {
+    /// `None` when the options have no edge margin.
+    fn new(mesh: &Mesh, view: &View, opts: &'a ObserveOptions) -> Option<Self> {
+        let m = opts.edge_margin.as_ref()?;
+        let cam = &view.camera;
+        Some(ViewMargin {
+            margin: m,
+            distance: margins::edge_distance(mesh, cam, &view.image, m.depth_jump),
+            width: cam.width as usize,
+            height: cam.height as usize,
+        })
+    }
+
+    /// The weight factor at camera pixel `px` (0 outside the image).
+    fn factor(&self, px: [f64; 2]) -> f32 {
+        let (ix, iy) = (px[0].floor(), px[1].floor());
+        let (w, h) = (self.width as f64, self.height as f64);
+        let dist = if ix >= 0.0 && iy >= 0.0 && ix < w && iy < h {
+            self.distance[iy as usize * self.width + ix as usize] as f64
+        } else {
+            0.0
+        };
+        margins::margin_factor(dist, self.margin) as f32
+    }
 }
 
 #[cfg(test)]
