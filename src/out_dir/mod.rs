@@ -25,6 +25,7 @@ use crate::{Error, Result};
 use std::path::{Component, Path, PathBuf};
 use std::sync::Mutex;
 
+pub mod exr;
 mod files;
 pub use files::OutFiles;
 

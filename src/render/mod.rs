@@ -107,12 +107,12 @@ pub fn write_exr(
         message: e.to_string(),
     };
     match mask {
-        Some(m) => exr::prelude::write_rgba_file(path, w, height as usize, |x, y| {
+        Some(m) => crate::out_dir::exr::write_rgba(path, w, height as usize, |x, y| {
             let p = rgb_linear[y * w + x];
             (p[0], p[1], p[2], if m[y * w + x] { 1.0f32 } else { 0.0 })
         })
         .map_err(err),
-        None => exr::prelude::write_rgb_file(path, w, height as usize, |x, y| {
+        None => crate::out_dir::exr::write_rgb(path, w, height as usize, |x, y| {
             let p = rgb_linear[y * w + x];
             (p[0], p[1], p[2])
         })
@@ -192,6 +192,24 @@ pub struct ViewToShade<'a> {
     pub envs: Vec<&'a OctEnv>,
 }
 
+/// Every view's lights in one list, and the range of each view's in it.
+struct LightSlots<'a> {
+    ranges: Vec<std::ops::Range<usize>>,
+    envs: Vec<&'a OctEnv>,
+}
+
+impl<'a> LightSlots<'a> {
+    fn new(views: &[ViewToShade<'a>]) -> Self {
+        let mut ranges = Vec::with_capacity(views.len());
+        let mut envs = Vec::new();
+        for v in views {
+            ranges.push(envs.len()..envs.len() + v.envs.len());
+            envs.extend(v.envs.iter().copied());
+        }
+        LightSlots { ranges, envs }
+    }
+}
+
 /// [`shade_wavelet`] of several views at once ([`ShadedViews::images`]`(i, …)[l]` is view
 /// `i` under its light `l`). Vertex-major: a vertex that several views need is rotated into its frame once for
 /// every light of all of them (with a per-normal rotation such as
@@ -206,25 +224,11 @@ pub fn shade_views<R: LocalRotation>(
     rot: &R,
 ) -> Result<ShadedViews> {
     check_model(model)?;
-    let WaveletModel {
-        mesh,
-        normals_env,
-        vis,
-        env_from_world,
-        basis,
-        beta,
-    } = *model;
-    let (nv, nb) = (mesh.positions.len(), basis.len());
     let needed: Vec<Vec<bool>> = views
         .iter()
-        .map(|v| needed_vertices(mesh, v.raster))
+        .map(|v| needed_vertices(model.mesh, v.raster))
         .collect();
-    let mut ranges = Vec::with_capacity(views.len());
-    let mut envs = Vec::new();
-    for v in views {
-        ranges.push(envs.len()..envs.len() + v.envs.len());
-        envs.extend(v.envs.iter().copied());
-    }
+    let LightSlots { ranges, envs } = LightSlots::new(views);
     if envs.is_empty() {
         return Ok(ShadedViews {
             radiance: Vec::new(),
@@ -236,13 +240,48 @@ pub fn shade_views<R: LocalRotation>(
         .iter()
         .map(|n| n.iter().filter(|&&b| b).count())
         .sum();
-    let mut renderer = WaveletRenderer::new_many(rot, basis, &envs)?;
+    let mut renderer = WaveletRenderer::new_many(rot, model.basis, &envs)?;
     if renders > rot.n_frames() {
         renderer = renderer.with_frames();
     }
-    let centres: Vec<Vec3> = views.iter().map(|v| v.image.center()).collect();
-    let nl = envs.len();
-    // Vertex-major: every light of every view per vertex; one scratch per thread.
+    let views_needed = ViewsNeeded {
+        centres: views.iter().map(|v| v.image.center()).collect(),
+        needed,
+        ranges,
+    };
+    let radiance = vertex_major_radiance(model, &renderer, &views_needed, envs.len());
+    Ok(ShadedViews {
+        radiance,
+        ranges: views_needed.ranges,
+        n_lights: envs.len(),
+    })
+}
+
+/// Which vertices each view needs, where its camera is, and its lights' slots.
+struct ViewsNeeded {
+    centres: Vec<Vec3>,
+    needed: Vec<Vec<bool>>,
+    ranges: Vec<std::ops::Range<usize>>,
+}
+
+/// The radiance of every vertex toward every view that needs it, under each of that view's
+/// lights: `nl` slots a vertex ([`ShadedViews`]'s layout), 0 where no view needs it.
+/// Vertex-major, one scratch per thread.
+fn vertex_major_radiance<R: LocalRotation>(
+    model: &WaveletModel,
+    renderer: &WaveletRenderer<R>,
+    v: &ViewsNeeded,
+    nl: usize,
+) -> Vec<[f32; 3]> {
+    let WaveletModel {
+        mesh,
+        normals_env,
+        vis,
+        env_from_world,
+        basis,
+        beta,
+    } = *model;
+    let (nv, nb) = (mesh.positions.len(), basis.len());
     let mut radiance = vec![[0.0f32; 3]; nv * nl];
     radiance.par_chunks_mut(nl).enumerate().for_each_init(
         || {
@@ -251,11 +290,11 @@ pub fn shade_views<R: LocalRotation>(
         },
         |(scratch, seen, out), (x, rad)| {
             seen.clear();
-            for (i, c) in centres.iter().enumerate() {
-                if needed[i][x] {
+            for (i, c) in v.centres.iter().enumerate() {
+                if v.needed[i][x] {
                     seen.push(VertexView {
                         wo_env: env_from_world * unit_toward(c, &mesh.positions[x]),
-                        lights: ranges[i].clone(),
+                        lights: v.ranges[i].clone(),
                     });
                 }
             }
@@ -278,11 +317,7 @@ pub fn shade_views<R: LocalRotation>(
             }
         },
     );
-    Ok(ShadedViews {
-        radiance,
-        ranges,
-        n_lights: nl,
-    })
+    radiance
 }
 
 /// The per-vertex radiance [`shade_views`] computed: images on demand, so that a caller

@@ -151,7 +151,7 @@ fn read_exr_rgb(path: &Path) -> Result<(usize, usize, Vec<[f32; 3]>)> {
 
 /// Write `width × height` RGB as 32-bit float EXR.
 fn write_exr_rgb(path: &Path, width: usize, height: usize, rgb: &[[f32; 3]]) -> Result<()> {
-    exr::prelude::write_rgb_file(path, width, height, |x, y| {
+    crate::out_dir::exr::write_rgb(path, width, height, |x, y| {
         let p = rgb[y * width + x];
         (p[0], p[1], p[2])
     })
