@@ -219,7 +219,7 @@ pub(crate) struct RunArgs {
     /// neighbours' mean, as a multiple of what its photos charge for a change of its
     /// brightness (0 = off, as the paper). For objects whose materials change smoothly
     /// (painted regions, no fine texture): 0.1 lowered the rendered scenes' held-out error
-    /// under the true light by up to 7% but raised the real Buddha photos' error by 2–3%.
+    /// under the true light by up to 7% but raised the real Buddha photos' error by 2–5%.
     #[arg(long, default_value_t = 0.0, help_heading = "Solver")]
     pub(crate) weights_smoothness: f64,
     /// Specular lobes take the light's colour: one specular weight per material shared by
