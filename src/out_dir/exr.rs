@@ -21,16 +21,8 @@ pub fn write_rgb(
     rgb: impl Sync + Fn(usize, usize) -> (f32, f32, f32),
 ) -> exr::error::UnitResult {
     let channels = SpecificChannels::rgb(|p: Vec2<usize>| rgb(p.x(), p.y()));
-    let layer = Layer::new(
-        (width, height),
-        LayerAttributes::default(),
-        ENCODING,
-        channels,
-    );
-    Image::from_layer(layer)
-        .write()
-        .non_parallel()
-        .to_file(path)
+    let image = Image::from_layer(layer((width, height), channels));
+    image.write().non_parallel().to_file(path)
 }
 
 /// Write `width × height` RGBA pixels, `rgba(x, y)` each, to `path`.
@@ -41,16 +33,16 @@ pub fn write_rgba(
     rgba: impl Sync + Fn(usize, usize) -> (f32, f32, f32, f32),
 ) -> exr::error::UnitResult {
     let channels = SpecificChannels::rgba(|p: Vec2<usize>| rgba(p.x(), p.y()));
-    let layer = Layer::new(
-        (width, height),
-        LayerAttributes::default(),
-        ENCODING,
-        channels,
-    );
-    Image::from_layer(layer)
-        .write()
-        .non_parallel()
-        .to_file(path)
+    let image = Image::from_layer(layer((width, height), channels));
+    image.write().non_parallel().to_file(path)
+}
+
+/// One unnamed layer of `channels` in [`ENCODING`].
+fn layer<'s, C>(size: (usize, usize), channels: C) -> Layer<C>
+where
+    C: exr::image::write::channels::WritableChannels<'s> + 's,
+{
+    Layer::new(size, LayerAttributes::default(), ENCODING, channels)
 }
 
 #[cfg(test)]

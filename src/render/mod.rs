@@ -273,15 +273,8 @@ fn vertex_major_radiance<R: LocalRotation>(
     v: &ViewsNeeded,
     nl: usize,
 ) -> Vec<[f32; 3]> {
-    let WaveletModel {
-        mesh,
-        normals_env,
-        vis,
-        env_from_world,
-        basis,
-        beta,
-    } = *model;
-    let (nv, nb) = (mesh.positions.len(), basis.len());
+    let (mesh, beta) = (model.mesh, model.beta);
+    let (nv, nb) = (mesh.positions.len(), model.basis.len());
     let mut radiance = vec![[0.0f32; 3]; nv * nl];
     radiance.par_chunks_mut(nl).enumerate().for_each_init(
         || {
@@ -293,7 +286,7 @@ fn vertex_major_radiance<R: LocalRotation>(
             for (i, c) in v.centres.iter().enumerate() {
                 if v.needed[i][x] {
                     seen.push(VertexView {
-                        wo_env: env_from_world * unit_toward(c, &mesh.positions[x]),
+                        wo_env: model.env_from_world * unit_toward(c, &mesh.positions[x]),
                         lights: v.ranges[i].clone(),
                     });
                 }
@@ -305,8 +298,8 @@ fn vertex_major_radiance<R: LocalRotation>(
             let beta_x = &beta[x * nb..(x + 1) * nb];
             renderer.vertex_radiance_views(
                 scratch,
-                &normals_env[x],
-                vis.vertex(x),
+                &model.normals_env[x],
+                model.vis.vertex(x),
                 beta_x,
                 seen,
                 &mut out[..n],

@@ -383,9 +383,8 @@ fn shared_light_follows_a_groups_file() {
 /// order, the maps and renders differed from run to run.
 #[test]
 fn one_and_two_threads_write_the_same_files() {
-    let dir = std::env::temp_dir().join(format!("relight-run-threads-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let outs = [1, 2].map(|threads| {
+    let dir = crate::scratch::scratch("run-threads", "spot");
+    let [one, two] = [1, 2].map(|threads| {
         let out = dir.join(format!("spot-{threads}"));
         let mut o = options(&out);
         o.render_training = true;
@@ -395,53 +394,38 @@ fn one_and_two_threads_write_the_same_files() {
             .unwrap()
             .install(|| run(&o))
             .expect("run on the built-in example");
-        out
+        // Paths relative to the result, the timed files left out.
+        crate::scratch::snapshot(&out)
+            .into_iter()
+            .map(|(p, bytes)| {
+                let rel = p.strip_prefix(&out).unwrap().to_string_lossy();
+                (rel.replace('\\', "/"), bytes)
+            })
+            .filter(|(rel, _)| !TIMED.contains(&rel.as_str()))
+            .collect::<Vec<_>>()
     });
-    let timed = [
-        "report.json",
-        "report.md",
-        "report.html",
-        "plots/stages.png",
-        "plots/error_vs_time.png",
-        ".relight-cpc-result.json",
-    ];
-    let files = files_under(&outs[0]);
-    assert!(files.iter().any(|f| f.ends_with(".exr")), "no EXR written");
-    let mut compared = 0;
-    for f in &files {
-        if timed.contains(&f.as_str()) {
-            continue;
-        }
-        let a = std::fs::read(outs[0].join(f)).unwrap();
-        let b = std::fs::read(outs[1].join(f))
-            .unwrap_or_else(|e| panic!("{f}: written with 1 thread, not with 2: {e}"));
-        assert!(a == b, "{f} differs between 1 and 2 threads");
-        compared += 1;
-    }
+    assert!(
+        one.iter().any(|(f, _)| f.ends_with(".exr")),
+        "no EXR written"
+    );
+    assert!(one.len() > 10, "only {} files compared", one.len());
+    let names = |v: &[(String, Vec<u8>)]| v.iter().map(|(f, _)| f.clone()).collect::<Vec<_>>();
     assert_eq!(
-        files,
-        files_under(&outs[1]),
+        names(&one),
+        names(&two),
         "the two runs wrote different files"
     );
-    assert!(compared > 10, "only {compared} files compared");
-    let _ = std::fs::remove_dir_all(&dir);
+    for ((f, a), (_, b)) in one.iter().zip(&two) {
+        assert!(a == b, "{f} differs between 1 and 2 threads");
+    }
 }
 
-/// Every file under `root`, as sorted paths relative to it with `/` separators.
-fn files_under(root: &std::path::Path) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                let rel = p.strip_prefix(root).unwrap();
-                out.push(rel.to_string_lossy().replace('\\', "/"));
-            }
-        }
-    }
-    out.sort();
-    out
-}
+/// The files of a result that carry wall or CPU times.
+const TIMED: [&str; 6] = [
+    "report.json",
+    "report.md",
+    "report.html",
+    "plots/stages.png",
+    "plots/error_vs_time.png",
+    ".relight-cpc-result.json",
+];

@@ -18,7 +18,7 @@ mod ply;
 
 use std::path::{Path, PathBuf};
 
-use crate::scratch::{scratch, Scratch};
+use crate::scratch::{scratch, snapshot, Scratch};
 
 /// Library `Debug` formatting that must never reach a user.
 const DEBUG_MARKS: [&str; 7] = [
@@ -64,21 +64,3 @@ fn file(tag: &str, name: &str, bytes: &[u8]) -> (Scratch, PathBuf) {
 const ASCII_HEAD: &str = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
 property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n\
 end_header\n";
-
-/// Every file under `dir` with its bytes, sorted: to compare before and after.
-fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push((p.clone(), std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    out.sort();
-    out
-}
