@@ -133,48 +133,16 @@ pub(crate) fn color_names(e: &ElementDef) -> Option<[&'static str; 3]> {
 /// (which embed Debug text) never reach the user.
 pub fn read_ply_data(path: &Path) -> Result<PlyData> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if !bytes.starts_with(b"ply") {
-        return Err(Error::format(
-            path,
-            "line 1",
-            "the file does not start with `ply`: not a PLY file",
-        ));
-    }
-    let mut reader = std::io::Cursor::new(bytes.as_slice());
     let parser = Parser::<PlyRecord>::new();
-    // ply-rs 0.1.3 panics on an element count that does not fit in u64 (it unwraps the
-    // parse); turn that into an error naming the file instead of a crash.
-    let header = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        parser.read_header(&mut reader)
-    }))
-    .map_err(|_| {
-        Error::format(
-            path,
-            "header",
-            "malformed header (an element count or property is out of range)",
-        )
-    })?
-    .map_err(|e| header_error(path, &bytes, &e))?;
-    let header_lines = bytes[..reader.position() as usize]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count();
+    let PlyFile {
+        header,
+        mut records,
+    } = read_header(path, &bytes, &parser)?;
     check_header(path, &header)?;
     let vdef = &header.elements["vertex"];
     let has_normals = has_props(vdef, &["nx", "ny", "nz"]);
     let has_colors = color_names(vdef).is_some();
-    let face_list = header.elements.get("face").and_then(|f| {
-        ["vertex_indices", "vertex_index"]
-            .into_iter()
-            .find(|n| matches!(f.properties.get(*n), Some(p) if matches!(p.data_type, PropertyType::List(..))))
-    });
-    let mut records = RecordReader {
-        path,
-        parser: &parser,
-        encoding: header.encoding,
-        reader,
-        line: header_lines,
-    };
+    let face_list = face_list_property(&header);
     let mut vertices: Vec<PlyRecord> = Vec::new();
     let mut face_records: Vec<PlyRecord> = Vec::new();
     for (name, def) in &header.elements {
@@ -185,21 +153,7 @@ pub fn read_ply_data(path: &Path) -> Result<PlyData> {
         };
         records.element(def, keep)?;
     }
-    let mut positions = Vec::with_capacity(vertices.len());
-    for (i, r) in vertices.iter().enumerate() {
-        let p = Vec3::new(r.xyz[0], r.xyz[1], r.xyz[2]);
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(Error::format(
-                path,
-                format!("vertex {i}"),
-                format!(
-                    "expected finite coordinates, found ({}, {}, {})",
-                    r.xyz[0], r.xyz[1], r.xyz[2]
-                ),
-            ));
-        }
-        positions.push(p);
-    }
+    let positions = finite_positions(path, &vertices)?;
     let normals = has_normals.then(|| {
         vertices
             .iter()
@@ -219,6 +173,83 @@ pub fn read_ply_data(path: &Path) -> Result<PlyData> {
         has_faces: face_list.is_some(),
         elements: header.elements.keys().cloned().collect(),
     })
+}
+
+/// A PLY file's header, and a record reader placed at its payload.
+struct PlyFile<'a> {
+    header: ply_rs::ply::Header,
+    records: RecordReader<'a>,
+}
+
+/// The header of the PLY file `bytes` (from `path`), the reader counting lines from its end.
+fn read_header<'a>(
+    path: &'a Path,
+    bytes: &'a [u8],
+    parser: &'a Parser<PlyRecord>,
+) -> Result<PlyFile<'a>> {
+    if !bytes.starts_with(b"ply") {
+        return Err(Error::format(
+            path,
+            "line 1",
+            "the file does not start with `ply`: not a PLY file",
+        ));
+    }
+    let mut reader = std::io::Cursor::new(bytes);
+    // ply-rs 0.1.3 panics on an element count that does not fit in u64 (it unwraps the
+    // parse); turn that into an error naming the file instead of a crash.
+    let header = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        parser.read_header(&mut reader)
+    }))
+    .map_err(|_| {
+        Error::format(
+            path,
+            "header",
+            "malformed header (an element count or property is out of range)",
+        )
+    })?
+    .map_err(|e| header_error(path, bytes, &e))?;
+    let header_lines = bytes[..reader.position() as usize]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count();
+    let records = RecordReader {
+        path,
+        parser,
+        encoding: header.encoding,
+        reader,
+        line: header_lines,
+    };
+    Ok(PlyFile { header, records })
+}
+
+/// The name of the face element's vertex-index list (`vertex_indices` or
+/// `vertex_index`), when it has one.
+fn face_list_property(header: &ply_rs::ply::Header) -> Option<&'static str> {
+    header.elements.get("face").and_then(|f| {
+        ["vertex_indices", "vertex_index"].into_iter().find(|n| {
+            matches!(f.properties.get(*n), Some(p) if matches!(p.data_type, PropertyType::List(..)))
+        })
+    })
+}
+
+/// The vertices' positions, each checked finite (the error names the vertex).
+fn finite_positions(path: &Path, vertices: &[PlyRecord]) -> Result<Vec<Vec3>> {
+    let mut positions = Vec::with_capacity(vertices.len());
+    for (i, r) in vertices.iter().enumerate() {
+        let p = Vec3::new(r.xyz[0], r.xyz[1], r.xyz[2]);
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(Error::format(
+                path,
+                format!("vertex {i}"),
+                format!(
+                    "expected finite coordinates, found ({}, {}, {})",
+                    r.xyz[0], r.xyz[1], r.xyz[2]
+                ),
+            ));
+        }
+        positions.push(p);
+    }
+    Ok(positions)
 }
 
 /// The header's `vertex` element must exist with scalar `x y z`.
