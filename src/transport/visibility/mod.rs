@@ -283,20 +283,8 @@ struct Tracing<'a> {
 /// permutation of the vertex indices; [`order`] module docs): the maps are the same for
 /// every order.
 fn compute_in_order(mesh: &Mesh, bvh: &SceneBvh, tracing: &Tracing, order: &[u32]) -> Visibility {
-    let Tracing {
-        env_from_world,
-        n_local,
-        sampling,
-        seed,
-        skip_open,
-    } = *tracing;
-    let grid = SphereGrid::hemi(n_local);
-    let texels = grid.len();
-    let eps = bvh.ray_offset();
-    let tree = PointTree::new(&mesh.positions);
-    let cones = skip_open.then(|| OpenCones::new(mesh, &grid)).flatten();
-    let world_from_env = env_from_world.transpose();
-    let nv = mesh.positions.len();
+    let tracer = VertexTracer::new(mesh, bvh, tracing);
+    let (nv, texels) = (mesh.positions.len(), tracer.grid.len());
     let mut frac = vec![0u8; nv * texels];
     let mut open = vec![false; nv];
     let mut slots: Vec<Option<(&mut [u8], &mut bool)>> = frac
@@ -308,7 +296,7 @@ fn compute_in_order(mesh: &Mesh, bvh: &SceneBvh, tracing: &Tracing, order: &[u32
         .iter()
         .filter_map(|&v| Some((v as usize, slots.get_mut(v as usize)?.take()?)))
         .collect();
-    let stats: (u64, usize, u64) = work
+    let counts = work
         .into_par_iter()
         .map_init(
             || {
@@ -317,57 +305,138 @@ fn compute_in_order(mesh: &Mesh, bvh: &SceneBvh, tracing: &Tracing, order: &[u32
             },
             |(ticks, first, scratch), (v, (out, is_open))| {
                 ticks.tick(1);
-                let x = mesh.positions[v];
-                let n = mesh.normals.get(v).copied().unwrap_or_else(Vec3::zeros);
-                let nn = n.norm();
-                if !(nn.is_finite() && nn > 0.0 && x.iter().all(|c| c.is_finite())) {
-                    return (0, 1, 0);
-                }
-                let n = n / nn;
-                if skip_open && !tree.any_above(&x, &n, eps) {
-                    *is_open = true;
-                    out.fill(255);
-                    return (0, 0, 0);
-                }
-                let frame = local_frame(&(env_from_world * n));
-                let origin = x + n * eps;
-                let to_world = |l: &Vec3| world_from_env * from_local(&frame, l);
-                scratch.sure.clear();
-                scratch.sure.resize(texels, false);
-                if let Some(cones) = &cones {
-                    cones.mark_open(&origin, &n, to_world, scratch);
-                }
-                let rays = VertexRays {
-                    bvh,
-                    grid: &grid,
-                    frame,
-                    world_from_env,
-                    origin,
-                    eps,
-                    blocker: std::cell::Cell::new(u32::MAX),
-                    sure_open: &scratch.sure,
-                    skipped: std::cell::Cell::new(0),
-                };
-                let mut rng = Pcg64::seed_from_u64(mix(seed, v as u64));
-                let counted = match sampling {
-                    Sampling::Uniform { rays: r } => rays.uniform(&mut rng, r.max(1), out),
-                    Sampling::Adaptive { edge_rays, lattice } => {
-                        rays.adaptive(&mut rng, edge_rays, lattice, first, out)
-                    }
-                };
-                let skipped = rays.skipped.get();
-                (counted - skipped, 0, skipped)
+                tracer.trace(v, out, is_open, first, scratch)
             },
         )
-        .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+        .reduce(RayCounts::default, RayCounts::add);
     Visibility {
-        n_local,
-        rays_per_texel: sampling.min_rays(),
+        n_local: tracing.n_local,
+        rays_per_texel: tracing.sampling.min_rays(),
         frac,
         open,
-        degenerate: stats.1,
-        rays_traced: stats.0,
-        rays_known_open: stats.2,
+        degenerate: counts.degenerate,
+        rays_traced: counts.traced,
+        rays_known_open: counts.known_open,
+    }
+}
+
+/// What tracing a vertex's hemisphere counted.
+#[derive(Debug, Clone, Copy, Default)]
+struct RayCounts {
+    /// Rays traced through the scene.
+    traced: u64,
+    /// Vertices with no finite position or normal (their maps stay 0).
+    degenerate: usize,
+    /// Rays answered open by the cones without tracing.
+    known_open: u64,
+}
+
+impl RayCounts {
+    fn add(self, o: Self) -> Self {
+        RayCounts {
+            traced: self.traced + o.traced,
+            degenerate: self.degenerate + o.degenerate,
+            known_open: self.known_open + o.known_open,
+        }
+    }
+}
+
+/// Everything the shadow rays of one vertex read, shared by all vertices of a trace.
+struct VertexTracer<'a> {
+    mesh: &'a Mesh,
+    bvh: &'a SceneBvh,
+    grid: SphereGrid,
+    tree: PointTree,
+    cones: Option<OpenCones>,
+    env_from_world: Matrix3<f64>,
+    world_from_env: Matrix3<f64>,
+    eps: f64,
+    sampling: Sampling,
+    seed: u64,
+    skip_open: bool,
+}
+
+impl<'a> VertexTracer<'a> {
+    fn new(mesh: &'a Mesh, bvh: &'a SceneBvh, t: &Tracing) -> Self {
+        let grid = SphereGrid::hemi(t.n_local);
+        let cones = t.skip_open.then(|| OpenCones::new(mesh, &grid)).flatten();
+        VertexTracer {
+            mesh,
+            bvh,
+            tree: PointTree::new(&mesh.positions),
+            cones,
+            grid,
+            env_from_world: *t.env_from_world,
+            world_from_env: t.env_from_world.transpose(),
+            eps: bvh.ray_offset(),
+            sampling: t.sampling,
+            seed: t.seed,
+            skip_open: t.skip_open,
+        }
+    }
+
+    /// Vertex `v`'s visible fraction per texel into `out` (`is_open` when it is proven
+    /// unoccluded without a ray), its rays seeded by `(seed, v)`.
+    fn trace(
+        &self,
+        v: usize,
+        out: &mut [u8],
+        is_open: &mut bool,
+        first: &mut FirstRays,
+        scratch: &mut ConeScratch,
+    ) -> RayCounts {
+        let x = self.mesh.positions[v];
+        let n = self
+            .mesh
+            .normals
+            .get(v)
+            .copied()
+            .unwrap_or_else(Vec3::zeros);
+        let nn = n.norm();
+        if !(nn.is_finite() && nn > 0.0 && x.iter().all(|c| c.is_finite())) {
+            return RayCounts {
+                degenerate: 1,
+                ..RayCounts::default()
+            };
+        }
+        let n = n / nn;
+        if self.skip_open && !self.tree.any_above(&x, &n, self.eps) {
+            *is_open = true;
+            out.fill(255);
+            return RayCounts::default();
+        }
+        let frame = local_frame(&(self.env_from_world * n));
+        let origin = x + n * self.eps;
+        let to_world = |l: &Vec3| self.world_from_env * from_local(&frame, l);
+        scratch.sure.clear();
+        scratch.sure.resize(self.grid.len(), false);
+        if let Some(cones) = &self.cones {
+            cones.mark_open(&origin, &n, to_world, scratch);
+        }
+        let rays = VertexRays {
+            bvh: self.bvh,
+            grid: &self.grid,
+            frame,
+            world_from_env: self.world_from_env,
+            origin,
+            eps: self.eps,
+            blocker: std::cell::Cell::new(u32::MAX),
+            sure_open: &scratch.sure,
+            skipped: std::cell::Cell::new(0),
+        };
+        let mut rng = Pcg64::seed_from_u64(mix(self.seed, v as u64));
+        let counted = match self.sampling {
+            Sampling::Uniform { rays: r } => rays.uniform(&mut rng, r.max(1), out),
+            Sampling::Adaptive { edge_rays, lattice } => {
+                rays.adaptive(&mut rng, edge_rays, lattice, first, out)
+            }
+        };
+        let skipped = rays.skipped.get();
+        RayCounts {
+            traced: counted - skipped,
+            degenerate: 0,
+            known_open: skipped,
+        }
     }
 }
 
