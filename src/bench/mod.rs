@@ -499,6 +499,8 @@ fn summarise(report: &mut BenchReport) {
     );
 }
 
+/// The bench's rows in order (vertices, photos, then the error-against-time sweep), the
+/// report saved after every row so that an interrupted bench keeps what it measured.
 fn bench_in(
     opts: &BenchOptions,
     files: &crate::out_dir::OutFiles,
@@ -507,84 +509,131 @@ fn bench_in(
     t0: std::time::Instant,
 ) -> Result<BenchReport> {
     let (_, _, _, sweep_base) = mode_settings(opts.quick);
-    let base = Knobs {
-        iterations: opts.iterations.unwrap_or(sweep_base.iterations),
-        ..sweep_base
+    let mut b = Session {
+        opts,
+        files,
+        work,
+        temporary,
+        t0,
+        base: Knobs {
+            iterations: opts.iterations.unwrap_or(sweep_base.iterations),
+            ..sweep_base
+        },
+        report: BenchReport::started(opts, shell_line(std::env::args().skip(1))),
     };
-    let mut sizes = opts.sizes.clone();
-    sizes.sort_unstable();
-    sizes.dedup();
-    let mut photos = opts.photos.clone();
-    photos.sort_unstable();
-    photos.dedup();
-    let mut report = BenchReport::started(opts, shell_line(std::env::args().skip(1)));
-    let save = |report: &mut BenchReport| -> Result<()> {
-        summarise(report);
-        report.seconds = t0.elapsed().as_secs_f64();
-        write_outputs(report, files, &opts.name)
-    };
-    let done = |s: &BenchScene| -> Result<()> {
-        if temporary {
+    let sizes = sorted_unique(&opts.sizes);
+    if !opts.sweep_only {
+        b.vertex_rows(&sizes)?;
+        b.photo_rows(&sizes)?;
+    }
+    if !opts.no_sweep {
+        b.sweep_rows(
+            sizes.first().copied().unwrap_or(opts.base_vertices),
+            sweep_base,
+        )?;
+    }
+    b.report.complete = true;
+    b.save()?;
+    Ok(b.report)
+}
+
+/// `v` sorted, each value once.
+fn sorted_unique(v: &[usize]) -> Vec<usize> {
+    let mut v = v.to_vec();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// One bench in progress: where it works and writes, the knobs of its scaling rows, the
+/// report so far.
+struct Session<'a> {
+    opts: &'a BenchOptions,
+    files: &'a crate::out_dir::OutFiles,
+    work: &'a Path,
+    /// Whether the scenes are removed once measured.
+    temporary: bool,
+    t0: std::time::Instant,
+    base: Knobs,
+    report: BenchReport,
+}
+
+impl Session<'_> {
+    /// The report summarised and written as it stands.
+    fn save(&mut self) -> Result<()> {
+        summarise(&mut self.report);
+        self.report.seconds = self.t0.elapsed().as_secs_f64();
+        write_outputs(&self.report, self.files, &self.opts.name)
+    }
+
+    /// A scene measured: removed when the bench's scenes are temporary.
+    fn done(&self, s: &BenchScene) -> Result<()> {
+        if self.temporary {
             std::fs::remove_dir_all(&s.dir).map_err(|e| Error::io(&s.dir, e))?;
         }
         Ok(())
-    };
-    let adaptive = Model {
-        adaptive: true,
-        ..opts.model.clone()
-    };
-
-    // Scaling in vertices, then in photos; a (vertices, photos) pair already run is reused.
-    let (sizes_run, photos_run) = if opts.sweep_only {
-        (&[][..], &[][..])
-    } else {
-        (&sizes[..], &photos[..])
-    };
-    for &n in sizes_run {
-        let s = scene(opts, work, n, opts.base_photos)?;
-        let r = measure("vertices", &s, base, &opts.model, opts)?;
-        report.vertex_runs.push(r);
-        save(&mut report)?;
-        if opts.adaptive_rows {
-            let r = measure("adaptive", &s, base, &adaptive, opts)?;
-            report.adaptive_runs.push(r);
-            save(&mut report)?;
-        }
-        done(&s)?;
-    }
-    for &p in photos_run {
-        if let Some(i) = sizes
-            .iter()
-            .position(|&n| n == opts.base_vertices && p == opts.base_photos)
-        {
-            let mut r = report.vertex_runs[i].clone();
-            r.group = "photos".into();
-            report.photo_runs.push(r);
-            continue;
-        }
-        let s = scene(opts, work, opts.base_vertices, p)?;
-        let r = measure("photos", &s, base, &opts.model, opts)?;
-        report.photo_runs.push(r);
-        save(&mut report)?;
-        done(&s)?;
     }
 
-    // Error against time on the smallest scene.
-    if !opts.no_sweep {
-        let n = sizes.first().copied().unwrap_or(opts.base_vertices);
-        let s = scene(opts, work, n, opts.base_photos)?;
+    /// Scaling in vertices at the base photo count (with `--adaptive-rows`, each size also
+    /// with the adaptive model).
+    fn vertex_rows(&mut self, sizes: &[usize]) -> Result<()> {
+        let opts = self.opts;
+        let adaptive = Model {
+            adaptive: true,
+            ..opts.model.clone()
+        };
+        for &n in sizes {
+            let s = scene(opts, self.work, n, opts.base_photos)?;
+            let r = measure("vertices", &s, self.base, &opts.model, opts)?;
+            self.report.vertex_runs.push(r);
+            self.save()?;
+            if opts.adaptive_rows {
+                let r = measure("adaptive", &s, self.base, &adaptive, opts)?;
+                self.report.adaptive_runs.push(r);
+                self.save()?;
+            }
+            self.done(&s)?;
+        }
+        Ok(())
+    }
+
+    /// Scaling in photos at the base vertex count; the (vertices, photos) pair the vertex
+    /// rows already ran is reused.
+    fn photo_rows(&mut self, sizes: &[usize]) -> Result<()> {
+        let opts = self.opts;
+        for p in sorted_unique(&opts.photos) {
+            if let Some(i) = sizes
+                .iter()
+                .position(|&n| n == opts.base_vertices && p == opts.base_photos)
+            {
+                let mut r = self.report.vertex_runs[i].clone();
+                r.group = "photos".into();
+                self.report.photo_runs.push(r);
+                continue;
+            }
+            let s = scene(opts, self.work, opts.base_vertices, p)?;
+            let r = measure("photos", &s, self.base, &opts.model, opts)?;
+            self.report.photo_runs.push(r);
+            self.save()?;
+            self.done(&s)?;
+        }
+        Ok(())
+    }
+
+    /// Error against time on the scene of `n` vertices: every knob setting of the sweep
+    /// around `sweep_base`.
+    fn sweep_rows(&mut self, n: usize, sweep_base: Knobs) -> Result<()> {
+        let opts = self.opts;
+        let s = scene(opts, self.work, n, opts.base_photos)?;
         let (list, idx) = sweep_knobs(sweep_base, opts.quick);
-        report.reference = Some(idx);
+        self.report.reference = Some(idx);
         for k in list {
             let r = measure("sweep", &s, k, &opts.model, opts)?;
-            report.sweep.push(r);
-            save(&mut report)?;
+            self.report.sweep.push(r);
+            self.save()?;
         }
-        done(&s)?;
+        self.done(&s)
     }
-    report.complete = true;
-    save(&mut report)?;
-    Ok(report)
 }
 
 /// The files a bench named `name` writes: `NAME.json` (first: it identifies the result),
