@@ -209,8 +209,7 @@ pub(crate) fn scene(
         "{}-v{vertices}-p{photos}-{width}x{height}",
         opts.scene
     ));
-    let params_path = dir.join("bench-params.json");
-    let mut want = SceneParams {
+    let want = SceneParams {
         scene: opts.scene.clone(),
         vertices,
         photos,
@@ -225,34 +224,49 @@ pub(crate) fn scene(
         summary_photos: 0,
         render_seconds: 0.0,
     };
-    if let Ok(text) = std::fs::read_to_string(&params_path) {
-        if let Ok(have) = serde_json::from_str::<SceneParams>(&text) {
-            if have.same_scene(&want) {
-                eprintln!("bench: reusing {}", dir.display());
-                return Ok(BenchScene {
-                    dir,
-                    vertices: have.summary_vertices,
-                    photos: have.summary_photos,
-                    render_seconds: have.render_seconds,
-                    reused: true,
-                });
-            }
-        }
+    if let Some(s) = reusable(&dir, &want) {
+        eprintln!("bench: reusing {}", dir.display());
+        return Ok(s);
     }
     if dir.exists() {
         std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     }
+    build_scene(dir, want, samples)
+}
+
+/// The workspace in `dir` when its `bench-params.json` describes the scene `want`.
+fn reusable(dir: &Path, want: &SceneParams) -> Option<BenchScene> {
+    let text = std::fs::read_to_string(dir.join("bench-params.json")).ok()?;
+    let have = serde_json::from_str::<SceneParams>(&text).ok()?;
+    have.same_scene(want).then(|| BenchScene {
+        dir: dir.to_path_buf(),
+        vertices: have.summary_vertices,
+        photos: have.summary_photos,
+        render_seconds: have.render_seconds,
+        reused: true,
+    })
+}
+
+/// `synth` of the scene `want` into `dir`, then its `bench-params.json` (last: it marks
+/// the build finished).
+fn build_scene(
+    dir: PathBuf,
+    mut want: SceneParams,
+    samples: crate::transport::reference::Samples,
+) -> Result<BenchScene> {
+    let (vertices, photos) = (want.vertices, want.photos);
+    let (width, height) = (want.width, want.height);
     eprintln!(
         "bench: synth {} with {}{vertices} vertices, {photos} photos of {width}×{height} ({} primary ray(s)/pixel, {} MIS pairs) → {}",
-        opts.scene,
-        if opts.exact_vertices { "" } else { "≥ " },
+        want.scene,
+        if want.exact_vertices { "" } else { "≥ " },
         samples.per_pixel,
         samples.light,
         dir.display()
     );
     let t0 = std::time::Instant::now();
     let s = synth::build(
-        &opts.scene,
+        &want.scene,
         &dir,
         &SynthOptions {
             width,
@@ -260,7 +274,7 @@ pub(crate) fn scene(
             photos: Some(photos),
             seed: want.seed,
             vertices: Some(vertices),
-            exact_vertices: opts.exact_vertices,
+            exact_vertices: want.exact_vertices,
             samples,
             ..SynthOptions::default()
         },
@@ -276,6 +290,7 @@ pub(crate) fn scene(
     want.render_seconds = s.render_seconds;
     let text = serde_json::to_string_pretty(&want)
         .map_err(|e| Error::Internal(format!("bench: could not encode scene parameters: {e}")))?;
+    let params_path = dir.join("bench-params.json");
     std::fs::write(&params_path, text).map_err(|e| Error::io(&params_path, e))?;
     Ok(BenchScene {
         dir,
