@@ -336,23 +336,21 @@ fn prepare(
         mut decisions,
     } = observed;
     let nv = scene.mesh.positions.len();
-    let Frames {
-        env_from_world,
-        normals_env,
-    } = Frames::new(opts, scene, log)?;
+    let frames = Frames::new(opts, scene, log)?;
     let at = TraceScene {
         scene,
         bvh: &bvh,
-        env_from_world: &env_from_world,
+        env_from_world: &frames.env_from_world,
     };
     let traced = visibility(&first_trace_options(opts), &at, log, progress);
     let vis = &traced.0;
     // Strata of the lighting step's sample: normal × open sky.
-    let strata = crate::solve::subsample::lighting_strata(&normals_env, &vis.open_fractions());
+    let strata =
+        crate::solve::subsample::lighting_strata(&frames.normals_env, &vis.open_fractions());
     let (mean_rgb, seen) = mean_colours(&obs, nv);
     let pilot_data = PilotData {
-        normals_env: &normals_env,
-        env_from_world: &env_from_world,
+        normals_env: &frames.normals_env,
+        env_from_world: &frames.env_from_world,
         obs: &obs,
         vis,
         strata: &strata,
@@ -363,25 +361,8 @@ fn prepare(
     decisions.extend(adapted.decisions);
     let eff = adapted.eff;
     let (vis, render_vis) = fit_visibility(&eff, traced, &at, log, progress);
-    let rot = rotation(&eff, log, progress);
-    let topts = TransportOptions {
-        n_global: eff.global_resolution,
-        n_local: eff.local_resolution,
-        keep: eff.keep,
-    };
-    let tr = transport_rows(
-        &TransportInput {
-            normals_env: &normals_env,
-            obs: &obs,
-            env_from_world: &env_from_world,
-            vis: &vis,
-            basis: &eff.basis,
-            rot: &rot,
-            topts: &topts,
-        },
-        log,
-        progress,
-    )?;
+    let TransportStage { rot, topts, tr } =
+        transport_stage(&eff, &frames, &obs, &vis, log, progress)?;
     Ok((
         Observed {
             bvh,
@@ -390,8 +371,8 @@ fn prepare(
             decisions,
         },
         Prepared {
-            env_from_world,
-            normals_env,
+            env_from_world: frames.env_from_world,
+            normals_env: frames.normals_env,
             vis,
             render_vis,
             eff,
@@ -430,33 +411,45 @@ impl Frames {
     }
 }
 
-/// What the transport rows are built from (stage 5).
-struct TransportInput<'a> {
-    normals_env: &'a [Vec3],
-    obs: &'a Observations,
-    env_from_world: &'a Matrix3<f64>,
-    vis: &'a Visibility,
-    basis: &'a [crate::transport::brdf::BasisBrdf],
-    rot: &'a Rotation,
-    topts: &'a TransportOptions,
+/// Stages 4–5 at the effective options: the rotation, the transport's sizes and the
+/// transport rows.
+struct TransportStage {
+    rot: Rotation,
+    topts: TransportOptions,
+    tr: Transport,
 }
 
-/// Stage 5: the transport row of every training observation ([`transport::build`]), with
-/// a progress bar over the observations.
-fn transport_rows(t: &TransportInput, log: &mut RunLog, progress: &Progress) -> Result<Transport> {
+/// Stages 4–5: the rotation ([`rotation`]), then the transport row of every training
+/// observation ([`transport::build`]) with a progress bar over the observations.
+fn transport_stage(
+    eff: &RunOptions,
+    frames: &Frames,
+    obs: &Observations,
+    vis: &Visibility,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<TransportStage> {
+    let rot = rotation(eff, log, progress);
+    let topts = TransportOptions {
+        n_global: eff.global_resolution,
+        n_local: eff.local_resolution,
+        keep: eff.keep,
+    };
     progress.stage("transport");
-    let _bar = progress.stage_bar(t.obs.vertex.len() as u64, "observations");
-    log.stages.run("transport", || {
+    let bar = progress.stage_bar(obs.vertex.len() as u64, "observations");
+    let tr = log.stages.run("transport", || {
         transport::build(
-            t.normals_env,
-            t.obs,
-            t.env_from_world,
-            t.vis,
-            t.basis,
-            t.rot,
-            t.topts,
+            &frames.normals_env,
+            obs,
+            &frames.env_from_world,
+            vis,
+            &eff.basis,
+            &rot,
+            &topts,
         )
-    })
+    })?;
+    drop(bar);
+    Ok(TransportStage { rot, topts, tr })
 }
 
 /// The options the visibility is first traced with (stage 3): with the adaptive model on,
