@@ -79,18 +79,13 @@ mod tests {
                 assert_eq!(got[y * w + x], px(x, y), "pixel ({x}, {y})");
             }
         }
-        let c = dir.join("c.exr");
-        write_rgb(&c, w, h, |x, y| {
+        let rgb = |x, y| {
             let p = px(x, y);
             (p.0, p.1, p.2)
-        })
-        .unwrap();
-        let d = dir.join("d.exr");
-        write_rgb(&d, w, h, |x, y| {
-            let p = px(x, y);
-            (p.0, p.1, p.2)
-        })
-        .unwrap();
+        };
+        let (c, d) = (dir.join("c.exr"), dir.join("d.exr"));
+        write_rgb(&c, w, h, rgb).unwrap();
+        write_rgb(&d, w, h, rgb).unwrap();
         assert_eq!(std::fs::read(&c).unwrap(), std::fs::read(&d).unwrap());
         std::fs::remove_dir_all(&dir).unwrap();
     }
