@@ -341,37 +341,32 @@ impl RayCounts {
     }
 }
 
-/// Everything the shadow rays of one vertex read, shared by all vertices of a trace.
+/// Everything the shadow rays of one vertex read, shared by all vertices of a trace: the
+/// options, and what is built from the mesh and the options once.
 struct VertexTracer<'a> {
     mesh: &'a Mesh,
     bvh: &'a SceneBvh,
+    t: &'a Tracing<'a>,
     grid: SphereGrid,
     tree: PointTree,
     cones: Option<OpenCones>,
-    env_from_world: Matrix3<f64>,
     world_from_env: Matrix3<f64>,
     eps: f64,
-    sampling: Sampling,
-    seed: u64,
-    skip_open: bool,
 }
 
 impl<'a> VertexTracer<'a> {
-    fn new(mesh: &'a Mesh, bvh: &'a SceneBvh, t: &Tracing) -> Self {
+    fn new(mesh: &'a Mesh, bvh: &'a SceneBvh, t: &'a Tracing<'a>) -> Self {
         let grid = SphereGrid::hemi(t.n_local);
         let cones = t.skip_open.then(|| OpenCones::new(mesh, &grid)).flatten();
         VertexTracer {
             mesh,
             bvh,
+            t,
             tree: PointTree::new(&mesh.positions),
             cones,
             grid,
-            env_from_world: *t.env_from_world,
             world_from_env: t.env_from_world.transpose(),
             eps: bvh.ray_offset(),
-            sampling: t.sampling,
-            seed: t.seed,
-            skip_open: t.skip_open,
         }
     }
 
@@ -400,12 +395,12 @@ impl<'a> VertexTracer<'a> {
             };
         }
         let n = n / nn;
-        if self.skip_open && !self.tree.any_above(&x, &n, self.eps) {
+        if self.t.skip_open && !self.tree.any_above(&x, &n, self.eps) {
             *is_open = true;
             out.fill(255);
             return RayCounts::default();
         }
-        let frame = local_frame(&(self.env_from_world * n));
+        let frame = local_frame(&(self.t.env_from_world * n));
         let origin = x + n * self.eps;
         let to_world = |l: &Vec3| self.world_from_env * from_local(&frame, l);
         scratch.sure.clear();
@@ -424,8 +419,8 @@ impl<'a> VertexTracer<'a> {
             sure_open: &scratch.sure,
             skipped: std::cell::Cell::new(0),
         };
-        let mut rng = Pcg64::seed_from_u64(mix(self.seed, v as u64));
-        let counted = match self.sampling {
+        let mut rng = Pcg64::seed_from_u64(mix(self.t.seed, v as u64));
+        let counted = match self.t.sampling {
             Sampling::Uniform { rays: r } => rays.uniform(&mut rng, r.max(1), out),
             Sampling::Adaptive { edge_rays, lattice } => {
                 rays.adaptive(&mut rng, edge_rays, lattice, first, out)
