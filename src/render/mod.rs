@@ -228,11 +228,11 @@ pub fn shade_views<R: LocalRotation>(
         .iter()
         .map(|v| needed_vertices(model.mesh, v.raster))
         .collect();
-    let LightSlots { ranges, envs } = LightSlots::new(views);
-    if envs.is_empty() {
+    let slots = LightSlots::new(views);
+    if slots.envs.is_empty() {
         return Ok(ShadedViews {
             radiance: Vec::new(),
-            ranges,
+            ranges: slots.ranges,
             n_lights: 0,
         });
     }
@@ -240,39 +240,39 @@ pub fn shade_views<R: LocalRotation>(
         .iter()
         .map(|n| n.iter().filter(|&&b| b).count())
         .sum();
-    let mut renderer = WaveletRenderer::new_many(rot, model.basis, &envs)?;
+    let mut renderer = WaveletRenderer::new_many(rot, model.basis, &slots.envs)?;
     if renders > rot.n_frames() {
         renderer = renderer.with_frames();
     }
     let views_needed = ViewsNeeded {
         centres: views.iter().map(|v| v.image.center()).collect(),
         needed,
-        ranges,
+        slots: &slots,
     };
-    let radiance = vertex_major_radiance(model, &renderer, &views_needed, envs.len());
+    let radiance = vertex_major_radiance(model, &renderer, &views_needed);
     Ok(ShadedViews {
         radiance,
-        ranges: views_needed.ranges,
-        n_lights: envs.len(),
+        n_lights: slots.envs.len(),
+        ranges: slots.ranges,
     })
 }
 
 /// Which vertices each view needs, where its camera is, and its lights' slots.
-struct ViewsNeeded {
+struct ViewsNeeded<'a> {
     centres: Vec<Vec3>,
     needed: Vec<Vec<bool>>,
-    ranges: Vec<std::ops::Range<usize>>,
+    slots: &'a LightSlots<'a>,
 }
 
 /// The radiance of every vertex toward every view that needs it, under each of that view's
-/// lights: `nl` slots a vertex ([`ShadedViews`]'s layout), 0 where no view needs it.
-/// Vertex-major, one scratch per thread.
+/// lights: one slot per light of all views, for each vertex ([`ShadedViews`]'s layout), 0
+/// where no view needs it. Vertex-major, one scratch per thread.
 fn vertex_major_radiance<R: LocalRotation>(
     model: &WaveletModel,
     renderer: &WaveletRenderer<R>,
     v: &ViewsNeeded,
-    nl: usize,
 ) -> Vec<[f32; 3]> {
+    let nl = v.slots.envs.len();
     let (mesh, beta) = (model.mesh, model.beta);
     let (nv, nb) = (mesh.positions.len(), model.basis.len());
     let mut radiance = vec![[0.0f32; 3]; nv * nl];
@@ -287,7 +287,7 @@ fn vertex_major_radiance<R: LocalRotation>(
                 if v.needed[i][x] {
                     seen.push(VertexView {
                         wo_env: model.env_from_world * unit_toward(c, &mesh.positions[x]),
-                        lights: v.ranges[i].clone(),
+                        lights: v.slots.ranges[i].clone(),
                     });
                 }
             }
