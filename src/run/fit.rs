@@ -147,7 +147,7 @@ pub(crate) fn fit<'a>(
     let nv = scene.mesh.positions.len();
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
-    let (mut start, transients) = prepare_start(opts, im, &p, &train, &mut obs, log, progress)?;
+    let mut start = prepare_start(opts, im, &p, &train, &mut obs, log, progress)?;
     let problem = Problem {
         obs: &obs,
         transport: &p.tr,
@@ -194,12 +194,12 @@ pub(crate) fn fit<'a>(
         reasons: start.reasons,
         decisions,
         light_decision,
-        transients,
+        transients: start.transients,
     })
 }
 
 /// The start and the estimator's options ([`FitStart`]): the transient pass when on (it
-/// masks occluders in `obs`), the options that depend on the observations kept, and the
+/// masks occluders in `obs`, and the start keeps what it masked), the options that depend on the observations kept, and the
 /// start's brightness matched by normal when the pilot chose it.
 fn prepare_start(
     opts: &RunOptions,
@@ -209,20 +209,18 @@ fn prepare_start(
     obs: &mut Observations,
     log: &mut RunLog,
     progress: &Progress,
-) -> Result<(FitStart, Option<super::transients::Transients>)> {
+) -> Result<FitStart> {
     let scene = &im.scene;
     let lambert = lambert_of(&p.eff.basis)?;
     let mut start = FitStart::new(opts, p, &scene.mesh.positions, lambert, train.len())?;
-    let transients = if p.eff.transients {
-        Some(start.mask_transients(opts, obs, p, scene, log, progress)?)
-    } else {
-        None
-    };
+    if p.eff.transients {
+        start.mask_transients(opts, obs, p, scene, log, progress)?;
+    }
     start.finish_options(opts, scene, train, obs)?;
     if p.eff.start_brightness == StartBrightness::Matched {
         start.match_brightness(p, obs);
     }
-    Ok((start, transients))
+    Ok(start)
 }
 
 /// The alternation from the start's family ([`FitStart::family`]) under each candidate
@@ -400,6 +398,8 @@ struct FitStart {
     eopts: EstimateOptions,
     /// Why the model has its size (the report's reasons).
     reasons: Vec<String>,
+    /// What the transient pass masked (`None`: `--transients off`).
+    transients: Option<super::transients::Transients>,
 }
 
 impl FitStart {
@@ -426,12 +426,13 @@ impl FitStart {
             init,
             eopts,
             reasons,
+            transients: None,
         })
     }
 
-    /// The transient pass (`--transients`): masks occluders in `obs`; when it masked any,
-    /// the start is clustered again from the unmasked observations only (an occluder's
-    /// colour would otherwise take a material of its own).
+    /// The transient pass (`--transients`): masks occluders in `obs` and keeps what it
+    /// masked; when it masked any, the start is clustered again from the unmasked
+    /// observations only (an occluder's colour would otherwise take a material of its own).
     fn mask_transients(
         &mut self,
         opts: &RunOptions,
@@ -440,7 +441,7 @@ impl FitStart {
         scene: &crate::import::scene::Scene,
         log: &mut RunLog,
         progress: &Progress,
-    ) -> Result<super::transients::Transients> {
+    ) -> Result<()> {
         let lambert = self.eopts.lambert_basis;
         progress.stage("transients");
         let spinner = progress.spinner("pilot fit for transient occluders");
@@ -455,7 +456,8 @@ impl FitStart {
             self.init =
                 starting_materials(opts, p.pilot_k.clone(), &mean_rgb, &seen, &mut self.reasons)?;
         }
-        Ok(t)
+        self.transients = Some(t);
+        Ok(())
     }
 
     /// The options that depend on the observations kept: the shared light's groups and

@@ -313,11 +313,7 @@ impl Fitted<'_> {
         &self,
         obs: &crate::observe::Observations,
     ) -> Result<crate::transport::Transport> {
-        let topts = crate::transport::TransportOptions {
-            n_global: self.opts.global_resolution,
-            n_local: self.opts.local_resolution,
-            keep: self.opts.keep,
-        };
+        let topts = self.opts.transport_options();
         crate::transport::build(
             &self.normals_env,
             obs,

@@ -430,11 +430,7 @@ fn transport_stage(
     progress: &Progress,
 ) -> Result<TransportStage> {
     let rot = rotation(eff, log, progress);
-    let topts = TransportOptions {
-        n_global: eff.global_resolution,
-        n_local: eff.local_resolution,
-        keep: eff.keep,
-    };
+    let topts = eff.transport_options();
     progress.stage("transport");
     let bar = progress.stage_bar(obs.vertex.len() as u64, "observations");
     let tr = log.stages.run("transport", || {

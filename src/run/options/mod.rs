@@ -188,6 +188,16 @@ pub const DEFAULT_LIGHTING_SAMPLE: usize = 2000;
 pub const LIGHTING_SAMPLE_MAX_RATIO: f64 = 1.1;
 
 impl RunOptions {
+    /// The transport's sizes at these options: the global and local map sides and the
+    /// Haar coefficients kept per row.
+    pub(crate) fn transport_options(&self) -> crate::transport::TransportOptions {
+        crate::transport::TransportOptions {
+            n_global: self.global_resolution,
+            n_local: self.local_resolution,
+            keep: self.keep,
+        }
+    }
+
     /// Default of [`RunOptions::lighting_qp_iterations`]: the estimator's
     /// ([`EstimateOptions::alternation_qp_iters`], `None` → 0).
     pub fn default_lighting_qp_iterations() -> usize {
