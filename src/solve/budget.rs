@@ -332,9 +332,9 @@ fn keep_hint(s: &Sizes, fits: &dyn Fn(&Sizes) -> bool) -> Option<(u64, String)> 
     if kept <= 1 {
         return None;
     }
+    // `largest_fitting` returns a count it saw fit, or 0.
     let lo = largest_fitting(kept, |mid| fits(&Sizes { keep: mid, ..*s }));
-    (lo >= 1 && fits(&Sizes { keep: lo, ..*s }))
-        .then(|| (kept.div_ceil(lo), format!("--keep {lo} would fit")))
+    (lo >= 1).then(|| (kept.div_ceil(lo), format!("--keep {lo} would fit")))
 }
 
 /// `--NAME`: `v` halved until it fits (`fits`), not below `min`; the factor and the hint.
