@@ -1,0 +1,233 @@
+//! The alternation ([`alternate`]) under each candidate light model (`--light`) from every start, the
+//! model the validation score keeps ([`fit_light_models`]), the start search around it
+//! ([`search_starts`]), and what the console and the report's timeline show of each
+//! iterate ([`Monitor`]).
+
+use super::start::FitStart;
+use crate::report::TimelinePoint;
+use crate::run::state::Prepared;
+use crate::run::state::RunLog;
+use crate::run::tracker::HoldoutTracker;
+use crate::run::{Progress, RunOptions};
+use crate::solve::light::choose::{self, LightDecision};
+use crate::solve::materials::brightness;
+use crate::solve::starts::{self, MultiStart};
+use crate::solve::{self, EstimateOptions, Materials0, Problem};
+use crate::Result;
+
+/// The alternation from the start's family ([`FitStart::family`]) under each candidate
+/// light model ([`fit_light_models`]), then the start search when asked, with a progress
+/// bar and the held-out tracker ([`held_out_tracker`]) scoring every iterate for the
+/// timeline. The tracker's transport rows (the held-out photos') are freed on return.
+pub(super) fn alternate(
+    opts: &RunOptions,
+    p: &Prepared,
+    problem: &Problem,
+    start: &mut FitStart,
+    tracker: Option<HoldoutTracker>,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<Estimated> {
+    let lambert = start.eopts.lambert_basis;
+    progress.stage("estimate");
+    let family = start.family(opts, p.eff.basis.len(), lambert);
+    let bar = progress.bar(
+        (p.eff.max_iterations * family.len()) as u64,
+        "outer iterations",
+    );
+    let monitor = Monitor {
+        bar: &bar,
+        progress,
+        tracker: tracker.as_ref(),
+        n_vertices: problem.n_vertices,
+    };
+    let mut est = fit_light_models(opts, problem, &family, start, &monitor, log)?;
+    if opts.start_search {
+        est = search_starts(problem, est, &family[0].materials, lambert, &monitor, log)?;
+    }
+    bar.finish_and_clear();
+    Ok(est)
+}
+
+/// The estimate's progress: its bar, its console lines and the held-out error of each
+/// iterate (the report's timeline).
+struct Monitor<'a> {
+    bar: &'a indicatif::ProgressBar,
+    progress: &'a Progress,
+    tracker: Option<&'a HoldoutTracker>,
+    n_vertices: usize,
+}
+
+impl Monitor<'_> {
+    /// The held-out error of an iterate, for the timeline (finite, else none).
+    fn held_out(&self, state: &solve::IterState) -> Option<f64> {
+        self.tracker
+            .map(|t| t.rmse(state, self.n_vertices))
+            .filter(|v| v.is_finite())
+    }
+
+    /// A console line under the bar (or alone when the bar is hidden).
+    fn say(&self, line: &str) {
+        if self.bar.is_hidden() {
+            self.progress.line(line);
+        } else {
+            self.bar.println(format!("          {line}"));
+        }
+    }
+}
+
+/// The estimate kept: the fit, its starts, its options and light model, its timeline.
+pub(super) struct Estimated {
+    pub(super) est: solve::Estimate,
+    pub(super) multi: MultiStart,
+    pub(super) eopts: EstimateOptions,
+    pub(super) light_decision: LightDecision,
+    pub(super) timeline: Vec<TimelinePoint>,
+}
+
+/// Each candidate light model (`--light`) fitted from every start; the one the validation
+/// score keeps ([`choose::decide`]), its reason pushed to `start`.
+fn fit_light_models(
+    opts: &RunOptions,
+    problem: &Problem,
+    family: &[starts::Start],
+    start: &mut FitStart,
+    monitor: &Monitor,
+    log: &mut RunLog,
+) -> Result<Estimated> {
+    let n_starts = family.len();
+    let mut timeline: Vec<TimelinePoint> = Vec::new();
+    let light_models = choose::candidates(opts.light, &start.eopts)?;
+    let mut fits = Vec::with_capacity(light_models.len());
+    let mut timeline_ranges = Vec::with_capacity(light_models.len());
+    for model in &light_models {
+        let first = timeline.len();
+        let family = family.to_vec();
+        let eopts = &model.options;
+        fits.push(log.stages.run("estimate", || {
+            starts::estimate_best(problem, family, eopts, &mut |si, it, state| {
+                monitor.bar.inc(1);
+                let holdout_rmse = monitor.held_out(state);
+                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                monitor.say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
+                timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
+            })
+        })?);
+        timeline_ranges.push(first..timeline.len());
+    }
+    let scores: Vec<f64> = fits
+        .iter()
+        .map(|(e, _)| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error()))
+        .collect();
+    let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
+    let (pick, light_decision) = choose::decide(opts.light, &names, &scores);
+    start.reasons.push(format!(
+        "light model `{}`: {}",
+        light_decision.model, light_decision.why
+    ));
+    let (est, multi) = fits.swap_remove(pick);
+    Ok(Estimated {
+        est,
+        multi,
+        eopts: light_models[pick].options.clone(),
+        light_decision,
+        // The timeline of the model kept.
+        timeline: timeline.drain(timeline_ranges[pick].clone()).collect(),
+    })
+}
+
+/// The start search (`--start-search`, [`brightness::search`]) from the kept fit, around
+/// `base` (the first start's materials; `lambert` its Lambertian basis). The
+/// timeline then follows the search's records: the kept start's iterations as start 0,
+/// each searched start's after them on the same clock.
+fn search_starts(
+    problem: &Problem,
+    fitted: Estimated,
+    base: &Materials0,
+    lambert: usize,
+    monitor: &Monitor,
+    log: &mut RunLog,
+) -> Result<Estimated> {
+    let Estimated {
+        est,
+        multi,
+        eopts,
+        light_decision,
+        mut timeline,
+    } = fitted;
+    monitor.progress.stage("start search");
+    let label = multi.starts[multi.chosen].label.clone();
+    timeline.retain(|p| p.start == multi.chosen);
+    timeline.iter_mut().for_each(|p| p.start = 0);
+    let (mut clock, mut current, mut last) = (0.0, 0, timeline.last().map_or(0.0, |p| p.seconds));
+    let (est, multi) = log.stages.run("start search", || {
+        brightness::search(
+            problem,
+            est,
+            &label,
+            base,
+            lambert,
+            &eopts,
+            &mut |si, it, state| {
+                if si != current {
+                    (clock, current) = (last, si);
+                    monitor.bar.inc_length(eopts.max_outer as u64);
+                }
+                monitor.bar.inc(1);
+                let holdout_rmse = monitor.held_out(state);
+                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                let line = iteration_line(1, si, n_it, it, holdout_rmse);
+                monitor.say(&format!("start search, start {}: {line}", si + 1));
+                last = clock + it.seconds;
+                timeline.push(timeline_point(si, last, it, holdout_rmse));
+            },
+        )
+    })?;
+    Ok(Estimated {
+        est,
+        multi,
+        eopts,
+        light_decision,
+        timeline,
+    })
+}
+
+/// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the
+/// estimator's clock.
+fn timeline_point(
+    start: usize,
+    seconds: f64,
+    it: &solve::Iteration,
+    holdout_rmse: Option<f64>,
+) -> TimelinePoint {
+    TimelinePoint {
+        start,
+        seconds,
+        objective: it.objective,
+        train_rmse: it.train_rmse,
+        holdout_rmse,
+        steps: it.steps,
+    }
+}
+
+/// The console line for outer iteration `n_it` of start `si` (of `n_starts`).
+fn iteration_line(
+    n_starts: usize,
+    si: usize,
+    n_it: usize,
+    it: &solve::Iteration,
+    holdout_rmse: Option<f64>,
+) -> String {
+    format!(
+        "{}iteration {n_it}: objective {:.4e}, training RMSE {:.5}{} ({:.1} s)",
+        if n_starts > 1 {
+            format!("start {} of {n_starts}, ", si + 1)
+        } else {
+            String::new()
+        },
+        it.objective,
+        it.train_rmse,
+        holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
+        it.seconds
+    )
+}

@@ -1,0 +1,97 @@
+//! The estimator's options for the fit, from the run's ([`estimate_options`]), the
+//! Lambertian lobe that carries the diffuse colour ([`lambert_of`]), and early stopping's
+//! split by photo half ([`photo_halves`]).
+
+use crate::observe::Observations;
+use crate::run::half_fit::{projected_x, span_mid};
+use crate::run::RunOptions;
+use crate::solve::options::PhotoHalves;
+use crate::solve::{EstimateOptions, Robust};
+use crate::transport::brdf::BasisBrdf;
+use crate::{Error, Result};
+
+/// The index of the Lambertian basis BRDF, which carries the diffuse colour.
+pub(crate) fn lambert_of(basis: &[BasisBrdf]) -> Result<usize> {
+    basis
+        .iter()
+        .position(|b| matches!(b, BasisBrdf::Lambert))
+        .ok_or_else(|| {
+            Error::Config("--basis: a Lambertian lobe is needed to carry the diffuse colour".into())
+        })
+}
+
+/// The estimator's options from the run's.
+pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -> EstimateOptions {
+    EstimateOptions {
+        max_outer: o.max_iterations,
+        rel_tol: o.rel_tol,
+        smoothness: o.smoothness,
+        robust: if o.irls_iterations > 1 {
+            Robust::Huber { k: 1.345 }
+        } else {
+            Robust::None
+        },
+        irls_iters: o.irls_iterations,
+        robust_floor: o.robust_floor,
+        weights_sum: o.weights_sum.value(),
+        weights_sum_scope: o.weights_sum_scope,
+        weights_smoothness: o.weights_smoothness,
+        achromatic_specular: o.achromatic_specular,
+        alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
+        alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
+        patience: o.patience,
+        min_iterations: o.min_iterations,
+        lambert_basis: lambert,
+        validation_seed: o.seed,
+        validation_fraction: o.validation,
+        validation_block: o.validation_block,
+        lighting_sample: o.lighting_sample,
+        blend_tolerance: o.blend_tolerance,
+        lighting_strata: strata.to_vec(),
+        scale_anchor: o.scale_anchor,
+        ..EstimateOptions::default()
+    }
+}
+
+/// Early stopping's split by photo half (`--validation-halves k`): `k` training photos
+/// spread evenly over the list (the middle of each of `k` equal runs), and in each the
+/// vertices it observes projecting at or right of the middle of their `x` span
+/// ([`span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or
+/// when `k` is not below the number of training photos.
+pub(super) fn photo_halves(
+    scene: &crate::import::scene::Scene,
+    train: &[usize],
+    obs: &Observations,
+    k: usize,
+) -> Option<std::sync::Arc<PhotoHalves>> {
+    let n = train.len();
+    if k == 0 || k >= n {
+        return None;
+    }
+    let positions = &scene.mesh.positions;
+    let right = (0..k)
+        .map(|i| {
+            let t = (2 * i + 1) * n / (2 * k);
+            let view = &scene.views[train[t]];
+            let px: Vec<(usize, f64)> = obs
+                .photo_ranges
+                .get(t)
+                .cloned()
+                .unwrap_or_default()
+                .filter(|&p| obs.weight[p] > 0.0)
+                .filter_map(|p| {
+                    let x = obs.vertex[p] as usize;
+                    projected_x(view, &positions[x]).map(|u| (x, u))
+                })
+                .collect();
+            let mut right = vec![false; positions.len()];
+            if let Some(mid) = span_mid(px.iter().map(|&(_, u)| u)) {
+                for &(x, u) in &px {
+                    right[x] = u >= mid;
+                }
+            }
+            (t as u32, right)
+        })
+        .collect();
+    Some(std::sync::Arc::new(PhotoHalves { right }))
+}

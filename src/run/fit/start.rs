@@ -1,0 +1,197 @@
+//! The fit's start ([`FitStart`]): the initial materials (the pilot's count,
+//! `--materials`, or a count from the colours, then clustered), the estimator's options
+//! that depend on the observations kept, the transient pass, and the start's brightness
+//! matched by normal.
+
+use super::options::{estimate_options, lambert_of, photo_halves};
+use crate::import::scene::Scene;
+use crate::observe::Observations;
+use crate::run::state::{Imported, Prepared, RunLog};
+use crate::run::{choose_material_count, MaterialCount, Progress, RunOptions, StartBrightness};
+use crate::solve::cluster::{initial_materials, InitialMaterials};
+use crate::solve::light::choose::LightChoice;
+use crate::solve::starts;
+use crate::solve::{EstimateOptions, Materials0};
+use crate::Result;
+
+/// The start and the estimator's options ([`FitStart`]): the transient pass when on (it
+/// masks occluders in `obs`, and the start keeps what it masked), the options that depend on the observations kept, and the
+/// start's brightness matched by normal when the pilot chose it.
+pub(super) fn prepare_start(
+    opts: &RunOptions,
+    im: &Imported,
+    p: &Prepared,
+    train: &[usize],
+    obs: &mut Observations,
+    log: &mut RunLog,
+    progress: &Progress,
+) -> Result<FitStart> {
+    let scene = &im.scene;
+    let lambert = lambert_of(&p.eff.basis)?;
+    let mut start = FitStart::new(opts, p, &scene.mesh.positions, lambert, train.len())?;
+    if p.eff.transients {
+        start.mask_transients(opts, obs, p, scene, log, progress)?;
+    }
+    start.finish_options(opts, scene, train, obs)?;
+    if p.eff.start_brightness == StartBrightness::Matched {
+        start.match_brightness(p, obs);
+    }
+    Ok(start)
+}
+
+/// The fit's start: the initial materials, the estimator's options and the reasons so far.
+pub(super) struct FitStart {
+    init: InitialMaterials,
+    pub(super) eopts: EstimateOptions,
+    /// Why the model has its size (the report's reasons).
+    pub(super) reasons: Vec<String>,
+    /// What the transient pass masked (`None`: `--transients off`).
+    pub(super) transients: Option<crate::run::transients::Transients>,
+}
+
+impl FitStart {
+    /// The clustered start with the pilot's count (or `--materials`, or a count from the
+    /// colours) and the estimator's options, with the ratio step's rounds for
+    /// `training_photos` and the start's materials, and the neighbour prior's graph when on.
+    fn new(
+        opts: &RunOptions,
+        p: &Prepared,
+        positions: &[crate::Vec3],
+        lambert: usize,
+        training_photos: usize,
+    ) -> Result<Self> {
+        let mut reasons = Vec::new();
+        let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
+        let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
+        eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos, init.albedo.len());
+        if eopts.weights_smoothness > 0.0 {
+            // The neighbour prior's graph: the one the unseen vertices' materials spread over.
+            use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};
+            eopts.weights_graph = knn_graph(positions, NEIGHBOURS)?.into();
+        }
+        Ok(FitStart {
+            init,
+            eopts,
+            reasons,
+            transients: None,
+        })
+    }
+
+    /// The transient pass (`--transients`): masks occluders in `obs` and keeps what it
+    /// masked; when it masked any, the start is clustered again from the unmasked
+    /// observations only (an occluder's colour would otherwise take a material of its own).
+    fn mask_transients(
+        &mut self,
+        opts: &RunOptions,
+        obs: &mut Observations,
+        p: &Prepared,
+        scene: &Scene,
+        log: &mut RunLog,
+        progress: &Progress,
+    ) -> Result<()> {
+        let lambert = self.eopts.lambert_basis;
+        progress.stage("transients");
+        let spinner = progress.spinner("pilot fit for transient occluders");
+        let start = Materials0::from_initial(&self.init, p.eff.basis.len(), lambert);
+        let t = log.stages.run("transients", || {
+            crate::run::transients::mask_transients(obs, &p.tr, &scene.mesh, &start, &self.eopts)
+        })?;
+        drop(spinner);
+        if t.count() > 0 {
+            let (mean_rgb, seen) = crate::run::mean_colours(obs, scene.mesh.positions.len());
+            self.reasons.clear();
+            self.init =
+                starting_materials(opts, p.pilot_k.clone(), &mean_rgb, &seen, &mut self.reasons)?;
+        }
+        self.transients = Some(t);
+        Ok(())
+    }
+
+    /// The options that depend on the observations kept: the shared light's groups and
+    /// early stopping's photo halves; the neighbour prior's reason.
+    fn finish_options(
+        &mut self,
+        opts: &RunOptions,
+        scene: &Scene,
+        train: &[usize],
+        obs: &Observations,
+    ) -> Result<()> {
+        if self.eopts.weights_smoothness > 0.0 {
+            self.reasons.push(format!(
+                "material weights pulled toward their {} nearest vertices' mean at {} (--weights-smoothness)",
+                crate::solve::materials::propagate::NEIGHBOURS,
+                self.eopts.weights_smoothness
+            ));
+        }
+        if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
+            let file = opts.light_groups.as_deref();
+            self.eopts.light_groups =
+                crate::run::light_groups::resolve(file, opts.light_group_minutes, scene, train)?;
+            if let Some(g) = &self.eopts.light_groups {
+                self.reasons.push(format!("shared light: {}", g.source));
+            }
+        }
+        self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);
+        Ok(())
+    }
+
+    /// The start's material brightness matched by normal ([`crate::solve::matched`]) on
+    /// the training observations; the change, or why none, goes to the reasons.
+    fn match_brightness(&mut self, p: &Prepared, obs: &Observations) {
+        let open = p.vis.open_fractions();
+        let how =
+            crate::solve::matched::match_start(&mut self.init, obs, &p.normals_env, &open, true);
+        self.reasons.push(if how.applied() {
+            format!("start brightness matched by normal: {}", how.describe())
+        } else {
+            format!(
+                "start brightness: the clustered colours; {}",
+                how.describe()
+            )
+        });
+    }
+
+    /// The starts the estimate runs from (`--starts`), and why when fewer exist.
+    pub(super) fn family(
+        &mut self,
+        opts: &RunOptions,
+        n_basis: usize,
+        lambert: usize,
+    ) -> Vec<starts::Start> {
+        let available = starts::family_len(n_basis, lambert);
+        if opts.starts > available {
+            self.reasons.push(format!(
+                "--starts {}: this basis gives {available} distinct starts, all tried",
+                opts.starts
+            ));
+        }
+        let materials0 = Materials0::from_initial(&self.init, n_basis, lambert);
+        starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts)
+    }
+}
+
+/// The starting materials: clustered mean colours with the pilot's count, `--materials`,
+/// or a count chosen from the colours; why, pushed to `reasons`.
+fn starting_materials(
+    opts: &RunOptions,
+    pilot_k: Option<(usize, String)>,
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+    reasons: &mut Vec<String>,
+) -> Result<InitialMaterials> {
+    let (k, k_reason) = match (pilot_k, opts.materials) {
+        (Some(p), _) => p,
+        (None, MaterialCount::Fixed(k)) => (k, format!("materials: {k}, as given by --materials")),
+        (None, MaterialCount::Auto) => choose_material_count(mean_rgb, seen, opts.seed),
+    };
+    let init = initial_materials(mean_rgb, seen, k, opts.seed)?;
+    reasons.push(k_reason);
+    if init.albedo.len() < k {
+        reasons.push(format!(
+            "only {} distinct colour clusters exist, so {} materials are fitted",
+            init.albedo.len(),
+            init.albedo.len()
+        ));
+    }
+    Ok(init)
+}
