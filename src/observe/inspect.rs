@@ -167,31 +167,47 @@ impl InspectReport {
     }
 }
 
-/// The model's reprojection errors: per image the sum of its inlier errors, its inliers
-/// and its outliers (beyond [`REPROJECTION_OUTLIER_PX`]), and the mean over all inliers.
+/// One image's reprojection errors: the sum of its inlier errors (pixels), its inliers
+/// and its outliers (beyond [`REPROJECTION_OUTLIER_PX`]).
+#[derive(Default)]
+struct ImageReprojection {
+    inlier_sum_px: f64,
+    inliers: usize,
+    outliers: usize,
+}
+
+impl ImageReprojection {
+    /// The mean inlier error in pixels (`None` without inliers).
+    fn mean_px(&self) -> Option<f64> {
+        (self.inliers > 0).then(|| self.inlier_sum_px / self.inliers as f64)
+    }
+}
+
+/// The model's reprojection errors: per image ([`ImageReprojection`]), and the mean over
+/// all inliers.
 struct ReprojectionTally {
-    per_image: BTreeMap<ImageId, (f64, usize, usize)>,
+    per_image: BTreeMap<ImageId, ImageReprojection>,
     mean: Option<f64>,
 }
 
 impl ReprojectionTally {
     fn new(scene: &Scene) -> Self {
-        let mut per_image: BTreeMap<ImageId, (f64, usize, usize)> = BTreeMap::new();
-        let (mut sum, mut inliers) = (0.0, 0usize);
+        let mut per_image: BTreeMap<ImageId, ImageReprojection> = BTreeMap::new();
+        let mut all = ImageReprojection::default();
         for (_, image, e) in scene.recon.reprojection_errors() {
             let s = per_image.entry(image).or_default();
             if e <= REPROJECTION_OUTLIER_PX {
-                s.0 += e;
-                s.1 += 1;
-                sum += e;
-                inliers += 1;
+                s.inlier_sum_px += e;
+                s.inliers += 1;
+                all.inlier_sum_px += e;
+                all.inliers += 1;
             } else {
-                s.2 += 1;
+                s.outliers += 1;
             }
         }
         ReprojectionTally {
             per_image,
-            mean: (inliers > 0).then(|| sum / inliers as f64),
+            mean: all.mean_px(),
         }
     }
 }
@@ -221,9 +237,9 @@ fn image_report(
         overexposed_fraction: per_observation(s.overexposed as f64),
         overexposed_pixel_fraction: photos.get(i).map_or(0.0, |p| p.overexposed_fraction()),
         mean_confidence: per_observation(w.iter().map(|&x| x as f64).sum::<f64>()),
-        reprojection_error_px: err.filter(|e| e.1 > 0).map(|&(s, k, _)| s / k as f64),
-        reprojection_observations: err.map_or(0, |e| e.1),
-        reprojection_outliers: err.map_or(0, |e| e.2),
+        reprojection_error_px: err.and_then(ImageReprojection::mean_px),
+        reprojection_observations: err.map_or(0, |e| e.inliers),
+        reprojection_outliers: err.map_or(0, |e| e.outliers),
         points2d_with_3d: v
             .image
             .points2d
