@@ -78,78 +78,7 @@ pub(crate) struct BenchArgs {
 impl BenchArgs {
     /// Runs the subcommand; what it wrote, on stdout.
     pub(crate) fn execute(self) -> anyhow::Result<()> {
-        let BenchArgs {
-            sizes,
-            photos,
-            base_photos,
-            base_vertices,
-            scene,
-            exact_vertices,
-            out,
-            quick,
-            no_sweep,
-            sweep_only,
-            work,
-            minerva,
-            materials,
-            basis,
-            adaptive_rows,
-            large_mesh,
-            quiet,
-            iterations,
-            name,
-            force,
-        } = self;
-        use relight_cpc::bench::BenchOptions;
-        let mut opts = if quick {
-            BenchOptions::quick(out)
-        } else {
-            BenchOptions::new(out)
-        };
-        opts.sizes = sizes.unwrap_or(opts.sizes);
-        opts.photos = photos.unwrap_or(opts.photos);
-        opts.base_photos = base_photos.unwrap_or(opts.base_photos);
-        opts.base_vertices = base_vertices.unwrap_or(opts.base_vertices);
-        if let Some(s) = scene {
-            // The default's exact sizes need a spot scene: another scene turns them off
-            // unless asked for.
-            opts.exact_vertices &= s.starts_with("spot-") && s != "spot-textured";
-            opts.scene = s;
-        }
-        opts.exact_vertices = exact_vertices.unwrap_or(opts.exact_vertices);
-        opts.no_sweep = no_sweep;
-        opts.sweep_only = sweep_only;
-        opts.work = work;
-        if minerva {
-            opts.model = relight_cpc::bench::Model::minerva();
-        }
-        if let Some(m) = materials {
-            opts.model.materials = match m.as_str() {
-                "auto" => None,
-                k => Some(k.parse().map_err(|_| {
-                    anyhow::anyhow!("--materials `{k}`: a positive integer or `auto`")
-                })?),
-            };
-        }
-        if basis.is_some() {
-            opts.model.basis = basis;
-        }
-        opts.model.large_mesh = large_mesh;
-        opts.adaptive_rows = adaptive_rows;
-        opts.progress = !quiet && !quick;
-        if iterations == Some(0) {
-            anyhow::bail!("--iterations: at least 1");
-        }
-        opts.iterations = iterations;
-        if name.is_empty() || name.contains(['/', '\\']) {
-            anyhow::bail!("--name `{name}`: a file stem without path separators");
-        }
-        opts.name = name;
-        opts.force = force;
-        // Each fit in its own process: its peak memory is then its own.
-        opts.executable = Some(std::env::current_exe().map_err(|e| {
-            anyhow::anyhow!("bench: cannot find this executable to run the fits: {e}")
-        })?);
+        let opts = self.options()?;
         let r = relight_cpc::bench::bench(&opts)?;
         println!(
             "bench: {} runs in {:.0} s; results in {}",
@@ -157,6 +86,84 @@ impl BenchArgs {
             r.seconds,
             opts.out.display()
         );
+        Ok(())
+    }
+
+    /// The library's [`relight_cpc::bench::BenchOptions`] from the flags: the quick or
+    /// full grid, its sizes and scene, the model, then the run's own settings.
+    fn options(self) -> anyhow::Result<relight_cpc::bench::BenchOptions> {
+        use relight_cpc::bench::BenchOptions;
+        let mut opts = if self.quick {
+            BenchOptions::quick(self.out.clone())
+        } else {
+            BenchOptions::new(self.out.clone())
+        };
+        self.set_sizes(&mut opts);
+        self.set_model(&mut opts)?;
+        if self.iterations == Some(0) {
+            anyhow::bail!("--iterations: at least 1");
+        }
+        if self.name.is_empty() || self.name.contains(['/', '\\']) {
+            anyhow::bail!(
+                "--name `{}`: a file stem without path separators",
+                self.name
+            );
+        }
+        opts.no_sweep = self.no_sweep;
+        opts.sweep_only = self.sweep_only;
+        opts.adaptive_rows = self.adaptive_rows;
+        opts.progress = !self.quiet && !self.quick;
+        opts.iterations = self.iterations;
+        opts.force = self.force;
+        // Each fit in its own process: its peak memory is then its own.
+        opts.executable = Some(std::env::current_exe().map_err(|e| {
+            anyhow::anyhow!("bench: cannot find this executable to run the fits: {e}")
+        })?);
+        opts.name = self.name;
+        opts.work = self.work;
+        Ok(opts)
+    }
+
+    /// The grid: vertex counts, photo counts, the base row, and the scene with whether its
+    /// vertex counts are exact.
+    fn set_sizes(&self, opts: &mut relight_cpc::bench::BenchOptions) {
+        opts.sizes = self
+            .sizes
+            .clone()
+            .unwrap_or(std::mem::take(&mut opts.sizes));
+        opts.photos = self
+            .photos
+            .clone()
+            .unwrap_or(std::mem::take(&mut opts.photos));
+        opts.base_photos = self.base_photos.unwrap_or(opts.base_photos);
+        opts.base_vertices = self.base_vertices.unwrap_or(opts.base_vertices);
+        if let Some(s) = &self.scene {
+            // The default's exact sizes need a spot scene: another scene turns them off
+            // unless asked for.
+            opts.exact_vertices &= s.starts_with("spot-") && s != "spot-textured";
+            opts.scene = s.clone();
+        }
+        opts.exact_vertices = self.exact_vertices.unwrap_or(opts.exact_vertices);
+    }
+
+    /// The fitted model: the Minerva one or the default, its materials, basis and
+    /// `--large-mesh`.
+    fn set_model(&self, opts: &mut relight_cpc::bench::BenchOptions) -> anyhow::Result<()> {
+        if self.minerva {
+            opts.model = relight_cpc::bench::Model::minerva();
+        }
+        if let Some(m) = &self.materials {
+            opts.model.materials = match m.as_str() {
+                "auto" => None,
+                k => Some(k.parse().map_err(|_| {
+                    anyhow::anyhow!("--materials `{k}`: a positive integer or `auto`")
+                })?),
+            };
+        }
+        if self.basis.is_some() {
+            opts.model.basis = self.basis.clone();
+        }
+        opts.model.large_mesh = self.large_mesh;
         Ok(())
     }
 }

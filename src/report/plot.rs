@@ -175,6 +175,43 @@ pub fn bars(
         })
         .draw()
         .map_err(|e| plot_err(path, e))?;
+    draw_bar_rows(&mut chart, path, rows, vmax, value_fmt)?;
+    let mut out: Vec<BarLabel> = labelled
+        .borrow()
+        .iter()
+        .filter(|(_, t)| !t.is_empty())
+        .map(|(y, text)| BarLabel {
+            text: text.clone(),
+            y_px: chart.backend_coord(&(0.0, SegmentValue::CenterOf(*y))).1,
+        })
+        .collect();
+    out.dedup();
+    drop(chart);
+    root.present().map_err(|e| plot_err(path, e))?;
+    Ok(out)
+}
+
+/// A bar chart's drawing area: values along `x`, one segment per row along `y`.
+type BarChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    plotters::coord::cartesian::Cartesian2d<
+        plotters::coord::types::RangedCoordf64,
+        plotters::coord::ranged1d::SegmentedCoord<plotters::coord::types::RangedCoordusize>,
+    >,
+>;
+
+/// Each row's bar in its segment ([`row_of_segment`]'s inverse: row `i` of `n` fills segment
+/// `n − 1 − i`) with its value printed after it; a value that is not finite draws as 0.
+fn draw_bar_rows(
+    chart: &mut BarChart,
+    path: &Path,
+    rows: &[(String, f64, RGBColor)],
+    vmax: f64,
+    value_fmt: &dyn Fn(f64) -> String,
+) -> Result<()> {
+    use plotters::coord::ranged1d::SegmentValue;
+    let n = rows.len().max(1);
     for (i, (_, v, color)) in rows.iter().enumerate() {
         let y = n - 1 - i;
         let v = if v.is_finite() { *v } else { 0.0 };
@@ -195,19 +232,7 @@ pub fn bars(
             )))
             .map_err(|e| plot_err(path, e))?;
     }
-    let mut out: Vec<BarLabel> = labelled
-        .borrow()
-        .iter()
-        .filter(|(_, t)| !t.is_empty())
-        .map(|(y, text)| BarLabel {
-            text: text.clone(),
-            y_px: chart.backend_coord(&(0.0, SegmentValue::CenterOf(*y))).1,
-        })
-        .collect();
-    out.dedup();
-    drop(chart);
-    root.present().map_err(|e| plot_err(path, e))?;
-    Ok(out)
+    Ok(())
 }
 
 /// A gallery of linear RGB images (e.g. lat-long environment maps), each tone-mapped with

@@ -155,32 +155,7 @@ pub fn read_images(reader: impl BufRead, path: &Path) -> Result<BTreeMap<ImageId
     while let Some(line) = lines.next_data()? {
         // First line: pose, camera and name.
         let tokens: Vec<&str> = line.split_whitespace().collect();
-        let parsed = (|| {
-            let id = ImageId(field(&tokens, 0, "IMAGE_ID")?);
-            let mut q = [0.0; 4];
-            for (k, name) in ["QW", "QX", "QY", "QZ"].iter().enumerate() {
-                q[k] = finite(&tokens, 1 + k, name)?;
-            }
-            let qvec = normalize_qvec(q).ok_or("the quaternion QW QX QY QZ is zero")?;
-            let mut tvec = [0.0; 3];
-            for (k, name) in ["TX", "TY", "TZ"].iter().enumerate() {
-                tvec[k] = finite(&tokens, 5 + k, name)?;
-            }
-            let camera_id = CameraId(field(&tokens, 8, "CAMERA_ID")?);
-            if tokens.len() < 10 {
-                return Err("missing field 10 (NAME)".to_string());
-            }
-            let name = tokens[9..].join(" ");
-            Ok::<_, String>(Image {
-                id,
-                name,
-                camera_id,
-                qvec,
-                tvec,
-                points2d: Vec::new(),
-            })
-        })();
-        let mut image = parsed.map_err(|m| lines.err(m))?;
+        let mut image = parse_image_line(&tokens).map_err(|m| lines.err(m))?;
         if images.contains_key(&image.id) {
             return Err(lines.err(format!("image id {} appears twice", image.id.0)));
         }
@@ -192,44 +167,73 @@ pub fn read_images(reader: impl BufRead, path: &Path) -> Result<BTreeMap<ImageId
             )));
         };
         let tokens: Vec<&str> = points_line.split_whitespace().collect();
-        if !tokens.len().is_multiple_of(3) {
-            return Err(lines.err(format!(
-                "2D points of image id {}: {} fields is not a multiple of 3 (X Y POINT3D_ID)",
-                image.id.0,
-                tokens.len()
-            )));
-        }
-        let parsed = (|| {
-            let mut points = Vec::with_capacity(tokens.len() / 3);
-            for k in (0..tokens.len()).step_by(3) {
-                let x = finite(&tokens, k, "X")?;
-                let y = finite(&tokens, k + 1, "Y")?;
-                // -1 (and u64::MAX, COLMAP's invalid id in binary) mean "no 3D point".
-                let point3d_id = match tokens[k + 2] {
-                    "-1" => None,
-                    _ => match field::<u64>(&tokens, k + 2, "POINT3D_ID") {
-                        Ok(u64::MAX) => None,
-                        Ok(p) => Some(Point3DId(p)),
-                        Err(_) => {
-                            return Err(format!(
-                                "field {} (POINT3D_ID) is {:?}; only -1 or ids >= 0 are valid",
-                                k + 3,
-                                tokens[k + 2]
-                            ))
-                        }
-                    },
-                };
-                points.push(Point2D {
-                    xy: [x, y],
-                    point3d_id,
-                });
-            }
-            Ok::<_, String>(points)
-        })();
-        image.points2d = parsed.map_err(|m| lines.err(m))?;
+        image.points2d = parse_points2d(&tokens, image.id).map_err(|m| lines.err(m))?;
         images.insert(image.id, image);
     }
     Ok(images)
+}
+
+/// An image's first line, `IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME` (the name may hold
+/// spaces), as an [`Image`] without its 2D points; the quaternion normalised.
+fn parse_image_line(tokens: &[&str]) -> std::result::Result<Image, String> {
+    let id = ImageId(field(tokens, 0, "IMAGE_ID")?);
+    let mut q = [0.0; 4];
+    for (k, name) in ["QW", "QX", "QY", "QZ"].iter().enumerate() {
+        q[k] = finite(tokens, 1 + k, name)?;
+    }
+    let qvec = normalize_qvec(q).ok_or("the quaternion QW QX QY QZ is zero")?;
+    let mut tvec = [0.0; 3];
+    for (k, name) in ["TX", "TY", "TZ"].iter().enumerate() {
+        tvec[k] = finite(tokens, 5 + k, name)?;
+    }
+    let camera_id = CameraId(field(tokens, 8, "CAMERA_ID")?);
+    if tokens.len() < 10 {
+        return Err("missing field 10 (NAME)".to_string());
+    }
+    Ok(Image {
+        id,
+        name: tokens[9..].join(" "),
+        camera_id,
+        qvec,
+        tvec,
+        points2d: Vec::new(),
+    })
+}
+
+/// An image's second line, `X Y POINT3D_ID` triples (none on an empty line). `-1` (and
+/// `u64::MAX`, COLMAP's invalid id in binary) mean "no 3D point".
+fn parse_points2d(tokens: &[&str], image: ImageId) -> std::result::Result<Vec<Point2D>, String> {
+    if !tokens.len().is_multiple_of(3) {
+        return Err(format!(
+            "2D points of image id {}: {} fields is not a multiple of 3 (X Y POINT3D_ID)",
+            image.0,
+            tokens.len()
+        ));
+    }
+    let mut points = Vec::with_capacity(tokens.len() / 3);
+    for k in (0..tokens.len()).step_by(3) {
+        let x = finite(tokens, k, "X")?;
+        let y = finite(tokens, k + 1, "Y")?;
+        let point3d_id = match tokens[k + 2] {
+            "-1" => None,
+            _ => match field::<u64>(tokens, k + 2, "POINT3D_ID") {
+                Ok(u64::MAX) => None,
+                Ok(p) => Some(Point3DId(p)),
+                Err(_) => {
+                    return Err(format!(
+                        "field {} (POINT3D_ID) is {:?}; only -1 or ids >= 0 are valid",
+                        k + 3,
+                        tokens[k + 2]
+                    ))
+                }
+            },
+        };
+        points.push(Point2D {
+            xy: [x, y],
+            point3d_id,
+        });
+    }
+    Ok(points)
 }
 
 /// Parse `points3D.txt` from `reader`; `path` names the file in errors.
