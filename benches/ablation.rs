@@ -349,17 +349,20 @@ fn env_usize(k: &str, d: usize) -> usize {
         .unwrap_or(d)
 }
 
-/// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp, Spot's 2,930 vertices, 16²
-/// global / 8² local maps, every coefficient kept.
+/// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp (`ABLATION_SPP`), Spot's 2,930 vertices, 16²
+/// global / 8² local maps (`ABLATION_GLOBAL`, `ABLATION_LOCAL`), every coefficient kept.
 fn sizes() -> Sizes {
+    let small = Sizes::spot_small();
     Sizes {
         width: env_usize("ABLATION_WIDTH", 96) as u32,
         photos: std::env::var("ABLATION_PHOTOS")
             .ok()
             .and_then(|v| v.parse().ok()),
         vertices: 2_000,
-        spp: 8,
-        ..Sizes::spot_small()
+        spp: env_usize("ABLATION_SPP", 8) as u32,
+        global: env_usize("ABLATION_GLOBAL", small.global),
+        local: env_usize("ABLATION_LOCAL", small.local),
+        ..small
     }
 }
 
