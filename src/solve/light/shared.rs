@@ -48,7 +48,7 @@ use crate::solve::problem::{
     basis_responses, beta_per_vertex, haar3, par_largest_first, predict_from, Problem,
 };
 use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
-use crate::solve::result::Materials0;
+use crate::solve::result::{Conditioning, Materials0};
 use crate::solve::subsample::{dominant_material, sample_check, SampleCheck, Subsample};
 use crate::{Error, Result};
 
@@ -99,6 +99,65 @@ pub struct SharedLight {
 }
 
 impl SharedLight {
+    /// Each photo's system and data for this lighting step (the lighting sample drawn once
+    /// per fit, on the first call).
+    fn photo_work(&mut self, problem: &Problem, beta: &[[f64; 3]]) -> Vec<PhotoWork> {
+        let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
+        let samples = self.samples.get_or_insert_with(|| {
+            (0..problem.n_photos)
+                .map(|i| lighting_sample(problem, i, &self.opts, Some(&self.dominant)))
+                .collect()
+        });
+        let samples = &*samples;
+        par_largest_first(&sizes, |i| {
+            PhotoWork::new(
+                problem,
+                beta,
+                i,
+                samples[i].as_ref(),
+                self.opts.blend_tolerance,
+            )
+        })
+    }
+
+    /// One map step for every group ([`Self::map_step`], largest groups first), with the
+    /// solver's record in `cond`.
+    fn maps_round(
+        &mut self,
+        problem: &Problem,
+        work: &[PhotoWork],
+        mu_factor: f64,
+        cond: &mut Conditioning,
+    ) -> Result<()> {
+        let capped = self.light_opts.qp_max_iter < self.opts.qp_max_iter;
+        let group_sizes: Vec<usize> = self
+            .members
+            .iter()
+            .map(|m| m.iter().map(|&i| problem.obs.photo_ranges[i].len()).sum())
+            .collect();
+        let solved: Vec<Result<GroupSolve>> =
+            par_largest_first(&group_sizes, |g| self.map_step(work, g, mu_factor));
+        for (g, s) in solved.into_iter().enumerate() {
+            let s = s?;
+            self.params.maps[g] = s.map;
+            self.mu[g] = Some(s.mu);
+            self.mu_first[g].get_or_insert(s.mu);
+            if let Some(r) = s.res {
+                cond.qp_unconverged += usize::from(!r.converged);
+                cond.qp_alternation_capped += usize::from(capped && !r.converged);
+                cond.lighting_matvecs += r.matvecs;
+                cond.lighting_qps += 1;
+                cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(r.matvecs);
+                for &i in &self.members[g] {
+                    if r.cond_lower_bound.is_finite() {
+                        cond.lighting[i] = r.cond_lower_bound;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Zero maps, unit gains; `groups` must give one group per photo of `problem`.
     pub fn new(
         problem: &Problem,
@@ -333,22 +392,7 @@ impl LightModel for SharedLight {
         let problem = input.problem;
         let beta = input.beta;
         let mu_factor = smoothness_factor(&self.opts, input.outer_iteration);
-        let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
-        let samples = self.samples.get_or_insert_with(|| {
-            (0..problem.n_photos)
-                .map(|i| lighting_sample(problem, i, &self.opts, Some(&self.dominant)))
-                .collect()
-        });
-        let samples = &*samples;
-        let mut work: Vec<PhotoWork> = par_largest_first(&sizes, |i| {
-            PhotoWork::new(
-                problem,
-                beta,
-                i,
-                samples[i].as_ref(),
-                self.opts.blend_tolerance,
-            )
-        });
+        let mut work = self.photo_work(problem, beta);
         let passes = if self.opts.robust == Robust::None {
             1
         } else {
@@ -358,8 +402,6 @@ impl LightModel for SharedLight {
         cond.lighting = vec![0.0; problem.n_photos];
         cond.qp_unconverged = 0;
         cond.qp_alternation_capped = 0;
-        let capped = self.light_opts.qp_max_iter < self.opts.qp_max_iter;
-        let n2 = problem.transport.n_global.pow(2);
         for pass in 0..passes {
             if pass > 0 {
                 let (params, groups) = (&self.params, &self.groups.group);
@@ -371,35 +413,12 @@ impl LightModel for SharedLight {
             }
             for _ in 0..INNER_ROUNDS {
                 self.set_row_weights(&mut work);
-                let group_sizes: Vec<usize> = self
-                    .members
-                    .iter()
-                    .map(|m| m.iter().map(|&i| sizes[i]).sum())
-                    .collect();
-                let solved: Vec<Result<GroupSolve>> =
-                    par_largest_first(&group_sizes, |g| self.map_step(&work, g, mu_factor));
-                for (g, s) in solved.into_iter().enumerate() {
-                    let s = s?;
-                    self.params.maps[g] = s.map;
-                    self.mu[g] = Some(s.mu);
-                    self.mu_first[g].get_or_insert(s.mu);
-                    if let Some(r) = s.res {
-                        cond.qp_unconverged += usize::from(!r.converged);
-                        cond.qp_alternation_capped += usize::from(capped && !r.converged);
-                        cond.lighting_matvecs += r.matvecs;
-                        cond.lighting_qps += 1;
-                        cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(r.matvecs);
-                        for &i in &self.members[g] {
-                            if r.cond_lower_bound.is_finite() {
-                                cond.lighting[i] = r.cond_lower_bound;
-                            }
-                        }
-                    }
-                }
+                self.maps_round(problem, &work, mu_factor, cond)?;
                 self.gain_step(&work);
                 self.balance_gains();
             }
         }
+        let n2 = problem.transport.n_global.pow(2);
         debug_assert!(self.params.maps.iter().all(|m| m[0].len() == n2));
         for (i, w) in work.iter().enumerate() {
             let range = problem.obs.photo_ranges[i].clone();
