@@ -305,17 +305,7 @@ fn select_cameras(model: &ResultModel, sel: &CameraSelection) -> Result<Vec<(Cam
 /// camera ([`views::output_stem`]). Turntables also get `LIGHT__CAMERA_turntable.gif`
 /// and, with ffmpeg, `.mp4`.
 pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSummary> {
-    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
-        return Err(Error::Config("render: --exposure must be > 0".into()));
-    }
-    if opts.resolution == Some(0) {
-        return Err(Error::Config("render: --resolution must be > 0".into()));
-    }
-    if opts.turntable == Some(0) {
-        return Err(Error::Config(
-            "render: --turntable must be at least 1 frame".into(),
-        ));
-    }
+    check_options(opts)?;
     let mut inputs = vec![result_dir];
     inputs.extend(opts.env.as_deref());
     if let CameraSelection::Folder(d) = &opts.cameras {
@@ -334,17 +324,16 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
     let light_name = views::light_name(opts.env.as_deref(), opts.sun.is_some(), opts.rotate_deg);
     let up = model.env_from_world.row(2).transpose();
     let centre = mesh_centre(&model.mesh);
+    let view = ViewLight {
+        model: &model,
+        rot: &rot,
+        light: &light,
+        light_ll: &light_ll,
+    };
     let mut out = Vec::with_capacity(views.len());
     let mut animations = Vec::new();
     for (camera, image) in &views {
-        let camera = match opts.resolution {
-            Some(w) => {
-                let h =
-                    ((w as f64 * camera.height as f64 / camera.width as f64).round() as u32).max(1);
-                camera.rescaled(w, h)
-            }
-            None => camera.clone(),
-        };
+        let camera = at_resolution(camera, opts.resolution);
         let frames: Vec<(Option<usize>, Image)> = match opts.turntable {
             Some(n) => (0..n)
                 .map(|i| Ok((Some(i), views::orbit(image, &up, &centre, i, n)?)))
@@ -354,25 +343,13 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
         let mut pngs = Vec::new();
         for (frame, pose) in &frames {
             let stem = views::output_stem(&light_name, &image.name, *frame);
-            let view = ViewLight {
-                model: &model,
-                rot: &rot,
-                light: &light,
-                light_ll: &light_ll,
-            };
             let (file, png) = render_one(&view, opts, dir, &camera, pose, &stem)?;
             pngs.extend(png);
             out.push(file);
         }
         if opts.turntable.is_some() {
             let prefix = views::output_stem(&light_name, &image.name, None);
-            let gif = format!("{prefix}_turntable.gif");
-            views::write_gif(&dir.join(&gif), &pngs, 12)?;
-            animations.push(opts.out.join(gif));
-            let mp4 = format!("{prefix}_turntable.mp4");
-            if views::write_video(dir, &prefix, &dir.join(&mp4), 12)? {
-                animations.push(opts.out.join(mp4));
-            }
+            animations.extend(write_turntable(dir, &opts.out, &prefix, &pngs)?);
         }
     }
     claim.commit()?;
@@ -382,6 +359,53 @@ pub fn render_result(result_dir: &Path, opts: &RenderOptions) -> Result<RenderSu
         render_seconds: t1.elapsed().as_secs_f64(),
         animations,
     })
+}
+
+/// The options' checks that need no file: a positive exposure, resolution and frame count.
+fn check_options(opts: &RenderOptions) -> Result<()> {
+    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
+        return Err(Error::Config("render: --exposure must be > 0".into()));
+    }
+    if opts.resolution == Some(0) {
+        return Err(Error::Config("render: --resolution must be > 0".into()));
+    }
+    if opts.turntable == Some(0) {
+        return Err(Error::Config(
+            "render: --turntable must be at least 1 frame".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// `camera` rescaled to `width` pixels across (its aspect kept, at least 1 pixel high), or
+/// as it is without a width.
+fn at_resolution(camera: &Camera, width: Option<u32>) -> Camera {
+    match width {
+        Some(w) => {
+            let h = ((w as f64 * camera.height as f64 / camera.width as f64).round() as u32).max(1);
+            camera.rescaled(w, h)
+        }
+        None => camera.clone(),
+    }
+}
+
+/// A turntable's frames as `PREFIX_turntable.gif` in `dir`, and `.mp4` when ffmpeg
+/// is there; the files' paths under `out` (the folder the user named).
+fn write_turntable(
+    dir: &Path,
+    out: &Path,
+    prefix: &str,
+    frames: &[image::RgbaImage],
+) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    let gif = format!("{prefix}_turntable.gif");
+    views::write_gif(&dir.join(&gif), frames, 12)?;
+    written.push(out.join(gif));
+    let mp4 = format!("{prefix}_turntable.mp4");
+    if views::write_video(dir, prefix, &dir.join(&mp4), 12)? {
+        written.push(out.join(mp4));
+    }
+    Ok(written)
 }
 
 /// The centre of the mesh's bounding box (the turntable's pivot).
