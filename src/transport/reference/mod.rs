@@ -303,19 +303,9 @@ pub fn quadrature_point<C: RayCaster + ?Sized>(
     sub: usize,
     rng: &mut Pcg32,
 ) -> Result<Vec<[f64; 3]>> {
-    let Some(first) = envs.first() else {
+    let Some((w, h, frame)) = common_layout(envs)? else {
         return Ok(Vec::new());
     };
-    let (w, h, frame) = (first.width, first.height, first.frame);
-    if let Some(e) = envs
-        .iter()
-        .position(|e| e.width != w || e.height != h || e.frame != frame)
-    {
-        return Err(Error::Internal(format!(
-            "quadrature: environment {e} is {}×{} (or has another frame), environment 0 is {w}×{h}",
-            envs[e].width, envs[e].height
-        )));
-    }
     let sub = sub.max(1);
     let (nw, nb) = (wos.len(), lobes.len());
     let mut out = vec![[0.0; 3]; envs.len() * nw * nb];
@@ -333,10 +323,7 @@ pub fn quadrature_point<C: RayCaster + ?Sized>(
                     let cos_t = c0 + (c1 - c0) * (a as f64 + rng.random::<f64>()) / sf;
                     let phi =
                         2.0 * PI * (u as f64 + (b as f64 + rng.random::<f64>()) / sf) / w as f64;
-                    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                    let d = frame[0] * (sin_t * phi.cos())
-                        + frame[1] * (sin_t * phi.sin())
-                        + frame[2] * cos_t;
+                    let d = frame_direction(&frame, cos_t, phi);
                     if n.dot(&d) <= 0.0 {
                         continue;
                     }
@@ -355,19 +342,51 @@ pub fn quadrature_point<C: RayCaster + ?Sized>(
             if !any {
                 continue;
             }
-            for (e, env) in envs.iter().enumerate() {
-                let le = env.rgb[v * w + u];
-                if le == [0.0; 3] {
-                    continue;
-                }
-                let dst = &mut out[e * nw * nb..(e + 1) * nw * nb];
-                for (acc, t) in dst.iter_mut().zip(&tex) {
-                    for c in 0..3 {
-                        acc[c] += le[c] * t;
-                    }
-                }
-            }
+            add_texel_light(&mut out, envs, v * w + u, &tex);
         }
     }
     Ok(out)
+}
+
+/// The size and frame every environment shares (`None` without any), else an error
+/// naming the first that differs from environment 0.
+fn common_layout(envs: &[&Environment]) -> Result<Option<(usize, usize, [Vec3; 3])>> {
+    let Some(first) = envs.first() else {
+        return Ok(None);
+    };
+    let (w, h, frame) = (first.width, first.height, first.frame);
+    if let Some(e) = envs
+        .iter()
+        .position(|e| e.width != w || e.height != h || e.frame != frame)
+    {
+        return Err(Error::Internal(format!(
+            "quadrature: environment {e} is {}×{} (or has another frame), environment 0 is {w}×{h}",
+            envs[e].width, envs[e].height
+        )));
+    }
+    Ok(Some((w, h, frame)))
+}
+
+/// The unit direction at polar cosine `cos_t` and azimuth `phi` in the environment's
+/// `frame` (`frame[2]` the pole).
+fn frame_direction(frame: &[Vec3; 3], cos_t: f64, phi: f64) -> Vec3 {
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    frame[0] * (sin_t * phi.cos()) + frame[1] * (sin_t * phi.sin()) + frame[2] * cos_t
+}
+
+/// Texel `texel`'s radiance in each environment times its lobe integrals `tex` (`n_wo ·
+/// n_lobes` of them), added to that environment's block of `out`.
+fn add_texel_light(out: &mut [[f64; 3]], envs: &[&Environment], texel: usize, tex: &[f64]) {
+    let block = tex.len();
+    for (e, env) in envs.iter().enumerate() {
+        let le = env.rgb[texel];
+        if le == [0.0; 3] {
+            continue;
+        }
+        for (acc, t) in out[e * block..(e + 1) * block].iter_mut().zip(tex) {
+            for c in 0..3 {
+                acc[c] += le[c] * t;
+            }
+        }
+    }
 }
