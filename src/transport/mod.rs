@@ -191,6 +191,73 @@ pub(crate) fn vertex_frame_into(
     Some((normal, local_frame(&normal)))
 }
 
+/// The final arrays of the rows before compaction: every observation and basis a slot of
+/// `stride` entries ([`RowSlots`]) and its used length. The rows are never held twice
+/// (per-row vectors concatenated at the end would double the peak).
+struct RowStorage {
+    index: Vec<HaarIndex>,
+    value: Vec<TransportValue>,
+    lens: Vec<usize>,
+}
+
+impl RowStorage {
+    fn new(n_obs: usize, n_basis: usize, stride: usize) -> Result<Self> {
+        let total_slots = n_obs
+            .checked_mul(n_basis)
+            .and_then(|r| r.checked_mul(stride))
+            .ok_or_else(|| Error::Internal("transport: row storage size overflows".into()))?;
+        Ok(RowStorage {
+            index: vec![0; total_slots],
+            value: vec![TransportValue::ZERO; total_slots],
+            lens: vec![0usize; n_obs * n_basis],
+        })
+    }
+}
+
+/// What one vertex's rows read: its normal, visibility and observations, and the kernel.
+struct VertexRows<'a, R> {
+    normals_env: &'a [Vec3],
+    obs_dir_env: &'a [Vec3],
+    vis: &'a Visibility,
+    solid_angle: &'a [f64],
+    kernel: &'a RowKernel<'a, R>,
+    groups: VertexGroups,
+}
+
+impl<R: LocalRotation> VertexRows<'_, R> {
+    /// Vertex `v`'s observations' rows into their slots (none without an observation or a
+    /// local frame).
+    fn write(&self, v: usize, scratch: &mut Scratch, slots: &RowSlots) {
+        let group = self.groups.of(v);
+        if group.is_empty() {
+            return;
+        }
+        scratch.ticks.tick(group.len() as u64);
+        let Some((normal, frame)) = vertex_frame_into(
+            &self.normals_env[v],
+            self.vis.vertex(v),
+            self.solid_angle,
+            &mut scratch.v_dw,
+        ) else {
+            return;
+        };
+        scratch.seen.clear();
+        scratch.seen.extend(
+            group.iter().map(|&p| {
+                SeenObs::new(p as usize, local_wo(&frame, &self.obs_dir_env[p as usize]))
+            }),
+        );
+        self.kernel.vertex_rows(&normal, scratch);
+        for k in 0..scratch.seen.len() {
+            let p = scratch.seen[k].p;
+            // SAFETY: observation `p` belongs to vertex `v` alone (`groups`), and only this
+            // call writes the slots of `v`'s observations.
+            let (oi, ov, ol) = unsafe { slots.row(p) };
+            self.kernel.write_rows(scratch, k, oi, ov, ol);
+        }
+    }
+}
+
 /// The observations of each vertex (a counting sort of the observations by vertex).
 struct VertexGroups {
     start: Vec<usize>,
@@ -381,58 +448,40 @@ pub fn build_rows<R: LocalRotation>(
     let n_obs = obs_vertex.len();
     let nv = normals_env.len();
     let ng2 = opts.n_global * opts.n_global;
-    // Every row gets a slot of `stride` entries in the final arrays, filled in place by
-    // the workers and compacted at the end: the rows are never held twice (the old
-    // per-row vectors doubled the peak while they were concatenated).
+    // Every row gets a slot of `stride` entries in the final arrays ([`RowStorage`]),
+    // filled in place by the workers and compacted at the end.
     let stride = if opts.keep == 0 {
         ng2
     } else {
         opts.keep.min(ng2)
     };
     let kernel = RowKernel::new(basis, &grid, rot, opts.keep, stride)?;
-
+    let mut storage = RowStorage::new(n_obs, nb, stride)?;
+    let slots = RowSlots::new(
+        &mut storage.index,
+        &mut storage.value,
+        &mut storage.lens,
+        nb,
+        stride,
+    );
+    let vertices = VertexRows {
+        normals_env,
+        obs_dir_env,
+        vis,
+        solid_angle: &grid.solid_angle,
+        kernel: &kernel,
+        groups: VertexGroups::new(obs_vertex, nv),
+    };
     // Every observation's rows straight into their slots, a vertex at a time.
-    let total_slots = n_obs
-        .checked_mul(nb)
-        .and_then(|r| r.checked_mul(stride))
-        .ok_or_else(|| Error::Internal("transport: row storage size overflows".into()))?;
-    let mut index: Vec<HaarIndex> = vec![0; total_slots];
-    let mut value = vec![TransportValue::ZERO; total_slots];
-    let mut lens = vec![0usize; n_obs * nb];
-    let groups = VertexGroups::new(obs_vertex, nv);
-    let slots = RowSlots::new(&mut index, &mut value, &mut lens, nb, stride);
     (0..nv).into_par_iter().with_min_len(16).for_each_init(
         || Scratch::new(opts.n_local),
-        |scratch, v| {
-            let group = groups.of(v);
-            if group.is_empty() {
-                return;
-            }
-            scratch.ticks.tick(group.len() as u64);
-            let Some((normal, frame)) = vertex_frame_into(
-                &normals_env[v],
-                vis.vertex(v),
-                &grid.solid_angle,
-                &mut scratch.v_dw,
-            ) else {
-                return;
-            };
-            scratch.seen.clear();
-            scratch.seen.extend(
-                group
-                    .iter()
-                    .map(|&p| SeenObs::new(p as usize, local_wo(&frame, &obs_dir_env[p as usize]))),
-            );
-            kernel.vertex_rows(&normal, scratch);
-            for k in 0..scratch.seen.len() {
-                let p = scratch.seen[k].p;
-                // SAFETY: observation `p` belongs to vertex `v` alone (`groups`), and
-                // only this call writes the slots of `v`'s observations.
-                let (oi, ov, ol) = unsafe { slots.row(p) };
-                kernel.write_rows(scratch, k, oi, ov, ol);
-            }
-        },
+        |scratch, v| vertices.write(v, scratch, &slots),
     );
+    let RowStorage {
+        mut index,
+        mut value,
+        lens,
+    } = storage;
 
     let offsets = compact_rows(&mut index, &mut value, &lens, stride);
     Ok(Transport {
