@@ -337,6 +337,24 @@ pub const BLEND_TOLERANCE: f64 = 1e-3;
 /// fitted observations (its `K` blending weights stay determined).
 pub const VALIDATION_MIN_FIT: usize = 2;
 
+impl EstimateOptions {
+    /// The options a lighting step inside the alternation solves with: `qp_max_iter` and
+    /// `qp_max_cg` capped by [`Self::alternation_qp_iters`] and
+    /// [`Self::alternation_cg_iters`] (each at least 1), unless the materials are fixed
+    /// (a single lighting fit is solved to the KKT tolerance).
+    pub fn alternation_lighting(&self) -> EstimateOptions {
+        let capped = |cap: Option<usize>, max: usize| match (self.fixed_materials, cap) {
+            (false, Some(c)) => c.clamp(1, max.max(1)),
+            _ => max,
+        };
+        EstimateOptions {
+            qp_max_iter: capped(self.alternation_qp_iters, self.qp_max_iter),
+            qp_max_cg: capped(self.alternation_cg_iters, self.qp_max_cg),
+            ..self.clone()
+        }
+    }
+}
+
 impl Default for EstimateOptions {
     fn default() -> Self {
         EstimateOptions {

@@ -59,15 +59,7 @@ impl PaperLight {
         let n = problem.transport.n_global;
         let n2 = n * n;
         // Inside the alternation the lighting QPs are inexact block steps (option docs).
-        let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
-            (false, Some(c)) => c.clamp(1, max.max(1)),
-            _ => max,
-        };
-        let light_opts = EstimateOptions {
-            qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
-            qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
-            ..opts.clone()
-        };
+        let light_opts = opts.alternation_lighting();
         PaperLight {
             lights: (0..problem.n_photos)
                 .map(|_| [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]])

@@ -174,15 +174,8 @@ impl SharedLight {
         }
         let n2 = problem.transport.n_global.pow(2);
         let n_groups = groups.n_groups();
-        let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
-            (false, Some(c)) => c.clamp(1, max.max(1)),
-            _ => max,
-        };
-        let light_opts = EstimateOptions {
-            qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
-            qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
-            ..opts.clone()
-        };
+        // Inside the alternation the lighting QPs are inexact block steps (option docs).
+        let light_opts = opts.alternation_lighting();
         Ok(SharedLight {
             params: SharedParams {
                 maps: vec![[vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]]; n_groups],

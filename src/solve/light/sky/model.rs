@@ -130,10 +130,7 @@ impl SkyLight {
             weights: [[0.0; 3]; N_BASIS],
             residual: std::array::from_fn(|_| vec![0.0; n * n]),
         };
-        let capped = |cap: Option<usize>, max: usize| match (opts.fixed_materials, cap) {
-            (false, Some(c)) => c.clamp(1, max.max(1)),
-            _ => max,
-        };
+        let lighting = opts.alternation_lighting();
         Ok(SkyLight {
             params: vec![zero; problem.n_photos],
             scale: vec![None; problem.n_photos],
@@ -141,8 +138,8 @@ impl SkyLight {
             b,
             opts: opts.clone(),
             sky: sky.clone(),
-            qp_max_iter: capped(opts.alternation_qp_iters, opts.qp_max_iter),
-            qp_max_cg: capped(opts.alternation_cg_iters, opts.qp_max_cg),
+            qp_max_iter: lighting.qp_max_iter,
+            qp_max_cg: lighting.qp_max_cg,
         })
     }
 
