@@ -17,7 +17,7 @@ use crate::Result;
 
 /// The alternation from the start's family ([`FitStart::family`]) under each candidate
 /// light model ([`fit_light_models`]), then the start search when asked, with a progress
-/// bar and the held-out tracker ([`held_out_tracker`]) scoring every iterate for the
+/// bar and the held-out tracker ([`super::held_out_tracker`]) scoring every iterate for the
 /// timeline. The tracker's transport rows (the held-out photos') are freed on return.
 pub(super) fn alternate(
     opts: &RunOptions,
