@@ -98,7 +98,7 @@ fn bench_options(
 }
 
 /// What the bench reads of a run's report (`report.json` of a child run, or the
-/// in-process [`run::RunReport`] through the same JSON); NaN figures are `null` in the
+/// in-process [`crate::report::RunReport`] through the same JSON); NaN figures are `null` in the
 /// JSON, hence the options.
 #[derive(Debug, Deserialize)]
 pub(crate) struct Fit {

@@ -96,7 +96,7 @@ pub struct GltfMesh {
     pub faces: Vec<[u32; 3]>,
 }
 
-/// What [`write_glb`] wrote.
+/// What [`glb_bytes`] wrote.
 #[derive(Debug, Clone)]
 pub struct GltfSummary {
     /// Vertices in the file.

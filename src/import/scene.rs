@@ -117,7 +117,7 @@ pub fn load_scene(ws: Workspace) -> Result<Scene> {
 }
 
 /// Decodes the photo of every view (in parallel), in view order. `clip` is the
-/// overexposure threshold on the encoded scale ([`DEFAULT_CLIP`]).
+/// overexposure threshold on the encoded scale ([`crate::import::photo::DEFAULT_CLIP`]).
 pub fn load_photos(scene: &Scene, clip: f32) -> Result<Vec<Photo>> {
     load_view_photos(&scene.views, clip)
 }

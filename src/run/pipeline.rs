@@ -1,6 +1,6 @@
 //! The stages of `run` as functions with typed inputs and outputs (the types in
 //! [`super::state`]): [`import`] → [`Imported`] → [`observe`] → [`Observed`] →
-//! [`prepare`] → [`Prepared`] → [`fit`] → [`Fit`] (holding the [`Fitted`] model) →
+//! [`prepare`] → [`Prepared`] → [`fit`](super::fit::fit) → [`Fit`] (holding the [`Fitted`](super::Fitted) model) →
 //! `evaluate` → [`Evaluated`] → [`super::write`] (the result folder and the
 //! [`RunReport`]). Each stage is timed by [`crate::stages::Stages`] and adds its notes to the
 //! report through [`RunLog`].

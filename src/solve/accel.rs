@@ -1,5 +1,5 @@
 //! Anderson acceleration of the alternation over the materials' `λ` (issue 25, not in the
-//! paper; [`EstimateOptions::anderson_depth`]).
+//! paper; [`crate::solve::EstimateOptions::anderson_depth`]).
 //!
 //! Seen from the `K·B·3` material parameters, one outer iteration of the alternation is a
 //! fixed-point map `λ ↦ G(λ)`: the lights and the blending weights are re-solved by their

@@ -46,7 +46,7 @@ pub enum SmoothnessScale {
     Mean,
 }
 
-/// Options of [`estimate`].
+/// Options of [`crate::solve::estimate`].
 #[derive(Debug, Clone)]
 pub struct EstimateOptions {
     /// Cap on outer (lighting + materials) iterations.
@@ -85,7 +85,7 @@ pub struct EstimateOptions {
     /// starts from the previous iterate and the next material step changes the system
     /// anyway (an inexact block step: GPCG never raises the QP's objective, so `F` still
     /// does not increase). `None`: `qp_max_iter`, i.e. solved to the KKT tolerance.
-    /// Single lighting fits (fixed materials, [`fit_light_frozen`]) always use
+    /// Single lighting fits (fixed materials, [`crate::solve::fit_light_frozen`]) always use
     /// `qp_max_iter`. Measured in `bench-results/archive/lighting-solver.md`.
     pub alternation_qp_iters: Option<usize>,
     /// Cap on conjugate-gradient steps on the free face per GPCG iteration of a lighting
@@ -113,7 +113,7 @@ pub struct EstimateOptions {
     /// Early stopping (not in the paper): this fraction of the training observations with
     /// `α > 0`, drawn with `validation_seed` (only at vertices keeping at least
     /// [`VALIDATION_MIN_FIT`] fitted observations), is left out of every step and scored
-    /// after each outer iteration (relative RMSE, [`Validation`]); the iterate with the
+    /// after each outer iteration (relative RMSE, [`crate::solve::result::Validation`]); the iterate with the
     /// lowest score is returned. 0 = off: every observation is fitted and the last
     /// iterate returned. Ignored with `fixed_materials` (one lighting step, nothing to
     /// choose). Default 0.1.

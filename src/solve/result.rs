@@ -54,7 +54,7 @@ impl std::iter::Sum for StepTimes {
     }
 }
 
-/// Early stopping's record ([`EstimateOptions::validation_fraction`]).
+/// Early stopping's record ([`crate::solve::EstimateOptions::validation_fraction`]).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Validation {
     /// Observations left out of the fit and scored.
@@ -127,7 +127,7 @@ pub struct Conditioning {
     /// Lighting QPs that hit the iteration cap before the KKT tolerance.
     pub qp_unconverged: usize,
     /// Lighting QPs (photo × IRLS pass) of the last lighting step that stopped at the
-    /// alternation's cap ([`EstimateOptions::alternation_qp_iters`]), by design.
+    /// alternation's cap ([`crate::solve::EstimateOptions::alternation_qp_iters`]), by design.
     pub qp_alternation_capped: usize,
     /// Lighting QPs solved so far (photos × IRLS passes × outer iterations).
     pub lighting_qps: usize,

@@ -515,7 +515,7 @@ pub fn build<R: LocalRotation>(
 }
 
 /// The Haar coefficients of each channel of an octahedral environment map (the `L̃` that
-/// [`Transport::response`] and [`WaveletRenderer::vertex_radiance`] take).
+/// [`Transport::response`] and [`crate::render::wavelet::WaveletRenderer::vertex_radiance`] take).
 pub fn light_haar(env: &OctEnv) -> [Vec<f64>; 3] {
     [0, 1, 2].map(|c| {
         let mut ch = env.channel(c);

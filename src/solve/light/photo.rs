@@ -589,7 +589,7 @@ pub(super) fn solve_pass(
 }
 
 /// Lighting step (Eq. 10 + Laplacian + IRLS) for one photo from zero: its three channels'
-/// texels. `beta` is [`beta_per_vertex`].
+/// texels. `beta` is [`crate::solve::beta_per_vertex`].
 pub fn lighting_step(
     problem: &Problem,
     beta: &[[f64; 3]],

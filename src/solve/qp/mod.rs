@@ -10,7 +10,7 @@
 //! `‖P(x − g) − x‖∞` ([`kkt_violation`]) is zero exactly at the solution and is the stopping
 //! rule of both solvers, so every answer can be checked by the caller.
 //!
-//! - [`nnls`]: Lawson–Hanson active-set NNLS (Lawson & Hanson 1974, ch. 23) on the normal
+//! - [`nnls()`]: Lawson–Hanson active-set NNLS (Lawson & Hanson 1974, ch. 23) on the normal
 //!   equations (`H = AᵀA`, `b = Aᵀy`, the Bro–De Jong 1997 formulation). Finite termination;
 //!   used for the small dense systems of the material step (K·B unknowns for λ, K for w).
 //! - [`bound_qp`]: matrix-free gradient projection + conjugate gradients (GPCG, Moré &

@@ -3,13 +3,13 @@
 //!
 //! The lighting `L̃` lives in the global octahedral map (`n_global²` texels, environment
 //! frame, Haar coefficients `ℓ = W_g L̄`). A surface point with normal `ν` needs it in its
-//! local hemi-octahedral map (`n_local²` texels in [`local_frame`]`(ν)`):
+//! local hemi-octahedral map (`n_local²` texels in [`crate::sphere::local_frame`]`(ν)`):
 //!
 //! `R_ν = W_l · S_ν · W_gᵀ`
 //!
 //! where `S_ν` maps global texel averages to local texel averages. Row `j` of `S_ν` is the
 //! footprint of local texel `j`: `s × s` sub-texels with their exact solid angles
-//! ([`SphereGrid::sample_points`]), each looking the global map up bilinearly, normalised by
+//! ([`crate::sphere::SphereGrid::sample_points`]), each looking the global map up bilinearly, normalised by
 //! the texel's solid angle `Ω_j`. Then the matrix `A = diag(Ω_l) S_ν` (overlap areas) is
 //! balanced (Sinkhorn iterations) so that its rows sum to `Ω_j` (a constant sky stays
 //! constant) and, for every global texel whose bilinear footprint lies above the horizon,

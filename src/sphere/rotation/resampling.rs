@@ -18,7 +18,7 @@ const BALANCE_ITERATIONS: usize = 12;
 /// The parts of the resampling `S_ν` that do not depend on the normal `ν`: the local
 /// sub-texels (their directions in the local frame and exact solid angles), both grids'
 /// texel solid angles, the global texel centres and 4-neighbours. Built once per
-/// [`Rotation`] and shared by every normal's [`resampling_rows_with`]; the values are the
+/// [`super::Rotation`] and shared by every normal's [`resampling_rows_with`]; the values are the
 /// ones the per-normal construction computes, so the rows are bit for bit the same.
 #[derive(Debug, Clone)]
 pub struct ResamplingGeometry {
