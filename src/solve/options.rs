@@ -491,3 +491,45 @@ impl ScaleAnchor {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_alternations_lighting_caps_the_solver_unless_the_materials_are_fixed() {
+        // Inside the alternation the caps replace the solver's limits, at least 1 and at
+        // most the limit; a fixed-materials fit keeps the limits; no cap keeps them too.
+        let base = EstimateOptions {
+            qp_max_iter: 50,
+            qp_max_cg: 20,
+            alternation_qp_iters: Some(3),
+            alternation_cg_iters: Some(0),
+            ..EstimateOptions::default()
+        };
+        let a = base.alternation_lighting();
+        assert_eq!((a.qp_max_iter, a.qp_max_cg), (3, 1));
+        let over = EstimateOptions {
+            alternation_qp_iters: Some(500),
+            ..base.clone()
+        }
+        .alternation_lighting();
+        assert_eq!(over.qp_max_iter, 50);
+        let fixed = EstimateOptions {
+            fixed_materials: true,
+            ..base.clone()
+        }
+        .alternation_lighting();
+        assert_eq!((fixed.qp_max_iter, fixed.qp_max_cg), (50, 20));
+        let uncapped = EstimateOptions {
+            alternation_qp_iters: None,
+            alternation_cg_iters: None,
+            ..base.clone()
+        }
+        .alternation_lighting();
+        assert_eq!((uncapped.qp_max_iter, uncapped.qp_max_cg), (50, 20));
+        // Every other option is carried over.
+        assert_eq!(a.max_outer, base.max_outer);
+        assert_eq!(a.smoothness, base.smoothness);
+    }
+}
