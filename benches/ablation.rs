@@ -350,7 +350,8 @@ fn env_usize(k: &str, d: usize) -> usize {
 }
 
 /// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp (`ABLATION_SPP`), Spot's 2,930 vertices, 16²
-/// global / 8² local maps (`ABLATION_GLOBAL`, `ABLATION_LOCAL`), every coefficient kept.
+/// global / 8² local maps (`ABLATION_GLOBAL`, `ABLATION_LOCAL`), 2 shadow rays per local
+/// texel (`ABLATION_RAYS`), every coefficient kept.
 fn sizes() -> Sizes {
     let small = Sizes::spot_small();
     Sizes {
@@ -362,6 +363,7 @@ fn sizes() -> Sizes {
         spp: env_usize("ABLATION_SPP", 8) as u32,
         global: env_usize("ABLATION_GLOBAL", small.global),
         local: env_usize("ABLATION_LOCAL", small.local),
+        rays_per_texel: env_usize("ABLATION_RAYS", small.rays_per_texel),
         ..small
     }
 }
