@@ -127,14 +127,12 @@ impl BenchArgs {
     /// The grid: vertex counts, photo counts, the base row, and the scene with whether its
     /// vertex counts are exact.
     fn set_sizes(&self, opts: &mut relight_cpc::bench::BenchOptions) {
-        opts.sizes = self
-            .sizes
-            .clone()
-            .unwrap_or(std::mem::take(&mut opts.sizes));
-        opts.photos = self
-            .photos
-            .clone()
-            .unwrap_or(std::mem::take(&mut opts.photos));
+        if let Some(sizes) = &self.sizes {
+            opts.sizes.clone_from(sizes);
+        }
+        if let Some(photos) = &self.photos {
+            opts.photos.clone_from(photos);
+        }
         opts.base_photos = self.base_photos.unwrap_or(opts.base_photos);
         opts.base_vertices = self.base_vertices.unwrap_or(opts.base_vertices);
         if let Some(s) = &self.scene {
