@@ -35,6 +35,7 @@ use crate::Result;
 pub mod choose;
 pub mod frozen;
 pub mod laplacian;
+pub(crate) mod map_fit;
 pub mod paper;
 pub mod photo;
 pub mod sh_prior;

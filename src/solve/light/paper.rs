@@ -16,17 +16,14 @@
 
 use std::borrow::Cow;
 
-use crate::solve::light::laplacian::{
-    channel_maps_penalty, extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
-};
-use crate::solve::light::photo::{lighting_sample, lighting_step_warm, LightingResult, WARM_IRLS};
+use crate::solve::light::laplacian::{extrapolate_maps, smoothness_factor};
+use crate::solve::light::map_fit::MapFitState;
+use crate::solve::light::photo::{lighting_step_warm, LightingResult, WARM_IRLS};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
-use crate::solve::problem::{
-    basis_responses, beta_per_vertex, par_largest_first, predict_from, Problem,
-};
+use crate::solve::problem::{par_largest_first, Problem};
 use crate::solve::result::Materials0;
-use crate::solve::subsample::{dominant_material, sample_check, SampleCheck, Subsample};
+use crate::solve::subsample::SampleCheck;
 use crate::Result;
 
 /// Per photo and channel, a map's texels.
@@ -36,20 +33,8 @@ pub type Maps = Vec<[Vec<f64>; 3]>;
 #[derive(Clone)]
 pub struct PaperLight {
     lights: Maps,
-    /// `μ` of each photo's latest lighting step (`None` before its first).
-    mu: Vec<Option<[f64; 3]>>,
-    /// `μ` of each photo's first lighting step, the schedule's `μ_1`.
-    mu_first: Vec<Option<[f64; 3]>>,
-    opts: EstimateOptions,
-    /// `opts` with the alternation's QP caps applied.
-    light_opts: EstimateOptions,
-    lap: Laplacian,
-    /// Each vertex's dominant starting material (the lighting sample's strata).
-    dominant: Vec<u32>,
-    /// The lighting sample of each photo ([`EstimateOptions::lighting_sample`]), drawn at
-    /// the first lighting step and fixed for the whole alternation (the QPs' objective
-    /// stays one function).
-    samples: Option<Vec<Option<Subsample>>>,
+    /// The Laplacian prior's weights per photo, the options and the lighting sample.
+    state: MapFitState,
 }
 
 impl PaperLight {
@@ -58,19 +43,11 @@ impl PaperLight {
     pub fn new(problem: &Problem, opts: &EstimateOptions, init: &Materials0) -> Self {
         let n = problem.transport.n_global;
         let n2 = n * n;
-        // Inside the alternation the lighting QPs are inexact block steps (option docs).
-        let light_opts = opts.alternation_lighting();
         PaperLight {
             lights: (0..problem.n_photos)
                 .map(|_| [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]])
                 .collect(),
-            mu: vec![None; problem.n_photos],
-            mu_first: vec![None; problem.n_photos],
-            opts: opts.clone(),
-            light_opts,
-            lap: Laplacian::new(n),
-            dominant: dominant_material(&init.weights, init.lambda.len()),
-            samples: None,
+            state: MapFitState::new(problem.n_photos, n, opts, init),
         }
     }
 
@@ -79,17 +56,14 @@ impl PaperLight {
         let range = problem.obs.photo_ranges[i].clone();
         out.irls_weights[range].copy_from_slice(&r.irls_weights);
         self.lights[i] = r.light;
-        if self.mu_first[i].is_none() {
-            self.mu_first[i] = Some(r.mu);
-        }
-        self.mu[i] = Some(r.mu);
+        self.state.record_mu(i, r.mu);
         let cond = &mut *out.conditioning;
         cond.lighting.push(r.cond_lower_bound);
         cond.qp_unconverged += usize::from(!r.converged);
         cond.lighting_matvecs += r.matvecs;
         cond.lighting_qps += r.qps;
         cond.lighting_matvecs_max = cond.lighting_matvecs_max.max(r.matvecs_max);
-        if self.light_opts.qp_max_iter < self.opts.qp_max_iter {
+        if self.state.capped() {
             cond.qp_alternation_capped += r.unconverged_qps;
         }
     }
@@ -111,15 +85,12 @@ impl LightModel for PaperLight {
 
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
-        let mu_factor = smoothness_factor(&self.opts, input.outer_iteration);
+        let mu_factor = smoothness_factor(&self.state.opts, input.outer_iteration);
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
-        let samples = self.samples.get_or_insert_with(|| {
-            (0..problem.n_photos)
-                .map(|i| lighting_sample(problem, i, &self.opts, Some(&self.dominant)))
-                .collect()
-        });
-        let (samples, lights, mu_first) = (&*samples, &self.lights, &self.mu_first);
-        let light_opts = &self.light_opts;
+        self.state.draw_samples(problem);
+        let state = &self.state;
+        let (samples, lights, mu_first) = (state.samples(), &self.lights, &state.mu_first);
+        let light_opts = &state.light_opts;
         let results: Vec<Result<LightingResult>> = par_largest_first(&sizes, |i| {
             let m = mu_first[i].map(|m| m.map(|v| v * mu_factor));
             let (start, sample) = (Some(&lights[i]), samples[i].as_ref());
@@ -149,7 +120,7 @@ impl LightModel for PaperLight {
     }
 
     fn penalty(&self, params: &Maps) -> f64 {
-        maps_penalty(&self.lap, params, &self.mu)
+        self.state.penalty(params)
     }
 
     fn combine(&self, parts: &[(&Maps, [f64; 3])]) -> Option<Maps> {
@@ -170,7 +141,7 @@ impl LightModel for PaperLight {
     }
 
     fn channel_penalty(&self, params: &Maps) -> Option<[f64; 3]> {
-        Some(channel_maps_penalty(&self.lap, params, &self.mu))
+        Some(self.state.channel_penalty(params))
     }
 
     fn extrapolate(&self, params: &Maps, prev: &Maps, sigma: f64) -> Maps {
@@ -189,15 +160,15 @@ impl LightModel for PaperLight {
                 *v /= s;
             }
         }
-        for m in self.mu.iter_mut().flatten() {
-            for v in m.iter_mut() {
-                *v *= s * s;
-            }
-        }
+        self.state.normalise(s);
     }
 
     fn prior_weights(&self) -> Vec<[f64; 3]> {
-        self.mu.iter().map(|m| m.unwrap_or([0.0; 3])).collect()
+        self.state
+            .mu
+            .iter()
+            .map(|m| m.unwrap_or([0.0; 3]))
+            .collect()
     }
 
     fn into_maps(self) -> Maps {
@@ -210,19 +181,7 @@ impl LightModel for PaperLight {
         lambda: &[Vec<[f64; 3]>],
         weights: &[f64],
     ) -> Option<SampleCheck> {
-        let samples = self.samples.as_ref()?;
-        samples.iter().any(Option::is_some).then(|| {
-            let beta = beta_per_vertex(lambda, weights, problem.n_vertices);
-            let pred = predict_from(problem, &beta, &basis_responses(problem, &self.lights));
-            let o = problem.obs;
-            sample_check(
-                &pred,
-                &o.rgb,
-                &o.weight,
-                &o.photo_ranges,
-                samples,
-                self.opts.lighting_sample,
-            )
-        })
+        self.state
+            .sample_check(problem, lambda, weights, || Cow::Borrowed(&self.lights))
     }
 }

@@ -36,20 +36,17 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
-use crate::solve::light::laplacian::{
-    extrapolate_maps, maps_penalty, smoothness_factor, Laplacian,
-};
-use crate::solve::light::photo::{lighting_sample, reweight, PhotoData};
+use crate::solve::light::laplacian::{extrapolate_maps, smoothness_factor};
+use crate::solve::light::map_fit::MapFitState;
+use crate::solve::light::photo::{reweight, PhotoData};
 use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 pub use crate::solve::options::LightGroups;
 use crate::solve::options::{EstimateOptions, Robust};
-use crate::solve::problem::{
-    basis_responses, beta_per_vertex, haar3, par_largest_first, predict_from, Problem,
-};
+use crate::solve::problem::{haar3, par_largest_first, Problem};
 use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
 use crate::solve::result::{Conditioning, Materials0};
-use crate::solve::subsample::{dominant_material, sample_check, SampleCheck, Subsample};
+use crate::solve::subsample::{SampleCheck, Subsample};
 use crate::{Error, Result};
 
 /// Map / gains rounds per IRLS pass of one lighting step. Two: the first round's map
@@ -87,15 +84,9 @@ pub struct SharedLight {
     params: SharedParams,
     groups: LightGroups,
     members: Vec<Vec<usize>>,
-    /// `μ_{g,c}` of the latest and of the first lighting step.
-    mu: Vec<Option<[f64; 3]>>,
-    mu_first: Vec<Option<[f64; 3]>>,
-    opts: EstimateOptions,
-    /// `opts` with the alternation's QP caps applied.
-    light_opts: EstimateOptions,
-    lap: Laplacian,
-    dominant: Vec<u32>,
-    samples: Option<Vec<Option<Subsample>>>,
+    /// The Laplacian prior's weights `μ_{g,c}` per group, the options and the lighting
+    /// sample.
+    state: MapFitState,
 }
 
 impl SharedLight {
@@ -103,19 +94,15 @@ impl SharedLight {
     /// per fit, on the first call).
     fn photo_work(&mut self, problem: &Problem, beta: &[[f64; 3]]) -> Vec<PhotoWork> {
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
-        let samples = self.samples.get_or_insert_with(|| {
-            (0..problem.n_photos)
-                .map(|i| lighting_sample(problem, i, &self.opts, Some(&self.dominant)))
-                .collect()
-        });
-        let samples = &*samples;
+        self.state.draw_samples(problem);
+        let samples = self.state.samples();
         par_largest_first(&sizes, |i| {
             PhotoWork::new(
                 problem,
                 beta,
                 i,
                 samples[i].as_ref(),
-                self.opts.blend_tolerance,
+                self.state.opts.blend_tolerance,
             )
         })
     }
@@ -129,7 +116,7 @@ impl SharedLight {
         mu_factor: f64,
         cond: &mut Conditioning,
     ) -> Result<()> {
-        let capped = self.light_opts.qp_max_iter < self.opts.qp_max_iter;
+        let capped = self.state.capped();
         let group_sizes: Vec<usize> = self
             .members
             .iter()
@@ -140,8 +127,7 @@ impl SharedLight {
         for (g, s) in solved.into_iter().enumerate() {
             let s = s?;
             self.params.maps[g] = s.map;
-            self.mu[g] = Some(s.mu);
-            self.mu_first[g].get_or_insert(s.mu);
+            self.state.record_mu(g, s.mu);
             if let Some(r) = s.res {
                 cond.qp_unconverged += usize::from(!r.converged);
                 cond.qp_alternation_capped += usize::from(capped && !r.converged);
@@ -174,8 +160,6 @@ impl SharedLight {
         }
         let n2 = problem.transport.n_global.pow(2);
         let n_groups = groups.n_groups();
-        // Inside the alternation the lighting QPs are inexact block steps (option docs).
-        let light_opts = opts.alternation_lighting();
         Ok(SharedLight {
             params: SharedParams {
                 maps: vec![[vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]]; n_groups],
@@ -183,13 +167,7 @@ impl SharedLight {
             },
             members: groups.members(),
             groups: groups.clone(),
-            mu: vec![None; n_groups],
-            mu_first: vec![None; n_groups],
-            opts: opts.clone(),
-            light_opts,
-            lap: Laplacian::new(problem.transport.n_global),
-            dominant: dominant_material(&init.weights, init.lambda.len()),
-            samples: None,
+            state: MapFitState::new(n_groups, problem.transport.n_global, opts, init),
         })
     }
 
@@ -236,11 +214,11 @@ impl SharedLight {
                 .collect();
             w.sys.adjoint_rows(&u, &mut hb);
         }
-        let mu = match self.mu_first[g] {
+        let mu = match self.state.mu_first[g] {
             Some(m) => m.map(|v| v * mu_factor),
             None => diag.iter().fold([0.0_f64; 3], |mut m, v| {
                 for c in 0..3 {
-                    m[c] = m[c].max(self.opts.smoothness * v[c]);
+                    m[c] = m[c].max(self.state.opts.smoothness * v[c]);
                 }
                 m
             }),
@@ -257,7 +235,7 @@ impl SharedLight {
                 res: None,
             });
         }
-        let ld = self.lap.normal_diag();
+        let ld = self.state.lap.normal_diag();
         let jacobi: Vec<f64> = (0..3)
             .flat_map(|c| (0..n2).map(move |t| (c, t)))
             .map(|(c, t)| diag[t][c] + mu[c] * ld[t])
@@ -271,13 +249,13 @@ impl SharedLight {
             out.copy_from_slice(&unhaar3(&acc, n));
             for c in 0..3 {
                 let r = c * n2..(c + 1) * n2;
-                self.lap.add_normal(&v[r.clone()], mu[c], &mut out[r]);
+                self.state.lap.add_normal(&v[r.clone()], mu[c], &mut out[r]);
             }
         };
         let qp = QpOptions {
-            tol: self.opts.qp_rel_tol * bmax,
-            max_iter: self.light_opts.qp_max_iter,
-            max_cg: self.light_opts.qp_max_cg.max(1),
+            tol: self.state.opts.qp_rel_tol * bmax,
+            max_iter: self.state.light_opts.qp_max_iter,
+            max_cg: self.state.light_opts.qp_max_cg.max(1),
         };
         let res =
             bound_qp_scaled(hess, &b, &start, &qp, Some(&jacobi)).map_err(|e| Error::Numeric {
@@ -384,12 +362,12 @@ impl LightModel for SharedLight {
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
         let beta = input.beta;
-        let mu_factor = smoothness_factor(&self.opts, input.outer_iteration);
+        let mu_factor = smoothness_factor(&self.state.opts, input.outer_iteration);
         let mut work = self.photo_work(problem, beta);
-        let passes = if self.opts.robust == Robust::None {
+        let passes = if self.state.opts.robust == Robust::None {
             1
         } else {
-            self.opts.irls_iters.max(1)
+            self.state.opts.irls_iters.max(1)
         };
         let cond = &mut *out.conditioning;
         cond.lighting = vec![0.0; problem.n_photos];
@@ -398,7 +376,7 @@ impl LightModel for SharedLight {
         for pass in 0..passes {
             if pass > 0 {
                 let (params, groups) = (&self.params, &self.groups.group);
-                let opts = &self.opts;
+                let opts = &self.state.opts;
                 work.par_iter_mut().enumerate().for_each(|(i, w)| {
                     let x = SharedLight::photo_texels(params, groups[i], i);
                     reweight(problem, beta, &w.sys, &x, &w.data, opts, &mut w.omega);
@@ -435,7 +413,7 @@ impl LightModel for SharedLight {
     }
 
     fn penalty(&self, params: &SharedParams) -> f64 {
-        maps_penalty(&self.lap, &params.maps, &self.mu)
+        self.state.penalty(&params.maps)
     }
 
     fn extrapolate(&self, params: &SharedParams, prev: &SharedParams, sigma: f64) -> SharedParams {
@@ -461,16 +439,14 @@ impl LightModel for SharedLight {
         for v in self.params.maps.iter_mut().flatten().flatten() {
             *v /= s;
         }
-        for m in self.mu.iter_mut().flatten() {
-            m.iter_mut().for_each(|v| *v *= s * s);
-        }
+        self.state.normalise(s);
     }
 
     fn prior_weights(&self) -> Vec<[f64; 3]> {
         self.groups
             .group
             .iter()
-            .map(|&g| self.mu[g].unwrap_or([0.0; 3]))
+            .map(|&g| self.state.mu[g].unwrap_or([0.0; 3]))
             .collect()
     }
 
@@ -484,20 +460,8 @@ impl LightModel for SharedLight {
         lambda: &[Vec<[f64; 3]>],
         weights: &[f64],
     ) -> Option<SampleCheck> {
-        let samples = self.samples.as_ref()?;
-        samples.iter().any(Option::is_some).then(|| {
-            let beta = beta_per_vertex(lambda, weights, problem.n_vertices);
-            let maps = photo_maps(&self.params, &self.groups.group);
-            let pred = predict_from(problem, &beta, &basis_responses(problem, &maps));
-            let o = problem.obs;
-            sample_check(
-                &pred,
-                &o.rgb,
-                &o.weight,
-                &o.photo_ranges,
-                samples,
-                self.opts.lighting_sample,
-            )
+        self.state.sample_check(problem, lambda, weights, || {
+            Cow::Owned(photo_maps(&self.params, &self.groups.group))
         })
     }
 }
