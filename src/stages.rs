@@ -33,7 +33,7 @@ pub fn tick(n: u64) {
 /// How many units a [`Ticker`] gathers before it passes them on.
 const TICK_BATCH: u64 = 64;
 
-/// Ticks gathered by one worker and passed to [`tick`] once per [`TICK_BATCH`] units (the
+/// Ticks gathered by one worker and passed to [`tick`] once per `TICK_BATCH` units (the
 /// rest when dropped): one read of the active bar per chunk of work instead of one per
 /// item. Give each parallel job its own (rayon's `map_init`/`for_each_init`).
 #[derive(Debug, Default)]

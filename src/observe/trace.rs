@@ -232,7 +232,7 @@ impl SceneBvh {
     /// traversed and `hint` becomes the primitive that blocked it, if any. Either way the
     /// answer is whether a triangle accepted by the f64 test lies on the segment: the
     /// hinted one when it does, else the traversal's. With AVX2 the traversal runs in a
-    /// copy compiled for it ([`SceneBvh::blocked_avx2`]: −7% of the visibility stage at
+    /// copy compiled for it (`SceneBvh::blocked_avx2`: −7% of the visibility stage at
     /// 30K vertices, the same rays and answers, `bench-results/speed-levers-2.md`).
     pub fn occluded_hinted(
         &self,

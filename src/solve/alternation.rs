@@ -2,7 +2,7 @@
 //! until the objective's relative decrease is below `rel_tol`, `max_outer` is reached or
 //! early stopping ends it; then the scale normalisation ([`crate::solve::normalise`]).
 //!
-//! One outer iteration ([`Alternation::iteration`]):
+//! One outer iteration (`Alternation::iteration`):
 //! 1. lighting: the light model's [`LightModel::fit`] with `β` fixed; in the first
 //!    [`EstimateOptions::ratio_steps`] rounds then the ratio step
 //!    ([`crate::solve::ratio_step`]: each material's brightness per channel moved along

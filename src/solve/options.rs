@@ -167,7 +167,7 @@ pub struct EstimateOptions {
     /// starting material; empty: the materials alone.
     pub lighting_strata: Vec<u32>,
     /// Energy tolerance of the blended lighting rows
-    /// ([`crate::solve::light::system::PhotoSystem`]): an observation's `β`-blended
+    /// (`crate::solve::light::system::PhotoSystem`): an observation's `β`-blended
     /// transport row `e_p = Σ_b β_b g_{p,b}` drops its smallest entries for as long as
     /// their energy `Σ_c e_{p,c}²` sums to at most this fraction `ε` of the row's: the row
     /// stays within `√ε` of the exact blend in `ℓ²`. Not in the paper (issue 26). 0 = the

@@ -205,7 +205,7 @@ pub fn training_score(problem: &Problem, beta: &[[f64; 3]], lights: &[[Vec<f64>;
 
 /// Protocol (b) on the training photos, a score for comparing fits (not in the paper):
 /// for every photo the light is refitted with the reflectance `beta` frozen on the
-/// observations marked `left` and the other half is predicted ([`refit_sums`]):
+/// observations marked `left` and the other half is predicted (`refit_sums`):
 /// `sqrt(Σ_{p right} α_p ‖y_p − ŷ_p‖²) / sqrt(Σ_{p right} α_p ‖y_p‖²)`.
 ///
 /// The reflectance has seen both halves, so this ranks fits of the same observations; it
@@ -226,7 +226,7 @@ pub fn half_score(
 /// ratios (not in the paper): the vertices are cut into groups (`group[x]`, e.g. the
 /// paper's clusters); for every group `g` each photo's light is refitted with the
 /// reflectance `beta` frozen on the observations of the other groups and predicts group
-/// `g`'s ([`refit_sums`]); the score is `sqrt(Σ_g Σ_{p ∈ g} α_p ‖y_p − ŷ_p‖² / Σ_g Σ_{p ∈ g}
+/// `g`'s (`refit_sums`); the score is `sqrt(Σ_g Σ_{p ∈ g} α_p ‖y_p − ŷ_p‖² / Σ_g Σ_{p ∈ g}
 /// α_p ‖y_p‖²)`.
 ///
 /// A fit's own maps adapt to its albedo ratios: a free map per photo brightens the

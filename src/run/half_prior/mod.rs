@@ -19,9 +19,9 @@
 //!   log prior, [`crate::solve::light::sh_prior`] module docs).
 //!
 //! Whether the collection's lights are alike enough is a property of the collection, so
-//! `η` is chosen by replaying protocol (b) on training photos ([`choose_eta`]): for up to
+//! `η` is chosen by replaying protocol (b) on training photos (`choose_eta`): for up to
 //! [`LOO_PHOTOS`] training photos `k` (spread over the list), the left half of `k`'s
-//! observations (projected `x` below the middle of their span, [`super::half_fit::span_mid`])
+//! observations (projected `x` below the middle of their span, `super::half_fit::span_mid`)
 //! fits its map from the mean of the other training maps, the prior learnt from the other
 //! maps only (leave one out), reflectance frozen, the right half scored (α-weighted MSE).
 //! The kept `η` ∈ [`ETA_GRID`] (0 = no prior) minimises the mean over photos of
@@ -72,7 +72,7 @@ pub const REPLAY_MAX_OBSERVATIONS: usize = 500;
 pub const REPLAY_GPCG: usize = 10;
 /// CG steps per GPCG iteration of a replay's light fit: 20, the cap [`REPLAY_GPCG`] was
 /// measured with. Protocol (b)'s own fit takes more, shorter steps
-/// ([`super::half_fit::HALF_FIT_CG`]); the replay keeps its measured caps, so its `η`
+/// (`super::half_fit::HALF_FIT_CG`); the replay keeps its measured caps, so its `η`
 /// choices are the ones its measurements describe.
 pub const REPLAY_CG: usize = 20;
 /// IRLS passes of a replay's light fit: one, plain least squares (protocol (b)'s own fit

@@ -144,7 +144,7 @@ pub struct RunOptions {
     /// map under the statistical prior, or both and the lower validation score kept.
     pub light: crate::solve::light::choose::LightChoice,
     /// Mask transient occluders in the training photos before the estimate
-    /// ([`super::transients`]): a short pilot fit, its residuals' spatially coherent
+    /// (`super::transients`): a short pilot fit, its residuals' spatially coherent
     /// outliers get weight 0, and each photo's mask is written to `outliers/`. Off by
     /// default: on planted occluders it finds about half of their pixels and moves the
     /// held-out error by 2%, at the cost of two pilot fits (`bench-results/realphoto.md`).

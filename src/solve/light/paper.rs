@@ -1,6 +1,6 @@
 //! The paper's light model (Sec. 5.1, Eq. 10): per photo a free, non-negative global
 //! octahedral map (`n_global²` texels per channel), with the smoothness prior
-//! `μ_{I,c} ‖Δ x_{I,c}‖²` of the map's graph Laplacian ([`Laplacian`]).
+//! `μ_{I,c} ‖Δ x_{I,c}‖²` of the map's graph Laplacian (`Laplacian`).
 //!
 //! `μ_{I,c}` = `smoothness` × the largest diagonal entry of the photo's system (the scale
 //! [`crate::solve::SmoothnessScale`]), fixed at the photo's first lighting step, then

@@ -184,8 +184,8 @@ pub fn bound_qp<H: Fn(&[f64], &mut [f64])>(
 /// count as 1.
 ///
 /// Each outer iteration is Moré & Toraldo's two phases: gradient projection until the
-/// active face settles ([`Gpcg::projection_phase`]), then CG on the free face
-/// ([`Gpcg::face_phase`]).
+/// active face settles (`Gpcg::projection_phase`), then CG on the free face
+/// (`Gpcg::face_phase`).
 pub fn bound_qp_scaled<H: Fn(&[f64], &mut [f64])>(
     hess_mul: H,
     b: &[f64],

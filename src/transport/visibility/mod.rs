@@ -59,7 +59,7 @@
 //! Rays whose direction lies in a provably empty cone are answered without tracing: the
 //! map is cut into blocks of 4 × 4 texels (at 32²), and a block whose cone of directions,
 //! from the rays' origin and above the tangent plane, holds no triangle
-//! ([`crate::observe::cone`]) has every ray escape ([`OpenCones`]). The jitter is drawn
+//! ([`crate::observe::cone`]) has every ray escape (`OpenCones`). The jitter is drawn
 //! either way, so the maps are bit for bit those of tracing every ray.
 //!
 //! Provably open vertices skip the rays: if no mesh vertex lies above the tangent plane,
@@ -101,7 +101,7 @@ pub struct Visibility {
     pub degenerate: usize,
     /// Rays traced in total.
     pub rays_traced: u64,
-    /// Rays not traced because their texel lies in a cone proven empty ([`OpenCones`]):
+    /// Rays not traced because their texel lies in a cone proven empty (`OpenCones`):
     /// each would have escaped.
     pub rays_known_open: u64,
 }
