@@ -25,6 +25,9 @@
 //!   weight `β̂_{x,L,c}` over the vertices truly pure material `j` (weight ≥ 0.95) over the
 //!   same median for material 0, against the truth's `λ_{j,L,c} / λ_{0,L,c}`: invariant to
 //!   the K×K material remix and the per-channel scale; the worst relative error;
+//!   *ratio floor* = the same error of the material step alone under the TRUE maps, from
+//!   the truth ([`true_light`]): what the photos hold of the ratios through the case's
+//!   transport, whatever the light model;
 //! - **material accuracy**: the fraction of seen vertices whose largest estimated weight
 //!   is their true largest material (best of the K! orders), fitted with the true K;
 //! - **K chosen**: the adaptive pilot's rule ([`relight_cpc::solve::adapt`], step 3) with
@@ -49,7 +52,9 @@
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
 //! of `run`'s, `ablation/defaults.rs`), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
 //! `run --ratio-steps N`), `ABLATION_DEFAULTS_PATIENCE=N` (the `defaults` row with
-//! `run --patience N`), `ABLATION_SEARCH`,
+//! `run --patience N`), `ABLATION_DEFAULTS_IRLS=N`, `ABLATION_DEFAULTS_FLOOR=X`,
+//! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
+//! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
@@ -82,6 +87,10 @@ mod search;
 mod starts;
 #[path = "ablation/table.rs"]
 mod table;
+#[path = "support/today.rs"]
+mod today;
+#[path = "ablation/true_light.rs"]
+mod true_light;
 use metrics::*;
 use search::{brightness_search, restarts};
 use starts::fit_start;
@@ -432,6 +441,8 @@ struct Floors {
     left: Vec<bool>,
     seen: Vec<bool>,
     truth_held: Vec<[f64; 3]>,
+    /// The albedo ratios' floor: the material step under the true maps ([`true_light`]).
+    ratio: true_light::RatioFloor,
 }
 
 fn floors(case: &Case) -> Floors {
@@ -441,6 +452,7 @@ fn floors(case: &Case) -> Floors {
     Floors {
         heldout: half_error(case, &case.lambda, &case.weights, &left),
         relit: rel_rmse_per_channel(&case.held.obs, &truth_held),
+        ratio: true_light::ratio_floor(case, &seen),
         left,
         seen,
         truth_held,
@@ -574,6 +586,33 @@ struct Done {
     diagnosis: Option<(String, Value)>,
 }
 
+/// The run's date and the `ABLATION_*` / `RESULTS_SUFFIX` variables it was given, sorted,
+/// as the command line that runs it again.
+fn environment_line() -> String {
+    let mut vars: Vec<String> = std::env::vars()
+        .filter(|(k, _)| k.starts_with("ABLATION_") || k == "RESULTS_SUFFIX")
+        .map(|(k, v)| format!("{k}={}", shell_word(&v)))
+        .collect();
+    vars.sort();
+    format!(
+        "Run on {} as `{}cargo bench --bench ablation`.\n\n",
+        today::today(),
+        vars.iter().map(|v| format!("{v} ")).collect::<String>()
+    )
+}
+
+/// `v` quoted for a shell when it holds anything but letters, digits and `,._-`.
+fn shell_word(v: &str) -> String {
+    if !v.is_empty()
+        && v.chars()
+            .all(|c| c.is_ascii_alphanumeric() || ",._-".contains(c))
+    {
+        v.to_string()
+    } else {
+        format!("\"{}\"", v.replace('"', "\\\""))
+    }
+}
+
 /// Whether `ABLATION_ROWS` (`wanted`) leaves the row `label` out.
 fn left_out(wanted: &Option<Vec<String>>, label: &str) -> bool {
     wanted
@@ -691,6 +730,7 @@ fn main() {
          all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping.\n\n",
         s.width, s.spp, s.light_samples, s.global, s.local, base.max_outer
     );
+    md.push_str(&environment_line());
     let mut out = Vec::new();
     for (scene, what) in SCENES {
         if only_scenes
@@ -745,6 +785,7 @@ fn main() {
                 "materials": k_true,
                 "floor_heldout": fl.heldout,
                 "floor_relit": fl.relit,
+                "floor_ratio": fl.ratio,
                 "rows": done.iter().map(|d| json!({"model": d.label, "figures": d.figures, "k": d.k, "note": d.note, "diagnosis": d.diagnosis.as_ref().map(|x| &x.1)})).collect::<Vec<_>>(),
             }));
             // After every case, so that an interrupted run keeps what it measured.

@@ -32,6 +32,24 @@ pub struct DefaultsFit {
 /// bench's options (the paper's free weights, the paper's light model).
 pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let t0 = std::time::Instant::now();
+    // The pilot's and the fit's IRLS: `run --irls-iterations N` with
+    // `ABLATION_DEFAULTS_IRLS=N`; the robust floor with `ABLATION_DEFAULTS_FLOOR=X`; Huber's
+    // `k` or Tukey's biweight with `ABLATION_DEFAULTS_ROBUST=K|tukey`.
+    let base = &EstimateOptions {
+        irls_iters: crate::env_usize("ABLATION_DEFAULTS_IRLS", base.irls_iters),
+        robust_floor: std::env::var("ABLATION_DEFAULTS_FLOOR")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(base.robust_floor),
+        robust: match std::env::var("ABLATION_DEFAULTS_ROBUST").as_deref() {
+            Ok("tukey") => relight_cpc::solve::Robust::Tukey { c: 4.685 },
+            Ok(k) if k.parse::<f64>().is_ok() => relight_cpc::solve::Robust::Huber {
+                k: k.parse().unwrap(),
+            },
+            _ => base.robust,
+        },
+        ..base.clone()
+    };
     let obs = &case.train.obs;
     let (mean_rgb, seen) = relight_cpc::run::mean_colours(obs, case.nv);
     // The case's basis has its Lambertian lobe first (`fit_start`'s convention).
@@ -65,6 +83,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         seed: 1,
     })
     .expect("adaptive pilot");
+    // Every lobe of the case's basis kept, whatever the pilot's shares, with
+    // `ABLATION_DEFAULTS_ALL_LOBES=1`.
+    let mut pilot = pilot;
+    if crate::env_flag("ABLATION_DEFAULTS_ALL_LOBES") {
+        pilot.kept = (0..case.basis.len()).collect();
+    }
     let sub = adapt::select_bases(&case.train.transport, &pilot.kept).expect("kept bases");
     let problem = Problem {
         transport: &sub,

@@ -25,8 +25,10 @@ fn fmt_matched(v: &[f64], prec: usize) -> String {
 
 pub fn table(md: &mut String, done: &[Done], fl: &Floors, clean: bool, k_true: usize) {
     md.push_str(&format!(
-        "Floors: held-out (half protocol, true reflectance) {:.4}; relit (true reflectance under the unseen maps) {:.4}.\n\n",
-        fl.heldout, fl.relit
+        "Floors: held-out (half protocol, true reflectance) {:.4}; relit (true reflectance under the unseen maps) {:.4}; {}.\n\n",
+        fl.heldout,
+        fl.relit,
+        crate::true_light::describe(&fl.ratio)
     ));
     md.push_str("| light model | held-out (× photo floor) | relit, unseen maps (× MC floor) | relit vs true model | albedo ratio error R / G / B (worst) | material accuracy all / pure | K chosen (held-out RMSE per K) | train rel. | its | s |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for d in done {
