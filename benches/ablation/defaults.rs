@@ -34,7 +34,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let t0 = std::time::Instant::now();
     // The pilot's and the fit's IRLS: `run --irls-iterations N` with
     // `ABLATION_DEFAULTS_IRLS=N`; the robust floor with `ABLATION_DEFAULTS_FLOOR=X`; Huber's
-    // `k` or Tukey's biweight with `ABLATION_DEFAULTS_ROBUST=K|tukey`.
+    // `k` or Tukey's biweight with `ABLATION_DEFAULTS_ROBUST=K|tukey`; the maps' Laplacian
+    // weight with `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`).
     let base = &EstimateOptions {
         irls_iters: crate::env_usize("ABLATION_DEFAULTS_IRLS", base.irls_iters),
         robust_floor: std::env::var("ABLATION_DEFAULTS_FLOOR")
@@ -43,11 +44,15 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             .unwrap_or(base.robust_floor),
         robust: match std::env::var("ABLATION_DEFAULTS_ROBUST").as_deref() {
             Ok("tukey") => relight_cpc::solve::Robust::Tukey { c: 4.685 },
-            Ok(k) if k.parse::<f64>().is_ok() => relight_cpc::solve::Robust::Huber {
-                k: k.parse().unwrap(),
-            },
-            _ => base.robust,
+            Ok(k) => k
+                .parse()
+                .map_or(base.robust, |k| relight_cpc::solve::Robust::Huber { k }),
+            Err(_) => base.robust,
         },
+        smoothness: std::env::var("ABLATION_DEFAULTS_SMOOTHNESS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(base.smoothness),
         ..base.clone()
     };
     let obs = &case.train.obs;
@@ -101,7 +106,48 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         let open = case.vis.open_fractions();
         relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open, true);
     }
-    let m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
+    let mut m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
+    // With `ABLATION_DEFAULTS_START=truth | truth-weights | truth-lambda`, when the pilot took
+    // the true count: the fit from the TRUE materials (the kept lobes' λ), from the true
+    // weights with the start's λ (its materials put in the truth's order), or from the
+    // true λ with the start's weights (the truth's materials put in the start's order).
+    if pilot.materials == case.lambda.len() {
+        let t = case.true_materials();
+        let true_lambda: Vec<Vec<[f64; 3]>> = t
+            .lambda
+            .iter()
+            .map(|row| pilot.kept.iter().map(|&b| row[b]).collect())
+            .collect();
+        // perm[k] = the true material nearest start material k in Lambertian colour.
+        let perm = nearest_order(&m0.lambda, &true_lambda, lambert);
+        match std::env::var("ABLATION_DEFAULTS_START").as_deref() {
+            Ok("truth") => {
+                m0 = Materials0 {
+                    lambda: true_lambda,
+                    weights: t.weights,
+                }
+            }
+            Ok("truth-weights") => {
+                let mut lambda = m0.lambda.clone();
+                for (k, &j) in perm.iter().enumerate() {
+                    lambda[j] = m0.lambda[k].clone();
+                }
+                m0.lambda = lambda;
+                m0.weights = t.weights;
+            }
+            Ok("truth-lambda") => {
+                for (k, &j) in perm.iter().enumerate() {
+                    m0.lambda[k] = true_lambda[j].clone();
+                }
+            }
+            _ => {}
+        }
+    }
+    // With `ABLATION_DEFAULTS_START=unmix`: each seen vertex's start weights unmixed from
+    // its mean colour over the start's colours ([`unmix_weights`]).
+    if std::env::var("ABLATION_DEFAULTS_START").is_ok_and(|v| v == "unmix") {
+        unmix_weights(&mut m0, &mean_rgb, &seen, lambert);
+    }
     // `run`'s cap and tolerance, or with `ABLATION_DEFAULTS_ITERS=bench` the bench's.
     let (max_outer, rel_tol) =
         if std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench") {
@@ -144,6 +190,54 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         est,
         pilot,
         seconds: t0.elapsed().as_secs_f64(),
+    }
+}
+
+/// The permutation `perm` (start material `k` ↔ true material `perm[k]`) that brings the
+/// start's Lambertian chromaticities nearest the truth's (least summed squared distance).
+fn nearest_order(start: &[Vec<[f64; 3]>], truth: &[Vec<[f64; 3]>], lambert: usize) -> Vec<usize> {
+    let chroma = |a: [f64; 3]| {
+        let s = (a[0] + a[1] + a[2]).max(f64::MIN_POSITIVE);
+        a.map(|v| v / s)
+    };
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        let (a, b) = (chroma(a), chroma(b));
+        (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>()
+    };
+    crate::metrics::permutations(start.len())
+        .into_iter()
+        .min_by(|p, q| {
+            let cost = |p: &Vec<usize>| -> f64 {
+                p.iter()
+                    .enumerate()
+                    .map(|(k, &j)| dist(start[k][lambert], truth[j][lambert]))
+                    .sum()
+            };
+            cost(p).total_cmp(&cost(q))
+        })
+        .unwrap_or_default()
+}
+
+/// Each seen vertex's weights from its mean colour `c_x` unmixed over the materials'
+/// Lambertian colours `a_k`: `v = argmin_{v ≥ 0} ‖Σ_k v_k a_k − c_x‖²` (NNLS), `w = v / Σ v`
+/// (the vertex's shading is the scale `Σ v`); a vertex whose `v` is 0 keeps its weights.
+fn unmix_weights(m0: &mut Materials0, mean_rgb: &[[f64; 3]], seen: &[bool], lambert: usize) {
+    use nalgebra::{DMatrix, DVector};
+    use relight_cpc::solve::qp::{nnls, NnlsOptions};
+    let kk = m0.lambda.len();
+    let a = DMatrix::from_fn(3, kk, |c, k| m0.lambda[k][lambert][c]);
+    let ata = a.transpose() * &a;
+    for x in (0..seen.len()).filter(|&x| seen[x]) {
+        let atb = a.transpose() * DVector::from_row_slice(&mean_rgb[x]);
+        let Ok(v) = nnls(&ata, &atb, &NnlsOptions::default()) else {
+            continue;
+        };
+        let total = v.sum();
+        if total > 0.0 {
+            for k in 0..kk {
+                m0.weights[x * kk + k] = v[k] / total;
+            }
+        }
     }
 }
 
