@@ -145,8 +145,11 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     }
     // With `ABLATION_DEFAULTS_START=unmix`: each seen vertex's start weights unmixed from
     // its mean colour over the start's colours ([`unmix_weights`]).
-    if std::env::var("ABLATION_DEFAULTS_START").is_ok_and(|v| v == "unmix") {
-        unmix_weights(&mut m0, &mean_rgb, &seen, lambert);
+    // `unmix2`: over the best pair of materials only (a vertex blends at most two).
+    match std::env::var("ABLATION_DEFAULTS_START").as_deref() {
+        Ok("unmix") => unmix_weights(&mut m0, &mean_rgb, &seen, lambert, false),
+        Ok("unmix2") => unmix_weights(&mut m0, &mean_rgb, &seen, lambert, true),
+        _ => {}
     }
     // `run`'s cap and tolerance, or with `ABLATION_DEFAULTS_ITERS=bench` the bench's.
     let (max_outer, rel_tol) =
@@ -220,25 +223,61 @@ fn nearest_order(start: &[Vec<[f64; 3]>], truth: &[Vec<[f64; 3]>], lambert: usiz
 
 /// Each seen vertex's weights from its mean colour `c_x` unmixed over the materials'
 /// Lambertian colours `a_k`: `v = argmin_{v ≥ 0} ‖Σ_k v_k a_k − c_x‖²` (NNLS), `w = v / Σ v`
-/// (the vertex's shading is the scale `Σ v`); a vertex whose `v` is 0 keeps its weights.
-fn unmix_weights(m0: &mut Materials0, mean_rgb: &[[f64; 3]], seen: &[bool], lambert: usize) {
+/// (the vertex's shading is the scale `Σ v`); with `pairs`, over the pair of materials with
+/// the least residual only. A vertex whose `v` is 0 keeps its weights.
+fn unmix_weights(
+    m0: &mut Materials0,
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+    lambert: usize,
+    pairs: bool,
+) {
+    let kk = m0.lambda.len();
+    let subsets: Vec<Vec<usize>> = if pairs && kk > 2 {
+        (0..kk)
+            .flat_map(|a| (a + 1..kk).map(move |b| vec![a, b]))
+            .collect()
+    } else {
+        vec![(0..kk).collect()]
+    };
+    for x in (0..seen.len()).filter(|&x| seen[x]) {
+        let best = subsets
+            .iter()
+            .filter_map(|set| unmix_over(&m0.lambda, set, mean_rgb[x], lambert))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((w, _)) = best else { continue };
+        m0.weights[x * kk..(x + 1) * kk].copy_from_slice(&w);
+    }
+}
+
+/// The weights (over all `K` materials, 0 outside `set`) of `c` unmixed over the Lambertian
+/// colours of the materials in `set`, and the squared residual; `None` when they are 0.
+fn unmix_over(
+    lambda: &[Vec<[f64; 3]>],
+    set: &[usize],
+    c: [f64; 3],
+    lambert: usize,
+) -> Option<(Vec<f64>, f64)> {
     use nalgebra::{DMatrix, DVector};
     use relight_cpc::solve::qp::{nnls, NnlsOptions};
-    let kk = m0.lambda.len();
-    let a = DMatrix::from_fn(3, kk, |c, k| m0.lambda[k][lambert][c]);
-    let ata = a.transpose() * &a;
-    for x in (0..seen.len()).filter(|&x| seen[x]) {
-        let atb = a.transpose() * DVector::from_row_slice(&mean_rgb[x]);
-        let Ok(v) = nnls(&ata, &atb, &NnlsOptions::default()) else {
-            continue;
-        };
-        let total = v.sum();
-        if total > 0.0 {
-            for k in 0..kk {
-                m0.weights[x * kk + k] = v[k] / total;
-            }
-        }
+    let a = DMatrix::from_fn(3, set.len(), |ch, j| lambda[set[j]][lambert][ch]);
+    let y = DVector::from_row_slice(&c);
+    let v = nnls(
+        &(a.transpose() * &a),
+        &(a.transpose() * &y),
+        &NnlsOptions::default(),
+    )
+    .ok()?;
+    let total = v.sum();
+    if total <= 0.0 {
+        return None;
     }
+    let residual = (&a * &v - &y).norm_squared();
+    let mut w = vec![0.0; lambda.len()];
+    for (j, &k) in set.iter().enumerate() {
+        w[k] = v[j] / total;
+    }
+    Some((w, residual))
 }
 
 /// A material's weights over the kept bases (`kept[i]`: index of the `i`-th in the full
