@@ -102,9 +102,19 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let mut init =
         relight_cpc::solve::cluster::initial_materials(&mean_rgb, &seen, pilot.materials, 1)
             .expect("k-means start");
+    // `ABLATION_DEFAULTS_START=unmix-match`: the weights (and labels) unmixed from the
+    // clustered colours before the brightness is matched, so that only vertices the
+    // unmixing finds pure count there, then unmixed again over the matched colours.
+    let unmix_match = std::env::var("ABLATION_DEFAULTS_START").is_ok_and(|v| v == "unmix-match");
+    if unmix_match {
+        unmix_initial(&mut init, &mean_rgb, &seen);
+    }
     if pilot.start == relight_cpc::solve::matched::StartBrightness::Matched {
         let open = case.vis.open_fractions();
         relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open, true);
+    }
+    if unmix_match {
+        unmix_initial(&mut init, &mean_rgb, &seen);
     }
     let mut m0 = Materials0::from_initial(&init, pilot.kept.len(), lambert);
     // With `ABLATION_DEFAULTS_START=truth | truth-weights | truth-lambda`, when the pilot took
@@ -248,6 +258,22 @@ fn unmix_weights(
         let Some((w, _)) = best else { continue };
         m0.weights[x * kk..(x + 1) * kk].copy_from_slice(&w);
     }
+}
+
+/// [`unmix_weights`] on the clustered start: its weights and labels from its colours.
+fn unmix_initial(
+    init: &mut relight_cpc::solve::cluster::InitialMaterials,
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+) {
+    let mut m = Materials0::from_initial(init, 1, 0);
+    unmix_weights(&mut m, mean_rgb, seen, 0, false);
+    let kk = init.albedo.len();
+    for x in (0..seen.len()).filter(|&x| seen[x]) {
+        let w = &m.weights[x * kk..(x + 1) * kk];
+        init.labels[x] = (0..kk).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
+    }
+    init.weights = m.weights;
 }
 
 /// The weights (over all `K` materials, 0 outside `set`) of `c` unmixed over the Lambertian
