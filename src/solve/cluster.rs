@@ -315,9 +315,109 @@ fn soft_weights(
     (labels, weights)
 }
 
+/// Where the start's blending weights come from (`--start-weights`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StartWeights {
+    /// From the hue distances to the cluster centres (the paper's clustering).
+    Clustered,
+    /// Unmixed from each vertex's mean colour ([`unmixed_weights`]).
+    Unmixed,
+    /// Both starts fitted, the one with the lower validation score kept (one more fit).
+    Both,
+}
+
+impl StartWeights {
+    /// The flag's word: `clustered`, `unmixed` or `both`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "clustered" => Ok(StartWeights::Clustered),
+            "unmixed" => Ok(StartWeights::Unmixed),
+            "both" => Ok(StartWeights::Both),
+            _ => Err(Error::Config(format!(
+                "--start-weights {s}: expected clustered, unmixed or both"
+            ))),
+        }
+    }
+}
+
+/// The start's blending weights unmixed from each seen vertex's mean colour `c_x` over the
+/// materials' colours `a_k` (`init.albedo`), not in the paper: a vertex where two materials
+/// blend shows `c_x = s_x Σ_k w_k a_k` (its shading `s_x`), so
+/// `v = argmin_{v ≥ 0} ‖Σ_k v_k a_k − c_x‖²` (non-negative least squares, Lawson–Hanson)
+/// gives `w = v / Σ_k v_k`, where the clustered weights ([`initial_materials`]) come from
+/// hue distances alone. Returns the weights (row-major `V × K`) and each vertex's largest;
+/// a vertex unseen, or whose `v` is 0, keeps its clustered weights.
+pub fn unmixed_weights(
+    init: &InitialMaterials,
+    mean_rgb: &[[f64; 3]],
+    seen: &[bool],
+) -> (Vec<f64>, Vec<usize>) {
+    use crate::solve::qp::{nnls, NnlsOptions};
+    use nalgebra::{DMatrix, DVector};
+    let kk = init.albedo.len();
+    let a = DMatrix::from_fn(3, kk, |c, k| init.albedo[k][c]);
+    let ata = a.transpose() * &a;
+    let mut weights = init.weights.clone();
+    let mut labels = init.labels.clone();
+    for x in (0..seen.len()).filter(|&x| seen[x]) {
+        let atb = a.transpose() * DVector::from_row_slice(&mean_rgb[x]);
+        let Ok(v) = nnls(&ata, &atb, &NnlsOptions::default()) else {
+            continue;
+        };
+        let total = v.sum();
+        if !(total > 0.0 && total.is_finite()) {
+            continue;
+        }
+        for k in 0..kk {
+            weights[x * kk + k] = v[k] / total;
+        }
+        labels[x] = (0..kk).max_by(|&i, &j| v[i].total_cmp(&v[j])).unwrap_or(0);
+    }
+    (weights, labels)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unmixing_recovers_a_shaded_blend_of_the_materials_colours() {
+        // c = s (w a + (1 − w) b) with any shading s > 0: NNLS finds v = s (w, 1 − w)
+        // exactly (two independent colours in RGB), so w comes back to rounding (1e-9:
+        // the normal equations square a condition number of order 10). A colour outside
+        // the cone of a and b gets its nearest non-negative mix; an unseen vertex keeps
+        // its clustered weights.
+        let (a, b) = ([0.8, 0.45, 0.2], [0.2, 0.3, 0.6]);
+        let blends = [(1.0, 0.3), (0.7, 0.05), (0.2, 0.55), (1.7, 1.0)];
+        let mut mean_rgb: Vec<[f64; 3]> = blends
+            .iter()
+            .map(|&(s, w)| [0, 1, 2].map(|c| s * (w * a[c] + (1.0 - w) * b[c])))
+            .collect();
+        mean_rgb.push([1.0, 0.0, 0.0]);
+        mean_rgb.push([0.5, 0.5, 0.5]);
+        let n = mean_rgb.len();
+        let mut seen = vec![true; n];
+        seen[n - 1] = false;
+        let init = InitialMaterials {
+            labels: vec![0; n],
+            albedo: vec![a, b],
+            weights: vec![0.5; 2 * n],
+            centroids: vec![[0.0; 3]; 2],
+        };
+        let (w, labels) = unmixed_weights(&init, &mean_rgb, &seen);
+        for (x, &(_, wa)) in blends.iter().enumerate() {
+            assert!(
+                (w[2 * x] - wa).abs() < 1e-9,
+                "vertex {x}: {} vs {wa}",
+                w[2 * x]
+            );
+            assert!((w[2 * x] + w[2 * x + 1] - 1.0).abs() < 1e-12);
+            assert_eq!(labels[x], usize::from(wa < 0.5));
+        }
+        // Pure red lies outside the cone: the mix nearest it is mostly the orange colour.
+        assert!(w[2 * 4] > 0.5 && w[2 * 4 + 1] >= 0.0 && labels[4] == 0);
+        assert_eq!(&w[2 * 5..], &[0.5, 0.5]);
+    }
 
     #[test]
     fn hsv_of_primaries_and_greys() {

@@ -195,6 +195,13 @@ pub(crate) struct RunArgs {
     /// `auto` (the pilot's choice by held-out error; clustered with `--adaptive off`).
     #[arg(long, default_value = "auto", value_parser = ["auto", "clustered", "matched"], help_heading = "Solver")]
     pub(crate) start_brightness: String,
+    /// Where the start's blending weights come from: `clustered` (from each vertex's hue
+    /// distance to the colour clusters, the paper), `unmixed` (each vertex's mean colour
+    /// split into the materials' colours by non-negative least squares, so a vertex where
+    /// two materials blend starts blended), or `both` (a fit from each, the one that
+    /// predicts held-back observations better kept; one more fit).
+    #[arg(long, default_value = "clustered", value_parser = ["clustered", "unmixed", "both"], help_heading = "Solver")]
+    pub(crate) start_weights: String,
     /// Outlier threshold floor, as a fraction of each photo's mean brightness: a residual
     /// within 1.345 × this is never played down (0 = from the residuals' spread alone).
     #[arg(

@@ -100,6 +100,7 @@ impl RunArgs {
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
         o.start_brightness = relight_cpc::run::StartBrightness::parse(&self.start_brightness)?;
+        o.start_weights = relight_cpc::solve::cluster::StartWeights::parse(&self.start_weights)?;
         o.robust_floor = self.robust_floor;
         o.weights_sum = relight_cpc::run::WeightsSum::parse(&self.weights_sum)?;
         o.weights_sum_scope = match self.weights_sum_on.as_str() {

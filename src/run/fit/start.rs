@@ -8,7 +8,7 @@ use crate::import::scene::Scene;
 use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
 use crate::run::{choose_material_count, MaterialCount, Progress, RunOptions, StartBrightness};
-use crate::solve::cluster::{initial_materials, InitialMaterials};
+use crate::solve::cluster::{initial_materials, unmixed_weights, InitialMaterials, StartWeights};
 use crate::solve::light::choose::LightChoice;
 use crate::solve::starts;
 use crate::solve::{EstimateOptions, Materials0};
@@ -47,6 +47,9 @@ pub(super) struct FitStart {
     pub(super) reasons: Vec<String>,
     /// What the transient pass masked (`None`: `--transients off`).
     pub(super) transients: Option<crate::run::transients::Transients>,
+    /// Each vertex's mean colour and whether a training photo sees it (the start's
+    /// clustering input; `--start-weights` unmixes it).
+    colours: (Vec<[f64; 3]>, Vec<bool>),
 }
 
 impl FitStart {
@@ -74,6 +77,7 @@ impl FitStart {
             eopts,
             reasons,
             transients: None,
+            colours: (p.mean_rgb.clone(), p.seen.clone()),
         })
     }
 
@@ -102,6 +106,7 @@ impl FitStart {
             self.reasons.clear();
             self.init =
                 starting_materials(opts, p.pilot_k.clone(), &mean_rgb, &seen, &mut self.reasons)?;
+            self.colours = (mean_rgb, seen);
         }
         self.transients = Some(t);
         Ok(())
@@ -166,7 +171,31 @@ impl FitStart {
             ));
         }
         let materials0 = Materials0::from_initial(&self.init, n_basis, lambert);
-        starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts)
+        let mut family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
+        if opts.start_weights != StartWeights::Clustered {
+            let (mean_rgb, seen) = &self.colours;
+            let (weights, _) = unmixed_weights(&self.init, mean_rgb, seen);
+            self.reasons.push(match opts.start_weights {
+                StartWeights::Both => "start weights: a fit from the clustered weights and one from the weights unmixed from the mean colours, the lower validation score kept (--start-weights both)".to_string(),
+                _ => "start weights: unmixed from the mean colours (--start-weights unmixed)".to_string(),
+            });
+            if opts.start_weights == StartWeights::Unmixed {
+                for s in &mut family {
+                    s.materials.weights.clone_from(&weights);
+                    s.label.push_str(", weights unmixed from the mean colours");
+                }
+            } else {
+                family.push(starts::Start {
+                    label: "the paper's start with its weights unmixed from the mean colours"
+                        .into(),
+                    materials: Materials0 {
+                        lambda: family[0].materials.lambda.clone(),
+                        weights,
+                    },
+                });
+            }
+        }
+        family
     }
 }
 

@@ -83,6 +83,10 @@ pub struct RunOptions {
     /// Starts of the alternation tried, the best kept ([`crate::solve::starts`]; not in the
     /// paper): 1 = the paper's clustered start alone. Each start costs one estimate.
     pub starts: usize,
+    /// Where the start's blending weights come from
+    /// ([`crate::solve::cluster::StartWeights`]; not in the paper): the clustering's,
+    /// unmixed from the mean colours, or both fitted and the better one by validation kept.
+    pub start_weights: crate::solve::cluster::StartWeights,
     /// After the fit, fits from starts that differ in the materials' relative brightness
     /// and keeps the deepest ([`crate::solve::materials::brightness::search`]; not in the
     /// paper).
@@ -261,6 +265,7 @@ impl RunOptions {
             ratio_steps: RatioSteps::Auto,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
+            start_weights: crate::solve::cluster::StartWeights::Clustered,
             start_search: false,
             start_brightness: StartBrightness::Auto,
             robust_floor: EstimateOptions::default().robust_floor,
