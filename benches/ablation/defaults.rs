@@ -16,6 +16,7 @@
 use crate::synth_case::*;
 use relight_cpc::run::RunOptions;
 use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
+use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
 use relight_cpc::solve::materials::propagate::propagate_unseen;
 use relight_cpc::solve::ratio_step;
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
@@ -154,11 +155,11 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         }
     }
     // With `ABLATION_DEFAULTS_START=unmix`: each seen vertex's start weights unmixed from
-    // its mean colour over the start's colours ([`unmix_weights`]).
+    // its mean colour over the start's colours ([`unmixed_weights`], `--start-weights unmixed`).
     // `unmix2`: over the best pair of materials only (a vertex blends at most two).
     match std::env::var("ABLATION_DEFAULTS_START").as_deref() {
-        Ok("unmix") => unmix_weights(&mut m0, &mean_rgb, &seen, lambert, false),
-        Ok("unmix2") => unmix_weights(&mut m0, &mean_rgb, &seen, lambert, true),
+        Ok("unmix") => m0.weights = unmixed_weights(&init, &mean_rgb, &seen).0,
+        Ok("unmix2") => unmix_pairs(&mut m0, &mean_rgb, &seen, lambert),
         _ => {}
     }
     // `run`'s cap and tolerance, or with `ABLATION_DEFAULTS_ITERS=bench` the bench's.
@@ -231,19 +232,12 @@ fn nearest_order(start: &[Vec<[f64; 3]>], truth: &[Vec<[f64; 3]>], lambert: usiz
         .unwrap_or_default()
 }
 
-/// Each seen vertex's weights from its mean colour `c_x` unmixed over the materials'
-/// Lambertian colours `a_k`: `v = argmin_{v ≥ 0} ‖Σ_k v_k a_k − c_x‖²` (NNLS), `w = v / Σ v`
-/// (the vertex's shading is the scale `Σ v`); with `pairs`, over the pair of materials with
-/// the least residual only. A vertex whose `v` is 0 keeps its weights.
-fn unmix_weights(
-    m0: &mut Materials0,
-    mean_rgb: &[[f64; 3]],
-    seen: &[bool],
-    lambert: usize,
-    pairs: bool,
-) {
+/// [`unmixed_weights`] over the pair of materials with the least residual only (all of
+/// them with two or fewer): a vertex blends at most two. A vertex whose `v` is 0 keeps
+/// its weights.
+fn unmix_pairs(m0: &mut Materials0, mean_rgb: &[[f64; 3]], seen: &[bool], lambert: usize) {
     let kk = m0.lambda.len();
-    let subsets: Vec<Vec<usize>> = if pairs && kk > 2 {
+    let subsets: Vec<Vec<usize>> = if kk > 2 {
         (0..kk)
             .flat_map(|a| (a + 1..kk).map(move |b| vec![a, b]))
             .collect()
@@ -260,20 +254,9 @@ fn unmix_weights(
     }
 }
 
-/// [`unmix_weights`] on the clustered start: its weights and labels from its colours.
-fn unmix_initial(
-    init: &mut relight_cpc::solve::cluster::InitialMaterials,
-    mean_rgb: &[[f64; 3]],
-    seen: &[bool],
-) {
-    let mut m = Materials0::from_initial(init, 1, 0);
-    unmix_weights(&mut m, mean_rgb, seen, 0, false);
-    let kk = init.albedo.len();
-    for x in (0..seen.len()).filter(|&x| seen[x]) {
-        let w = &m.weights[x * kk..(x + 1) * kk];
-        init.labels[x] = (0..kk).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
-    }
-    init.weights = m.weights;
+/// [`unmixed_weights`] on the clustered start in place: its weights and labels.
+fn unmix_initial(init: &mut InitialMaterials, mean_rgb: &[[f64; 3]], seen: &[bool]) {
+    (init.weights, init.labels) = unmixed_weights(init, mean_rgb, seen);
 }
 
 /// The weights (over all `K` materials, 0 outside `set`) of `c` unmixed over the Lambertian
