@@ -30,7 +30,7 @@ pub(super) fn alternate(
 ) -> Result<Estimated> {
     let lambert = start.eopts.lambert_basis;
     progress.stage("estimate");
-    let family = start.family(opts, p.eff.basis.len(), lambert);
+    let family = start.family(opts, p, lambert);
     let bar = progress.bar(
         (p.eff.max_iterations * family.len()) as u64,
         "outer iterations",

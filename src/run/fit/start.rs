@@ -47,9 +47,10 @@ pub(super) struct FitStart {
     pub(super) reasons: Vec<String>,
     /// What the transient pass masked (`None`: `--transients off`).
     pub(super) transients: Option<crate::run::transients::Transients>,
-    /// Each vertex's mean colour and whether a training photo sees it (the start's
-    /// clustering input; `--start-weights` unmixes it).
-    colours: (Vec<[f64; 3]>, Vec<bool>),
+    /// Each vertex's mean colour and whether a training photo sees it, when the transient
+    /// pass clustered the start again from them (else `Prepared`'s); `--start-weights`
+    /// unmixes them.
+    recoloured: Option<(Vec<[f64; 3]>, Vec<bool>)>,
 }
 
 impl FitStart {
@@ -77,7 +78,7 @@ impl FitStart {
             eopts,
             reasons,
             transients: None,
-            colours: (p.mean_rgb.clone(), p.seen.clone()),
+            recoloured: None,
         })
     }
 
@@ -106,7 +107,7 @@ impl FitStart {
             self.reasons.clear();
             self.init =
                 starting_materials(opts, p.pilot_k.clone(), &mean_rgb, &seen, &mut self.reasons)?;
-            self.colours = (mean_rgb, seen);
+            self.recoloured = Some((mean_rgb, seen));
         }
         self.transients = Some(t);
         Ok(())
@@ -160,9 +161,10 @@ impl FitStart {
     pub(super) fn family(
         &mut self,
         opts: &RunOptions,
-        n_basis: usize,
+        p: &Prepared,
         lambert: usize,
     ) -> Vec<starts::Start> {
+        let n_basis = p.eff.basis.len();
         let available = starts::family_len(n_basis, lambert);
         if opts.starts > available {
             self.reasons.push(format!(
@@ -173,7 +175,10 @@ impl FitStart {
         let materials0 = Materials0::from_initial(&self.init, n_basis, lambert);
         let mut family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
         if opts.start_weights != StartWeights::Clustered {
-            let (mean_rgb, seen) = &self.colours;
+            let (mean_rgb, seen) = match &self.recoloured {
+                Some((m, s)) => (m, s),
+                None => (&p.mean_rgb, &p.seen),
+            };
             let (weights, _) = unmixed_weights(&self.init, mean_rgb, seen);
             self.reasons.push(match opts.start_weights {
                 StartWeights::Both => "start weights: a fit from the clustered weights and one from the weights unmixed from the mean colours, the lower validation score kept (--start-weights both)".to_string(),
