@@ -56,7 +56,8 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match` and
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix`
+//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids) and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start

@@ -192,7 +192,17 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         ..base.clone()
     };
     let opts = crate::with_case_graph(case, opts);
-    let mut est = estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit");
+    let mut est = match std::env::var("ABLATION_DEFAULTS_START").as_deref() {
+        Ok(v @ ("grid" | "grid-unmix")) if m0.lambda.len() <= 3 => {
+            let unmix = (v == "grid-unmix").then_some(UnmixFrom {
+                init: &init,
+                mean_rgb: &mean_rgb,
+                seen: &seen,
+            });
+            grid_start_fit(&problem, &m0, &opts, lambert, unmix)
+        }
+        _ => estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit"),
+    };
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
     est.lambda = est
@@ -205,6 +215,70 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         pilot,
         seconds: t0.elapsed().as_secs_f64(),
     }
+}
+
+/// What `grid-unmix` unmixes each start's weights from: the clustered start and each
+/// vertex's mean colour and whether a training photo sees it.
+#[derive(Clone, Copy)]
+struct UnmixFrom<'a> {
+    init: &'a InitialMaterials,
+    mean_rgb: &'a [[f64; 3]],
+    seen: &'a [bool],
+}
+
+/// `ABLATION_DEFAULTS_START=grid | grid-unmix`: a fit from each start on a grid of the
+/// materials' log brightness around `m0` (`λ_k e^{Σ_j t_j u_{j,k}}`, `u_j = e_j − 1/K` for
+/// `j < K − 1`, `t_j ∈ {−n·δ … n·δ}`, `δ = ABLATION_GRID_STEP` (0.2), `n = ABLATION_GRID_N`
+/// (3 with two materials, 2 otherwise)), its weights `m0`'s or (`grid-unmix`) unmixed
+/// from the mean colours over the start's Lambertian colours; the fit with the lowest
+/// validation score is kept. With more than three materials (a wrong count), the plain fit.
+fn grid_start_fit(
+    problem: &Problem,
+    m0: &Materials0,
+    opts: &EstimateOptions,
+    lambert: usize,
+    unmix: Option<UnmixFrom>,
+) -> Estimate {
+    let kk = m0.lambda.len();
+    let step: f64 = std::env::var("ABLATION_GRID_STEP")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.2);
+    let n = crate::env_usize("ABLATION_GRID_N", if kk == 2 { 3 } else { 2 }) as i64;
+    let dims = kk.saturating_sub(1);
+    let side = (2 * n + 1) as usize;
+    let mut best: Option<(f64, Vec<f64>, Estimate)> = None;
+    for cell in 0..side.pow(dims as u32) {
+        let t: Vec<f64> = (0..dims)
+            .map(|j| ((cell / side.pow(j as u32)) % side) as f64 - n as f64)
+            .map(|i| i * step)
+            .collect();
+        let mut lambda = m0.lambda.clone();
+        for (j, &tj) in t.iter().enumerate() {
+            lambda = ratio_step::scaled(&lambda, &ratio_step::direction(kk, j), [tj; 3]);
+        }
+        let weights = match unmix {
+            Some(u) => {
+                let mut scaled = u.init.clone();
+                scaled.albedo = lambda.iter().map(|row| row[lambert]).collect();
+                unmixed_weights(&scaled, u.mean_rgb, u.seen).0
+            }
+            None => m0.weights.clone(),
+        };
+        let start = Materials0 { lambda, weights };
+        let est = estimate(problem, start, opts, &mut |_, _| {}).expect("grid start's fit");
+        let score = est
+            .validation
+            .as_ref()
+            .map_or(f64::INFINITY, |v| v.best_error());
+        eprintln!("grid start t = {t:?}: validation {score:.5}");
+        if best.as_ref().is_none_or(|b| score < b.0) {
+            best = Some((score, t, est));
+        }
+    }
+    let (score, t, est) = best.expect("a grid start");
+    eprintln!("grid start kept: t = {t:?}, validation {score:.5}");
+    est
 }
 
 /// The permutation `perm` (start material `k` ↔ true material `perm[k]`) that brings the
