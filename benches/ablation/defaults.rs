@@ -19,6 +19,7 @@ use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
 use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
 use relight_cpc::solve::materials::propagate::propagate_unseen;
 use relight_cpc::solve::ratio_step;
+use relight_cpc::solve::starts::{estimate_best, Start};
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
 
 /// The defaults' fit: its estimate over the case's full basis (a dropped lobe's weights
@@ -247,37 +248,41 @@ fn grid_start_fit(
     let n = crate::env_usize("ABLATION_GRID_N", if kk == 2 { 3 } else { 2 }) as i64;
     let dims = kk.saturating_sub(1);
     let side = (2 * n + 1) as usize;
-    let mut best: Option<(f64, Vec<f64>, Estimate)> = None;
-    for cell in 0..side.pow(dims as u32) {
-        let t: Vec<f64> = (0..dims)
-            .map(|j| ((cell / side.pow(j as u32)) % side) as f64 - n as f64)
-            .map(|i| i * step)
-            .collect();
-        let mut lambda = m0.lambda.clone();
-        for (j, &tj) in t.iter().enumerate() {
-            lambda = ratio_step::scaled(&lambda, &ratio_step::direction(kk, j), [tj; 3]);
-        }
-        let weights = match unmix {
-            Some(u) => {
-                let mut scaled = u.init.clone();
-                scaled.albedo = lambda.iter().map(|row| row[lambert]).collect();
-                unmixed_weights(&scaled, u.mean_rgb, u.seen).0
+    let starts: Vec<Start> = (0..side.pow(dims as u32))
+        .map(|cell| {
+            let t: Vec<f64> = (0..dims)
+                .map(|j| ((cell / side.pow(j as u32)) % side) as f64 - n as f64)
+                .map(|i| i * step)
+                .collect();
+            let mut lambda = m0.lambda.clone();
+            for (j, &tj) in t.iter().enumerate() {
+                lambda = ratio_step::scaled(&lambda, &ratio_step::direction(kk, j), [tj; 3]);
             }
-            None => m0.weights.clone(),
-        };
-        let start = Materials0 { lambda, weights };
-        let est = estimate(problem, start, opts, &mut |_, _| {}).expect("grid start's fit");
-        let score = est
-            .validation
-            .as_ref()
-            .map_or(f64::INFINITY, |v| v.best_error());
-        eprintln!("grid start t = {t:?}: validation {score:.5}");
-        if best.as_ref().is_none_or(|b| score < b.0) {
-            best = Some((score, t, est));
-        }
+            let weights = match unmix {
+                Some(u) => {
+                    let mut scaled = u.init.clone();
+                    scaled.albedo = lambda.iter().map(|row| row[lambert]).collect();
+                    unmixed_weights(&scaled, u.mean_rgb, u.seen).0
+                }
+                None => m0.weights.clone(),
+            };
+            Start {
+                label: format!("t = {t:?}"),
+                materials: Materials0 { lambda, weights },
+            }
+        })
+        .collect();
+    // The fit with the lowest validation score, as `--starts` keeps it.
+    let (est, multi) =
+        estimate_best(problem, starts, opts, &mut |_, _, _| {}).expect("grid starts' fits");
+    for r in &multi.starts {
+        eprintln!("grid start {}: validation {:.5}", r.label, r.score);
     }
-    let (score, t, est) = best.expect("a grid start");
-    eprintln!("grid start kept: t = {t:?}, validation {score:.5}");
+    let kept = &multi.starts[multi.chosen];
+    eprintln!(
+        "grid start kept: {}, validation {:.5}",
+        kept.label, kept.score
+    );
     est
 }
 
