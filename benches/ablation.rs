@@ -59,7 +59,11 @@
 //! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix`
 //! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids) and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
-//! `ablation/defaults.rs`), `ABLATION_SEARCH`,
+//! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=shared` (the `defaults` row with
+//! `run --light shared`, the groups the photos' true skies), `SYNTH_SHARED_SKIES=1` (the
+//! scenes rendered with photos `i` and `i + 8` under one sky: the same map at the same
+//! rotation, so the training photos form 6 groups of two seen from opposite sides and the
+//! `shared` row has groups; the held-out photos' maps stay unseen), `ABLATION_SEARCH`,
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
@@ -595,7 +599,9 @@ struct Done {
 /// as the command line that runs it again.
 fn environment_line() -> String {
     let mut vars: Vec<String> = std::env::vars()
-        .filter(|(k, _)| k.starts_with("ABLATION_") || k == "RESULTS_SUFFIX")
+        .filter(|(k, _)| {
+            k.starts_with("ABLATION_") || k.starts_with("SYNTH_") || k == "RESULTS_SUFFIX"
+        })
         .map(|(k, v)| format!("{k}={}", shell_word(&v)))
         .collect();
     vars.sort();
@@ -628,6 +634,13 @@ fn left_out(wanted: &Option<Vec<String>>, label: &str) -> bool {
 fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done>, Floors) {
     let fl = floors(case);
     let base = base_options();
+    // The `shared` row's groups: training photos under one true sky (none unless the
+    // scene was rendered with `SYNTH_SHARED_SKIES=1`).
+    let groups = case.true_light_groups("the true sky of each training photo");
+    let with_groups = EstimateOptions {
+        light_groups: groups.any_shared().then_some(groups),
+        ..base.clone()
+    };
     // The K search on the 8-bit photos only: what a user's photos ask of it.
     let no_k = clean || std::env::var("ABLATION_NO_K").is_ok_and(|v| v == "1");
     let mut done: Vec<Done> = Vec::new();
@@ -645,7 +658,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 if left_out(wanted, label) {
                     continue;
                 }
-                let Some(o) = make(&base) else {
+                let Some(o) = make(&with_groups) else {
                     // Not in this build, or not applicable (`shared` needs photos that
                     // share a map; every photo here has its own).
                     eprintln!("{label}: not available for this scene in this build, skipped");

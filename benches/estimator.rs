@@ -250,22 +250,8 @@ fn with_case_groups(case: &Case, o: &EstimateOptions) -> EstimateOptions {
     let Some(g) = &o.light_groups else {
         return o.clone();
     };
-    let manifest: Value = serde_json::from_str(
-        &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
-    )
-    .unwrap();
-    let sky_of = |name: &str| -> String {
-        let p = manifest["photos"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == name)
-            .unwrap_or_else(|| panic!("{name} is not in the truth manifest"));
-        format!("{} {}", p["map"], p["rotation_texels"])
-    };
-    let labels: Vec<String> = case.train.names.iter().map(|n| sky_of(n)).collect();
     EstimateOptions {
-        light_groups: Some(LightGroups::from_labels(&labels, g.source.clone())),
+        light_groups: Some(case.true_light_groups(&g.source)),
         ..o.clone()
     }
 }

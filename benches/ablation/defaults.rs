@@ -190,6 +190,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             .ok()
             .and_then(|v| v.parse().ok())
             .unwrap_or(base.weights_smoothness),
+        // `run --light shared` with `ABLATION_DEFAULTS_LIGHT=shared`: one map per group of
+        // training photos under one true sky, with per-photo gains (`SYNTH_SHARED_SKIES=1`
+        // makes such groups).
+        light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
+            .is_ok_and(|v| v == "shared")
+            .then(|| case.true_light_groups("the true sky of each training photo")),
         ..base.clone()
     };
     let opts = crate::with_case_graph(case, opts);

@@ -36,6 +36,10 @@ pub(crate) struct SynthArgs {
     /// Random per-photo white balance.
     #[arg(long)]
     white_balance: bool,
+    /// Photos lit by the same map share its rotation, so they share a sky (for
+    /// `run --light shared`; scenes whose map turns from photo to photo).
+    #[arg(long)]
+    shared_skies: bool,
     /// Primary rays per pixel.
     #[arg(long, default_value_t = 4)]
     spp: u32,
@@ -65,6 +69,7 @@ impl SynthArgs {
             exact_vertices,
             noise,
             white_balance,
+            shared_skies,
             spp,
             light_samples,
             points,
@@ -88,6 +93,7 @@ impl SynthArgs {
             exact_vertices,
             noise,
             white_balance,
+            shared_skies,
             samples: relight_cpc::transport::reference::Samples {
                 per_pixel: spp,
                 light: light_samples,

@@ -80,6 +80,11 @@ pub struct SynthOptions {
     pub noise: f64,
     /// Random per-photo white balance (channel gains in `[0.85, 1.15]`, green fixed at 1).
     pub white_balance: bool,
+    /// Photos lit by the same map see it at the same rotation, so they share one sky (as
+    /// photos taken in one session do): with a scene's 16 photos cycling 8 maps, photos `i`
+    /// and `i + 8` stand on opposite sides under one sky. For the scenes whose map turns
+    /// from photo to photo; the others are unchanged.
+    pub shared_skies: bool,
     /// Reference-renderer effort.
     pub samples: Samples,
     /// Surface points sampled for `points3D.txt`.
@@ -97,6 +102,7 @@ impl Default for SynthOptions {
             exact_vertices: false,
             noise: 0.0,
             white_balance: false,
+            shared_skies: false,
             samples: Samples {
                 per_pixel: 4,
                 light: 64,
@@ -193,7 +199,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     // One random stream, drawn in a fixed order: cameras, lighting plan, white balance.
     let mut rng = Pcg32::new(opts.seed, 0x5eed);
     let cams = place_cameras(&mut rng, &def, opts, &object, &up, n_photos);
-    let lighting = plan_lighting(&mut rng, &def, n_photos)?;
+    let lighting = plan_lighting(&mut rng, &def, n_photos, opts.shared_skies)?;
     let shoot = photos::Shoot {
         object: &object,
         cams: &cams,
@@ -327,8 +333,14 @@ pub(crate) struct LightingPlan {
     plan: Vec<(usize, usize, Option<Vec3>)>,
 }
 
-/// Per photo a map and its rotation, as the scene's lighting says.
-fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<LightingPlan> {
+/// Per photo a map and its rotation, as the scene's lighting says; with `shared_skies` a
+/// map keeps the rotation drawn for the first photo it lights.
+fn plan_lighting(
+    rng: &mut Pcg32,
+    def: &SceneDef,
+    n_photos: usize,
+    shared_skies: bool,
+) -> Result<LightingPlan> {
     let mut maps: Vec<(String, LatLong)> = Vec::new();
     let mut plan: Vec<(usize, usize, Option<Vec3>)> = Vec::with_capacity(n_photos);
     for i in 0..n_photos {
@@ -353,10 +365,11 @@ fn plan_lighting(rng: &mut Pcg32, def: &SceneDef, n_photos: usize) -> Result<Lig
                 maps.len() - 1
             }
         };
-        let shift = if rotate {
-            rng.random_range(0..maps[idx].1.width)
-        } else {
-            0
+        let earlier = plan.iter().find(|p| p.0 == idx).map(|p| p.1);
+        let shift = match (rotate, earlier) {
+            (true, Some(shift)) if shared_skies => shift,
+            (true, _) => rng.random_range(0..maps[idx].1.width),
+            (false, _) => 0,
         };
         plan.push((idx, shift, None));
     }
@@ -452,4 +465,36 @@ fn write_manifest(
     };
     write_json(&out.join("truth/manifest.json"), &manifest)?;
     Ok(held_out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `(map, rotation)` of every photo of `scene`'s lighting plan.
+    fn skies(scene: &str, shared_skies: bool) -> Vec<(usize, usize)> {
+        let def = find_scene(scene).unwrap();
+        let mut rng = Pcg32::new(3, 0x5eed);
+        let plan = plan_lighting(&mut rng, &def, 16, shared_skies).unwrap();
+        plan.plan.iter().map(|p| (p.0, p.1)).collect()
+    }
+
+    #[test]
+    fn shared_skies_give_photos_under_one_map_one_rotation() {
+        // 16 photos cycling 8 maps: photo i and i + 8 see the same map. With shared skies
+        // they see it at the same rotation; without, each draws its own from the map's
+        // width in texels (the embedded maps are 64 texels wide or more, so at most a few
+        // of the 8 pairs can agree by chance; all 8 agreeing would be the option ignored).
+        let shared = skies("spot-diffuse", true);
+        let own = skies("spot-diffuse", false);
+        for i in 0..8 {
+            assert_eq!(shared[i].0, shared[i + 8].0);
+            assert_eq!(shared[i], shared[i + 8], "photo {i} and {}", i + 8);
+            assert_eq!(own[i].0, own[i + 8].0);
+        }
+        let agreeing = (0..8).filter(|&i| own[i] == own[i + 8]).count();
+        assert!(agreeing < 8, "own rotations agree on every pair");
+        // Scenes whose map does not turn are unchanged by the option.
+        assert_eq!(skies("spot-groups", true), skies("spot-groups", false));
+    }
 }

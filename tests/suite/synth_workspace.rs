@@ -26,6 +26,7 @@ fn small(photos: usize, seed: u64) -> SynthOptions {
         exact_vertices: false,
         noise: 0.0,
         white_balance: true,
+        shared_skies: false,
         samples: Samples {
             per_pixel: 1,
             light: 4,

@@ -19,6 +19,7 @@ use relight_cpc::import::workspace::Workspace;
 use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::observe::{self, Observations, ObserveOptions};
 use relight_cpc::run::Truth;
+use relight_cpc::solve::light::shared::LightGroups;
 use relight_cpc::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
 };
@@ -125,6 +126,27 @@ pub struct Case {
 }
 
 impl Case {
+    /// The training photos' groups under one true sky (`--light shared` as a user's groups
+    /// file would give them): photos whose `truth/manifest.json` entries name the same map
+    /// and rotation share a group.
+    pub fn true_light_groups(&self, source: &str) -> LightGroups {
+        let manifest: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(self.scratch.0.join("ws/truth/manifest.json")).unwrap(),
+        )
+        .unwrap();
+        let sky_of = |name: &str| -> String {
+            let p = manifest["photos"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|p| p["name"] == name)
+                .unwrap_or_else(|| panic!("{name} is not in the truth manifest"));
+            format!("{} {}", p["map"], p["rotation_texels"])
+        };
+        let labels: Vec<String> = self.train.names.iter().map(|n| sky_of(n)).collect();
+        LightGroups::from_labels(&labels, source.into())
+    }
+
     /// The true materials, as the estimator's start.
     pub fn true_materials(&self) -> Materials0 {
         Materials0 {
@@ -210,6 +232,9 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
             // `SYNTH_WHITE_BALANCE=1`: random per-photo white balance too (the shared-light
             // model's gains must absorb it).
             white_balance: std::env::var("SYNTH_WHITE_BALANCE").is_ok_and(|v| v == "1"),
+            // `SYNTH_SHARED_SKIES=1`: photos under the same map share its rotation, so
+            // they share a sky (the shared-light model's groups).
+            shared_skies: std::env::var("SYNTH_SHARED_SKIES").is_ok_and(|v| v == "1"),
             ..SynthOptions::default()
         },
     )
