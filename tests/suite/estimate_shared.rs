@@ -352,3 +352,23 @@ fn grey_world_anchor_sets_the_mean_albedo_and_keeps_the_predictions() {
         );
     }
 }
+
+#[test]
+fn the_ratio_step_runs_under_the_shared_light() {
+    // The ratio step needs a light model whose channels are separable and whose parameters
+    // mix (`LightModel::channel_penalty`, `combine`). The shared model has both, so every
+    // round asked for tries its move (one direction with two materials) until the step's
+    // patience ends it, and none is left unsupported; without them the step was skipped
+    // in silence (its effect on rendered scenes: bench-results/shared-skies.md).
+    let p = shared_planted(7, 0.01, 150, 2, 4);
+    let o = EstimateOptions {
+        ratio_steps: 4,
+        max_outer: 4,
+        ..opts(Some(&p.group))
+    };
+    let est = estimate(&problem(&p), start(&p), &o, &mut |_, _| {}).unwrap();
+    let m = &est.ratio_moves;
+    assert_eq!(m.unsupported, 0, "{m:?}");
+    let rounds = m.stopped_after.unwrap_or(4);
+    assert_eq!(m.tried, rounds, "{m:?}");
+}

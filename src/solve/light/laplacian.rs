@@ -126,3 +126,58 @@ pub(crate) fn extrapolate_maps(
         })
         .collect()
 }
+
+/// One part of [`combine_maps`]: maps (per photo or group, per channel) and their weight
+/// per channel.
+pub(crate) type WeightedMaps<'a> = (&'a [[Vec<f64>; 3]], [f64; 3]);
+
+/// `Σ_i w_{i,c} θ_i` per map, channel and texel, projected on `≥ 0`: the per-channel maps
+/// `θ_i` of `parts` mixed with their weights (the ratio step's Lagrange interpolation
+/// between its probes, [`crate::solve::ratio_step`]); `None` without parts.
+pub(crate) fn combine_maps(parts: &[WeightedMaps]) -> Option<Vec<[Vec<f64>; 3]>> {
+    let first = parts.first()?.0;
+    let mixed = first
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            [0, 1, 2].map(|c| {
+                (0..l[c].len())
+                    .map(|t| {
+                        parts
+                            .iter()
+                            .map(|(p, w)| w[c] * p[i][c][t])
+                            .sum::<f64>()
+                            .max(0.0)
+                    })
+                    .collect()
+            })
+        })
+        .collect();
+    Some(mixed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn combined_maps_mix_each_channel_with_its_weights_and_stay_non_negative() {
+        // Two photos' maps, two parts: per channel c the result is w0_c a + w1_c b, computed
+        // here by hand; the blue mix of part weights (2, −1.5) goes below 0 at texel 1 and
+        // is clamped there.
+        let a = vec![
+            [vec![1.0, 2.0], vec![0.0, 4.0], vec![1.0, 1.0]],
+            [vec![3.0, 0.0], vec![1.0, 1.0], vec![0.5, 0.0]],
+        ];
+        let b = vec![
+            [vec![3.0, 2.0], vec![2.0, 0.0], vec![0.0, 2.0]],
+            [vec![1.0, 4.0], vec![1.0, 3.0], vec![0.0, 1.0]],
+        ];
+        let w0 = [0.5, 0.25, 2.0];
+        let w1 = [0.5, 0.75, -1.5];
+        let mixed = combine_maps(&[(a.as_slice(), w0), (b.as_slice(), w1)]).unwrap();
+        assert_eq!(mixed[0], [vec![2.0, 2.0], vec![1.5, 1.0], vec![2.0, 0.0]]);
+        assert_eq!(mixed[1], [vec![2.0, 2.0], vec![1.0, 2.5], vec![1.0, 0.0]]);
+        assert!(combine_maps(&[]).is_none());
+    }
+}

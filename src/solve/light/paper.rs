@@ -16,7 +16,9 @@
 
 use std::borrow::Cow;
 
-use crate::solve::light::laplacian::{extrapolate_maps, smoothness_factor};
+use crate::solve::light::laplacian::{
+    combine_maps, extrapolate_maps, smoothness_factor, WeightedMaps,
+};
 use crate::solve::light::map_fit::MapFitState;
 use crate::solve::light::photo::{lighting_step_warm, LightingResult, WARM_IRLS};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
@@ -124,20 +126,8 @@ impl LightModel for PaperLight {
     }
 
     fn combine(&self, parts: &[(&Maps, [f64; 3])]) -> Option<Maps> {
-        let first = parts.first()?.0;
-        let mut out = first.clone();
-        for (i, l) in out.iter_mut().enumerate() {
-            for c in 0..3 {
-                for (t, v) in l[c].iter_mut().enumerate() {
-                    *v = parts
-                        .iter()
-                        .map(|(p, w)| w[c] * p[i][c][t])
-                        .sum::<f64>()
-                        .max(0.0);
-                }
-            }
-        }
-        Some(out)
+        let maps: Vec<WeightedMaps> = parts.iter().map(|(p, w)| (p.as_slice(), *w)).collect();
+        combine_maps(&maps)
     }
 
     fn channel_penalty(&self, params: &Maps) -> Option<[f64; 3]> {

@@ -36,7 +36,9 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
-use crate::solve::light::laplacian::{extrapolate_maps, smoothness_factor};
+use crate::solve::light::laplacian::{
+    combine_maps, extrapolate_maps, smoothness_factor, WeightedMaps,
+};
 use crate::solve::light::map_fit::MapFitState;
 use crate::solve::light::photo::{reweight, PhotoData};
 use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
@@ -414,6 +416,31 @@ impl LightModel for SharedLight {
 
     fn penalty(&self, params: &SharedParams) -> f64 {
         self.state.penalty(&params.maps)
+    }
+
+    fn channel_penalty(&self, params: &SharedParams) -> Option<[f64; 3]> {
+        Some(self.state.channel_penalty(&params.maps))
+    }
+
+    /// The groups' maps and the photos' gains each mixed per channel with the weights,
+    /// projected on `≥ 0`. `a m` is not linear in `(a, m)`, so this is the ratio step's
+    /// interpolation of each factor, not of the photos' maps; the step keeps the result
+    /// only where `F` drops. The ratio step's weights sum to one, so a group's mean gain
+    /// stays 1.
+    fn combine(&self, parts: &[(&SharedParams, [f64; 3])]) -> Option<SharedParams> {
+        let maps: Vec<WeightedMaps> = parts.iter().map(|(p, w)| (p.maps.as_slice(), *w)).collect();
+        let gains = (0..parts.first()?.0.gains.len())
+            .map(|i| {
+                [0, 1, 2].map(|c| {
+                    let a: f64 = parts.iter().map(|(p, w)| w[c] * p.gains[i][c]).sum();
+                    a.max(0.0)
+                })
+            })
+            .collect();
+        Some(SharedParams {
+            maps: combine_maps(&maps)?,
+            gains,
+        })
     }
 
     fn extrapolate(&self, params: &SharedParams, prev: &SharedParams, sigma: f64) -> SharedParams {
