@@ -360,7 +360,8 @@ const SCENES: [(&str, &str); 3] = [
     ("spot-three", "three materials"),
 ];
 
-fn env_usize(k: &str, d: usize) -> usize {
+/// The environment variable `k` parsed as a `T`, or `d` when it is unset or does not parse.
+fn env_or<T: std::str::FromStr>(k: &str, d: T) -> T {
     std::env::var(k)
         .ok()
         .and_then(|v| v.parse().ok())
@@ -373,15 +374,15 @@ fn env_usize(k: &str, d: usize) -> usize {
 fn sizes() -> Sizes {
     let small = Sizes::spot_small();
     Sizes {
-        width: env_usize("ABLATION_WIDTH", 96) as u32,
+        width: env_or("ABLATION_WIDTH", 96) as u32,
         photos: std::env::var("ABLATION_PHOTOS")
             .ok()
             .and_then(|v| v.parse().ok()),
         vertices: 2_000,
-        spp: env_usize("ABLATION_SPP", 8) as u32,
-        global: env_usize("ABLATION_GLOBAL", small.global),
-        local: env_usize("ABLATION_LOCAL", small.local),
-        rays_per_texel: env_usize("ABLATION_RAYS", small.rays_per_texel),
+        spp: env_or("ABLATION_SPP", 8) as u32,
+        global: env_or("ABLATION_GLOBAL", small.global),
+        local: env_or("ABLATION_LOCAL", small.local),
+        rays_per_texel: env_or("ABLATION_RAYS", small.rays_per_texel),
         ..small
     }
 }
@@ -392,8 +393,8 @@ fn sizes() -> Sizes {
 fn base_options() -> EstimateOptions {
     let d = EstimateOptions::default();
     EstimateOptions {
-        max_outer: env_usize("ABLATION_ITERS", 20),
-        alternation_qp_iters: d.alternation_qp_iters.map(|q| env_usize("ABLATION_QP", q)),
+        max_outer: env_or("ABLATION_ITERS", 20),
+        alternation_qp_iters: d.alternation_qp_iters.map(|q| env_or("ABLATION_QP", q)),
         rel_tol: 1e-5,
         weights_sum: 0.0,
         ..d
@@ -760,7 +761,7 @@ fn main() {
         let mut case = prepare(
             scene,
             s,
-            env_usize("ABLATION_SEED", 1) as u64,
+            env_or("ABLATION_SEED", 1) as u64,
             &format!("ablation-{scene}"),
         );
         eprintln!(

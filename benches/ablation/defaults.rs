@@ -39,11 +39,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     // `k` or Tukey's biweight with `ABLATION_DEFAULTS_ROBUST=K|tukey`; the maps' Laplacian
     // weight with `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`).
     let base = &EstimateOptions {
-        irls_iters: crate::env_usize("ABLATION_DEFAULTS_IRLS", base.irls_iters),
-        robust_floor: std::env::var("ABLATION_DEFAULTS_FLOOR")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(base.robust_floor),
+        irls_iters: crate::env_or("ABLATION_DEFAULTS_IRLS", base.irls_iters),
+        robust_floor: crate::env_or("ABLATION_DEFAULTS_FLOOR", base.robust_floor),
         robust: match std::env::var("ABLATION_DEFAULTS_ROBUST").as_deref() {
             Ok("tukey") => relight_cpc::solve::Robust::Tukey { c: 4.685 },
             Ok(k) => k
@@ -51,10 +48,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
                 .map_or(base.robust, |k| relight_cpc::solve::Robust::Huber { k }),
             Err(_) => base.robust,
         },
-        smoothness: std::env::var("ABLATION_DEFAULTS_SMOOTHNESS")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(base.smoothness),
+        smoothness: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS", base.smoothness),
         ..base.clone()
     };
     let obs = &case.train.obs;
@@ -177,19 +171,16 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         weights_sum: pilot.weights_sum,
         weights_sum_scope: pilot.weights_sum_scope,
         max_outer,
-        patience: crate::env_usize("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
+        patience: crate::env_or("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
         rel_tol,
         // As `run --ratio-steps auto`, or with `ABLATION_RATIO_STEPS=N` `--ratio-steps N`
         // (bench-results/ratio-step.md).
-        ratio_steps: crate::env_usize(
+        ratio_steps: crate::env_or(
             "ABLATION_RATIO_STEPS",
             ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials),
         ),
         // `run --weights-smoothness X` with `ABLATION_DEFAULTS_NEIGHBOUR=X`.
-        weights_smoothness: std::env::var("ABLATION_DEFAULTS_NEIGHBOUR")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(base.weights_smoothness),
+        weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", base.weights_smoothness),
         // `run --light shared` with `ABLATION_DEFAULTS_LIGHT=shared`: one map per group of
         // training photos under one true sky, with per-photo gains (`SYNTH_SHARED_SKIES=1`
         // makes such groups).
@@ -247,11 +238,8 @@ fn grid_start_fit(
     unmix: Option<UnmixFrom>,
 ) -> Estimate {
     let kk = m0.lambda.len();
-    let step: f64 = std::env::var("ABLATION_GRID_STEP")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(0.2);
-    let n = crate::env_usize("ABLATION_GRID_N", if kk == 2 { 3 } else { 2 }) as i64;
+    let step: f64 = crate::env_or("ABLATION_GRID_STEP", 0.2);
+    let n = crate::env_or("ABLATION_GRID_N", if kk == 2 { 3 } else { 2 }) as i64;
     let dims = kk.saturating_sub(1);
     let side = (2 * n + 1) as usize;
     let starts: Vec<Start> = (0..side.pow(dims as u32))

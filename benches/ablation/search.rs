@@ -20,7 +20,7 @@ pub fn restarts(
     label: &str,
     done: &mut Vec<Done>,
 ) -> Estimate {
-    let n = env_usize("ABLATION_RESTARTS", 0);
+    let n = env_or("ABLATION_RESTARTS", 0);
     let how = match std::env::var("ABLATION_REWEIGHT").as_deref() {
         Ok("label") => Reweight::Label,
         _ => Reweight::Project,
@@ -111,7 +111,7 @@ pub fn brightness_search(
         score: s0.0,
     };
     let mut step: f64 = 2.0;
-    for _ in 0..env_usize("ABLATION_SEARCH_ROUNDS", 1) {
+    for _ in 0..env_or("ABLATION_SEARCH_ROUNDS", 1) {
         let centre = kept.factors.clone();
         for st in brightness_starts(&init, 0, &centre, step) {
             let next = search.fit(st.materials, &format!("{:.3?}", st.factors), done);

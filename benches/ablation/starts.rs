@@ -147,7 +147,7 @@ fn k1_corrected_colours(case: &Case) -> (Vec<[f64; 3]>, Vec<bool>) {
     let problem = case.train.problem(case.nv);
     let init = start(case, &case.train.obs, 1).expect("one-material start");
     let o = EstimateOptions {
-        max_outer: env_usize("ABLATION_K1_ITERS", 4),
+        max_outer: env_or("ABLATION_K1_ITERS", 4),
         ..base_options()
     };
     let est = estimate(&problem, init, &o, &mut |_, _| {}).unwrap();
@@ -199,10 +199,7 @@ fn matched_ratios(case: &Case, m: &mut Materials0) {
     if kk < 2 {
         return;
     }
-    let min_cos: f64 = std::env::var("ABLATION_MATCH_COS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(0.995);
+    let min_cos: f64 = crate::env_or("ABLATION_MATCH_COS", 0.995);
     let label = pure_labels(&m.weights, kk, case.nv);
     let logs = pair_log_ratios(case, &label, kk, min_cos);
     for c in 0..3 {
