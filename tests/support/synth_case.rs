@@ -125,25 +125,40 @@ pub struct Case {
     pub vis: Visibility,
 }
 
+/// The entry of photo `name` among `photos` ([`Case::truth_photos`]).
+pub fn truth_photo<'a>(
+    photos: &'a [serde_json::Value],
+    name: &str,
+) -> Option<&'a serde_json::Value> {
+    photos.iter().find(|p| p["name"] == name)
+}
+
 impl Case {
-    /// The training photos' groups under one true sky (`--light shared` as a user's groups
-    /// file would give them): photos whose `truth/manifest.json` entries name the same map
-    /// and rotation share a group.
-    pub fn true_light_groups(&self, source: &str) -> LightGroups {
+    /// The entries of `truth/manifest.json`'s `photos`: each photo's name, map, rotation,
+    /// exposure, white balance and whether it is held out.
+    pub fn truth_photos(&self) -> Vec<serde_json::Value> {
         let manifest: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(self.scratch.0.join("ws/truth/manifest.json")).unwrap(),
         )
         .unwrap();
-        let sky_of = |name: &str| -> String {
-            let p = manifest["photos"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .find(|p| p["name"] == name)
-                .unwrap_or_else(|| panic!("{name} is not in the truth manifest"));
-            format!("{} {}", p["map"], p["rotation_texels"])
-        };
-        let labels: Vec<String> = self.train.names.iter().map(|n| sky_of(n)).collect();
+        manifest["photos"].as_array().unwrap().clone()
+    }
+
+    /// The training photos' groups under one true sky (`--light shared` as a user's groups
+    /// file would give them): photos whose truth entries name the same map and rotation
+    /// share a group.
+    pub fn true_light_groups(&self, source: &str) -> LightGroups {
+        let photos = self.truth_photos();
+        let labels: Vec<String> = self
+            .train
+            .names
+            .iter()
+            .map(|name| {
+                let p = truth_photo(&photos, name)
+                    .unwrap_or_else(|| panic!("{name} is not in the truth manifest"));
+                format!("{} {}", p["map"], p["rotation_texels"])
+            })
+            .collect();
         LightGroups::from_labels(&labels, source.into())
     }
 
@@ -778,16 +793,9 @@ pub fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
     } else {
         vec![fit(None)]
     };
-    let manifest: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(case.scratch.0.join("ws/truth/manifest.json")).unwrap(),
-    )
-    .unwrap();
+    let photos = case.truth_photos();
     let map_of = |name: &str| -> usize {
-        let m = manifest["photos"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == name)
+        let m = truth_photo(&photos, name)
             .and_then(|p| p["map"].as_str())
             .unwrap_or("");
         PRIOR_MAPS.iter().position(|x| *x == m).unwrap_or(8)
