@@ -637,7 +637,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
     let base = base_options();
     // The `shared` row's groups: training photos under one true sky (none unless the
     // scene was rendered with `SYNTH_SHARED_SKIES=1`).
-    let groups = case.true_light_groups("the true sky of each training photo");
+    let groups = case.true_light_groups();
     let with_groups = EstimateOptions {
         light_groups: groups.any_shared().then_some(groups),
         ..base.clone()

@@ -205,7 +205,7 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
             "shared" => {
                 o.light_groups = (num() > 0.0).then(|| LightGroups {
                     group: Vec::new(),
-                    source: "the true map of each training photo".into(),
+                    source: String::new(),
                 })
             }
             "loo" => {
@@ -247,11 +247,11 @@ fn prior_opts(o: &mut EstimateOptions) -> &mut LightPriorOptions {
 /// `o` with its light groups (spec `shared=1`) filled in from the case's truth: training
 /// photos with the same map and rotation in `truth/manifest.json` share a group.
 fn with_case_groups(case: &Case, o: &EstimateOptions) -> EstimateOptions {
-    let Some(g) = &o.light_groups else {
+    if o.light_groups.is_none() {
         return o.clone();
-    };
+    }
     EstimateOptions {
-        light_groups: Some(case.true_light_groups(&g.source)),
+        light_groups: Some(case.true_light_groups()),
         ..o.clone()
     }
 }

@@ -186,7 +186,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         // makes such groups).
         light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
             .is_ok_and(|v| v == "shared")
-            .then(|| case.true_light_groups("the true sky of each training photo")),
+            .then(|| case.true_light_groups()),
         ..base.clone()
     };
     let opts = crate::with_case_graph(case, opts);

@@ -19,6 +19,12 @@ pub struct TruthPhoto {
     pub exposure: f64,
     /// Per-channel white-balance gains.
     pub white_balance: [f64; 3],
+    /// Name of the embedded map the photo was rendered under (empty where the manifest
+    /// has none).
+    pub map: String,
+    /// The map's azimuthal rotation in texels: photos with the same map and rotation were
+    /// taken under one sky (0 where the manifest has none).
+    pub rotation_texels: u64,
 }
 
 /// The ground truth of a synthetic workspace (`truth/manifest.json`, written by `synth`).
@@ -79,6 +85,8 @@ impl Truth {
                     env: dir.join(env),
                     exposure: p["exposure"].as_f64().unwrap_or(1.0),
                     white_balance: [0, 1, 2].map(|c| wb[c].as_f64().unwrap_or(1.0)),
+                    map: p["map"].as_str().unwrap_or_default().to_string(),
+                    rotation_texels: p["rotation_texels"].as_u64().unwrap_or(0),
                 },
             );
         }

@@ -123,43 +123,29 @@ pub struct Case {
     pub normals_env: Vec<Vec3>,
     pub env_from_world: nalgebra::Matrix3<f64>,
     pub vis: Visibility,
-}
-
-/// The entry of photo `name` among `photos` ([`Case::truth_photos`]).
-pub fn truth_photo<'a>(
-    photos: &'a [serde_json::Value],
-    name: &str,
-) -> Option<&'a serde_json::Value> {
-    photos.iter().find(|p| p["name"] == name)
+    /// `truth/manifest.json`: each photo's map, rotation, exposure and white balance.
+    pub truth: Truth,
 }
 
 impl Case {
-    /// The entries of `truth/manifest.json`'s `photos`: each photo's name, map, rotation,
-    /// exposure, white balance and whether it is held out.
-    pub fn truth_photos(&self) -> Vec<serde_json::Value> {
-        let manifest: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(self.scratch.0.join("ws/truth/manifest.json")).unwrap(),
-        )
-        .unwrap();
-        manifest["photos"].as_array().unwrap().clone()
-    }
-
     /// The training photos' groups under one true sky (`--light shared` as a user's groups
-    /// file would give them): photos whose truth entries name the same map and rotation
-    /// share a group.
-    pub fn true_light_groups(&self, source: &str) -> LightGroups {
-        let photos = self.truth_photos();
+    /// file would give them): photos whose truth names the same map and rotation share a
+    /// group. Their source reads "the true sky of each training photo".
+    pub fn true_light_groups(&self) -> LightGroups {
         let labels: Vec<String> = self
             .train
             .names
             .iter()
             .map(|name| {
-                let p = truth_photo(&photos, name)
+                let p = self
+                    .truth
+                    .photos
+                    .get(name)
                     .unwrap_or_else(|| panic!("{name} is not in the truth manifest"));
-                format!("{} {}", p["map"], p["rotation_texels"])
+                format!("{} {}", p.map, p.rotation_texels)
             })
             .collect();
-        LightGroups::from_labels(&labels, source.into())
+        LightGroups::from_labels(&labels, "the true sky of each training photo".into())
     }
 
     /// The true materials, as the estimator's start.
@@ -373,6 +359,7 @@ pub fn prepare_in(
         normals_env,
         env_from_world,
         vis,
+        truth,
     }
 }
 
@@ -793,11 +780,8 @@ pub fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
     } else {
         vec![fit(None)]
     };
-    let photos = case.truth_photos();
     let map_of = |name: &str| -> usize {
-        let m = truth_photo(&photos, name)
-            .and_then(|p| p["map"].as_str())
-            .unwrap_or("");
+        let m = case.truth.photos.get(name).map_or("", |p| p.map.as_str());
         PRIOR_MAPS.iter().position(|x| *x == m).unwrap_or(8)
     };
     let per_photo = lp
