@@ -249,21 +249,13 @@ pub fn capture_time(path: &Path) -> Option<i64> {
         && t.minute < 60
         && t.second < 61;
     valid.then(|| {
-        let days = days_from_civil(i64::from(t.year), i64::from(t.month), i64::from(t.day));
+        let days = crate::import::calendar::days_from_civil(
+            i64::from(t.year),
+            i64::from(t.month),
+            i64::from(t.day),
+        );
         days * 86_400 + i64::from(t.hour) * 3600 + i64::from(t.minute) * 60 + i64::from(t.second)
     })
-}
-
-/// Days from 1970-01-01 to the date `y-m-d` of the proleptic Gregorian calendar (the
-/// era arithmetic of H. Hinnant, "chrono-compatible low-level date algorithms").
-fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
-    let y = if m <= 2 { y - 1 } else { y };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let mp = (m + 9) % 12;
-    let doy = (153 * mp + 2) / 5 + d - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
 }
 
 #[cfg(test)]
@@ -311,16 +303,6 @@ pub(crate) mod tests {
         assert!(photo.sample([-0.1, 1.0]).is_none());
         assert!(photo.sample([1.0, 5.01]).is_none());
         assert!(photo.sample([f64::NAN, 1.0]).is_none());
-    }
-
-    #[test]
-    fn civil_days_match_known_dates() {
-        // Known day numbers (Unix epoch days): 1970-01-01 = 0, 2000-03-01 = 11017
-        // (a leap-century February before it), 2024-02-29 = 19782, 1969-12-31 = -1.
-        assert_eq!(days_from_civil(1970, 1, 1), 0);
-        assert_eq!(days_from_civil(2000, 3, 1), 11017);
-        assert_eq!(days_from_civil(2024, 2, 29), 19782);
-        assert_eq!(days_from_civil(1969, 12, 31), -1);
     }
 
     /// A 4×4 grey JPEG whose EXIF block (an APP1 segment after the start-of-image marker,
