@@ -40,6 +40,11 @@ pub(crate) struct SynthArgs {
     /// `run --light shared`; scenes whose map turns from photo to photo).
     #[arg(long)]
     shared_skies: bool,
+    /// Suns from a day's clock: each photo of a sun-and-sky scene (spot-sky) is taken at
+    /// a time of one summer day at one place, its sun from the solar position, and its PNG
+    /// carries that place and UTC time as an EXIF geotag (for `run --light sky`).
+    #[arg(long)]
+    geotag: bool,
     /// Primary rays per pixel.
     #[arg(long, default_value_t = 4)]
     spp: u32,
@@ -70,6 +75,7 @@ impl SynthArgs {
             noise,
             white_balance,
             shared_skies,
+            geotag,
             spp,
             light_samples,
             points,
@@ -94,6 +100,7 @@ impl SynthArgs {
             noise,
             white_balance,
             shared_skies,
+            geotag,
             samples: relight_cpc::transport::reference::Samples {
                 per_pixel: spp,
                 light: light_samples,

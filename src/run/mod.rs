@@ -28,6 +28,7 @@ mod decisions;
 mod evaluate;
 mod example;
 mod fit;
+pub mod geotag_suns;
 mod half_fit;
 pub mod half_prior;
 mod holdout;

@@ -179,6 +179,10 @@ pub struct EstimateOptions {
     /// The sun-and-sky light model instead of the paper's free map (issue 25, `--light
     /// sky`; `None`: the paper's map, with `light_prior` if set): [`crate::solve::light::sky`].
     pub light_sky: Option<crate::solve::light::sky::SkyOptions>,
+    /// The training photos' suns from their geotags, for the sun-and-sky model
+    /// ([`crate::solve::light::sky::clock`]): a photo with one has its sun's direction fixed
+    /// up to the collection's one unknown north. `None`: every sun is searched.
+    pub sun_clock: Option<crate::solve::light::sky::clock::ClockSuns>,
     /// Prior on each vertex's blending weights summing to one (issue 25, not in the
     /// paper; 0 = off, the paper's free non-negative weights): the material step's `w`
     /// part and `F` gain `Σ_x γ_x (Σ_k w_k(x) − 1)²` with
@@ -391,6 +395,7 @@ impl Default for EstimateOptions {
             blend_tolerance: 0.0,
             light_prior: None,
             light_sky: None,
+            sun_clock: None,
             weights_sum: WEIGHTS_SUM,
             weights_sum_scope: SumScope::Every,
             weights_smoothness: 0.0,

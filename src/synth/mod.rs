@@ -32,6 +32,7 @@ pub mod geometry;
 use crate::import::colmap::{
     Camera, CameraId, Image, ImageId, Point2D, Point3D, Point3DId, Reconstruction, TrackElement,
 };
+use crate::import::geotag::GeoTag;
 use crate::import::mesh::Mesh;
 use crate::observe::trace::SceneBvh;
 use crate::sphere::envmap::LatLong;
@@ -54,8 +55,8 @@ use scenes::SceneDef;
 use scenes::{embedded_map, make_geometry, make_weights, scene_defs, Lighting, Shape};
 pub use scenes::{look_at, rotate_texels, scene_names};
 use truth::{
-    create_dir, gaussian, save_png, write_json, Manifest, MaterialTruth, MaterialsTruth,
-    PhotoScale, PhotoTruth,
+    create_dir, gaussian, save_png, save_png_exif, write_json, Manifest, MaterialTruth,
+    MaterialsTruth, PhotoScale, PhotoTruth,
 };
 
 /// Options of [`build`].
@@ -85,6 +86,13 @@ pub struct SynthOptions {
     /// and `i + 8` stand on opposite sides under one sky. For the scenes whose map turns
     /// from photo to photo; the others are unchanged.
     pub shared_skies: bool,
+    /// Suns from a day's clock (sun-and-sky scenes only): photo `i` of `n` is taken at
+    /// [`GEOTAG_PLACE`] on [`GEOTAG_DAY`] at `GEOTAG_HOURS.0 + (i + u_i / 2) / n` of the span
+    /// to `GEOTAG_HOURS.1` UTC (`u_i` uniform), its sun where the solar position puts it
+    /// with north at a random azimuth of the environment frame
+    /// ([`crate::solve::light::sky::clock`]; the manifest's `north_radians`), and its PNG
+    /// carries the place and time as an EXIF geotag ([`crate::import::geotag`]).
+    pub geotag: bool,
     /// Reference-renderer effort.
     pub samples: Samples,
     /// Surface points sampled for `points3D.txt`.
@@ -103,6 +111,7 @@ impl Default for SynthOptions {
             noise: 0.0,
             white_balance: false,
             shared_skies: false,
+            geotag: false,
             samples: Samples {
                 per_pixel: 4,
                 light: 64,
@@ -199,7 +208,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
     // One random stream, drawn in a fixed order: cameras, lighting plan, white balance.
     let mut rng = Pcg32::new(opts.seed, 0x5eed);
     let cams = place_cameras(&mut rng, &def, opts, &object, &up, n_photos);
-    let lighting = plan_lighting(&mut rng, &def, n_photos, opts.shared_skies)?;
+    let lighting = plan_lighting(&mut rng, &def, n_photos, opts)?;
     let shoot = photos::Shoot {
         object: &object,
         cams: &cams,
@@ -216,7 +225,7 @@ pub fn build(name: &str, out: &Path, opts: &SynthOptions) -> Result<SynthSummary
         .write_ply(&out.join("dense/meshed-poisson.ply"), &[])?;
     write_weights(&object, &out.join("truth/weights.ply"))?;
     write_materials(&def, &object, &photos, &out.join("truth/materials.json"))?;
-    let held_out = write_manifest(&def, opts, &object, &photos, &up, frame, out)?;
+    let held_out = write_manifest(&def, opts, &object, &photos, &lighting, frame, out)?;
     Ok(SynthSummary {
         scene: def.name.to_string(),
         photos: photos.names,
@@ -253,6 +262,12 @@ fn check_options(def: &SceneDef, opts: &SynthOptions) -> Result<usize> {
     let n_photos = opts.photos.unwrap_or(def.photos);
     if n_photos == 0 {
         return Err(Error::Config("synth needs at least one photo".into()));
+    }
+    if opts.geotag && def.lighting != Lighting::Sky {
+        return Err(Error::Config(format!(
+            "--geotag needs a sun-and-sky scene (spot-sky); `{}` is lit by HDR maps",
+            def.name
+        )));
     }
     Ok(n_photos)
 }
@@ -331,6 +346,36 @@ fn place_cameras(
 pub(crate) struct LightingPlan {
     maps: Vec<(String, LatLong)>,
     plan: Vec<(usize, usize, Option<Vec3>)>,
+    /// Per photo its geotag ([`SynthOptions::geotag`]).
+    geotags: Vec<Option<GeoTag>>,
+    /// The frame azimuth of north under [`SynthOptions::geotag`].
+    north: Option<f64>,
+}
+
+/// Latitude and longitude (degrees) of [`SynthOptions::geotag`]'s photos.
+pub const GEOTAG_PLACE: (f64, f64) = (45.0, 7.0);
+/// Their day: 2024-06-21, days after 1970-01-01.
+pub const GEOTAG_DAY: i64 = 19_895;
+/// Their span of UTC hours (about 06:30 to 17:30 local solar time there: the sun 16° to
+/// 68° high).
+pub const GEOTAG_HOURS: (f64, f64) = (6.0, 17.0);
+
+/// Photo `i` of `n`'s geotag and sun under [`SynthOptions::geotag`], north at frame
+/// azimuth `north`.
+fn clock_sun(rng: &mut Pcg32, i: usize, n: usize, north: f64) -> Result<(GeoTag, Vec3)> {
+    use crate::solve::light::sky::clock::ClockSun;
+    use crate::solve::light::sky::SunSky;
+    let (h0, h1) = GEOTAG_HOURS;
+    let hours = h0 + (h1 - h0) * (i as f64 + 0.5 * rng.random::<f64>()) / n as f64;
+    let tag = GeoTag {
+        latitude: GEOTAG_PLACE.0,
+        longitude: GEOTAG_PLACE.1,
+        utc_seconds: GEOTAG_DAY * 86_400 + (hours * 3600.0).round() as i64,
+    };
+    let sun = ClockSun::at(&tag)
+        .ok_or_else(|| Error::Internal(format!("synth --geotag: no sun at {hours:.2} h UTC")))?;
+    let theta = SunSky::from_angles(sun.frame_azimuth(north), sun.elevation, 3.0, 1.0);
+    Ok((tag, theta.sun))
 }
 
 /// Per photo a map and its rotation, as the scene's lighting says; with `shared_skies` a
@@ -339,19 +384,27 @@ fn plan_lighting(
     rng: &mut Pcg32,
     def: &SceneDef,
     n_photos: usize,
-    shared_skies: bool,
+    opts: &SynthOptions,
 ) -> Result<LightingPlan> {
     let mut maps: Vec<(String, LatLong)> = Vec::new();
     let mut plan: Vec<(usize, usize, Option<Vec3>)> = Vec::with_capacity(n_photos);
+    let north = opts.geotag.then(|| 2.0 * PI * rng.random::<f64>());
+    let mut geotags = vec![None; n_photos];
     for i in 0..n_photos {
         let (m, rotate) = match def.lighting {
             Lighting::Static(m) => (m, false),
             Lighting::Rotating(m) => (m, true),
             Lighting::Varying(list) => (list[i % list.len()], true),
             Lighting::Sky => {
-                let az = 2.0 * PI * (i as f64 + 0.5 * rng.random::<f64>()) / n_photos as f64;
-                let el = (20.0 + 40.0 * rng.random::<f64>()).to_radians();
-                let sun = Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let sun = if let Some(north) = north {
+                    let (tag, sun) = clock_sun(rng, i, n_photos, north)?;
+                    geotags[i] = Some(tag);
+                    sun
+                } else {
+                    let az = 2.0 * PI * (i as f64 + 0.5 * rng.random::<f64>()) / n_photos as f64;
+                    let el = (20.0 + 40.0 * rng.random::<f64>()).to_radians();
+                    Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
+                };
                 maps.push(("sky".into(), sky_map(&sun, SKY_MAP_HEIGHT)?));
                 plan.push((maps.len() - 1, 0, Some(sun)));
                 continue;
@@ -367,13 +420,18 @@ fn plan_lighting(
         };
         let earlier = plan.iter().find(|p| p.0 == idx).map(|p| p.1);
         let shift = match (rotate, earlier) {
-            (true, Some(shift)) if shared_skies => shift,
+            (true, Some(shift)) if opts.shared_skies => shift,
             (true, _) => rng.random_range(0..maps[idx].1.width),
             (false, _) => 0,
         };
         plan.push((idx, shift, None));
     }
-    Ok(LightingPlan { maps, plan })
+    Ok(LightingPlan {
+        maps,
+        plan,
+        geotags,
+        north,
+    })
 }
 
 /// `truth/weights.ply`: the mesh with per-vertex material weights `w0 … w{K-1}`.
@@ -432,10 +490,11 @@ fn write_manifest(
     opts: &SynthOptions,
     object: &Object,
     photos: &Rendered,
-    up: &Vec3,
+    lighting: &LightingPlan,
     frame: [Vec3; 3],
     out: &Path,
 ) -> Result<Vec<String>> {
+    let up = frame[2];
     let held_out: Vec<String> = photos
         .truths
         .iter()
@@ -450,6 +509,7 @@ fn write_manifest(
         env_frame: frame.map(|e| [e.x, e.y, e.z]),
         env_convention: "lat-long 2H×H, v = 0 the top row; θ = π(v+0.5)/H from e_z (up), φ = 2π(u+0.5)/(2H) from e_x toward e_y; texels are radiance averages over their solid angle, rendered as piecewise constant",
         static_illumination: matches!(def.lighting, Lighting::Static(_)),
+        north_radians: lighting.north,
         held_out: held_out.clone(),
         photos: &photos.truths,
         image_size: [opts.width, opts.height],
@@ -475,7 +535,11 @@ mod tests {
     fn skies(scene: &str, shared_skies: bool) -> Vec<(usize, usize)> {
         let def = find_scene(scene).unwrap();
         let mut rng = Pcg32::new(3, 0x5eed);
-        let plan = plan_lighting(&mut rng, &def, 16, shared_skies).unwrap();
+        let opts = SynthOptions {
+            shared_skies,
+            ..SynthOptions::default()
+        };
+        let plan = plan_lighting(&mut rng, &def, 16, &opts).unwrap();
         plan.plan.iter().map(|p| (p.0, p.1)).collect()
     }
 
@@ -496,5 +560,34 @@ mod tests {
         assert!(agreeing < 8, "own rotations agree on every pair");
         // Scenes whose map does not turn are unchanged by the option.
         assert_eq!(skies("spot-groups", true), skies("spot-groups", false));
+    }
+
+    #[test]
+    fn geotagged_suns_follow_the_summer_day() {
+        // 16 photos from 06:00 to 17:00 UTC at 45° N on the June solstice. Astronomy, not
+        // the solar position code: the noon sun stands at 90° − 45° + 23.44° = 68.44°, so
+        // no photo's sun is higher (0.05°: the algorithm's and the declination's rounding)
+        // and the photo nearest noon (at most half a 41-minute slot away, where the sun
+        // sinks by less than 3°) is within 3° of it; seen from above the sun turns
+        // clockwise (east, south, west), so its frame azimuth falls from photo to photo.
+        let def = find_scene("spot-sky").unwrap();
+        let mut rng = Pcg32::new(3, 0x5eed);
+        let opts = SynthOptions {
+            geotag: true,
+            ..SynthOptions::default()
+        };
+        let plan = plan_lighting(&mut rng, &def, 16, &opts).unwrap();
+        assert!(plan.north.is_some() && plan.geotags.iter().all(Option::is_some));
+        let suns: Vec<Vec3> = plan.plan.iter().map(|p| p.2.unwrap()).collect();
+        let elev: Vec<f64> = suns.iter().map(|s| s.z.asin().to_degrees()).collect();
+        let top = elev.iter().copied().fold(f64::MIN, f64::max);
+        assert!((68.44 - 3.0..=68.44 + 0.05).contains(&top), "{elev:.2?}");
+        for w in suns.windows(2) {
+            // z-component of s_i × s_{i+1}: negative when the azimuth falls.
+            assert!(w[0].x * w[1].y - w[0].y * w[1].x < 0.0, "{suns:?}");
+        }
+        // A scene lit by HDR maps refuses the option.
+        let err = check_options(&find_scene("spot-diffuse").unwrap(), &opts).unwrap_err();
+        assert!(err.to_string().contains("spot-sky"), "{err}");
     }
 }

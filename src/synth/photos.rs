@@ -60,12 +60,17 @@ pub(super) fn render_all(rng: &mut Pcg32, shoot: &Shoot) -> Result<Rendered> {
         let exposure = exposure(&img, &wb);
         let bytes = encode(&img, exposure, &wb, opts, i);
         let size = (opts.width, opts.height);
-        save_png(
+        let exif = match &shoot.lighting.geotags[i] {
+            Some(tag) => Some(crate::import::geotag::exif_block(tag)?),
+            None => None,
+        };
+        save_png_exif(
             &out.join("images").join(&names[i]),
             size.0,
             size.1,
             bytes.clone(),
             3,
+            exif,
         )?;
         save_png(
             &out.join("truth/masks").join(&names[i]),

@@ -26,6 +26,9 @@ pub(crate) struct Manifest<'a> {
     pub(crate) env_frame: [[f64; 3]; 3],
     pub(crate) env_convention: &'a str,
     pub(crate) static_illumination: bool,
+    /// Under `--geotag`, the frame azimuth of north (radians).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(crate) north_radians: Option<f64>,
     pub(crate) held_out: Vec<String>,
     pub(crate) photos: &'a [PhotoTruth],
     pub(crate) image_size: [u32; 2],
@@ -73,12 +76,27 @@ pub(crate) fn create_dir(path: &Path) -> Result<()> {
     std::fs::create_dir_all(path).map_err(|e| Error::io(path, e))
 }
 
+/// An 8-bit PNG of `channels` (1 or 3) channels, with `exif` as its EXIF block when
+/// given.
 pub(crate) fn save_png(
     path: &Path,
     width: u32,
     height: u32,
     bytes: Vec<u8>,
     channels: u8,
+) -> Result<()> {
+    save_png_exif(path, width, height, bytes, channels, None)
+}
+
+/// [`save_png`] with an optional EXIF block (a TIFF structure, as
+/// [`crate::import::geotag::exif_block`] writes).
+pub(crate) fn save_png_exif(
+    path: &Path,
+    width: u32,
+    height: u32,
+    bytes: Vec<u8>,
+    channels: u8,
+    exif: Option<Vec<u8>>,
 ) -> Result<()> {
     let err = |m: String| Error::Image {
         path: path.to_path_buf(),
@@ -89,7 +107,14 @@ pub(crate) fn save_png(
     } else {
         image::ExtendedColorType::L8
     };
-    image::save_buffer_with_format(path, &bytes, width, height, color, image::ImageFormat::Png)
+    use image::ImageEncoder;
+    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    let mut enc = image::codecs::png::PngEncoder::new(std::io::BufWriter::new(file));
+    if let Some(block) = exif {
+        enc.set_exif_metadata(block)
+            .map_err(|e| err(e.to_string()))?;
+    }
+    enc.write_image(&bytes, width, height, color)
         .map_err(|e| err(e.to_string()))
 }
 

@@ -27,6 +27,7 @@ fn small(photos: usize, seed: u64) -> SynthOptions {
         noise: 0.0,
         white_balance: true,
         shared_skies: false,
+        geotag: false,
         samples: Samples {
             per_pixel: 1,
             light: 4,

@@ -20,6 +20,7 @@ use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::observe::{self, Observations, ObserveOptions};
 use relight_cpc::run::Truth;
 use relight_cpc::solve::light::shared::LightGroups;
+use relight_cpc::solve::light::sky::clock::ClockSuns;
 use relight_cpc::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
 };
@@ -125,6 +126,9 @@ pub struct Case {
     pub vis: Visibility,
     /// `truth/manifest.json`: each photo's map, rotation, exposure and white balance.
     pub truth: Truth,
+    /// The training photos' suns read from their PNGs' geotags as `run` reads them
+    /// (`None` unless the scene was rendered with `synth --geotag`).
+    pub geotag_suns: Option<ClockSuns>,
 }
 
 impl Case {
@@ -236,6 +240,9 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
             // `SYNTH_SHARED_SKIES=1`: photos under the same map share its rotation, so
             // they share a sky (the shared-light model's groups).
             shared_skies: std::env::var("SYNTH_SHARED_SKIES").is_ok_and(|v| v == "1"),
+            // `SYNTH_GEOTAG=1`: a sun-and-sky scene's suns from a day's clock, each photo
+            // geotagged (`synth --geotag`; the cases' `geotag_suns`).
+            geotag: std::env::var("SYNTH_GEOTAG").is_ok_and(|v| v == "1"),
             ..SynthOptions::default()
         },
     )
@@ -279,6 +286,13 @@ pub fn prepare_in(
         nv * k,
         "the cleaned mesh must keep synth's vertices"
     );
+    let train_paths: Vec<&Path> = sc
+        .views
+        .iter()
+        .filter(|v| !truth.held_out.contains(&v.image.name))
+        .map(|v| v.photo_path.as_path())
+        .collect();
+    let geotag_suns = relight_cpc::run::geotag_suns::suns_of(&train_paths);
     let env_from_world = truth.env_from_world;
     let normals_env: Vec<Vec3> = sc.mesh.normals.iter().map(|n| env_from_world * n).collect();
     let bvh = SceneBvh::new(&sc.mesh);
@@ -360,6 +374,7 @@ pub fn prepare_in(
         env_from_world,
         vis,
         truth,
+        geotag_suns,
     }
 }
 

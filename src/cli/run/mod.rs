@@ -75,6 +75,11 @@ pub(crate) struct RunArgs {
     /// under `--light shared` (0 = never by time).
     #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHT_GROUP_MINUTES, help_heading = "Model")]
     pub(crate) light_group_minutes: f64,
+    /// Under `--light sky`, search every photo's sun even where its EXIF gives the place
+    /// (GPS) and UTC time of capture (by default those fix its sun, up to one north for
+    /// the whole collection).
+    #[arg(long, help_heading = "Model")]
+    pub(crate) no_geotag_suns: bool,
     /// What fixes the per-channel scale between colours and light, which photos can never
     /// tell apart: `start` (the balance of the starting colours) or `grey-world` (the
     /// surface's mean diffuse albedo is 0.5 in each channel).

@@ -113,6 +113,7 @@ impl RunArgs {
         o.achromatic_specular = self.achromatic_specular;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;
+        o.geotag_suns = !self.no_geotag_suns;
         o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
         Ok(())
     }

@@ -113,8 +113,8 @@ impl FitStart {
         Ok(())
     }
 
-    /// The options that depend on the observations kept: the shared light's groups and
-    /// early stopping's photo halves; the neighbour prior's reason.
+    /// The options that depend on the observations kept: the shared light's groups, the
+    /// sky's geotag suns and early stopping's photo halves; the neighbour prior's reason.
     fn finish_options(
         &mut self,
         opts: &RunOptions,
@@ -135,6 +135,12 @@ impl FitStart {
                 crate::run::light_groups::resolve(file, opts.light_group_minutes, scene, train)?;
             if let Some(g) = &self.eopts.light_groups {
                 self.reasons.push(format!("shared light: {}", g.source));
+            }
+        }
+        if opts.geotag_suns && matches!(opts.light, LightChoice::Sky | LightChoice::Auto) {
+            self.eopts.sun_clock = crate::run::geotag_suns::resolve(scene, train);
+            if let Some(c) = &self.eopts.sun_clock {
+                self.reasons.push(format!("sun and sky: {}", c.source));
             }
         }
         self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);

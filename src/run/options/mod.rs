@@ -166,6 +166,10 @@ pub struct RunOptions {
     /// Photos taken at most this many minutes apart share a sky when grouped by capture
     /// time (0 = never by time).
     pub light_group_minutes: f64,
+    /// Under `--light sky`, fix the sun of each geotagged photo (EXIF GPS place and UTC
+    /// time) from the solar position, up to one north for the collection
+    /// ([`crate::solve::light::sky::clock`]); `false` searches every sun.
+    pub geotag_suns: bool,
     /// The per-channel scale anchor between reflectance and light
     /// ([`crate::solve::normalise::ScaleAnchor`]).
     pub scale_anchor: crate::solve::normalise::ScaleAnchor,
@@ -290,6 +294,7 @@ impl RunOptions {
             half_prior: super::half_prior::HalfPriorMode::Auto,
             light_groups: None,
             light_group_minutes: DEFAULT_LIGHT_GROUP_MINUTES,
+            geotag_suns: true,
             scale_anchor: crate::solve::normalise::ScaleAnchor::Start,
         }
     }

@@ -50,12 +50,17 @@
 //! 2. the joint QP in `(w, r) ≥ 0` at the chosen `θ`, warm-started from the search's `w`
 //!    and the previous `r`, solved by [`crate::solve::qp::bound_qp_scaled`].
 //!
-//! Not done: taking the sun direction from EXIF time and GPS (the `spa` crate): the photo
-//! importer reads no EXIF yet, so the search is the only source of `s`.
+//! **Geotagged photos** ([`clock`]): a photo whose EXIF gives its place and UTC instant
+//! has its sun's elevation and compass azimuth from the solar position algorithm; only
+//! north's azimuth `ν` in the environment frame is unknown, one value for the whole
+//! collection. Before each lighting step `ν` is chosen by the search error summed over
+//! those photos (a 5° grid through the third outer iteration, then ±2.5° by 0.5° around
+//! the best), and step 1 above searches only their turbidity and lobe.
 
 // Kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
+pub mod clock;
 pub mod model;
 pub mod search;
 #[cfg(test)]

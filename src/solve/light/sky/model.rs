@@ -10,7 +10,8 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use super::search::{Candidate, SearchData};
+use super::clock::{north_grid, north_refinement, ClockSun};
+use super::search::{Candidate, SearchData, ALL_FREE, SUN_FIXED};
 use super::{
     coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
 };
@@ -98,6 +99,10 @@ pub struct SkyLight {
     scale: Vec<Option<ResidualScale>>,
     /// Whether a photo's `θ` was searched (its next search is warm-started).
     searched: Vec<bool>,
+    /// Per photo, its sun from its geotag ([`super::clock`]); empty without geotags.
+    clock: Vec<Option<ClockSun>>,
+    /// The frame azimuth of north `ν` found from the geotagged photos.
+    north: Option<f64>,
     /// `b_k` per Haar coefficient.
     b: Vec<f64>,
     opts: EstimateOptions,
@@ -131,10 +136,23 @@ impl SkyLight {
             residual: std::array::from_fn(|_| vec![0.0; n * n]),
         };
         let lighting = opts.alternation_lighting();
+        let clock = match &opts.sun_clock {
+            Some(c) if c.per_photo.len() != problem.n_photos => {
+                return Err(Error::Internal(format!(
+                    "sun-and-sky model: {} geotag suns for {} photos",
+                    c.per_photo.len(),
+                    problem.n_photos
+                )))
+            }
+            Some(c) => c.per_photo.clone(),
+            None => Vec::new(),
+        };
         Ok(SkyLight {
             params: vec![zero; problem.n_photos],
             scale: vec![None; problem.n_photos],
             searched: vec![false; problem.n_photos],
+            clock,
+            north: None,
             b,
             opts: opts.clone(),
             sky: sky.clone(),
@@ -146,6 +164,17 @@ impl SkyLight {
     /// The recovered `θ` per photo.
     pub fn thetas(&self) -> Vec<SunSky> {
         self.params.iter().map(|p| p.theta).collect()
+    }
+
+    /// The frame azimuth of north found from the geotagged photos (radians; `None`
+    /// without geotags or before the first lighting step).
+    pub fn north(&self) -> Option<f64> {
+        self.north
+    }
+
+    /// Photo `photo`'s geotag sun, if it has one.
+    fn clock_sun(&self, photo: usize) -> Option<ClockSun> {
+        self.clock.get(photo).copied().flatten()
     }
 }
 
@@ -304,15 +333,7 @@ impl SkyLight {
         let n = problem.transport.n_global;
         let prev = &self.params[photo];
         let rows = Rows::new(problem, photo);
-        let dw: Vec<[f64; 3]> = rows.alpha.iter().map(|&a| [a; 3]).collect();
-        let sys = PhotoSystem::new(
-            problem,
-            beta,
-            rows.range.clone(),
-            n,
-            dw,
-            self.opts.blend_tolerance,
-        );
+        let sys = self.photo_system(problem, beta, &rows);
         let best = self.search_theta(&sys, &rows, photo, outer_iteration)?;
         let (scale, d) = self.residual_prior(&best, prev, &rows, n);
         let qp = JointQp {
@@ -352,9 +373,36 @@ impl SkyLight {
         })
     }
 
-    /// Step 1, `θ` (sun direction, turbidity, sun lobe) with the residual fixed: from the
-    /// previous `θ` (and a fresh grid in the first [`REGRID_ITERATIONS`] iterations, kept
-    /// when better), or from the grid at the photo's first step, then refined.
+    /// The photo's lighting system at the materials `beta` (its rows weighted by `α`).
+    fn photo_system(&self, problem: &Problem, beta: &[[f64; 3]], rows: &Rows) -> PhotoSystem {
+        let dw: Vec<[f64; 3]> = rows.alpha.iter().map(|&a| [a; 3]).collect();
+        PhotoSystem::new(
+            problem,
+            beta,
+            rows.range.clone(),
+            problem.transport.n_global,
+            dw,
+            self.opts.blend_tolerance,
+        )
+    }
+
+    /// The targets of the `θ` search: the observations less the previous residual's
+    /// prediction.
+    fn search_target(&self, sys: &PhotoSystem, rows: &Rows, photo: usize) -> Vec<[f64; 3]> {
+        let mut resid_pred = vec![[0.0; 3]; rows.y.len()];
+        sys.forward_rows(&haar3(&self.params[photo].residual, sys.n), &mut resid_pred);
+        rows.y
+            .iter()
+            .zip(&resid_pred)
+            .map(|(y, r)| [0, 1, 2].map(|c| y[c] - r[c]))
+            .collect()
+    }
+
+    /// Step 1, `θ` (sun direction, turbidity, sun lobe) with the residual fixed. A photo
+    /// with a geotag sun takes its direction at the collection's north and searches only
+    /// the turbidity and the lobe. Otherwise: from the previous `θ` (and a fresh grid in
+    /// the first [`REGRID_ITERATIONS`] iterations, kept when better), or from the grid at
+    /// the photo's first step, then refined.
     fn search_theta(
         &self,
         sys: &PhotoSystem,
@@ -362,23 +410,24 @@ impl SkyLight {
         photo: usize,
         outer_iteration: usize,
     ) -> Result<Candidate> {
-        let n = sys.n;
         let prev = &self.params[photo];
-        let mut resid_pred = vec![[0.0; 3]; rows.y.len()];
-        sys.forward_rows(&haar3(&prev.residual, n), &mut resid_pred);
-        let target: Vec<[f64; 3]> = rows
-            .y
-            .iter()
-            .zip(&resid_pred)
-            .map(|(y, r)| [0, 1, 2].map(|c| y[c] - r[c]))
-            .collect();
+        let target = self.search_target(sys, rows, photo);
         let search = SearchData {
             sys,
             target: &target,
         };
+        if let (Some(sun), Some(north)) = (self.clock_sun(photo), self.north) {
+            let start = search.evaluate(clock_theta(sun, north, &prev.theta))?;
+            let steps = if self.searched[photo] {
+                WARM_STEPS
+            } else {
+                FIRST_STEPS
+            };
+            return search.refine(start, steps, SUN_FIXED, MIN_ANGLE, FIRST_EVALS);
+        }
         if !self.searched[photo] {
             let start = search.grid(GRID_TURBIDITY, GRID_KAPPA)?;
-            return search.refine(start, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS);
+            return search.refine(start, FIRST_STEPS, ALL_FREE, MIN_ANGLE, FIRST_EVALS);
         }
         let warm = search.evaluate(prev.theta)?;
         let grid = if outer_iteration <= REGRID_ITERATIONS {
@@ -387,9 +436,79 @@ impl SkyLight {
             None
         };
         match grid {
-            Some(g) if g.sse < warm.sse => search.refine(g, FIRST_STEPS, MIN_ANGLE, FIRST_EVALS),
-            _ => search.refine(warm, WARM_STEPS, MIN_ANGLE, WARM_EVALS),
+            Some(g) if g.sse < warm.sse => {
+                search.refine(g, FIRST_STEPS, ALL_FREE, MIN_ANGLE, FIRST_EVALS)
+            }
+            _ => search.refine(warm, WARM_STEPS, ALL_FREE, MIN_ANGLE, WARM_EVALS),
         }
+    }
+
+    /// North `ν` from the geotagged photos ([`super::clock`]): through the first
+    /// [`REGRID_ITERATIONS`] iterations (and at the first step) the best of the coarse
+    /// [`north_grid`] by the summed search error, then refined around it; later steps
+    /// refine the previous `ν` only. Each candidate is scored with every photo's previous
+    /// turbidity and lobe and its residual fixed.
+    fn update_north(
+        &mut self,
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        outer_iteration: usize,
+    ) -> Result<()> {
+        if self.clock.iter().all(Option::is_none) {
+            return Ok(());
+        }
+        let centre = match self.north {
+            Some(n) if outer_iteration > REGRID_ITERATIONS => n,
+            _ => self.best_north(problem, beta, &north_grid())?,
+        };
+        let best = self.best_north(problem, beta, &north_refinement(centre))?;
+        self.north = Some(best.rem_euclid(std::f64::consts::TAU));
+        Ok(())
+    }
+
+    /// The candidate `ν` with the least search error summed over the geotagged photos.
+    fn best_north(&self, problem: &Problem, beta: &[[f64; 3]], norths: &[f64]) -> Result<f64> {
+        let sizes: Vec<usize> = (0..problem.n_photos)
+            .map(|i| match self.clock_sun(i) {
+                Some(_) => problem.obs.photo_ranges[i].len(),
+                None => 0,
+            })
+            .collect();
+        let profiles: Vec<Result<Vec<f64>>> =
+            par_largest_first(&sizes, |i| self.north_profile(problem, beta, i, norths));
+        let mut total = vec![0.0; norths.len()];
+        for p in profiles {
+            total.iter_mut().zip(p?).for_each(|(t, v)| *t += v);
+        }
+        let k = (0..norths.len())
+            .min_by(|&a, &b| total[a].total_cmp(&total[b]))
+            .ok_or_else(|| Error::Internal("no candidate north".into()))?;
+        Ok(norths[k])
+    }
+
+    /// Photo `photo`'s search error at each candidate north (zeros without a geotag).
+    fn north_profile(
+        &self,
+        problem: &Problem,
+        beta: &[[f64; 3]],
+        photo: usize,
+        norths: &[f64],
+    ) -> Result<Vec<f64>> {
+        let Some(sun) = self.clock_sun(photo) else {
+            return Ok(vec![0.0; norths.len()]);
+        };
+        let rows = Rows::new(problem, photo);
+        let sys = self.photo_system(problem, beta, &rows);
+        let target = self.search_target(&sys, &rows, photo);
+        let search = SearchData {
+            sys: &sys,
+            target: &target,
+        };
+        let prev = &self.params[photo].theta;
+        norths
+            .iter()
+            .map(|&nu| Ok(search.evaluate(clock_theta(sun, nu, prev))?.sse))
+            .collect()
     }
 
     /// Step 2, the residual prior at the current light's scale: `σ²` from the photo's mean
@@ -462,6 +581,17 @@ impl SkyLight {
     }
 }
 
+/// The `θ` of a geotagged photo: its sun at north `north`, the turbidity and lobe of
+/// `prev`.
+fn clock_theta(sun: ClockSun, north: f64, prev: &SunSky) -> SunSky {
+    SunSky::from_angles(
+        sun.frame_azimuth(north),
+        sun.elevation,
+        prev.turbidity,
+        prev.kappa,
+    )
+}
+
 impl LightModel for SkyLight {
     type Params = Vec<SkyPhoto>;
 
@@ -478,6 +608,7 @@ impl LightModel for SkyLight {
 
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
+        self.update_north(problem, input.beta, input.outer_iteration)?;
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
         let results: Vec<Result<PhotoFit>> = par_largest_first(&sizes, |i| {
             self.fit_photo(problem, input.beta, i, input.outer_iteration)

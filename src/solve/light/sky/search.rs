@@ -11,6 +11,13 @@ use crate::solve::problem::haar3;
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::Result;
 
+/// Which of the pattern search's coordinates `(azimuth, elevation, ln κ, T)` move.
+pub type FreeCoords = [bool; 4];
+/// Every coordinate free.
+pub const ALL_FREE: FreeCoords = [true; 4];
+/// The sun's direction fixed (a geotag gives it): only `κ` and `T` move.
+pub const SUN_FIXED: FreeCoords = [false, false, true, true];
+
 /// One evaluated `θ`: its bases, NNLS weights and weighted squared error.
 #[derive(Debug, Clone)]
 pub struct Candidate {
@@ -113,14 +120,15 @@ impl SearchData<'_> {
         Ok(best.expect("the grid has points"))
     }
 
-    /// Pattern search over `(azimuth, elevation, ln κ, T)` from `start`: each round tries
-    /// `±step` per coordinate and moves on any decrease; a round without one halves every
-    /// step; it ends when the angular step is below `min_angle` (radians) or after
-    /// `max_evals` evaluations.
+    /// Pattern search over the `free` ones of `(azimuth, elevation, ln κ, T)` from
+    /// `start`: each round tries `±step` per coordinate and moves on any decrease; a round
+    /// without one halves every step; it ends when the angular step is below `min_angle`
+    /// (radians) or after `max_evals` evaluations.
     pub fn refine(
         &self,
         start: Candidate,
         steps: [f64; 4],
+        free: FreeCoords,
         min_angle: f64,
         max_evals: usize,
     ) -> Result<Candidate> {
@@ -130,7 +138,7 @@ impl SearchData<'_> {
         let mut evals = 0;
         while steps[0] >= min_angle && evals < max_evals {
             let mut improved = false;
-            for i in 0..4 {
+            for i in (0..4).filter(|&i| free[i]) {
                 for sign in [1.0, -1.0] {
                     let mut x2 = x;
                     x2[i] += sign * steps[i];
