@@ -90,6 +90,8 @@ mod defaults;
 mod diagnose;
 #[path = "ablation/metrics.rs"]
 mod metrics;
+#[path = "support/run_line.rs"]
+mod run_line;
 #[path = "ablation/search.rs"]
 mod search;
 #[path = "ablation/starts.rs"]
@@ -596,35 +598,6 @@ struct Done {
     diagnosis: Option<(String, Value)>,
 }
 
-/// The run's date and the `ABLATION_*` / `RESULTS_SUFFIX` variables it was given, sorted,
-/// as the command line that runs it again.
-fn environment_line() -> String {
-    let mut vars: Vec<String> = std::env::vars()
-        .filter(|(k, _)| {
-            k.starts_with("ABLATION_") || k.starts_with("SYNTH_") || k == "RESULTS_SUFFIX"
-        })
-        .map(|(k, v)| format!("{k}={}", shell_word(&v)))
-        .collect();
-    vars.sort();
-    format!(
-        "Run on {} as `{}cargo bench --bench ablation`.\n\n",
-        today::today(),
-        vars.iter().map(|v| format!("{v} ")).collect::<String>()
-    )
-}
-
-/// `v` quoted for a shell when it holds anything but letters, digits and `,._-`.
-fn shell_word(v: &str) -> String {
-    if !v.is_empty()
-        && v.chars()
-            .all(|c| c.is_ascii_alphanumeric() || ",._-".contains(c))
-    {
-        v.to_string()
-    } else {
-        format!("\"{}\"", v.replace('"', "\\\""))
-    }
-}
-
 /// Whether `ABLATION_ROWS` (`wanted`) leaves the row `label` out.
 fn left_out(wanted: &Option<Vec<String>>, label: &str) -> bool {
     wanted
@@ -749,7 +722,10 @@ fn main() {
          all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping.\n\n",
         s.width, s.spp, s.light_samples, s.global, s.local, base.max_outer
     );
-    md.push_str(&environment_line());
+    md.push_str(&run_line::environment_line(
+        "ablation",
+        &["ABLATION_", "SYNTH_", "RESULTS_SUFFIX"],
+    ));
     let mut out = Vec::new();
     for (scene, what) in SCENES {
         if only_scenes

@@ -24,7 +24,8 @@
 //! `JOINT_SPECS` / `ROBUST_SPECS` / `CONVERGENCE_SPECS` replace a part's rows by option
 //! strings ([`parse_spec`], e.g. `"floor=0.1;floor=0.1,val=0"`); `JOINT_SCENE` (default
 //! `spot-varying`) and `JOINT_GLOBAL`, `JOINT_LOCAL`, `JOINT_SPP`, `JOINT_VERTICES`,
-//! `JOINT_WIDTH`, `JOINT_PHOTOS` set parts 2, 3 and 5's case; `KNOWN_SCENES`, `KNOWN_FINE=1`
+//! `JOINT_WIDTH`, `JOINT_PHOTOS` set parts 2, 3 and 5's case (`JOINT_SEED` the joint
+//! part's render seed, default 1); `KNOWN_SCENES`, `KNOWN_FINE=1`
 //! and `KNOWN_NOISE_FREE=1` (every observation the true map's prediction through the
 //! transport: the estimator's own error) part 1's; `FLOOR_SCENES`, `FLOOR_WIDTH`, `FLOOR_SPP`,
 //! `FLOOR_NORMAL_GRID` part 6's; `RESULTS_SUFFIX=S` writes `STEM-S.{md,json}`. Sizes are
@@ -54,10 +55,15 @@ mod known;
 mod propagate;
 #[path = "estimator/robust.rs"]
 mod robust;
+#[path = "support/run_line.rs"]
+mod run_line;
+#[path = "support/today.rs"]
+mod today;
 
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::sh_prior::LightPriorOptions;
 use relight_cpc::solve::light::shared::LightGroups;
+use relight_cpc::solve::light::sky::clock::ClockSuns;
 use relight_cpc::solve::starts::{self, estimate_best, MultiStart};
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Robust, SmoothnessScale};
 use serde_json::{json, Value};
@@ -137,7 +143,8 @@ const RESOLUTIONS: [usize; 5] = [2, 4, 8, 16, 32];
 /// instead of 0), `start=s` (parts 2 and 5: start number `s` of `starts::variants`),
 /// `starts=n` (part 2: the best of the first `n` of them, `starts::estimate_best`), `dirty=1` (5% outliers, part 3),
 /// `prior=η` / `haar=η` (the light prior's SH and Haar noise levels), `sky=η` (the
-/// sun-and-sky light model with residual noise level η); `base` alone
+/// sun-and-sky light model with residual noise level η), `geotag=1` (with `sky`: the suns
+/// of the training photos' geotags, a scene rendered with `SYNTH_GEOTAG=1`); `base` alone
 /// = no change. The label is the spec itself.
 struct Spec {
     label: String,
@@ -200,6 +207,14 @@ fn parse_spec(spec: &str, base: &EstimateOptions) -> Spec {
                     residual_noise: num(),
                 })
             }
+            // The sun-and-sky model's suns from the training photos' geotags (a scene
+            // rendered with `SYNTH_GEOTAG=1`; [`with_case_groups`] fills them in).
+            "geotag" => {
+                o.sun_clock = (num() > 0.0).then(|| ClockSuns {
+                    per_photo: Vec::new(),
+                    source: String::new(),
+                })
+            }
             // Shared light (issue 25): photos rendered under the same true map (and
             // rotation) share one fitted map with per-photo gains ([`with_case_groups`]).
             "shared" => {
@@ -244,16 +259,22 @@ fn prior_opts(o: &mut EstimateOptions) -> &mut LightPriorOptions {
     })
 }
 
-/// `o` with its light groups (spec `shared=1`) filled in from the case's truth: training
-/// photos with the same map and rotation in `truth/manifest.json` share a group.
+/// `o` with its light groups (spec `shared=1`) filled in from the case's truth (training
+/// photos with the same map and rotation in `truth/manifest.json` share a group), and its
+/// geotag suns (spec `geotag=1`) from the case's photos.
 fn with_case_groups(case: &Case, o: &EstimateOptions) -> EstimateOptions {
-    if o.light_groups.is_none() {
-        return o.clone();
+    let mut o = o.clone();
+    if o.light_groups.is_some() {
+        o.light_groups = Some(case.true_light_groups());
     }
-    EstimateOptions {
-        light_groups: Some(case.true_light_groups()),
-        ..o.clone()
+    if o.sun_clock.is_some() {
+        o.sun_clock = Some(
+            case.geotag_suns
+                .clone()
+                .expect("spec geotag=1 needs a scene rendered with SYNTH_GEOTAG=1"),
+        );
     }
+    o
 }
 
 /// The specs in environment variable `var`, if set.
@@ -261,6 +282,14 @@ fn specs_from_env(var: &str, base: &EstimateOptions) -> Option<Vec<Spec>> {
     std::env::var(var)
         .ok()
         .map(|v| v.split(';').map(|s| parse_spec(s, base)).collect())
+}
+
+/// The seed the joint part's scene is rendered with (`JOINT_SEED`, default 1).
+fn joint_seed() -> u64 {
+    std::env::var("JOINT_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1)
 }
 
 /// The joint parts' scene (`JOINT_SCENE`, default `spot-varying`).
@@ -285,6 +314,18 @@ fn main() {
     let mut md = String::from(
         "# Estimator on known-truth scenes\n\nWritten by `cargo bench --bench estimator`.\n\n",
     );
+    md.push_str(&run_line::environment_line(
+        "estimator",
+        &[
+            "ESTIMATOR_BENCH",
+            "JOINT_",
+            "KNOWN_",
+            "ROBUST_",
+            "CONVERGENCE_",
+            "SYNTH_",
+            "RESULTS_SUFFIX",
+        ],
+    ));
     let mut out = serde_json::Map::new();
     if parts.contains("known") {
         out.insert("known_reflectance".into(), known(&mut md));

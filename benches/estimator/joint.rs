@@ -142,7 +142,7 @@ pub(crate) const JOINT_HEADER: &str = "| fit | assigned (all seen) | assigned (p
 pub(crate) fn joint(md: &mut String) -> Value {
     let s = sizes_joint();
     let scene = joint_scene();
-    let mut case = prepare(&scene, s, 1, "joint");
+    let mut case = prepare(&scene, s, joint_seed(), "joint");
     // `JOINT_NOISE_FREE=1`: every observation the true reflectance under the true light
     // through the case's own transport (floor 0: the estimator's own error).
     let clean = std::env::var("JOINT_NOISE_FREE").is_ok_and(|v| v == "1");
@@ -177,10 +177,17 @@ pub(crate) fn joint(md: &mut String) -> Value {
         s.width,
         s.spp,
         s.light_samples,
-        if scene == "spot-groups" {
-            "three real maps (courtyard, forest, city), photo i under map i mod 3, unrotated"
-        } else {
-            "8 real maps cycling, each rotated"
+        match scene.as_str() {
+            "spot-groups" => {
+                "three real maps (courtyard, forest, city), photo i under map i mod 3, unrotated"
+            }
+            "spot-sky" if case.geotag_suns.is_some() => {
+                "a clear sky (Hosek–Wilkie), sun lobe and ground per photo, the suns of one summer day's clock, every photo geotagged (`SYNTH_GEOTAG=1`)"
+            }
+            "spot-sky" => {
+                "a clear sky (Hosek–Wilkie), sun lobe and ground per photo, a different sun each"
+            }
+            _ => "8 real maps cycling, each rotated",
         },
         basis_text(&case),
         s.global,
