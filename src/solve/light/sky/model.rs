@@ -1,6 +1,8 @@
 //! [`SkyLight`]: the sun-and-sky light model as a [`LightModel`] (the math in the parent
-//! module's docs). Photos are independent and fitted in parallel, largest first; each fit
-//! is sequential, so results do not depend on the thread count. The model fits by plain
+//! module's docs). Photos are fitted in parallel, largest first; each fit is sequential,
+//! so results do not depend on the thread count. Geotagged photos share one thing: the
+//! frame azimuth of north, chosen before the photos' steps from their summed search errors
+//! (each photo's profile over the candidates computed in parallel, summed in photo order). The model fits by plain
 //! least squares (its IRLS weights are 1) on all of a photo's observations (no lighting
 //! sample).
 
