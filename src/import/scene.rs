@@ -6,7 +6,7 @@
 //! every photo in parallel and checks its size against its camera). `inspect`
 //! ([`crate::observe::inspect`]) reports what import found.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
@@ -45,6 +45,16 @@ pub struct Scene {
     pub skipped: Vec<String>,
     /// The fused point cloud carried to the mesh vertices, when `fused.ply` exists.
     pub fused: Option<FusedTransfer>,
+}
+
+impl Scene {
+    /// The photo files of the views `views` (indices into [`Scene::views`]), in that order.
+    pub fn photo_paths(&self, views: &[usize]) -> Vec<&Path> {
+        views
+            .iter()
+            .map(|&v| self.views[v].photo_path.as_path())
+            .collect()
+    }
 }
 
 /// Reads the model, the mesh and (when present) the fused points of a discovered

@@ -12,11 +12,7 @@ use crate::solve::light::sky::clock::{ClockSun, ClockSuns};
 /// The suns of the training photos `train` (views of `scene`, in the problem's photo
 /// order); `None` when none has one.
 pub fn resolve(scene: &Scene, train: &[usize]) -> Option<ClockSuns> {
-    let paths: Vec<&Path> = train
-        .iter()
-        .map(|&v| scene.views[v].photo_path.as_path())
-        .collect();
-    suns_of(&paths)
+    suns_of(&scene.photo_paths(train))
 }
 
 /// The suns of the photos at `paths` (module docs); `None` when none has one.

@@ -123,11 +123,7 @@ pub(crate) fn resolve(
         );
         return Ok(Some(LightGroups { source, ..g }));
     }
-    let paths: Vec<&Path> = train
-        .iter()
-        .map(|&v| scene.views[v].photo_path.as_path())
-        .collect();
-    Ok(groups_by_time(&paths, minutes))
+    Ok(groups_by_time(&scene.photo_paths(train), minutes))
 }
 
 /// Groups of the photos at `paths` by EXIF capture time (module docs); `None` when
