@@ -12,8 +12,11 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use super::clock::{north_grid, north_refinement, ClockSun};
+use super::clock::ClockSun;
 use super::search::{Candidate, SearchData, ALL_FREE, SUN_FIXED};
+use north::clock_theta;
+
+mod north;
 use super::{
     coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
 };
@@ -445,74 +448,6 @@ impl SkyLight {
         }
     }
 
-    /// North `ν` from the geotagged photos ([`super::clock`]): through the first
-    /// [`REGRID_ITERATIONS`] iterations (and at the first step) the best of the coarse
-    /// [`north_grid`] by the summed search error, then refined around it; later steps
-    /// refine the previous `ν` only. Each candidate is scored with every photo's previous
-    /// turbidity and lobe and its residual fixed.
-    fn update_north(
-        &mut self,
-        problem: &Problem,
-        beta: &[[f64; 3]],
-        outer_iteration: usize,
-    ) -> Result<()> {
-        if self.clock.iter().all(Option::is_none) {
-            return Ok(());
-        }
-        let centre = match self.north {
-            Some(n) if outer_iteration > REGRID_ITERATIONS => n,
-            _ => self.best_north(problem, beta, &north_grid())?,
-        };
-        let best = self.best_north(problem, beta, &north_refinement(centre))?;
-        self.north = Some(best.rem_euclid(std::f64::consts::TAU));
-        Ok(())
-    }
-
-    /// The candidate `ν` with the least search error summed over the geotagged photos.
-    fn best_north(&self, problem: &Problem, beta: &[[f64; 3]], norths: &[f64]) -> Result<f64> {
-        let sizes: Vec<usize> = (0..problem.n_photos)
-            .map(|i| match self.clock_sun(i) {
-                Some(_) => problem.obs.photo_ranges[i].len(),
-                None => 0,
-            })
-            .collect();
-        let profiles: Vec<Result<Vec<f64>>> =
-            par_largest_first(&sizes, |i| self.north_profile(problem, beta, i, norths));
-        let mut total = vec![0.0; norths.len()];
-        for p in profiles {
-            total.iter_mut().zip(p?).for_each(|(t, v)| *t += v);
-        }
-        let k = (0..norths.len())
-            .min_by(|&a, &b| total[a].total_cmp(&total[b]))
-            .ok_or_else(|| Error::Internal("no candidate north".into()))?;
-        Ok(norths[k])
-    }
-
-    /// Photo `photo`'s search error at each candidate north (zeros without a geotag).
-    fn north_profile(
-        &self,
-        problem: &Problem,
-        beta: &[[f64; 3]],
-        photo: usize,
-        norths: &[f64],
-    ) -> Result<Vec<f64>> {
-        let Some(sun) = self.clock_sun(photo) else {
-            return Ok(vec![0.0; norths.len()]);
-        };
-        let rows = Rows::new(problem, photo);
-        let sys = self.photo_system(problem, beta, &rows);
-        let target = self.search_target(&sys, &rows, photo);
-        let search = SearchData {
-            sys: &sys,
-            target: &target,
-        };
-        let prev = &self.params[photo].theta;
-        norths
-            .iter()
-            .map(|&nu| Ok(search.evaluate(clock_theta(sun, nu, prev))?.sse))
-            .collect()
-    }
-
     /// Step 2, the residual prior at the current light's scale: `σ²` from the photo's mean
     /// square, `h0` the total light's mean per channel, and the per-coefficient weights
     /// `d` ([`residual_weights`]).
@@ -581,17 +516,6 @@ impl SkyLight {
                 message: e.to_string(),
             })
     }
-}
-
-/// The `θ` of a geotagged photo: its sun at north `north`, the turbidity and lobe of
-/// `prev`.
-fn clock_theta(sun: ClockSun, north: f64, prev: &SunSky) -> SunSky {
-    SunSky::from_angles(
-        sun.frame_azimuth(north),
-        sun.elevation,
-        prev.turbidity,
-        prev.kappa,
-    )
 }
 
 impl LightModel for SkyLight {
