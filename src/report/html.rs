@@ -247,6 +247,33 @@ fn training_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {
         img("plots/per_photo_rmse.png", "RMSE per photo", "plot")
     );
     truth_check_table(s, &r.truth_check);
+    if let Some(sky) = &r.model.sky {
+        sky_table(s, sky);
+    }
+}
+
+/// The recovered sun of every training photo (`--light sky`), beside the truth's where
+/// there is one ([`crate::report::sky`]).
+fn sky_table(s: &mut String, sky: &crate::report::sky::SkyReport) {
+    let _ = writeln!(
+        s,
+        "<h3 id=\"sky\">Sun and sky</h3><p>{}</p><table><tr>",
+        esc(&sky.summary())
+    );
+    for (i, h) in sky.header().iter().enumerate() {
+        let class = if i < 2 { " class=\"l\"" } else { "" };
+        let _ = write!(s, "<th{class}>{}</th>", esc(h));
+    }
+    let _ = writeln!(s, "</tr>");
+    for row in sky.rows() {
+        let _ = write!(s, "<tr>");
+        for (i, c) in row.iter().enumerate() {
+            let class = if i < 2 { " class=\"l\"" } else { "" };
+            let _ = write!(s, "<td{class}>{}</td>", esc(c));
+        }
+        let _ = writeln!(s, "</tr>");
+    }
+    let _ = writeln!(s, "</table>");
 }
 
 /// The truth check of synthetic workspaces: training photos rendered from the fit under the

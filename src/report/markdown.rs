@@ -1,5 +1,6 @@
 //! `report.md`: the run report for people, in Markdown (the headline, the held-out
-//! figures per protocol, the literature metrics, the truth check, the model and its
+//! figures per protocol, the literature metrics, the truth check, the recovered suns of
+//! `--light sky`, the model and its
 //! reasons, the stages), beside `report.json` ([`super::RunReport::write`]).
 
 use super::{metrics, RunReport};
@@ -18,6 +19,9 @@ impl RunReport {
         self.markdown_headline(&mut s);
         self.markdown_holdout(&mut s);
         self.markdown_truth_check(&mut s);
+        if let Some(sky) = &self.model.sky {
+            s.push_str(&sky.markdown());
+        }
         self.markdown_training(&mut s);
         if with_maps {
             markdown_maps(&mut s);

@@ -23,6 +23,7 @@ pub mod html;
 mod markdown;
 pub mod metrics;
 pub mod plot;
+pub mod sky;
 
 use crate::stages::StageRecord;
 use crate::{Error, Result};
@@ -113,6 +114,9 @@ pub struct ModelReport {
     /// The ratio step (`--ratio-steps`): whether it ran, why, and what it did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio_step: Option<RatioStepReport>,
+    /// Each training photo's recovered sun and sky (the light model `sky`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sky: Option<sky::SkyReport>,
 }
 
 /// The ratio step's rounds and moves ([`crate::solve::ratio_step`]).

@@ -40,6 +40,7 @@ mod output;
 mod pipeline;
 pub mod progress;
 mod shading;
+mod sky_report;
 mod state;
 mod tracker;
 mod transients;

@@ -25,6 +25,8 @@ pub struct TruthPhoto {
     /// The map's azimuthal rotation in texels: photos with the same map and rotation were
     /// taken under one sky (0 where the manifest has none).
     pub rotation_texels: u64,
+    /// The sun direction (the truth's environment frame) of a sun-and-sky map.
+    pub sun: Option<Vec3>,
 }
 
 /// The ground truth of a synthetic workspace (`truth/manifest.json`, written by `synth`).
@@ -38,6 +40,8 @@ pub struct Truth {
     pub env_from_world: Matrix3<f64>,
     /// Per photo name.
     pub photos: BTreeMap<String, TruthPhoto>,
+    /// The frame azimuth of north (the truth's environment frame) of geotagged photos.
+    pub north: Option<f64>,
     /// The maps [`Truth::light`] has made, by photo, side and frame: a held-out photo's
     /// light is asked for by the held-out tracker and again by the evaluation.
     lights: Arc<Mutex<HashMap<LightKey, OctEnv>>>,
@@ -87,6 +91,7 @@ impl Truth {
                     white_balance: [0, 1, 2].map(|c| wb[c].as_f64().unwrap_or(1.0)),
                     map: p["map"].as_str().unwrap_or_default().to_string(),
                     rotation_texels: p["rotation_texels"].as_u64().unwrap_or(0),
+                    sun: vec3_of(&p["sun"]),
                 },
             );
         }
@@ -95,6 +100,7 @@ impl Truth {
             held_out,
             env_from_world,
             photos,
+            north: json["north_radians"].as_f64(),
             lights: Arc::default(),
         })
     }
@@ -162,4 +168,10 @@ impl Truth {
         }
         Ok(Some(env))
     }
+}
+
+/// A JSON array of three numbers as a vector; `None` for anything else.
+fn vec3_of(v: &serde_json::Value) -> Option<Vec3> {
+    let a = v.as_array().filter(|a| a.len() == 3)?;
+    Some(Vec3::new(a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?))
 }

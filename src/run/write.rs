@@ -39,7 +39,8 @@ pub(crate) fn write(
         transients_note(t, &fitted, dir, log)?;
     }
     super::notes::fit_notes(opts, &fitted, &multi, log);
-    let model = model_report(opts, &fitted, reasons, decisions, light_decision);
+    let mut model = model_report(opts, &fitted, reasons, decisions, light_decision);
+    model.sky = super::sky_report::sky_report(&fitted, truth);
     let mut report = RunReport {
         version: env!("CARGO_PKG_VERSION").to_string(),
         workspace: opts.workspace.display().to_string(),
@@ -117,6 +118,7 @@ fn model_report(
             rule: fitted.est.normalisation.clone(),
         }),
         ratio_step: Some(ratio_step_report(opts, fitted)),
+        sky: None,
     }
 }
 

@@ -675,6 +675,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             self.opts,
         );
         Ok(Estimate {
+            sky: self.light.sky_fit(),
             mu: self.light.prior_weights(),
             lights: self.light.into_maps(),
             lambda: self.lambda,

@@ -340,4 +340,28 @@ fn a_geotagged_workspace_gives_run_its_suns() {
         "{:?}",
         r.model.reasons
     );
+    // The report's suns against the rendered ones. A clock sun is placed from the run's
+    // horizon (the cameras' up) at the fitted north, so it lies off the rendered sun by
+    // the composition of two rotations, the up's tilt and north's error: at most their
+    // sum (the angle of a composed rotation is at most the sum of the angles), plus
+    // 0.01° for the geotag's rounding (above). North is searched on a 0.5° grid by a fit
+    // of 2 rounds at 48² photos, whose 16² map has 11°-wide texels: a texel bounds it.
+    let sky = r.model.sky.as_ref().expect("the report's sun and sky");
+    assert_eq!(sky.photos.len(), 6);
+    let up = sky
+        .cameras_up_error_degrees
+        .expect("the cameras' up against the truth's");
+    let north = sky
+        .truth_north_error_degrees
+        .expect("north against the truth's");
+    assert!(north < 11.0, "north {north:.2}° from the truth's");
+    for p in &sky.photos {
+        assert_eq!(p.sun_from, "geotag", "{}", p.image);
+        let e = p.truth_error_degrees.expect("each sun against the truth's");
+        assert!(
+            e <= up + north + 0.01,
+            "{}: {e:.3}° against up {up:.3}° + north {north:.3}°",
+            p.image
+        );
+    }
 }

@@ -125,6 +125,11 @@ pub trait LightModel: Send + Sync {
     /// The maps of the final parameters, per photo and channel.
     fn into_maps(self) -> Vec<[Vec<f64>; 3]>;
 
+    /// Each photo's recovered sun and sky, for a parametric sky model; `None` otherwise.
+    fn sky_fit(&self) -> Option<sky::summary::SkyFit> {
+        None
+    }
+
     /// The check of a lighting sample at the state `lambda`, `weights` and the current
     /// parameters, when the model fitted its lights on samples of the observations
     /// ([`crate::solve::EstimateOptions::lighting_sample`]); `None` otherwise.

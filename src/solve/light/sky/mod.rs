@@ -63,6 +63,7 @@
 pub mod clock;
 pub mod model;
 pub mod search;
+pub mod summary;
 #[cfg(test)]
 mod tests;
 

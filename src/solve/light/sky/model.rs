@@ -14,6 +14,7 @@ use std::sync::Arc;
 
 use super::clock::ClockSun;
 use super::search::{Candidate, SearchData, ALL_FREE, SUN_FIXED};
+use super::summary::{SkyFit, SkyPhotoFit};
 use north::clock_theta;
 
 mod north;
@@ -530,6 +531,22 @@ impl LightModel for SkyLight {
             .iter()
             .map(|p| 4 + 3 * N_BASIS + p.residual.iter().map(Vec::len).sum::<usize>())
             .sum()
+    }
+
+    fn sky_fit(&self) -> Option<SkyFit> {
+        let photos = self
+            .params
+            .iter()
+            .enumerate()
+            .map(|(i, p)| SkyPhotoFit {
+                theta: p.theta,
+                from_clock: self.north.is_some() && self.clock_sun(i).is_some(),
+            })
+            .collect();
+        Some(SkyFit {
+            photos,
+            north: self.north,
+        })
     }
 
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
