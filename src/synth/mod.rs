@@ -360,9 +360,15 @@ pub const GEOTAG_DAY: i64 = 19_895;
 /// 68° high).
 pub const GEOTAG_HOURS: (f64, f64) = (6.0, 17.0);
 
+/// A geotagged photo's tag and the sun it gives (environment frame).
+struct TaggedSun {
+    tag: GeoTag,
+    sun: Vec3,
+}
+
 /// Photo `i` of `n`'s geotag and sun under [`SynthOptions::geotag`], north at frame
 /// azimuth `north`.
-fn clock_sun(rng: &mut Pcg32, i: usize, n: usize, north: f64) -> Result<(GeoTag, Vec3)> {
+fn clock_sun(rng: &mut Pcg32, i: usize, n: usize, north: f64) -> Result<TaggedSun> {
     use crate::solve::light::sky::clock::ClockSun;
     use crate::solve::light::sky::SunSky;
     let (h0, h1) = GEOTAG_HOURS;
@@ -375,7 +381,10 @@ fn clock_sun(rng: &mut Pcg32, i: usize, n: usize, north: f64) -> Result<(GeoTag,
     let sun = ClockSun::at(&tag)
         .ok_or_else(|| Error::Internal(format!("synth --geotag: no sun at {hours:.2} h UTC")))?;
     let theta = SunSky::from_angles(sun.frame_azimuth(north), sun.elevation, 3.0, 1.0);
-    Ok((tag, theta.sun))
+    Ok(TaggedSun {
+        tag,
+        sun: theta.sun,
+    })
 }
 
 /// Per photo a map and its rotation, as the scene's lighting says; with `shared_skies` a
@@ -397,7 +406,7 @@ fn plan_lighting(
             Lighting::Varying(list) => (list[i % list.len()], true),
             Lighting::Sky => {
                 let sun = if let Some(north) = north {
-                    let (tag, sun) = clock_sun(rng, i, n_photos, north)?;
+                    let TaggedSun { tag, sun } = clock_sun(rng, i, n_photos, north)?;
                     geotags[i] = Some(tag);
                     sun
                 } else {

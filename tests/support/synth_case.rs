@@ -286,13 +286,13 @@ pub fn prepare_in(
         nv * k,
         "the cleaned mesh must keep synth's vertices"
     );
-    let train_paths: Vec<&Path> = sc
-        .views
-        .iter()
-        .filter(|v| !truth.held_out.contains(&v.image.name))
-        .map(|v| v.photo_path.as_path())
-        .collect();
-    let geotag_suns = relight_cpc::run::geotag_suns::suns_of(&train_paths);
+    // The views held out (`true`) or trained on, in the workspace's order.
+    let view_indices = |held: bool| -> Vec<usize> {
+        (0..sc.views.len())
+            .filter(|&i| truth.held_out.contains(&sc.views[i].image.name) == held)
+            .collect()
+    };
+    let geotag_suns = relight_cpc::run::geotag_suns::suns_of(&sc.photo_paths(&view_indices(false)));
     let env_from_world = truth.env_from_world;
     let normals_env: Vec<Vec3> = sc.mesh.normals.iter().map(|n| env_from_world * n).collect();
     let bvh = SceneBvh::new(&sc.mesh);
@@ -316,9 +316,7 @@ pub fn prepare_in(
         keep: sizes.keep,
     };
     let split = |held: bool| -> Split {
-        let idx: Vec<usize> = (0..sc.views.len())
-            .filter(|&i| truth.held_out.contains(&sc.views[i].image.name) == held)
-            .collect();
+        let idx = view_indices(held);
         let views: Vec<_> = idx.iter().map(|&i| sc.views[i].clone()).collect();
         let ph: Vec<_> = idx.iter().map(|&i| photos[i].clone()).collect();
         // The paper's observation rule: the estimator's tests measure the estimator, and
