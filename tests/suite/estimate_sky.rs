@@ -365,3 +365,79 @@ fn a_geotagged_workspace_gives_run_its_suns() {
         );
     }
 }
+
+/// `--light auto` scores its candidates on the right halves of 4 training photos held
+/// back whole, then fits the model it keeps again with the run's own early stopping: the
+/// result is that model's run, to the last bit (the refit has the same options, data and
+/// seed as `--light <model>`; the scores are the halves' and not what the kept fit's early
+/// stopping saw). The reason says how the candidates were scored.
+#[test]
+fn light_auto_scores_on_photo_halves_and_refits_the_model_kept() {
+    use relight_cpc::run::{run, MaterialCount, RunOptions};
+    use relight_cpc::solve::light::choose::LightChoice;
+    use relight_cpc::synth::{build, SynthOptions};
+    use relight_cpc::transport::reference::Samples;
+    let dir = scratch("light-auto-halves");
+    let ws = dir.0.join("ws");
+    let synth = SynthOptions {
+        width: 48,
+        height: 48,
+        photos: Some(8),
+        vertices: Some(600),
+        geotag: true,
+        samples: Samples {
+            per_pixel: 1,
+            light: 8,
+            seed: 2,
+        },
+        points: 400,
+        ..SynthOptions::default()
+    };
+    build("spot-sky", &ws, &synth).unwrap();
+    let options = |light: LightChoice, out: &str| {
+        let mut o = RunOptions::new(ws.clone(), dir.0.join(out));
+        o.light = light;
+        o.global_resolution = 16;
+        o.keep = 64;
+        o.max_iterations = 2;
+        o.materials = MaterialCount::Fixed(2);
+        o.progress = false;
+        o.render_training = false;
+        o
+    };
+    let auto = run(&options(LightChoice::Auto, "auto"))
+        .expect("run --light auto")
+        .report;
+    let decision = auto.model.light.as_ref().expect("the light decision");
+    assert_eq!(decision.scores.len(), 3, "{decision:?}");
+    assert!(
+        decision
+            .why
+            .contains("scored on the right halves of 4 training photos held back whole"),
+        "{}",
+        decision.why
+    );
+    let kept = LightChoice::parse(&decision.model).unwrap();
+    let direct = run(&options(kept, "direct"))
+        .expect("run with the model kept")
+        .report;
+    assert_eq!(auto.train_rmse.to_bits(), direct.train_rmse.to_bits());
+    assert_eq!(auto.holdout.len(), direct.holdout.len());
+    for (a, d) in auto.holdout.iter().zip(&direct.holdout) {
+        assert_eq!(
+            (a.image.as_str(), a.protocol.as_str(), a.rmse.to_bits()),
+            (d.image.as_str(), d.protocol.as_str(), d.rmse.to_bits())
+        );
+    }
+    let best = decision
+        .scores
+        .iter()
+        .map(|(_, s)| *s)
+        .fold(f64::INFINITY, f64::min);
+    let kept_score = decision
+        .scores
+        .iter()
+        .find(|(n, _)| *n == decision.model)
+        .map(|(_, s)| *s);
+    assert_eq!(kept_score, Some(best), "{decision:?}");
+}

@@ -53,8 +53,9 @@ pub(crate) struct RunArgs {
     /// `prior` (the same map kept close to what real skies look like, learnt from real HDR
     /// maps), `shared` (one map per group of photos under one sky, per-photo gains), `sky`
     /// (an outdoor sun and sky per photo plus a penalised residual map), `auto` (every model
-    /// that applies fitted, the one that predicts held-back observations best kept; that
-    /// many times the fitting time).
+    /// that applies fitted, the one that best predicts the right halves of a few training
+    /// photos held back whole kept and fitted again; that many times the fitting time,
+    /// plus one).
     #[arg(long, default_value = "paper", value_parser = ["paper", "prior", "shared", "sky", "auto"], help_heading = "Model")]
     pub(crate) light: String,
     /// Find people, cars and other things in front of the object in some photos (where a
@@ -80,6 +81,11 @@ pub(crate) struct RunArgs {
     /// the whole collection).
     #[arg(long, help_heading = "Model")]
     pub(crate) no_geotag_suns: bool,
+    /// Under `--light auto`, score the candidate light models on the right halves of this
+    /// many training photos held back whole, then fit the model kept again with the run's
+    /// own early stopping; 0 = score them on early stopping's held-back observations.
+    #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHT_CHOICE_HALVES, help_heading = "Model")]
+    pub(crate) light_choice_halves: usize,
     /// What fixes the per-channel scale between colours and light, which photos can never
     /// tell apart: `start` (the balance of the starting colours) or `grey-world` (the
     /// surface's mean diffuse albedo is 0.5 in each channel).

@@ -114,6 +114,7 @@ impl RunArgs {
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;
         o.geotag_suns = !self.no_geotag_suns;
+        o.light_choice_halves = self.light_choice_halves;
         o.scale_anchor = relight_cpc::solve::normalise::ScaleAnchor::parse(&self.scale_anchor)?;
         Ok(())
     }

@@ -85,8 +85,17 @@ pub(super) struct Estimated {
     pub(super) timeline: Vec<TimelinePoint>,
 }
 
+/// One light model's fit from every start, and its points' range in the timeline.
+struct ModelFit {
+    est: solve::Estimate,
+    multi: MultiStart,
+    points: std::ops::Range<usize>,
+}
+
 /// Each candidate light model (`--light`) fitted from every start; the one the validation
-/// score keeps ([`choose::decide`]), its reason pushed to `start`.
+/// score keeps ([`choose::decide`]), its reason pushed to `start`. With the choice's photo
+/// halves ([`FitStart::choice_halves`]) the candidates are scored on those halves held
+/// back and the model kept is fitted again with the run's own early stopping.
 fn fit_light_models(
     opts: &RunOptions,
     problem: &Problem,
@@ -95,44 +104,97 @@ fn fit_light_models(
     monitor: &Monitor,
     log: &mut RunLog,
 ) -> Result<Estimated> {
-    let n_starts = family.len();
     let mut timeline: Vec<TimelinePoint> = Vec::new();
     let light_models = choose::candidates(opts.light, &start.eopts)?;
+    let choosing = start
+        .choice_halves
+        .clone()
+        .filter(|_| light_models.len() > 1);
+    let per_model = monitor.bar.length().unwrap_or(0);
+    let fits_planned = light_models.len() + usize::from(choosing.is_some());
+    monitor.bar.set_length(per_model * fits_planned as u64);
     let mut fits = Vec::with_capacity(light_models.len());
-    let mut timeline_ranges = Vec::with_capacity(light_models.len());
     for model in &light_models {
-        let first = timeline.len();
-        let family = family.to_vec();
-        let eopts = &model.options;
-        fits.push(log.stages.run("estimate", || {
-            starts::estimate_best(problem, family, eopts, &mut |si, it, state| {
-                monitor.bar.inc(1);
-                let holdout_rmse = monitor.held_out(state);
-                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                monitor.say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
-                timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
-            })
-        })?);
-        timeline_ranges.push(first..timeline.len());
+        let mut eopts = model.options.clone();
+        if let Some(h) = &choosing {
+            eopts.validation_halves = Some(h.clone());
+        }
+        fits.push(fit_model(
+            problem,
+            family,
+            &eopts,
+            monitor,
+            &mut timeline,
+            log,
+        )?);
     }
     let scores: Vec<f64> = fits
         .iter()
-        .map(|(e, _)| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error()))
+        .map(|f| {
+            f.est
+                .validation
+                .as_ref()
+                .map_or(f64::NAN, |v| v.best_error())
+        })
         .collect();
     let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
-    let (pick, light_decision) = choose::decide(opts.light, &names, &scores);
+    let (pick, mut light_decision) = choose::decide(opts.light, &names, &scores);
+    let mut kept = fits.swap_remove(pick);
+    if let Some(h) = &choosing {
+        light_decision.why = format!(
+            "{}, each scored on the right halves of {} training photos held back whole; \
+             the model kept fitted again with early stopping's own held-back observations",
+            light_decision.why,
+            h.right.len()
+        );
+        let eopts = &light_models[pick].options;
+        kept = fit_model(problem, family, eopts, monitor, &mut timeline, log)?;
+    }
     start.reasons.push(format!(
         "light model `{}`: {}",
         light_decision.model, light_decision.why
     ));
-    let (est, multi) = fits.swap_remove(pick);
     Ok(Estimated {
-        est,
-        multi,
+        est: kept.est,
+        multi: kept.multi,
         eopts: light_models[pick].options.clone(),
         light_decision,
-        // The timeline of the model kept.
-        timeline: timeline.drain(timeline_ranges[pick].clone()).collect(),
+        // The timeline of the fit kept.
+        timeline: timeline.drain(kept.points).collect(),
+    })
+}
+
+/// One light model's options fitted from every start, its iterations on the console and
+/// appended to `timeline`.
+fn fit_model(
+    problem: &Problem,
+    family: &[starts::Start],
+    eopts: &EstimateOptions,
+    monitor: &Monitor,
+    timeline: &mut Vec<TimelinePoint>,
+    log: &mut RunLog,
+) -> Result<ModelFit> {
+    let n_starts = family.len();
+    let first = timeline.len();
+    let family = family.to_vec();
+    let (est, multi) = log.stages.run("estimate", || {
+        starts::estimate_best(problem, family, eopts, &mut |si, it, state| {
+            monitor.bar.inc(1);
+            let holdout_rmse = monitor.held_out(state);
+            let n_it = timeline
+                .iter()
+                .skip(first)
+                .filter(|p| p.start == si)
+                .count()
+                + 1;
+            monitor.say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
+            timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
+        })
+    })?;
+    Ok(ModelFit {
+        est,
+        multi,
+        points: first..timeline.len(),
     })
 }
 

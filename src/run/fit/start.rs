@@ -51,6 +51,9 @@ pub(super) struct FitStart {
     /// pass clustered the start again from them (else `Prepared`'s); `--start-weights`
     /// unmixes them.
     recoloured: Option<(Vec<[f64; 3]>, Vec<bool>)>,
+    /// The photo halves `--light auto` scores its candidates on
+    /// ([`RunOptions::light_choice_halves`]); `None`: early stopping's own score.
+    pub(super) choice_halves: Option<std::sync::Arc<crate::solve::options::PhotoHalves>>,
 }
 
 impl FitStart {
@@ -79,6 +82,7 @@ impl FitStart {
             reasons,
             transients: None,
             recoloured: None,
+            choice_halves: None,
         })
     }
 
@@ -144,6 +148,9 @@ impl FitStart {
             }
         }
         self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);
+        if opts.light == LightChoice::Auto && self.eopts.validation_halves.is_none() {
+            self.choice_halves = photo_halves(scene, train, obs, opts.light_choice_halves);
+        }
         Ok(())
     }
 

@@ -4,9 +4,10 @@
 //! ([`crate::solve::light::shared`]), the sun and sky of [`crate::solve::light::sky`], or
 //! `auto`, which fits each that applies (`shared`
 //! only when some group holds two photos or more) and keeps the one with the lowest
-//! early-stopping validation score (the same seeded held-back observations for all,
-//! [`crate::solve::Validation`]), as `--adaptive` chooses the model order by held-out
-//! error.
+//! validation score (the same seeded held-back data for all, [`crate::solve::Validation`]),
+//! as `--adaptive` chooses the model order by held-out error. `run` holds back the right
+//! halves of a few training photos for that score and fits the model kept again with its
+//! own early stopping (docs/method.md, "Choosing the light model").
 
 use crate::solve::light::sh_prior::LightPriorOptions;
 use crate::solve::EstimateOptions;
@@ -170,7 +171,7 @@ pub fn decide(choice: LightChoice, names: &[&str], scores: &[f64]) -> (usize, Li
         LightChoice::Auto => format!("--light auto: {} is the only model fitted", names[best]),
         LightChoice::Paper => "--light paper, the default: the paper's \
             free map per photo (--light auto fits every model that applies and keeps the one \
-            that predicts held-back observations best)"
+            that predicts held-back data best)"
             .to_string(),
         c => format!("--light {}, as given", c.name()),
     };
