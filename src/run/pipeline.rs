@@ -67,6 +67,13 @@ fn evaluation(
     progress: &Progress,
 ) -> Result<Evaluated> {
     progress.stage("evaluation");
+    if let Some(n) = super::half_fit::clock_suns_held_out(&fit.fitted) {
+        log.notes.push(format!(
+            "protocol `half` fits the light of {n} of the {} held-out photos (those with a geotag) within the sun-and-sky model the training photos were fitted in ({} lighting steps, the sun from the photo's clock at the training photos' north), the others as a free map",
+            fit.fitted.held.len(),
+            crate::solve::light::sky::held_out::HELD_OUT_ROUNDS
+        ));
+    }
     let half_fit_prior = if fit.fitted.held.is_empty() {
         None
     } else {

@@ -346,6 +346,14 @@ fn a_geotagged_workspace_gives_run_its_suns() {
     // sum (the angle of a composed rotation is at most the sum of the angles), plus
     // 0.01° for the geotag's rounding (above). North is searched on a 0.5° grid by a fit
     // of 2 rounds at 48² photos, whose 16² map has 11°-wide texels: a texel bounds it.
+    // Protocol (b) fits both geotagged held-out photos within the sun and sky.
+    assert!(
+        r.notes
+            .iter()
+            .any(|n| n.contains("protocol `half` fits the light of 2 of the 2 held-out photos")),
+        "{:?}",
+        r.notes
+    );
     let sky = r.model.sky.as_ref().expect("the report's sun and sky");
     assert_eq!(sky.photos.len(), 6);
     let up = sky
@@ -440,4 +448,82 @@ fn light_auto_scores_on_photo_halves_and_refits_the_model_kept() {
         .find(|(n, _)| *n == decision.model)
         .map(|(_, s)| *s);
     assert_eq!(kept_score, Some(best), "{decision:?}");
+}
+
+/// Held-out protocol (b) under the sun and sky (`fit_held_out`): the light of a photo
+/// fitted with the TRUE reflectance frozen on the observations whose normals face one
+/// side of its sun's vertical plane, scored on the other side's, which that half never
+/// saw. A free map per photo (the paper's frozen lighting step) knows the unseen side's
+/// light only through its smoothness prior; the sun and sky with the clock's sun at the
+/// collection's north carries it over. Every training photo of the small `spot-sky` case
+/// (the photos rendered from the truth, 8-bit), relative RMSE over the held-back
+/// observations over all photos. Measured: sky 0.566, free map 1.547 (0.37 of it); the
+/// bound, 0.6 of the free map's, leaves a 1.6× margin on that ratio.
+#[test]
+fn a_held_out_sky_fit_extrapolates_where_the_free_map_cannot() {
+    use relight_cpc::solve::light::frozen::{fit_light_scheduled, PassCaps};
+    use relight_cpc::solve::light::sky::held_out::fit_held_out;
+    use relight_cpc::solve::{predict, Problem};
+    let c = sky_case();
+    let case = &c.case;
+    let mut obs = case.train.obs.clone();
+    let mut held = Vec::new();
+    for (i, range) in obs.photo_ranges.clone().into_iter().enumerate() {
+        let s = c.suns[i];
+        let side = Vec3::new(-s.y, s.x, 0.0).normalize();
+        for q in range {
+            if case.normals_env[obs.vertex[q] as usize].dot(&side) > 0.0 {
+                held.push(q);
+            }
+        }
+    }
+    for &q in &held {
+        obs.weight[q] = 0.0;
+    }
+    let problem = Problem {
+        obs: &obs,
+        transport: &case.train.transport,
+        n_vertices: case.nv,
+        n_photos: obs.photo_ranges.len(),
+    };
+    let beta = beta_per_vertex(&case.lambda, &case.weights, case.nv);
+    let opts = EstimateOptions::default();
+    let north = Some(TRUE_NORTH);
+    let sky = fit_held_out(
+        &problem,
+        &beta,
+        &opts,
+        &SkyOptions::default(),
+        Some(geotag_suns(c)),
+        north,
+    )
+    .unwrap();
+    let passes = [PassCaps {
+        gpcg: opts.qp_max_iter,
+        cg: opts.qp_max_cg,
+    }];
+    let paper: Vec<[Vec<f64>; 3]> = (0..problem.n_photos)
+        .map(|i| {
+            fit_light_scheduled(&problem, &beta, i, None, &opts, &passes)
+                .unwrap()
+                .light
+        })
+        .collect();
+    let held_error = |maps: Vec<[Vec<f64>; 3]>| {
+        let est = Estimate::from_parts(maps, case.lambda.clone(), case.weights.clone());
+        let pred = predict(&problem, &est);
+        let (mut num, mut den) = (0.0, 0.0);
+        for &q in &held {
+            for (p, y) in pred[q].iter().zip(obs.rgb[q].map(f64::from)) {
+                num += (p - y).powi(2);
+                den += y * y;
+            }
+        }
+        (num / den).sqrt()
+    };
+    let (e_sky, e_paper) = (held_error(sky), held_error(paper));
+    assert!(
+        e_sky < 0.6 * e_paper,
+        "sky {e_sky:.4} against the free map's {e_paper:.4}"
+    );
 }

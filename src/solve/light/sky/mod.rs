@@ -56,11 +56,15 @@
 //! collection. Before each lighting step `ν` is chosen by the search error summed over
 //! those photos (a 5° grid through the third outer iteration, then ±2.5° by 0.5° around
 //! the best), and step 1 above searches only their turbidity and lobe.
+//!
+//! **Held-out photos** ([`held_out`]): held-out protocol (b) fits a geotagged held-out
+//! photo's light within this model, its sun the clock's at the training photos' north.
 
 // Kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
 pub mod clock;
+pub mod held_out;
 pub mod model;
 pub mod search;
 pub mod summary;

@@ -109,6 +109,8 @@ pub struct SkyLight {
     clock: Vec<Option<ClockSun>>,
     /// The frame azimuth of north `ν` found from the geotagged photos.
     north: Option<f64>,
+    /// Whether `north` was given ([`SkyLight::fix_north`]) rather than searched.
+    north_fixed: bool,
     /// `b_k` per Haar coefficient.
     b: Vec<f64>,
     opts: EstimateOptions,
@@ -159,6 +161,7 @@ impl SkyLight {
             searched: vec![false; problem.n_photos],
             clock,
             north: None,
+            north_fixed: false,
             b,
             opts: opts.clone(),
             sky: sky.clone(),
@@ -176,6 +179,13 @@ impl SkyLight {
     /// without geotags or before the first lighting step).
     pub fn north(&self) -> Option<f64> {
         self.north
+    }
+
+    /// Holds north at frame azimuth `north` instead of searching it: a held-out photo's
+    /// fit under the training collection's north ([`super::held_out`]).
+    pub fn fix_north(&mut self, north: f64) {
+        self.north = Some(north);
+        self.north_fixed = true;
     }
 
     /// Photo `photo`'s geotag sun, if it has one.

@@ -22,7 +22,7 @@ impl SkyLight {
         beta: &[[f64; 3]],
         outer_iteration: usize,
     ) -> Result<()> {
-        if self.clock.iter().all(Option::is_none) {
+        if self.north_fixed || self.clock.iter().all(Option::is_none) {
             return Ok(());
         }
         let centre = match self.north {
