@@ -263,20 +263,12 @@ fn joint_fit_under_a_sky_predicts_held_out_photos_at_least_as_well_as_the_free_m
     assert!(median(&err) <= 8.0, "{err:?}");
 }
 
-/// A geotagged outdoor workspace through `run --light sky`: `synth --geotag` writes each
-/// photo's place and UTC time into its PNG, and the run reads them back. The suns the
-/// geotags give, turned by the north `synth` drew, are the suns it rendered with: the
-/// time is written to the second (the sun moves 0.0042° a second) and the place to
-/// 1e-4″, so 0.01° bounds the round trip. The run then says the suns came from the
-/// geotags, of every training photo.
-#[test]
-fn a_geotagged_workspace_gives_run_its_suns() {
-    use relight_cpc::run::{run, MaterialCount, RunOptions};
-    use relight_cpc::solve::light::choose::LightChoice;
+/// A small geotagged `spot-sky` workspace (`synth --geotag`: 8 photos of 48², 600
+/// vertices, 1 sample per pixel) in `dir/ws`, rendered with `seed`.
+fn geotag_workspace(dir: &std::path::Path, seed: u64) -> std::path::PathBuf {
     use relight_cpc::synth::{build, SynthOptions};
     use relight_cpc::transport::reference::Samples;
-    let dir = scratch("geotag-run");
-    let ws = dir.0.join("ws");
+    let ws = dir.join("ws");
     let opts = SynthOptions {
         width: 48,
         height: 48,
@@ -286,12 +278,46 @@ fn a_geotagged_workspace_gives_run_its_suns() {
         samples: Samples {
             per_pixel: 1,
             light: 8,
-            seed: 1,
+            seed,
         },
         points: 400,
         ..SynthOptions::default()
     };
     build("spot-sky", &ws, &opts).unwrap();
+    ws
+}
+
+/// `run` on [`geotag_workspace`] under `light`, into `out`: 16² maps, 2 rounds, 2
+/// materials, no progress bars or training renders.
+fn small_sky_run(
+    ws: &std::path::Path,
+    out: std::path::PathBuf,
+    light: relight_cpc::solve::light::choose::LightChoice,
+) -> relight_cpc::run::RunOptions {
+    use relight_cpc::run::{MaterialCount, RunOptions};
+    let mut o = RunOptions::new(ws.to_path_buf(), out);
+    o.light = light;
+    o.global_resolution = 16;
+    o.keep = 64;
+    o.max_iterations = 2;
+    o.materials = MaterialCount::Fixed(2);
+    o.progress = false;
+    o.render_training = false;
+    o
+}
+
+/// A geotagged outdoor workspace through `run --light sky`: `synth --geotag` writes each
+/// photo's place and UTC time into its PNG, and the run reads them back. The suns the
+/// geotags give, turned by the north `synth` drew, are the suns it rendered with: the
+/// time is written to the second (the sun moves 0.0042° a second) and the place to
+/// 1e-4″, so 0.01° bounds the round trip. The run then says the suns came from the
+/// geotags, of every training photo.
+#[test]
+fn a_geotagged_workspace_gives_run_its_suns() {
+    use relight_cpc::run::run;
+    use relight_cpc::solve::light::choose::LightChoice;
+    let dir = scratch("geotag-run");
+    let ws = geotag_workspace(&dir.0, 1);
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(ws.join("truth/manifest.json")).unwrap())
             .unwrap();
@@ -320,14 +346,7 @@ fn a_geotagged_workspace_gives_run_its_suns() {
             angle.to_degrees()
         );
     }
-    let mut o = RunOptions::new(ws.clone(), dir.0.join("out"));
-    o.light = LightChoice::Sky;
-    o.global_resolution = 16;
-    o.keep = 64;
-    o.max_iterations = 2;
-    o.materials = MaterialCount::Fixed(2);
-    o.progress = false;
-    o.render_training = false;
+    let o = small_sky_run(&ws, dir.0.join("out"), LightChoice::Sky);
     let r = run(&o)
         .expect("run --light sky on a geotagged workspace")
         .report;
@@ -381,38 +400,11 @@ fn a_geotagged_workspace_gives_run_its_suns() {
 /// stopping saw). The reason says how the candidates were scored.
 #[test]
 fn light_auto_scores_on_photo_halves_and_refits_the_model_kept() {
-    use relight_cpc::run::{run, MaterialCount, RunOptions};
+    use relight_cpc::run::run;
     use relight_cpc::solve::light::choose::LightChoice;
-    use relight_cpc::synth::{build, SynthOptions};
-    use relight_cpc::transport::reference::Samples;
     let dir = scratch("light-auto-halves");
-    let ws = dir.0.join("ws");
-    let synth = SynthOptions {
-        width: 48,
-        height: 48,
-        photos: Some(8),
-        vertices: Some(600),
-        geotag: true,
-        samples: Samples {
-            per_pixel: 1,
-            light: 8,
-            seed: 2,
-        },
-        points: 400,
-        ..SynthOptions::default()
-    };
-    build("spot-sky", &ws, &synth).unwrap();
-    let options = |light: LightChoice, out: &str| {
-        let mut o = RunOptions::new(ws.clone(), dir.0.join(out));
-        o.light = light;
-        o.global_resolution = 16;
-        o.keep = 64;
-        o.max_iterations = 2;
-        o.materials = MaterialCount::Fixed(2);
-        o.progress = false;
-        o.render_training = false;
-        o
-    };
+    let ws = geotag_workspace(&dir.0, 2);
+    let options = |light: LightChoice, out: &str| small_sky_run(&ws, dir.0.join(out), light);
     let auto = run(&options(LightChoice::Auto, "auto"))
         .expect("run --light auto")
         .report;
