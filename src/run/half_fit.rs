@@ -27,6 +27,7 @@
 use super::Fitted;
 use crate::observe::Observations;
 use crate::solve::light::frozen::{fit_light_scheduled, PassCaps};
+use crate::solve::light::sky::clock::{ClockSun, ClockSuns};
 use crate::solve::{EstimateOptions, Problem};
 use crate::sphere::envmap::OctEnv;
 use crate::Result;
@@ -126,15 +127,19 @@ pub(super) fn fit_left_half(
             .or(f.estimate_options.light_prior.clone()),
         ..f.estimate_options.clone()
     };
-    if let (Some(sky), Some(clock)) = (&opts.light_sky, held_out_clock(f, v)) {
-        let north = f.est.sky.as_ref().and_then(|s| s.north);
+    let north = f.est.sky.as_ref().and_then(|s| s.north);
+    let sun = f
+        .held
+        .iter()
+        .position(|&h| h == v)
+        .and_then(|i| f.held_out_suns.get(i).copied().flatten());
+    if let (Some(sky), Some(sun), Some(north)) = (&opts.light_sky, sun, north) {
+        let clock = ClockSuns {
+            per_photo: vec![Some(sun)],
+            source: "the held-out photo's geotag".into(),
+        };
         let maps = crate::solve::light::sky::held_out::fit_held_out(
-            &problem,
-            &f.beta,
-            &opts,
-            sky,
-            Some(clock),
-            north,
+            &problem, &f.beta, &opts, sky, clock, north,
         )?;
         return Ok(maps
             .first()
@@ -149,25 +154,16 @@ pub(super) fn fit_left_half(
     )))
 }
 
-/// View `v`'s sun from its geotag, when the fit's light was the sun and sky with a north
-/// found from the training photos' geotags (and `--no-geotag-suns` not given).
-fn held_out_clock(f: &Fitted, v: usize) -> Option<crate::solve::light::sky::clock::ClockSuns> {
-    f.est.sky.as_ref()?.north?;
-    if !f.opts.geotag_suns {
-        return None;
+/// Per held-out view (in `f.held`'s order), its sun from its geotag (one EXIF read per
+/// photo), when the fit's light was the sun and sky with a north found from the training
+/// photos' geotags (and `--no-geotag-suns` not given); empty otherwise.
+pub(super) fn held_out_suns(f: &Fitted) -> Vec<Option<ClockSun>> {
+    let with_north = f.est.sky.as_ref().is_some_and(|s| s.north.is_some());
+    if !with_north || !f.opts.geotag_suns {
+        return Vec::new();
     }
-    super::geotag_suns::suns_of(&f.scene.photo_paths(&[v]))
-}
-
-/// How many held-out photos protocol (b) fits within the sun-and-sky model
-/// ([`held_out_clock`]); `None` when none.
-pub(super) fn clock_suns_held_out(f: &Fitted) -> Option<usize> {
-    let n = f
-        .held
-        .iter()
-        .filter(|&&v| held_out_clock(f, v).is_some())
-        .count();
-    (n > 0).then_some(n)
+    super::geotag_suns::suns_of(&f.scene.photo_paths(&f.held))
+        .map_or_else(Vec::new, |c| c.per_photo)
 }
 
 #[cfg(test)]

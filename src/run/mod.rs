@@ -296,6 +296,10 @@ pub(crate) struct Fitted<'a> {
     /// The light prior of held-out protocol (b)'s fit ([`half_prior`]); `None`: the
     /// estimator's own light options.
     pub half_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
+    /// Per held-out view (in `held`'s order), its sun from its geotag when protocol (b)
+    /// fits its light within the sun and sky ([`half_fit::held_out_suns`]); empty before
+    /// the evaluation or when none does.
+    pub held_out_suns: Vec<Option<crate::solve::light::sky::clock::ClockSun>>,
 }
 
 impl Fitted<'_> {

@@ -67,7 +67,9 @@ fn evaluation(
     progress: &Progress,
 ) -> Result<Evaluated> {
     progress.stage("evaluation");
-    if let Some(n) = super::half_fit::clock_suns_held_out(&fit.fitted) {
+    fit.fitted.held_out_suns = super::half_fit::held_out_suns(&fit.fitted);
+    let n = fit.fitted.held_out_suns.iter().flatten().count();
+    if n > 0 {
         log.notes.push(format!(
             "protocol `half` fits the light of {n} of the {} held-out photos (those with a geotag) within the sun-and-sky model the training photos were fitted in ({} lighting steps, the sun from the photo's clock at the training photos' north), the others as a free map",
             fit.fitted.held.len(),

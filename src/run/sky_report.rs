@@ -33,7 +33,7 @@ pub(crate) fn sky_report(fitted: &Fitted, truth: Option<&Truth>) -> Option<SkyRe
             let truth_sun = truth.and_then(|t| t.photos.get(name)).and_then(|t| t.sun);
             let error = truth_sun
                 .zip(frames.as_ref())
-                .map(|(s, f)| angle_between(&p.theta.sun, &f.to_run(&s)).to_degrees());
+                .map(|(s, f)| p.theta.sun.angle(&f.to_run(&s)).to_degrees());
             entry(name, p, fit, &fitted.env_from_world, error)
         })
         .collect();
@@ -60,7 +60,7 @@ fn add_truth_frame(
 ) {
     let truth_up = f.truth.transpose() * Vec3::z();
     let cameras_up = env_from_world.transpose() * Vec3::z();
-    report.cameras_up_error_degrees = Some(angle_between(&cameras_up, &truth_up).to_degrees());
+    report.cameras_up_error_degrees = Some(cameras_up.angle(&truth_up).to_degrees());
     report.truth_north_error_degrees = north.zip(f.truth_north).map(|(got, want)| {
         let d = f.to_run(&Vec3::new(want.cos(), want.sin(), 0.0));
         azimuth_gap(got, d.y.atan2(d.x)).to_degrees()
@@ -104,15 +104,6 @@ impl Frames {
     }
 }
 
-/// The angle between two directions, radians.
-fn angle_between(a: &Vec3, b: &Vec3) -> f64 {
-    let (na, nb) = (a.norm(), b.norm());
-    if na == 0.0 || nb == 0.0 {
-        return std::f64::consts::PI;
-    }
-    (a.dot(b) / (na * nb)).clamp(-1.0, 1.0).acos()
-}
-
 /// The gap between two azimuths, radians in `[0, π]`.
 fn azimuth_gap(a: f64, b: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
@@ -142,7 +133,7 @@ mod tests {
             truth_north: Some(100f64.to_radians()),
         };
         let sun = Vec3::new(0.3, -0.5, 0.8).normalize();
-        assert!(angle_between(&f.to_run(&sun), &(r * sun)) < 1e-9);
+        assert!(f.to_run(&sun).angle(&(r * sun)) < 1e-9);
         let mut report = SkyReport::default();
         add_truth_frame(&mut report, Some(70f64.to_radians()), &r, &f);
         let up = report.cameras_up_error_degrees.unwrap();

@@ -480,14 +480,13 @@ fn a_held_out_sky_fit_extrapolates_where_the_free_map_cannot() {
     };
     let beta = beta_per_vertex(&case.lambda, &case.weights, case.nv);
     let opts = EstimateOptions::default();
-    let north = Some(TRUE_NORTH);
     let sky = fit_held_out(
         &problem,
         &beta,
         &opts,
         &SkyOptions::default(),
-        Some(geotag_suns(c)),
-        north,
+        geotag_suns(c),
+        TRUE_NORTH,
     )
     .unwrap();
     let passes = [PassCaps {

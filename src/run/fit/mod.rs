@@ -195,6 +195,7 @@ fn fitted_model<'a>(im: &'a Imported, p: Prepared, parts: FitParts) -> Fitted<'a
         bvh: parts.bvh,
         baseline: parts.baseline,
         half_prior: None,
+        held_out_suns: Vec::new(),
     }
 }
 

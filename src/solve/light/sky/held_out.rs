@@ -21,23 +21,21 @@ pub const HELD_OUT_ROUNDS: usize = 4;
 
 /// The light of every photo of `problem` with `beta` frozen (module docs): texels per
 /// photo and channel. `clock` holds the photos' suns from their geotags (one entry per
-/// photo), used when the collection's `north` is known.
+/// photo), placed at the training collection's `north`.
 pub fn fit_held_out(
     problem: &Problem,
     beta: &[[f64; 3]],
     opts: &EstimateOptions,
     sky: &SkyOptions,
-    clock: Option<ClockSuns>,
-    north: Option<f64>,
+    clock: ClockSuns,
+    north: f64,
 ) -> Result<Vec<[Vec<f64>; 3]>> {
     let opts = EstimateOptions {
-        sun_clock: clock.filter(|_| north.is_some()),
+        sun_clock: Some(clock),
         ..opts.clone()
     };
     let mut light = SkyLight::new(problem, &opts, sky)?;
-    if let (Some(n), Some(_)) = (north, &opts.sun_clock) {
-        light.fix_north(n);
-    }
+    light.fix_north(north);
     let mut omega = vec![[1.0f32; 3]; problem.obs.len()];
     let mut cond = Conditioning::default();
     for round in 1..=HELD_OUT_ROUNDS {
