@@ -134,18 +134,21 @@ pub struct RatioStepReport {
 }
 
 /// The light prior of held-out protocol `half`'s light fit (`crate::run` `half_prior`
-/// module): the training maps' low-order shape, its weight `η` chosen by replaying the
-/// protocol on training photos.
+/// module): none, the training maps' low-order shape at a weight `η`, or the light model's
+/// own prior, chosen by replaying the protocol on training photos.
 #[derive(Debug, Clone, Serialize, Default, PartialEq)]
 pub struct HalfFitPriorReport {
-    /// `auto` (η chosen by the replay), `off` or `fixed`.
+    /// `auto` (chosen by the replay), `off`, `model` or `fixed`.
     pub mode: String,
-    /// The relative noise level used (0 = no prior: the Laplacian alone).
+    /// The prior the fit adds to the Laplacian: `none`, `training maps η …` or
+    /// `light model's`.
+    pub prior: String,
+    /// The training maps' prior's relative noise level (0 when that prior is not used).
     pub eta: f64,
-    /// Candidates of `auto` (empty otherwise).
-    pub grid: Vec<f64>,
+    /// Candidates of `auto`, `none` first (empty otherwise).
+    pub candidates: Vec<String>,
     /// Per candidate, the mean over replayed photos of ln(right-half RMSE / RMSE without
-    /// the prior) (negative: the prior predicted the right halves better).
+    /// a prior) (negative: the prior predicted the right halves better).
     pub log_rmse_ratio: Vec<f64>,
     /// Training photos replayed.
     pub replayed_photos: usize,
@@ -166,31 +169,38 @@ pub struct ScaleAnchorReport {
 impl HalfFitPriorReport {
     /// One sentence for `report.md`.
     pub fn sentence(&self) -> String {
-        let why = if self.grid.is_empty() {
+        let what = match self.prior.as_str() {
+            "none" => "the Laplacian prior alone".to_string(),
+            "light model's" => {
+                "the light model's own prior, the one the training photos' maps were fitted with"
+                    .to_string()
+            }
+            _ => format!("the training maps' shape prior at η = {}", self.eta),
+        };
+        let why = if self.candidates.is_empty() {
             format!("set by `--half-prior {}`", self.mode)
         } else {
             let scores: Vec<String> = self
-                .grid
+                .candidates
                 .iter()
                 .zip(&self.log_rmse_ratio)
-                .map(|(e, r)| format!("η {e}: {r:+.4}"))
+                .skip(1)
+                .map(|(c, r)| format!("{c}: {r:+.4}"))
                 .collect();
             format!(
-                "chosen by replaying the protocol on {} training photos (mean ln of the \
+                "{} by replaying the protocol on {} training photos (mean ln of the \
                  right-half RMSE ratio to no prior: {}; {:.1} CPU s)",
+                if self.eta > 0.0 {
+                    "that prior chosen"
+                } else {
+                    "no training-map prior chosen"
+                },
                 self.replayed_photos,
                 scores.join(", "),
                 self.cpu_seconds
             )
         };
-        if self.eta > 0.0 {
-            format!(
-                "Protocol `half` fits the light with the training maps' shape prior at η = {} ({why}).",
-                self.eta
-            )
-        } else {
-            format!("Protocol `half` fits the light with the Laplacian prior alone, no training-map prior ({why}).")
-        }
+        format!("Protocol `half` fits the light with {what} ({why}).")
     }
 }
 

@@ -90,3 +90,40 @@ fn report_writes_json_markdown_and_pngs() {
         .contains("| a.png | mean |"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn half_fit_prior_sentence_names_the_prior_used_and_why() {
+    // The replay kept no training prior under `--light prior`: the sentence must name the
+    // model's own prior (the one the fit used), not "the Laplacian alone", and give the
+    // training priors' scores.
+    let replayed = HalfFitPriorReport {
+        mode: "auto".into(),
+        prior: "light model's".into(),
+        eta: 0.0,
+        candidates: vec!["none".into(), "training maps η 3".into()],
+        log_rmse_ratio: vec![0.0, 1.25],
+        replayed_photos: 4,
+        cpu_seconds: 0.5,
+    };
+    let s = replayed.sentence();
+    assert!(s.contains("the light model's own prior"), "{s}");
+    assert!(s.contains("no training-map prior chosen"), "{s}");
+    assert!(s.contains("training maps η 3: +1.2500"), "{s}");
+    let fixed = HalfFitPriorReport {
+        mode: "fixed".into(),
+        prior: "training maps η 3".into(),
+        eta: 3.0,
+        ..Default::default()
+    };
+    let s = fixed.sentence();
+    assert!(
+        s.contains("shape prior at η = 3") && s.contains("`--half-prior fixed`"),
+        "{s}"
+    );
+    let off = HalfFitPriorReport {
+        mode: "off".into(),
+        prior: "none".into(),
+        ..Default::default()
+    };
+    assert!(off.sentence().contains("the Laplacian prior alone"));
+}

@@ -293,8 +293,8 @@ pub(crate) struct Fitted<'a> {
     pub bvh: SceneBvh,
     /// The naive baseline's per-vertex colours ([`baseline`]).
     pub baseline: baseline::VertexMedians,
-    /// The light prior of held-out protocol (b)'s fit ([`half_prior`]); `None`: the
-    /// estimator's own light options.
+    /// The light prior held-out protocol (b)'s fit adds to the Laplacian ([`half_prior`]);
+    /// `None`: none.
     pub half_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
     /// Per held-out view (in `held`'s order), its sun from its geotag when protocol (b)
     /// fits its light within the sun and sky ([`half_fit::held_out_suns`]); empty before

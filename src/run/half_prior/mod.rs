@@ -18,16 +18,27 @@
 //! - in the QP, `½ σ² (A x)ᵀ (Σ_s + f² I)⁻¹ (A x)`, `σ = η · rms(y)` (`σ²` × the negative
 //!   log prior, [`crate::solve::light::sh_prior`] module docs).
 //!
-//! Whether the collection's lights are alike enough is a property of the collection, so
-//! `η` is chosen by replaying protocol (b) on training photos (`choose_eta`): for up to
+//! Under `--light prior` the light model has a prior of its own, the built-in one of real
+//! HDR maps ([`crate::solve::light::sh_prior`]), which the training maps were fitted with.
+//! `auto` uses it when the replay below keeps no training prior
+//! ([`without_training_prior`]); it is not a candidate of the replay. Measured
+//! (`bench-results/half-model-prior.md`): on the held-out photos it extrapolates worse than
+//! the Laplacian alone on the built-in example at 2 of 3 seeds (right halves' RMSE +27%,
+//! +26%, −2%) and better on three 128² rendered scenes (−7%, −2.5%, −1%), while the
+//! replay on training photos ranks it the other way on 5 of those 6 cases at the replay's
+//! caps, and on 3 of 3 with the half fit's own (every observation, three IRLS passes).
+//!
+//! Whether the training prior helps is a property of the collection, so it is chosen by
+//! replaying protocol (b) on training photos ([`choose_prior`]): for up to
 //! [`LOO_PHOTOS`] training photos `k` (spread over the list), the left half of `k`'s
 //! observations (projected `x` below the middle of their span, `super::half_fit::span_mid`)
-//! fits its map from the mean of the other training maps, the prior learnt from the other
-//! maps only (leave one out), reflectance frozen, the right half scored (α-weighted MSE).
-//! The kept `η` ∈ [`ETA_GRID`] (0 = no prior) minimises the mean over photos of
-//! `½ ln(MSE_η / MSE_0)` (the log of the RMSE ratio: no photo's scale dominates), in two
-//! rounds of every other replayed photo, the second skipped when the first already rules
-//! every `η > 0` out ([`RULE_OUT`]). The
+//! fits its map from the mean of the other training maps, the training prior learnt from
+//! the other maps only (leave one out), reflectance frozen, the right half scored
+//! (α-weighted MSE). The kept candidate (the Laplacian alone or the training prior at an
+//! `η > 0` of [`ETA_GRID`]) minimises the mean over photos of
+//! `½ ln(MSE / MSE_Laplacian)` (the log of the RMSE ratio: no photo's scale dominates), in
+//! two rounds of every other replayed photo, the second skipped when the first already
+//! rules every prior out ([`RULE_OUT`]). The
 //! replay's reflectance saw photo `k` (it is a training photo), so the replay scores the
 //! light's extrapolation, not the reflectance's generalisation, which the prior cannot
 //! change.
@@ -86,30 +97,97 @@ pub const REPLAY_IRLS: usize = 1;
 /// Candidate relative noise levels `η` (0 = no prior).
 pub const ETA_GRID: [f64; 3] = [0.0, 3.0, 10.0];
 
-/// `--half-prior`: how protocol (b) uses the training maps' prior.
+/// `--half-prior`: which light prior protocol (b)'s fit adds to the Laplacian.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum HalfPriorMode {
-    /// `η` chosen by the replay on training photos (module docs).
+    /// Chosen by the replay on training photos among [`candidates`] (module docs).
     Auto,
-    /// No prior: the Laplacian alone (the estimator's own light options).
+    /// No prior: the Laplacian alone.
     Off,
-    /// A fixed `η > 0`.
+    /// The light model's own prior (`--light prior`: the built-in prior of real HDR maps;
+    /// the Laplacian alone under the other models).
+    Model,
+    /// The training maps' shape prior at a fixed `η > 0`.
     Fixed(f64),
 }
 
 impl HalfPriorMode {
-    /// `auto`, `off` or a positive number.
+    /// `auto`, `off`, `model` or a positive number.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "auto" => Ok(HalfPriorMode::Auto),
             "off" => Ok(HalfPriorMode::Off),
+            "model" => Ok(HalfPriorMode::Model),
             _ => match s.parse::<f64>() {
                 Ok(v) if v.is_finite() && v > 0.0 => Ok(HalfPriorMode::Fixed(v)),
                 _ => Err(Error::Config(format!(
-                    "--half-prior {s}: expected auto, off or a positive number (η)"
+                    "--half-prior {s}: expected auto, off, model or a positive number (η)"
                 ))),
             },
         }
+    }
+}
+
+/// One light prior protocol (b)'s fit may add to the Laplacian.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HalfLightPrior {
+    /// None: the Laplacian alone.
+    Laplacian,
+    /// The training maps' shape prior at relative noise level `η > 0`.
+    Training(f64),
+    /// The light model's own prior (the estimator's `light_prior`: under `--light prior`
+    /// the built-in prior learnt from real HDR maps).
+    Model,
+}
+
+impl HalfLightPrior {
+    /// The report's name: `none`, `training maps η 3`, `light model's`.
+    pub fn name(&self) -> String {
+        match self {
+            HalfLightPrior::Laplacian => "none".into(),
+            HalfLightPrior::Training(eta) => format!("training maps η {eta}"),
+            HalfLightPrior::Model => "light model's".into(),
+        }
+    }
+
+    /// The fit's light-prior options: `lights` the maps a training prior is learnt from
+    /// (side `n`), `model` the light model's own prior.
+    pub fn options(
+        &self,
+        lights: &[[Vec<f64>; 3]],
+        n: usize,
+        model: Option<&LightPriorOptions>,
+    ) -> Result<Option<LightPriorOptions>> {
+        match self {
+            HalfLightPrior::Laplacian => Ok(None),
+            HalfLightPrior::Training(eta) => half_fit_prior(lights, n, *eta).map(Some),
+            HalfLightPrior::Model => Ok(model.cloned()),
+        }
+    }
+}
+
+/// The priors `--half-prior auto` replays: the Laplacian alone (the scores' reference,
+/// first) and the training maps' prior at every `η > 0` of [`ETA_GRID`]. The light
+/// model's own prior is not among them: the replay on training photos ranks it opposite
+/// to the held-out photos on 5 of 6 cases measured (module docs).
+pub fn candidates() -> Vec<HalfLightPrior> {
+    let mut c = vec![HalfLightPrior::Laplacian];
+    c.extend(
+        ETA_GRID
+            .iter()
+            .filter(|&&eta| eta > 0.0)
+            .map(|&eta| HalfLightPrior::Training(eta)),
+    );
+    c
+}
+
+/// What `auto` uses when the replay keeps no training prior: the light model's own prior
+/// when it has one (the prior the training maps were fitted with), else the Laplacian.
+pub fn without_training_prior(model_has_prior: bool) -> HalfLightPrior {
+    if model_has_prior {
+        HalfLightPrior::Model
+    } else {
+        HalfLightPrior::Laplacian
     }
 }
 
@@ -271,9 +349,14 @@ fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
     }))
 }
 
-/// Right-half MSE of training photo `k` for each `η` in [`ETA_GRID`] (module docs); `opts`
-/// the half fit's options.
-fn replay_errors(f: &super::Fitted, k: usize, opts: &EstimateOptions) -> Result<Option<Vec<f64>>> {
+/// Right-half MSE of training photo `k` under each of `priors` (module docs); `opts` the
+/// half fit's options, whose `light_prior` is the light model's own.
+fn replay_errors(
+    f: &super::Fitted,
+    k: usize,
+    opts: &EstimateOptions,
+    priors: &[HalfLightPrior],
+) -> Result<Option<Vec<f64>>> {
     let Some(r) = replay(f, k)? else {
         return Ok(None);
     };
@@ -294,19 +377,16 @@ fn replay_errors(f: &super::Fitted, k: usize, opts: &EstimateOptions) -> Result<
         ..full
     };
     let n = f.opts.global_resolution;
-    let mut out = Vec::with_capacity(ETA_GRID.len());
-    for &eta in &ETA_GRID {
-        // Too few lit maps for a prior: this candidate scores nothing (the photo is then
-        // left out of the choice, [`log_ratio_scores`]).
-        let Ok(prior) = (eta > 0.0)
-            .then(|| half_fit_prior(&others, n, eta))
-            .transpose()
-        else {
+    let mut out = Vec::with_capacity(priors.len());
+    for prior in priors {
+        // Too few lit maps for a training prior: this candidate scores nothing (the photo
+        // is then left out of the choice, [`log_ratio_scores`]).
+        let Ok(light_prior) = prior.options(&others, n, opts.light_prior.as_ref()) else {
             out.push(f64::INFINITY);
             continue;
         };
         let o = EstimateOptions {
-            light_prior: prior,
+            light_prior,
             qp_max_iter: opts.qp_max_iter.min(REPLAY_GPCG),
             qp_max_cg: REPLAY_CG,
             irls_iters: REPLAY_IRLS,
@@ -339,23 +419,39 @@ pub fn log_ratio_scores(errors: &[Vec<f64>]) -> (Vec<f64>, usize) {
 
 /// The half fit's prior for a fitted run and what the report says of it.
 pub(crate) struct HalfPrior {
-    /// The options the half fit uses (`None`: the estimator's own, no training prior).
+    /// The light prior the half fit adds to the Laplacian (`None`: none).
     pub options: Option<LightPriorOptions>,
     /// report.json's `half_fit_prior`.
     pub report: HalfFitPriorReport,
 }
 
-/// `η` by the replay on up to [`LOO_PHOTOS`] training photos (module docs): the grid
-/// value with the lowest [`log_ratio_scores`], 0 on ties or without a scored photo. The
-/// replay runs in two rounds ([`replay_rounds`]); when every `η > 0` scores at least
-/// [`RULE_OUT`] on the first, the second is skipped and `η = 0` kept.
-pub(crate) fn choose_eta(
+/// The replay's choice: the prior kept, every candidate's score, photos scored.
+pub(crate) struct ReplayChoice {
+    /// The candidate kept.
+    pub kept: HalfLightPrior,
+    /// Per candidate of `priors` (the Laplacian's 0), the mean `½ ln(MSE / MSE_Laplacian)`.
+    pub scores: Vec<f64>,
+    /// Training photos scored.
+    pub photos: usize,
+}
+
+/// The prior by the replay on up to [`LOO_PHOTOS`] training photos (module docs): among
+/// `priors` (the Laplacian alone first), the one with the lowest [`log_ratio_scores`], the
+/// Laplacian on ties or without a scored photo. The replay runs in two rounds
+/// ([`replay_rounds`]); when every prior scores at least [`RULE_OUT`] on the first, the
+/// second is skipped and the Laplacian kept.
+pub(crate) fn choose_prior(
     f: &super::Fitted,
     opts: &EstimateOptions,
-) -> Result<(f64, Vec<f64>, usize)> {
+    priors: &[HalfLightPrior],
+) -> Result<ReplayChoice> {
     let kk = f.est.lights.len();
     if kk < 3 {
-        return Ok((0.0, Vec::new(), 0));
+        return Ok(ReplayChoice {
+            kept: HalfLightPrior::Laplacian,
+            scores: Vec::new(),
+            photos: 0,
+        });
     }
     let m = LOO_PHOTOS.min(kk);
     let picks: Vec<usize> = (0..m).map(|i| (2 * i + 1) * kk / (2 * m)).collect();
@@ -363,7 +459,7 @@ pub(crate) fn choose_eta(
     let replay_all = |round: &[usize]| -> Result<Vec<(usize, Vec<f64>)>> {
         round
             .par_iter()
-            .map(|&i| Ok(replay_errors(f, picks[i], opts)?.map(|e| (i, e))))
+            .map(|&i| Ok(replay_errors(f, picks[i], opts, priors)?.map(|e| (i, e))))
             .collect::<Result<Vec<_>>>()
             .map(|v| v.into_iter().flatten().collect())
     };
@@ -375,12 +471,16 @@ pub(crate) fn choose_eta(
     }
     // Pick order, so the mean sums the photos as a single round would.
     errors.sort_by_key(|e| e.0);
-    let (score, counted) = log_ratio_scores(&only_errors(&errors));
-    let best = (0..score.len())
-        .filter(|&i| score[i] < 0.0)
-        .min_by(|&a, &b| score[a].total_cmp(&score[b]))
-        .map_or(0.0, |i| ETA_GRID[i]);
-    Ok((best, score, counted))
+    let (scores, photos) = log_ratio_scores(&only_errors(&errors));
+    let kept = (0..scores.len())
+        .filter(|&i| scores[i] < 0.0)
+        .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+        .map_or(HalfLightPrior::Laplacian, |i| priors[i]);
+    Ok(ReplayChoice {
+        kept,
+        scores,
+        photos,
+    })
 }
 
 /// A first replay round's mean `½ ln(MSE_η / MSE_0)` at or above which every `η > 0` is
@@ -413,45 +513,67 @@ pub(crate) fn half_fit_options(f: &super::Fitted) -> EstimateOptions {
     }
 }
 
-/// The half fit's prior under `mode`; `opts` the half fit's options.
+/// The half fit's prior under `mode`; `opts` the half fit's options (its `light_prior` the
+/// light model's own).
 pub(crate) fn prepare(
     f: &super::Fitted,
     mode: HalfPriorMode,
     opts: &EstimateOptions,
 ) -> Result<HalfPrior> {
     let watch = crate::stages::Stopwatch::start();
-    let (eta, scores, photos) = match mode {
-        HalfPriorMode::Off => (0.0, Vec::new(), 0),
-        HalfPriorMode::Fixed(eta) => (eta, Vec::new(), 0),
-        HalfPriorMode::Auto if f.held.is_empty() => (0.0, Vec::new(), 0),
-        HalfPriorMode::Auto => choose_eta(f, opts)?,
+    let priors = candidates();
+    let mut choice = match mode {
+        HalfPriorMode::Off => fixed(HalfLightPrior::Laplacian),
+        HalfPriorMode::Model => fixed(HalfLightPrior::Model),
+        HalfPriorMode::Fixed(eta) => fixed(HalfLightPrior::Training(eta)),
+        HalfPriorMode::Auto if f.held.is_empty() => fixed(HalfLightPrior::Laplacian),
+        HalfPriorMode::Auto => choose_prior(f, opts, &priors)?,
     };
-    // `auto` only picks η > 0 when the prior could be built on the replays; a fixed η
-    // with too few lit maps is an error naming the cause.
-    let options = (eta > 0.0)
-        .then(|| half_fit_prior(&f.est.lights, f.opts.global_resolution, eta))
-        .transpose()?;
+    if mode == HalfPriorMode::Auto && choice.kept == HalfLightPrior::Laplacian {
+        choice.kept = without_training_prior(opts.light_prior.is_some());
+    }
+    // `auto` only keeps a training prior when it could be built on the replays; a fixed
+    // η with too few lit maps is an error naming the cause.
+    let n = f.opts.global_resolution;
+    let options = choice
+        .kept
+        .options(&f.est.lights, n, opts.light_prior.as_ref())?;
     let (_, cpu) = watch.elapsed();
     let mode_name = match mode {
         HalfPriorMode::Auto => "auto",
         HalfPriorMode::Off => "off",
+        HalfPriorMode::Model => "model",
         HalfPriorMode::Fixed(_) => "fixed",
     };
+    let replayed = !choice.scores.is_empty();
     Ok(HalfPrior {
         options,
         report: HalfFitPriorReport {
             mode: mode_name.to_string(),
-            eta,
-            grid: if scores.is_empty() {
-                Vec::new()
-            } else {
-                ETA_GRID.to_vec()
+            prior: choice.kept.name(),
+            eta: match choice.kept {
+                HalfLightPrior::Training(eta) => eta,
+                _ => 0.0,
             },
-            log_rmse_ratio: scores,
-            replayed_photos: photos,
+            candidates: if replayed {
+                priors.iter().map(HalfLightPrior::name).collect()
+            } else {
+                Vec::new()
+            },
+            log_rmse_ratio: choice.scores,
+            replayed_photos: choice.photos,
             cpu_seconds: cpu,
         },
     })
+}
+
+/// A choice made without the replay.
+fn fixed(kept: HalfLightPrior) -> ReplayChoice {
+    ReplayChoice {
+        kept,
+        scores: Vec::new(),
+        photos: 0,
+    }
 }
 
 #[cfg(test)]

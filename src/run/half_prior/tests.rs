@@ -132,6 +132,7 @@ fn mean_without_matches_the_brute_force_mean() {
 fn half_prior_flag_parses_and_rejects() {
     assert_eq!(HalfPriorMode::parse("auto").unwrap(), HalfPriorMode::Auto);
     assert_eq!(HalfPriorMode::parse("off").unwrap(), HalfPriorMode::Off);
+    assert_eq!(HalfPriorMode::parse("model").unwrap(), HalfPriorMode::Model);
     assert_eq!(
         HalfPriorMode::parse("3").unwrap(),
         HalfPriorMode::Fixed(3.0)
@@ -140,6 +141,50 @@ fn half_prior_flag_parses_and_rejects() {
         let e = HalfPriorMode::parse(bad).unwrap_err().to_string();
         assert!(e.contains("--half-prior"), "{bad}: {e}");
     }
+}
+
+#[test]
+fn candidates_start_with_the_laplacian_then_the_training_prior_at_each_eta() {
+    // The scores are ratios to the first candidate, so it must be the Laplacian alone.
+    let c = candidates();
+    assert_eq!(c[0], HalfLightPrior::Laplacian);
+    let etas: Vec<f64> = ETA_GRID.iter().copied().filter(|&e| e > 0.0).collect();
+    let training: Vec<HalfLightPrior> = etas.iter().map(|&e| HalfLightPrior::Training(e)).collect();
+    assert_eq!(c[1..], training[..]);
+    // Without a training prior kept, the model's own when there is one.
+    assert_eq!(without_training_prior(true), HalfLightPrior::Model);
+    assert_eq!(without_training_prior(false), HalfLightPrior::Laplacian);
+}
+
+#[test]
+fn each_candidate_gives_its_own_light_prior_options() {
+    // Three maps 1 + a z (two would do; three as a collection has): the training prior
+    // at η is the shape term alone with σ-scale η; the model's is passed through as is.
+    let n = 8;
+    let lights: Vec<[Vec<f64>; 3]> = [0.1, 0.4, -0.2]
+        .iter()
+        .map(|&a| [1.0, 0.9, 0.8].map(|g| texels(n, |d| g * (1.0 + a * d.z))))
+        .collect();
+    let model = LightPriorOptions::builtin(0.3, 0.03).unwrap();
+    let none = HalfLightPrior::Laplacian
+        .options(&lights, n, Some(&model))
+        .unwrap();
+    assert!(none.is_none());
+    let t = HalfLightPrior::Training(3.0)
+        .options(&lights, n, Some(&model))
+        .unwrap()
+        .unwrap();
+    assert_eq!((t.sh_noise, t.haar_noise), (3.0, 0.0));
+    let m = HalfLightPrior::Model
+        .options(&lights, n, Some(&model))
+        .unwrap()
+        .unwrap();
+    assert_eq!((m.sh_noise, m.haar_noise), (0.3, 0.03));
+    // No model prior (the paper's free map): the model candidate adds nothing.
+    assert!(HalfLightPrior::Model
+        .options(&lights, n, None)
+        .unwrap()
+        .is_none());
 }
 
 /// Observations `0..n` of one photo with `α_p = w(p)` and `y_p = (p, 2p, 3p)`.

@@ -159,8 +159,9 @@ pub struct RunOptions {
     /// ([`crate::observe::margins`], [`crate::observe::DEFAULT_EDGE_MARGIN`]).
     pub edge_margin: bool,
     /// The light prior of held-out protocol (b)'s fit ([`super::half_prior`]): `Auto`
-    /// (the training maps' shape prior, its weight chosen by replaying the protocol on
-    /// training photos), `Off` (the Laplacian alone) or a fixed weight.
+    /// (none, the training maps' shape prior at a weight, or the light model's own prior,
+    /// as replaying the protocol on training photos says), `Off` (the Laplacian alone),
+    /// `Model` (the light model's own) or a fixed weight of the training maps' prior.
     pub half_prior: super::half_prior::HalfPriorMode,
     /// Groups of photos under one sky for `--light shared` ([`super::light_groups`]); `None`:
     /// by EXIF capture time.
