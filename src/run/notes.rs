@@ -32,7 +32,7 @@ fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
         m.kept, m.tried
     );
     if m.unsupported > 0 {
-        format!("{what}; the light model could not take it in {} rounds (the sun-and-sky model cannot: its parameters do not mix between probes)", m.unsupported)
+        format!("{what}; the light model could not take it in {} rounds (its parameters do not mix between probes)", m.unsupported)
     } else if let Some(r) = m.stopped_after {
         format!(
             "{what}; it stopped after round {r}, when {} rounds in a row had kept no move",

@@ -428,6 +428,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let delta = ratio_step::PROBE_STEP;
         let u = ratio_step::direction(self.lambda.len(), j);
         let (base, omega0) = (self.snapshot(), self.omega.clone());
+        self.light.hold_shape(true);
         let mut probe = |t: f64| -> Result<([f64; 3], M::Params)> {
             self.restore(base.clone());
             self.omega.clone_from(&omega0);
@@ -436,8 +437,9 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             let f = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
             Ok((f, self.light.params().clone()))
         };
-        let (fm, lights_m) = probe(-delta)?;
-        let (fp, lights_p) = probe(delta)?;
+        let probes = probe(-delta).and_then(|m| Ok((m, probe(delta)?)));
+        self.light.hold_shape(false);
+        let ((fm, lights_m), (fp, lights_p)) = probes?;
         let t = [0, 1, 2].map(|c| ratio_step::parabola_step(fm[c], f0[c], fp[c], delta));
         let w = t.map(|tc| ratio_step::lagrange_weights(tc, delta));
         let weights_of = |i: usize| [w[0][i], w[1][i], w[2][i]];

@@ -263,6 +263,50 @@ fn joint_fit_under_a_sky_predicts_held_out_photos_at_least_as_well_as_the_free_m
     assert!(median(&err) <= 8.0, "{err:?}");
 }
 
+#[test]
+fn the_ratio_step_runs_under_the_sky_with_every_sun_held() {
+    // The ratio step mixes the probes' lights (`LightModel::combine`); the sun-and-sky
+    // model holds each photo's θ and north through the probes (`hold_shape`), so its
+    // colour weights and residuals mix and no round is left unsupported: every round
+    // asked for tries its move (one direction, two materials) until the patience ends it.
+    // Holding θ must not cost the geotags their suns: every sun within the north's error
+    // and the north within 2° (the bounds of the joint test above).
+    let c = sky_case();
+    let case = &c.case;
+    let problem = case.train.problem(case.nv);
+    let o = EstimateOptions {
+        max_outer: 4,
+        rel_tol: 1e-5,
+        ratio_steps: 4,
+        light_sky: Some(SkyOptions::default()),
+        sun_clock: Some(geotag_suns(c)),
+        ..EstimateOptions::default()
+    };
+    let est = estimate(
+        &problem,
+        initial(case, &case.train.obs, 2, 1),
+        &o,
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let m = &est.ratio_moves;
+    eprintln!("{m:?}");
+    assert_eq!(m.unsupported, 0, "{m:?}");
+    assert_eq!(m.tried, m.stopped_after.unwrap_or(4), "{m:?}");
+    let sky = est.sky.as_ref().expect("the sky model's fit");
+    let gap = azimuth_gap(sky.north.unwrap(), TRUE_NORTH);
+    let err: Vec<f64> = sky
+        .photos
+        .iter()
+        .zip(&c.suns)
+        .map(|(p, s)| p.theta.sun.angle(s).to_degrees())
+        .collect();
+    assert!(
+        gap <= 2.0 && err.iter().all(|e| *e <= gap + 1e-6),
+        "{gap} {err:?}"
+    );
+}
+
 /// A small geotagged `spot-sky` workspace (`synth --geotag`: 8 photos of 48², 600
 /// vertices, 1 sample per pixel) in `dir/ws`, rendered with `seed`.
 fn geotag_workspace(dir: &std::path::Path, seed: u64) -> std::path::PathBuf {

@@ -106,6 +106,14 @@ pub trait LightModel: Send + Sync {
         None
     }
 
+    /// Holds the model's non-linear values (the sun and sky's `θ` and north) in the
+    /// lighting steps while `hold` is set: the ratio step's probes refit only the linear
+    /// parameters, so that [`LightModel::combine`] can mix them. A no-op for models
+    /// without non-linear values.
+    fn hold_shape(&mut self, hold: bool) {
+        let _ = hold;
+    }
+
     /// `θ + σ (θ − θ_prev)` projected on the model's feasible set (the extrapolation of
     /// the alternation, Bro 1998).
     fn extrapolate(&self, params: &Self::Params, prev: &Self::Params, sigma: f64) -> Self::Params;

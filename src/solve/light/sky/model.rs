@@ -111,6 +111,9 @@ pub struct SkyLight {
     north: Option<f64>,
     /// Whether `north` was given ([`SkyLight::fix_north`]) rather than searched.
     north_fixed: bool,
+    /// Whether the lighting steps keep every searched `θ` and north
+    /// ([`LightModel::hold_shape`]: the ratio step's probes).
+    hold: bool,
     /// `b_k` per Haar coefficient.
     b: Vec<f64>,
     opts: EstimateOptions,
@@ -162,6 +165,7 @@ impl SkyLight {
             clock,
             north: None,
             north_fixed: false,
+            hold: false,
             b,
             opts: opts.clone(),
             sky: sky.clone(),
@@ -432,6 +436,9 @@ impl SkyLight {
             sys,
             target: &target,
         };
+        if self.hold && self.searched[photo] {
+            return search.evaluate(prev.theta);
+        }
         if let (Some(sun), Some(north)) = (self.clock_sun(photo), self.north) {
             let start = search.evaluate(clock_theta(sun, north, &prev.theta))?;
             let steps = if self.searched[photo] {
@@ -529,6 +536,46 @@ impl SkyLight {
     }
 }
 
+impl SkyLight {
+    /// The residuals' prior term per channel at `params`, with the current scales.
+    fn residual_penalties(&self, params: &[SkyPhoto]) -> [f64; 3] {
+        let n = self.params.first().map_or(0, |p| p.basis.n);
+        let mut out = [0.0; 3];
+        for (p, s) in params.iter().zip(&self.scale) {
+            let Some(s) = s else { continue };
+            for (c, o) in out.iter_mut().enumerate() {
+                let mut h = p.residual[c].clone();
+                haar::forward(&mut h, n);
+                *o += residual_penalty(&h, s.h0[c], &self.b, s.sigma2);
+            }
+        }
+        out
+    }
+}
+
+/// Photo `i` of the ratio step's mix ([`SkyLight::combine`](LightModel::combine)).
+pub(super) fn combine_photo(parts: &[(&Vec<SkyPhoto>, [f64; 3])], i: usize) -> SkyPhoto {
+    let weight = |k: usize| parts[k].1.iter().sum::<f64>();
+    let heaviest = (0..parts.len())
+        .max_by(|&a, &b| weight(a).total_cmp(&weight(b)))
+        .unwrap_or(0);
+    let mut out = parts[heaviest].0[i].clone();
+    if parts.iter().any(|(p, _)| p[i].theta != out.theta) {
+        return out;
+    }
+    for c in 0..3 {
+        for j in 0..N_BASIS {
+            let w: f64 = parts.iter().map(|(p, w)| w[c] * p[i].weights[j][c]).sum();
+            out.weights[j][c] = w.max(0.0);
+        }
+        for (t, v) in out.residual[c].iter_mut().enumerate() {
+            let r: f64 = parts.iter().map(|(p, w)| w[c] * p[i].residual[c][t]).sum();
+            *v = r.max(0.0);
+        }
+    }
+    out
+}
+
 impl LightModel for SkyLight {
     type Params = Vec<SkyPhoto>;
 
@@ -561,7 +608,9 @@ impl LightModel for SkyLight {
 
     fn fit(&mut self, input: &LightingInput, out: &mut LightingOutput) -> Result<()> {
         let problem = input.problem;
-        self.update_north(problem, input.beta, input.outer_iteration)?;
+        if !self.hold {
+            self.update_north(problem, input.beta, input.outer_iteration)?;
+        }
         let sizes: Vec<usize> = problem.obs.photo_ranges.iter().map(|r| r.len()).collect();
         let results: Vec<Result<PhotoFit>> = par_largest_first(&sizes, |i| {
             self.fit_photo(problem, input.beta, i, input.outer_iteration)
@@ -604,21 +653,26 @@ impl LightModel for SkyLight {
     }
 
     fn penalty(&self, params: &Vec<SkyPhoto>) -> f64 {
-        let n = self.params.first().map_or(0, |p| p.basis.n);
-        params
-            .iter()
-            .zip(&self.scale)
-            .map(|(p, s)| {
-                let Some(s) = s else { return 0.0 };
-                (0..3)
-                    .map(|c| {
-                        let mut h = p.residual[c].clone();
-                        haar::forward(&mut h, n);
-                        residual_penalty(&h, s.h0[c], &self.b, s.sigma2)
-                    })
-                    .sum::<f64>()
-            })
-            .sum()
+        self.residual_penalties(params).iter().sum()
+    }
+
+    fn channel_penalty(&self, params: &Vec<SkyPhoto>) -> Option<[f64; 3]> {
+        Some(self.residual_penalties(params))
+    }
+
+    /// Per photo, the parts' colour weights and residuals each mixed per channel with the
+    /// weights, projected on `≥ 0`. The ratio step's probes hold every `θ`
+    /// ([`LightModel::hold_shape`]), and the map is linear in (weights, residual) at fixed
+    /// `θ`, so the mix is the parts' maps mixed (before the projection); the step keeps
+    /// it only where `F` drops. Where the parts' `θ` differ after all (a photo not yet
+    /// searched), the photo takes the light of the part with the largest weight.
+    fn hold_shape(&mut self, hold: bool) {
+        self.hold = hold;
+    }
+
+    fn combine(&self, parts: &[(&Vec<SkyPhoto>, [f64; 3])]) -> Option<Vec<SkyPhoto>> {
+        let photos = parts.first()?.0.len();
+        Some((0..photos).map(|i| combine_photo(parts, i)).collect())
     }
 
     fn extrapolate(

@@ -1,3 +1,4 @@
+use super::model::SkyPhoto;
 use super::search::weights_nnls;
 use super::*;
 use crate::sphere::envmap::LatLong;
@@ -180,4 +181,66 @@ fn the_residual_weights_majorise_the_penalty() {
             "{deriv} vs {want}"
         );
     }
+}
+
+/// A photo's sun and sky at `theta` with weights and a residual from `seed`.
+fn random_sky_photo(theta: SunSky, basis: &std::sync::Arc<SkyBasis>, seed: u64) -> SkyPhoto {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let n2 = basis.n * basis.n;
+    SkyPhoto {
+        theta,
+        basis: basis.clone(),
+        weights: std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(0.1..2.0))),
+        residual: std::array::from_fn(|_| (0..n2).map(|_| rng.random_range(0.0..0.3)).collect()),
+    }
+}
+
+#[test]
+fn the_ratio_steps_mix_at_one_theta_is_the_mix_of_the_maps() {
+    // Three parts at one θ with the ratio step's kind of weights (per channel, summing to
+    // one, one negative): the map is linear in (weights, residual) at fixed θ, so the mixed
+    // photo's map is the parts' maps mixed, texel by texel, wherever that mix is positive
+    // (here everywhere: the negative weight is small); 1e-12 relative, rounding.
+    let theta = SunSky::from_angles(0.4, 0.6, 3.0, 64.0);
+    let basis = std::sync::Arc::new(SkyBasis::new(8, SUB_TEXELS, &theta).unwrap());
+    let parts: Vec<Vec<SkyPhoto>> = (0..3)
+        .map(|k| vec![random_sky_photo(theta, &basis, k)])
+        .collect();
+    let w = [[-0.05, 0.6, 0.45], [0.2, 0.5, 0.3], [0.0, 1.0, 0.0]];
+    let weights_of = |k: usize| [w[0][k], w[1][k], w[2][k]];
+    let refs: Vec<(&Vec<SkyPhoto>, [f64; 3])> = parts
+        .iter()
+        .enumerate()
+        .map(|(k, p)| (p, weights_of(k)))
+        .collect();
+    let mixed = super::model::combine_photo(&refs, 0).map();
+    let maps: Vec<[Vec<f64>; 3]> = parts.iter().map(|p| p[0].map()).collect();
+    for c in 0..3 {
+        for t in 0..mixed[c].len() {
+            let want: f64 = (0..3).map(|k| w[c][k] * maps[k][c][t]).sum();
+            assert!(want > 0.0);
+            assert!((mixed[c][t] - want).abs() <= 1e-12 * want, "c{c} t{t}");
+        }
+    }
+}
+
+#[test]
+fn the_ratio_steps_mix_across_thetas_keeps_the_heaviest_part() {
+    // A probe whose search moved θ: the parts' weights and bases no longer share a map,
+    // so the photo's light is the part with the largest weight, unchanged.
+    let t0 = SunSky::from_angles(0.4, 0.6, 3.0, 64.0);
+    let t1 = SunSky::from_angles(0.5, 0.6, 3.0, 64.0);
+    let b0 = std::sync::Arc::new(SkyBasis::new(8, SUB_TEXELS, &t0).unwrap());
+    let b1 = std::sync::Arc::new(SkyBasis::new(8, SUB_TEXELS, &t1).unwrap());
+    let parts = [
+        vec![random_sky_photo(t0, &b0, 1)],
+        vec![random_sky_photo(t1, &b1, 2)],
+        vec![random_sky_photo(t0, &b0, 3)],
+    ];
+    let w = [[0.1; 3], [0.7; 3], [0.2; 3]];
+    let refs: Vec<(&Vec<SkyPhoto>, [f64; 3])> = parts.iter().zip(w).collect();
+    let mixed = super::model::combine_photo(&refs, 0);
+    assert_eq!(mixed.theta, t1);
+    assert_eq!(mixed.weights, parts[1][0].weights);
+    assert_eq!(mixed.residual, parts[1][0].residual);
 }
