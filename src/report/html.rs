@@ -111,6 +111,23 @@ figure{display:inline-block;margin:4px}figcaption{font-size:85%;color:#555}";
 
 /// The held-out section: one row per image and protocol, from the panels beside
 /// `renders/STEM.PROTOCOL.png`.
+/// The headline (protocol `half` over the naive baseline) and the light prior `half`
+/// fitted with, as report.md gives them; nothing without a headline.
+fn headline(s: &mut String, r: &RunReport) {
+    let Some(h) = &r.headline_detail else {
+        return;
+    };
+    let _ = writeln!(
+        s,
+        "<p><b>Headline: held-out error / baseline error = {:.3}</b> ({}).</p>",
+        h.ratio,
+        esc(&h.explanation().replace('`', ""))
+    );
+    if let Some(p) = &r.half_fit_prior {
+        let _ = writeln!(s, "<p>{}</p>", esc(&p.sentence().replace('`', "")));
+    }
+}
+
 fn held_out_section(s: &mut String, r: &RunReport, dir: &Path) {
     let _ = writeln!(s, "<h2 id=\"held-out\">Held-out photos</h2>");
     if r.holdout.is_empty() {
@@ -122,6 +139,7 @@ fn held_out_section(s: &mut String, r: &RunReport, dir: &Path) {
         );
         return;
     }
+    headline(s, r);
     let _ = writeln!(
         s,
         "<p>Photo | render (after the best global scale) | difference. The difference is the \

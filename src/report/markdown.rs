@@ -177,11 +177,9 @@ impl RunReport {
             Some(h) => {
                 let _ = writeln!(
                     s,
-                    "**Headline: held-out error / baseline error = {:.3}** ({} photo(s), protocol \
-                     `half` against `baseline` on the same pixels, RMSE after scale {:.5} against \
-                     {:.5}; below 1 the fit predicts photos it never saw better than the median \
-                     of the training photos' colours does).\n",
-                    h.ratio, h.photos, h.method_rmse, h.baseline_rmse
+                    "**Headline: held-out error / baseline error = {:.3}** ({}).\n",
+                    h.ratio,
+                    h.explanation()
                 );
                 if let Some(p) = &self.half_fit_prior {
                     let _ = writeln!(s, "{}\n", p.sentence());

@@ -83,3 +83,41 @@ fn the_truth_check_table_shows_the_floor_only_when_every_photo_has_one() {
     assert!(!s.contains("true reflectance, true light") && !s.contains("5.0%"));
     assert!(s.contains("<td><b>20.0%</b></td><td><b>14.0%</b></td><td></td>"));
 }
+
+#[test]
+fn the_held_out_section_gives_the_headline_and_the_half_fits_prior() {
+    // The same figures as report.md's headline: the ratio to 3 places, both RMSEs, and the
+    // sentence naming the light prior of protocol half (HTML-escaped, no backticks).
+    let r = RunReport {
+        headline_detail: Some(crate::report::metrics::Headline {
+            ratio: 0.35125,
+            method_rmse: 0.053,
+            baseline_rmse: 0.1509,
+            photos: 2,
+        }),
+        half_fit_prior: Some(crate::report::HalfFitPriorReport {
+            mode: "off".into(),
+            prior: "none".into(),
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    let mut s = String::new();
+    headline(&mut s, &r);
+    assert!(
+        s.contains("<b>Headline: held-out error / baseline error = 0.351</b>"),
+        "{s}"
+    );
+    assert!(
+        s.contains("RMSE after scale 0.05300 against 0.15090"),
+        "{s}"
+    );
+    assert!(
+        s.contains("Protocol half fits the light with the Laplacian prior alone"),
+        "{s}"
+    );
+    assert!(!s.contains('`'), "{s}");
+    let mut empty = String::new();
+    headline(&mut empty, &RunReport::default());
+    assert!(empty.is_empty());
+}

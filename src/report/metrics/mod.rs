@@ -344,6 +344,16 @@ pub struct Headline {
 }
 
 impl Headline {
+    /// What the figure is, in words (the report's parenthesis after it).
+    pub fn explanation(&self) -> String {
+        format!(
+            "{} photo(s), protocol `half` against `baseline` on the same pixels, RMSE after \
+             scale {:.5} against {:.5}; below 1 the fit predicts photos it never saw better \
+             than the median of the training photos' colours does",
+            self.photos, self.method_rmse, self.baseline_rmse
+        )
+    }
+
     /// From `(half, baseline)` RMSE pairs, one per photo (non-finite pairs left out);
     /// `None` when no pair remains or the baseline's mean is 0.
     pub fn from_pairs(pairs: &[(f64, f64)]) -> Option<Headline> {
