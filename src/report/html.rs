@@ -109,8 +109,6 @@ img.thumb{width:160px}img.map{width:320px}img.plot{max-width:100%}\
 .sw{width:48px;height:48px;display:inline-block;border:1px solid #444;vertical-align:middle}\
 figure{display:inline-block;margin:4px}figcaption{font-size:85%;color:#555}";
 
-/// The held-out section: one row per image and protocol, from the panels beside
-/// `renders/STEM.PROTOCOL.png`.
 /// The headline (protocol `half` over the naive baseline) and the light prior `half`
 /// fitted with, as report.md gives them; nothing without a headline.
 fn headline(s: &mut String, r: &RunReport) {
@@ -128,6 +126,8 @@ fn headline(s: &mut String, r: &RunReport) {
     }
 }
 
+/// The held-out section: one row per image and protocol, from the panels beside
+/// `renders/STEM.PROTOCOL.png`.
 fn held_out_section(s: &mut String, r: &RunReport, dir: &Path) {
     let _ = writeln!(s, "<h2 id=\"held-out\">Held-out photos</h2>");
     if r.holdout.is_empty() {

@@ -29,7 +29,7 @@
 //! caps, and on 3 of 3 with the half fit's own (every observation, three IRLS passes).
 //!
 //! Whether the training prior helps is a property of the collection, so it is chosen by
-//! replaying protocol (b) on training photos ([`choose_prior`]): for up to
+//! replaying protocol (b) on training photos (`choose_prior`): for up to
 //! [`LOO_PHOTOS`] training photos `k` (spread over the list), the left half of `k`'s
 //! observations (projected `x` below the middle of their span, `super::half_fit::span_mid`)
 //! fits its map from the mean of the other training maps, the training prior learnt from
@@ -447,11 +447,7 @@ pub(crate) fn choose_prior(
 ) -> Result<ReplayChoice> {
     let kk = f.est.lights.len();
     if kk < 3 {
-        return Ok(ReplayChoice {
-            kept: HalfLightPrior::Laplacian,
-            scores: Vec::new(),
-            photos: 0,
-        });
+        return Ok(fixed(HalfLightPrior::Laplacian));
     }
     let m = LOO_PHOTOS.min(kk);
     let picks: Vec<usize> = (0..m).map(|i| (2 * i + 1) * kk / (2 * m)).collect();
@@ -522,16 +518,19 @@ pub(crate) fn prepare(
 ) -> Result<HalfPrior> {
     let watch = crate::stages::Stopwatch::start();
     let priors = candidates();
-    let mut choice = match mode {
+    let choice = match mode {
         HalfPriorMode::Off => fixed(HalfLightPrior::Laplacian),
         HalfPriorMode::Model => fixed(HalfLightPrior::Model),
         HalfPriorMode::Fixed(eta) => fixed(HalfLightPrior::Training(eta)),
         HalfPriorMode::Auto if f.held.is_empty() => fixed(HalfLightPrior::Laplacian),
-        HalfPriorMode::Auto => choose_prior(f, opts, &priors)?,
+        HalfPriorMode::Auto => {
+            let mut c = choose_prior(f, opts, &priors)?;
+            if c.kept == HalfLightPrior::Laplacian {
+                c.kept = without_training_prior(opts.light_prior.is_some());
+            }
+            c
+        }
     };
-    if mode == HalfPriorMode::Auto && choice.kept == HalfLightPrior::Laplacian {
-        choice.kept = without_training_prior(opts.light_prior.is_some());
-    }
     // `auto` only keeps a training prior when it could be built on the replays; a fixed
     // η with too few lit maps is an error naming the cause.
     let n = f.opts.global_resolution;

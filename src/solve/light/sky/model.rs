@@ -15,8 +15,10 @@ use std::sync::Arc;
 use super::clock::ClockSun;
 use super::search::{Candidate, SearchData, ALL_FREE, SUN_FIXED};
 use super::summary::{SkyFit, SkyPhotoFit};
+pub(super) use mix::combine_photo;
 use north::clock_theta;
 
+mod mix;
 mod north;
 use super::{
     coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
@@ -27,7 +29,6 @@ use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
 use crate::solve::problem::{haar3, par_largest_first, Problem};
 use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
-use crate::sphere::haar;
 use crate::{Error, Result};
 
 /// Relative noise level `η` of the residual's prior by default (`σ = η · rms(y)`).
@@ -534,46 +535,6 @@ impl SkyLight {
                 message: e.to_string(),
             })
     }
-}
-
-impl SkyLight {
-    /// The residuals' prior term per channel at `params`, with the current scales.
-    fn residual_penalties(&self, params: &[SkyPhoto]) -> [f64; 3] {
-        let n = self.params.first().map_or(0, |p| p.basis.n);
-        let mut out = [0.0; 3];
-        for (p, s) in params.iter().zip(&self.scale) {
-            let Some(s) = s else { continue };
-            for (c, o) in out.iter_mut().enumerate() {
-                let mut h = p.residual[c].clone();
-                haar::forward(&mut h, n);
-                *o += residual_penalty(&h, s.h0[c], &self.b, s.sigma2);
-            }
-        }
-        out
-    }
-}
-
-/// Photo `i` of the ratio step's mix ([`SkyLight::combine`](LightModel::combine)).
-pub(super) fn combine_photo(parts: &[(&Vec<SkyPhoto>, [f64; 3])], i: usize) -> SkyPhoto {
-    let weight = |k: usize| parts[k].1.iter().sum::<f64>();
-    let heaviest = (0..parts.len())
-        .max_by(|&a, &b| weight(a).total_cmp(&weight(b)))
-        .unwrap_or(0);
-    let mut out = parts[heaviest].0[i].clone();
-    if parts.iter().any(|(p, _)| p[i].theta != out.theta) {
-        return out;
-    }
-    for c in 0..3 {
-        for j in 0..N_BASIS {
-            let w: f64 = parts.iter().map(|(p, w)| w[c] * p[i].weights[j][c]).sum();
-            out.weights[j][c] = w.max(0.0);
-        }
-        for (t, v) in out.residual[c].iter_mut().enumerate() {
-            let r: f64 = parts.iter().map(|(p, w)| w[c] * p[i].residual[c][t]).sum();
-            *v = r.max(0.0);
-        }
-    }
-    out
 }
 
 impl LightModel for SkyLight {
