@@ -27,6 +27,9 @@
 //! +26%, −2%) and better on three 128² rendered scenes (−7%, −2.5%, −1%), while the
 //! replay on training photos ranks it the other way on 5 of those 6 cases at the replay's
 //! caps, and on 3 of 3 with the half fit's own (every observation, three IRLS passes).
+//! Scored instead on the right halves of training photos that `--light auto` holds back
+//! whole (no reflectance saw them), it ranks the prior opposite to the held-out photos on
+//! 8 of 8 cases (`bench-results/half-prior-held-halves.md`).
 //!
 //! Whether the training prior helps is a property of the collection, so it is chosen by
 //! replaying protocol (b) on training photos (`choose_prior`): for up to
