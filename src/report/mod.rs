@@ -145,6 +145,9 @@ pub struct HalfFitPriorReport {
     pub prior: String,
     /// The training maps' prior's relative noise level (0 when that prior is not used).
     pub eta: f64,
+    /// The scale of the light model's noise levels in the fit when its prior is used
+    /// (`crate::run` `half_prior::MODEL_PRIOR_SCALE`), else 0.
+    pub model_prior_scale: f64,
     /// Candidates of `auto`, `none` first (empty otherwise).
     pub candidates: Vec<String>,
     /// Per candidate, the mean over replayed photos of ln(right-half RMSE / RMSE without
@@ -171,10 +174,11 @@ impl HalfFitPriorReport {
     pub fn sentence(&self) -> String {
         let what = match self.prior.as_str() {
             "none" => "the Laplacian prior alone".to_string(),
-            "light model's" => {
-                "the light model's own prior, the one the training photos' maps were fitted with"
-                    .to_string()
-            }
+            "light model's" => format!(
+                "the light model's own prior (the one the training photos' maps were fitted \
+                 with) at {}× its noise levels",
+                self.model_prior_scale
+            ),
             _ => format!("the training maps' shape prior at η = {}", self.eta),
         };
         let why = if self.candidates.is_empty() {

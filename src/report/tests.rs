@@ -100,6 +100,7 @@ fn half_fit_prior_sentence_names_the_prior_used_and_why() {
         mode: "auto".into(),
         prior: "light model's".into(),
         eta: 0.0,
+        model_prior_scale: 0.2,
         candidates: vec!["none".into(), "training maps η 3".into()],
         log_rmse_ratio: vec![0.0, 1.25],
         replayed_photos: 4,
@@ -107,6 +108,7 @@ fn half_fit_prior_sentence_names_the_prior_used_and_why() {
     };
     let s = replayed.sentence();
     assert!(s.contains("the light model's own prior"), "{s}");
+    assert!(s.contains("at 0.2× its noise levels"), "{s}");
     assert!(s.contains("no training-map prior chosen"), "{s}");
     assert!(s.contains("training maps η 3: +1.2500"), "{s}");
     let fixed = HalfFitPriorReport {

@@ -266,8 +266,9 @@ pub(crate) struct RunArgs {
     /// Light prior of the held-out `half` protocol's fit: `auto` (the training photos'
     /// maps as a prior on the new photo's low-order light, weighted as replaying the
     /// protocol on training photos says; without it the light model's own prior, if any),
-    /// `off` (the Laplacian alone), `model` (the light model's own prior: `--light
-    /// prior`'s) or a fixed weight η > 0 of the training maps' prior.
+    /// `off` (the Laplacian alone), `model` (the light model's own prior, `--light
+    /// prior`'s, at 0.2× its noise levels) or a fixed weight η > 0 of the training maps'
+    /// prior.
     #[arg(long, default_value = "auto", help_heading = "Evaluation")]
     pub(crate) half_prior: String,
     /// Hold out these photos (image names, comma-separated) to score the result; `none`

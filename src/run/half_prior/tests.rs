@@ -159,7 +159,8 @@ fn candidates_start_with_the_laplacian_then_the_training_prior_at_each_eta() {
 #[test]
 fn each_candidate_gives_its_own_light_prior_options() {
     // Three maps 1 + a z (two would do; three as a collection has): the training prior
-    // at η is the shape term alone with σ-scale η; the model's is passed through as is.
+    // at η is the shape term alone with σ-scale η; the model's keeps its statistics at
+    // its noise levels scaled.
     let n = 8;
     let lights: Vec<[Vec<f64>; 3]> = [0.1, 0.4, -0.2]
         .iter()
@@ -179,7 +180,10 @@ fn each_candidate_gives_its_own_light_prior_options() {
         .options(&lights, n, Some(&model))
         .unwrap()
         .unwrap();
-    assert_eq!((m.sh_noise, m.haar_noise), (0.3, 0.03));
+    // The model's own statistics at its noise levels × MODEL_PRIOR_SCALE.
+    assert!(std::sync::Arc::ptr_eq(&m.stats, &model.stats));
+    let want = (0.3 * MODEL_PRIOR_SCALE, 0.03 * MODEL_PRIOR_SCALE);
+    assert_eq!((m.sh_noise, m.haar_noise), want);
     // No model prior (the paper's free map): the model candidate adds nothing.
     assert!(HalfLightPrior::Model
         .options(&lights, n, None)

@@ -161,7 +161,8 @@ pub struct RunOptions {
     /// The light prior of held-out protocol (b)'s fit ([`super::half_prior`]): `Auto`
     /// (none, the training maps' shape prior at a weight, or the light model's own prior,
     /// as replaying the protocol on training photos says), `Off` (the Laplacian alone),
-    /// `Model` (the light model's own) or a fixed weight of the training maps' prior.
+    /// `Model` (the light model's own, at [`super::half_prior::MODEL_PRIOR_SCALE`] of its
+    /// noise levels) or a fixed weight of the training maps' prior.
     pub half_prior: super::half_prior::HalfPriorMode,
     /// Groups of photos under one sky for `--light shared` ([`super::light_groups`]); `None`:
     /// by EXIF capture time.
