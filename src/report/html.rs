@@ -119,11 +119,16 @@ fn headline(s: &mut String, r: &RunReport) {
         s,
         "<p><b>Headline: held-out error / baseline error = {:.3}</b> ({}).</p>",
         h.ratio,
-        esc(&h.explanation().replace('`', ""))
+        esc_prose(&h.explanation())
     );
     if let Some(p) = &r.half_fit_prior {
-        let _ = writeln!(s, "<p>{}</p>", esc(&p.sentence().replace('`', "")));
+        let _ = writeln!(s, "<p>{}</p>", esc_prose(&p.sentence()));
     }
+}
+
+/// report.md's prose for HTML: its code marks (backticks) dropped, then escaped.
+fn esc_prose(text: &str) -> String {
+    esc(&text.replace('`', ""))
 }
 
 /// The held-out section: one row per image and protocol, from the panels beside

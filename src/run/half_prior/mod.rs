@@ -211,8 +211,9 @@ pub fn candidates() -> Vec<HalfLightPrior> {
     c
 }
 
-/// What `auto` uses when the replay keeps no training prior: the light model's own prior
-/// when it has one (the prior the training maps were fitted with), else the Laplacian.
+/// The light model's own prior when it has one (the prior the training maps were fitted
+/// with), else the Laplacian: what `--half-prior model` uses, and `auto` when the replay
+/// keeps no training prior.
 pub fn without_training_prior(model_has_prior: bool) -> HalfLightPrior {
     if model_has_prior {
         HalfLightPrior::Model
@@ -548,9 +549,9 @@ pub(crate) fn prepare(
 ) -> Result<HalfPrior> {
     let watch = crate::stages::Stopwatch::start();
     let priors = candidates();
-    let mut choice = match mode {
+    let choice = match mode {
         HalfPriorMode::Off => fixed(HalfLightPrior::Laplacian),
-        HalfPriorMode::Model => fixed(HalfLightPrior::Model),
+        HalfPriorMode::Model => fixed(without_training_prior(opts.light_prior.is_some())),
         HalfPriorMode::Fixed(eta) => fixed(HalfLightPrior::Training(eta)),
         HalfPriorMode::Auto if f.held.is_empty() => fixed(HalfLightPrior::Laplacian),
         HalfPriorMode::Auto => {
@@ -568,10 +569,6 @@ pub(crate) fn prepare(
         .kept
         .options(&f.est.lights, n, opts.light_prior.as_ref())?;
     let (_, cpu) = watch.elapsed();
-    // `model` under a light model without a prior of its own adds none.
-    if choice.kept == HalfLightPrior::Model && options.is_none() {
-        choice.kept = HalfLightPrior::Laplacian;
-    }
     Ok(HalfPrior {
         options,
         report: prior_report(mode, &priors, choice, cpu),

@@ -621,16 +621,17 @@ impl LightModel for SkyLight {
         Some(self.residual_penalties(params))
     }
 
+    /// Holds every searched `θ` and the north (the `θ` search and `update_north` skip).
+    fn hold_shape(&mut self, hold: bool) {
+        self.hold = hold;
+    }
+
     /// Per photo, the parts' colour weights and residuals each mixed per channel with the
     /// weights, projected on `≥ 0`. The ratio step's probes hold every `θ`
     /// ([`LightModel::hold_shape`]), and the map is linear in (weights, residual) at fixed
     /// `θ`, so the mix is the parts' maps mixed (before the projection); the step keeps
     /// it only where `F` drops. Where the parts' `θ` differ after all (a photo not yet
     /// searched), the photo takes the light of the part with the largest weight.
-    fn hold_shape(&mut self, hold: bool) {
-        self.hold = hold;
-    }
-
     fn combine(&self, parts: &[(&Vec<SkyPhoto>, [f64; 3])]) -> Option<Vec<SkyPhoto>> {
         let photos = parts.first()?.0.len();
         Some((0..photos).map(|i| combine_photo(parts, i)).collect())
