@@ -66,6 +66,7 @@
 pub mod clock;
 pub mod held_out;
 pub mod model;
+pub mod samples;
 pub mod search;
 pub mod summary;
 #[cfg(test)]
@@ -73,10 +74,10 @@ mod tests;
 
 use hw_skymodel::rgb::{Channel, SkyParams, SkyState};
 
-use crate::sphere::SphereGrid;
 use crate::{Error, Result, Vec3};
 
 pub use model::{SkyLight, SkyOptions};
+pub use samples::TexelSamples;
 
 /// The number of basis maps: sky, sun, ground.
 pub const N_BASIS: usize = 3;
@@ -145,10 +146,14 @@ pub fn sky_state(p: &SunSky) -> Result<SkyState> {
 /// Hosek–Wilkie radiance per channel seen in direction `d` (unit) under sun `sun`: zero at
 /// or below the horizon.
 pub fn sky_radiance(state: &SkyState, d: &Vec3, sun: &Vec3) -> [f64; 3] {
+    sky_radiance_at(state, d, d.z.clamp(-1.0, 1.0).acos() as f32, sun)
+}
+
+/// [`sky_radiance`] with the view zenith angle `theta = acos d_z` given.
+fn sky_radiance_at(state: &SkyState, d: &Vec3, theta: f32, sun: &Vec3) -> [f64; 3] {
     if d.z <= 0.0 {
         return [0.0; 3];
     }
-    let theta = d.z.clamp(-1.0, 1.0).acos() as f32;
     let gamma = d.dot(sun).clamp(-1.0, 1.0).acos() as f32;
     [Channel::R, Channel::G, Channel::B].map(|c| (state.radiance(theta, gamma, c) as f64).max(0.0))
 }
@@ -179,37 +184,41 @@ pub struct SkyBasis {
 }
 
 impl SkyBasis {
-    /// The bases at `p` (texel averages by `sub × sub` sub-texels).
+    /// The bases at `p` (texel averages by `sub × sub` sub-texels, [`TexelSamples`]).
     pub fn new(n: usize, sub: usize, p: &SunSky) -> Result<SkyBasis> {
-        let grid = SphereGrid::full(n);
+        let samples = TexelSamples::shared(n, sub);
         let state = sky_state(p)?;
-        let n2 = grid.len();
+        let n2 = n * n;
+        let per = samples.per_texel();
         let mut maps: [[Vec<f64>; 3]; N_BASIS] =
             std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n2]));
         let sun = p.sun.normalize();
         for t in 0..n2 {
-            let (mut acc, mut area) = ([[0.0_f64; 3]; N_BASIS], 0.0);
-            for (d, w) in grid.sample_points(t, sub) {
-                let sky = sky_radiance(&state, &d, &sun);
+            let mut acc = [[0.0_f64; 3]; N_BASIS];
+            for i in t * per..(t + 1) * per {
+                let (d, w) = (&samples.dir[i], samples.weight[i]);
+                let sky = sky_radiance_at(&state, d, samples.zenith[i], &sun);
                 let lobe = sun_lobe(p.kappa, d.dot(&sun));
-                let g = ground(&d);
+                let g = ground(d);
                 for c in 0..3 {
                     acc[SKY][c] += w * sky[c];
                     acc[SUN][c] += w * lobe;
                     acc[GROUND][c] += w * g;
                 }
-                area += w;
             }
             for (j, a) in acc.iter().enumerate() {
                 for c in 0..3 {
-                    maps[j][c][t] = a[c] / area;
+                    maps[j][c][t] = a[c] / samples.area[t];
                 }
             }
         }
         // The sky to unit integral per channel (the lobe and the ground are by formula).
-        let omega = grid.solid_angles();
         for ch in maps[SKY].iter_mut() {
-            let total: f64 = ch.iter().zip(&omega).map(|(v, o)| v * o).sum();
+            let total: f64 = ch
+                .iter()
+                .zip(&samples.solid_angle)
+                .map(|(v, o)| v * o)
+                .sum();
             if total > 0.0 {
                 ch.iter_mut().for_each(|v| *v /= total);
             }

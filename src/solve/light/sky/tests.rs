@@ -52,6 +52,62 @@ fn the_basis_texels_integrate_to_one_and_are_non_negative() {
 }
 
 #[test]
+fn the_shared_texel_samples_are_the_grids_sample_points_and_give_the_same_basis() {
+    // The cached samples against the grid's own sub-texels, exactly: they are computed by
+    // the same expressions (samples.rs), so any difference is a wrong index, not rounding.
+    // One grid side is asked for twice (shared) and a second side too (a separate entry).
+    let (n, sub) = (8, SUB_TEXELS);
+    let s = TexelSamples::shared(n, sub);
+    assert!(std::sync::Arc::ptr_eq(&s, &TexelSamples::shared(n, sub)));
+    assert_eq!(TexelSamples::shared(4, sub).n, 4);
+    let grid = crate::sphere::SphereGrid::full(n);
+    let per = sub * sub;
+    for t in 0..grid.len() {
+        let mut area = 0.0;
+        for (k, (d, w)) in grid.sample_points(t, sub).enumerate() {
+            let i = t * per + k;
+            assert_eq!((s.dir[i], s.weight[i]), (d, w), "texel {t} sample {k}");
+            assert_eq!(s.zenith[i], d.z.clamp(-1.0, 1.0).acos() as f32);
+            area += w;
+        }
+        assert_eq!(s.area[t], area);
+    }
+    // The bases built from them against texel averages written out from the grid's
+    // sub-texels and the formulas (bit for bit: the same sums in the same order).
+    let p = SunSky::from_angles(0.7, 0.4, 3.0, 64.0);
+    let b = SkyBasis::new(n, sub, &p).unwrap();
+    let state = sky_state(&p).unwrap();
+    let sun = p.sun.normalize();
+    let mut want: [[Vec<f64>; 3]; N_BASIS] = Default::default();
+    for t in 0..grid.len() {
+        let (mut acc, mut area) = ([[0.0; 3]; N_BASIS], 0.0);
+        for (d, w) in grid.sample_points(t, sub) {
+            let r = sky_radiance(&state, &d, &sun);
+            let (lobe, g) = (sun_lobe(p.kappa, d.dot(&sun)), ground(&d));
+            for c in 0..3 {
+                acc[SKY][c] += w * r[c];
+                acc[SUN][c] += w * lobe;
+                acc[GROUND][c] += w * g;
+            }
+            area += w;
+        }
+        for j in 0..N_BASIS {
+            (0..3).for_each(|c| want[j][c].push(acc[j][c] / area));
+        }
+    }
+    let omega = grid.solid_angles();
+    for ch in want[SKY].iter_mut() {
+        let total: f64 = ch.iter().zip(&omega).map(|(v, o)| v * o).sum();
+        ch.iter_mut().for_each(|v| *v /= total);
+    }
+    for j in 0..N_BASIS {
+        for c in 0..3 {
+            assert_eq!(b.maps[j][c], want[j][c], "basis {j} channel {c}");
+        }
+    }
+}
+
+#[test]
 fn the_sky_basis_is_the_crates_radiance_over_its_integral() {
     // The sky's texel average × its integral (a 1024-row lat-long quadrature of the crate's
     // radiance, independent of the octahedral texels) against the crate's radiance at the

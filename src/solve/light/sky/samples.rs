@@ -1,0 +1,87 @@
+//! The sample points of the sky bases' texel averages ([`super::SkyBasis`]): per texel of
+//! the full octahedral grid of side `n`, its `sub × sub` sub-texels' centre directions
+//! `ω_i` and exact solid angles `Ω_i` ([`SphereGrid::sample_points`]), so that a basis
+//! texel is `B_t = Σ_i Ω_i B(ω_i) / Σ_i Ω_i`.
+//!
+//! None of it depends on `θ`, and the `θ` search builds a basis per candidate (hundreds a
+//! lighting step): computing each sub-texel's solid angle and direction again per
+//! candidate took about a fifth of a `--light sky` run (`bench-results/sky-texel-samples.md`).
+//! They are computed once per `(n, sub)` and shared, with each sample's view zenith angle
+//! `θ_v = acos ω_z` that the Hosek–Wilkie sky reads. Every value is computed by the same
+//! expressions as before, so the bases are the same to the last bit.
+
+use std::sync::{Arc, Mutex, OnceLock};
+
+use crate::sphere::SphereGrid;
+use crate::Vec3;
+
+/// The sub-texel samples of one grid (module docs).
+#[derive(Debug)]
+pub struct TexelSamples {
+    /// Texels per side.
+    pub n: usize,
+    /// Sub-texels per texel side.
+    pub sub: usize,
+    /// `ω_i`, texel by texel (`sub²` per texel, texel `t`'s at `t·sub²..`).
+    pub dir: Vec<Vec3>,
+    /// `Ω_i`.
+    pub weight: Vec<f64>,
+    /// `θ_v = acos ω_z` as the sky model takes it.
+    pub zenith: Vec<f32>,
+    /// `Σ_i Ω_i` per texel, summed in sample order.
+    pub area: Vec<f64>,
+    /// Each texel's solid angle ([`SphereGrid::solid_angles`]).
+    pub solid_angle: Vec<f64>,
+}
+
+impl TexelSamples {
+    /// The samples of the full grid of side `n` at `sub × sub` sub-texels.
+    pub fn new(n: usize, sub: usize) -> TexelSamples {
+        let grid = SphereGrid::full(n);
+        let per = sub.max(1) * sub.max(1);
+        let (mut dir, mut weight) = (Vec::with_capacity(grid.len() * per), Vec::new());
+        let mut area = Vec::with_capacity(grid.len());
+        for t in 0..grid.len() {
+            let mut a = 0.0;
+            for (d, w) in grid.sample_points(t, sub) {
+                dir.push(d);
+                weight.push(w);
+                a += w;
+            }
+            area.push(a);
+        }
+        let zenith = dir
+            .iter()
+            .map(|d| d.z.clamp(-1.0, 1.0).acos() as f32)
+            .collect();
+        TexelSamples {
+            n,
+            sub,
+            dir,
+            weight,
+            zenith,
+            area,
+            solid_angle: grid.solid_angles(),
+        }
+    }
+
+    /// Samples per texel.
+    pub fn per_texel(&self) -> usize {
+        self.sub.max(1) * self.sub.max(1)
+    }
+
+    /// The shared samples of `(n, sub)`, computed at the first call.
+    pub fn shared(n: usize, sub: usize) -> Arc<TexelSamples> {
+        static CACHE: OnceLock<Mutex<Vec<Arc<TexelSamples>>>> = OnceLock::new();
+        let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
+        // A poisoned lock only means another thread panicked while pushing: the entries
+        // present are complete.
+        let mut list = cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(s) = list.iter().find(|s| s.n == n && s.sub == sub) {
+            return Arc::clone(s);
+        }
+        let s = Arc::new(TexelSamples::new(n, sub));
+        list.push(Arc::clone(&s));
+        s
+    }
+}
