@@ -433,10 +433,7 @@ impl SkyLight {
     ) -> Result<Candidate> {
         let prev = &self.params[photo];
         let target = self.search_target(sys, rows, photo);
-        let search = SearchData {
-            sys,
-            target: &target,
-        };
+        let search = SearchData::new(sys, &target);
         if self.hold && self.searched[photo] {
             return search.evaluate(prev.theta);
         }

@@ -4,11 +4,14 @@
 //! texel is `B_t = Σ_i Ω_i B(ω_i) / Σ_i Ω_i`.
 //!
 //! None of it depends on `θ`, and the `θ` search builds a basis per candidate (hundreds a
-//! lighting step): computing each sub-texel's solid angle and direction again per
-//! candidate took about a fifth of a `--light sky` run (`bench-results/sky-texel-samples.md`).
-//! They are computed once per `(n, sub)` and shared, with each sample's view zenith angle
-//! `θ_v = acos ω_z` that the Hosek–Wilkie sky reads. Every value is computed by the same
-//! expressions as before, so the bases are the same to the last bit.
+//! lighting step): computing each sub-texel's direction and solid angle again per
+//! candidate cost a `--light sky` run 23–30% of its CPU
+//! (`bench-results/sky-texel-samples.md`). They are computed once per `(n, sub)` and
+//! shared, with each sample's view zenith angle `θ_v = acos ω_z` that the Hosek–Wilkie sky
+//! reads, and the ground basis, which depends on no `θ` at all (the search takes its
+//! responses once per photo, `SearchData::new` in [`super::search`]). Every value is computed
+//! by the same expressions in the same order as before, so the bases are the same to the
+//! last bit.
 
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -32,6 +35,9 @@ pub struct TexelSamples {
     pub area: Vec<f64>,
     /// Each texel's solid angle ([`SphereGrid::solid_angles`]).
     pub solid_angle: Vec<f64>,
+    /// The ground basis's texel averages ([`super::ground`]), the same for every `θ` and
+    /// channel.
+    pub ground: Vec<f64>,
 }
 
 impl TexelSamples {
@@ -54,6 +60,16 @@ impl TexelSamples {
             .iter()
             .map(|d| d.z.clamp(-1.0, 1.0).acos() as f32)
             .collect();
+        let ground = (0..grid.len())
+            .map(|t| {
+                let i = t * per..(t + 1) * per;
+                let sum: f64 = dir[i.clone()]
+                    .iter()
+                    .zip(&weight[i])
+                    .fold(0.0, |acc, (d, w)| acc + w * super::ground(d));
+                sum / area[t]
+            })
+            .collect();
         TexelSamples {
             n,
             sub,
@@ -62,6 +78,7 @@ impl TexelSamples {
             zenith,
             area,
             solid_angle: grid.solid_angles(),
+            ground,
         }
     }
 

@@ -5,7 +5,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::{SkyBasis, SunSky, GRID_SUNS, KAPPA_RANGE, N_BASIS, SUB_TEXELS};
+use super::{SkyBasis, SunSky, TexelSamples, GRID_SUNS, GROUND, KAPPA_RANGE, N_BASIS, SUB_TEXELS};
 use crate::solve::light::system::PhotoSystem;
 use crate::solve::problem::haar3;
 use crate::solve::qp::{nnls, NnlsOptions};
@@ -74,22 +74,42 @@ pub fn weights_nnls(
     Ok((w, sse))
 }
 
-/// What the search reads for one photo: its lighting system (rows, weights `dw`) and the
-/// targets with the residual's prediction taken off.
+/// What the search reads for one photo: its lighting system (rows, weights `dw`), the
+/// targets with the residual's prediction taken off, and the ground basis's responses,
+/// which no `θ` changes ([`TexelSamples::ground`]).
 pub(crate) struct SearchData<'a> {
     /// The photo's system (its `dw` the row weights).
-    pub(crate) sys: &'a PhotoSystem,
+    sys: &'a PhotoSystem,
     /// `y − A r` per row.
-    pub(crate) target: &'a [[f64; 3]],
+    target: &'a [[f64; 3]],
+    /// `A W B_ground` per row.
+    ground: Vec<[f64; 3]>,
 }
 
-impl SearchData<'_> {
+impl<'a> SearchData<'a> {
+    /// The search over `sys` toward `target`.
+    pub fn new(sys: &'a PhotoSystem, target: &'a [[f64; 3]]) -> SearchData<'a> {
+        let n = sys.n;
+        let map = &TexelSamples::shared(n, SUB_TEXELS).ground;
+        let h = haar3(&[map.clone(), map.clone(), map.clone()], n);
+        let mut ground = vec![[0.0; 3]; target.len()];
+        sys.forward_rows(&h, &mut ground);
+        SearchData {
+            sys,
+            target,
+            ground,
+        }
+    }
+
     /// `θ` evaluated: bases, responses, NNLS.
     pub fn evaluate(&self, theta: SunSky) -> Result<Candidate> {
         let n = self.sys.n;
         let basis = SkyBasis::new(n, SUB_TEXELS, &theta)?;
         let rows = self.target.len();
         let resp: [Vec<[f64; 3]>; N_BASIS] = std::array::from_fn(|j| {
+            if j == GROUND {
+                return self.ground.clone();
+            }
             let h = haar3(&basis.maps[j], n);
             let mut r = vec![[0.0; 3]; rows];
             self.sys.forward_rows(&h, &mut r);

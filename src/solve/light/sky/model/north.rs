@@ -68,10 +68,7 @@ impl SkyLight {
         let rows = Rows::new(problem, photo);
         let sys = self.photo_system(problem, beta, &rows);
         let target = self.search_target(&sys, &rows, photo);
-        let search = SearchData {
-            sys: &sys,
-            target: &target,
-        };
+        let search = SearchData::new(&sys, &target);
         let prev = &self.params[photo].theta;
         norths
             .iter()
