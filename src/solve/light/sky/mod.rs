@@ -160,12 +160,17 @@ fn sky_radiance_at(state: &SkyState, d: &Vec3, theta: f32, sun: &Vec3) -> [f64; 
 
 /// The normalised sun lobe at `cos γ = ω·s` (module docs): integrates to 1 over the sphere.
 pub fn sun_lobe(kappa: f64, cos_gamma: f64) -> f64 {
-    sun_lobe_norm(kappa) * (kappa * (cos_gamma - 1.0)).exp()
+    sun_lobe_normed(sun_lobe_norm(kappa), kappa, cos_gamma)
 }
 
 /// The sun lobe's normalisation `κ / (2π (1 − e^{−2κ}))`, [`sun_lobe`] at `cos γ = 1`.
 fn sun_lobe_norm(kappa: f64) -> f64 {
     kappa / (2.0 * std::f64::consts::PI * (-(-2.0 * kappa).exp_m1()))
+}
+
+/// [`sun_lobe`] with its normalisation `norm` ([`sun_lobe_norm`]) given.
+fn sun_lobe_normed(norm: f64, kappa: f64, cos_gamma: f64) -> f64 {
+    norm * (kappa * (cos_gamma - 1.0)).exp()
 }
 
 /// The ground basis at `d`: `1/(2π)` below the horizon.
@@ -198,14 +203,13 @@ impl SkyBasis {
             std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n2]));
         maps[GROUND] = std::array::from_fn(|_| samples.ground.clone());
         let sun = p.sun.normalize();
-        // `sun_lobe` with its normalisation hoisted out of the samples.
         let lobe_norm = sun_lobe_norm(p.kappa);
         for t in 0..n2 {
             let mut acc = [[0.0_f64; 3]; N_BASIS];
             for i in t * per..(t + 1) * per {
                 let (d, w) = (&samples.dir[i], samples.weight[i]);
                 let sky = sky_radiance_at(&state, d, samples.zenith[i], &sun);
-                let lobe = lobe_norm * (p.kappa * (d.dot(&sun) - 1.0)).exp();
+                let lobe = sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun));
                 for c in 0..3 {
                     acc[SKY][c] += w * sky[c];
                     acc[SUN][c] += w * lobe;

@@ -5,7 +5,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::{SkyBasis, SunSky, TexelSamples, GRID_SUNS, GROUND, KAPPA_RANGE, N_BASIS, SUB_TEXELS};
+use super::{
+    SkyBasis, SunSky, TexelSamples, GRID_SUNS, GROUND, KAPPA_RANGE, N_BASIS, SKY, SUB_TEXELS, SUN,
+};
 use crate::solve::light::system::PhotoSystem;
 use crate::solve::problem::haar3;
 use crate::solve::qp::{nnls, NnlsOptions};
@@ -35,7 +37,7 @@ pub struct Candidate {
 /// `resp[j][q][c]` (basis `j`'s prediction of row `q`), the row weights `dw` and targets
 /// `y`; and the weighted squared error at them.
 pub fn weights_nnls(
-    resp: &[Vec<[f64; 3]>; N_BASIS],
+    resp: [&[[f64; 3]]; N_BASIS],
     dw: &[[f64; 3]],
     y: &[[f64; 3]],
 ) -> Result<([[f64; 3]; N_BASIS], f64)> {
@@ -105,17 +107,17 @@ impl<'a> SearchData<'a> {
     pub fn evaluate(&self, theta: SunSky) -> Result<Candidate> {
         let n = self.sys.n;
         let basis = SkyBasis::new(n, SUB_TEXELS, &theta)?;
-        let rows = self.target.len();
-        let resp: [Vec<[f64; 3]>; N_BASIS] = std::array::from_fn(|j| {
-            if j == GROUND {
-                return self.ground.clone();
-            }
-            let h = haar3(&basis.maps[j], n);
-            let mut r = vec![[0.0; 3]; rows];
-            self.sys.forward_rows(&h, &mut r);
+        let response = |j: usize| {
+            let mut r = vec![[0.0; 3]; self.target.len()];
+            self.sys.forward_rows(&haar3(&basis.maps[j], n), &mut r);
             r
-        });
-        let (weights, sse) = weights_nnls(&resp, &self.sys.dw, self.target)?;
+        };
+        let (sky, sun) = (response(SKY), response(SUN));
+        let mut resp: [&[[f64; 3]]; N_BASIS] = [&[]; N_BASIS];
+        resp[SKY] = &sky;
+        resp[SUN] = &sun;
+        resp[GROUND] = &self.ground;
+        let (weights, sse) = weights_nnls(resp, &self.sys.dw, self.target)?;
         Ok(Candidate {
             theta,
             basis,

@@ -182,7 +182,7 @@ fn nnls_weights_recover_planted_weights_and_stay_non_negative() {
             .collect()
     };
     let w_true = [[0.5, 0.7, 0.9], [2.0, 1.5, 1.0], [0.0, 0.2, 0.1]];
-    let (w, sse) = weights_nnls(&resp, &dw, &make(w_true)).unwrap();
+    let (w, sse) = weights_nnls(resp.each_ref().map(Vec::as_slice), &dw, &make(w_true)).unwrap();
     for j in 0..N_BASIS {
         for c in 0..3 {
             assert!((w[j][c] - w_true[j][c]).abs() < 1e-9, "{w:?}");
@@ -191,7 +191,7 @@ fn nnls_weights_recover_planted_weights_and_stay_non_negative() {
     assert!(sse < 1e-12, "{sse}");
     let w_neg = [[0.5, -0.7, 0.9], [2.0, 1.5, -1.0], [0.3, 0.2, 0.1]];
     let y = make(w_neg);
-    let (w, sse) = weights_nnls(&resp, &dw, &y).unwrap();
+    let (w, sse) = weights_nnls(resp.each_ref().map(Vec::as_slice), &dw, &y).unwrap();
     assert!(w.iter().flatten().all(|v| *v >= 0.0));
     let clamped = w_neg.map(|r| r.map(|v: f64| v.max(0.0)));
     let yc = make(clamped);
