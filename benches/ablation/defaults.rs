@@ -8,8 +8,10 @@
 //! photo sees take their seen neighbours' materials ([`propagate_unseen`]); the ratio step
 //! runs as `--ratio-steps auto` decides ([`ratio_step::default_rounds`]), and early stopping
 //! has `run`'s patience ([`RunOptions::DEFAULT_PATIENCE`]; `ABLATION_DEFAULTS_PATIENCE=N`
-//! gives it `run --patience N`; `ABLATION_DEFAULTS_NEIGHBOUR=X` gives it
-//! `run --weights-smoothness X`, the neighbour prior over the case's vertex graph). The map sizes
+//! gives it `run --patience N`; the neighbour prior over the case's vertex graph is on when the
+//! pilot keeps a shiny lobe, as `run --weights-smoothness auto` decides
+//! ([`adapt::neighbour_prior_for`]), and `ABLATION_DEFAULTS_NEIGHBOUR=X` gives it
+//! `run --weights-smoothness X`). The map sizes
 //! stay the bench's (16² / 8²: the pilot's resolution choice, step 5, is the only default
 //! left out).
 
@@ -167,6 +169,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
                 RunOptions::DEFAULT_REL_TOL,
             )
         };
+    let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
+    let neighbour_prior = adapt::neighbour_prior_for(&kept).0;
     let opts = EstimateOptions {
         weights_sum: pilot.weights_sum,
         weights_sum_scope: pilot.weights_sum_scope,
@@ -179,8 +183,9 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             "ABLATION_RATIO_STEPS",
             ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials),
         ),
+        // As `run --weights-smoothness auto` (the pilot's kept lobes), or
         // `run --weights-smoothness X` with `ABLATION_DEFAULTS_NEIGHBOUR=X`.
-        weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", base.weights_smoothness),
+        weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
         // `run --light shared` with `ABLATION_DEFAULTS_LIGHT=shared`: one map per group of
         // training photos under one true sky, with per-photo gains (`SYNTH_SHARED_SKIES=1`
         // makes such groups).

@@ -3,12 +3,12 @@
 //! report's "adaptive model" table.
 //!
 //! In order: the material count, the blending weights' prior and the start's brightness
-//! (the pilot's choices); the basis BRDFs it kept; the global map's side (the sharpest
+//! (the pilot's choices); the basis BRDFs it kept and the neighbour prior they call for; the global map's side (the sharpest
 //! kept lobe, and whether anything casts shadows), the local maps' side and the Haar
 //! coefficients kept per transport row (both bounded by the global side); the Laplacian
 //! prior's weight (raised when the pilot's lighting systems are ill-conditioned).
 
-use super::{MaterialCount, RunOptions, StartBrightness, WeightsSum};
+use super::{MaterialCount, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum};
 use crate::solve::adapt::{self, Decision, PilotOutcome, KAPPA_LIGHTING};
 use crate::solve::SumScope;
 use crate::transport::brdf::BasisBrdf;
@@ -25,6 +25,7 @@ pub(super) fn adaptive_decisions(
 ) -> Vec<Decision> {
     let mut d = material_decisions(opts, outcome, eff);
     d.push(basis_decision(opts, outcome, eff));
+    d.extend(neighbour_prior_decision(opts, eff));
     let shadowed = vis.open_count() < nv;
     d.extend(resolution_decisions(opts, shadowed, eff));
     d.push(smoothness_decision(opts, outcome, eff));
@@ -85,6 +86,16 @@ fn basis_decision(opts: &RunOptions, outcome: &PilotOutcome, eff: &mut RunOption
         labels(&eff.basis),
         outcome.basis_reason.clone(),
     )
+}
+
+/// The neighbour prior on the blending weights for the kept basis, when `auto`.
+fn neighbour_prior_decision(opts: &RunOptions, eff: &mut RunOptions) -> Option<Decision> {
+    if opts.weights_smoothness != WeightsSmoothness::Auto {
+        return None;
+    }
+    let (tau, why) = adapt::neighbour_prior_for(&eff.basis);
+    eff.weights_smoothness = WeightsSmoothness::Fixed(tau);
+    Some(Decision::new("weights_smoothness", "auto", tau, why))
 }
 
 /// The global map's side for the kept basis (`shadowed`: some vertex does not see the

@@ -198,6 +198,25 @@ fn redundant_photos_on_hand_made_observations() {
     assert_eq!(kept.photo_ranges, vec![0..2, 2..3]);
 }
 
+/// The neighbour prior goes in exactly when a lobe other than Lambert's is kept (module
+/// docs of `adapt`, step 4b), at `NEIGHBOUR_PRIOR`, and its reason names the shiny lobes.
+#[test]
+fn the_neighbour_prior_follows_the_kept_shiny_lobes() {
+    let lambert = [BasisBrdf::Lambert];
+    let (off, why) = adapt::neighbour_prior_for(&lambert);
+    assert_eq!(off, 0.0, "{why}");
+    for basis in [
+        vec![BasisBrdf::Lambert, BasisBrdf::Phong { exponent: 50.0 }],
+        vec![BasisBrdf::Lambert, BasisBrdf::Ggx { alpha: 0.3 }],
+        vec![BasisBrdf::Phong { exponent: 500.0 }],
+    ] {
+        let (on, why) = adapt::neighbour_prior_for(&basis);
+        assert_eq!(on, adapt::NEIGHBOUR_PRIOR, "{why}");
+        let shiny = basis.last().expect("a shiny lobe").label();
+        assert!(why.contains(&shiny), "{why} should name {shiny}");
+    }
+}
+
 #[test]
 fn global_resolution_matches_the_closed_form() {
     let four_pi_sqrt = (4.0 * std::f64::consts::PI).sqrt();

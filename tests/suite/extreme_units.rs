@@ -280,7 +280,7 @@ fn weights_sum_on_blends_needs_a_strength() {
 fn weights_smoothness_outside_its_range_is_refused() {
     assert_range_checked(
         "--weights-smoothness",
-        |o, v| o.weights_smoothness = v,
+        |o, v| o.weights_smoothness = relight_cpc::run::WeightsSmoothness::Fixed(v),
         &[-0.1, f64::NAN, f64::INFINITY],
         &[0.0, 0.1, 3.0],
     );

@@ -109,7 +109,8 @@ impl RunArgs {
             },
             _ => relight_cpc::solve::SumScope::Every,
         };
-        o.weights_smoothness = self.weights_smoothness;
+        o.weights_smoothness =
+            relight_cpc::run::WeightsSmoothness::parse(&self.weights_smoothness)?;
         o.achromatic_specular = self.achromatic_specular;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;

@@ -35,7 +35,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         robust_floor: o.robust_floor,
         weights_sum: o.weights_sum.value(),
         weights_sum_scope: o.weights_sum_scope,
-        weights_smoothness: o.weights_smoothness,
+        weights_smoothness: o.weights_smoothness.value(),
         achromatic_specular: o.achromatic_specular,
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
         alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),

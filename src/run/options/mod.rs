@@ -10,7 +10,7 @@ use std::path::PathBuf;
 mod large_mesh;
 mod values;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
-pub use values::{Holdout, MaterialCount, RatioSteps, WeightsSum};
+pub use values::{Holdout, MaterialCount, RatioSteps, WeightsSmoothness, WeightsSum};
 
 /// Checked options of a run.
 #[derive(Debug, Clone)]
@@ -106,8 +106,9 @@ pub struct RunOptions {
     pub weights_sum_scope: SumScope,
     /// Prior pulling each vertex's blending weights toward its neighbours' mean
     /// ([`EstimateOptions::weights_smoothness`]; 0 = off), over the 8-nearest-neighbour
-    /// graph of the vertices ([`crate::solve::materials::propagate::knn_graph`]).
-    pub weights_smoothness: f64,
+    /// graph of the vertices ([`crate::solve::materials::propagate::knn_graph`]), or the
+    /// pilot's choice ([`WeightsSmoothness::Auto`]).
+    pub weights_smoothness: WeightsSmoothness,
     /// One specular weight per material across R, G and B
     /// ([`EstimateOptions::achromatic_specular`]).
     pub achromatic_specular: bool,
@@ -292,7 +293,7 @@ impl RunOptions {
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: WeightsSum::Auto,
             weights_sum_scope: SumScope::Every,
-            weights_smoothness: 0.0,
+            weights_smoothness: WeightsSmoothness::Auto,
             achromatic_specular: false,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
@@ -458,11 +459,9 @@ impl RunOptions {
                 "--weights-sum-on blends: give --weights-sum a number too (with auto the pilot chooses where the prior applies)".into(),
             ));
         }
-        non_negative(
-            "--weights-smoothness",
-            self.weights_smoothness,
-            " (0 = off)",
-        )?;
+        if let WeightsSmoothness::Fixed(v) = self.weights_smoothness {
+            non_negative("--weights-smoothness", v, " (0 = off)")?;
+        }
         if self.starts == 0 {
             return Err(Error::Config(
                 "--starts 0: the alternation needs at least one start".into(),

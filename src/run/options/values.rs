@@ -27,6 +27,38 @@ fn parse_auto_or<T: std::str::FromStr>(s: &str, flag: &str, what: &str) -> Resul
         .map_err(|_| Error::Config(format!("{flag} {s}: expected auto or {what}")))
 }
 
+/// The neighbour prior on the blending weights
+/// ([`EstimateOptions::weights_smoothness`](crate::solve::EstimateOptions::weights_smoothness)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WeightsSmoothness {
+    /// With [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), on at
+    /// [`crate::solve::adapt::NEIGHBOUR_PRIOR`] when the pilot keeps a shiny lobe, else off
+    /// ([`crate::solve::adapt::neighbour_prior_for`]); without it, off.
+    Auto,
+    /// This strength (0 = off, the paper's independent weights).
+    Fixed(f64),
+}
+
+impl WeightsSmoothness {
+    /// `auto` or a number (checked by [`RunOptions::check`](crate::run::RunOptions::check)).
+    pub fn parse(s: &str) -> Result<Self> {
+        Ok(
+            match parse_auto_or(s, "--weights-smoothness", "a number ≥ 0 (0 = off)")? {
+                None => WeightsSmoothness::Auto,
+                Some(v) => WeightsSmoothness::Fixed(v),
+            },
+        )
+    }
+
+    /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
+    pub fn value(self) -> f64 {
+        match self {
+            WeightsSmoothness::Auto => 0.0,
+            WeightsSmoothness::Fixed(v) => v,
+        }
+    }
+}
+
 /// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`](crate::solve::EstimateOptions::weights_sum)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WeightsSum {
