@@ -9,13 +9,14 @@
 //! (`bench-results/sky-texel-samples.md`). They are computed once per `(n, sub)` and
 //! shared, with each sample's view zenith angle `θ_v = acos ω_z` that the Hosek–Wilkie sky
 //! reads, and the ground basis, which depends on no `θ` at all (the search takes its
-//! responses once per photo, `SearchData::new` in [`super::search`]). Every value is computed
+//! responses once per photo from its Haar coefficients, also computed here, `SearchData::new`
+//! in [`super::search`]). Every value is computed
 //! by the same expressions in the same order as before, so the bases are the same to the
 //! last bit.
 
 use std::sync::{Arc, Mutex, OnceLock};
 
-use crate::sphere::SphereGrid;
+use crate::sphere::{haar, SphereGrid};
 use crate::Vec3;
 
 /// The sub-texel samples of one grid (module docs).
@@ -38,6 +39,9 @@ pub struct TexelSamples {
     /// The ground basis's texel averages ([`super::ground`]), the same for every `θ` and
     /// channel.
     pub ground: Vec<f64>,
+    /// [`Self::ground`]'s Haar coefficients, in every channel: what the search's ground
+    /// responses are taken from.
+    pub ground_haar: Vec<[f64; 3]>,
 }
 
 impl TexelSamples {
@@ -69,7 +73,10 @@ impl TexelSamples {
                     .fold(0.0, |acc, (d, w)| acc + w * super::ground(d));
                 sum / area[t]
             })
-            .collect();
+            .collect::<Vec<f64>>();
+        let mut h = ground.clone();
+        haar::forward(&mut h, n);
+        let ground_haar = h.into_iter().map(|v| [v; 3]).collect();
         TexelSamples {
             n,
             sub,
@@ -79,6 +86,7 @@ impl TexelSamples {
             area,
             solid_angle: grid.solid_angles(),
             ground,
+            ground_haar,
         }
     }
 

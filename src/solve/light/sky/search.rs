@@ -78,7 +78,7 @@ pub fn weights_nnls(
 
 /// What the search reads for one photo: its lighting system (rows, weights `dw`), the
 /// targets with the residual's prediction taken off, and the ground basis's responses,
-/// which no `θ` changes ([`TexelSamples::ground`]).
+/// which no `θ` changes ([`TexelSamples::ground_haar`]).
 pub(crate) struct SearchData<'a> {
     /// The photo's system (its `dw` the row weights).
     sys: &'a PhotoSystem,
@@ -91,11 +91,9 @@ pub(crate) struct SearchData<'a> {
 impl<'a> SearchData<'a> {
     /// The search over `sys` toward `target`.
     pub fn new(sys: &'a PhotoSystem, target: &'a [[f64; 3]]) -> SearchData<'a> {
-        let n = sys.n;
-        let map = &TexelSamples::shared(n, SUB_TEXELS).ground;
-        let h = haar3(&[map.clone(), map.clone(), map.clone()], n);
+        let samples = TexelSamples::shared(sys.n, SUB_TEXELS);
         let mut ground = vec![[0.0; 3]; target.len()];
-        sys.forward_rows(&h, &mut ground);
+        sys.forward_rows(&samples.ground_haar, &mut ground);
         SearchData {
             sys,
             target,
