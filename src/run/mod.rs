@@ -51,9 +51,10 @@ mod write;
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    Holdout, LargeMeshSettings, MaterialCount, RatioSteps, RunOptions, StartBrightness,
-    WeightsSmoothness, WeightsSum, DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES,
-    DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO,
+    Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps, RunOptions,
+    StartBrightness, WeightsSmoothness, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
+    DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
+    LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;
 pub use shading::{fine_rays, render_local_resolution};

@@ -102,15 +102,22 @@ impl RunArgs {
         o.start_brightness = relight_cpc::run::StartBrightness::parse(&self.start_brightness)?;
         o.start_weights = relight_cpc::solve::cluster::StartWeights::parse(&self.start_weights)?;
         o.robust_floor = self.robust_floor;
-        o.weights_sum = relight_cpc::run::WeightsSum::parse(&self.weights_sum)?;
+        o.weights_sum = relight_cpc::run::WeightsSum::parse(
+            &self.weights_sum,
+            "--weights-sum",
+            "free weights",
+        )?;
         o.weights_sum_scope = match self.weights_sum_on.as_str() {
             "blends" => relight_cpc::solve::SumScope::Blends {
                 floor: relight_cpc::solve::BLEND_FLOOR,
             },
             _ => relight_cpc::solve::SumScope::Every,
         };
-        o.weights_smoothness =
-            relight_cpc::run::WeightsSmoothness::parse(&self.weights_smoothness)?;
+        o.weights_smoothness = relight_cpc::run::WeightsSmoothness::parse(
+            &self.weights_smoothness,
+            "--weights-smoothness",
+            "off",
+        )?;
         o.achromatic_specular = self.achromatic_specular;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;

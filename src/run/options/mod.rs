@@ -10,7 +10,9 @@ use std::path::PathBuf;
 mod large_mesh;
 mod values;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
-pub use values::{Holdout, MaterialCount, RatioSteps, WeightsSmoothness, WeightsSum};
+pub use values::{
+    Holdout, MaterialCount, PriorStrength, RatioSteps, WeightsSmoothness, WeightsSum,
+};
 
 /// Checked options of a run.
 #[derive(Debug, Clone)]

@@ -27,68 +27,51 @@ fn parse_auto_or<T: std::str::FromStr>(s: &str, flag: &str, what: &str) -> Resul
         .map_err(|_| Error::Config(format!("{flag} {s}: expected auto or {what}")))
 }
 
+/// A prior's strength given as `auto` or a number: the blending weights' sum-to-one prior
+/// ([`WeightsSum`]) and their neighbour prior ([`WeightsSmoothness`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PriorStrength {
+    /// With [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), the pilot's choice
+    /// (each alias says how); without it, 0.
+    Auto,
+    /// This strength (0 = off, the paper's weights).
+    Fixed(f64),
+}
+
+impl PriorStrength {
+    /// `auto` or a number for `flag`, whose 0 means `zero` (checked by
+    /// [`RunOptions::check`](crate::run::RunOptions::check)).
+    pub fn parse(s: &str, flag: &str, zero: &str) -> Result<Self> {
+        Ok(
+            match parse_auto_or(s, flag, &format!("a number ≥ 0 (0 = {zero})"))? {
+                None => PriorStrength::Auto,
+                Some(v) => PriorStrength::Fixed(v),
+            },
+        )
+    }
+
+    /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
+    pub fn value(self) -> f64 {
+        match self {
+            PriorStrength::Auto => 0.0,
+            PriorStrength::Fixed(v) => v,
+        }
+    }
+}
+
+/// The blending weights' sum-to-one prior
+/// ([`EstimateOptions::weights_sum`](crate::solve::EstimateOptions::weights_sum); 0 = free
+/// weights, as the paper). `Auto`: the pilot's choice between free weights and
+/// [`crate::solve::adapt::PILOT_WEIGHTS_SUM`] by held-out error ([`crate::solve::adapt`],
+/// step 3); without the pilot, free weights.
+pub type WeightsSum = PriorStrength;
+
 /// The neighbour prior on the blending weights
-/// ([`EstimateOptions::weights_smoothness`](crate::solve::EstimateOptions::weights_smoothness)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum WeightsSmoothness {
-    /// With [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), on at
-    /// [`crate::solve::adapt::NEIGHBOUR_PRIOR`] when the pilot keeps a shiny lobe, else off
-    /// ([`crate::solve::adapt::neighbour_prior_for`]); without it, off.
-    Auto,
-    /// This strength (0 = off, the paper's independent weights).
-    Fixed(f64),
-}
-
-impl WeightsSmoothness {
-    /// `auto` or a number (checked by [`RunOptions::check`](crate::run::RunOptions::check)).
-    pub fn parse(s: &str) -> Result<Self> {
-        Ok(
-            match parse_auto_or(s, "--weights-smoothness", "a number ≥ 0 (0 = off)")? {
-                None => WeightsSmoothness::Auto,
-                Some(v) => WeightsSmoothness::Fixed(v),
-            },
-        )
-    }
-
-    /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
-    pub fn value(self) -> f64 {
-        match self {
-            WeightsSmoothness::Auto => 0.0,
-            WeightsSmoothness::Fixed(v) => v,
-        }
-    }
-}
-
-/// The blending weights' sum-to-one prior ([`EstimateOptions::weights_sum`](crate::solve::EstimateOptions::weights_sum)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum WeightsSum {
-    /// With [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), the pilot's choice between free weights (the paper)
-    /// and [`crate::solve::adapt::PILOT_WEIGHTS_SUM`] by held-out error
-    /// ([`crate::solve::adapt`], step 3); without it, free weights.
-    Auto,
-    /// This strength (0 = free weights, as the paper).
-    Fixed(f64),
-}
-
-impl WeightsSum {
-    /// `auto` or a number (checked by [`RunOptions::check`](crate::run::RunOptions::check)).
-    pub fn parse(s: &str) -> Result<Self> {
-        Ok(
-            match parse_auto_or(s, "--weights-sum", "a number ≥ 0 (0 = free weights)")? {
-                None => WeightsSum::Auto,
-                Some(v) => WeightsSum::Fixed(v),
-            },
-        )
-    }
-
-    /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
-    pub fn value(self) -> f64 {
-        match self {
-            WeightsSum::Auto => 0.0,
-            WeightsSum::Fixed(v) => v,
-        }
-    }
-}
+/// ([`EstimateOptions::weights_smoothness`](crate::solve::EstimateOptions::weights_smoothness);
+/// 0 = off, the paper's independent weights). `Auto`: on at
+/// [`crate::solve::adapt::NEIGHBOUR_PRIOR`] when the pilot keeps a shiny lobe, else off
+/// ([`crate::solve::adapt::neighbour_prior_for`]); without the pilot, off.
+pub type WeightsSmoothness = PriorStrength;
 
 /// The rounds that take the ratio step ([`EstimateOptions::ratio_steps`](crate::solve::EstimateOptions::ratio_steps)).
 #[derive(Debug, Clone, Copy, PartialEq)]
