@@ -176,6 +176,30 @@ fn no_decision(r: &relight_cpc::report::RunReport, what: &str) -> bool {
         .is_some_and(|d| d.iter().all(|d| d.what != what))
 }
 
+/// The pilot's choice `what` against a run given its value (`given`, labelled
+/// `given_label`): the given value is not the pilot's to decide, and the run with the
+/// pilot's choice (`chosen_label`) predicts the held-out photos under their true light
+/// strictly better (the mean of `truth_holdout`).
+fn assert_the_choice_beats_the_given(
+    auto: &relight_cpc::report::RunReport,
+    given: &relight_cpc::report::RunReport,
+    what: &str,
+    chosen_label: &str,
+    given_label: &str,
+) {
+    assert!(
+        no_decision(given, what),
+        "a given {what} is not the pilot's to choose"
+    );
+    let mean_truth = |r: &relight_cpc::report::RunReport| crate::run_fixtures::truth_holdout(r).0;
+    let (with, without) = (mean_truth(auto), mean_truth(given));
+    eprintln!("truth RMSE: {chosen_label} {with:.4}, {given_label} {without:.4}");
+    assert!(
+        with < without,
+        "{chosen_label} {with:.4} against {given_label} {without:.4}"
+    );
+}
+
 /// The pilot's choice of the blending weights' sum-to-one prior (`--weights-sum auto`, the
 /// CLI's default with the adaptive model), judged by the truth the pilot never sees: on
 /// the built-in example the pilot must take the prior, and the fit with it must predict
@@ -188,11 +212,6 @@ fn the_pilot_takes_the_weights_prior_where_it_predicts_the_truth_better() {
     let dir = std::env::temp_dir().join(format!("relight-run-wsum-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let fit = |tag: &str, ws: WeightsSum| adaptive_example(&dir, tag, |o| o.weights_sum = ws);
-    let mean_truth = |r: &relight_cpc::report::RunReport| {
-        let (mean, photos) = crate::run_fixtures::truth_holdout(r);
-        assert_eq!(photos, 2, "{:?}", r.holdout);
-        mean
-    };
     let auto = fit("auto", WeightsSum::Auto);
     let d = decision(&auto, "weights_sum");
     assert_eq!(d.chosen, "1", "{}", d.reason);
@@ -202,13 +221,11 @@ fn the_pilot_takes_the_weights_prior_where_it_predicts_the_truth_better() {
         d.reason
     );
     let free = fit("free", WeightsSum::Fixed(0.0));
-    assert!(
-        no_decision(&free, "weights_sum"),
-        "a fixed strength is not the pilot's to choose"
-    );
-    let (with, without) = (mean_truth(&auto), mean_truth(&free));
-    eprintln!("truth RMSE: prior {with:.4}, free weights {without:.4}");
-    assert!(with < without, "prior {with:.4} against free {without:.4}");
+    for r in [&auto, &free] {
+        let photos = crate::run_fixtures::truth_holdout(r).1;
+        assert_eq!(photos, 2, "{:?}", r.holdout);
+    }
+    assert_the_choice_beats_the_given(&auto, &free, "weights_sum", "prior", "free weights");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -233,14 +250,13 @@ fn the_neighbour_prior_goes_in_with_a_shiny_lobe_and_predicts_the_truth_better()
     assert_eq!(d.chosen, "0.1", "{}", d.reason);
     assert!(d.reason.contains("phong:50"), "{}", d.reason);
     let off = fit("off", WeightsSmoothness::Fixed(0.0));
-    assert!(
-        no_decision(&off, "weights_smoothness"),
-        "a fixed strength is not the pilot's to choose"
+    assert_the_choice_beats_the_given(
+        &auto,
+        &off,
+        "weights_smoothness",
+        "neighbour prior",
+        "independent weights",
     );
-    let mean_truth = |r: &relight_cpc::report::RunReport| crate::run_fixtures::truth_holdout(r).0;
-    let (with, without) = (mean_truth(&auto), mean_truth(&off));
-    eprintln!("truth RMSE: neighbour prior {with:.4}, independent weights {without:.4}");
-    assert!(with < without, "prior {with:.4} against off {without:.4}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -275,16 +291,12 @@ fn the_pilot_takes_the_matched_start_where_it_predicts_the_truth_better() {
         auto.model.reasons
     );
     let clustered = fit("clustered", StartBrightness::Clustered);
-    assert!(
-        no_decision(&clustered, "start_brightness"),
-        "a given start is not the pilot's to choose"
-    );
-    let mean_truth = |r: &relight_cpc::report::RunReport| crate::run_fixtures::truth_holdout(r).0;
-    let (with, without) = (mean_truth(&auto), mean_truth(&clustered));
-    eprintln!("truth RMSE: matched {with:.4}, clustered {without:.4}");
-    assert!(
-        with < without,
-        "matched {with:.4} against clustered {without:.4}"
+    assert_the_choice_beats_the_given(
+        &auto,
+        &clustered,
+        "start_brightness",
+        "matched",
+        "clustered",
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
