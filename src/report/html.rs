@@ -312,8 +312,8 @@ fn truth_check_table(s: &mut String, rows: &[crate::report::metrics::TruthCheckE
         "<h3 id=\"truth-check\">Truth check: training photos under their true light</h3>\
          <p>Each photo rendered from the fit under the light it was really taken in, against \
          the same render under its fitted light: relative RMSE after the best per-channel \
-         scale, over object pixels that are not overexposed. A large gap means the fitted \
-         maps absorbed wrong reflectance.{}</p>",
+         scale, over object pixels off its edges and not overexposed. A large gap means the \
+         fitted maps absorbed wrong reflectance.{}</p>",
         if floor {
             " The last column renders the TRUE reflectance the same way: the floor of this \
              renderer and model; the fit's distance above it is reflectance the photos could \

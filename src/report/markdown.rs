@@ -43,8 +43,8 @@ impl RunReport {
         } else {
             let _ = writeln!(
                 s,
-                "RMSE in linear RGB on the photo's [0, 1] scale over object pixels that are not \
-                 overexposed. Protocols (docs/method.md, \"Held-out evaluation\"): `truth` = the true light, `half` = light fitted \
+                "RMSE in linear RGB on the photo's [0, 1] scale over object pixels off its edges \
+                 and not overexposed. Protocols (docs/method.md, \"Held-out evaluation\"): `truth` = the true light, `half` = light fitted \
                  on the left half of the object with the reflectance frozen, measured on the right \
                  half, `baseline` = no model: the per-vertex median of the training photos' colours \
                  times a per-channel gain fitted on the same left half, on `half`'s pixels, \
@@ -240,8 +240,8 @@ impl RunReport {
             "The training photos (as many as five megapixels buy, spread over the training \
              list), each rendered from the fit under the light it was really taken in \
              (the workspace's `truth/`), against the same render under its fitted light; RMSE \
-             in linear RGB after the best per-channel scale, over object pixels that are not \
-             overexposed, and relative to the photo's RMS there. A large gap means the fitted \
+             in linear RGB after the best per-channel scale, over object pixels off its edges \
+             and not overexposed, and relative to the photo's RMS there. A large gap means the fitted \
              maps absorbed wrong reflectance.\n"
         );
         let _ = writeln!(

@@ -2,7 +2,7 @@
 //!
 //! Figures in the report (docs/method.md, "Held-out evaluation"; issue 6):
 //! - held-out RMSE and PSNR in linear RGB on the photo's [0, 1] scale over object pixels
-//!   that are not overexposed, per protocol: (a) `truth` light, (b) `half` light fitted with
+//!   off its edges and not overexposed, per protocol: (a) `truth` light, (b) `half` light fitted with
 //!   frozen reflectance on the left half of the object, measured on the right half,
 //!   (c) `mean` of the training maps, and the naive `baseline` (the per-vertex median of
 //!   the training photos' colours times a per-channel gain fitted on the left half, scored

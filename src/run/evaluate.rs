@@ -15,8 +15,8 @@
 //! Every protocol's prediction also gets the literature metrics (PSNR-H, PSNR-L, SSIM,
 //! [`crate::report::metrics`]) on the same pixels.
 //!
-//! Each view is rendered as [`super::shading`] says; RMSE is over object pixels that are
-//! not overexposed in the photo. The held-out photos and the truth check's training photos ([`super::truth_check`]) are
+//! Each view is rendered as [`super::shading`] says; RMSE is over object pixels off its edges
+//! (silhouette and depth jumps, [`super::shading::valid_mask`]) and not overexposed in the photo. The held-out photos and the truth check's training photos ([`super::truth_check`]) are
 //! shaded in one vertex-major pass ([`render::shade_views`]): a vertex's footprint is walked
 //! once for the lights of every photo that shows it, reading all lights' texels interleaved
 //! ([`crate::sphere::rotation::SplatRotation::resample_interleaved`]); every image is bit

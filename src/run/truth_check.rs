@@ -11,7 +11,7 @@
 //! A per-photo free light map can absorb wrong reflectance: the fit then reproduces its
 //! training photos under its *fitted* maps, yet not under the true ones. Both figures are
 //! reported, with the same renderer ([`super::shading::shade_views`], the held-out
-//! photos' renderer) on the same pixels (object pixels not overexposed), after the best
+//! photos' renderer) on the same pixels (object pixels off its edges, not overexposed), after the best
 //! per-channel scale
 //! `s_c = Σ y_c ŷ_c / Σ ŷ_c²` (a per-channel global scale can never be recovered from
 //! photos): `RMSE = √(Σ_c Σ_pixels (y_c − s_c ŷ_c)² / 3n)`, and relative to the photo's RMS

@@ -37,8 +37,10 @@
 //! a PSNR lower by `10 log₁₀(frame pixels / object pixels)` than theirs on the same images.
 //! (2) Its SSIM is kornia's with a 3 × 3 window, averaged over the whole frame; here the
 //! standard 11 × 11 Gaussian window, averaged over the object. (3) It erodes the mask by a
-//! 5 × 5 box and floors each PSNR at that of a constant 0.5 prediction; neither is done here
-//! (the mask already leaves out overexposed pixels).
+//! 5 × 5 box (two pixels); the run's mask leaves out one pixel at the object's edges
+//! (silhouette and depth jumps, the pixels that mix the object with its surroundings) and
+//! overexposed pixels. (4) It floors each PSNR at that of a constant 0.5 prediction; that is
+//! not done here.
 
 use crate::import::photo::linear_to_srgb;
 use serde::Serialize;
