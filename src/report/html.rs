@@ -301,7 +301,7 @@ fn sky_table(s: &mut String, sky: &crate::report::sky::SkyReport) {
 
 /// The truth check of synthetic workspaces: training photos rendered from the fit under the
 /// light they were really taken in, beside their fitted light, and the floor (the true
-/// reflectance under the true light) where the fit's basis can express the truth.
+/// reflectance, in its own lobes, under the true light) where every photo has one.
 fn truth_check_table(s: &mut String, rows: &[crate::report::metrics::TruthCheckEntry]) {
     if rows.is_empty() {
         return;

@@ -145,14 +145,16 @@ pub(super) fn shade_views(
     render::shade_views(&wavelet_model(f, &f.render_vis), views, &f.render_rot)
 }
 
-/// [`shade_views`] with another per-vertex reflectance `beta` (row-major `V × B` in the
-/// fit's basis) in place of the fit's.
+/// [`shade_views`] with another reflectance in place of the fit's: per-vertex weights
+/// `beta` (row-major `V × B`) of the lobes `basis`.
 pub(super) fn shade_views_with(
     f: &Fitted,
+    basis: &[crate::transport::brdf::BasisBrdf],
     beta: &[[f64; 3]],
     views: &[render::ViewToShade],
 ) -> Result<render::ShadedViews> {
     let model = render::WaveletModel {
+        basis,
         beta,
         ..wavelet_model(f, &f.render_vis)
     };

@@ -224,6 +224,16 @@ impl TrueMaterials {
         }))
     }
 
+    /// The lobes some material of the truth uses, in the truth's order: the basis its
+    /// reflectance is rendered in for the floor ([`add_true_reflectance`]). `None` when one
+    /// of them is of a type this build does not know.
+    fn used_lobes(&self) -> Option<Vec<BasisBrdf>> {
+        (0..self.lobes.len())
+            .filter(|&b| self.lambda.iter().any(|m| m[b].iter().any(|&v| v != 0.0)))
+            .map(|b| self.lobes[b])
+            .collect()
+    }
+
     /// Material `j`'s diffuse (Lambertian) albedo.
     fn diffuse(&self, j: usize) -> [f64; 3] {
         self.lambda[j][self.lambert]
@@ -290,16 +300,23 @@ fn same_lobe(a: &BasisBrdf, b: &BasisBrdf) -> bool {
     }
 }
 
-/// The truth check's floor: the TRUE reflectance ([`TrueMaterials::beta_in_basis`]) shaded
-/// like the fit under each checked photo's true light and scored the same way, into each
-/// entry's `*_true_reflectance`. Nothing when the truth has a lobe the fit's basis lacks.
+/// The truth check's floor: the TRUE reflectance, in the truth's own lobes
+/// ([`TrueMaterials::used_lobes`], [`TrueMaterials::beta_in_basis`]), shaded by the fit's
+/// renderer (its mesh, visibility and rotation) under each checked photo's true light and
+/// scored the same way, into each entry's `*_true_reflectance`. A lobe the fit's basis
+/// lacks (the example's GGX) is rendered all the same: the floor is what the photos allow
+/// this renderer, whatever model the fit chose. Nothing when the truth uses a lobe of a type
+/// this build does not know.
 pub(crate) fn add_true_reflectance(
     f: &Fitted,
     t: &TrueMaterials,
     checked: &[CheckedView],
     entries: &mut [TruthCheckEntry],
 ) -> Result<()> {
-    let Some(beta) = t.beta_in_basis(&f.basis, f.scene.mesh.positions.len()) else {
+    let Some(basis) = t.used_lobes() else {
+        return Ok(());
+    };
+    let Some(beta) = t.beta_in_basis(&basis, f.scene.mesh.positions.len()) else {
         return Ok(());
     };
     // Each view with its true light alone.
@@ -311,7 +328,7 @@ pub(crate) fn add_true_reflectance(
             v
         })
         .collect();
-    let shaded = super::shading::shade_views_with(f, &beta, &views)?;
+    let shaded = super::shading::shade_views_with(f, &basis, &beta, &views)?;
     for (i, (c, e)) in checked.iter().zip(entries.iter_mut()).enumerate() {
         let rgbs = shaded.images(i, &c.raster, &f.scene.mesh);
         let mask = valid_mask(&c.raster, &f.photos[c.v]);
@@ -532,6 +549,19 @@ mod tests {
             .is_some());
         // Weights of another vertex count: none.
         assert!(t.beta_in_basis(&basis, 3).is_none());
+        // The floor's basis: the lobes some material uses, in the truth's order; none when
+        // a used lobe is of an unknown type, whatever an unused one is.
+        assert_eq!(
+            t.used_lobes(),
+            Some(vec![
+                BasisBrdf::Lambert,
+                BasisBrdf::Phong { exponent: 50.0 }
+            ])
+        );
+        assert_eq!(diffuse_only.used_lobes(), Some(vec![BasisBrdf::Lambert]));
+        let mut unknown = t.clone_without_gloss();
+        unknown.lobes[0] = None;
+        assert_eq!(unknown.used_lobes(), None);
     }
 
     impl TrueMaterials {

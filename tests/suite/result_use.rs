@@ -194,8 +194,8 @@ fn ply_columns(path: &Path, props: &[String]) -> Vec<Vec<f64>> {
 /// `materials.json` and `weights.ply`, the result's `materials.json` (λ) and `mesh.ply`
 /// (per-vertex diffuse albedo `albedo_*` and weights `w*`).
 /// The HTML's truth-check table against `report.json`: every checked photo's row with its
-/// two relative errors, and their means recomputed here (to the 0.1% the page prints); no
-/// floor column, since the example's truth has a GGX lobe its fit does not.
+/// three relative errors (the fit under the true and the fitted light, the true reflectance
+/// under the true light), and their means recomputed here (to the 0.1% the page prints).
 fn check_truth_check_table(out: &Path, html: &str) {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -203,27 +203,35 @@ fn check_truth_check_table(out: &Path, html: &str) {
     assert!(!rows.is_empty());
     assert!(html.contains("id=\"truth-check\""));
     assert!(
-        !html.contains("true reflectance, true light"),
-        "no floor for a GGX truth"
+        html.contains("true reflectance, true light"),
+        "the floor's column: the example's truth is in lobes the renderer knows"
     );
     let pct = |v: f64| format!("{:.1}%", 100.0 * v);
-    let (mut t, mut f) = (0.0, 0.0);
+    let (mut t, mut f, mut g) = (0.0, 0.0, 0.0);
     for r in rows {
-        let (rt, rf) = (
+        let (rt, rf, rg) = (
             r["relative_true_light"].as_f64().unwrap(),
             r["relative_fitted_light"].as_f64().unwrap(),
+            r["relative_true_reflectance"].as_f64().unwrap(),
         );
         let row = format!(
-            "<td class=\"l\">{}</td><td>{}</td><td>{}</td>",
+            "<td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td>",
             r["image"].as_str().unwrap(),
             pct(rt),
-            pct(rf)
+            pct(rf),
+            pct(rg)
         );
         assert!(html.contains(&row), "{row}");
         t += rt / rows.len() as f64;
         f += rf / rows.len() as f64;
+        g += rg / rows.len() as f64;
     }
-    let mean = format!("<td><b>{}</b></td><td><b>{}</b></td>", pct(t), pct(f));
+    let mean = format!(
+        "<td><b>{}</b></td><td><b>{}</b></td><td><b>{}</b></td>",
+        pct(t),
+        pct(f),
+        pct(g)
+    );
     assert!(html.contains(&mean), "{mean}");
 }
 

@@ -122,9 +122,8 @@ fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
             if y + 1 < h {
                 nb.push(i + w);
             }
-            nb.into_iter().any(|j| {
-                raster.face[j] == u32::MAX || (z(i) - z(j)).abs() > 0.05 * z(i).min(z(j))
-            })
+            nb.into_iter()
+                .any(|j| raster.face[j] == u32::MAX || (z(i) - z(j)).abs() > 0.05 * z(i).min(z(j)))
         };
         let valid = |i: usize| raster.face[i] != u32::MAX && !photo.overexposed[i] && !edge(i);
         let (mut num, mut den) = ([0.0f64; 3], [0.0f64; 3]);
@@ -205,8 +204,12 @@ fn baseline_matches_brute_force_on_the_half_protocols_pixels() {
     assert_eq!(r.truth_check.len(), train.len());
     for t in &r.truth_check {
         assert!(t.rmse_true_light.is_finite() && t.pixels > 100, "{t:?}");
-        // The example's truth has a GGX lobe, which the fit's basis lacks: no floor.
-        assert!(t.relative_true_reflectance.is_none(), "{t:?}");
+        // The example's truth has a GGX lobe, which the fit's basis lacks; the floor renders
+        // the truth in its own lobes all the same.
+        assert!(
+            t.relative_true_reflectance.is_some_and(f64::is_finite),
+            "{t:?}"
+        );
     }
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -291,35 +294,39 @@ fn the_truth_check_floor_is_the_true_reflectance_and_explains_the_photos_better_
     // by one round of the alternation from the clustered start: measured mean relative
     // error 0.0815 for the floor against 0.1320 for the fit (64² photos, 1,000 vertices), so
     // a floor built from the wrong weights, lobe or light would not pass.
+    //
+    // `spot-three` (a GGX 0.3 lobe on one material) fitted with Lambert alone: the truth's
+    // lobes are not the fit's, and the floor renders the truth in its own lobes with the
+    // fit's renderer all the same. Measured: 0.0825 for the floor against 0.1787 for the
+    // fit, the floor as low as the Lambertian scene's.
     let dir = crate::scratch::scratch("baseline", "floor");
-    let ws = dir.join("ws");
-    crate::synth_case::synthesize(
-        "spot-diffuse",
-        &ws,
-        crate::synth_case::Sizes::spot_small(),
-        1,
-    );
-    let mut o = tiny(ws, dir.join("out"));
-    o.basis = vec![relight_cpc::transport::brdf::BasisBrdf::Lambert];
-    o.materials = MaterialCount::Fixed(2);
-    let r = run(&o).expect("run on spot-diffuse").report;
-    assert!(!r.truth_check.is_empty());
-    let n = r.truth_check.len() as f64;
-    let (mut floor, mut fit) = (0.0, 0.0);
-    for t in &r.truth_check {
-        let f = t
-            .relative_true_reflectance
-            .expect("a floor for a Lambertian truth");
-        assert!(f.is_finite() && f > 0.0, "{t:?}");
-        assert!(t.rmse_true_reflectance.is_some_and(f64::is_finite), "{t:?}");
-        floor += f / n;
-        fit += t.relative_true_light / n;
+    for scene in ["spot-diffuse", "spot-three"] {
+        let ws = dir.join(scene);
+        crate::synth_case::synthesize(scene, &ws, crate::synth_case::Sizes::spot_small(), 1);
+        let out = dir.join(format!("out-{scene}"));
+        let mut o = tiny(ws, out.clone());
+        o.basis = vec![relight_cpc::transport::brdf::BasisBrdf::Lambert];
+        o.materials = MaterialCount::Fixed(if scene == "spot-three" { 3 } else { 2 });
+        let r = run(&o).expect("run on a rendered scene").report;
+        assert!(!r.truth_check.is_empty());
+        let n = r.truth_check.len() as f64;
+        let (mut floor, mut fit) = (0.0, 0.0);
+        for t in &r.truth_check {
+            let f = t.relative_true_reflectance.expect("a floor");
+            assert!(f.is_finite() && f > 0.0, "{t:?}");
+            assert!(t.rmse_true_reflectance.is_some_and(f64::is_finite), "{t:?}");
+            floor += f / n;
+            fit += t.relative_true_light / n;
+        }
+        eprintln!("{scene}: floor {floor:.4}, fit under the true light {fit:.4}");
+        assert!(
+            floor < fit,
+            "{scene}: floor {floor} against the fit's {fit}"
+        );
+        let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+        assert!(
+            md.contains("The TRUE reflectance rendered the same way"),
+            "{md}"
+        );
     }
-    eprintln!("floor {floor:.4}, fit under the true light {fit:.4}");
-    assert!(floor < fit, "floor {floor} against the fit's {fit}");
-    let md = std::fs::read_to_string(dir.join("out").join("report.md")).unwrap();
-    assert!(
-        md.contains("The TRUE reflectance rendered the same way"),
-        "{md}"
-    );
 }

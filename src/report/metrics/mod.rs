@@ -391,9 +391,9 @@ pub struct TruthCheckEntry {
     pub rmse_fitted_light: f64,
     /// `rmse_fitted_light` over the photo's RMS.
     pub relative_fitted_light: f64,
-    /// The floor: the TRUE reflectance (the truth's materials and weights in the fit's
-    /// basis) rendered the same way under the true light; absent when the truth has a lobe
-    /// the fit's basis lacks.
+    /// The floor: the TRUE reflectance (the truth's materials and weights in its own
+    /// lobes) rendered the same way under the true light; absent when the truth uses a lobe
+    /// of a type this build does not know.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rmse_true_reflectance: Option<f64>,
     /// `rmse_true_reflectance` over the photo's RMS.
