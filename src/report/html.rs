@@ -360,6 +360,12 @@ fn truth_check_table(s: &mut String, rows: &[crate::report::metrics::TruthCheckE
             String::new()
         }
     );
+    if let Some(r) = crate::report::metrics::truth_check_floor_ratio(rows) {
+        let _ = writeln!(
+            s,
+            "<p>The fit under the true light is <b>{r:.2}×</b> the floor.</p>"
+        );
+    }
 }
 
 fn materials_section(s: &mut String, r: &RunReport, inputs: &HtmlInputs) {

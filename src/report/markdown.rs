@@ -281,8 +281,10 @@ impl RunReport {
                 s,
                 "The TRUE reflectance rendered the same way under the true light: {:.1}% (the \
                  floor of this renderer and model; the fit's distance above it under the true \
-                 light is reflectance the photos could still have told).\n",
-                100.0 * fl.iter().sum::<f64>() / fl.len() as f64
+                 light is reflectance the photos could still have told). The fit under the \
+                 true light is {:.2}× the floor.\n",
+                100.0 * fl.iter().sum::<f64>() / fl.len() as f64,
+                metrics::truth_check_floor_ratio(&self.truth_check).unwrap_or(f64::NAN)
             );
         }
         self.markdown_albedo_truth(s);

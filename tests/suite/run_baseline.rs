@@ -328,5 +328,8 @@ fn the_truth_check_floor_is_the_true_reflectance_and_explains_the_photos_better_
             md.contains("The TRUE reflectance rendered the same way"),
             "{md}"
         );
+        // The ratio the report states, from the rows' means recomputed here.
+        let ratio = format!("is {:.2}× the floor", fit / floor);
+        assert!(md.contains(&ratio), "{ratio} in {md}");
     }
 }

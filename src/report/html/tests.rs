@@ -77,10 +77,13 @@ fn the_truth_check_table_shows_the_floor_only_when_every_photo_has_one() {
     assert!(s.contains("<td class=\"l\">a.png</td><td>10.0%</td><td>8.0%</td><td>5.0%</td>"));
     assert!(s.contains("<td><b>15.0%</b></td><td><b>10.0%</b></td><td><b>6.0%</b></td>"));
     assert!(s.contains("true reflectance, true light"));
-    // One photo without a floor: no floor column at all.
+    // The fit over the floor: (10 + 20) / (5 + 7) = 2.50.
+    assert!(s.contains("<b>2.50×</b> the floor"), "{s}");
+    // One photo without a floor: no floor column at all, and no ratio.
     let mut s = String::new();
     truth_check_table(&mut s, &[rows[0].clone(), entry("c.png", 0.3, 0.2, None)]);
     assert!(!s.contains("true reflectance, true light") && !s.contains("5.0%"));
+    assert!(!s.contains("the floor"), "{s}");
     assert!(s.contains("<td><b>20.0%</b></td><td><b>14.0%</b></td><td></td>"));
 }
 

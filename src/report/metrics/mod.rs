@@ -403,6 +403,17 @@ pub struct TruthCheckEntry {
     pub pixels: usize,
 }
 
+/// The fit's mean relative error under the true light over the floor's mean (the true
+/// reflectance rendered the same way): how far above what the photos allow the fit is, the
+/// figure the "held-out error ≤ 1.2× the photo floor" reads. `None` unless every
+/// photo has a floor.
+pub fn truth_check_floor_ratio(rows: &[TruthCheckEntry]) -> Option<f64> {
+    let floors: Option<Vec<f64>> = rows.iter().map(|t| t.relative_true_reflectance).collect();
+    let floors = floors.filter(|f| !f.is_empty())?;
+    let fit: f64 = rows.iter().map(|t| t.relative_true_light).sum();
+    Some(fit / floors.iter().sum::<f64>())
+}
+
 /// Diffuse albedo per material, recovered against the truth (synthetic workspaces:
 /// `report.json` key `albedo_truth`, [`crate::run`]'s `truth_check` module).
 #[derive(Debug, Clone, Serialize, Default)]
