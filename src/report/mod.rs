@@ -275,6 +275,10 @@ pub struct RunReport {
     pub metrics: Vec<metrics::MetricsEntry>,
     /// Synthetic workspaces: training photos (five megapixels' worth) under their true light.
     pub truth_check: Vec<metrics::TruthCheckEntry>,
+    /// The fit's mean error under the true light over the floor's
+    /// ([`metrics::truth_check_floor_ratio`]); absent unless every checked photo has a floor.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth_check_floor_ratio: Option<f64>,
     /// Synthetic workspaces: diffuse albedo per material, recovered against the truth.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub albedo_truth: Option<metrics::AlbedoTruth>,

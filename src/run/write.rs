@@ -145,6 +145,8 @@ fn add_evaluation(report: &mut RunReport, evaluated: Evaluated, fitted: &Fitted)
     report.headline_detail = evaluation.headline;
     report.half_fit_prior = half_fit_prior;
     report.metrics = evaluation.metrics;
+    report.truth_check_floor_ratio =
+        crate::report::metrics::truth_check_floor_ratio(&evaluation.truth_check);
     report.truth_check = evaluation.truth_check;
     report.albedo_truth = evaluation.albedo_truth;
     report.holdout_rule = holdout_rule;

@@ -331,5 +331,10 @@ fn the_truth_check_floor_is_the_true_reflectance_and_explains_the_photos_better_
         // The ratio the report states, from the rows' means recomputed here.
         let ratio = format!("is {:.2}× the floor", fit / floor);
         assert!(md.contains(&ratio), "{ratio} in {md}");
+        let stated = r.truth_check_floor_ratio.expect("a ratio with every floor");
+        assert!(
+            (stated - fit / floor).abs() < 1e-12,
+            "{stated} against {fit} / {floor}"
+        );
     }
 }
