@@ -16,6 +16,11 @@
 //! 0 within `inner` pixels of an edge, 1 from `outer` on, linear between, so nothing jumps.
 //! A photo border is not an edge (the border margin is [`super::ObserveOptions::margin_px`]).
 
+/// The relative depth jump between neighbouring pixels that marks a depth edge, for the
+/// observations' margin ([`super::DEFAULT_EDGE_MARGIN`]) and the pixels a run scores
+/// (`run::shading::valid_mask`).
+pub const DEPTH_JUMP: f64 = 0.05;
+
 /// Tunables of the margin (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EdgeMargin {

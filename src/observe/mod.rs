@@ -138,7 +138,7 @@ pub struct ObserveOptions {
 pub const DEFAULT_EDGE_MARGIN: Option<margins::EdgeMargin> = Some(margins::EdgeMargin {
     inner_px: 1.0,
     outer_px: 3.0,
-    depth_jump: 0.05,
+    depth_jump: margins::DEPTH_JUMP,
 });
 
 impl Default for ObserveOptions {

@@ -284,7 +284,7 @@ impl RunReport {
                  light is reflectance the photos could still have told). The fit under the \
                  true light is {:.2}× the floor.\n",
                 100.0 * fl.iter().sum::<f64>() / fl.len() as f64,
-                self.truth_check_floor_ratio.unwrap_or(f64::NAN)
+                metrics::truth_check_floor_ratio(&self.truth_check).unwrap_or(f64::NAN)
             );
         }
         self.markdown_albedo_truth(s);

@@ -185,13 +185,10 @@ pub(crate) fn mean_env(f: &Fitted) -> OctEnv {
     OctEnv::from_channels(f.opts.global_resolution, [&sum[0], &sum[1], &sum[2]])
 }
 
-/// Relative depth jump between neighbouring pixels that makes both edge pixels in
-/// [`valid_mask`]: the observations' ([`crate::observe::DEFAULT_EDGE_MARGIN`]).
-pub(crate) const SCORED_DEPTH_JUMP: f64 = 0.05;
-
 /// Pixels that count: object pixels off the object's edges and not overexposed in the
 /// photo. An edge pixel ([`crate::observe::margins::edge_pixels`]: a 4-neighbour is
-/// background, or lies across a depth jump of [`SCORED_DEPTH_JUMP`]) mixes the object with
+/// background, or lies across a depth jump of [`crate::observe::margins::DEPTH_JUMP`], the
+/// observations' own) mixes the object with
 /// what lies beside it: the photo's pixel covers both, the render draws one face there, so
 /// no reflectance can predict it. The observations leave out the same pixels (weight 0
 /// within one pixel of an edge). On `spot-diffuse` photos of 128² the true reflectance
@@ -200,7 +197,12 @@ pub(crate) const SCORED_DEPTH_JUMP: f64 = 0.05;
 /// (`bench-results/truth-check-floor.md`).
 pub(super) fn valid_mask(raster: &Raster, photo: &Photo) -> Vec<bool> {
     let (w, h) = (raster.width as usize, raster.height as usize);
-    let edges = crate::observe::margins::edge_pixels(&raster.depth, w, h, SCORED_DEPTH_JUMP);
+    let edges = crate::observe::margins::edge_pixels(
+        &raster.depth,
+        w,
+        h,
+        crate::observe::margins::DEPTH_JUMP,
+    );
     raster
         .face
         .iter()

@@ -34,11 +34,12 @@ use crate::{Error, Result};
 use rayon::prelude::*;
 
 /// A training photo the truth check renders: its view, its two lights (the true one, then
-/// the fitted one) and its raster.
+/// the fitted one), its raster and the pixels scored there ([`valid_mask`]).
 pub(crate) struct CheckedView {
     v: usize,
     envs: [OctEnv; 2],
     raster: Raster,
+    mask: Vec<bool>,
 }
 
 impl CheckedView {
@@ -96,10 +97,12 @@ pub(crate) fn checked_views(f: &Fitted, truth: &Truth) -> Result<Vec<CheckedView
             };
             let raster =
                 crate::observe::raster::rasterize(&f.scene.mesh, &view.camera, &view.image);
+            let mask = valid_mask(&raster, &f.photos[v]);
             Ok(Some(CheckedView {
                 v,
                 envs: [true_env, fitted_env(f, k)],
                 raster,
+                mask,
             }))
         })
         .collect::<Result<_>>()?;
@@ -118,9 +121,9 @@ pub(crate) fn score(
     for (i, c) in checked.iter().enumerate() {
         let rgbs = shaded.images(first + i, &c.raster, &f.scene.mesh);
         let photo = &f.photos[c.v];
-        let mask = valid_mask(&c.raster, photo);
-        let (rmse_t, rms, scale_t) = rmse_after_channel_scale(&photo.rgb, &rgbs[0], &mask);
-        let (rmse_f, _, _) = rmse_after_channel_scale(&photo.rgb, &rgbs[1], &mask);
+        let mask = &c.mask;
+        let (rmse_t, rms, scale_t) = rmse_after_channel_scale(&photo.rgb, &rgbs[0], mask);
+        let (rmse_f, _, _) = rmse_after_channel_scale(&photo.rgb, &rgbs[1], mask);
         let rel = |r: f64| relative(r, rms);
         out.push(TruthCheckEntry {
             image: f.scene.views[c.v].image.name.clone(),
@@ -331,8 +334,7 @@ pub(crate) fn add_true_reflectance(
     let shaded = super::shading::shade_views_with(f, &basis, &beta, &views)?;
     for (i, (c, e)) in checked.iter().zip(entries.iter_mut()).enumerate() {
         let rgbs = shaded.images(i, &c.raster, &f.scene.mesh);
-        let mask = valid_mask(&c.raster, &f.photos[c.v]);
-        let (rmse, rms, _) = rmse_after_channel_scale(&f.photos[c.v].rgb, &rgbs[0], &mask);
+        let (rmse, rms, _) = rmse_after_channel_scale(&f.photos[c.v].rgb, &rgbs[0], &c.mask);
         e.rmse_true_reflectance = Some(rmse);
         e.relative_true_reflectance = Some(relative(rmse, rms));
     }
