@@ -52,6 +52,7 @@ mod reference_cost;
 mod relight_render;
 mod render_frames;
 mod render_raster;
+mod restart;
 mod result_use;
 mod run_baseline;
 mod run_example;

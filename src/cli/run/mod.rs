@@ -200,6 +200,12 @@ pub(crate) struct RunArgs {
     /// closest to the training photos. Costs 2 fits with 2 materials, 8 with 3.
     #[arg(long, default_value = "off", value_parser = ["off", "brightness"], help_heading = "Solver")]
     pub(crate) start_search: String,
+    /// `on`: after the fit, with 2 or more materials, fit again from its own materials
+    /// re-anchored (each material the median fitted reflectance of the vertices it
+    /// dominates, each vertex's weights projected on them) and keep the fit that predicts
+    /// held-back observations better. One more fit.
+    #[arg(long, default_value = "off", value_parser = ["off", "on"], help_heading = "Solver")]
+    pub(crate) restart: String,
     /// Where each material's starting brightness comes from: `clustered` (its colour
     /// cluster's median, the paper), `matched` (compared with the other materials at
     /// vertices of the same normal in the same photo, so shading does not darken it), or

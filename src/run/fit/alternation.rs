@@ -10,7 +10,7 @@ use crate::run::state::RunLog;
 use crate::run::tracker::HoldoutTracker;
 use crate::run::{Progress, RunOptions};
 use crate::solve::light::choose::{self, LightDecision};
-use crate::solve::materials::brightness;
+use crate::solve::materials::{brightness, reanchor};
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::Result;
@@ -44,6 +44,9 @@ pub(super) fn alternate(
     let mut est = fit_light_models(opts, problem, &family, start, &monitor, log)?;
     if opts.start_search {
         est = search_starts(problem, est, &family[0].materials, lambert, &monitor, log)?;
+    }
+    if opts.restart && est.est.lambda.len() >= 2 {
+        est = restart(problem, est, &mut start.reasons, &monitor, log)?;
     }
     bar.finish_and_clear();
     Ok(est)
@@ -252,6 +255,68 @@ fn search_starts(
         light_decision,
         timeline,
     })
+}
+
+/// The restart (`--restart`, [`reanchor::restart`]) from the kept fit: a fit from its own
+/// materials re-anchored, kept when its validation error is lower. Its iterations follow
+/// the kept fit's in the timeline as one more start, its record is added to the starts,
+/// and what it did is one of the model's reasons.
+fn restart(
+    problem: &Problem,
+    fitted: Estimated,
+    reasons: &mut Vec<String>,
+    monitor: &Monitor,
+    log: &mut RunLog,
+) -> Result<Estimated> {
+    let Estimated {
+        est,
+        mut multi,
+        eopts,
+        light_decision,
+        mut timeline,
+    } = fitted;
+    monitor.progress.stage("restart");
+    monitor.bar.inc_length(eopts.max_outer as u64);
+    let si = multi.starts.len();
+    let clock = timeline.last().map_or(0.0, |p| p.seconds);
+    let seen = seen_vertices(problem);
+    let done = log.stages.run("restart", || {
+        reanchor::restart(problem, est, &seen, &eopts, &mut |it, state| {
+            monitor.bar.inc(1);
+            let holdout_rmse = monitor.held_out(state);
+            let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+            let line = iteration_line(1, si, n_it, it, holdout_rmse);
+            monitor.say(&format!("restart: {line}"));
+            timeline.push(timeline_point(si, clock + it.seconds, it, holdout_rmse));
+        })
+    })?;
+    let [first, second] = done.scores;
+    reasons.push(format!(
+        "restart from the fit's own materials re-anchored (median fitted reflectance per material, weights projected): validation error {second:.4} against {first:.4}, {}",
+        if done.kept_restart { "kept" } else { "the first fit kept" }
+    ));
+    multi.starts.push(done.record);
+    if done.kept_restart {
+        multi.chosen = si;
+    }
+    Ok(Estimated {
+        est: done.est,
+        multi,
+        eopts,
+        light_decision,
+        timeline,
+    })
+}
+
+/// Whether each vertex has a training observation of positive weight.
+fn seen_vertices(problem: &Problem) -> Vec<bool> {
+    let mut seen = vec![false; problem.n_vertices];
+    for (&x, &w) in problem.obs.vertex.iter().zip(&problem.obs.weight) {
+        if w > 0.0 {
+            seen[x as usize] = true;
+        }
+    }
+    seen
 }
 
 /// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the

@@ -1,0 +1,125 @@
+//! The restart from a fit's own materials re-anchored (`solve::materials::reanchor::restart`,
+//! `run --restart`) on a known-truth scene: Spot with three materials in blended bands
+//! (`spot-three`, rendered by the independent reference renderer and taken through the
+//! real stages, `tests/support/synth_case.rs`), its photos replaced by the true model's
+//! prediction (noise-free: what is left is the estimator's), the paper's k-means start.
+
+use crate::synth_case::*;
+use relight_cpc::solve::materials::reanchor::restart;
+use relight_cpc::solve::{estimate, Estimate, EstimateOptions};
+
+/// Material accuracy over the seen vertices: the share whose largest fitted weight is on
+/// their largest true material, over the best order of the fitted materials.
+fn accuracy(case: &Case, est: &Estimate, seen: &[bool]) -> f64 {
+    let k = case.lambda.len();
+    let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
+    let seen_x: Vec<usize> = (0..case.nv).filter(|&x| seen[x]).collect();
+    let orders: Vec<[usize; 3]> = vec![
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    assert_eq!(k, 3, "the scene has three materials");
+    orders
+        .iter()
+        .map(|perm| {
+            let hits = seen_x
+                .iter()
+                .filter(|&&x| {
+                    perm[argmax(&est.weights[x * k..(x + 1) * k])]
+                        == argmax(&case.weights[x * k..(x + 1) * k])
+                })
+                .count();
+            hits as f64 / seen_x.len() as f64
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_restart_sorts_the_blended_vertices_of_three_materials() {
+    let mut case = prepare("spot-three", Sizes::spot_small(), 1, "restart");
+    let t = true_prediction(&case, &case.train);
+    replace_colours(&mut case.train.obs, &t);
+    let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let problem = case.train.problem(case.nv);
+    let opts = EstimateOptions::default();
+    let init = initial(&case, &case.train.obs, case.lambda.len(), 1);
+    let first = estimate(&problem, init, &opts, &mut |_, _| {}).unwrap();
+    let before = accuracy(&case, &first, &seen);
+    let mut iterations = 0;
+    let done = restart(&problem, first, &seen, &opts, &mut |_, _| iterations += 1).unwrap();
+    let after = accuracy(&case, &done.est, &seen);
+    let [s0, s1] = done.scores;
+    eprintln!(
+        "accuracy {before:.4} → {after:.4}; validation {s0:.5} → {s1:.5}; kept restart {}",
+        done.kept_restart
+    );
+    // The callback saw every iteration of the restart's fit, and its record says so.
+    assert_eq!(iterations, done.record.iterations);
+    assert_eq!(done.record.score, s1);
+    // The rule: the restart is kept exactly when it predicts the held-back observations
+    // better.
+    assert_eq!(done.kept_restart, s1 < s0);
+    let kept_score = done.est.validation.as_ref().unwrap().best_error();
+    assert_eq!(kept_score, s0.min(s1));
+    // On this case the restart predicts the held-back observations better and sorts more
+    // blended vertices right. Measured: accuracy 0.913 → 0.949, validation 0.0242 → 0.0233;
+    // on the ablation's 8-bit three-material scene under `run`'s defaults the restart gained
+    // 0.045–0.074 on five seeds (`bench-results/restart-probes.md`). A gain of 0.02 (2% of
+    // the seen vertices) leaves room for the renderer's noise and fails when the restart
+    // keeps the first fit's sorting.
+    assert!(done.kept_restart, "validation {s0:.5} → {s1:.5}");
+    assert!(after >= before + 0.02, "accuracy {before:.4} → {after:.4}");
+}
+
+/// `run --restart on` on the built-in example (a small model, 2 materials): the report's
+/// starts hold the first fit and the restart, the timeline as many points per start as
+/// that fit had iterations on one clock that never goes back, and the model's reasons say
+/// what the restart did and which fit was kept (the one with the lower validation error).
+#[test]
+fn the_runs_report_holds_the_restart() {
+    use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
+    let dir = crate::scratch::scratch("restart", "report");
+    let mut o = RunOptions::new(builtin_example().unwrap(), dir.join("out"));
+    (
+        o.global_resolution,
+        o.local_resolution,
+        o.normal_grid,
+        o.keep,
+    ) = (16, 8, 8, 32);
+    (o.max_iterations, o.rays_per_texel, o.edge_rays) = (3, 1, 0);
+    o.materials = MaterialCount::Fixed(2);
+    (o.progress, o.render_training, o.restart) = (false, false, true);
+    let r = run(&o).expect("run with --restart on").report;
+    let starts = r.starts.expect("the first fit's and the restart's records");
+    assert_eq!(starts.starts.len(), 2, "{starts:?}");
+    for (i, s) in starts.starts.iter().enumerate() {
+        let points = r.timeline.iter().filter(|p| p.start == i).count();
+        assert_eq!(points, s.iterations, "start {i}: {s:?}");
+    }
+    assert!(r.timeline.windows(2).all(|w| w[0].start <= w[1].start));
+    assert!(r.timeline.windows(2).all(|w| w[0].seconds <= w[1].seconds));
+    let kept = starts.chosen;
+    assert_eq!(
+        kept == 1,
+        starts.starts[1].score < starts.starts[0].score,
+        "{starts:?}"
+    );
+    let reason = r
+        .model
+        .reasons
+        .iter()
+        .find(|s| s.starts_with("restart from the fit's own materials"))
+        .expect("the restart's reason");
+    assert!(
+        reason.ends_with(if kept == 1 {
+            ", kept"
+        } else {
+            "the first fit kept"
+        }),
+        "{reason}"
+    );
+}
