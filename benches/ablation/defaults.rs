@@ -206,6 +206,18 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         }
         _ => estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit"),
     };
+    // `ABLATION_DEFAULTS_START=refit | refit-w | reanchor | reanchor2`: a second fit from
+    // the first fit's own materials (bench-results/restart-probes.md).
+    if let Ok(v @ ("refit" | "refit-w" | "reanchor" | "reanchor2")) =
+        std::env::var("ABLATION_DEFAULTS_START").as_deref()
+    {
+        let first = Fitted {
+            est,
+            kept: &pilot.kept,
+            seen: &seen,
+        };
+        est = second_fit(v, &problem, first, &opts, case, lambert);
+    }
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
     est.lambda = est
@@ -396,4 +408,156 @@ pub fn describe(case: &Case, p: &PilotOutcome) -> String {
         p.start_reason.as_deref().unwrap_or("start not chosen"),
         p.basis_reason
     )
+}
+
+/// A first fit with what [`second_fit`] reads of it.
+struct Fitted<'a> {
+    est: Estimate,
+    /// The case's bases the pilot kept.
+    kept: &'a [usize],
+    /// Whether a training photo sees each vertex.
+    seen: &'a [bool],
+}
+
+/// The second fit of `ABLATION_DEFAULTS_START=v` from `first` (`reanchor`:
+/// [`relight_cpc::solve::materials::reanchor::reanchor`] with projected weights, `reanchor2`
+/// twice; `refit`, `refit-w`: [`refit`]), returned whatever its score unless
+/// `ABLATION_REFIT_PICK=1`, which keeps the fit with the lower validation error as `run
+/// --restart on` does. Prints both fits' worst ratio errors and validation errors.
+fn second_fit(
+    v: &str,
+    problem: &Problem,
+    first: Fitted,
+    opts: &EstimateOptions,
+    case: &Case,
+    lambert: usize,
+) -> Estimate {
+    use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
+    let Fitted { est, kept, seen } = first;
+    let ratios = |e: &Estimate| {
+        let full: Vec<Vec<[f64; 3]>> = e
+            .lambda
+            .iter()
+            .map(|row| full_basis(row, kept, case.basis.len()))
+            .collect();
+        crate::metrics::ratio_errors(case, &full, &e.weights, seen)
+    };
+    let second = if v.starts_with("reanchor") {
+        let mut from = est.clone();
+        for _ in 0..if v == "reanchor2" { 2 } else { 1 } {
+            let m = reanchor(&from.lambda, &from.weights, seen, Reweight::Project)
+                .expect("re-anchoring");
+            from = estimate(problem, m, opts, &mut |_, _| {}).expect("second fit");
+        }
+        from
+    } else {
+        refit(problem, &est, opts, case, lambert, v == "refit")
+    };
+    let score = |e: &Estimate| e.validation.as_ref().map(|v| v.best_error());
+    eprintln!(
+        "second fit {v}: worst ratio {:.3?} -> {:.3?}; validation {:?} -> {:?}",
+        ratios(&est),
+        ratios(&second),
+        score(&est),
+        score(&second)
+    );
+    if !crate::env_flag("ABLATION_REFIT_PICK") || score(&second) < score(&est) {
+        second
+    } else {
+        est
+    }
+}
+
+/// `ABLATION_DEFAULTS_START=refit | refit-w`: a second fit from the first fit's own
+/// materials: each vertex's weights divided by their sum (the shading a free weight took
+/// on given back to λ: each material's λ times the median sum over its pure vertices),
+/// and with `refit` each material's Lambertian λ per channel matched by normal
+/// ([`relight_cpc::solve::matched::relative_brightness`]) over the vertices the first fit
+/// finds pure (normalised weight ≥ 0.95), the per-channel geometric mean kept.
+fn refit(
+    problem: &Problem,
+    est: &Estimate,
+    opts: &EstimateOptions,
+    case: &Case,
+    lambert: usize,
+    matched: bool,
+) -> Estimate {
+    use relight_cpc::solve::matched::{relative_brightness, MatchedInput};
+    let kk = est.lambda.len();
+    let nv = case.nv;
+    let mut w = est.weights.clone();
+    let mut sums = vec![0.0; nv];
+    for x in 0..nv {
+        let s: f64 = w[x * kk..(x + 1) * kk].iter().sum();
+        sums[x] = s;
+        if s > 0.0 {
+            w[x * kk..(x + 1) * kk].iter_mut().for_each(|v| *v /= s);
+        }
+    }
+    let pure = |k: usize| -> Vec<usize> { (0..nv).filter(|&x| w[x * kk + k] >= 0.95).collect() };
+    let mut lambda = est.lambda.clone();
+    for k in 0..kk {
+        let mut s: Vec<f64> = pure(k).iter().map(|&x| sums[x]).collect();
+        if s.is_empty() {
+            continue;
+        }
+        let mid = s.len() / 2;
+        let med = *s.select_nth_unstable_by(mid, f64::total_cmp).1;
+        if med > 0.0 {
+            lambda[k].iter_mut().for_each(|b| *b = b.map(|v| v * med));
+        }
+    }
+    if matched {
+        let labels: Vec<usize> = (0..nv)
+            .map(|x| {
+                (0..kk)
+                    .max_by(|&a, &b| w[x * kk + a].total_cmp(&w[x * kk + b]))
+                    .unwrap()
+            })
+            .collect();
+        let lw: Vec<f64> = (0..nv)
+            .map(|x| {
+                if w[x * kk + labels[x]] >= 0.95 {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let open = case.vis.open_fractions();
+        let fitted = relative_brightness(&MatchedInput {
+            obs: &case.train.obs,
+            labels: &labels,
+            label_weight: &lw,
+            normals: &case.normals_env,
+            open: &open,
+            k: kk,
+        });
+        eprintln!(
+            "refit: the normal-matched model over {} photo × normal cells",
+            fitted.cells
+        );
+        let idx: Vec<usize> = (0..kk).filter(|&k| fitted.a[k].is_some()).collect();
+        if idx.len() >= 2 {
+            for c in 0..3 {
+                let n = idx.len() as f64;
+                let mean_log: f64 = idx
+                    .iter()
+                    .map(|&k| lambda[k][lambert][c].max(1e-12).ln())
+                    .sum::<f64>()
+                    / n;
+                let mean_a: f64 = idx.iter().map(|&k| fitted.a[k].unwrap()[c]).sum::<f64>() / n;
+                for &k in &idx {
+                    lambda[k][lambert][c] = (fitted.a[k].unwrap()[c] - mean_a + mean_log).exp();
+                }
+            }
+        }
+    }
+    estimate(
+        problem,
+        Materials0 { lambda, weights: w },
+        opts,
+        &mut |_, _| {},
+    )
+    .expect("refit")
 }
