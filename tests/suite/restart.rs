@@ -40,13 +40,9 @@ fn accuracy(case: &Case, est: &Estimate, seen: &[bool]) -> f64 {
 
 #[test]
 fn the_restart_sorts_the_blended_vertices_of_three_materials() {
-    let mut case = prepare("spot-three", Sizes::spot_small(), 1, "restart");
-    let t = true_prediction(&case, &case.train);
-    replace_colours(&mut case.train.obs, &t);
-    let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let NoiseFree { case, seen, init } = noise_free("spot-three", "restart");
     let problem = case.train.problem(case.nv);
     let opts = EstimateOptions::default();
-    let init = initial(&case, &case.train.obs, case.lambda.len(), 1);
     let first = estimate(&problem, init, &opts, &mut |_, _| {}).unwrap();
     let before = accuracy(&case, &first, &seen);
     let mut iterations = 0;
@@ -81,27 +77,15 @@ fn the_restart_sorts_the_blended_vertices_of_three_materials() {
 /// what the restart did and which fit was kept (the one with the lower validation error).
 #[test]
 fn the_runs_report_holds_the_restart() {
-    use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
     let dir = crate::scratch::scratch("restart", "report");
-    let mut o = RunOptions::new(builtin_example().unwrap(), dir.join("out"));
-    (
-        o.global_resolution,
-        o.local_resolution,
-        o.normal_grid,
-        o.keep,
-    ) = (16, 8, 8, 32);
-    (o.max_iterations, o.rays_per_texel, o.edge_rays) = (3, 1, 0);
-    o.materials = MaterialCount::Fixed(2);
-    (o.progress, o.render_training, o.restart) = (false, false, true);
-    let r = run(&o).expect("run with --restart on").report;
+    let mut o = crate::scratch::small_example_options(&dir);
+    o.restart = true;
+    let r = relight_cpc::run::run(&o)
+        .expect("run with --restart on")
+        .report;
     let starts = r.starts.expect("the first fit's and the restart's records");
     assert_eq!(starts.starts.len(), 2, "{starts:?}");
-    for (i, s) in starts.starts.iter().enumerate() {
-        let points = r.timeline.iter().filter(|p| p.start == i).count();
-        assert_eq!(points, s.iterations, "start {i}: {s:?}");
-    }
-    assert!(r.timeline.windows(2).all(|w| w[0].start <= w[1].start));
-    assert!(r.timeline.windows(2).all(|w| w[0].seconds <= w[1].seconds));
+    crate::scratch::assert_timeline_follows_starts(&r.timeline, &starts);
     let kept = starts.chosen;
     assert_eq!(
         kept == 1,

@@ -35,13 +35,9 @@ fn ratio_error(case: &Case, est: &Estimate, seen: &[bool]) -> f64 {
 
 #[test]
 fn the_search_keeps_the_start_with_the_right_albedo_ratio() {
-    let mut case = prepare("spot-diffuse", Sizes::spot_small(), 1, "start-search");
-    let t = true_prediction(&case, &case.train);
-    replace_colours(&mut case.train.obs, &t);
-    let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let NoiseFree { case, seen, init } = noise_free("spot-diffuse", "start-search");
     let problem = case.train.problem(case.nv);
     let opts = EstimateOptions::default();
-    let init = initial(&case, &case.train.obs, case.lambda.len(), 1);
     let paper = estimate(&problem, init.clone(), &opts, &mut |_, _| {}).unwrap();
     let before = ratio_error(&case, &paper, &seen);
     let mut seen_iterations = [0usize; 3];
@@ -93,29 +89,17 @@ fn the_search_keeps_the_start_with_the_right_albedo_ratio() {
 /// the error-against-time plot shows every fit the search made.
 #[test]
 fn the_runs_timeline_holds_every_searched_start() {
-    use relight_cpc::run::{builtin_example, run, MaterialCount, RunOptions};
     let dir = crate::scratch::scratch("start-search", "timeline");
-    let mut o = RunOptions::new(builtin_example().unwrap(), dir.join("out"));
-    (
-        o.global_resolution,
-        o.local_resolution,
-        o.normal_grid,
-        o.keep,
-    ) = (16, 8, 8, 32);
-    (o.max_iterations, o.rays_per_texel, o.edge_rays) = (3, 1, 0);
-    o.materials = MaterialCount::Fixed(2);
-    (o.progress, o.render_training, o.start_search) = (false, false, true);
-    let r = run(&o).expect("run with --start-search brightness").report;
+    let mut o = crate::scratch::small_example_options(&dir);
+    o.start_search = true;
+    let r = relight_cpc::run::run(&o)
+        .expect("run with --start-search brightness")
+        .report;
     let starts = r.starts.expect("the search's records");
     assert_eq!(
         starts.starts.len(),
         3,
         "K = 2: the paper's start, ×½ and ×2"
     );
-    for (i, s) in starts.starts.iter().enumerate() {
-        let points = r.timeline.iter().filter(|p| p.start == i).count();
-        assert_eq!(points, s.iterations, "start {i}: {s:?}");
-    }
-    assert!(r.timeline.windows(2).all(|w| w[0].start <= w[1].start));
-    assert!(r.timeline.windows(2).all(|w| w[0].seconds <= w[1].seconds));
+    crate::scratch::assert_timeline_follows_starts(&r.timeline, &starts);
 }

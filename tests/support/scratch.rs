@@ -1,6 +1,7 @@
 //! Shared by the tests that write files: a scratch folder (or a file in its own scratch
-//! folder) removed on drop, so a test run leaves nothing under the temporary folder, and a
-//! small `synth` workspace in it.
+//! folder) removed on drop, so a test run leaves nothing under the temporary folder, a
+//! small `synth` workspace in it, and small options for `run` on the built-in example with
+//! the check that its report's timeline follows its starts.
 
 #![allow(dead_code)]
 
@@ -112,4 +113,37 @@ pub fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     }
     out.sort();
     out
+}
+
+/// Options for `run` on the built-in example at small sizes (16² / 8² maps, 8² normal grid,
+/// 32 coefficients, at most 3 outer iterations, 1 ray per texel, 2 materials, no progress,
+/// no training renders), writing into `dir/out`: for tests of what the report records of
+/// the fit.
+pub fn small_example_options(dir: &Path) -> relight_cpc::run::RunOptions {
+    use relight_cpc::run::{builtin_example, MaterialCount, RunOptions};
+    let mut o = RunOptions::new(builtin_example().unwrap(), dir.join("out"));
+    (
+        o.global_resolution,
+        o.local_resolution,
+        o.normal_grid,
+        o.keep,
+    ) = (16, 8, 8, 32);
+    (o.max_iterations, o.rays_per_texel, o.edge_rays) = (3, 1, 0);
+    o.materials = MaterialCount::Fixed(2);
+    (o.progress, o.render_training) = (false, false);
+    o
+}
+
+/// The report's timeline follows the starts' records, start by start: as many points per
+/// start as that start's fit had iterations, on one clock that never goes back.
+pub fn assert_timeline_follows_starts(
+    timeline: &[relight_cpc::report::TimelinePoint],
+    starts: &relight_cpc::solve::starts::MultiStart,
+) {
+    for (i, s) in starts.starts.iter().enumerate() {
+        let points = timeline.iter().filter(|p| p.start == i).count();
+        assert_eq!(points, s.iterations, "start {i}: {s:?}");
+    }
+    assert!(timeline.windows(2).all(|w| w[0].start <= w[1].start));
+    assert!(timeline.windows(2).all(|w| w[0].seconds <= w[1].seconds));
 }

@@ -597,6 +597,25 @@ pub fn initial(case: &Case, obs: &Observations, k: usize, seed: u64) -> Material
     Materials0::from_initial(&init, case.basis.len(), 0)
 }
 
+/// A small case of `scene` ([`Sizes::spot_small`], seed 1) with its training photos
+/// replaced by the true model's prediction (noise-free: what is left is the estimator's),
+/// whether a training photo sees each vertex, and the paper's k-means start.
+pub struct NoiseFree {
+    pub case: Case,
+    pub seen: Vec<bool>,
+    pub init: Materials0,
+}
+
+/// [`NoiseFree`] of `scene`, its scratch folder named by `tag`.
+pub fn noise_free(scene: &str, tag: &str) -> NoiseFree {
+    let mut case = prepare(scene, Sizes::spot_small(), 1, tag);
+    let t = true_prediction(&case, &case.train);
+    replace_colours(&mut case.train.obs, &t);
+    let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let init = initial(&case, &case.train.obs, case.lambda.len(), 1);
+    NoiseFree { case, seen, init }
+}
+
 /// Score an estimate of a two-material case against the truth. `train_obs` are the
 /// observations the fit saw (possibly corrupted); `clean` the uncorrupted ones.
 pub fn joint_figures(
