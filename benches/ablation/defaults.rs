@@ -208,7 +208,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     };
     // `ABLATION_DEFAULTS_START=refit | refit-w | reanchor | reanchor2`: a second fit from
     // the first fit's own materials (bench-results/restart-probes.md).
-    if let Ok(v @ ("refit" | "refit-w" | "reanchor" | "reanchor2")) =
+    if let Ok(v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert")) =
         std::env::var("ABLATION_DEFAULTS_START").as_deref()
     {
         let first = Fitted {
@@ -421,7 +421,7 @@ struct Fitted<'a> {
 
 /// The second fit of `ABLATION_DEFAULTS_START=v` from `first` (`reanchor`:
 /// [`relight_cpc::solve::materials::reanchor::reanchor`] with projected weights, `reanchor2`
-/// twice; `refit`, `refit-w`: [`refit`]), returned whatever its score unless
+/// twice, `reanchor-lambert` with [`keep_gloss`]; `refit`, `refit-w`: [`refit`]), returned whatever its score unless
 /// `ABLATION_REFIT_PICK=1`, which keeps the fit with the lower validation error as `run
 /// --restart on` does. Prints both fits' worst ratio errors and validation errors.
 fn second_fit(
@@ -445,8 +445,11 @@ fn second_fit(
     let second = if v.starts_with("reanchor") {
         let mut from = est.clone();
         for _ in 0..if v == "reanchor2" { 2 } else { 1 } {
-            let m = reanchor(&from.lambda, &from.weights, seen, Reweight::Project)
+            let mut m = reanchor(&from.lambda, &from.weights, seen, Reweight::Project)
                 .expect("re-anchoring");
+            if v == "reanchor-lambert" {
+                keep_gloss(&mut m.lambda, &from.lambda, lambert);
+            }
             from = estimate(problem, m, opts, &mut |_, _| {}).expect("second fit");
         }
         from
@@ -465,6 +468,26 @@ fn second_fit(
         second
     } else {
         est
+    }
+}
+
+/// `reanchor-lambert`: every non-Lambertian lobe of each re-anchored material set to keep
+/// the first fit's ratio to its Lambertian lobe, per channel (`λ'_{k,b} = λ_{k,b} ·
+/// λ'_{k,L} / λ_{k,L}`).
+fn keep_gloss(lambda: &mut [Vec<[f64; 3]>], first: &[Vec<[f64; 3]>], lambert: usize) {
+    for (row, was) in lambda.iter_mut().zip(first) {
+        for c in 0..3 {
+            let f = if was[lambert][c] > 0.0 {
+                row[lambert][c] / was[lambert][c]
+            } else {
+                1.0
+            };
+            for (b, v) in row.iter_mut().enumerate() {
+                if b != lambert {
+                    v[c] = was[b][c] * f;
+                }
+            }
+        }
     }
 }
 
