@@ -195,6 +195,14 @@ pub struct RatioMoves {
 }
 
 impl Estimate {
+    /// Early stopping's validation error of the iterate returned
+    /// ([`Validation::best_error`]); NaN without validation.
+    pub fn validation_error(&self) -> f64 {
+        self.validation
+            .as_ref()
+            .map_or(f64::NAN, Validation::best_error)
+    }
+
     /// An estimate holding only `lights`, `lambda` and `weights`, with no record of a fit
     /// (empty timeline, no validation): for predicting with given reflectance and light.
     pub fn from_parts(

@@ -46,7 +46,7 @@ pub(super) fn alternate(
         est = search_starts(problem, est, &family[0].materials, lambert, &monitor, log)?;
     }
     if opts.restart && est.est.lambda.len() >= 2 {
-        est = restart(problem, est, &mut start.reasons, &monitor, log)?;
+        est = restart(problem, p, est, start, &monitor, log)?;
     }
     bar.finish_and_clear();
     Ok(est)
@@ -131,15 +131,7 @@ fn fit_light_models(
             log,
         )?);
     }
-    let scores: Vec<f64> = fits
-        .iter()
-        .map(|f| {
-            f.est
-                .validation
-                .as_ref()
-                .map_or(f64::NAN, |v| v.best_error())
-        })
-        .collect();
+    let scores: Vec<f64> = fits.iter().map(|f| f.est.validation_error()).collect();
     let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
     let (pick, mut light_decision) = choose::decide(opts.light, &names, &scores);
     let mut kept = fits.swap_remove(pick);
@@ -258,13 +250,15 @@ fn search_starts(
 }
 
 /// The restart (`--restart`, [`reanchor::restart`]) from the kept fit: a fit from its own
-/// materials re-anchored, kept when its validation error is lower. Its iterations follow
-/// the kept fit's in the timeline as one more start, its record is added to the starts,
-/// and what it did is one of the model's reasons.
+/// materials re-anchored (over the vertices a training photo sees), kept when its
+/// validation error is lower. Its iterations follow the kept fit's in the timeline as one
+/// more start, its record is added to the starts, and what it did is one of the start's
+/// reasons.
 fn restart(
     problem: &Problem,
+    p: &Prepared,
     fitted: Estimated,
-    reasons: &mut Vec<String>,
+    start: &mut FitStart,
     monitor: &Monitor,
     log: &mut RunLog,
 ) -> Result<Estimated> {
@@ -279,9 +273,8 @@ fn restart(
     monitor.bar.inc_length(eopts.max_outer as u64);
     let si = multi.starts.len();
     let clock = timeline.last().map_or(0.0, |p| p.seconds);
-    let seen = seen_vertices(problem);
     let done = log.stages.run("restart", || {
-        reanchor::restart(problem, est, &seen, &eopts, &mut |it, state| {
+        reanchor::restart(problem, est, start.seen(p), &eopts, &mut |it, state| {
             monitor.bar.inc(1);
             let holdout_rmse = monitor.held_out(state);
             let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
@@ -291,7 +284,7 @@ fn restart(
         })
     })?;
     let [first, second] = done.scores;
-    reasons.push(format!(
+    start.reasons.push(format!(
         "restart from the fit's own materials re-anchored (median fitted reflectance per material, weights projected): validation error {second:.4} against {first:.4}, {}",
         if done.kept_restart { "kept" } else { "the first fit kept" }
     ));
@@ -306,17 +299,6 @@ fn restart(
         light_decision,
         timeline,
     })
-}
-
-/// Whether each vertex has a training observation of positive weight.
-fn seen_vertices(problem: &Problem) -> Vec<bool> {
-    let mut seen = vec![false; problem.n_vertices];
-    for (&x, &w) in problem.obs.vertex.iter().zip(&problem.obs.weight) {
-        if w > 0.0 {
-            seen[x as usize] = true;
-        }
-    }
-    seen
 }
 
 /// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the

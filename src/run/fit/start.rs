@@ -57,6 +57,20 @@ pub(super) struct FitStart {
 }
 
 impl FitStart {
+    /// Each vertex's mean colour and whether a training photo sees it: the transient
+    /// pass's when it clustered the start again, else `p`'s.
+    fn colours<'a>(&'a self, p: &'a Prepared) -> (&'a [[f64; 3]], &'a [bool]) {
+        match &self.recoloured {
+            Some((m, s)) => (m, s),
+            None => (&p.mean_rgb, &p.seen),
+        }
+    }
+
+    /// Whether a training photo sees each vertex ([`FitStart::colours`]).
+    pub(super) fn seen<'a>(&'a self, p: &'a Prepared) -> &'a [bool] {
+        self.colours(p).1
+    }
+
     /// The clustered start with the pilot's count (or `--materials`, or a count from the
     /// colours) and the estimator's options, with the ratio step's rounds for
     /// `training_photos` and the start's materials, and the neighbour prior's graph when on.
@@ -188,10 +202,7 @@ impl FitStart {
         let materials0 = Materials0::from_initial(&self.init, n_basis, lambert);
         let mut family = starts::variants(materials0, lambert, starts::GLOSS_FRACTION, opts.starts);
         if opts.start_weights != StartWeights::Clustered {
-            let (mean_rgb, seen) = match &self.recoloured {
-                Some((m, s)) => (m, s),
-                None => (&p.mean_rgb, &p.seen),
-            };
+            let (mean_rgb, seen) = self.colours(p);
             let (weights, _) = unmixed_weights(&self.init, mean_rgb, seen);
             self.reasons.push(match opts.start_weights {
                 StartWeights::Both => "start weights: a fit from the clustered weights and one from the weights unmixed from the mean colours, the lower validation score kept (--start-weights both)".to_string(),

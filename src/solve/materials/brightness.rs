@@ -144,7 +144,7 @@ pub fn search(
         let beta = beta_per_vertex(&e.lambda, &e.weights, problem.n_vertices);
         training_score(problem, &beta, &e.lights)
     };
-    let paper_validation = validation_of(&paper);
+    let paper_validation = paper.validation_error();
     let mut records = vec![StartRecord::of(
         paper_label.to_string(),
         score(&paper),
@@ -155,7 +155,7 @@ pub fn search(
         let est = estimate(problem, st.materials, opts, &mut |it, state| {
             on_iter(i + 1, it, state)
         })?;
-        let v = validation_of(&est);
+        let v = est.validation_error();
         let label = format!(
             "the paper's start with the Lambertian weights of materials 2… × {:?} (validation {v:.4} against {paper_validation:.4})",
             st.factors
@@ -179,11 +179,6 @@ pub fn search(
             starts: records,
         },
     ))
-}
-
-/// The early-stopping validation score of a fit (NaN without validation).
-fn validation_of(e: &Estimate) -> f64 {
-    e.validation.as_ref().map_or(f64::NAN, |v| v.best_error())
 }
 
 #[cfg(test)]

@@ -165,8 +165,7 @@ pub fn restart(
 ) -> Result<Restarted> {
     let start = reanchor(&first.lambda, &first.weights, seen, Reweight::Project)?;
     let second = estimate(problem, start, opts, on_iter)?;
-    let score = |e: &Estimate| e.validation.as_ref().map_or(f64::NAN, |v| v.best_error());
-    let scores = [score(&first), score(&second)];
+    let scores = [first.validation_error(), second.validation_error()];
     let kept_restart = scores[1] < scores[0];
     let record = StartRecord::of(
         format!(
