@@ -56,10 +56,11 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert`
-//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last five a second
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio`
+//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last six a second
 //! fit from the first fit's materials, `ABLATION_REFIT_PICK=1` keeping the one with the
-//! lower validation error) and
+//! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
+//! `sh-ratio` reads, 0.8) and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=shared` (the `defaults` row with
 //! `run --light shared`, the groups the photos' true skies), `SYNTH_SHARED_SKIES=1` (the

@@ -208,8 +208,9 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     };
     // `ABLATION_DEFAULTS_START=refit | refit-w | reanchor | reanchor2`: a second fit from
     // the first fit's own materials (bench-results/restart-probes.md).
-    if let Ok(v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert")) =
-        std::env::var("ABLATION_DEFAULTS_START").as_deref()
+    if let Ok(
+        v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"),
+    ) = std::env::var("ABLATION_DEFAULTS_START").as_deref()
     {
         let first = Fitted {
             est,
@@ -442,7 +443,23 @@ fn second_fit(
             .collect();
         crate::metrics::ratio_errors(case, &full, &e.weights, seen)
     };
-    let second = if v.starts_with("reanchor") {
+    let second = if v == "sh-ratio" {
+        let m = sh_ratio_start(&est, case, seen, lambert);
+        eprintln!(
+            "sh-ratio start: worst ratio {:.3?} (first fit {:.3?})",
+            crate::metrics::ratio_errors(
+                case,
+                &m.lambda
+                    .iter()
+                    .map(|row| full_basis(row, kept, case.basis.len()))
+                    .collect::<Vec<_>>(),
+                &m.weights,
+                seen
+            ),
+            ratios(&est)
+        );
+        estimate(problem, m, opts, &mut |_, _| {}).expect("second fit")
+    } else if v.starts_with("reanchor") {
         let mut from = est.clone();
         for _ in 0..if v == "reanchor2" { 2 } else { 1 } {
             let mut m = reanchor(&from.lambda, &from.weights, seen, Reweight::Project)
@@ -583,4 +600,127 @@ fn refit(
         &mut |_, _| {},
     )
     .expect("refit")
+}
+
+/// Order-2 real spherical harmonics of a unit normal, constants dropped (each photo's
+/// coefficients are free): Ramamoorthi & Hanrahan 2001, irradiance of a convex surface.
+fn sh9(n: &relight_cpc::Vec3) -> [f64; 9] {
+    let (x, y, z) = (n.x, n.y, n.z);
+    [
+        1.0,
+        y,
+        z,
+        x,
+        x * y,
+        y * z,
+        3.0 * z * z - 1.0,
+        x * z,
+        x * x - y * y,
+    ]
+}
+
+/// One training observation of a pure, open vertex: its photo, its first fit's material,
+/// its radiance and the order-2 harmonics of its normal.
+struct IrradianceRow {
+    photo: usize,
+    material: usize,
+    rgb: [f64; 3],
+    sh: [f64; 9],
+}
+
+/// `ABLATION_DEFAULTS_START=sh-ratio`: the first fit's weights normalised to sum 1, and
+/// each material's Lambertian λ per channel from a fit of `y = ρ_{k,c} Σ_j s_{I,c,j}
+/// Y_j(n_x)` (order-2 irradiance per photo and channel, free) over the training
+/// observations of the vertices the first fit finds pure (normalised weight ≥ 0.95),
+/// open (≥ `ABLATION_SH_OPEN` of the hemisphere, 0.8) ([`irradiance_albedos`]); the
+/// per-channel geometric mean of the first fit's Lambertian λ kept (the gauge).
+fn sh_ratio_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) -> Materials0 {
+    let kk = est.lambda.len();
+    let mut w = est.weights.clone();
+    for row in w.chunks_mut(kk) {
+        let s: f64 = row.iter().sum();
+        if s > 0.0 {
+            row.iter_mut().for_each(|v| *v /= s);
+        }
+    }
+    let rows = irradiance_rows(case, &w, seen, kk);
+    let n_photos = case.train.obs.photo_ranges.len();
+    let mut lambda = est.lambda.clone();
+    let mean_log = |v: &[f64]| v.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / kk as f64;
+    for c in 0..3 {
+        let first: Vec<f64> = (0..kk).map(|k| est.lambda[k][lambert][c]).collect();
+        let rho = irradiance_albedos(&rows, c, n_photos, &first);
+        let shift = mean_log(&first) - mean_log(&rho);
+        for k in 0..kk {
+            lambda[k][lambert][c] = (rho[k].max(1e-12).ln() + shift).exp();
+        }
+    }
+    let counts: Vec<usize> = (0..kk)
+        .map(|k| rows.iter().filter(|r| r.material == k).count())
+        .collect();
+    eprintln!("sh-ratio: observations per material {counts:?}");
+    Materials0 { lambda, weights: w }
+}
+
+/// The training observations of the seen, open vertices whose normalised weights `w`
+/// give one material ≥ 0.95.
+fn irradiance_rows(case: &Case, w: &[f64], seen: &[bool], kk: usize) -> Vec<IrradianceRow> {
+    let open = case.vis.open_fractions();
+    let min_open: f64 = crate::env_or("ABLATION_SH_OPEN", 0.8);
+    let obs = &case.train.obs;
+    let mut rows = Vec::new();
+    for (photo, range) in obs.photo_ranges.iter().enumerate() {
+        for p in range.clone().filter(|&p| obs.weight[p] > 0.0) {
+            let x = obs.vertex[p] as usize;
+            if !seen[x] || open[x] < min_open {
+                continue;
+            }
+            if let Some(material) = (0..kk).find(|&k| w[x * kk + k] >= 0.95) {
+                rows.push(IrradianceRow {
+                    photo,
+                    material,
+                    rgb: obs.rgb[p].map(f64::from),
+                    sh: sh9(&case.normals_env[x]),
+                });
+            }
+        }
+    }
+    rows
+}
+
+/// Channel `c`'s albedo per material from `y = ρ_k Σ_j s_{I,j} Y_j(n)` by alternating
+/// least squares from `rho0` (40 rounds): each photo's nine coefficients by its normal
+/// equations (a 10⁻⁹ ridge), then each `ρ_k` in closed form.
+fn irradiance_albedos(rows: &[IrradianceRow], c: usize, n_photos: usize, rho0: &[f64]) -> Vec<f64> {
+    type M9 = nalgebra::SMatrix<f64, 9, 9>;
+    type V9 = nalgebra::SVector<f64, 9>;
+    let kk = rho0.len();
+    let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-6)).collect();
+    let mut s = vec![V9::zeros(); n_photos];
+    for _ in 0..40 {
+        let mut ata = vec![M9::identity() * 1e-9; n_photos];
+        let mut aty = vec![V9::zeros(); n_photos];
+        for r in rows {
+            let a = V9::from_column_slice(&r.sh) * rho[r.material];
+            ata[r.photo] += a * a.transpose();
+            aty[r.photo] += a * r.rgb[c];
+        }
+        for i in 0..n_photos {
+            if let Some(sol) = ata[i].lu().solve(&aty[i]) {
+                s[i] = sol;
+            }
+        }
+        let (mut num, mut den) = (vec![0.0; kk], vec![0.0; kk]);
+        for r in rows {
+            let e = s[r.photo].dot(&V9::from_column_slice(&r.sh));
+            num[r.material] += e * r.rgb[c];
+            den[r.material] += e * e;
+        }
+        for k in 0..kk {
+            if den[k] > 0.0 && num[k] > 0.0 {
+                rho[k] = num[k] / den[k];
+            }
+        }
+    }
+    rho
 }
