@@ -2,9 +2,13 @@
 //! `run --restart`) on a known-truth scene: Spot with three materials in blended bands
 //! (`spot-three`, rendered by the independent reference renderer and taken through the
 //! real stages, `tests/support/synth_case.rs`), its photos replaced by the true model's
-//! prediction (noise-free: what is left is the estimator's), the paper's k-means start.
+//! prediction (noise-free: what is left is the estimator's), the paper's k-means start;
+//! and both restarts (`--restart on | irradiance`) as `run` reports them on the built-in
+//! example. The irradiance model's own kernel is tested against exact and quadrature
+//! irradiance in `src/solve/materials/irradiance.rs`.
 
 use crate::synth_case::*;
+use relight_cpc::run::Restart;
 use relight_cpc::solve::materials::reanchor::restart;
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions};
 
@@ -77,11 +81,32 @@ fn the_restart_sorts_the_blended_vertices_of_three_materials() {
 /// what the restart did and which fit was kept (the one with the lower validation error).
 #[test]
 fn the_runs_report_holds_the_restart() {
-    let dir = crate::scratch::scratch("restart", "report");
+    assert_restart_reported(
+        Restart::Reanchor,
+        "report",
+        "restart from the fit's own materials",
+    );
+}
+
+/// The same with `run --restart irradiance` (the second fit's Lambertian ratios from the
+/// order-2 irradiance model, `solve::materials::irradiance`).
+#[test]
+fn the_runs_report_holds_the_irradiance_restart() {
+    assert_restart_reported(
+        Restart::Irradiance,
+        "report-irradiance",
+        "restart from the fit's weights with each material's Lambertian colour ratios",
+    );
+}
+
+/// The example run with `mode`: two starts, the timeline per start, the kept one the
+/// lower score, and a reason starting with `prefix` that says which was kept.
+fn assert_restart_reported(mode: Restart, name: &str, prefix: &str) {
+    let dir = crate::scratch::scratch("restart", name);
     let mut o = crate::scratch::small_example_options(&dir);
-    o.restart = true;
+    o.restart = mode;
     let r = relight_cpc::run::run(&o)
-        .expect("run with --restart on")
+        .expect("run with --restart")
         .report;
     let starts = r.starts.expect("the first fit's and the restart's records");
     assert_eq!(starts.starts.len(), 2, "{starts:?}");
@@ -96,8 +121,8 @@ fn the_runs_report_holds_the_restart() {
         .model
         .reasons
         .iter()
-        .find(|s| s.starts_with("restart from the fit's own materials"))
-        .expect("the restart's reason");
+        .find(|s| s.starts_with(prefix))
+        .unwrap_or_else(|| panic!("the restart's reason in {:?}", r.model.reasons));
     assert!(
         reason.ends_with(if kept == 1 {
             ", kept"

@@ -203,8 +203,11 @@ pub(crate) struct RunArgs {
     /// `on`: after the fit, with 2 or more materials, fit again from its own materials
     /// re-anchored (each material the median fitted reflectance of the vertices it
     /// dominates, each vertex's weights projected on them) and keep the fit that predicts
-    /// held-back observations better. One more fit.
-    #[arg(long, default_value = "off", value_parser = ["off", "on"], help_heading = "Solver")]
+    /// held-back observations better. `irradiance`: the second fit from the fit's weights
+    /// with each material's Lambertian colour ratios fitted by a low-order irradiance model
+    /// over the vertices one material holds that see most of the sky (Lambertian
+    /// materials). One more fit.
+    #[arg(long, default_value = "off", value_parser = ["off", "on", "irradiance"], help_heading = "Solver")]
     pub(crate) restart: String,
     /// Where each material's starting brightness comes from: `clustered` (its colour
     /// cluster's median, the paper), `matched` (compared with the other materials at

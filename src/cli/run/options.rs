@@ -99,7 +99,7 @@ impl RunArgs {
         o.ratio_steps = relight_cpc::run::RatioSteps::parse(&self.ratio_steps)?;
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
-        o.restart = self.restart == "on";
+        o.restart = relight_cpc::run::Restart::parse(&self.restart)?;
         o.start_brightness = relight_cpc::run::StartBrightness::parse(&self.start_brightness)?;
         o.start_weights = relight_cpc::solve::cluster::StartWeights::parse(&self.start_weights)?;
         o.robust_floor = self.robust_floor;

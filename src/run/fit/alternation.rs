@@ -8,9 +8,9 @@ use crate::report::TimelinePoint;
 use crate::run::state::Prepared;
 use crate::run::state::RunLog;
 use crate::run::tracker::HoldoutTracker;
-use crate::run::{Progress, RunOptions};
+use crate::run::{Progress, Restart, RunOptions};
 use crate::solve::light::choose::{self, LightDecision};
-use crate::solve::materials::{brightness, reanchor};
+use crate::solve::materials::{brightness, irradiance, reanchor};
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::Result;
@@ -45,8 +45,8 @@ pub(super) fn alternate(
     if opts.start_search {
         est = search_starts(problem, est, &family[0].materials, lambert, &monitor, log)?;
     }
-    if opts.restart && est.est.lambda.len() >= 2 {
-        est = restart(problem, p, est, start, &monitor, log)?;
+    if opts.restart != Restart::Off && est.est.lambda.len() >= 2 {
+        est = restart(problem, p, est, start, opts.restart, &monitor, log)?;
     }
     bar.finish_and_clear();
     Ok(est)
@@ -249,9 +249,10 @@ fn search_starts(
     })
 }
 
-/// The restart (`--restart`, [`reanchor::restart`]) from the kept fit: a fit from its own
-/// materials re-anchored (over the vertices a training photo sees), kept when its
-/// validation error is lower. Its iterations follow the kept fit's in the timeline as one
+/// The restart (`--restart`, [`Restart`]) from the kept fit: a fit from its own materials
+/// re-anchored, or from its Lambertian ratios fitted by the irradiance model (over the
+/// vertices a training photo sees), kept when its validation error is lower
+/// ([`reanchor::fit_again`]). Its iterations follow the kept fit's in the timeline as one
 /// more start, its record is added to the starts, and what it did is one of the start's
 /// reasons.
 fn restart(
@@ -259,9 +260,18 @@ fn restart(
     p: &Prepared,
     fitted: Estimated,
     start: &mut FitStart,
+    mode: Restart,
     monitor: &Monitor,
     log: &mut RunLog,
 ) -> Result<Estimated> {
+    let Some((from, what)) = restart_start(problem, p, &fitted.est, start, mode)? else {
+        start.reasons.push(format!(
+            "restart from an order-2 irradiance model skipped: some material holds no vertex that sees at least {:.0}% of its hemisphere at a weight of at least {}",
+            100.0 * irradiance::MIN_OPEN,
+            irradiance::PURE
+        ));
+        return Ok(fitted);
+    };
     let Estimated {
         est,
         mut multi,
@@ -274,7 +284,7 @@ fn restart(
     let si = multi.starts.len();
     let clock = timeline.last().map_or(0.0, |p| p.seconds);
     let done = log.stages.run("restart", || {
-        reanchor::restart(problem, est, start.seen(p), &eopts, &mut |it, state| {
+        reanchor::fit_again(problem, est, from, what, &eopts, &mut |it, state| {
             monitor.bar.inc(1);
             let holdout_rmse = monitor.held_out(state);
             let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
@@ -285,8 +295,12 @@ fn restart(
     })?;
     let [first, second] = done.scores;
     start.reasons.push(format!(
-        "restart from the fit's own materials re-anchored (median fitted reflectance per material, weights projected): validation error {second:.4} against {first:.4}, {}",
-        if done.kept_restart { "kept" } else { "the first fit kept" }
+        "restart from {what}: validation error {second:.4} against {first:.4}, {}",
+        if done.kept_restart {
+            "kept"
+        } else {
+            "the first fit kept"
+        }
     ));
     multi.starts.push(done.record);
     if done.kept_restart {
@@ -299,6 +313,44 @@ fn restart(
         light_decision,
         timeline,
     })
+}
+
+/// The restart's start and what it is, for the reasons: `None` when the irradiance model
+/// finds a material without pure, open vertices.
+fn restart_start(
+    problem: &Problem,
+    p: &Prepared,
+    est: &solve::Estimate,
+    start: &FitStart,
+    mode: Restart,
+) -> Result<Option<(Materials0, &'static str)>> {
+    let seen = start.seen(p);
+    if mode != Restart::Irradiance {
+        let m = reanchor::reanchor(&est.lambda, &est.weights, seen, reanchor::Reweight::Project)?;
+        return Ok(Some((
+            m,
+            "the fit's own materials re-anchored (median fitted reflectance per material, weights projected)",
+        )));
+    }
+    let kk = est.lambda.len();
+    let weights = irradiance::normalised_weights(&est.weights, kk);
+    let open = p.vis.open_fractions();
+    let rows = irradiance::pure_open_rows(&irradiance::RowsInput {
+        obs: problem.obs,
+        normals_env: &p.normals_env,
+        open: &open,
+        seen,
+        weights: &weights,
+        materials: kk,
+    });
+    let lambert = start.eopts.lambert_basis;
+    let m = irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, problem.n_photos)?;
+    Ok(m.map(|m| {
+        (
+            m,
+            "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
+        )
+    }))
 }
 
 /// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the

@@ -11,7 +11,7 @@ mod large_mesh;
 mod values;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
 pub use values::{
-    Holdout, MaterialCount, PriorStrength, RatioSteps, WeightsSmoothness, WeightsSum,
+    Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
 };
 
 /// Checked options of a run.
@@ -93,10 +93,9 @@ pub struct RunOptions {
     /// and keeps the deepest ([`crate::solve::materials::brightness::search`]; not in the
     /// paper).
     pub start_search: bool,
-    /// After the fit (and the start search), with two or more materials, a second fit from
-    /// its own materials re-anchored and the one with the lower validation error kept
-    /// ([`crate::solve::materials::reanchor::restart`]; not in the paper).
-    pub restart: bool,
+    /// After the fit (and the start search), with two or more materials, a second fit
+    /// ([`Restart`]) and the one with the lower validation error kept (not in the paper).
+    pub restart: Restart,
     /// Where the start's material brightness comes from: the clustered colours, matched
     /// by normal, or the pilot's choice ([`StartBrightness::Auto`]).
     pub start_brightness: StartBrightness,
@@ -295,7 +294,7 @@ impl RunOptions {
             starts: 1,
             start_weights: crate::solve::cluster::StartWeights::Clustered,
             start_search: false,
-            restart: false,
+            restart: Restart::Off,
             start_brightness: StartBrightness::Auto,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: WeightsSum::Auto,

@@ -114,6 +114,35 @@ impl RatioSteps {
     }
 }
 
+/// The second fit after the first (`--restart`; [`crate::solve::materials::reanchor`],
+/// [`crate::solve::materials::irradiance`]); either is kept only when it predicts the
+/// held-back observations better.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Restart {
+    /// None (the paper's single fit).
+    #[default]
+    Off,
+    /// From the fit's own materials re-anchored (`on`).
+    Reanchor,
+    /// From the fit's weights normalised and each material's Lambertian ratios fitted by
+    /// an order-2 irradiance model over its pure, open vertices (`irradiance`).
+    Irradiance,
+}
+
+impl Restart {
+    /// `off`, `on` or `irradiance`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "off" => Ok(Restart::Off),
+            "on" => Ok(Restart::Reanchor),
+            "irradiance" => Ok(Restart::Irradiance),
+            _ => Err(Error::Config(format!(
+                "--restart {s}: expected off, on or irradiance"
+            ))),
+        }
+    }
+}
+
 /// Which photos are held out.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Holdout {
@@ -150,6 +179,21 @@ mod tests {
             let err = RatioSteps::parse(bad).unwrap_err().to_string();
             assert!(err.contains(&format!("--ratio-steps {bad}")), "{err}");
             assert!(err.contains("expected auto or a whole number"), "{err}");
+        }
+    }
+
+    /// `--restart`: the three names, and anything else refused in words that name the flag
+    /// and the value.
+    #[test]
+    fn restart_parses_its_three_names_and_refuses_others() {
+        assert_eq!(Restart::parse("off").unwrap(), Restart::Off);
+        assert_eq!(Restart::parse("on").unwrap(), Restart::Reanchor);
+        assert_eq!(Restart::parse("irradiance").unwrap(), Restart::Irradiance);
+        assert_eq!(Restart::default(), Restart::Off);
+        for bad in ["yes", "Irradiance", ""] {
+            let err = Restart::parse(bad).unwrap_err().to_string();
+            assert!(err.contains(&format!("--restart {bad}:")), "{err}");
+            assert!(err.contains("expected off, on or irradiance"), "{err}");
         }
     }
 }

@@ -140,7 +140,7 @@ pub fn reanchor(
     })
 }
 
-/// What [`restart`] returns: the fit kept and the restart's record.
+/// What [`restart`] and [`fit_again`] return: the fit kept and the restart's record.
 pub struct Restarted {
     /// The fit with the lower validation error (the first on a tie).
     pub est: Estimate,
@@ -164,12 +164,33 @@ pub fn restart(
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Restarted> {
     let start = reanchor(&first.lambda, &first.weights, seen, Reweight::Project)?;
+    fit_again(
+        problem,
+        first,
+        start,
+        "the fit's own materials re-anchored",
+        opts,
+        on_iter,
+    )
+}
+
+/// A second fit from `start` (what `what` names, for the record), and the one of `first`
+/// and it with the lower early-stopping validation error kept; without validation (or on
+/// a tie, or a non-finite score) `first`.
+pub fn fit_again(
+    problem: &Problem,
+    first: Estimate,
+    start: Materials0,
+    what: &str,
+    opts: &EstimateOptions,
+    on_iter: &mut dyn FnMut(&Iteration, &IterState),
+) -> Result<Restarted> {
     let second = estimate(problem, start, opts, on_iter)?;
     let scores = [first.validation_error(), second.validation_error()];
     let kept_restart = scores[1] < scores[0];
     let record = StartRecord::of(
         format!(
-            "the fit's own materials re-anchored (validation {:.4} against the first fit's {:.4})",
+            "{what} (validation {:.4} against the first fit's {:.4})",
             scores[1], scores[0]
         ),
         scores[1],
