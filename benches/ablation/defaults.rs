@@ -602,125 +602,29 @@ fn refit(
     .expect("refit")
 }
 
-/// Order-2 real spherical harmonics of a unit normal, constants dropped (each photo's
-/// coefficients are free): Ramamoorthi & Hanrahan 2001, irradiance of a convex surface.
-fn sh9(n: &relight_cpc::Vec3) -> [f64; 9] {
-    let (x, y, z) = (n.x, n.y, n.z);
-    [
-        1.0,
-        y,
-        z,
-        x,
-        x * y,
-        y * z,
-        3.0 * z * z - 1.0,
-        x * z,
-        x * x - y * y,
-    ]
-}
-
-/// One training observation of a pure, open vertex: its photo, its first fit's material,
-/// its radiance and the order-2 harmonics of its normal.
-struct IrradianceRow {
-    photo: usize,
-    material: usize,
-    rgb: [f64; 3],
-    sh: [f64; 9],
-}
-
-/// `ABLATION_DEFAULTS_START=sh-ratio`: the first fit's weights normalised to sum 1, and
-/// each material's Lambertian λ per channel from a fit of `y = ρ_{k,c} Σ_j s_{I,c,j}
-/// Y_j(n_x)` (order-2 irradiance per photo and channel, free) over the training
-/// observations of the vertices the first fit finds pure (normalised weight ≥ 0.95),
-/// open (≥ `ABLATION_SH_OPEN` of the hemisphere, 0.8) ([`irradiance_albedos`]); the
-/// per-channel geometric mean of the first fit's Lambertian λ kept (the gauge).
+/// `ABLATION_DEFAULTS_START=sh-ratio`: `run --restart irradiance`'s start
+/// ([`relight_cpc::solve::materials::irradiance`]) from the first fit, over the vertices
+/// with an open fraction ≥ `ABLATION_SH_OPEN` (`run`'s 0.95).
 fn sh_ratio_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) -> Materials0 {
+    use relight_cpc::solve::materials::irradiance::{self, RowsInput};
     let kk = est.lambda.len();
-    let mut w = est.weights.clone();
-    for row in w.chunks_mut(kk) {
-        let s: f64 = row.iter().sum();
-        if s > 0.0 {
-            row.iter_mut().for_each(|v| *v /= s);
-        }
-    }
-    let rows = irradiance_rows(case, &w, seen, kk);
-    let n_photos = case.train.obs.photo_ranges.len();
-    let mut lambda = est.lambda.clone();
-    let mean_log = |v: &[f64]| v.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / kk as f64;
-    for c in 0..3 {
-        let first: Vec<f64> = (0..kk).map(|k| est.lambda[k][lambert][c]).collect();
-        let rho = irradiance_albedos(&rows, c, n_photos, &first);
-        let shift = mean_log(&first) - mean_log(&rho);
-        for k in 0..kk {
-            lambda[k][lambert][c] = (rho[k].max(1e-12).ln() + shift).exp();
-        }
-    }
+    let weights = irradiance::normalised_weights(&est.weights, kk);
+    let open = case.vis.open_fractions();
+    let rows = irradiance::pure_open_rows(&RowsInput {
+        obs: &case.train.obs,
+        normals_env: &case.normals_env,
+        open: &open,
+        seen,
+        weights: &weights,
+        materials: kk,
+        min_open: crate::env_or("ABLATION_SH_OPEN", irradiance::MIN_OPEN),
+    });
     let counts: Vec<usize> = (0..kk)
         .map(|k| rows.iter().filter(|r| r.material == k).count())
         .collect();
     eprintln!("sh-ratio: observations per material {counts:?}");
-    Materials0 { lambda, weights: w }
-}
-
-/// The training observations of the seen, open vertices whose normalised weights `w`
-/// give one material ≥ 0.95.
-fn irradiance_rows(case: &Case, w: &[f64], seen: &[bool], kk: usize) -> Vec<IrradianceRow> {
-    let open = case.vis.open_fractions();
-    let min_open: f64 = crate::env_or("ABLATION_SH_OPEN", 0.8);
-    let obs = &case.train.obs;
-    let mut rows = Vec::new();
-    for (photo, range) in obs.photo_ranges.iter().enumerate() {
-        for p in range.clone().filter(|&p| obs.weight[p] > 0.0) {
-            let x = obs.vertex[p] as usize;
-            if !seen[x] || open[x] < min_open {
-                continue;
-            }
-            if let Some(material) = (0..kk).find(|&k| w[x * kk + k] >= 0.95) {
-                rows.push(IrradianceRow {
-                    photo,
-                    material,
-                    rgb: obs.rgb[p].map(f64::from),
-                    sh: sh9(&case.normals_env[x]),
-                });
-            }
-        }
-    }
-    rows
-}
-
-/// Channel `c`'s albedo per material from `y = ρ_k Σ_j s_{I,j} Y_j(n)` by alternating
-/// least squares from `rho0` (40 rounds): each photo's nine coefficients by its normal
-/// equations (a 10⁻⁹ ridge), then each `ρ_k` in closed form.
-fn irradiance_albedos(rows: &[IrradianceRow], c: usize, n_photos: usize, rho0: &[f64]) -> Vec<f64> {
-    type M9 = nalgebra::SMatrix<f64, 9, 9>;
-    type V9 = nalgebra::SVector<f64, 9>;
-    let kk = rho0.len();
-    let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-6)).collect();
-    let mut s = vec![V9::zeros(); n_photos];
-    for _ in 0..40 {
-        let mut ata = vec![M9::identity() * 1e-9; n_photos];
-        let mut aty = vec![V9::zeros(); n_photos];
-        for r in rows {
-            let a = V9::from_column_slice(&r.sh) * rho[r.material];
-            ata[r.photo] += a * a.transpose();
-            aty[r.photo] += a * r.rgb[c];
-        }
-        for i in 0..n_photos {
-            if let Some(sol) = ata[i].lu().solve(&aty[i]) {
-                s[i] = sol;
-            }
-        }
-        let (mut num, mut den) = (vec![0.0; kk], vec![0.0; kk]);
-        for r in rows {
-            let e = s[r.photo].dot(&V9::from_column_slice(&r.sh));
-            num[r.material] += e * r.rgb[c];
-            den[r.material] += e * e;
-        }
-        for k in 0..kk {
-            if den[k] > 0.0 && num[k] > 0.0 {
-                rho[k] = num[k] / den[k];
-            }
-        }
-    }
-    rho
+    let n_photos = case.train.obs.photo_ranges.len();
+    irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, n_photos)
+        .expect("the first fit's sizes")
+        .expect("every material has pure, open vertices")
 }

@@ -342,6 +342,7 @@ fn restart_start(
         seen,
         weights: &weights,
         materials: kk,
+        min_open: irradiance::MIN_OPEN,
     });
     let lambert = start.eopts.lambert_basis;
     let m = irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, problem.n_photos)?;

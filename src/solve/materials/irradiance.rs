@@ -91,14 +91,16 @@ pub struct RowsInput<'a> {
     pub weights: &'a [f64],
     /// `K`.
     pub materials: usize,
+    /// Least open fraction of a vertex read ([`MIN_OPEN`] in `run`).
+    pub min_open: f64,
 }
 
 /// The fitted (`α > 0`) observations of the seen vertices with open fraction ≥
-/// [`MIN_OPEN`] and one normalised weight ≥ [`PURE`].
+/// `min_open` and one normalised weight ≥ [`PURE`].
 pub fn pure_open_rows(input: &RowsInput) -> Vec<IrradianceRow> {
     let (obs, kk) = (input.obs, input.materials);
     let material = |x: usize| -> Option<usize> {
-        if !input.seen[x] || input.open[x] < MIN_OPEN {
+        if !input.seen[x] || input.open[x] < input.min_open {
             return None;
         }
         (0..kk).find(|&k| input.weights[x * kk + k] >= PURE)
@@ -383,6 +385,7 @@ mod tests {
             seen: &seen,
             weights: &w,
             materials: 2,
+            min_open: MIN_OPEN,
         });
         let got: Vec<(usize, usize)> = rows.iter().map(|r| (r.photo, r.material)).collect();
         assert_eq!(got, vec![(0, 0), (0, 1), (1, 0)]);
