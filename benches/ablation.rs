@@ -60,7 +60,9 @@
 //! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last six a second
 //! fit from the first fit's materials, `ABLATION_REFIT_PICK=1` keeping the one with the
 //! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
-//! `sh-ratio` (`run --restart irradiance`'s start) reads, `run`'s 0.95) and
+//! `sh-ratio` (`run --restart irradiance`'s start) reads, `run`'s 0.95,
+//! `ABLATION_SH_TRUTH=1|only` its diagnosis over the true and the fitted pure vertices,
+//! `only` stopping after it) and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=shared` (the `defaults` row with
 //! `run --light shared`, the groups the photos' true skies), `SYNTH_SHARED_SKIES=1` (the
