@@ -56,9 +56,10 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio`
-//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last six a second
-//! fit from the first fit's materials, `ABLATION_REFIT_PICK=1` keeping the one with the
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio|sh-ratio2`
+//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last seven a second
+//! fit from the first fit's materials (`sh-ratio2`: and a third fit from the model read
+//! again over the second fit's weights), `ABLATION_REFIT_PICK=1` keeping the one with the
 //! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
 //! `sh-ratio` (`run --restart irradiance`'s start) reads, `run`'s 0.95,
 //! `ABLATION_SH_TRUTH=1|only` its diagnosis over the true and the fitted pure vertices,

@@ -209,7 +209,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     // `ABLATION_DEFAULTS_START=refit | refit-w | reanchor | reanchor2`: a second fit from
     // the first fit's own materials (bench-results/restart-probes.md).
     if let Ok(
-        v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"),
+        v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
+        | "sh-ratio2"),
     ) = std::env::var("ABLATION_DEFAULTS_START").as_deref()
     {
         let first = Fitted {
@@ -443,7 +444,7 @@ fn second_fit(
             .collect();
         crate::metrics::ratio_errors(case, &full, &e.weights, seen)
     };
-    let second = if v == "sh-ratio" {
+    let second = if v.starts_with("sh-ratio") {
         if std::env::var("ABLATION_SH_TRUTH").is_ok() {
             sh_truth_diagnosis(case, &est, seen, lambert);
             if std::env::var("ABLATION_SH_TRUTH").is_ok_and(|v| v == "only") {
@@ -464,7 +465,17 @@ fn second_fit(
             ),
             ratios(&est)
         );
-        estimate(problem, m, opts, &mut |_, _| {}).expect("second fit")
+        let mut second = estimate(problem, m, opts, &mut |_, _| {}).expect("second fit");
+        // `sh-ratio2`: the model read again from the second fit's weights, a third fit.
+        if v == "sh-ratio2" {
+            eprintln!(
+                "sh-ratio2: second fit's worst ratio {:.3?}",
+                ratios(&second)
+            );
+            let m = sh_ratio_start(&second, case, seen, lambert);
+            second = estimate(problem, m, opts, &mut |_, _| {}).expect("third fit");
+        }
+        second
     } else if v.starts_with("reanchor") {
         let mut from = est.clone();
         for _ in 0..if v == "reanchor2" { 2 } else { 1 } {
