@@ -445,13 +445,13 @@ fn second_fit(
         crate::metrics::ratio_errors(case, &full, &e.weights, seen)
     };
     let second = if v.starts_with("sh-ratio") {
+        let m = sh_ratio_start(&est, case, seen, lambert);
         if std::env::var("ABLATION_SH_TRUTH").is_ok() {
-            sh_truth_diagnosis(case, &est, seen, lambert);
+            sh_truth_diagnosis(case, (&est, &m), seen, kept, lambert);
             if std::env::var("ABLATION_SH_TRUTH").is_ok_and(|v| v == "only") {
                 std::process::exit(0);
             }
         }
-        let m = sh_ratio_start(&est, case, seen, lambert);
         eprintln!(
             "sh-ratio start: worst ratio {:.3?} (first fit {:.3?})",
             crate::metrics::ratio_errors(
@@ -652,48 +652,49 @@ fn sh_ratio_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) ->
 /// 8-nearest-neighbour graph (a vertex kept when its neighbours are pure in the same
 /// material), read from the photos, and over the TRUE vertices from the true model's exact
 /// prediction through the case's transport (no pixel mixing, no 8-bit): the model's own
-/// bias (order-2 truncation, cast shadows, interreflection). Then [`weights_purity`].
-fn sh_truth_diagnosis(case: &Case, est: &Estimate, seen: &[bool], lambert: usize) {
+/// bias (order-2 truncation, cast shadows, interreflection). Before that,
+/// [`weights_purity`] of the first fit and of the model's start. Only when the pilot took
+/// the true count.
+fn sh_truth_diagnosis(
+    case: &Case,
+    (first, start): (&Estimate, &Materials0),
+    seen: &[bool],
+    kept: &[usize],
+    lambert: usize,
+) {
     use relight_cpc::solve::materials::irradiance::normalised_weights;
     use relight_cpc::solve::materials::propagate::{knn_graph, NEIGHBOURS};
+    let kt = case.lambda.len();
+    if first.lambda.len() != kt {
+        return;
+    }
+    let true_kept: Vec<Vec<[f64; 3]>> = case
+        .lambda
+        .iter()
+        .map(|row| kept.iter().map(|&b| row[b]).collect())
+        .collect();
+    let fit_order = nearest_order(&first.lambda, &true_kept, lambert);
+    let purity = |lambda: &[Vec<[f64; 3]>], raw: &[f64]| {
+        weights_purity(case, (lambda, raw), seen, (kept, lambert), &fit_order)
+    };
+    eprintln!(
+        "sh-truth first fit: {}",
+        purity(&first.lambda, &first.weights)
+    );
+    eprintln!(
+        "sh-truth irradiance start: {}",
+        purity(&start.lambda, &start.weights)
+    );
     let exact = crate::true_prediction(case, &case.train);
     let mut exact_obs = case.train.obs.clone();
     crate::replace_colours(&mut exact_obs, &exact);
     let graph = knn_graph(&case.positions, NEIGHBOURS).expect("graph");
-    // fit_order[k]: the true material of fit material k (nearest in Lambertian colour).
-    let fit_order: Vec<usize> = est
-        .lambda
-        .iter()
-        .map(|l| {
-            let d = |j: usize| -> f64 {
-                (0..3)
-                    .map(|c| (l[lambert][c] - case.lambda[j][0][c]).powi(2))
-                    .sum()
-            };
-            (0..case.lambda.len())
-                .min_by(|&a, &b| d(a).total_cmp(&d(b)))
-                .unwrap()
-        })
-        .collect();
-    eprintln!(
-        "sh-truth first fit: {}",
-        weights_purity(case, (&est.lambda, &est.weights), seen, lambert, &fit_order)
-    );
-    let m = sh_ratio_start(est, case, seen, lambert);
-    eprintln!(
-        "sh-truth irradiance start: {}",
-        weights_purity(case, (&m.lambda, &m.weights), seen, lambert, &fit_order)
-    );
-    let kt = case.lambda.len();
+    let open = case.vis.open_fractions();
     let sources = [
         ("truth", case.weights.clone(), (0..kt).collect::<Vec<_>>()),
-        (
-            "fit",
-            normalised_weights(&est.weights, est.lambda.len()),
-            fit_order,
-        ),
+        ("fit", normalised_weights(&first.weights, kt), fit_order),
     ];
-    for (source, mut w, order) in sources.into_iter().filter(|s| s.2.len() == kt) {
+    for (source, mut w, order) in sources {
         for rings in 0..3 {
             if rings > 0 {
                 w = eroded(&w, &graph, kt);
@@ -703,7 +704,7 @@ fn sh_truth_diagnosis(case: &Case, est: &Estimate, seen: &[bool], lambert: usize
                 data.push(("exact", &exact_obs));
             }
             for (label, obs) in data {
-                let (rows, errs) = model_ratio_errors(case, obs, seen, &w, &order);
+                let (rows, errs) = model_ratio_errors(case, (obs, &open), seen, &w, &order);
                 eprintln!(
                     "sh-truth {source} eroded {rings} {label}: {rows} rows, worst ratio per channel {errs:.3?}"
                 );
@@ -719,8 +720,8 @@ fn eroded(
     graph: &relight_cpc::solve::materials::propagate::VertexGraph,
     kk: usize,
 ) -> Vec<f64> {
-    use relight_cpc::solve::materials::irradiance::PURE;
-    let label = |x: usize| (0..kk).find(|&k| w[x * kk + k] >= PURE);
+    use relight_cpc::solve::materials::irradiance::pure_material;
+    let label = |x: usize| pure_material(&w[x * kk..(x + 1) * kk]);
     let mut out = w.to_vec();
     for x in 0..w.len() / kk {
         if graph
@@ -734,11 +735,31 @@ fn eroded(
     out
 }
 
-/// The rows the model reads with weights `w` and its worst Lambertian ratio error per
-/// channel against the truth, fit material `k` read as true material `order[k]`.
+/// The true Lambertian ratio of material `j` to material 0 in channel `c`.
+fn true_ratio(case: &Case, j: usize, c: usize) -> f64 {
+    case.lambda[j][0][c] / case.lambda[0][0][c]
+}
+
+/// The worst relative error per channel of the ratios `rho[k] / rho[0]`, material `k` of
+/// `rho` read as true material `order[k]`.
+fn worst_ratio_errors(case: &Case, rho: impl Fn(usize, usize) -> f64, order: &[usize]) -> [f64; 3] {
+    [0, 1, 2].map(|c| {
+        let mut by_truth = vec![f64::NAN; order.len()];
+        for (k, &j) in order.iter().enumerate() {
+            by_truth[j] = rho(k, c);
+        }
+        (1..order.len())
+            .map(|j| (by_truth[j] / by_truth[0] / true_ratio(case, j, c) - 1.0).abs())
+            .fold(0.0, f64::max)
+    })
+}
+
+/// The rows the model reads with weights `w` (observations and open fractions `obs_open`)
+/// and its worst Lambertian ratio error per channel against the truth, fit material `k`
+/// read as true material `order[k]`.
 fn model_ratio_errors(
     case: &Case,
-    obs: &relight_cpc::observe::Observations,
+    (obs, open): (&relight_cpc::observe::Observations, &[f64]),
     seen: &[bool],
     w: &[f64],
     order: &[usize],
@@ -748,95 +769,52 @@ fn model_ratio_errors(
     let rows = irradiance::pure_open_rows(&RowsInput {
         obs,
         normals_env: &case.normals_env,
-        open: &case.vis.open_fractions(),
+        open,
         seen,
         weights: w,
         materials: kk,
         min_open: crate::env_or("ABLATION_SH_OPEN", irradiance::MIN_OPEN),
     });
     let n_photos = obs.photo_ranges.len();
-    let errs = [0, 1, 2].map(|c| {
-        let fitted = irradiance::irradiance_albedos(&rows, c, n_photos, &vec![1.0; kk]);
-        let mut rho = vec![0.0; kk];
-        for (k, &j) in order.iter().enumerate() {
-            rho[j] = fitted[k];
-        }
-        (1..kk)
-            .map(|j| {
-                let r_true = case.lambda[j][0][c] / case.lambda[0][0][c];
-                (rho[j] / rho[0] / r_true - 1.0).abs()
-            })
-            .fold(0.0, f64::max)
-    });
-    (rows.len(), errs)
+    let rho: Vec<Vec<f64>> = (0..3)
+        .map(|c| irradiance::irradiance_albedos(&rows, c, n_photos, &vec![1.0; kk]))
+        .collect();
+    (
+        rows.len(),
+        worst_ratio_errors(case, |k, c| rho[c][k], order),
+    )
 }
 
 /// A fit's weights at the TRUE pure seen vertices: quantiles of the normalised weight on
-/// the true material; the worst Lambertian ratio of the per-vertex albedo medians (the
-/// ablation's ratio metric, Lambert lobe only) with the raw weights, the normalised ones
-/// and the ones snapped to their largest material; and of the materials' λ alone.
+/// the true material; the ablation's ratio metric ([`crate::metrics::ratio_errors`]) with
+/// the raw weights and with the normalised ones; and the worst ratio of the materials'
+/// Lambertian λ alone.
 fn weights_purity(
     case: &Case,
     (lambda, raw): (&[Vec<[f64; 3]>], &[f64]),
     seen: &[bool],
-    lambert: usize,
+    (kept, lambert): (&[usize], usize),
     order: &[usize],
 ) -> String {
     let (kt, kf) = (case.lambda.len(), lambda.len());
     let w = relight_cpc::solve::materials::irradiance::normalised_weights(raw, kf);
-    let pure_true = |x: usize, t: usize| seen[x] && case.weights[x * kt + t] >= 0.95;
     let mut on_true = Vec::new();
-    for x in 0..case.nv {
-        for t in (0..kt).filter(|&t| pure_true(x, t)) {
-            on_true.push(
-                (0..kf)
-                    .filter(|&k| order[k] == t)
-                    .map(|k| w[x * kf + k])
-                    .sum::<f64>(),
-            );
+    for x in (0..case.nv).filter(|&x| seen[x]) {
+        for t in (0..kt).filter(|&t| case.weights[x * kt + t] >= 0.95) {
+            let k = order.iter().position(|&j| j == t).expect("a permutation");
+            on_true.push(w[x * kf + k]);
         }
     }
     on_true.sort_by(f64::total_cmp);
     let q = |p: f64| on_true[((on_true.len() - 1) as f64 * p) as usize];
-    let truth = |j: usize, c: usize| case.lambda[j][0][c] / case.lambda[0][0][c];
-    let metric = |mode: u8| -> [f64; 3] {
-        let beta = |x: usize, c: usize| -> f64 {
-            let row = if mode == 0 {
-                &raw[x * kf..(x + 1) * kf]
-            } else {
-                &w[x * kf..(x + 1) * kf]
-            };
-            if mode == 2 {
-                let k = (0..kf).max_by(|&a, &b| row[a].total_cmp(&row[b])).unwrap();
-                return lambda[k][lambert][c];
-            }
-            (0..kf).map(|k| row[k] * lambda[k][lambert][c]).sum()
-        };
-        let median = |t: usize, c: usize| {
-            let mut v: Vec<f64> = (0..case.nv)
-                .filter(|&x| pure_true(x, t))
-                .map(|x| beta(x, c))
-                .collect();
-            let mid = v.len() / 2;
-            *v.select_nth_unstable_by(mid, f64::total_cmp).1
-        };
-        [0, 1, 2].map(|c| {
-            (1..kt)
-                .map(|j| (median(j, c) / median(0, c) / truth(j, c) - 1.0).abs())
-                .fold(0.0, f64::max)
-        })
-    };
-    let lambda_only = [0, 1, 2].map(|c| {
-        let mut rho = vec![f64::NAN; kt];
-        for (k, &j) in order.iter().enumerate() {
-            rho[j] = lambda[k][lambert][c];
-        }
-        (1..kt)
-            .map(|j| (rho[j] / rho[0] / truth(j, c) - 1.0).abs())
-            .fold(0.0, f64::max)
-    });
+    let full: Vec<Vec<[f64; 3]>> = lambda
+        .iter()
+        .map(|row| full_basis(row, kept, case.basis.len()))
+        .collect();
+    let metric = |weights: &[f64]| crate::metrics::ratio_errors(case, &full, weights, seen);
+    let lambda_only = worst_ratio_errors(case, |k, c| lambda[k][lambert][c], order);
     format!(
-        "weight on the true material q10 {:.3} q25 {:.3} q50 {:.3}; ratio raw {:.3?}, normalised {:.3?}, snapped {:.3?}, λ alone {lambda_only:.3?}",
-        q(0.1), q(0.25), q(0.5), metric(0), metric(1), metric(2)
+        "weight on the true material q10 {:.3} q25 {:.3} q50 {:.3}; ratio raw {:.3?}, normalised {:.3?}, λ alone {lambda_only:.3?}",
+        q(0.1), q(0.25), q(0.5), metric(raw), metric(&w)
     )
 }

@@ -111,7 +111,7 @@ pub fn pure_open_rows(input: &RowsInput) -> Vec<IrradianceRow> {
         if !input.seen[x] || input.open[x] < input.min_open {
             return None;
         }
-        (0..kk).find(|&k| input.weights[x * kk + k] >= PURE)
+        pure_material(&input.weights[x * kk..(x + 1) * kk])
     };
     let mut rows = Vec::new();
     for (photo, range) in obs.photo_ranges.iter().enumerate() {
@@ -234,8 +234,7 @@ pub fn normalised_weights(weights: &[f64], materials: usize) -> Vec<f64> {
 }
 
 /// The restart's start: the normalised `weights` (from [`normalised_weights`]), each
-/// vertex the model reads as pure (a weight ≥ [`PURE`]) made pure in its material
-/// ([`snap_pure`]), and each material's Lambertian `λ_{k,lambert,c}` set to the model's
+/// vertex with a weight ≥ [`PURE`] made pure in its material ([`snap_pure`]), and each material's Lambertian `λ_{k,lambert,c}` set to the model's
 /// `ρ_{k,c}` over `rows`, rescaled per channel to the geometric mean of `lambda`'s (the
 /// other lobes as they are). `None` when the rows leave a material without observations.
 pub fn irradiance_start(
@@ -271,15 +270,21 @@ pub fn irradiance_start(
     }))
 }
 
-/// `weights` (`V × K`, normalised) with every row whose largest weight is ≥ [`PURE`] set to
-/// that material alone. The model read those vertices as pure; left at 0.95–0.99, the few
+/// The material a vertex's normalised weights hold at ≥ [`PURE`], if any.
+pub fn pure_material(row: &[f64]) -> Option<usize> {
+    row.iter().position(|&w| w >= PURE)
+}
+
+/// `weights` (`V × K`, normalised) with every row that has a [`pure_material`] set to that
+/// material alone: the rule by which the model reads a vertex as pure (whether or not it is
+/// open and seen). Left at 0.95–0.99, the few
 /// percent of another material moves their albedo by that share of the colour difference
 /// (on the ablation's diffuse scene, red ratio 4: the start's worst ratio 0.073 with the
 /// weights as fitted, 0.029 snapped, seed 1; over seeds 1–5 the second fit's median 0.107 →
 /// 0.081).
 pub fn snap_pure(mut weights: Vec<f64>, materials: usize) -> Vec<f64> {
     for row in weights.chunks_mut(materials.max(1)) {
-        if let Some(k) = (0..row.len()).find(|&k| row[k] >= PURE) {
+        if let Some(k) = pure_material(row) {
             row.iter_mut()
                 .enumerate()
                 .for_each(|(j, v)| *v = f64::from(j == k));
