@@ -210,7 +210,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     // the first fit's own materials (bench-results/restart-probes.md).
     if let Ok(
         v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
-        | "sh-ratio2"),
+        | "sh-ratio2" | "coarse-light"),
     ) = std::env::var("ABLATION_DEFAULTS_START").as_deref()
     {
         let first = Fitted {
@@ -444,7 +444,23 @@ fn second_fit(
             .collect();
         crate::metrics::ratio_errors(case, &full, &e.weights, seen)
     };
-    let second = if v.starts_with("sh-ratio") {
+    let second = if v == "coarse-light" {
+        let m = coarse_light_start(&est, case, seen, lambert);
+        eprintln!(
+            "coarse-light start: worst ratio {:.3?} (first fit {:.3?})",
+            crate::metrics::ratio_errors(
+                case,
+                &m.lambda
+                    .iter()
+                    .map(|row| full_basis(row, kept, case.basis.len()))
+                    .collect::<Vec<_>>(),
+                &m.weights,
+                seen
+            ),
+            ratios(&est)
+        );
+        estimate(problem, m, opts, &mut |_, _| {}).expect("second fit")
+    } else if v.starts_with("sh-ratio") {
         let m = sh_ratio_start(&est, case, seen, lambert);
         if std::env::var("ABLATION_SH_TRUTH").is_ok() {
             sh_truth_diagnosis(case, (&est, &m), seen, kept, lambert);
@@ -619,6 +635,27 @@ fn refit(
     .expect("refit")
 }
 
+/// `ABLATION_DEFAULTS_START=coarse-light`: `run --restart coarse-light`'s start
+/// ([`relight_cpc::solve::materials::coarse_light`]) from the first fit.
+fn coarse_light_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) -> Materials0 {
+    use relight_cpc::solve::materials::{coarse_light, irradiance};
+    let kk = est.lambda.len();
+    let weights = irradiance::normalised_weights(&est.weights, kk);
+    let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
+        obs: &case.train.obs,
+        transport: &case.train.transport,
+        seen,
+        weights: &weights,
+        materials: kk,
+        lambert: 0,
+        blocks: coarse_light::BLOCKS.min(case.train.transport.n_global),
+    });
+    let n_photos = case.train.obs.photo_ranges.len();
+    coarse_light::coarse_light_start(&est.lambda, weights, lambert, &rows, n_photos)
+        .expect("the first fit's sizes")
+        .expect("every material has pure seen vertices")
+}
+
 /// `ABLATION_DEFAULTS_START=sh-ratio`: `run --restart irradiance`'s start
 /// ([`relight_cpc::solve::materials::irradiance`]) from the first fit, over the vertices
 /// with an open fraction ≥ `ABLATION_SH_OPEN` (`run`'s 0.95).
@@ -641,9 +678,32 @@ fn sh_ratio_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) ->
         .collect();
     eprintln!("sh-ratio: observations per material {counts:?}");
     let n_photos = case.train.obs.photo_ranges.len();
+    let rows = trimmed(rows, n_photos, kk, std::env::var("ABLATION_SH_TRIM").ok());
     irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, n_photos)
         .expect("the first fit's sizes")
         .expect("every material has pure, open vertices")
+}
+
+/// `rows` less those [`relight_cpc::solve::materials::irradiance::unshadowed_rows`] drops
+/// with the share `ABLATION_SH_TRIM` (all kept when unset).
+fn trimmed(
+    rows: Vec<relight_cpc::solve::materials::irradiance::IrradianceRow>,
+    n_photos: usize,
+    kk: usize,
+    trim: Option<String>,
+) -> Vec<relight_cpc::solve::materials::irradiance::IrradianceRow> {
+    let Some(trim) = trim.filter(|t| t != "none") else {
+        return rows;
+    };
+    let trim: f64 = trim.parse().expect("ABLATION_SH_TRIM is a number");
+    let kept = relight_cpc::solve::materials::irradiance::unshadowed_rows(
+        &rows,
+        n_photos,
+        &vec![[1.0; 3]; kk],
+        trim,
+    );
+    eprintln!("sh-trim {trim}: {} of {} rows kept", kept.len(), rows.len());
+    kept
 }
 
 /// `ABLATION_SH_TRUTH=1` with `sh-ratio` (`only`: then stop): the irradiance model's
@@ -699,15 +759,28 @@ fn sh_truth_diagnosis(
             if rings > 0 {
                 w = eroded(&w, &graph, kt);
             }
+            if rings == 0 {
+                block_light_diagnosis(case, source, (&exact_obs, &open), (seen, &w, &order));
+            }
             let mut data = vec![("photos", &case.train.obs)];
             if source == "truth" && rings == 0 {
                 data.push(("exact", &exact_obs));
             }
             for (label, obs) in data {
-                let (rows, errs) = model_ratio_errors(case, (obs, &open), seen, &w, &order);
-                eprintln!(
-                    "sh-truth {source} eroded {rings} {label}: {rows} rows, worst ratio per channel {errs:.3?}"
-                );
+                let trims = std::env::var("ABLATION_SH_TRIMS").unwrap_or("none".into());
+                for trim in trims.split(',') {
+                    let (rows, errs) = model_ratio_errors(
+                        case,
+                        (obs, &open),
+                        seen,
+                        &w,
+                        &order,
+                        Some(trim.to_string()),
+                    );
+                    eprintln!(
+                        "sh-truth {source} eroded {rings} {label} trim {trim}: {rows} rows, worst ratio per channel {errs:.3?}"
+                    );
+                }
             }
         }
     }
@@ -763,6 +836,7 @@ fn model_ratio_errors(
     seen: &[bool],
     w: &[f64],
     order: &[usize],
+    trim: Option<String>,
 ) -> (usize, [f64; 3]) {
     use relight_cpc::solve::materials::irradiance::{self, RowsInput};
     let kk = order.len();
@@ -776,6 +850,7 @@ fn model_ratio_errors(
         min_open: crate::env_or("ABLATION_SH_OPEN", irradiance::MIN_OPEN),
     });
     let n_photos = obs.photo_ranges.len();
+    let rows = trimmed(rows, n_photos, kk, trim);
     let rho: Vec<Vec<f64>> = (0..3)
         .map(|c| irradiance::irradiance_albedos(&rows, c, n_photos, &vec![1.0; kk]))
         .collect();
@@ -817,4 +892,141 @@ fn weights_purity(
         "weight on the true material q10 {:.3} q25 {:.3} q50 {:.3}; ratio raw {:.3?}, normalised {:.3?}, λ alone {lambda_only:.3?}",
         q(0.1), q(0.25), q(0.5), metric(raw), metric(&w)
     )
+}
+
+/// [`block_light_ratio_errors`] for each `r` of `ABLATION_SH_BLOCKS` and each least open
+/// fraction of `ABLATION_BLOCK_OPEN` (default `0,0.95`), on the photos and, for the TRUE
+/// weights, on the exact data.
+fn block_light_diagnosis(
+    case: &Case,
+    source: &str,
+    (exact, open): (&relight_cpc::observe::Observations, &[f64]),
+    (seen, w, order): (&[bool], &[f64], &[usize]),
+) {
+    let Ok(blocks) = std::env::var("ABLATION_SH_BLOCKS") else {
+        return;
+    };
+    let opens = std::env::var("ABLATION_BLOCK_OPEN").unwrap_or("0,0.95".into());
+    for r in blocks
+        .split(',')
+        .map(|v| v.parse::<usize>().expect("a block side"))
+    {
+        for min_open in opens
+            .split(',')
+            .map(|v| v.parse::<f64>().expect("an open fraction"))
+        {
+            let mut data = vec![("photos", &case.train.obs)];
+            if source == "truth" {
+                data.push(("exact", exact));
+            }
+            for (label, obs) in data {
+                let t = std::time::Instant::now();
+                let (rows, errs) = block_light_ratio_errors(
+                    case,
+                    (obs, &case.train.transport, open),
+                    (seen, w, order),
+                    (r, min_open),
+                );
+                eprintln!(
+                    "sh-blocks {source} {r}x{r} open>={min_open} {label}: {rows} rows, worst ratio per channel {errs:.3?} ({:.1} s)",
+                    t.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+}
+
+/// `ABLATION_SH_BLOCKS=r,…`: the irradiance model with each photo's light a NON-NEGATIVE
+/// map constant on `r × r` blocks of the global octahedral map, seen through the case's
+/// Lambertian transport (cosine and cast shadows), instead of nine free harmonics:
+/// `y_p = ρ_k Σ_j A_{p,j} b_{I,j}`, `b_I ≥ 0`, `A_{p,j}` the Lambertian row's response to
+/// block `j`'s indicator. Alternating NNLS (per photo, on its moments) and closed-form `ρ`
+/// until the ratios move by < 1e-9 (at most 3,000 rounds). Over the pure seen vertices with
+/// open fraction ≥ `min_open`; returns the row count and the worst ratio per channel.
+fn block_light_ratio_errors(
+    case: &Case,
+    (obs, transport, open): (
+        &relight_cpc::observe::Observations,
+        &relight_cpc::transport::Transport,
+        &[f64],
+    ),
+    (seen, w, order): (&[bool], &[f64], &[usize]),
+    (r, min_open): (usize, f64),
+) -> (usize, [f64; 3]) {
+    use nalgebra::{DMatrix, DVector};
+    use relight_cpc::solve::materials::irradiance::pure_material;
+    use relight_cpc::solve::qp::{nnls, NnlsOptions};
+    let (kk, n) = (order.len(), transport.n_global);
+    let nb = r * r;
+    let blocks: Vec<Vec<f64>> = (0..nb)
+        .map(|j| {
+            let (bi, bj) = (j / r, j % r);
+            let f = n / r;
+            let mut map: Vec<f64> = (0..n * n)
+                .map(|t| f64::from(t / n / f == bi && t % n / f == bj))
+                .collect();
+            relight_cpc::sphere::haar::forward(&mut map, n);
+            map
+        })
+        .collect();
+    let n_photos = obs.photo_ranges.len();
+    let mut g = vec![DMatrix::<f64>::zeros(nb, nb); n_photos * kk];
+    let mut h = vec![[0, 1, 2].map(|_| DVector::<f64>::zeros(nb)); n_photos * kk];
+    let mut count = 0;
+    for (photo, range) in obs.photo_ranges.iter().enumerate() {
+        for p in range.clone().filter(|&p| obs.weight[p] > 0.0) {
+            let x = obs.vertex[p] as usize;
+            if !seen[x] || open[x] < min_open {
+                continue;
+            }
+            let Some(k) = pure_material(&w[x * kk..(x + 1) * kk]) else {
+                continue;
+            };
+            let a = DVector::from_iterator(nb, blocks.iter().map(|b| transport.response(p, 0, b)));
+            let i = photo * kk + k;
+            g[i] += &a * a.transpose();
+            for c in 0..3 {
+                h[i][c] += &a * f64::from(obs.rgb[p][c]);
+            }
+            count += 1;
+        }
+    }
+    let mut rho = [0, 1, 2].map(|_| vec![1.0; kk]);
+    for (c, rho) in rho.iter_mut().enumerate() {
+        for _ in 0..3000 {
+            let b: Vec<DVector<f64>> = (0..n_photos)
+                .map(|i| {
+                    let mut ata = DMatrix::<f64>::identity(nb, nb) * 1e-12;
+                    let mut atb = DVector::<f64>::zeros(nb);
+                    for k in 0..kk {
+                        ata += &g[i * kk + k] * (rho[k] * rho[k]);
+                        atb += &h[i * kk + k][c] * rho[k];
+                    }
+                    nnls(&ata, &atb, &NnlsOptions::default()).expect("finite moments")
+                })
+                .collect();
+            let next: Vec<f64> = (0..kk)
+                .map(|k| {
+                    let (mut num, mut den) = (0.0, 0.0);
+                    for (i, bi) in b.iter().enumerate() {
+                        num += bi.dot(&h[i * kk + k][c]);
+                        den += bi.dot(&(&g[i * kk + k] * bi));
+                    }
+                    if num > 0.0 && den > 0.0 {
+                        num / den
+                    } else {
+                        rho[k]
+                    }
+                })
+                .collect();
+            let moved = (1..kk)
+                .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
+                .fold(0.0, f64::max);
+            *rho = next;
+            if moved < 1e-9 {
+                break;
+            }
+        }
+    }
+    (count, worst_ratio_errors(case, |k, c| rho[c][k], order))
 }

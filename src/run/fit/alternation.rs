@@ -10,7 +10,7 @@ use crate::run::state::RunLog;
 use crate::run::tracker::HoldoutTracker;
 use crate::run::{Progress, Restart, RunOptions};
 use crate::solve::light::choose::{self, LightDecision};
-use crate::solve::materials::{brightness, irradiance, reanchor};
+use crate::solve::materials::{brightness, coarse_light, irradiance, reanchor};
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::Result;
@@ -265,11 +265,7 @@ fn restart(
     log: &mut RunLog,
 ) -> Result<Estimated> {
     let Some((from, what)) = restart_start(problem, p, &fitted.est, start, mode)? else {
-        start.reasons.push(format!(
-            "restart from an order-2 irradiance model skipped: some material holds no vertex that sees at least {:.0}% of its hemisphere at a weight of at least {}",
-            100.0 * irradiance::MIN_OPEN,
-            irradiance::PURE
-        ));
+        start.reasons.push(skipped_reason(mode));
         return Ok(fitted);
     };
     let Estimated {
@@ -325,7 +321,7 @@ fn restart_start(
     mode: Restart,
 ) -> Result<Option<(Materials0, &'static str)>> {
     let seen = start.seen(p);
-    if mode != Restart::Irradiance {
+    if mode == Restart::Reanchor {
         let m = reanchor::reanchor(&est.lambda, &est.weights, seen, reanchor::Reweight::Project)?;
         return Ok(Some((
             m,
@@ -334,6 +330,31 @@ fn restart_start(
     }
     let kk = est.lambda.len();
     let weights = irradiance::normalised_weights(&est.weights, kk);
+    let lambert = start.eopts.lambert_basis;
+    if mode == Restart::CoarseLight {
+        let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
+            obs: problem.obs,
+            transport: problem.transport,
+            seen,
+            weights: &weights,
+            materials: kk,
+            lambert,
+            blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
+        });
+        let m = coarse_light::coarse_light_start(
+            &est.lambda,
+            weights,
+            lambert,
+            &rows,
+            problem.n_photos,
+        )?;
+        return Ok(m.map(|m| {
+            (
+                m,
+                "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map, over its pure seen vertices",
+            )
+        }));
+    }
     let open = p.vis.open_fractions();
     let rows = irradiance::pure_open_rows(&irradiance::RowsInput {
         obs: problem.obs,
@@ -344,7 +365,6 @@ fn restart_start(
         materials: kk,
         min_open: irradiance::MIN_OPEN,
     });
-    let lambert = start.eopts.lambert_basis;
     let m = irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, problem.n_photos)?;
     Ok(m.map(|m| {
         (
@@ -352,6 +372,21 @@ fn restart_start(
             "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
         )
     }))
+}
+
+/// The reason a model restart was skipped: some material has no vertex it reads.
+fn skipped_reason(mode: Restart) -> String {
+    if mode == Restart::CoarseLight {
+        return format!(
+            "restart from a coarse non-negative light skipped: some material holds no seen vertex at a weight of at least {}",
+            irradiance::PURE
+        );
+    }
+    format!(
+        "restart from an order-2 irradiance model skipped: some material holds no vertex that sees at least {:.0}% of its hemisphere at a weight of at least {}",
+        100.0 * irradiance::MIN_OPEN,
+        irradiance::PURE
+    )
 }
 
 /// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the

@@ -127,17 +127,23 @@ pub enum Restart {
     /// From the fit's weights normalised and each material's Lambertian ratios fitted by
     /// an order-2 irradiance model over its pure, open vertices (`irradiance`).
     Irradiance,
+    /// From the fit's weights normalised and each material's Lambertian ratios fitted with
+    /// each photo's light a coarse non-negative map seen through the Lambertian transport,
+    /// over its pure seen vertices (`coarse-light`,
+    /// [`crate::solve::materials::coarse_light`]).
+    CoarseLight,
 }
 
 impl Restart {
-    /// `off`, `on` or `irradiance`.
+    /// `off`, `on`, `irradiance` or `coarse-light`.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "off" => Ok(Restart::Off),
             "on" => Ok(Restart::Reanchor),
             "irradiance" => Ok(Restart::Irradiance),
+            "coarse-light" => Ok(Restart::CoarseLight),
             _ => Err(Error::Config(format!(
-                "--restart {s}: expected off, on or irradiance"
+                "--restart {s}: expected off, on, irradiance or coarse-light"
             ))),
         }
     }
@@ -189,11 +195,18 @@ mod tests {
         assert_eq!(Restart::parse("off").unwrap(), Restart::Off);
         assert_eq!(Restart::parse("on").unwrap(), Restart::Reanchor);
         assert_eq!(Restart::parse("irradiance").unwrap(), Restart::Irradiance);
+        assert_eq!(
+            Restart::parse("coarse-light").unwrap(),
+            Restart::CoarseLight
+        );
         assert_eq!(Restart::default(), Restart::Off);
         for bad in ["yes", "Irradiance", ""] {
             let err = Restart::parse(bad).unwrap_err().to_string();
             assert!(err.contains(&format!("--restart {bad}:")), "{err}");
-            assert!(err.contains("expected off, on or irradiance"), "{err}");
+            assert!(
+                err.contains("expected off, on, irradiance or coarse-light"),
+                "{err}"
+            );
         }
     }
 }

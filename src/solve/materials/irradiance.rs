@@ -159,6 +159,59 @@ pub fn irradiance_albedos(
     rho
 }
 
+/// Each row's radiance in channel `c` as the model predicts it with the albedos `rho`
+/// (one per material) and each photo's coefficients fitted to them:
+/// `ŷ = ρ_k Σ_j s_{I,j} Y_j(n)`.
+pub fn irradiance_predictions(
+    rows: &[IrradianceRow],
+    c: usize,
+    n_photos: usize,
+    rho: &[f64],
+) -> Vec<f64> {
+    let s = Moments::of(rows, c, n_photos, rho.len()).photo_coefficients(rho);
+    rows.iter()
+        .map(|r| rho[r.material] * s[r.photo].dot(&V9::from_column_slice(&r.sh)))
+        .collect()
+}
+
+/// The rows left when those the converged model over-predicts by more than a share `trim`
+/// of their prediction (summed over the channels) are dropped, the model fitted again, and
+/// so on until no row is dropped (at most 20 times): a vertex that is open but shadowed
+/// from the sun in one photo reads darker than any order-2 irradiance of its normal would
+/// give, and pulls its material's ratio down. Returns the rows kept.
+pub fn unshadowed_rows(
+    rows: &[IrradianceRow],
+    n_photos: usize,
+    rho0: &[[f64; 3]],
+    trim: f64,
+) -> Vec<IrradianceRow> {
+    let mut kept = rows.to_vec();
+    for _ in 0..20 {
+        let pred: Vec<Vec<f64>> = (0..3)
+            .map(|c| {
+                let first: Vec<f64> = rho0.iter().map(|r| r[c]).collect();
+                let rho = irradiance_albedos(&kept, c, n_photos, &first);
+                irradiance_predictions(&kept, c, n_photos, &rho)
+            })
+            .collect();
+        let next: Vec<IrradianceRow> = kept
+            .iter()
+            .enumerate()
+            .filter(|(i, r)| {
+                let p: f64 = (0..3).map(|c| pred[c][*i]).sum();
+                let y: f64 = r.rgb.iter().sum();
+                y >= (1.0 - trim) * p
+            })
+            .map(|(_, r)| r.clone())
+            .collect();
+        if next.len() == kept.len() {
+            break;
+        }
+        kept = next;
+    }
+    kept
+}
+
 /// Channel `c`'s rows summed per photo `I` and material `k`: `G_{I,k} = Σ Y Yᵀ` and
 /// `h_{I,k} = Σ Y y_c` over the rows' harmonics `Y`. With the albedos `ρ` fixed, photo
 /// `I`'s coefficients solve `(Σ_k ρ_k² G_{I,k}) s_I = Σ_k ρ_k h_{I,k}`; with the
@@ -235,8 +288,8 @@ pub fn normalised_weights(weights: &[f64], materials: usize) -> Vec<f64> {
 
 /// The restart's start: the normalised `weights` (from [`normalised_weights`]), each
 /// vertex with a weight ≥ [`PURE`] made pure in its material ([`snap_pure`]), and each material's Lambertian `λ_{k,lambert,c}` set to the model's
-/// `ρ_{k,c}` over `rows`, rescaled per channel to the geometric mean of `lambda`'s (the
-/// other lobes as they are). `None` when the rows leave a material without observations.
+/// `ρ_{k,c}` over `rows` ([`start_from_albedos`]). `None` when the rows leave a material
+/// without observations.
 pub fn irradiance_start(
     lambda: &[Vec<[f64; 3]>],
     weights: Vec<f64>,
@@ -244,30 +297,46 @@ pub fn irradiance_start(
     rows: &[IrradianceRow],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
+    if (0..lambda.len()).any(|k| !rows.iter().any(|r| r.material == k)) {
+        return Ok(None);
+    }
+    start_from_albedos(lambda, weights, lambert, |c, first| {
+        irradiance_albedos(rows, c, n_photos, first)
+    })
+    .map(Some)
+}
+
+/// A restart's start from albedos a model fits: `weights` (normalised) with [`snap_pure`],
+/// and each material's Lambertian `λ_{k,lambert,c}` set to `albedos(c, first)` (one per
+/// material; `first` the Lambertian `λ` of channel `c`), rescaled per channel to the
+/// geometric mean of `lambda`'s (the gauge; the other lobes as they are).
+pub fn start_from_albedos(
+    lambda: &[Vec<[f64; 3]>],
+    weights: Vec<f64>,
+    lambert: usize,
+    albedos: impl Fn(usize, &[f64]) -> Vec<f64>,
+) -> Result<Materials0> {
     let kk = lambda.len();
     if kk == 0 || !weights.len().is_multiple_of(kk) || lambda.iter().any(|l| l.len() <= lambert) {
         return Err(Error::Internal(format!(
-            "irradiance start: {kk} materials, {} weights, Lambertian basis {lambert}",
+            "restart start: {kk} materials, {} weights, Lambertian basis {lambert}",
             weights.len()
         )));
-    }
-    if (0..kk).any(|k| !rows.iter().any(|r| r.material == k)) {
-        return Ok(None);
     }
     let mean_log = |v: &[f64]| v.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / kk as f64;
     let mut new_lambda = lambda.to_vec();
     for c in 0..3 {
         let first: Vec<f64> = lambda.iter().map(|l| l[lambert][c]).collect();
-        let rho = irradiance_albedos(rows, c, n_photos, &first);
+        let rho = albedos(c, &first);
         let shift = mean_log(&first) - mean_log(&rho);
         for (k, l) in new_lambda.iter_mut().enumerate() {
             l[lambert][c] = (rho[k].max(1e-12).ln() + shift).exp();
         }
     }
-    Ok(Some(Materials0 {
+    Ok(Materials0 {
         lambda: new_lambda,
         weights: snap_pure(weights, kk),
-    }))
+    })
 }
 
 /// The material a vertex's normalised weights hold at ≥ [`PURE`], if any.

@@ -34,6 +34,7 @@ use crate::solve::qp::{nnls, NnlsOptions};
 use crate::{Error, Result};
 
 pub mod brightness;
+pub mod coarse_light;
 pub mod irradiance;
 pub mod propagate;
 pub mod reanchor;
