@@ -210,7 +210,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     // the first fit's own materials (bench-results/restart-probes.md).
     if let Ok(
         v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
-        | "sh-ratio2" | "coarse-light"),
+        | "sh-ratio2" | "coarse-light" | "coarse-light-free"),
     ) = std::env::var("ABLATION_DEFAULTS_START").as_deref()
     {
         let first = Fitted {
@@ -444,7 +444,7 @@ fn second_fit(
             .collect();
         crate::metrics::ratio_errors(case, &full, &e.weights, seen)
     };
-    let second = if v == "coarse-light" {
+    let second = if v.starts_with("coarse-light") {
         let m = coarse_light_start(&est, case, seen, lambert);
         eprintln!(
             "coarse-light start: worst ratio {:.3?} (first fit {:.3?})",
@@ -459,7 +459,12 @@ fn second_fit(
             ),
             ratios(&est)
         );
-        estimate(problem, m, opts, &mut |_, _| {}).expect("second fit")
+        let mut opts = opts.clone();
+        // As `run --restart coarse-light`: the lights fitted again with the start's
+        // materials held (`coarse-light-free`: a free second fit).
+        opts.fixed_materials = v == "coarse-light";
+        opts.validate_fixed_materials = opts.fixed_materials;
+        estimate(problem, m, &opts, &mut |_, _| {}).expect("second fit")
     } else if v.starts_with("sh-ratio") {
         let m = sh_ratio_start(&est, case, seen, lambert);
         if std::env::var("ABLATION_SH_TRUTH").is_ok() {
@@ -678,32 +683,9 @@ fn sh_ratio_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) ->
         .collect();
     eprintln!("sh-ratio: observations per material {counts:?}");
     let n_photos = case.train.obs.photo_ranges.len();
-    let rows = trimmed(rows, n_photos, kk, std::env::var("ABLATION_SH_TRIM").ok());
     irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, n_photos)
         .expect("the first fit's sizes")
         .expect("every material has pure, open vertices")
-}
-
-/// `rows` less those [`relight_cpc::solve::materials::irradiance::unshadowed_rows`] drops
-/// with the share `ABLATION_SH_TRIM` (all kept when unset).
-fn trimmed(
-    rows: Vec<relight_cpc::solve::materials::irradiance::IrradianceRow>,
-    n_photos: usize,
-    kk: usize,
-    trim: Option<String>,
-) -> Vec<relight_cpc::solve::materials::irradiance::IrradianceRow> {
-    let Some(trim) = trim.filter(|t| t != "none") else {
-        return rows;
-    };
-    let trim: f64 = trim.parse().expect("ABLATION_SH_TRIM is a number");
-    let kept = relight_cpc::solve::materials::irradiance::unshadowed_rows(
-        &rows,
-        n_photos,
-        &vec![[1.0; 3]; kk],
-        trim,
-    );
-    eprintln!("sh-trim {trim}: {} of {} rows kept", kept.len(), rows.len());
-    kept
 }
 
 /// `ABLATION_SH_TRUTH=1` with `sh-ratio` (`only`: then stop): the irradiance model's
@@ -767,20 +749,10 @@ fn sh_truth_diagnosis(
                 data.push(("exact", &exact_obs));
             }
             for (label, obs) in data {
-                let trims = std::env::var("ABLATION_SH_TRIMS").unwrap_or("none".into());
-                for trim in trims.split(',') {
-                    let (rows, errs) = model_ratio_errors(
-                        case,
-                        (obs, &open),
-                        seen,
-                        &w,
-                        &order,
-                        Some(trim.to_string()),
-                    );
-                    eprintln!(
-                        "sh-truth {source} eroded {rings} {label} trim {trim}: {rows} rows, worst ratio per channel {errs:.3?}"
-                    );
-                }
+                let (rows, errs) = model_ratio_errors(case, (obs, &open), seen, &w, &order);
+                eprintln!(
+                    "sh-truth {source} eroded {rings} {label}: {rows} rows, worst ratio per channel {errs:.3?}"
+                );
             }
         }
     }
@@ -836,7 +808,6 @@ fn model_ratio_errors(
     seen: &[bool],
     w: &[f64],
     order: &[usize],
-    trim: Option<String>,
 ) -> (usize, [f64; 3]) {
     use relight_cpc::solve::materials::irradiance::{self, RowsInput};
     let kk = order.len();
@@ -850,7 +821,6 @@ fn model_ratio_errors(
         min_open: crate::env_or("ABLATION_SH_OPEN", irradiance::MIN_OPEN),
     });
     let n_photos = obs.photo_ranges.len();
-    let rows = trimmed(rows, n_photos, kk, trim);
     let rho: Vec<Vec<f64>> = (0..3)
         .map(|c| irradiance::irradiance_albedos(&rows, c, n_photos, &vec![1.0; kk]))
         .collect();

@@ -77,6 +77,11 @@ pub struct EstimateOptions {
     pub beta: f64,
     /// Known reflectance (Sec. 6.1): only the lighting is estimated.
     pub fixed_materials: bool,
+    /// With [`Self::fixed_materials`], still hold back the validation split and score the
+    /// fit on it (`run --restart coarse-light`, whose second fit holds the materials and is
+    /// kept only when that score beats the first fit's); default off (Sec. 6.1 fits every
+    /// observation).
+    pub validate_fixed_materials: bool,
     /// Lighting QP stopping rule: projected gradient ≤ `qp_rel_tol · ‖Wᵀ Aᵀ D y‖∞`.
     pub qp_rel_tol: f64,
     /// Cap on GPCG iterations per lighting QP.
@@ -372,6 +377,7 @@ impl Default for EstimateOptions {
             irls_iters: 4,
             beta: 1e-8,
             fixed_materials: false,
+            validate_fixed_materials: false,
             qp_rel_tol: 1e-7,
             qp_max_iter: 300,
             alternation_qp_iters: Some(ALTERNATION_QP_ITERS),

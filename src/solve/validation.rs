@@ -330,9 +330,14 @@ pub(crate) struct HeldBack {
 impl HeldBack {
     /// The split of [`photo_halves_split`], [`validation_split_blocked`] or
     /// [`validation_split`] (in that order of precedence) when early stopping is on (a
-    /// fraction `> 0`, more than one outer iteration, materials not fixed).
+    /// fraction `> 0`, more than one outer iteration, materials not fixed), or with fixed
+    /// materials when [`EstimateOptions::validate_fixed_materials`] asks for a score.
     pub(crate) fn new(problem: &Problem, opts: &EstimateOptions) -> Self {
-        let on = !opts.fixed_materials && opts.validation_fraction > 0.0 && opts.max_outer > 1;
+        let on = if opts.fixed_materials {
+            opts.validate_fixed_materials && opts.validation_fraction > 0.0
+        } else {
+            opts.validation_fraction > 0.0 && opts.max_outer > 1
+        };
         let halves = on && opts.validation_halves.is_some();
         let blocked = on && !halves && opts.validation_block > 0;
         let idx = if let (true, Some(h)) = (halves, &opts.validation_halves) {

@@ -99,6 +99,18 @@ fn the_runs_report_holds_the_irradiance_restart() {
     );
 }
 
+/// The same with `run --restart coarse-light` (the Lambertian ratios from a coarse
+/// non-negative light, `solve::materials::coarse_light`, the lights fitted again with the
+/// materials held).
+#[test]
+fn the_runs_report_holds_the_coarse_light_restart() {
+    assert_restart_reported(
+        Restart::CoarseLight,
+        "report-coarse-light",
+        "restart from the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map",
+    );
+}
+
 /// The example run with `mode`: two starts, the timeline per start, the kept one the
 /// lower score, and a reason starting with `prefix` that says which was kept.
 fn assert_restart_reported(mode: Restart, name: &str, prefix: &str) {

@@ -206,9 +206,10 @@ pub(crate) struct RunArgs {
     /// held-back observations better. `irradiance`: the second fit from the fit's weights
     /// with each material's Lambertian colour ratios fitted by a low-order irradiance model
     /// over the vertices one material holds that see most of the sky (Lambertian
-    /// materials). `coarse-light`: the same, the ratios fitted with each photo's light a
-    /// coarse non-negative map seen through the vertices' shadows, over every vertex one
-    /// material holds. One more fit.
+    /// materials). `coarse-light`: the ratios fitted with each photo's light a coarse
+    /// non-negative map seen through the vertices' shadows, over every vertex one material
+    /// holds, and the lights fitted again with those materials held (Lambertian
+    /// materials). One more fit.
     #[arg(long, default_value = "off", value_parser = ["off", "on", "irradiance", "coarse-light"], help_heading = "Solver")]
     pub(crate) restart: String,
     /// Where each material's starting brightness comes from: `clustered` (its colour

@@ -129,8 +129,8 @@ pub enum Restart {
     Irradiance,
     /// From the fit's weights normalised and each material's Lambertian ratios fitted with
     /// each photo's light a coarse non-negative map seen through the Lambertian transport,
-    /// over its pure seen vertices (`coarse-light`,
-    /// [`crate::solve::materials::coarse_light`]).
+    /// over its pure seen vertices, the lights fitted again with those materials held
+    /// (`coarse-light`, [`crate::solve::materials::coarse_light`]).
     CoarseLight,
 }
 

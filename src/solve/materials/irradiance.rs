@@ -159,59 +159,6 @@ pub fn irradiance_albedos(
     rho
 }
 
-/// Each row's radiance in channel `c` as the model predicts it with the albedos `rho`
-/// (one per material) and each photo's coefficients fitted to them:
-/// `ŷ = ρ_k Σ_j s_{I,j} Y_j(n)`.
-pub fn irradiance_predictions(
-    rows: &[IrradianceRow],
-    c: usize,
-    n_photos: usize,
-    rho: &[f64],
-) -> Vec<f64> {
-    let s = Moments::of(rows, c, n_photos, rho.len()).photo_coefficients(rho);
-    rows.iter()
-        .map(|r| rho[r.material] * s[r.photo].dot(&V9::from_column_slice(&r.sh)))
-        .collect()
-}
-
-/// The rows left when those the converged model over-predicts by more than a share `trim`
-/// of their prediction (summed over the channels) are dropped, the model fitted again, and
-/// so on until no row is dropped (at most 20 times): a vertex that is open but shadowed
-/// from the sun in one photo reads darker than any order-2 irradiance of its normal would
-/// give, and pulls its material's ratio down. Returns the rows kept.
-pub fn unshadowed_rows(
-    rows: &[IrradianceRow],
-    n_photos: usize,
-    rho0: &[[f64; 3]],
-    trim: f64,
-) -> Vec<IrradianceRow> {
-    let mut kept = rows.to_vec();
-    for _ in 0..20 {
-        let pred: Vec<Vec<f64>> = (0..3)
-            .map(|c| {
-                let first: Vec<f64> = rho0.iter().map(|r| r[c]).collect();
-                let rho = irradiance_albedos(&kept, c, n_photos, &first);
-                irradiance_predictions(&kept, c, n_photos, &rho)
-            })
-            .collect();
-        let next: Vec<IrradianceRow> = kept
-            .iter()
-            .enumerate()
-            .filter(|(i, r)| {
-                let p: f64 = (0..3).map(|c| pred[c][*i]).sum();
-                let y: f64 = r.rgb.iter().sum();
-                y >= (1.0 - trim) * p
-            })
-            .map(|(_, r)| r.clone())
-            .collect();
-        if next.len() == kept.len() {
-            break;
-        }
-        kept = next;
-    }
-    kept
-}
-
 /// Channel `c`'s rows summed per photo `I` and material `k`: `G_{I,k} = Σ Y Yᵀ` and
 /// `h_{I,k} = Σ Y y_c` over the rows' harmonics `Y`. With the albedos `ρ` fixed, photo
 /// `I`'s coefficients solve `(Σ_k ρ_k² G_{I,k}) s_I = Σ_k ρ_k h_{I,k}`; with the
