@@ -269,6 +269,38 @@ fn known_reflectance_recovers_the_maps() {
 }
 
 #[test]
+fn known_reflectance_is_scored_on_the_validation_split_when_asked() {
+    // `validate_fixed_materials` (`run --restart coarse-light`'s held second fit): the
+    // lights are fitted without the held-back 10% and scored on them. With the TRUE
+    // reflectance on noise-free data the maps come back (the test above), so the score
+    // must be near 0 (below 1e-3, as the maps' error); with material 1's diffuse λ 30%
+    // too bright in red, no map can fit both materials, so it must be at least 10× that.
+    // Without the option the fit keeps every observation and has no score (Sec. 6.1).
+    let p = planted(1, 0.0, 0.0, 150, 4);
+    let score = |lambda: Vec<Vec<[f64; 3]>>, validate: bool| {
+        let mut o = opts(Robust::None);
+        o.fixed_materials = true;
+        o.validate_fixed_materials = validate;
+        o.smoothness = 1e-8;
+        let init = Materials0 {
+            lambda,
+            weights: p.weights.clone(),
+        };
+        estimate(&problem(&p), init, &o, &mut |_, _| {})
+            .unwrap()
+            .validation
+            .map(|v| v.best_error())
+    };
+    let truth = score(p.lambda.clone(), true).expect("a validation score");
+    assert!(truth < 1e-3, "score with the true reflectance {truth}");
+    let mut wrong = p.lambda.clone();
+    wrong[1][0][0] *= 1.3;
+    let off = score(wrong, true).expect("a validation score");
+    assert!(off > 10.0 * truth.max(1e-4), "score {off} against {truth}");
+    assert!(score(p.lambda.clone(), false).is_none());
+}
+
+#[test]
 fn joint_recovery_reaches_the_noise_level_with_non_increasing_objective() {
     // 1% Gaussian noise. The fitted model must predict the clean data better than the
     // noise itself does (~1800 observations × 3 channels fit ~1750 unknowns after 40
