@@ -63,8 +63,8 @@
 //! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
 //! `sh-ratio` (`run --restart irradiance`'s start) reads, `run`'s 0.95,
 //! `ABLATION_SH_TRUTH=1|only` its diagnosis over the true and the fitted pure vertices,
-//! `only` stopping after it, with `ABLATION_SH_BLOCKS=r,…` and `ABLATION_BLOCK_OPEN=X,…` the
-//! coarse-light model's too; `coarse-light` is `run --restart coarse-light`, the lights
+//! `only` stopping after it, with `ABLATION_SH_BLOCKS=r,…` the coarse-light
+//! model's too; `coarse-light` is `run --restart coarse-light`, the lights
 //! fitted again with the start's materials held, `coarse-light-free` a free second fit
 //! from the same start) and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,

@@ -436,27 +436,20 @@ fn second_fit(
 ) -> Estimate {
     use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
     let Fitted { est, kept, seen } = first;
-    let ratios = |e: &Estimate| {
-        let full: Vec<Vec<[f64; 3]>> = e
-            .lambda
+    let ratios_of = |lambda: &[Vec<[f64; 3]>], weights: &[f64]| {
+        let full: Vec<Vec<[f64; 3]>> = lambda
             .iter()
             .map(|row| full_basis(row, kept, case.basis.len()))
             .collect();
-        crate::metrics::ratio_errors(case, &full, &e.weights, seen)
+        crate::metrics::ratio_errors(case, &full, weights, seen)
     };
+    let ratios = |e: &Estimate| ratios_of(&e.lambda, &e.weights);
+    let start_ratios = |m: &Materials0| ratios_of(&m.lambda, &m.weights);
     let second = if v.starts_with("coarse-light") {
         let m = coarse_light_start(&est, case, seen, lambert);
         eprintln!(
             "coarse-light start: worst ratio {:.3?} (first fit {:.3?})",
-            crate::metrics::ratio_errors(
-                case,
-                &m.lambda
-                    .iter()
-                    .map(|row| full_basis(row, kept, case.basis.len()))
-                    .collect::<Vec<_>>(),
-                &m.weights,
-                seen
-            ),
+            start_ratios(&m),
             ratios(&est)
         );
         let mut opts = opts.clone();
@@ -475,15 +468,7 @@ fn second_fit(
         }
         eprintln!(
             "sh-ratio start: worst ratio {:.3?} (first fit {:.3?})",
-            crate::metrics::ratio_errors(
-                case,
-                &m.lambda
-                    .iter()
-                    .map(|row| full_basis(row, kept, case.basis.len()))
-                    .collect::<Vec<_>>(),
-                &m.weights,
-                seen
-            ),
+            start_ratios(&m),
             ratios(&est)
         );
         let mut second = estimate(problem, m, opts, &mut |_, _| {}).expect("second fit");
@@ -742,7 +727,7 @@ fn sh_truth_diagnosis(
                 w = eroded(&w, &graph, kt);
             }
             if rings == 0 {
-                block_light_diagnosis(case, source, (&exact_obs, &open), (seen, &w, &order));
+                block_light_diagnosis(case, source, &exact_obs, (seen, &w, &order));
             }
             let mut data = vec![("photos", &case.train.obs)];
             if source == "truth" && rings == 0 {
@@ -864,139 +849,64 @@ fn weights_purity(
     )
 }
 
-/// [`block_light_ratio_errors`] for each `r` of `ABLATION_SH_BLOCKS` and each least open
-/// fraction of `ABLATION_BLOCK_OPEN` (default `0,0.95`), on the photos and, for the TRUE
-/// weights, on the exact data.
+/// [`block_light_ratio_errors`] for each `r` of `ABLATION_SH_BLOCKS`, on the photos and,
+/// for the TRUE weights, on the exact data.
 fn block_light_diagnosis(
     case: &Case,
     source: &str,
-    (exact, open): (&relight_cpc::observe::Observations, &[f64]),
+    exact: &relight_cpc::observe::Observations,
     (seen, w, order): (&[bool], &[f64], &[usize]),
 ) {
     let Ok(blocks) = std::env::var("ABLATION_SH_BLOCKS") else {
         return;
     };
-    let opens = std::env::var("ABLATION_BLOCK_OPEN").unwrap_or("0,0.95".into());
     for r in blocks
         .split(',')
         .map(|v| v.parse::<usize>().expect("a block side"))
     {
-        for min_open in opens
-            .split(',')
-            .map(|v| v.parse::<f64>().expect("an open fraction"))
-        {
-            let mut data = vec![("photos", &case.train.obs)];
-            if source == "truth" {
-                data.push(("exact", exact));
-            }
-            for (label, obs) in data {
-                let t = std::time::Instant::now();
-                let (rows, errs) = block_light_ratio_errors(
-                    case,
-                    (obs, &case.train.transport, open),
-                    (seen, w, order),
-                    (r, min_open),
-                );
-                eprintln!(
-                    "sh-blocks {source} {r}x{r} open>={min_open} {label}: {rows} rows, worst ratio per channel {errs:.3?} ({:.1} s)",
-                    t.elapsed().as_secs_f64()
-                );
-            }
+        let mut data = vec![("photos", &case.train.obs)];
+        if source == "truth" {
+            data.push(("exact", exact));
+        }
+        for (label, obs) in data {
+            let (rows, errs) = block_light_ratio_errors(case, obs, (seen, w, order), r);
+            eprintln!(
+                "sh-blocks {source} {r}x{r} {label}: {rows} rows, worst ratio per channel {errs:.3?}"
+            );
         }
     }
 }
 
-/// `ABLATION_SH_BLOCKS=r,…`: the irradiance model with each photo's light a NON-NEGATIVE
-/// map constant on `r × r` blocks of the global octahedral map, seen through the case's
-/// Lambertian transport (cosine and cast shadows), instead of nine free harmonics:
-/// `y_p = ρ_k Σ_j A_{p,j} b_{I,j}`, `b_I ≥ 0`, `A_{p,j}` the Lambertian row's response to
-/// block `j`'s indicator. Alternating NNLS (per photo, on its moments) and closed-form `ρ`
-/// until the ratios move by < 1e-9 (at most 3,000 rounds). Over the pure seen vertices with
-/// open fraction ≥ `min_open`; returns the row count and the worst ratio per channel.
+/// `ABLATION_SH_BLOCKS=r,…`: the worst ratio per channel of `run --restart coarse-light`'s
+/// model ([`relight_cpc::solve::materials::coarse_light`]) with `r × r` blocks over the
+/// pure seen vertices of `w` read from `obs`, fit material `k` read as true material
+/// `order[k]`; and the row count.
 fn block_light_ratio_errors(
     case: &Case,
-    (obs, transport, open): (
-        &relight_cpc::observe::Observations,
-        &relight_cpc::transport::Transport,
-        &[f64],
-    ),
+    obs: &relight_cpc::observe::Observations,
     (seen, w, order): (&[bool], &[f64], &[usize]),
-    (r, min_open): (usize, f64),
+    r: usize,
 ) -> (usize, [f64; 3]) {
-    use nalgebra::{DMatrix, DVector};
-    use relight_cpc::solve::materials::irradiance::pure_material;
-    use relight_cpc::solve::qp::{nnls, NnlsOptions};
-    let (kk, n) = (order.len(), transport.n_global);
-    let nb = r * r;
-    let blocks: Vec<Vec<f64>> = (0..nb)
-        .map(|j| {
-            let (bi, bj) = (j / r, j % r);
-            let f = n / r;
-            let mut map: Vec<f64> = (0..n * n)
-                .map(|t| f64::from(t / n / f == bi && t % n / f == bj))
-                .collect();
-            relight_cpc::sphere::haar::forward(&mut map, n);
-            map
+    use relight_cpc::solve::materials::coarse_light;
+    let kk = order.len();
+    let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
+        obs,
+        transport: &case.train.transport,
+        seen,
+        weights: w,
+        materials: kk,
+        lambert: 0,
+        blocks: r,
+    });
+    let n_photos = obs.photo_ranges.len();
+    let rho: Vec<Vec<f64>> = (0..3)
+        .map(|c| {
+            coarse_light::coarse_light_albedos(&rows, c, n_photos, &vec![1.0; kk])
+                .expect("finite rows")
         })
         .collect();
-    let n_photos = obs.photo_ranges.len();
-    let mut g = vec![DMatrix::<f64>::zeros(nb, nb); n_photos * kk];
-    let mut h = vec![[0, 1, 2].map(|_| DVector::<f64>::zeros(nb)); n_photos * kk];
-    let mut count = 0;
-    for (photo, range) in obs.photo_ranges.iter().enumerate() {
-        for p in range.clone().filter(|&p| obs.weight[p] > 0.0) {
-            let x = obs.vertex[p] as usize;
-            if !seen[x] || open[x] < min_open {
-                continue;
-            }
-            let Some(k) = pure_material(&w[x * kk..(x + 1) * kk]) else {
-                continue;
-            };
-            let a = DVector::from_iterator(nb, blocks.iter().map(|b| transport.response(p, 0, b)));
-            let i = photo * kk + k;
-            g[i] += &a * a.transpose();
-            for c in 0..3 {
-                h[i][c] += &a * f64::from(obs.rgb[p][c]);
-            }
-            count += 1;
-        }
-    }
-    let mut rho = [0, 1, 2].map(|_| vec![1.0; kk]);
-    for (c, rho) in rho.iter_mut().enumerate() {
-        for _ in 0..3000 {
-            let b: Vec<DVector<f64>> = (0..n_photos)
-                .map(|i| {
-                    let mut ata = DMatrix::<f64>::identity(nb, nb) * 1e-12;
-                    let mut atb = DVector::<f64>::zeros(nb);
-                    for k in 0..kk {
-                        ata += &g[i * kk + k] * (rho[k] * rho[k]);
-                        atb += &h[i * kk + k][c] * rho[k];
-                    }
-                    nnls(&ata, &atb, &NnlsOptions::default()).expect("finite moments")
-                })
-                .collect();
-            let next: Vec<f64> = (0..kk)
-                .map(|k| {
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for (i, bi) in b.iter().enumerate() {
-                        num += bi.dot(&h[i * kk + k][c]);
-                        den += bi.dot(&(&g[i * kk + k] * bi));
-                    }
-                    if num > 0.0 && den > 0.0 {
-                        num / den
-                    } else {
-                        rho[k]
-                    }
-                })
-                .collect();
-            let moved = (1..kk)
-                .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
-                .fold(0.0, f64::max);
-            *rho = next;
-            if moved < 1e-9 {
-                break;
-            }
-        }
-    }
-    (count, worst_ratio_errors(case, |k, c| rho[c][k], order))
+    (
+        rows.len(),
+        worst_ratio_errors(case, |k, c| rho[c][k], order),
+    )
 }
