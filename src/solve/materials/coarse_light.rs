@@ -17,8 +17,8 @@
 //! outside the top-left `r × r` corner of the layout ([`crate::sphere::haar`]), so `A_p`
 //! reads only those entries of the row. The model is bilinear; [`coarse_light_albedos`]
 //! fits it by alternating each photo's NNLS for `b_I` (on its moments) with each `ρ_k` in
-//! closed form `Σ e y / Σ e²`, `e = A b`, until the ratios settle. Shadows are in the rows,
-//! so every pure seen vertex is read, open or not.
+//! closed form `Σ e y / Σ e²`, `e = A b`, until the ratios settle ([`bilinear`]).
+//! Shadows are in the rows, so every pure seen vertex is read, open or not.
 //!
 //! A non-negative light is the constraint the free maps lack: a block cannot brighten one
 //! material's normals without lighting every vertex that sees it. The blocks are coarse
@@ -39,6 +39,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::observe::Observations;
+use crate::solve::materials::bilinear;
 use crate::solve::materials::irradiance::{pure_material, start_from_albedos};
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::solve::Materials0;
@@ -152,96 +153,39 @@ pub fn pure_seen_rows(input: &CoarseRowsInput) -> Vec<CoarseRow> {
 }
 
 /// Channel `c`'s albedo per material (module docs) from `rho0` (one per material, > 0),
-/// until the ratios settle ([`RATIO_TOL`]) or after [`MAX_ROUNDS`]; a material without
-/// rows keeps its `rho0`. Each photo's NNLS carries a ridge of `10⁻¹²` times its largest
-/// diagonal entry.
+/// until the ratios settle ([`RATIO_TOL`]) or after [`MAX_ROUNDS`]
+/// ([`bilinear::alternate`]); a material without rows keeps its `rho0`. Each photo's NNLS
+/// carries a ridge of `10⁻¹²` times its largest diagonal entry.
 pub fn coarse_light_albedos(
     rows: &[CoarseRow],
     c: usize,
     n_photos: usize,
     rho0: &[f64],
 ) -> Result<Vec<f64>> {
-    let m = BlockMoments::of(rows, c, n_photos, rho0.len());
-    let kk = rho0.len();
-    let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-9)).collect();
-    for _ in 0..MAX_ROUNDS {
-        let b = m.photo_lights(&rho)?;
-        let next = m.albedos(&b, &rho);
-        let moved = (1..kk)
-            .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
-            .fold(0.0, f64::max);
-        rho = next;
-        if moved <= RATIO_TOL {
-            break;
+    let dim = rows.first().map_or(0, |r| r.a.len());
+    let m = bilinear::PhotoMoments::of(
+        rows.iter().map(|r| bilinear::MomentRow {
+            photo: r.photo,
+            material: r.material,
+            design: &r.a,
+            y: r.rgb[c],
+        }),
+        n_photos,
+        rho0.len(),
+        dim,
+    );
+    let non_negative = |mut ata: DMatrix<f64>, atb: DVector<f64>| {
+        let ridge = 1e-12 * ata.diagonal().max().max(f64::MIN_POSITIVE);
+        for d in 0..ata.nrows() {
+            ata[(d, d)] += ridge;
         }
-    }
-    Ok(rho)
-}
-
-/// Channel `c`'s rows summed per photo `I` and material `k`: `G_{I,k} = Σ A Aᵀ`,
-/// `h_{I,k} = Σ A y_c`. With `ρ` fixed, `b_I = argmin_{b ≥ 0} ½ bᵀ(Σ_k ρ_k² G_{I,k})b −
-/// (Σ_k ρ_k h_{I,k})ᵀ b`; with the lights fixed, `ρ_k = Σ_I b_I·h_{I,k} / Σ_I b_Iᵀ G_{I,k} b_I`.
-struct BlockMoments {
-    materials: usize,
-    /// `photo · K + k`.
-    g: Vec<DMatrix<f64>>,
-    h: Vec<DVector<f64>>,
-}
-
-impl BlockMoments {
-    fn of(rows: &[CoarseRow], c: usize, n_photos: usize, materials: usize) -> BlockMoments {
-        let nb = rows.first().map_or(0, |r| r.a.len());
-        let mut g = vec![DMatrix::zeros(nb, nb); n_photos * materials];
-        let mut h = vec![DVector::zeros(nb); n_photos * materials];
-        for r in rows {
-            let a = DVector::from_column_slice(&r.a);
-            let i = r.photo * materials + r.material;
-            g[i] += &a * a.transpose();
-            h[i] += &a * r.rgb[c];
-        }
-        BlockMoments { materials, g, h }
-    }
-
-    /// Each photo's non-negative block light with the albedos `rho` fixed.
-    fn photo_lights(&self, rho: &[f64]) -> Result<Vec<DVector<f64>>> {
-        let kk = self.materials;
-        (0..self.g.len() / kk)
-            .map(|i| {
-                let nb = self.g[i * kk].nrows();
-                let mut ata = DMatrix::zeros(nb, nb);
-                let mut atb = DVector::zeros(nb);
-                for (k, r) in rho.iter().enumerate() {
-                    ata += &self.g[i * kk + k] * (r * r);
-                    atb += &self.h[i * kk + k] * *r;
-                }
-                let ridge = 1e-12 * ata.diagonal().max().max(f64::MIN_POSITIVE);
-                for d in 0..nb {
-                    ata[(d, d)] += ridge;
-                }
-                nnls(&ata, &atb, &NnlsOptions::default())
-            })
-            .collect()
-    }
-
-    /// Each material's albedo in closed form with the lights `b` fixed (`rho`'s value kept
-    /// where the closed form is not positive).
-    fn albedos(&self, b: &[DVector<f64>], rho: &[f64]) -> Vec<f64> {
-        let kk = self.materials;
-        (0..kk)
-            .map(|k| {
-                let (mut num, mut den) = (0.0, 0.0);
-                for (i, bi) in b.iter().enumerate() {
-                    num += bi.dot(&self.h[i * kk + k]);
-                    den += bi.dot(&(&self.g[i * kk + k] * bi));
-                }
-                if den > 0.0 && num > 0.0 {
-                    num / den
-                } else {
-                    rho[k]
-                }
-            })
-            .collect()
-    }
+        nnls(&ata, &atb, &NnlsOptions::default())
+    };
+    let stopping = bilinear::Stopping {
+        max_rounds: MAX_ROUNDS,
+        ratio_tol: RATIO_TOL,
+    };
+    bilinear::alternate(&m, rho0, &non_negative, stopping)
 }
 
 /// The restart's start ([`start_from_albedos`]) with each material's Lambertian ratios
@@ -269,23 +213,9 @@ pub fn coarse_light_start(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solve::materials::test_normals::normals;
     use crate::sphere::SphereGrid;
     use crate::Vec3;
-
-    /// `n` unit normals spread over the sphere (a Fibonacci lattice), those with
-    /// `z ∈ [lo, hi]`.
-    fn normals(n: usize, lo: f64, hi: f64) -> Vec<Vec3> {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let r = (1.0 - z * z).sqrt();
-                let phi = golden * i as f64;
-                Vec3::new(r * phi.cos(), r * phi.sin(), z)
-            })
-            .filter(|v| v.z >= lo && v.z <= hi)
-            .collect()
-    }
 
     /// A vertex's Lambertian transport on `grid`'s texels: `max(0, n·ω_t) dω_t`, 0 where
     /// `shadowed(ω_t)`.

@@ -35,7 +35,10 @@
 //! 0.048–0.109 (the first fit's 0.046–0.224); on the glossy and three-material scenes the
 //! highlights make them worse.
 
+use nalgebra::{DMatrix, DVector};
+
 use crate::observe::Observations;
+use crate::solve::materials::bilinear;
 use crate::solve::Materials0;
 use crate::{Error, Result, Vec3};
 
@@ -55,9 +58,6 @@ pub const MAX_ROUNDS: usize = 20_000;
 /// The iteration stops when no ratio `ρ_k / ρ_0` moves by more than this (relative) in a
 /// round.
 pub const RATIO_TOL: f64 = 1e-12;
-
-type M9 = nalgebra::SMatrix<f64, 9, 9>;
-type V9 = nalgebra::SVector<f64, 9>;
 
 /// The real spherical harmonics of order ≤ 2 of a unit normal, their constant factors
 /// dropped (each photo's coefficients are free): `1, y, z, x, xy, yz, 3z² − 1, xz, x² − y²`.
@@ -135,89 +135,39 @@ pub fn pure_open_rows(input: &RowsInput) -> Vec<IrradianceRow> {
 /// [`MAX_ROUNDS`]; a material without rows keeps its `rho0`. Each photo's normal equations
 /// carry a ridge of 10⁻⁹ so that a photo whose rows span fewer than nine harmonics still
 /// solves. The rows enter once, through their moments per photo and material
-/// ([`Moments`]), so a round costs `O(photos · K · 81)` whatever the number of rows.
+/// ([`bilinear::PhotoMoments`]), so a round costs `O(photos · K · 81)` whatever the number
+/// of rows.
 pub fn irradiance_albedos(
     rows: &[IrradianceRow],
     c: usize,
     n_photos: usize,
     rho0: &[f64],
 ) -> Vec<f64> {
-    let kk = rho0.len();
-    let m = Moments::of(rows, c, n_photos, kk);
-    let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-9)).collect();
-    for _ in 0..MAX_ROUNDS {
-        let s = m.photo_coefficients(&rho);
-        let next = m.albedos(&s, &rho);
-        let moved = (1..kk)
-            .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
-            .fold(0.0, f64::max);
-        rho = next;
-        if moved <= RATIO_TOL {
-            break;
+    let m = bilinear::PhotoMoments::of(
+        rows.iter().map(|r| bilinear::MomentRow {
+            photo: r.photo,
+            material: r.material,
+            design: &r.sh,
+            y: r.rgb[c],
+        }),
+        n_photos,
+        rho0.len(),
+        9,
+    );
+    let least_squares = |mut ata: DMatrix<f64>, atb: DVector<f64>| {
+        for d in 0..ata.nrows() {
+            ata[(d, d)] += 1e-9;
         }
-    }
-    rho
-}
-
-/// Channel `c`'s rows summed per photo `I` and material `k`: `G_{I,k} = Σ Y Yᵀ` and
-/// `h_{I,k} = Σ Y y_c` over the rows' harmonics `Y`. With the albedos `ρ` fixed, photo
-/// `I`'s coefficients solve `(Σ_k ρ_k² G_{I,k}) s_I = Σ_k ρ_k h_{I,k}`; with the
-/// coefficients fixed, `ρ_k = Σ_I s_I·h_{I,k} / Σ_I s_Iᵀ G_{I,k} s_I`.
-struct Moments {
-    materials: usize,
-    /// `photo · K + k`.
-    g: Vec<M9>,
-    h: Vec<V9>,
-}
-
-impl Moments {
-    fn of(rows: &[IrradianceRow], c: usize, n_photos: usize, materials: usize) -> Moments {
-        let mut g = vec![M9::zeros(); n_photos * materials];
-        let mut h = vec![V9::zeros(); n_photos * materials];
-        for r in rows {
-            let y = V9::from_column_slice(&r.sh);
-            let i = r.photo * materials + r.material;
-            g[i] += y * y.transpose();
-            h[i] += y * r.rgb[c];
-        }
-        Moments { materials, g, h }
-    }
-
-    /// Each photo's nine coefficients by least squares with the albedos `rho` fixed.
-    fn photo_coefficients(&self, rho: &[f64]) -> Vec<V9> {
-        let kk = self.materials;
-        (0..self.g.len() / kk)
-            .map(|i| {
-                let mut ata = M9::identity() * 1e-9;
-                let mut aty = V9::zeros();
-                for (k, r) in rho.iter().enumerate() {
-                    ata += self.g[i * kk + k] * (r * r);
-                    aty += self.h[i * kk + k] * *r;
-                }
-                ata.lu().solve(&aty).unwrap_or_else(V9::zeros)
-            })
-            .collect()
-    }
-
-    /// Each material's albedo in closed form with the coefficients `s` fixed (`rho`'s
-    /// value kept where the closed form is not positive).
-    fn albedos(&self, s: &[V9], rho: &[f64]) -> Vec<f64> {
-        let kk = self.materials;
-        (0..kk)
-            .map(|k| {
-                let (mut num, mut den) = (0.0, 0.0);
-                for (i, si) in s.iter().enumerate() {
-                    num += si.dot(&self.h[i * kk + k]);
-                    den += si.dot(&(self.g[i * kk + k] * si));
-                }
-                if den > 0.0 && num > 0.0 {
-                    num / den
-                } else {
-                    rho[k]
-                }
-            })
-            .collect()
-    }
+        Ok(ata
+            .lu()
+            .solve(&atb)
+            .unwrap_or_else(|| DVector::zeros(atb.len())))
+    };
+    let stopping = bilinear::Stopping {
+        max_rounds: MAX_ROUNDS,
+        ratio_tol: RATIO_TOL,
+    };
+    bilinear::alternate(&m, rho0, &least_squares, stopping).unwrap_or_else(|_| rho0.to_vec())
 }
 
 /// `weights` (`V × K` row-major) with each vertex's row divided by its sum (rows that sum
@@ -312,21 +262,7 @@ pub fn snap_pure(mut weights: Vec<f64>, materials: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// `n` unit normals spread over the sphere (a Fibonacci lattice), those with
-    /// `z ∈ [lo, hi]`.
-    fn normals(n: usize, lo: f64, hi: f64) -> Vec<Vec3> {
-        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-        (0..n)
-            .map(|i| {
-                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
-                let r = (1.0 - z * z).sqrt();
-                let phi = golden * i as f64;
-                Vec3::new(r * phi.cos(), r * phi.sin(), z)
-            })
-            .filter(|v| v.z >= lo && v.z <= hi)
-            .collect()
-    }
+    use crate::solve::materials::test_normals::normals;
 
     /// Irradiance at normal `n` from a sky of constant radiance 0.3 (quadrature over
     /// 20,000 directions) plus a sun of radiance 400 over a cap of 5° radius around `sun`,
@@ -398,7 +334,7 @@ mod tests {
     }
 
     /// Channel `c`'s least-squares residual of the model over `rows` with albedos
-    /// `(1, t)`, each photo's coefficients solved from its rows (not from [`Moments`]).
+    /// `(1, t)`, each photo's coefficients solved from its rows (not from [`bilinear::PhotoMoments`]).
     fn profiled_residual(rows: &[IrradianceRow], c: usize, photos: usize, t: f64) -> f64 {
         let rho = [1.0, t];
         (0..photos)

@@ -33,11 +33,32 @@ use crate::solve::problem::{Problem, CHUNK};
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::{Error, Result};
 
+pub mod bilinear;
 pub mod brightness;
 pub mod coarse_light;
 pub mod irradiance;
 pub mod propagate;
 pub mod reanchor;
+
+#[cfg(test)]
+pub(crate) mod test_normals {
+    use crate::Vec3;
+
+    /// `n` unit normals spread over the sphere (a Fibonacci lattice), those with
+    /// `z ∈ [lo, hi]`: the surfaces of the ratio models' tests.
+    pub(crate) fn normals(n: usize, lo: f64, hi: f64) -> Vec<Vec3> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let phi = golden * i as f64;
+                Vec3::new(r * phi.cos(), r * phi.sin(), z)
+            })
+            .filter(|v| v.z >= lo && v.z <= hi)
+            .collect()
+    }
+}
 
 /// The λ part of the material step.
 #[derive(Debug, Clone)]
