@@ -807,7 +807,9 @@ fn model_ratio_errors(
     });
     let n_photos = obs.photo_ranges.len();
     let rho: Vec<Vec<f64>> = (0..3)
-        .map(|c| irradiance::irradiance_albedos(&rows, c, n_photos, &vec![1.0; kk]))
+        .map(|c| {
+            irradiance::irradiance_albedos(&rows, c, n_photos, &vec![1.0; kk]).expect("finite rows")
+        })
         .collect();
     (
         rows.len(),

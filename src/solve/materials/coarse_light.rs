@@ -118,7 +118,7 @@ pub fn block_responses(
             corner[row * r + col] = g;
         }
     }
-    (h.transpose() * corner).iter().copied().collect()
+    h.tr_mul(&corner).iter().copied().collect()
 }
 
 /// The fitted (`α > 0`) observations of the seen vertices with one normalised weight ≥
@@ -198,16 +198,10 @@ pub fn coarse_light_start(
     rows: &[CoarseRow],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
-    if (0..lambda.len()).any(|k| !rows.iter().any(|r| r.material == k)) {
-        return Ok(None);
-    }
-    let rho: Vec<Vec<f64>> = (0..3)
-        .map(|c| {
-            let first: Vec<f64> = lambda.iter().map(|l| l[lambert][c]).collect();
-            coarse_light_albedos(rows, c, n_photos, &first)
-        })
-        .collect::<Result<_>>()?;
-    start_from_albedos(lambda, weights, lambert, |c, _| rho[c].clone()).map(Some)
+    let read = rows.iter().map(|r| r.material);
+    start_from_albedos(lambda, weights, lambert, read, |c, first| {
+        coarse_light_albedos(rows, c, n_photos, first)
+    })
 }
 
 #[cfg(test)]

@@ -142,7 +142,7 @@ pub fn irradiance_albedos(
     c: usize,
     n_photos: usize,
     rho0: &[f64],
-) -> Vec<f64> {
+) -> Result<Vec<f64>> {
     let m = bilinear::PhotoMoments::of(
         rows.iter().map(|r| bilinear::MomentRow {
             photo: r.photo,
@@ -167,7 +167,7 @@ pub fn irradiance_albedos(
         max_rounds: MAX_ROUNDS,
         ratio_tol: RATIO_TOL,
     };
-    bilinear::alternate(&m, rho0, &least_squares, stopping).unwrap_or_else(|_| rho0.to_vec())
+    bilinear::alternate(&m, rho0, &least_squares, stopping)
 }
 
 /// `weights` (`V × K` row-major) with each vertex's row divided by its sum (rows that sum
@@ -194,25 +194,24 @@ pub fn irradiance_start(
     rows: &[IrradianceRow],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
-    if (0..lambda.len()).any(|k| !rows.iter().any(|r| r.material == k)) {
-        return Ok(None);
-    }
-    start_from_albedos(lambda, weights, lambert, |c, first| {
+    let read = rows.iter().map(|r| r.material);
+    start_from_albedos(lambda, weights, lambert, read, |c, first| {
         irradiance_albedos(rows, c, n_photos, first)
     })
-    .map(Some)
 }
 
 /// A restart's start from albedos a model fits: `weights` (normalised) with [`snap_pure`],
 /// and each material's Lambertian `λ_{k,lambert,c}` set to `albedos(c, first)` (one per
 /// material; `first` the Lambertian `λ` of channel `c`), rescaled per channel to the
-/// geometric mean of `lambda`'s (the gauge; the other lobes as they are).
+/// geometric mean of `lambda`'s (the gauge; the other lobes as they are). `read` lists the
+/// material of each row the model reads; `None` when it leaves a material out.
 pub fn start_from_albedos(
     lambda: &[Vec<[f64; 3]>],
     weights: Vec<f64>,
     lambert: usize,
-    albedos: impl Fn(usize, &[f64]) -> Vec<f64>,
-) -> Result<Materials0> {
+    read: impl Iterator<Item = usize>,
+    albedos: impl Fn(usize, &[f64]) -> Result<Vec<f64>>,
+) -> Result<Option<Materials0>> {
     let kk = lambda.len();
     if kk == 0 || !weights.len().is_multiple_of(kk) || lambda.iter().any(|l| l.len() <= lambert) {
         return Err(Error::Internal(format!(
@@ -220,20 +219,29 @@ pub fn start_from_albedos(
             weights.len()
         )));
     }
+    let mut has_rows = vec![false; kk];
+    read.for_each(|k| {
+        if let Some(h) = has_rows.get_mut(k) {
+            *h = true;
+        }
+    });
+    if has_rows.contains(&false) {
+        return Ok(None);
+    }
     let mean_log = |v: &[f64]| v.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / kk as f64;
     let mut new_lambda = lambda.to_vec();
     for c in 0..3 {
         let first: Vec<f64> = lambda.iter().map(|l| l[lambert][c]).collect();
-        let rho = albedos(c, &first);
+        let rho = albedos(c, &first)?;
         let shift = mean_log(&first) - mean_log(&rho);
         for (k, l) in new_lambda.iter_mut().enumerate() {
             l[lambert][c] = (rho[k].max(1e-12).ln() + shift).exp();
         }
     }
-    Ok(Materials0 {
+    Ok(Some(Materials0 {
         lambda: new_lambda,
         weights: snap_pure(weights, kk),
-    })
+    }))
 }
 
 /// The material a vertex's normalised weights hold at ≥ [`PURE`], if any.
@@ -324,7 +332,7 @@ mod tests {
         // by less than 1e-12 a round.
         let rows = exact_rows(4);
         for c in 0..3 {
-            let rho = irradiance_albedos(&rows, c, 4, &[0.5, 0.5]);
+            let rho = irradiance_albedos(&rows, c, 4, &[0.5, 0.5]).unwrap();
             let (got, want) = (rho[1] / rho[0], TRUE_RHO[1][c] / TRUE_RHO[0][c]);
             assert!(
                 (got / want - 1.0).abs() < 1e-6,
@@ -383,7 +391,7 @@ mod tests {
         }
         for c in 0..3 {
             let want = TRUE_RHO[1][c] / TRUE_RHO[0][c];
-            let rho = irradiance_albedos(&rows, c, 3, &[1.0, 10.0 * want]);
+            let rho = irradiance_albedos(&rows, c, 3, &[1.0, 10.0 * want]).unwrap();
             let got = rho[1] / rho[0];
             let f = |log_t: f64| profiled_residual(&rows, c, 3, log_t.exp());
             let grid: Vec<f64> = (0..=200).map(|i| -4.0 + 8.0 * i as f64 / 200.0).collect();
@@ -435,7 +443,7 @@ mod tests {
             }
         }
         for c in 0..3 {
-            let rho = irradiance_albedos(&rows, c, 1, &[0.5, 0.5]);
+            let rho = irradiance_albedos(&rows, c, 1, &[0.5, 0.5]).unwrap();
             let (got, want) = (rho[1] / rho[0], TRUE_RHO[1][c] / TRUE_RHO[0][c]);
             assert!(
                 (got / want - 1.0).abs() < 0.03,
