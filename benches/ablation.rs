@@ -66,7 +66,8 @@
 //! `only` stopping after it, with `ABLATION_SH_BLOCKS=r,…` the coarse-light
 //! model's too; `coarse-light` is `run --restart coarse-light`, the lights
 //! fitted again with the start's materials held, `coarse-light-free` a free second fit
-//! from the same start) and
+//! from the same start; without one, the row makes `run --restart auto`'s second fit,
+//! `ABLATION_DEFAULTS_RESTART=off` none), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=shared` (the `defaults` row with
 //! `run --light shared`, the groups the photos' true skies), `SYNTH_SHARED_SKIES=1` (the

@@ -207,19 +207,29 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         _ => estimate(&problem, m0, &opts, &mut |_, _| {}).expect("defaults' fit"),
     };
     // `ABLATION_DEFAULTS_START=refit | refit-w | reanchor | reanchor2`: a second fit from
-    // the first fit's own materials (bench-results/restart-probes.md).
-    if let Ok(
-        v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
-        | "sh-ratio2" | "coarse-light" | "coarse-light-free"),
-    ) = std::env::var("ABLATION_DEFAULTS_START").as_deref()
-    {
-        let first = Fitted {
-            est,
-            kept: &pilot.kept,
-            seen: &seen,
-        };
-        est = second_fit(v, &problem, first, &opts, case, lambert);
-    }
+    // the first fit's own materials (bench-results/restart-probes.md). Without one, as
+    // `run --restart auto`: the coarse-light restart when the pilot kept the Lambertian
+    // lobe alone, kept when its validation error is lower (`ABLATION_DEFAULTS_RESTART=off`:
+    // `run --restart off`).
+    let first = Fitted {
+        est,
+        kept: &pilot.kept,
+        seen: &seen,
+    };
+    est = match std::env::var("ABLATION_DEFAULTS_START").as_deref() {
+        Ok(
+            v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
+            | "sh-ratio2" | "coarse-light" | "coarse-light-free"),
+            // Kept whatever its score unless `ABLATION_REFIT_PICK=1`.
+        ) => {
+            let pick = crate::env_flag("ABLATION_REFIT_PICK");
+            second_fit(v, &problem, first, &opts, case, lambert, pick)
+        }
+        _ if auto_restart(&kept, pilot.materials) => {
+            second_fit("coarse-light", &problem, first, &opts, case, lambert, true)
+        }
+        _ => first.est,
+    };
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
     est.lambda = est
@@ -424,8 +434,8 @@ struct Fitted<'a> {
 /// The second fit of `ABLATION_DEFAULTS_START=v` from `first` (`reanchor`:
 /// [`relight_cpc::solve::materials::reanchor::reanchor`] with projected weights, `reanchor2`
 /// twice, `reanchor-lambert` with [`keep_gloss`]; `refit`, `refit-w`: [`refit`]), returned whatever its score unless
-/// `ABLATION_REFIT_PICK=1`, which keeps the fit with the lower validation error as `run
-/// --restart on` does. Prints both fits' worst ratio errors and validation errors.
+/// `pick`, which keeps the fit with the lower validation error as `run --restart` does.
+/// Prints both fits' worst ratio errors and validation errors.
 fn second_fit(
     v: &str,
     problem: &Problem,
@@ -433,6 +443,7 @@ fn second_fit(
     opts: &EstimateOptions,
     case: &Case,
     lambert: usize,
+    pick: bool,
 ) -> Estimate {
     use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
     let Fitted { est, kept, seen } = first;
@@ -504,11 +515,20 @@ fn second_fit(
         score(&est),
         score(&second)
     );
-    if !crate::env_flag("ABLATION_REFIT_PICK") || score(&second) < score(&est) {
+    if !pick || score(&second) < score(&est) {
         second
     } else {
         est
     }
+}
+
+/// Whether `run --restart auto` makes the coarse-light restart after the defaults' fit
+/// ([`relight_cpc::run::Restart::resolve`] over the pilot's kept lobes, two or more
+/// materials), unless `ABLATION_DEFAULTS_RESTART=off`.
+fn auto_restart(kept: &[relight_cpc::transport::brdf::BasisBrdf], materials: usize) -> bool {
+    use relight_cpc::run::Restart;
+    let off = std::env::var("ABLATION_DEFAULTS_RESTART").is_ok_and(|v| v == "off");
+    !off && materials >= 2 && Restart::Auto.resolve(kept) == Restart::CoarseLight
 }
 
 /// `reanchor-lambert`: every non-Lambertian lobe of each re-anchored material set to keep

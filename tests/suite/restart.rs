@@ -3,8 +3,8 @@
 //! (`spot-three`, rendered by the independent reference renderer and taken through the
 //! real stages, `tests/support/synth_case.rs`), its photos replaced by the true model's
 //! prediction (noise-free: what is left is the estimator's), the paper's k-means start;
-//! and both restarts (`--restart on | irradiance`) as `run` reports them on the built-in
-//! example. The irradiance model's own kernel is tested against exact and quadrature
+//! and the restarts (`--restart on | irradiance | coarse-light | auto`) as `run` reports
+//! them on the built-in example. The irradiance model's own kernel is tested against exact and quadrature
 //! irradiance in `src/solve/materials/irradiance.rs`.
 
 use crate::synth_case::*;
@@ -107,7 +107,41 @@ fn the_runs_report_holds_the_coarse_light_restart() {
     assert_restart_reported(
         Restart::CoarseLight,
         "report-coarse-light",
-        "restart from the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map",
+        COARSE_LIGHT_REASON,
+    );
+}
+
+/// How the coarse-light restart's reason starts.
+const COARSE_LIGHT_REASON: &str = "restart from the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map";
+
+/// `run --restart auto` (the default) on the example: over the Lambertian lobe alone
+/// (`--basis lambert`) the coarse-light restart, reported as above, with a reason that says
+/// why; over the default basis (two shiny lobes) no restart, and a reason that names them.
+#[test]
+fn the_auto_restart_is_the_coarse_light_one_over_the_lambertian_lobe_alone() {
+    use relight_cpc::transport::brdf::BasisBrdf;
+    let dir = crate::scratch::scratch("restart", "report-auto-lambert");
+    let mut o = crate::scratch::small_example_options(&dir);
+    assert_eq!(o.restart, Restart::Auto, "the default");
+    o.basis = vec![BasisBrdf::Lambert];
+    let r = assert_options_restart_reported(&o, COARSE_LIGHT_REASON);
+    assert!(
+        r.model.reasons.iter().any(|s| s
+            == "--restart auto: a restart from a coarse non-negative light, as the fit's basis is the Lambertian lobe alone"),
+        "{:?}",
+        r.model.reasons
+    );
+
+    let dir = crate::scratch::scratch("restart", "report-auto-shiny");
+    let o = crate::scratch::small_example_options(&dir);
+    let r = relight_cpc::run::run(&o).expect("run").report;
+    assert!(r.starts.is_none(), "one fit: {:?}", r.starts);
+    assert!(
+        r.model.reasons.iter().any(|s| s.starts_with(
+            "--restart auto: no restart, as the fit keeps a shiny lobe (lambert, phong:50, phong:500)"
+        )),
+        "{:?}",
+        r.model.reasons
     );
 }
 
@@ -117,12 +151,21 @@ fn assert_restart_reported(mode: Restart, name: &str, prefix: &str) {
     let dir = crate::scratch::scratch("restart", name);
     let mut o = crate::scratch::small_example_options(&dir);
     o.restart = mode;
-    let r = relight_cpc::run::run(&o)
-        .expect("run with --restart")
-        .report;
-    let starts = r.starts.expect("the first fit's and the restart's records");
+    assert_options_restart_reported(&o, prefix);
+}
+
+/// The run with options `o` (a restart) as [`assert_restart_reported`] checks it; its report.
+fn assert_options_restart_reported(
+    o: &relight_cpc::run::RunOptions,
+    prefix: &str,
+) -> relight_cpc::report::RunReport {
+    let r = relight_cpc::run::run(o).expect("run with --restart").report;
+    let starts = r
+        .starts
+        .as_ref()
+        .expect("the first fit's and the restart's records");
     assert_eq!(starts.starts.len(), 2, "{starts:?}");
-    crate::scratch::assert_timeline_follows_starts(&r.timeline, &starts);
+    crate::scratch::assert_timeline_follows_starts(&r.timeline, starts);
     let kept = starts.chosen;
     assert_eq!(
         kept == 1,
@@ -143,4 +186,5 @@ fn assert_restart_reported(mode: Restart, name: &str, prefix: &str) {
         }),
         "{reason}"
     );
+    r
 }

@@ -13,6 +13,7 @@ use crate::solve::light::choose::{self, LightDecision};
 use crate::solve::materials::{brightness, coarse_light, irradiance, reanchor};
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
+use crate::transport::brdf::BasisBrdf;
 use crate::Result;
 
 /// The alternation from the start's family ([`FitStart::family`]) under each candidate
@@ -45,8 +46,14 @@ pub(super) fn alternate(
     if opts.start_search {
         est = search_starts(problem, est, &family[0].materials, lambert, &monitor, log)?;
     }
-    if opts.restart != Restart::Off && est.est.lambda.len() >= 2 {
-        est = restart(problem, p, est, start, opts.restart, &monitor, log)?;
+    if est.est.lambda.len() >= 2 {
+        let mode = opts.restart.resolve(&p.eff.basis);
+        if opts.restart == Restart::Auto {
+            start.reasons.push(auto_restart_reason(mode, &p.eff.basis));
+        }
+        if mode != Restart::Off {
+            est = restart(problem, p, est, start, mode, &monitor, log)?;
+        }
     }
     bar.finish_and_clear();
     Ok(est)
@@ -387,6 +394,18 @@ fn restart_options(eopts: &EstimateOptions, mode: Restart) -> EstimateOptions {
         validate_fixed_materials: eopts.validate_fixed_materials || hold,
         ..eopts.clone()
     }
+}
+
+/// What `--restart auto` chose over the fit's basis ([`Restart::resolve`]) and why.
+fn auto_restart_reason(mode: Restart, basis: &[BasisBrdf]) -> String {
+    if mode == Restart::CoarseLight {
+        return "--restart auto: a restart from a coarse non-negative light, as the fit's basis is the Lambertian lobe alone".into();
+    }
+    let lobes: Vec<String> = basis.iter().map(BasisBrdf::label).collect();
+    format!(
+        "--restart auto: no restart, as the fit keeps a shiny lobe ({}) and the coarse-light model reads every material as Lambertian",
+        lobes.join(", ")
+    )
 }
 
 /// The reason a model restart was skipped: some material has no vertex it reads.

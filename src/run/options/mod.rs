@@ -94,7 +94,8 @@ pub struct RunOptions {
     /// paper).
     pub start_search: bool,
     /// After the fit (and the start search), with two or more materials, a second fit
-    /// ([`Restart`]) and the one with the lower validation error kept (not in the paper).
+    /// ([`Restart`]) and the one with the lower validation error kept (not in the paper);
+    /// [`Restart::Auto`] by the fit's basis ([`Restart::resolve`]).
     pub restart: Restart,
     /// Where the start's material brightness comes from: the clustered colours, matched
     /// by normal, or the pilot's choice ([`StartBrightness::Auto`]).
@@ -294,7 +295,7 @@ impl RunOptions {
             starts: 1,
             start_weights: crate::solve::cluster::StartWeights::Clustered,
             start_search: false,
-            restart: Restart::Off,
+            restart: Restart::Auto,
             start_brightness: StartBrightness::Auto,
             robust_floor: EstimateOptions::default().robust_floor,
             weights_sum: WeightsSum::Auto,
