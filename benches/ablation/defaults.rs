@@ -445,6 +445,8 @@ fn second_fit(
     lambert: usize,
     pick: bool,
 ) -> Estimate {
+    use relight_cpc::solve::alternation::estimate_from_lights;
+    use relight_cpc::solve::materials::coarse_light;
     use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
     let Fitted { est, kept, seen } = first;
     let ratios_of = |lambda: &[Vec<[f64; 3]>], weights: &[f64]| {
@@ -463,12 +465,15 @@ fn second_fit(
             start_ratios(&m),
             ratios(&est)
         );
-        let mut opts = opts.clone();
-        // As `run --restart coarse-light`: the lights fitted again with the start's
-        // materials held (`coarse-light-free`: a free second fit).
-        opts.fixed_materials = v == "coarse-light";
-        opts.validate_fixed_materials = opts.fixed_materials;
-        estimate(problem, m, &opts, &mut |_, _| {}).expect("second fit")
+        // As `run --restart coarse-light`: the lights fitted again from the first fit's
+        // with the start's materials held (`coarse-light-free`: a free second fit).
+        if v == "coarse-light" {
+            let held = coarse_light::held_fit_options(opts);
+            estimate_from_lights(problem, m, &held, &est.lights, &mut |_, _| {})
+        } else {
+            estimate(problem, m, opts, &mut |_, _| {})
+        }
+        .expect("second fit")
     } else if v.starts_with("sh-ratio") {
         let m = sh_ratio_start(&est, case, seen, lambert);
         if std::env::var("ABLATION_SH_TRUTH").is_ok() {

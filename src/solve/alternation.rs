@@ -64,6 +64,26 @@ pub fn estimate(
     estimate_with(problem, init, opts, light, on_iter)
 }
 
+/// [`estimate`] with the paper's light model started from `lights` (one map per photo, as
+/// [`Estimate::lights`]) instead of zero maps: a warm start for a fit whose materials are
+/// near those `lights` were fitted with, such as a restart's. Its first lighting step is a
+/// warm one (one IRLS pass from the residuals of `lights`, [`crate::solve::light::photo::WARM_IRLS`]).
+/// With the sky or the shared light model, as [`estimate`].
+pub fn estimate_from_lights(
+    problem: &Problem,
+    init: Materials0,
+    opts: &EstimateOptions,
+    lights: &[[Vec<f64>; 3]],
+    on_iter: &mut dyn FnMut(&Iteration, &IterState),
+) -> Result<Estimate> {
+    if opts.light_sky.is_some() || opts.light_groups.is_some() {
+        return estimate(problem, init, opts, on_iter);
+    }
+    let mut light = PaperLight::new(problem, opts, &init);
+    light.set_params(lights.to_vec());
+    estimate_with(problem, init, opts, light, on_iter)
+}
+
 /// The alternation with any light model, starting from `light`'s parameters.
 pub fn estimate_with<M: LightModel>(
     problem: &Problem,

@@ -383,17 +383,15 @@ fn restart_start(
 }
 
 /// The second fit's options: `coarse-light` holds the start's materials (the model's
-/// ratios, the snapped weights) and fits the lights again, scored on the same validation
-/// split as the first fit; a free second fit moves the
-/// ratios 2 points away from a start within 3% on the ablation's diffuse scene
-/// (`bench-results/coarse-light-start.md`).
+/// ratios, the snapped weights) and fits the lights again from the first fit's, scored on
+/// the same validation split as the first fit ([`coarse_light::held_fit_options`]); a free
+/// second fit moves the ratios 2 points away from a start within 3% on the ablation's
+/// diffuse scene (`bench-results/coarse-light-start.md`).
 fn restart_options(eopts: &EstimateOptions, mode: Restart) -> EstimateOptions {
-    let hold = mode == Restart::CoarseLight;
-    EstimateOptions {
-        fixed_materials: eopts.fixed_materials || hold,
-        validate_fixed_materials: eopts.validate_fixed_materials || hold,
-        ..eopts.clone()
+    if mode == Restart::CoarseLight {
+        return coarse_light::held_fit_options(eopts);
     }
+    eopts.clone()
 }
 
 /// What `--restart auto` chose over the fit's basis ([`Restart::resolve`]) and why.

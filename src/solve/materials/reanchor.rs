@@ -39,6 +39,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::solve::alternation::estimate_from_lights;
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::solve::starts::StartRecord;
 use crate::solve::{
@@ -176,7 +177,9 @@ pub fn restart(
 
 /// A second fit from `start` (what `what` names, for the record), and the one of `first`
 /// and it with the lower early-stopping validation error kept; without validation (or on
-/// a tie, or a non-finite score) `first`.
+/// a tie, or a non-finite score) `first`. With the materials held
+/// ([`EstimateOptions::fixed_materials`]) its one lighting fit starts from `first`'s
+/// lights ([`estimate_from_lights`]).
 pub fn fit_again(
     problem: &Problem,
     first: Estimate,
@@ -185,7 +188,11 @@ pub fn fit_again(
     opts: &EstimateOptions,
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Restarted> {
-    let second = estimate(problem, start, opts, on_iter)?;
+    let second = if opts.fixed_materials {
+        estimate_from_lights(problem, start, opts, &first.lights, on_iter)?
+    } else {
+        estimate(problem, start, opts, on_iter)?
+    };
     let scores = [first.validation_error(), second.validation_error()];
     let kept_restart = scores[1] < scores[0];
     let record = StartRecord::of(
