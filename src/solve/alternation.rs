@@ -68,7 +68,8 @@ pub fn estimate(
 /// [`Estimate::lights`]) instead of zero maps: a warm start for a fit whose materials are
 /// near those `lights` were fitted with, such as a restart's. Its first lighting step is a
 /// warm one (one IRLS pass from the residuals of `lights`, [`crate::solve::light::photo::WARM_IRLS`]).
-/// With the sky or the shared light model, as [`estimate`].
+/// With the sky or the shared light model, as [`estimate`]. `lights` must hold one finite,
+/// non-negative map of the problem's global size per photo and channel.
 pub fn estimate_from_lights(
     problem: &Problem,
     init: Materials0,
@@ -79,6 +80,7 @@ pub fn estimate_from_lights(
     if opts.light_sky.is_some() || opts.light_groups.is_some() {
         return estimate(problem, init, opts, on_iter);
     }
+    check_start_lights(problem, lights)?;
     let mut light = PaperLight::new(problem, opts, &init);
     light.set_params(lights.to_vec());
     estimate_with(problem, init, opts, light, on_iter)
@@ -140,6 +142,30 @@ pub fn estimate_with<M: LightModel>(
 
 /// The starting materials must have `K ≥ 1` materials of `B` bases, `V·K` weights, all
 /// finite and `≥ 0`.
+/// The starting lights of [`estimate_from_lights`]: one map of `n_global²` finite,
+/// non-negative texels per photo and channel.
+fn check_start_lights(problem: &Problem, lights: &[[Vec<f64>; 3]]) -> Result<()> {
+    let n2 = problem.transport.n_global.pow(2);
+    if lights.len() != problem.n_photos || lights.iter().flatten().any(|m| m.len() != n2) {
+        return Err(Error::Internal(format!(
+            "starting lights: {} photos' maps, expected {} maps of {n2} texels per channel",
+            lights.len(),
+            problem.n_photos
+        )));
+    }
+    if lights
+        .iter()
+        .flatten()
+        .flatten()
+        .any(|v| !v.is_finite() || *v < 0.0)
+    {
+        return Err(Error::Internal(
+            "starting lights must be finite and non-negative".into(),
+        ));
+    }
+    Ok(())
+}
+
 fn check_start(problem: &Problem, init: &Materials0) -> Result<()> {
     let nb = problem.transport.n_basis;
     let kk = init.lambda.len();

@@ -243,14 +243,8 @@ fn known_reflectance_recovers_the_maps() {
     // negligible smoothness (1e-8): the 64 texels per channel are over-determined by
     // ~135 observations whose lobes cover the map, so the maps must come back to ~1e-4.
     let p = planted(1, 0.0, 0.0, 150, 4);
-    let mut o = opts(Robust::None);
-    o.fixed_materials = true;
-    o.smoothness = 1e-8;
-    let init = Materials0 {
-        lambda: p.lambda.clone(),
-        weights: p.weights.clone(),
-    };
-    let est = estimate(&problem(&p), init, &o, &mut |_, _| {}).unwrap();
+    let o = known_reflectance_options();
+    let est = estimate(&problem(&p), true_materials(&p), &o, &mut |_, _| {}).unwrap();
     for i in 0..p.photos {
         for c in 0..3 {
             let (mut se, mut ss) = (0.0, 0.0);
@@ -280,13 +274,8 @@ fn a_known_reflectance_fit_started_near_its_lights_lands_on_them_in_fewer_produc
     // products are the check that it was read at all.
     use relight_cpc::solve::alternation::estimate_from_lights;
     let p = planted(1, 0.0, 0.0, 150, 4);
-    let mut o = opts(Robust::None);
-    o.fixed_materials = true;
-    o.smoothness = 1e-8;
-    let init = || Materials0 {
-        lambda: p.lambda.clone(),
-        weights: p.weights.clone(),
-    };
+    let o = known_reflectance_options();
+    let init = || true_materials(&p);
     let cold = estimate(&problem(&p), init(), &o, &mut |_, _| {}).unwrap();
     // A start near the optimum, as a restart's is: the cold fit's maps 5% too bright.
     let near: Vec<[Vec<f64>; 3]> = cold
@@ -311,6 +300,34 @@ fn a_known_reflectance_fit_started_near_its_lights_lands_on_them_in_fewer_produc
         cold.conditioning.lighting_matvecs,
     );
     assert!(mw < mc, "Hessian products: warm {mw}, cold {mc}");
+    // Starting lights of the wrong shape or with a negative texel are refused in words,
+    // not a panic.
+    let mut negative = near.clone();
+    negative[0][1][3] = -1.0;
+    for bad in [&near[..1], &negative[..]] {
+        let err = estimate_from_lights(&problem(&p), init(), &o, bad, &mut |_, _| {})
+            .expect_err("bad starting lights")
+            .to_string();
+        assert!(err.contains("starting lights"), "{err}");
+    }
+}
+
+/// The Sec. 6.1 protocol's options: the materials held, IRLS off, a negligible smoothness
+/// (1e-8), so that with the true reflectance on noise-free data the maps come back.
+fn known_reflectance_options() -> EstimateOptions {
+    EstimateOptions {
+        fixed_materials: true,
+        smoothness: 1e-8,
+        ..opts(Robust::None)
+    }
+}
+
+/// The planted scene's true materials.
+fn true_materials(p: &Planted) -> Materials0 {
+    Materials0 {
+        lambda: p.lambda.clone(),
+        weights: p.weights.clone(),
+    }
 }
 
 #[test]
@@ -323,10 +340,10 @@ fn known_reflectance_is_scored_on_the_validation_split_when_asked() {
     // Without the option the fit keeps every observation and has no score (Sec. 6.1).
     let p = planted(1, 0.0, 0.0, 150, 4);
     let score = |lambda: Vec<Vec<[f64; 3]>>, validate: bool| {
-        let mut o = opts(Robust::None);
-        o.fixed_materials = true;
-        o.validate_fixed_materials = validate;
-        o.smoothness = 1e-8;
+        let o = EstimateOptions {
+            validate_fixed_materials: validate,
+            ..known_reflectance_options()
+        };
         let init = Materials0 {
             lambda,
             weights: p.weights.clone(),
