@@ -30,30 +30,28 @@ pub struct PhotoMoments {
     h: Vec<DVector<f64>>,
 }
 
-/// One row as the moments read it: its photo, its material, its design row and its
-/// radiance in the channel.
-pub struct MomentRow<'a> {
+/// One observation a ratio model reads: its photo, its vertex's material, its radiance and
+/// its design row `a_p` (the normal's harmonics, or the transport's block responses).
+#[derive(Debug, Clone)]
+pub struct ModelRow {
     pub photo: usize,
     pub material: usize,
-    pub design: &'a [f64],
-    pub y: f64,
+    pub rgb: [f64; 3],
+    pub design: Vec<f64>,
 }
 
 impl PhotoMoments {
-    /// The moments of `rows` (designs of length `dim`).
-    pub fn of<'a>(
-        rows: impl Iterator<Item = MomentRow<'a>>,
-        n_photos: usize,
-        materials: usize,
-        dim: usize,
-    ) -> PhotoMoments {
+    /// Channel `c`'s moments of `rows` (designs of one length) over `n_photos` photos and
+    /// `materials` materials.
+    pub fn of(rows: &[ModelRow], c: usize, n_photos: usize, materials: usize) -> PhotoMoments {
+        let dim = rows.first().map_or(0, |r| r.design.len());
         let mut g = vec![DMatrix::zeros(dim, dim); n_photos * materials];
         let mut h = vec![DVector::zeros(dim); n_photos * materials];
         for r in rows {
-            let a = DVector::from_column_slice(r.design);
+            let a = DVector::from_column_slice(&r.design);
             let i = r.photo * materials + r.material;
             g[i] += &a * a.transpose();
-            h[i] += &a * r.y;
+            h[i] += &a * r.rgb[c];
         }
         PhotoMoments { materials, g, h }
     }

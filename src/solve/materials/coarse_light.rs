@@ -39,8 +39,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::observe::Observations;
-use crate::solve::materials::bilinear;
-use crate::solve::materials::irradiance::{pure_material, start_from_albedos};
+use crate::solve::materials::bilinear::{self, ModelRow};
+use crate::solve::materials::irradiance::{pure_rows, start_from_albedos};
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::solve::{EstimateOptions, Materials0};
 use crate::sphere::haar;
@@ -78,16 +78,6 @@ pub fn held_fit_options(opts: &EstimateOptions) -> EstimateOptions {
         qp_rel_tol: opts.qp_rel_tol.max(HELD_QP_REL_TOL),
         ..opts.clone()
     }
-}
-
-/// One observation the model reads: its photo, its vertex's material, its radiance and its
-/// Lambertian row's response to each block (`r²`).
-#[derive(Debug, Clone)]
-pub struct CoarseRow {
-    pub photo: usize,
-    pub material: usize,
-    pub rgb: [f64; 3],
-    pub a: Vec<f64>,
 }
 
 /// What [`pure_seen_rows`] reads.
@@ -145,34 +135,25 @@ pub fn block_responses(
 }
 
 /// The fitted (`α > 0`) observations of the seen vertices with one normalised weight ≥
-/// [`super::irradiance::PURE`], each with its block responses.
-pub fn pure_seen_rows(input: &CoarseRowsInput) -> Vec<CoarseRow> {
-    let (obs, t, kk) = (input.obs, input.transport, input.materials);
-    let (n, h) = (t.n_global, block_haar(t.n_global, input.blocks));
-    let mut rows = Vec::new();
-    for (photo, range) in obs.photo_ranges.iter().enumerate() {
-        for p in range.clone().filter(|&p| obs.weight[p] > 0.0) {
-            let x = obs.vertex[p] as usize;
-            if !input.seen[x] {
-                continue;
-            }
-            let Some(material) = pure_material(&input.weights[x * kk..(x + 1) * kk]) else {
-                continue;
-            };
-            let (idx, val) = t.row(p, input.lambert);
-            let entries = idx
-                .iter()
-                .zip(val)
-                .map(|(&m, &g)| (m as usize, f64::from(g)));
-            rows.push(CoarseRow {
-                photo,
-                material,
-                rgb: obs.rgb[p].map(f64::from),
-                a: block_responses(entries, n, &h),
-            });
-        }
-    }
-    rows
+/// [`super::irradiance::PURE`] ([`pure_rows`]), each with its Lambertian row's response to
+/// each block ([`block_responses`]).
+pub fn pure_seen_rows(input: &CoarseRowsInput) -> Vec<ModelRow> {
+    let (t, n) = (input.transport, input.transport.n_global);
+    let h = block_haar(n, input.blocks);
+    let responses = |p: usize, _: usize| {
+        let (idx, val) = t.row(p, input.lambert);
+        let entries = idx
+            .iter()
+            .zip(val)
+            .map(|(&m, &g)| (m as usize, f64::from(g)));
+        block_responses(entries, n, &h)
+    };
+    pure_rows(
+        input.obs,
+        (input.seen, input.weights, input.materials),
+        |_| true,
+        responses,
+    )
 }
 
 /// Channel `c`'s albedo per material (module docs) from `rho0` (one per material, > 0),
@@ -180,23 +161,12 @@ pub fn pure_seen_rows(input: &CoarseRowsInput) -> Vec<CoarseRow> {
 /// ([`bilinear::alternate`]); a material without rows keeps its `rho0`. Each photo's NNLS
 /// carries a ridge of `10⁻¹²` times its largest diagonal entry.
 pub fn coarse_light_albedos(
-    rows: &[CoarseRow],
+    rows: &[ModelRow],
     c: usize,
     n_photos: usize,
     rho0: &[f64],
 ) -> Result<Vec<f64>> {
-    let dim = rows.first().map_or(0, |r| r.a.len());
-    let m = bilinear::PhotoMoments::of(
-        rows.iter().map(|r| bilinear::MomentRow {
-            photo: r.photo,
-            material: r.material,
-            design: &r.a,
-            y: r.rgb[c],
-        }),
-        n_photos,
-        rho0.len(),
-        dim,
-    );
+    let m = bilinear::PhotoMoments::of(rows, c, n_photos, rho0.len());
     let non_negative = |mut ata: DMatrix<f64>, atb: DVector<f64>| {
         let ridge = 1e-12 * ata.diagonal().max().max(f64::MIN_POSITIVE);
         for d in 0..ata.nrows() {
@@ -218,7 +188,7 @@ pub fn coarse_light_start(
     lambda: &[Vec<[f64; 3]>],
     weights: Vec<f64>,
     lambert: usize,
-    rows: &[CoarseRow],
+    rows: &[ModelRow],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
     let read = rows.iter().map(|r| r.material);
@@ -285,7 +255,7 @@ mod tests {
     /// Rows of two materials (material 0 facing up more, material 1 down more and shadowed
     /// by a wall at `x > 0.5`) on a 32² map with 8 × 8 blocks, under one light per photo
     /// given by its texel radiance `light(photo, ω)`.
-    fn rows_under(photos: usize, light: impl Fn(usize, &Vec3) -> f64) -> Vec<CoarseRow> {
+    fn rows_under(photos: usize, light: impl Fn(usize, &Vec3) -> f64) -> Vec<ModelRow> {
         let (n, r) = (32, 8);
         let grid = SphereGrid::full(n);
         let h = block_haar(n, r);
@@ -299,11 +269,11 @@ mod tests {
                 for nrm in set {
                     let g = texel_row(&grid, nrm, |d| k == 1 && d.x > 0.5);
                     let irr: f64 = g.iter().zip(&l).map(|(a, b)| a * b).sum();
-                    rows.push(CoarseRow {
+                    rows.push(ModelRow {
                         photo,
                         material: k,
                         rgb: TRUE_RHO[k].map(|v| v * irr),
-                        a: block_responses(haar_entries(&g, n).into_iter(), n, &h),
+                        design: block_responses(haar_entries(&g, n).into_iter(), n, &h),
                     });
                 }
             }
@@ -311,7 +281,7 @@ mod tests {
         rows
     }
 
-    fn ratio_error(rows: &[CoarseRow], photos: usize) -> f64 {
+    fn ratio_error(rows: &[ModelRow], photos: usize) -> f64 {
         (0..3)
             .map(|c| {
                 let rho = coarse_light_albedos(rows, c, photos, &[1.0, 4.0]).unwrap();

@@ -38,7 +38,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::observe::Observations;
-use crate::solve::materials::bilinear;
+use crate::solve::materials::bilinear::{self, ModelRow};
 use crate::solve::Materials0;
 use crate::{Error, Result, Vec3};
 
@@ -76,16 +76,6 @@ pub fn sh9(n: &Vec3) -> [f64; 9] {
     ]
 }
 
-/// One observation the model reads: its photo, its vertex's material, its radiance and the
-/// harmonics of its vertex's normal.
-#[derive(Debug, Clone)]
-pub struct IrradianceRow {
-    pub photo: usize,
-    pub material: usize,
-    pub rgb: [f64; 3],
-    pub sh: [f64; 9],
-}
-
 /// What [`pure_open_rows`] reads.
 pub struct RowsInput<'a> {
     pub obs: &'a Observations,
@@ -104,25 +94,43 @@ pub struct RowsInput<'a> {
 }
 
 /// The fitted (`α > 0`) observations of the seen vertices with open fraction ≥
-/// `min_open` and one normalised weight ≥ [`PURE`].
-pub fn pure_open_rows(input: &RowsInput) -> Vec<IrradianceRow> {
-    let (obs, kk) = (input.obs, input.materials);
-    let material = |x: usize| -> Option<usize> {
-        if !input.seen[x] || input.open[x] < input.min_open {
-            return None;
-        }
-        pure_material(&input.weights[x * kk..(x + 1) * kk])
-    };
+/// `min_open` and one normalised weight ≥ [`PURE`] ([`pure_rows`]), each with its normal's
+/// nine harmonics.
+pub fn pure_open_rows(input: &RowsInput) -> Vec<ModelRow> {
+    let open = |x: usize| input.open[x] >= input.min_open;
+    let harmonics = |_: usize, x: usize| sh9(&input.normals_env[x]).to_vec();
+    pure_rows(
+        input.obs,
+        (input.seen, input.weights, input.materials),
+        open,
+        harmonics,
+    )
+}
+
+/// The fitted (`α > 0`) observations of the seen vertices (`seen`) that `read` accepts and
+/// whose normalised weights (`weights`, `V × K` row-major, `K` = `materials`) hold one
+/// material at ≥ [`PURE`], each with `design(p, x)` for observation `p` of vertex `x`: the
+/// rows of both ratio models ([`pure_open_rows`], [`super::coarse_light::pure_seen_rows`]).
+pub fn pure_rows(
+    obs: &Observations,
+    (seen, weights, materials): (&[bool], &[f64], usize),
+    read: impl Fn(usize) -> bool,
+    mut design: impl FnMut(usize, usize) -> Vec<f64>,
+) -> Vec<ModelRow> {
+    let kk = materials;
     let mut rows = Vec::new();
     for (photo, range) in obs.photo_ranges.iter().enumerate() {
         for p in range.clone().filter(|&p| obs.weight[p] > 0.0) {
             let x = obs.vertex[p] as usize;
-            if let Some(material) = material(x) {
-                rows.push(IrradianceRow {
+            if !seen[x] || !read(x) {
+                continue;
+            }
+            if let Some(material) = pure_material(&weights[x * kk..(x + 1) * kk]) {
+                rows.push(ModelRow {
                     photo,
                     material,
                     rgb: obs.rgb[p].map(f64::from),
-                    sh: sh9(&input.normals_env[x]),
+                    design: design(p, x),
                 });
             }
         }
@@ -138,22 +146,12 @@ pub fn pure_open_rows(input: &RowsInput) -> Vec<IrradianceRow> {
 /// ([`bilinear::PhotoMoments`]), so a round costs `O(photos · K · 81)` whatever the number
 /// of rows.
 pub fn irradiance_albedos(
-    rows: &[IrradianceRow],
+    rows: &[ModelRow],
     c: usize,
     n_photos: usize,
     rho0: &[f64],
 ) -> Result<Vec<f64>> {
-    let m = bilinear::PhotoMoments::of(
-        rows.iter().map(|r| bilinear::MomentRow {
-            photo: r.photo,
-            material: r.material,
-            design: &r.sh,
-            y: r.rgb[c],
-        }),
-        n_photos,
-        rho0.len(),
-        9,
-    );
+    let m = bilinear::PhotoMoments::of(rows, c, n_photos, rho0.len());
     let least_squares = |mut ata: DMatrix<f64>, atb: DVector<f64>| {
         for d in 0..ata.nrows() {
             ata[(d, d)] += 1e-9;
@@ -191,7 +189,7 @@ pub fn irradiance_start(
     lambda: &[Vec<[f64; 3]>],
     weights: Vec<f64>,
     lambert: usize,
-    rows: &[IrradianceRow],
+    rows: &[ModelRow],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
     let read = rows.iter().map(|r| r.material);
@@ -287,12 +285,12 @@ mod tests {
 
     /// Rows of two materials on overlapping but different bands of normals (material 0
     /// faces up more, material 1 down more) under `photos` exact order-2 irradiances.
-    fn exact_rows(photos: usize) -> Vec<IrradianceRow> {
+    fn exact_rows(photos: usize) -> Vec<ModelRow> {
         exact_rows_on(photos, [(-0.3, 1.0), (-1.0, 0.4)])
     }
 
     /// As [`exact_rows`], material `k`'s normals those with `z` in `bands[k]`.
-    fn exact_rows_on(photos: usize, bands: [(f64, f64); 2]) -> Vec<IrradianceRow> {
+    fn exact_rows_on(photos: usize, bands: [(f64, f64); 2]) -> Vec<ModelRow> {
         let sets = bands.map(|(lo, hi)| normals(400, lo, hi));
         let mut rows = Vec::new();
         for photo in 0..photos {
@@ -312,11 +310,11 @@ mod tests {
                         let e: f64 = (0..9).map(|j| coef(c, j) * sh[j]).sum();
                         TRUE_RHO[k][c] * e
                     });
-                    rows.push(IrradianceRow {
+                    rows.push(ModelRow {
                         photo,
                         material: k,
                         rgb,
-                        sh,
+                        design: sh.to_vec(),
                     });
                 }
             }
@@ -343,13 +341,13 @@ mod tests {
 
     /// Channel `c`'s least-squares residual of the model over `rows` with albedos
     /// `(1, t)`, each photo's coefficients solved from its rows (not from [`bilinear::PhotoMoments`]).
-    fn profiled_residual(rows: &[IrradianceRow], c: usize, photos: usize, t: f64) -> f64 {
+    fn profiled_residual(rows: &[ModelRow], c: usize, photos: usize, t: f64) -> f64 {
         let rho = [1.0, t];
         (0..photos)
             .map(|i| {
-                let mine: Vec<&IrradianceRow> = rows.iter().filter(|r| r.photo == i).collect();
+                let mine: Vec<&ModelRow> = rows.iter().filter(|r| r.photo == i).collect();
                 let a = nalgebra::DMatrix::from_fn(mine.len(), 9, |r, j| {
-                    mine[r].sh[j] * rho[mine[r].material]
+                    mine[r].design[j] * rho[mine[r].material]
                 });
                 let y = nalgebra::DVector::from_fn(mine.len(), |r, _| mine[r].rgb[c]);
                 let s = a.clone().svd(true, true).solve(&y, 1e-12).unwrap();
@@ -380,11 +378,11 @@ mod tests {
             for (k, set) in sets.iter().enumerate() {
                 for n in set.iter().filter(|n| n.dot(&view) > 0.9) {
                     let irr = sky_and_sun(n, &sun);
-                    rows.push(IrradianceRow {
+                    rows.push(ModelRow {
                         photo,
                         material: k,
                         rgb: TRUE_RHO[k].map(|r| r * irr),
-                        sh: sh9(n),
+                        design: sh9(n).to_vec(),
                     });
                 }
             }
@@ -434,11 +432,11 @@ mod tests {
         for (k, set) in sets.iter().enumerate() {
             for n in set {
                 let e = sky_and_sun(n, &sun);
-                rows.push(IrradianceRow {
+                rows.push(ModelRow {
                     photo: 0,
                     material: k,
                     rgb: TRUE_RHO[k].map(|r| r * e),
-                    sh: sh9(n),
+                    design: sh9(n).to_vec(),
                 });
             }
         }
@@ -516,7 +514,7 @@ mod tests {
         assert_eq!(got, vec![(0, 0), (0, 1), (1, 0)]);
         // Without material 1's rows the start is `None`, not a guess.
         let lambda = vec![vec![[1.0; 3]], vec![[1.0; 3]]];
-        let only0: Vec<IrradianceRow> = rows.into_iter().filter(|r| r.material == 0).collect();
+        let only0: Vec<ModelRow> = rows.into_iter().filter(|r| r.material == 0).collect();
         assert!(irradiance_start(&lambda, w, 0, &only0, 2)
             .unwrap()
             .is_none());
