@@ -38,6 +38,7 @@ use crate::solve::ratio_step;
 use crate::solve::result::{
     Conditioning, Estimate, IterState, Iteration, Materials0, RatioMoves, StepTimes,
 };
+use crate::solve::start_check;
 use crate::solve::validation::{EarlyStop, HeldBack};
 use crate::stages::Stopwatch;
 use crate::{Error, Result};
@@ -80,7 +81,7 @@ pub fn estimate_from_lights(
     if opts.light_sky.is_some() || opts.light_groups.is_some() {
         return estimate(problem, init, opts, on_iter);
     }
-    check_start_lights(problem, lights)?;
+    start_check::lights(problem, lights)?;
     let mut light = PaperLight::new(problem, opts, &init);
     light.set_params(lights.to_vec());
     estimate_with(problem, init, opts, light, on_iter)
@@ -96,7 +97,7 @@ pub fn estimate_with<M: LightModel>(
 ) -> Result<Estimate> {
     problem.validate()?;
     let t0 = Instant::now();
-    check_start(problem, &init)?;
+    start_check::materials(problem, &init)?;
     // Early stopping: the validation observations get α = 0 in the fitted copy.
     let held = HeldBack::new(problem, opts);
     let fit_problem = held.fit_problem(problem);
@@ -138,59 +139,6 @@ pub fn estimate_with<M: LightModel>(
         alt.refit_held_weights(problem, &held.idx)?;
     }
     alt.finish(&init, timeline, validation)
-}
-
-/// The starting materials must have `K ≥ 1` materials of `B` bases, `V·K` weights, all
-/// finite and `≥ 0`.
-/// The starting lights of [`estimate_from_lights`]: one map of `n_global²` finite,
-/// non-negative texels per photo and channel.
-fn check_start_lights(problem: &Problem, lights: &[[Vec<f64>; 3]]) -> Result<()> {
-    let n2 = problem.transport.n_global.pow(2);
-    if lights.len() != problem.n_photos || lights.iter().flatten().any(|m| m.len() != n2) {
-        return Err(Error::Internal(format!(
-            "starting lights: {} photos' maps, expected {} maps of {n2} texels per channel",
-            lights.len(),
-            problem.n_photos
-        )));
-    }
-    if lights
-        .iter()
-        .flatten()
-        .flatten()
-        .any(|v| !v.is_finite() || *v < 0.0)
-    {
-        return Err(Error::Internal(
-            "starting lights must be finite and non-negative".into(),
-        ));
-    }
-    Ok(())
-}
-
-fn check_start(problem: &Problem, init: &Materials0) -> Result<()> {
-    let nb = problem.transport.n_basis;
-    let kk = init.lambda.len();
-    let nv = problem.n_vertices;
-    if kk == 0 || init.lambda.iter().any(|l| l.len() != nb) || init.weights.len() != nv * kk {
-        return Err(Error::Internal(format!(
-            "initial materials: {kk} materials with {:?} bases and {} weights, expected B = {nb}, V·K = {}",
-            init.lambda.iter().map(|l| l.len()).collect::<Vec<_>>(),
-            init.weights.len(),
-            nv * kk
-        )));
-    }
-    if init
-        .lambda
-        .iter()
-        .flatten()
-        .flatten()
-        .chain(&init.weights)
-        .any(|v| !v.is_finite() || *v < 0.0)
-    {
-        return Err(Error::Internal(
-            "initial materials must be finite and non-negative".into(),
-        ));
-    }
-    Ok(())
 }
 
 /// Light parameters and materials at one point of the alternation (the previous iterate

@@ -75,6 +75,7 @@ pub mod problem;
 pub mod qp;
 pub mod ratio_step;
 pub mod result;
+pub(crate) mod start_check;
 pub mod starts;
 pub mod subsample;
 pub mod validation;
