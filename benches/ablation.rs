@@ -56,8 +56,8 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio|sh-ratio2|coarse-light|coarse-light-free`
-//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last nine a second
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse`
+//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last ten a second
 //! fit from the first fit's materials (`sh-ratio2`: and a third fit from the model read
 //! again over the second fit's weights), `ABLATION_REFIT_PICK=1` keeping the one with the
 //! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
@@ -67,7 +67,9 @@
 //! model's too; `coarse-light` is `run --restart coarse-light`, the lights
 //! fitted again with the start's materials held, `coarse-light-free` a free second fit
 //! from the same start; without one, the row makes `run --restart auto`'s second fit,
-//! `ABLATION_DEFAULTS_RESTART=off` none), and
+//! `ABLATION_DEFAULTS_RESTART=off` none; `reanchor-coarse` is `run --restart
+//! on+coarse-light`), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
+//! sum-to-one prior on blended vertices whatever the pilot's scope), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=shared` (the `defaults` row with
 //! `run --light shared`, the groups the photos' true skies), `SYNTH_SHARED_SKIES=1` (the

@@ -173,7 +173,16 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let neighbour_prior = adapt::neighbour_prior_for(&kept).0;
     let opts = EstimateOptions {
         weights_sum: pilot.weights_sum,
-        weights_sum_scope: pilot.weights_sum_scope,
+        // `ABLATION_DEFAULTS_SCOPE=blends`: the prior on blended vertices whatever the
+        // pilot's scope.
+        weights_sum_scope: if std::env::var("ABLATION_DEFAULTS_SCOPE").is_ok_and(|v| v == "blends")
+        {
+            relight_cpc::solve::SumScope::Blends {
+                floor: relight_cpc::solve::BLEND_FLOOR,
+            }
+        } else {
+            pilot.weights_sum_scope
+        },
         max_outer,
         patience: crate::env_or("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
         rel_tol,
@@ -224,6 +233,18 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         ) => {
             let pick = crate::env_flag("ABLATION_REFIT_PICK");
             second_fit(v, &problem, first, &opts, case, lambert, pick)
+        }
+        // `reanchor-coarse`: `run --restart on+coarse-light`, the re-anchored restart,
+        // then the coarse-light one from the fit kept, each kept when its validation error
+        // is lower.
+        Ok("reanchor-coarse") => {
+            let est = second_fit("reanchor", &problem, first, &opts, case, lambert, true);
+            let again = Fitted {
+                est,
+                kept: &pilot.kept,
+                seen: &seen,
+            };
+            second_fit("coarse-light", &problem, again, &opts, case, lambert, true)
         }
         _ if auto_restart(&kept, pilot.materials) => {
             second_fit("coarse-light", &problem, first, &opts, case, lambert, true)

@@ -3,7 +3,8 @@
 //! (`spot-three`, rendered by the independent reference renderer and taken through the
 //! real stages, `tests/support/synth_case.rs`), its photos replaced by the true model's
 //! prediction (noise-free: what is left is the estimator's), the paper's k-means start;
-//! and the restarts (`--restart on | irradiance | coarse-light | auto`) as `run` reports
+//! and the restarts (`--restart on | irradiance | coarse-light | on+coarse-light | auto`)
+//! as `run` reports
 //! them on the built-in example. The irradiance model's own kernel is tested against exact and quadrature
 //! irradiance in `src/solve/materials/irradiance.rs`.
 
@@ -81,11 +82,7 @@ fn the_restart_sorts_the_blended_vertices_of_three_materials() {
 /// what the restart did and which fit was kept (the one with the lower validation error).
 #[test]
 fn the_runs_report_holds_the_restart() {
-    assert_restart_reported(
-        Restart::Reanchor,
-        "report",
-        "restart from the fit's own materials",
-    );
+    assert_restart_reported(Restart::Reanchor, "report", REANCHOR_REASON);
 }
 
 /// The same with `run --restart irradiance` (the second fit's Lambertian ratios from the
@@ -111,6 +108,20 @@ fn the_runs_report_holds_the_coarse_light_restart() {
     );
 }
 
+/// The same with `run --restart on+coarse-light`: the re-anchored restart, then the
+/// coarse-light one from the fit kept, three starts, each restart's reason read against the
+/// fit kept before it.
+#[test]
+fn the_runs_report_holds_both_restarts_in_order() {
+    let dir = crate::scratch::scratch("restart", "report-on-coarse-light");
+    let mut o = crate::scratch::small_example_options(&dir);
+    o.restart = Restart::ReanchorCoarseLight;
+    assert_options_restarts_reported(&o, &[REANCHOR_REASON, COARSE_LIGHT_REASON]);
+}
+
+/// How the re-anchored restart's reason starts.
+const REANCHOR_REASON: &str = "restart from the fit's own materials";
+
 /// How the coarse-light restart's reason starts.
 const COARSE_LIGHT_REASON: &str = "restart from the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map";
 
@@ -124,7 +135,7 @@ fn the_auto_restart_is_the_coarse_light_one_over_the_lambertian_lobe_alone() {
     let mut o = crate::scratch::small_example_options(&dir);
     assert_eq!(o.restart, Restart::Auto, "the default");
     o.basis = vec![BasisBrdf::Lambert];
-    let r = assert_options_restart_reported(&o, COARSE_LIGHT_REASON);
+    let r = assert_options_restarts_reported(&o, &[COARSE_LIGHT_REASON]);
     assert!(
         r.model.reasons.iter().any(|s| s
             == "--restart auto: a restart from a coarse non-negative light, as the fit's basis is the Lambertian lobe alone"),
@@ -145,46 +156,52 @@ fn the_auto_restart_is_the_coarse_light_one_over_the_lambertian_lobe_alone() {
     );
 }
 
-/// The example run with `mode`: two starts, the timeline per start, the kept one the
-/// lower score, and a reason starting with `prefix` that says which was kept.
+/// The example run with `mode` (one restart): two starts, the timeline per start, the
+/// kept one the lower score, and a reason starting with `prefix` that says which was kept.
 fn assert_restart_reported(mode: Restart, name: &str, prefix: &str) {
     let dir = crate::scratch::scratch("restart", name);
     let mut o = crate::scratch::small_example_options(&dir);
     o.restart = mode;
-    assert_options_restart_reported(&o, prefix);
+    assert_options_restarts_reported(&o, &[prefix]);
 }
 
-/// The run with options `o` (a restart) as [`assert_restart_reported`] checks it; its report.
-fn assert_options_restart_reported(
+/// The run with options `o`, whose restarts' reasons start with `prefixes` in order: one
+/// start per restart after the first fit, the timeline per start, each restart kept
+/// exactly when its score is below the fit kept before it (its reason says which), and
+/// the chosen start the last one kept; the report.
+fn assert_options_restarts_reported(
     o: &relight_cpc::run::RunOptions,
-    prefix: &str,
+    prefixes: &[&str],
 ) -> relight_cpc::report::RunReport {
     let r = relight_cpc::run::run(o).expect("run with --restart").report;
     let starts = r
         .starts
         .as_ref()
-        .expect("the first fit's and the restart's records");
-    assert_eq!(starts.starts.len(), 2, "{starts:?}");
+        .expect("the first fit's and the restarts' records");
+    assert_eq!(starts.starts.len(), prefixes.len() + 1, "{starts:?}");
     crate::scratch::assert_timeline_follows_starts(&r.timeline, starts);
-    let kept = starts.chosen;
-    assert_eq!(
-        kept == 1,
-        starts.starts[1].score < starts.starts[0].score,
-        "{starts:?}"
-    );
-    let reason = r
-        .model
-        .reasons
-        .iter()
-        .find(|s| s.starts_with(prefix))
-        .unwrap_or_else(|| panic!("the restart's reason in {:?}", r.model.reasons));
-    assert!(
-        reason.ends_with(if kept == 1 {
-            ", kept"
-        } else {
+    let mut kept = 0;
+    for (i, prefix) in prefixes.iter().enumerate() {
+        let reason = r
+            .model
+            .reasons
+            .iter()
+            .find(|s| s.starts_with(prefix))
+            .unwrap_or_else(|| panic!("the restart's reason in {:?}", r.model.reasons));
+        let better = starts.starts[i + 1].score < starts.starts[kept].score;
+        let refused = if i == 0 {
             "the first fit kept"
-        }),
-        "{reason}"
-    );
+        } else {
+            "the previous fit kept"
+        };
+        assert!(
+            reason.ends_with(if better { ", kept" } else { refused }),
+            "{reason} ({starts:?})"
+        );
+        if better {
+            kept = i + 1;
+        }
+    }
+    assert_eq!(starts.chosen, kept, "{starts:?}");
     r
 }

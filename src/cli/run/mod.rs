@@ -209,9 +209,10 @@ pub(crate) struct RunArgs {
     /// materials). `coarse-light`: the ratios fitted with each photo's light a coarse
     /// non-negative map seen through the vertices' shadows, over every vertex one material
     /// holds, and the lights fitted again with those materials held (Lambertian
-    /// materials). `auto`: `coarse-light` when the fit's basis is the Lambertian lobe
-    /// alone, else none. One more fit.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "off", "on", "irradiance", "coarse-light"], help_heading = "Solver")]
+    /// materials). `on+coarse-light`: `on`, then `coarse-light` from the fit kept. `auto`:
+    /// `coarse-light` when the fit's basis is the Lambertian lobe alone, else none. One
+    /// more fit each.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "off", "on", "irradiance", "coarse-light", "on+coarse-light"], help_heading = "Solver")]
     pub(crate) restart: String,
     /// Where each material's starting brightness comes from: `clustered` (its colour
     /// cluster's median, the paper), `matched` (compared with the other materials at

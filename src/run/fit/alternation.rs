@@ -51,8 +51,8 @@ pub(super) fn alternate(
         if opts.restart == Restart::Auto {
             start.reasons.push(auto_restart_reason(mode, &p.eff.basis));
         }
-        if mode != Restart::Off {
-            est = restart(problem, p, est, start, mode, &monitor, log)?;
+        for &step in mode.steps() {
+            est = restart(problem, p, est, start, step, &monitor, log)?;
         }
     }
     bar.finish_and_clear();
@@ -302,8 +302,10 @@ fn restart(
         "restart from {what}: validation error {second:.4} against {first:.4}, {}",
         if done.kept_restart {
             "kept"
-        } else {
+        } else if si == 1 {
             "the first fit kept"
+        } else {
+            "the previous fit kept"
         }
     ));
     multi.starts.push(done.record);
