@@ -197,7 +197,7 @@ pub fn fit_again(
     let kept_restart = scores[1] < scores[0];
     let record = StartRecord::of(
         format!(
-            "{what} (validation {:.4} against the first fit's {:.4})",
+            "{what} (validation {:.4} against the fit it restarts from, {:.4})",
             scores[1], scores[0]
         ),
         scores[1],
