@@ -16,7 +16,7 @@
 //! left out).
 
 use crate::synth_case::*;
-use relight_cpc::run::RunOptions;
+use relight_cpc::run::{Restart, RunOptions};
 use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
 use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
 use relight_cpc::solve::materials::propagate::propagate_unseen;
@@ -234,22 +234,23 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             let pick = crate::env_flag("ABLATION_REFIT_PICK");
             second_fit(v, &problem, first, &opts, case, lambert, pick)
         }
-        // `reanchor-coarse`: `run --restart on+coarse-light`, the re-anchored restart,
-        // then the coarse-light one from the fit kept, each kept when its validation error
-        // is lower.
-        Ok("reanchor-coarse") => {
-            let est = second_fit("reanchor", &problem, first, &opts, case, lambert, true);
-            let again = Fitted {
-                est,
-                kept: &pilot.kept,
-                seen: &seen,
-            };
-            second_fit("coarse-light", &problem, again, &opts, case, lambert, true)
-        }
-        _ if auto_restart(&kept, pilot.materials) => {
-            second_fit("coarse-light", &problem, first, &opts, case, lambert, true)
-        }
-        _ => first.est,
+        // `reanchor-coarse`: `run --restart on+coarse-light`.
+        Ok("reanchor-coarse") => restarts(
+            Restart::ReanchorCoarseLight,
+            &problem,
+            first,
+            &opts,
+            case,
+            lambert,
+        ),
+        _ => restarts(
+            auto_restart(&kept, pilot.materials),
+            &problem,
+            first,
+            &opts,
+            case,
+            lambert,
+        ),
     };
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
@@ -548,13 +549,44 @@ fn second_fit(
     }
 }
 
-/// Whether `run --restart auto` makes the coarse-light restart after the defaults' fit
-/// ([`relight_cpc::run::Restart::resolve`] over the pilot's kept lobes, two or more
-/// materials), unless `ABLATION_DEFAULTS_RESTART=off`.
-fn auto_restart(kept: &[relight_cpc::transport::brdf::BasisBrdf], materials: usize) -> bool {
-    use relight_cpc::run::Restart;
+/// The restart `run --restart auto` makes after the defaults' fit
+/// ([`Restart::resolve`] over the pilot's kept lobes; none with fewer than two materials
+/// or with `ABLATION_DEFAULTS_RESTART=off`).
+fn auto_restart(kept: &[relight_cpc::transport::brdf::BasisBrdf], materials: usize) -> Restart {
     let off = std::env::var("ABLATION_DEFAULTS_RESTART").is_ok_and(|v| v == "off");
-    !off && materials >= 2 && Restart::Auto.resolve(kept) == Restart::CoarseLight
+    if off || materials < 2 {
+        return Restart::Off;
+    }
+    Restart::Auto.resolve(kept)
+}
+
+/// The second fits `run --restart mode` makes from `first` ([`Restart::steps`], each the
+/// [`second_fit`] of the same name from the fit kept before it, kept when its validation
+/// error is lower).
+fn restarts(
+    mode: Restart,
+    problem: &Problem,
+    first: Fitted,
+    opts: &EstimateOptions,
+    case: &Case,
+    lambert: usize,
+) -> Estimate {
+    let Fitted {
+        mut est,
+        kept,
+        seen,
+    } = first;
+    for step in mode.steps() {
+        let v = match step {
+            Restart::Reanchor => "reanchor",
+            Restart::Irradiance => "sh-ratio",
+            Restart::CoarseLight => "coarse-light",
+            Restart::Auto | Restart::Off | Restart::ReanchorCoarseLight => continue,
+        };
+        let from = Fitted { est, kept, seen };
+        est = second_fit(v, problem, from, opts, case, lambert, true);
+    }
+    est
 }
 
 /// `reanchor-lambert`: every non-Lambertian lobe of each re-anchored material set to keep

@@ -51,7 +51,11 @@ pub(super) fn alternate(
         if opts.restart == Restart::Auto {
             start.reasons.push(auto_restart_reason(mode, &p.eff.basis));
         }
-        for &step in mode.steps() {
+        for (i, &mode) in mode.steps().iter().enumerate() {
+            let step = RestartStep {
+                mode,
+                from_first: i == 0,
+            };
             est = restart(problem, p, est, start, step, &monitor, log)?;
         }
     }
@@ -267,10 +271,11 @@ fn restart(
     p: &Prepared,
     fitted: Estimated,
     start: &mut FitStart,
-    mode: Restart,
+    step: RestartStep,
     monitor: &Monitor,
     log: &mut RunLog,
 ) -> Result<Estimated> {
+    let mode = step.mode;
     let Some((from, what)) = restart_start(problem, p, &fitted.est, start, mode)? else {
         start.reasons.push(skipped_reason(mode));
         return Ok(fitted);
@@ -302,7 +307,7 @@ fn restart(
         "restart from {what}: validation error {second:.4} against {first:.4}, {}",
         if done.kept_restart {
             "kept"
-        } else if si == 1 {
+        } else if step.from_first {
             "the first fit kept"
         } else {
             "the previous fit kept"
@@ -319,6 +324,14 @@ fn restart(
         light_decision,
         timeline,
     })
+}
+
+/// One second fit of `--restart` ([`Restart::steps`]): which, and whether it restarts
+/// from the first fit (else from the fit the step before it kept).
+#[derive(Debug, Clone, Copy)]
+struct RestartStep {
+    mode: Restart,
+    from_first: bool,
 }
 
 /// The restart's start and what it is, for the reasons: `None` when the irradiance model
