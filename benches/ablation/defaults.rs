@@ -481,21 +481,44 @@ fn second_fit(
     let ratios = |e: &Estimate| ratios_of(&e.lambda, &e.weights);
     let start_ratios = |m: &Materials0| ratios_of(&m.lambda, &m.weights);
     let second = if v.starts_with("coarse-light") {
-        let m = coarse_light_start(&est, case, seen, lambert);
+        let starts = coarse_light_starts(&est, case, seen, lambert);
+        let m = starts.fit_weights;
         eprintln!(
             "coarse-light start: worst ratio {:.3?} (first fit {:.3?})",
             start_ratios(&m),
             ratios(&est)
         );
         // As `run --restart coarse-light`: the lights fitted again from the first fit's
-        // with the start's materials held (`coarse-light-free`: a free second fit).
+        // with the start's materials held, over the fit's weights and (when that fit
+        // scores within `RESORT_WITHIN` of the first) over them re-sorted, the one with the
+        // lower validation error kept (`ABLATION_COARSE_WEIGHTS=fit`: the
+        // fit's weights alone; `coarse-light-free`: a free second fit from them).
         if v == "coarse-light" {
             let held = coarse_light::held_fit_options(opts);
-            estimate_from_lights(problem, m, &held, &est.lights, &mut |_, _| {})
+            let fit = |m| estimate_from_lights(problem, m, &held, &est.lights, &mut |_, _| {});
+            let a = fit(m).expect("second fit");
+            let near = a.validation_error() <= coarse_light::RESORT_WITHIN * est.validation_error();
+            if !near || std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
+                a
+            } else {
+                let b = fit(starts.resorted).expect("second fit, re-sorted");
+                let score = |e: &Estimate| e.validation_error();
+                eprintln!(
+                    "coarse-light held fits: the fit's weights {:.5} (worst ratio {:.3?}), re-sorted {:.5} ({:.3?})",
+                    score(&a),
+                    ratios(&a),
+                    score(&b),
+                    ratios(&b)
+                );
+                if score(&b) < score(&a) {
+                    b
+                } else {
+                    a
+                }
+            }
         } else {
-            estimate(problem, m, opts, &mut |_, _| {})
+            estimate(problem, m, opts, &mut |_, _| {}).expect("second fit")
         }
-        .expect("second fit")
     } else if v.starts_with("sh-ratio") {
         let m = sh_ratio_start(&est, case, seen, lambert);
         if std::env::var("ABLATION_SH_TRUTH").is_ok() {
@@ -703,9 +726,14 @@ fn refit(
     .expect("refit")
 }
 
-/// `ABLATION_DEFAULTS_START=coarse-light`: `run --restart coarse-light`'s start
-/// ([`relight_cpc::solve::materials::coarse_light`]) from the first fit.
-fn coarse_light_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize) -> Materials0 {
+/// `ABLATION_DEFAULTS_START=coarse-light`: `run --restart coarse-light`'s two starts
+/// ([`relight_cpc::solve::materials::coarse_light::coarse_light_starts`]) from the first fit.
+fn coarse_light_starts(
+    est: &Estimate,
+    case: &Case,
+    seen: &[bool],
+    lambert: usize,
+) -> relight_cpc::solve::materials::coarse_light::CoarseStarts {
     use relight_cpc::solve::materials::{coarse_light, irradiance};
     let kk = est.lambda.len();
     let weights = irradiance::normalised_weights(&est.weights, kk);
@@ -719,7 +747,7 @@ fn coarse_light_start(est: &Estimate, case: &Case, seen: &[bool], lambert: usize
         blocks: coarse_light::BLOCKS.min(case.train.transport.n_global),
     });
     let n_photos = case.train.obs.photo_ranges.len();
-    coarse_light::coarse_light_start(&est.lambda, weights, lambert, &rows, n_photos)
+    coarse_light::coarse_light_starts(&est.lambda, &est.weights, seen, lambert, &rows, n_photos)
         .expect("the first fit's sizes")
         .expect("every material has pure seen vertices")
 }

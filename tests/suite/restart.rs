@@ -10,6 +10,7 @@
 
 use crate::synth_case::*;
 use relight_cpc::run::Restart;
+use relight_cpc::solve::materials::coarse_light::RESORT_WITHIN;
 use relight_cpc::solve::materials::reanchor::restart;
 use relight_cpc::solve::{estimate, Estimate, EstimateOptions};
 
@@ -98,25 +99,25 @@ fn the_runs_report_holds_the_irradiance_restart() {
 
 /// The same with `run --restart coarse-light` (the Lambertian ratios from a coarse
 /// non-negative light, `solve::materials::coarse_light`, the lights fitted again with the
-/// materials held).
+/// materials held over the fit's weights and over them re-sorted): two restarts, each read
+/// against the fit kept before it.
 #[test]
 fn the_runs_report_holds_the_coarse_light_restart() {
-    assert_restart_reported(
-        Restart::CoarseLight,
-        "report-coarse-light",
-        COARSE_LIGHT_REASON,
-    );
+    let dir = crate::scratch::scratch("restart", "report-coarse-light");
+    let mut o = crate::scratch::small_example_options(&dir);
+    o.restart = Restart::CoarseLight;
+    assert_options_restarts_reported(&o, &[COARSE_LIGHT_REASON, RESORTED_REASON]);
 }
 
 /// The same with `run --restart on+coarse-light`: the re-anchored restart, then the
-/// coarse-light one from the fit kept, three starts, each restart's reason read against the
+/// coarse-light one's two from the fit kept, four starts, each restart's reason read against the
 /// fit kept before it.
 #[test]
 fn the_runs_report_holds_both_restarts_in_order() {
     let dir = crate::scratch::scratch("restart", "report-on-coarse-light");
     let mut o = crate::scratch::small_example_options(&dir);
     o.restart = Restart::ReanchorCoarseLight;
-    assert_options_restarts_reported(&o, &[REANCHOR_REASON, COARSE_LIGHT_REASON]);
+    assert_options_restarts_reported(&o, &[REANCHOR_REASON, COARSE_LIGHT_REASON, RESORTED_REASON]);
 }
 
 /// How the re-anchored restart's reason starts.
@@ -124,6 +125,57 @@ const REANCHOR_REASON: &str = "restart from the fit's own materials";
 
 /// How the coarse-light restart's reason starts.
 const COARSE_LIGHT_REASON: &str = "restart from the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map";
+
+/// How the reason of the coarse-light restart's second held fit (the weights re-sorted)
+/// starts.
+const RESORTED_REASON: &str =
+    "restart from the fit's weights re-sorted on its own re-anchored materials";
+
+/// The real Buddha photos (`tests/fixtures/colmap-dense-buddha`) over the Lambertian lobe
+/// alone, where the coarse-light held fit predicts the held-back observations far worse
+/// than the first fit (measured 0.360 against 0.247 at these sizes; 0.372 against 0.218 at
+/// `run`'s): its re-sorted twin shares its materials, so it is not made, and the reasons
+/// say so with both scores (the helper checks they are past
+/// [`RESORT_WITHIN`]).
+#[test]
+fn the_resorted_held_fit_is_skipped_when_the_first_scores_far_above_the_fit() {
+    use relight_cpc::run::{Holdout, MaterialCount, RunOptions};
+    use relight_cpc::transport::brdf::BasisBrdf;
+    let dir = crate::scratch::scratch("restart", "buddha-gate");
+    let ws =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/colmap-dense-buddha");
+    let mut o = RunOptions::new(ws, dir.join("out"));
+    (
+        o.global_resolution,
+        o.local_resolution,
+        o.normal_grid,
+        o.keep,
+    ) = (16, 8, 16, 32);
+    (
+        o.rays_per_texel,
+        o.edge_rays,
+        o.max_iterations,
+        o.irls_iterations,
+    ) = (1, 0, 2, 1);
+    (o.materials, o.holdout) = (MaterialCount::Fixed(2), Holdout::Every(4));
+    (o.progress, o.render_training, o.force) = (false, false, true);
+    o.basis = vec![BasisBrdf::Lambert];
+    let r = assert_options_restarts_reported(&o, &[COARSE_LIGHT_REASON, RESORTED_REASON]);
+    let starts = r.starts.as_ref().expect("the starts' records");
+    assert_eq!(
+        starts.starts.len(),
+        2,
+        "the re-sorted fit skipped: {starts:?}"
+    );
+    assert!(
+        r.model
+            .reasons
+            .iter()
+            .any(|s| s.starts_with(RESORTED_REASON) && s.ends_with("more than 25% above")),
+        "{:?}",
+        r.model.reasons
+    );
+}
 
 /// `run --restart auto` (the default) on the example: over the Lambertian lobe alone
 /// (`--basis lambert`) the coarse-light restart, reported as above, with a reason that says
@@ -135,7 +187,7 @@ fn the_auto_restart_is_the_coarse_light_one_over_the_lambertian_lobe_alone() {
     let mut o = crate::scratch::small_example_options(&dir);
     assert_eq!(o.restart, Restart::Auto, "the default");
     o.basis = vec![BasisBrdf::Lambert];
-    let r = assert_options_restarts_reported(&o, &[COARSE_LIGHT_REASON]);
+    let r = assert_options_restarts_reported(&o, &[COARSE_LIGHT_REASON, RESORTED_REASON]);
     assert!(
         r.model.reasons.iter().any(|s| s
             == "--restart auto: a restart from a coarse non-negative light, as the fit's basis is the Lambertian lobe alone"),
@@ -166,9 +218,12 @@ fn assert_restart_reported(mode: Restart, name: &str, prefix: &str) {
 }
 
 /// The run with options `o`, whose restarts' reasons start with `prefixes` in order: one
-/// start per restart after the first fit, the timeline per start, each restart kept
+/// start per restart made after the first fit (a re-sorted held fit skipped by its gate
+/// makes none, and its reason says the fit before it scored above the gate), the timeline
+/// per start, each restart kept
 /// exactly when its score is below the fit kept before it (its reason says which), and
-/// the chosen start the last one kept; the report.
+/// the chosen start the last one kept; a refused one's reason says "the first fit kept"
+/// while no restart has been kept, else "the previous fit kept"; the report.
 fn assert_options_restarts_reported(
     o: &relight_cpc::run::RunOptions,
     prefixes: &[&str],
@@ -178,18 +233,25 @@ fn assert_options_restarts_reported(
         .starts
         .as_ref()
         .expect("the first fit's and the restarts' records");
-    assert_eq!(starts.starts.len(), prefixes.len() + 1, "{starts:?}");
     crate::scratch::assert_timeline_follows_starts(&r.timeline, starts);
-    let mut kept = 0;
-    for (i, prefix) in prefixes.iter().enumerate() {
+    let (mut made, mut kept, mut read_against) = (0, 0, 0);
+    for prefix in prefixes {
         let reason = r
             .model
             .reasons
             .iter()
             .find(|s| s.starts_with(prefix))
             .unwrap_or_else(|| panic!("the restart's reason in {:?}", r.model.reasons));
-        let better = starts.starts[i + 1].score < starts.starts[kept].score;
-        let refused = if i == 0 {
+        if reason.contains(" skipped: the held fit before it scored ") {
+            // The re-sorted held fit is made only when the one before it scored within
+            // `RESORT_WITHIN` of the fit it was read against.
+            let (before, prev) = (starts.starts[read_against].score, starts.starts[made].score);
+            assert!(prev > RESORT_WITHIN * before, "{reason} ({starts:?})");
+            continue;
+        }
+        made += 1;
+        let better = starts.starts[made].score < starts.starts[kept].score;
+        let refused = if kept == 0 {
             "the first fit kept"
         } else {
             "the previous fit kept"
@@ -198,10 +260,12 @@ fn assert_options_restarts_reported(
             reason.ends_with(if better { ", kept" } else { refused }),
             "{reason} ({starts:?})"
         );
+        read_against = kept;
         if better {
-            kept = i + 1;
+            kept = made;
         }
     }
+    assert_eq!(starts.starts.len(), made + 1, "{starts:?}");
     assert_eq!(starts.chosen, kept, "{starts:?}");
     r
 }

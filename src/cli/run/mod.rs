@@ -208,10 +208,10 @@ pub(crate) struct RunArgs {
     /// over the vertices one material holds that see most of the sky (Lambertian
     /// materials). `coarse-light`: the ratios fitted with each photo's light a coarse
     /// non-negative map seen through the vertices' shadows, over every vertex one material
-    /// holds, and the lights fitted again with those materials held (Lambertian
-    /// materials). `on+coarse-light`: `on`, then `coarse-light` from the fit kept. `auto`:
-    /// `coarse-light` when the fit's basis is the Lambertian lobe alone, else none. One
-    /// more fit each.
+    /// holds, and the lights fitted again with those materials held, over the fit's
+    /// weights and over them re-sorted (Lambertian materials). `on+coarse-light`: `on`,
+    /// then `coarse-light` from the fit kept. `auto`: `coarse-light` when the fit's basis
+    /// is the Lambertian lobe alone, else none. One more fit each (`coarse-light`: two).
     #[arg(long, default_value = "auto", value_parser = ["auto", "off", "on", "irradiance", "coarse-light", "on+coarse-light"], help_heading = "Solver")]
     pub(crate) restart: String,
     /// Where each material's starting brightness comes from: `clustered` (its colour

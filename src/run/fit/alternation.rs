@@ -51,11 +51,9 @@ pub(super) fn alternate(
         if opts.restart == Restart::Auto {
             start.reasons.push(auto_restart_reason(mode, &p.eff.basis));
         }
-        for (i, &mode) in mode.steps().iter().enumerate() {
-            let step = RestartStep {
-                mode,
-                from_first: i == 0,
-            };
+        let first_fit = est.multi.chosen;
+        for &mode in mode.steps() {
+            let step = RestartStep { mode, first_fit };
             est = restart(problem, p, est, start, step, &monitor, log)?;
         }
     }
@@ -260,12 +258,11 @@ fn search_starts(
     })
 }
 
-/// The restart (`--restart`, [`Restart`]) from the kept fit: a fit from its own materials
-/// re-anchored, or from its Lambertian ratios fitted by the irradiance model (over the
-/// vertices a training photo sees), kept when its validation error is lower
-/// ([`reanchor::fit_again`]). Its iterations follow the kept fit's in the timeline as one
-/// more start, its record is added to the starts, and what it did is one of the start's
-/// reasons.
+/// The restart (`--restart`, [`Restart`]) from the kept fit: a fit from each of the
+/// step's starts ([`restart_starts`]), each kept when its validation error is lower than
+/// the fit kept before it ([`reanchor::fit_again`]). Each one's iterations follow the kept
+/// fit's in the timeline as one more start, its record is added to the starts, and what it
+/// did is one of the start's reasons.
 fn restart(
     problem: &Problem,
     p: &Prepared,
@@ -276,49 +273,65 @@ fn restart(
     log: &mut RunLog,
 ) -> Result<Estimated> {
     let mode = step.mode;
-    let Some((from, what)) = restart_start(problem, p, &fitted.est, start, mode)? else {
+    let candidates = restart_starts(problem, p, &fitted.est, start, mode)?;
+    if candidates.is_empty() {
         start.reasons.push(skipped_reason(mode));
         return Ok(fitted);
-    };
+    }
+    monitor.progress.stage("restart");
     let Estimated {
-        est,
+        mut est,
         mut multi,
         eopts,
         light_decision,
         mut timeline,
     } = fitted;
-    monitor.progress.stage("restart");
-    monitor.bar.inc_length(eopts.max_outer as u64);
-    let si = multi.starts.len();
-    let clock = timeline.last().map_or(0.0, |p| p.seconds);
-    let done = log.stages.run("restart", || {
-        let opts = restart_options(&eopts, mode);
-        reanchor::fit_again(problem, est, from, what, &opts, &mut |it, state| {
-            monitor.bar.inc(1);
-            let holdout_rmse = monitor.held_out(state);
-            let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-            let line = iteration_line(1, si, n_it, it, holdout_rmse);
-            monitor.say(&format!("restart: {line}"));
-            timeline.push(timeline_point(si, clock + it.seconds, it, holdout_rmse));
-        })
-    })?;
-    let [first, second] = done.scores;
-    start.reasons.push(format!(
-        "restart from {what}: validation error {second:.4} against {first:.4}, {}",
-        if done.kept_restart {
-            "kept"
-        } else if step.from_first {
-            "the first fit kept"
-        } else {
-            "the previous fit kept"
+    // The held fits of one step all start from the lights of the fit it restarts from.
+    let lights_from = (candidates.len() > 1).then(|| est.lights.clone());
+    let fit = RestartFit {
+        problem,
+        opts: restart_options(&eopts, mode),
+        lights_from: lights_from.as_deref(),
+        monitor,
+    };
+    let mut last: Option<[f64; 2]> = None;
+    for c in candidates {
+        if let (Some(within), Some([before, score])) = (c.within, last) {
+            let near = score <= within * before;
+            if !near {
+                start.reasons.push(format!(
+                    "restart from {} skipped: the held fit before it scored {score:.4} against {before:.4}, more than {:.0}% above",
+                    c.what,
+                    100.0 * (within - 1.0)
+                ));
+                continue;
+            }
         }
-    ));
-    multi.starts.push(done.record);
-    if done.kept_restart {
-        multi.chosen = si;
+        let si = multi.starts.len();
+        let what = c.what;
+        let done = log
+            .stages
+            .run("restart", || fit.run(est, c, &mut timeline, si))?;
+        let [before, score] = done.scores;
+        last = Some(done.scores);
+        start.reasons.push(format!(
+            "restart from {what}: validation error {score:.4} against {before:.4}, {}",
+            if done.kept_restart {
+                "kept"
+            } else if multi.chosen == step.first_fit {
+                "the first fit kept"
+            } else {
+                "the previous fit kept"
+            }
+        ));
+        multi.starts.push(done.record);
+        if done.kept_restart {
+            multi.chosen = si;
+        }
+        est = done.est;
     }
     Ok(Estimated {
-        est: done.est,
+        est,
         multi,
         eopts,
         light_decision,
@@ -326,30 +339,82 @@ fn restart(
     })
 }
 
-/// One second fit of `--restart` ([`Restart::steps`]): which, and whether it restarts
-/// from the first fit (else from the fit the step before it kept).
+/// What every fit of one restart step shares: its options, the lights its held fits
+/// start from (`None`: the fit kept before each), and the progress it shows.
+struct RestartFit<'a> {
+    problem: &'a Problem<'a>,
+    opts: EstimateOptions,
+    lights_from: Option<&'a [[Vec<f64>; 3]]>,
+    monitor: &'a Monitor<'a>,
+}
+
+impl RestartFit<'_> {
+    /// The fit from `c` against `est` ([`reanchor::fit_again`]), its iterations on the
+    /// console and in `timeline` as start `si`.
+    fn run(
+        &self,
+        est: solve::Estimate,
+        c: RestartStart,
+        timeline: &mut Vec<TimelinePoint>,
+        si: usize,
+    ) -> Result<reanchor::Restarted> {
+        let monitor = self.monitor;
+        monitor.bar.inc_length(self.opts.max_outer as u64);
+        let clock = timeline.last().map_or(0.0, |p| p.seconds);
+        reanchor::fit_again(
+            self.problem,
+            est,
+            c.from,
+            c.what,
+            &self.opts,
+            self.lights_from,
+            &mut |it, state| {
+                monitor.bar.inc(1);
+                let holdout_rmse = monitor.held_out(state);
+                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+                let line = iteration_line(1, si, n_it, it, holdout_rmse);
+                monitor.say(&format!("restart: {line}"));
+                timeline.push(timeline_point(si, clock + it.seconds, it, holdout_rmse));
+            },
+        )
+    }
+}
+
+/// One second fit of `--restart` ([`Restart::steps`]): which, and the first fit's place
+/// among the starts (a refused restart's reason says whether the fit kept is still it).
 #[derive(Debug, Clone, Copy)]
 struct RestartStep {
     mode: Restart,
-    from_first: bool,
+    first_fit: usize,
 }
 
-/// The restart's start and what it is, for the reasons: `None` when the irradiance model
-/// finds a material without pure, open vertices.
-fn restart_start(
+/// One start of a restart and what it is, for the reasons; with `within`, made only when
+/// the fit before it in the step scored at most that many times the fit it was read
+/// against ([`coarse_light::RESORT_WITHIN`]).
+struct RestartStart {
+    from: Materials0,
+    what: &'static str,
+    within: Option<f64>,
+}
+
+/// The restart's starts, in the order they are fitted: none when the ratio model finds a
+/// material without the vertices it reads; the coarse-light model's two
+/// ([`coarse_light::CoarseStarts`]).
+fn restart_starts(
     problem: &Problem,
     p: &Prepared,
     est: &solve::Estimate,
     start: &FitStart,
     mode: Restart,
-) -> Result<Option<(Materials0, &'static str)>> {
+) -> Result<Vec<RestartStart>> {
     let seen = start.seen(p);
     if mode == Restart::Reanchor {
         let m = reanchor::reanchor(&est.lambda, &est.weights, seen, reanchor::Reweight::Project)?;
-        return Ok(Some((
-            m,
-            "the fit's own materials re-anchored (median fitted reflectance per material, weights projected)",
-        )));
+        return Ok(vec![RestartStart {
+            from: m,
+            what: "the fit's own materials re-anchored (median fitted reflectance per material, weights projected)",
+            within: None,
+        }]);
     }
     let kk = est.lambda.len();
     let weights = irradiance::normalised_weights(&est.weights, kk);
@@ -364,18 +429,27 @@ fn restart_start(
             lambert,
             blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
         });
-        let m = coarse_light::coarse_light_start(
+        let m = coarse_light::coarse_light_starts(
             &est.lambda,
-            weights,
+            &est.weights,
+            seen,
             lambert,
             &rows,
             problem.n_photos,
         )?;
-        return Ok(m.map(|m| {
-            (
-                m,
-                "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
-            )
+        return Ok(m.map_or_else(Vec::new, |m| {
+            vec![
+                RestartStart {
+                    from: m.fit_weights,
+                    what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
+                    within: None,
+                },
+                RestartStart {
+                    from: m.resorted,
+                    what: "the fit's weights re-sorted on its own re-anchored materials, with the same coarse-light colour ratios, and the lights fitted again with those materials held",
+                    within: Some(coarse_light::RESORT_WITHIN),
+                },
+            ]
         }));
     }
     let open = p.vis.open_fractions();
@@ -389,11 +463,12 @@ fn restart_start(
         min_open: irradiance::MIN_OPEN,
     });
     let m = irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, problem.n_photos)?;
-    Ok(m.map(|m| {
-        (
-            m,
-            "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
-        )
+    Ok(m.map_or_else(Vec::new, |m| {
+        vec![RestartStart {
+            from: m,
+            what: "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
+            within: None,
+        }]
     }))
 }
 

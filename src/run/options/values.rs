@@ -133,8 +133,9 @@ pub enum Restart {
     Irradiance,
     /// From the fit's weights normalised and each material's Lambertian ratios fitted with
     /// each photo's light a coarse non-negative map seen through the Lambertian transport,
-    /// over its pure seen vertices, the lights fitted again with those materials held
-    /// (`coarse-light`, [`crate::solve::materials::coarse_light`]).
+    /// over its pure seen vertices, the lights fitted again with those materials held,
+    /// over the fit's weights and over them re-sorted (`coarse-light`,
+    /// [`crate::solve::materials::coarse_light`]).
     CoarseLight,
     /// [`Restart::Reanchor`], then [`Restart::CoarseLight`] from the fit kept
     /// (`on+coarse-light`): the re-anchored fit sorts the vertices the first fit's

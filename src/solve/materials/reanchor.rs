@@ -171,6 +171,7 @@ pub fn restart(
         start,
         "the fit's own materials re-anchored",
         opts,
+        None,
         on_iter,
     )
 }
@@ -178,18 +179,20 @@ pub fn restart(
 /// A second fit from `start` (what `what` names, for the record), and the one of `first`
 /// and it with the lower early-stopping validation error kept; without validation (or on
 /// a tie, or a non-finite score) `first`. With the materials held
-/// ([`EstimateOptions::fixed_materials`]) its one lighting fit starts from `first`'s
-/// lights ([`estimate_from_lights`]).
+/// ([`EstimateOptions::fixed_materials`]) its one lighting fit starts from `lights_from`
+/// ([`estimate_from_lights`]; `None`: `first`'s lights).
 pub fn fit_again(
     problem: &Problem,
     first: Estimate,
     start: Materials0,
     what: &str,
     opts: &EstimateOptions,
+    lights_from: Option<&[[Vec<f64>; 3]]>,
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Restarted> {
     let second = if opts.fixed_materials {
-        estimate_from_lights(problem, start, opts, &first.lights, on_iter)?
+        let lights = lights_from.unwrap_or(&first.lights);
+        estimate_from_lights(problem, start, opts, lights, on_iter)?
     } else {
         estimate(problem, start, opts, on_iter)?
     };
@@ -197,7 +200,7 @@ pub fn fit_again(
     let kept_restart = scores[1] < scores[0];
     let record = StartRecord::of(
         format!(
-            "{what} (validation {:.4} against the fit it restarts from, {:.4})",
+            "{what} (validation {:.4} against the fit kept before it, {:.4})",
             scores[1], scores[0]
         ),
         scores[1],
