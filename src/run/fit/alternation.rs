@@ -296,34 +296,18 @@ fn restart(
     };
     let mut last: Option<[f64; 2]> = None;
     for c in candidates {
-        if let (Some(within), Some([before, score])) = (c.within, last) {
-            let near = score <= within * before;
-            if !near {
-                start.reasons.push(format!(
-                    "restart from {} skipped: the held fit before it scored {score:.4} against {before:.4}, more than {:.0}% above",
-                    c.what,
-                    100.0 * (within - 1.0)
-                ));
-                continue;
-            }
+        if let Some(why) = gated(&c, last) {
+            start.reasons.push(why);
+            continue;
         }
         let si = multi.starts.len();
         let what = c.what;
         let done = log
             .stages
             .run("restart", || fit.run(est, c, &mut timeline, si))?;
-        let [before, score] = done.scores;
         last = Some(done.scores);
-        start.reasons.push(format!(
-            "restart from {what}: validation error {score:.4} against {before:.4}, {}",
-            if done.kept_restart {
-                "kept"
-            } else if multi.chosen == step.first_fit {
-                "the first fit kept"
-            } else {
-                "the previous fit kept"
-            }
-        ));
+        let first_kept = multi.chosen == step.first_fit;
+        start.reasons.push(restart_reason(what, &done, first_kept));
         multi.starts.push(done.record);
         if done.kept_restart {
             multi.chosen = si;
@@ -337,6 +321,35 @@ fn restart(
         light_decision,
         timeline,
     })
+}
+
+/// The reason a restart start is skipped: it has a gate (`within`) and the fit before it
+/// in the step, `last` (`[score it was read against, its score]`), scored above it (or
+/// not finite). `None`: make it.
+fn gated(c: &RestartStart, last: Option<[f64; 2]>) -> Option<String> {
+    let (within, [before, score]) = (c.within?, last?);
+    let near = score <= within * before;
+    (!near).then(|| {
+        format!(
+            "restart from {} skipped: the held fit before it scored {score:.4} against {before:.4}, more than {:.0}% above",
+            c.what,
+            100.0 * (within - 1.0)
+        )
+    })
+}
+
+/// What a restart from `what` did, for the reasons: its score against the fit kept before
+/// it and which was kept (`first_kept`: that fit is still the first).
+fn restart_reason(what: &str, done: &reanchor::Restarted, first_kept: bool) -> String {
+    let [before, score] = done.scores;
+    let kept = if done.kept_restart {
+        "kept"
+    } else if first_kept {
+        "the first fit kept"
+    } else {
+        "the previous fit kept"
+    };
+    format!("restart from {what}: validation error {score:.4} against {before:.4}, {kept}")
 }
 
 /// What every fit of one restart step shares: its options, the lights its held fits
@@ -420,37 +433,7 @@ fn restart_starts(
     let weights = irradiance::normalised_weights(&est.weights, kk);
     let lambert = start.eopts.lambert_basis;
     if mode == Restart::CoarseLight {
-        let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
-            obs: problem.obs,
-            transport: problem.transport,
-            seen,
-            weights: &weights,
-            materials: kk,
-            lambert,
-            blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
-        });
-        let m = coarse_light::coarse_light_starts(
-            &est.lambda,
-            &est.weights,
-            seen,
-            lambert,
-            &rows,
-            problem.n_photos,
-        )?;
-        return Ok(m.map_or_else(Vec::new, |m| {
-            vec![
-                RestartStart {
-                    from: m.fit_weights,
-                    what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
-                    within: None,
-                },
-                RestartStart {
-                    from: m.resorted,
-                    what: "the fit's weights re-sorted on its own re-anchored materials, with the same coarse-light colour ratios, and the lights fitted again with those materials held",
-                    within: Some(coarse_light::RESORT_WITHIN),
-                },
-            ]
-        }));
+        return coarse_light_candidates(problem, est, seen, &weights, lambert);
     }
     let open = p.vis.open_fractions();
     let rows = irradiance::pure_open_rows(&irradiance::RowsInput {
@@ -469,6 +452,50 @@ fn restart_starts(
             what: "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
             within: None,
         }]
+    }))
+}
+
+/// The coarse-light restart's two starts ([`coarse_light::coarse_light_starts`]) from the
+/// fit `est` (`weights` its normalised weights, `seen` the vertices a training photo
+/// sees); none when a material holds no seen vertex at [`irradiance::PURE`].
+fn coarse_light_candidates(
+    problem: &Problem,
+    est: &solve::Estimate,
+    seen: &[bool],
+    weights: &[f64],
+    lambert: usize,
+) -> Result<Vec<RestartStart>> {
+    let kk = est.lambda.len();
+    let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
+        obs: problem.obs,
+        transport: problem.transport,
+        seen,
+        weights,
+        materials: kk,
+        lambert,
+        blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
+    });
+    let m = coarse_light::coarse_light_starts(
+        &est.lambda,
+        &est.weights,
+        seen,
+        lambert,
+        &rows,
+        problem.n_photos,
+    )?;
+    Ok(m.map_or_else(Vec::new, |m| {
+        vec![
+            RestartStart {
+                from: m.fit_weights,
+                what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
+                within: None,
+            },
+            RestartStart {
+                from: m.resorted,
+                what: "the fit's weights re-sorted on its own re-anchored materials, with the same coarse-light colour ratios, and the lights fitted again with those materials held",
+                within: Some(coarse_light::RESORT_WITHIN),
+            },
+        ]
     }))
 }
 
