@@ -469,7 +469,7 @@ fn second_fit(
 ) -> Estimate {
     use relight_cpc::solve::alternation::estimate_from_lights;
     use relight_cpc::solve::materials::coarse_light;
-    use relight_cpc::solve::materials::reanchor::{reanchor, Reweight};
+    use relight_cpc::solve::materials::reanchor::{fit_in_turn, reanchor, Reweight, StepOutcome};
     let Fitted { est, kept, seen } = first;
     let ratios_of = |lambda: &[Vec<[f64; 3]>], weights: &[f64]| {
         let full: Vec<Vec<[f64; 3]>> = lambda
@@ -482,42 +482,47 @@ fn second_fit(
     let start_ratios = |m: &Materials0| ratios_of(&m.lambda, &m.weights);
     let second = if v.starts_with("coarse-light") {
         let starts = coarse_light_starts(&est, case, seen, lambert);
-        let m = starts.fit_weights;
         eprintln!(
             "coarse-light start: worst ratio {:.3?} (first fit {:.3?})",
-            start_ratios(&m),
+            start_ratios(&starts.fit_weights),
             ratios(&est)
         );
-        // As `run --restart coarse-light`: the lights fitted again from the first fit's
-        // with the start's materials held, over the fit's weights and (when that fit
-        // scores within `RESORT_WITHIN` of the first) over them re-sorted, the one with the
-        // lower validation error kept (`ABLATION_COARSE_WEIGHTS=fit`: the
-        // fit's weights alone; `coarse-light-free`: a free second fit from them).
-        if v == "coarse-light" {
-            let held = coarse_light::held_fit_options(opts);
-            let fit = |m| estimate_from_lights(problem, m, &held, &est.lights, &mut |_, _| {});
-            let a = fit(m).expect("second fit");
-            let near = a.validation_error() <= coarse_light::RESORT_WITHIN * est.validation_error();
-            if !near || std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
-                a
-            } else {
-                let b = fit(starts.resorted).expect("second fit, re-sorted");
-                let score = |e: &Estimate| e.validation_error();
-                eprintln!(
-                    "coarse-light held fits: the fit's weights {:.5} (worst ratio {:.3?}), re-sorted {:.5} ({:.3?})",
-                    score(&a),
-                    ratios(&a),
-                    score(&b),
-                    ratios(&b)
-                );
-                if score(&b) < score(&a) {
-                    b
-                } else {
-                    a
+        let held = coarse_light::held_fit_options(opts);
+        if v == "coarse-light" && pick {
+            // As `run --restart coarse-light`: the held fits over the fit's weights and
+            // over them re-sorted in turn (`reanchor::fit_in_turn`), the lower validation
+            // error kept (`ABLATION_COARSE_WEIGHTS=fit`: the first alone).
+            let mut steps = starts.into_steps();
+            if std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
+                steps.truncate(1);
+            }
+            let (kept, outcomes) =
+                fit_in_turn(problem, est.clone(), steps, &held, &mut |_, _, _| {})
+                    .expect("second fit");
+            for o in &outcomes {
+                match o {
+                    StepOutcome::Fitted { scores, kept_restart, .. } => eprintln!(
+                        "coarse-light held fit: validation {:.5} against {:.5}, kept {kept_restart}",
+                        scores[1], scores[0]
+                    ),
+                    StepOutcome::Skipped { before, .. } => {
+                        eprintln!("coarse-light held fit skipped ({before:.5?})")
+                    }
                 }
             }
+            kept
+        } else if v == "coarse-light" {
+            // The first held fit whatever its score.
+            estimate_from_lights(
+                problem,
+                starts.fit_weights,
+                &held,
+                &est.lights,
+                &mut |_, _| {},
+            )
+            .expect("second fit")
         } else {
-            estimate(problem, m, opts, &mut |_, _| {}).expect("second fit")
+            estimate(problem, starts.fit_weights, opts, &mut |_, _| {}).expect("second fit")
         }
     } else if v.starts_with("sh-ratio") {
         let m = sh_ratio_start(&est, case, seen, lambert);

@@ -259,10 +259,10 @@ fn search_starts(
 }
 
 /// The restart (`--restart`, [`Restart`]) from the kept fit: a fit from each of the
-/// step's starts ([`restart_starts`]), each kept when its validation error is lower than
-/// the fit kept before it ([`reanchor::fit_again`]). Each one's iterations follow the kept
-/// fit's in the timeline as one more start, its record is added to the starts, and what it
-/// did is one of the start's reasons.
+/// step's starts ([`restart_starts`]) in turn, each kept when its validation error is lower
+/// than the fit kept before it ([`reanchor::fit_in_turn`]). Each one's iterations follow
+/// the kept fit's in the timeline as one more start, its record is added to the starts,
+/// and what it did (or why it was skipped) is one of the start's reasons.
 fn restart(
     problem: &Problem,
     p: &Prepared,
@@ -273,46 +273,52 @@ fn restart(
     log: &mut RunLog,
 ) -> Result<Estimated> {
     let mode = step.mode;
-    let candidates = restart_starts(problem, p, &fitted.est, start, mode)?;
-    if candidates.is_empty() {
+    let starts = restart_starts(problem, p, &fitted.est, start, mode)?;
+    if starts.is_empty() {
         start.reasons.push(skipped_reason(mode));
         return Ok(fitted);
     }
     monitor.progress.stage("restart");
     let Estimated {
-        mut est,
+        est,
         mut multi,
         eopts,
         light_decision,
         mut timeline,
     } = fitted;
-    // The held fits of one step all start from the lights of the fit it restarts from.
-    let lights_from = (candidates.len() > 1).then(|| est.lights.clone());
-    let fit = RestartFit {
-        problem,
-        opts: restart_options(&eopts, mode),
-        lights_from: lights_from.as_deref(),
-        monitor,
-    };
-    let mut last: Option<[f64; 2]> = None;
-    for c in candidates {
-        if let Some(why) = gated(&c, last) {
-            start.reasons.push(why);
-            continue;
-        }
-        let si = multi.starts.len();
-        let what = c.what;
-        let done = log
-            .stages
-            .run("restart", || fit.run(est, c, &mut timeline, si))?;
-        last = Some(done.scores);
+    let opts = restart_options(&eopts, mode);
+    let si0 = multi.starts.len();
+    let (mut current, mut clock) = (None, 0.0);
+    let (est, outcomes) = log.stages.run("restart", || {
+        reanchor::fit_in_turn(problem, est, starts, &opts, &mut |n, it, state| {
+            if current != Some(n) {
+                current = Some(n);
+                clock = timeline.last().map_or(0.0, |p| p.seconds);
+                monitor.bar.inc_length(opts.max_outer as u64);
+            }
+            let si = si0 + n;
+            monitor.bar.inc(1);
+            let holdout_rmse = monitor.held_out(state);
+            let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
+            let line = iteration_line(1, si, n_it, it, holdout_rmse);
+            monitor.say(&format!("restart: {line}"));
+            timeline.push(timeline_point(si, clock + it.seconds, it, holdout_rmse));
+        })
+    })?;
+    for outcome in outcomes {
         let first_kept = multi.chosen == step.first_fit;
-        start.reasons.push(restart_reason(what, &done, first_kept));
-        multi.starts.push(done.record);
-        if done.kept_restart {
-            multi.chosen = si;
+        start.reasons.push(restart_reason(&outcome, first_kept));
+        if let reanchor::StepOutcome::Fitted {
+            kept_restart,
+            record,
+            ..
+        } = outcome
+        {
+            multi.starts.push(record);
+            if kept_restart {
+                multi.chosen = multi.starts.len() - 1;
+            }
         }
-        est = done.est;
     }
     Ok(Estimated {
         est,
@@ -323,73 +329,34 @@ fn restart(
     })
 }
 
-/// The reason a restart start is skipped: it has a gate (`within`) and the fit before it
-/// in the step, `last` (`[score it was read against, its score]`), scored above it (or
-/// not finite). `None`: make it.
-fn gated(c: &RestartStart, last: Option<[f64; 2]>) -> Option<String> {
-    let (within, [before, score]) = (c.within?, last?);
-    let near = score <= within * before;
-    (!near).then(|| {
-        format!(
-            "restart from {} skipped: the held fit before it scored {score:.4} against {before:.4}, more than {:.0}% above",
-            c.what,
+/// What one start of a restart step did, for the reasons: its score against the fit kept
+/// before it and which was kept (`first_kept`: that fit is still the first), or why its
+/// gate skipped it.
+fn restart_reason(outcome: &reanchor::StepOutcome, first_kept: bool) -> String {
+    match *outcome {
+        reanchor::StepOutcome::Fitted {
+            what,
+            kept_restart,
+            scores: [before, score],
+            ..
+        } => {
+            let kept = if kept_restart {
+                "kept"
+            } else if first_kept {
+                "the first fit kept"
+            } else {
+                "the previous fit kept"
+            };
+            format!("restart from {what}: validation error {score:.4} against {before:.4}, {kept}")
+        }
+        reanchor::StepOutcome::Skipped {
+            what,
+            within,
+            before: [before, score],
+        } => format!(
+            "restart from {what} skipped: the held fit before it scored {score:.4} against {before:.4}, more than {:.0}% above",
             100.0 * (within - 1.0)
-        )
-    })
-}
-
-/// What a restart from `what` did, for the reasons: its score against the fit kept before
-/// it and which was kept (`first_kept`: that fit is still the first).
-fn restart_reason(what: &str, done: &reanchor::Restarted, first_kept: bool) -> String {
-    let [before, score] = done.scores;
-    let kept = if done.kept_restart {
-        "kept"
-    } else if first_kept {
-        "the first fit kept"
-    } else {
-        "the previous fit kept"
-    };
-    format!("restart from {what}: validation error {score:.4} against {before:.4}, {kept}")
-}
-
-/// What every fit of one restart step shares: its options, the lights its held fits
-/// start from (`None`: the fit kept before each), and the progress it shows.
-struct RestartFit<'a> {
-    problem: &'a Problem<'a>,
-    opts: EstimateOptions,
-    lights_from: Option<&'a [[Vec<f64>; 3]]>,
-    monitor: &'a Monitor<'a>,
-}
-
-impl RestartFit<'_> {
-    /// The fit from `c` against `est` ([`reanchor::fit_again`]), its iterations on the
-    /// console and in `timeline` as start `si`.
-    fn run(
-        &self,
-        est: solve::Estimate,
-        c: RestartStart,
-        timeline: &mut Vec<TimelinePoint>,
-        si: usize,
-    ) -> Result<reanchor::Restarted> {
-        let monitor = self.monitor;
-        monitor.bar.inc_length(self.opts.max_outer as u64);
-        let clock = timeline.last().map_or(0.0, |p| p.seconds);
-        reanchor::fit_again(
-            self.problem,
-            est,
-            c.from,
-            c.what,
-            &self.opts,
-            self.lights_from,
-            &mut |it, state| {
-                monitor.bar.inc(1);
-                let holdout_rmse = monitor.held_out(state);
-                let n_it = timeline.iter().filter(|p| p.start == si).count() + 1;
-                let line = iteration_line(1, si, n_it, it, holdout_rmse);
-                monitor.say(&format!("restart: {line}"));
-                timeline.push(timeline_point(si, clock + it.seconds, it, holdout_rmse));
-            },
-        )
+        ),
     }
 }
 
@@ -401,15 +368,6 @@ struct RestartStep {
     first_fit: usize,
 }
 
-/// One start of a restart and what it is, for the reasons; with `within`, made only when
-/// the fit before it in the step scored at most that many times the fit it was read
-/// against ([`coarse_light::RESORT_WITHIN`]).
-struct RestartStart {
-    from: Materials0,
-    what: &'static str,
-    within: Option<f64>,
-}
-
 /// The restart's starts, in the order they are fitted: none when the ratio model finds a
 /// material without the vertices it reads; the coarse-light model's two
 /// ([`coarse_light::CoarseStarts`]).
@@ -419,11 +377,11 @@ fn restart_starts(
     est: &solve::Estimate,
     start: &FitStart,
     mode: Restart,
-) -> Result<Vec<RestartStart>> {
+) -> Result<Vec<reanchor::StepStart>> {
     let seen = start.seen(p);
     if mode == Restart::Reanchor {
         let m = reanchor::reanchor(&est.lambda, &est.weights, seen, reanchor::Reweight::Project)?;
-        return Ok(vec![RestartStart {
+        return Ok(vec![reanchor::StepStart {
             from: m,
             what: "the fit's own materials re-anchored (median fitted reflectance per material, weights projected)",
             within: None,
@@ -447,7 +405,7 @@ fn restart_starts(
     });
     let m = irradiance::irradiance_start(&est.lambda, weights, lambert, &rows, problem.n_photos)?;
     Ok(m.map_or_else(Vec::new, |m| {
-        vec![RestartStart {
+        vec![reanchor::StepStart {
             from: m,
             what: "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
             within: None,
@@ -464,7 +422,7 @@ fn coarse_light_candidates(
     seen: &[bool],
     weights: &[f64],
     lambert: usize,
-) -> Result<Vec<RestartStart>> {
+) -> Result<Vec<reanchor::StepStart>> {
     let kk = est.lambda.len();
     let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
         obs: problem.obs,
@@ -483,20 +441,7 @@ fn coarse_light_candidates(
         &rows,
         problem.n_photos,
     )?;
-    Ok(m.map_or_else(Vec::new, |m| {
-        vec![
-            RestartStart {
-                from: m.fit_weights,
-                what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
-                within: None,
-            },
-            RestartStart {
-                from: m.resorted,
-                what: "the fit's weights re-sorted on its own re-anchored materials, with the same coarse-light colour ratios, and the lights fitted again with those materials held",
-                within: Some(coarse_light::RESORT_WITHIN),
-            },
-        ]
-    }))
+    Ok(m.map_or_else(Vec::new, coarse_light::CoarseStarts::into_steps))
 }
 
 /// The second fit's options: `coarse-light` holds the start's materials (the model's

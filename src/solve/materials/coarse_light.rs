@@ -226,6 +226,25 @@ pub struct CoarseStarts {
     pub resorted: Materials0,
 }
 
+impl CoarseStarts {
+    /// The two as the restart step's starts ([`reanchor::fit_in_turn`]), the re-sorted one
+    /// gated by [`RESORT_WITHIN`].
+    pub fn into_steps(self) -> Vec<reanchor::StepStart> {
+        vec![
+            reanchor::StepStart {
+                from: self.fit_weights,
+                what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
+                within: None,
+            },
+            reanchor::StepStart {
+                from: self.resorted,
+                what: "the fit's weights re-sorted on its own re-anchored materials, with the same coarse-light colour ratios, and the lights fitted again with those materials held",
+                within: Some(RESORT_WITHIN),
+            },
+        ]
+    }
+}
+
 /// [`CoarseStarts`] of the first fit `(lambda, weights)` (`weights` as fitted, `V × K`;
 /// `seen` the vertices with training observations). `None` when the rows leave a material
 /// without observations.

@@ -214,6 +214,84 @@ pub fn fit_again(
     })
 }
 
+/// One start of a restart step ([`fit_in_turn`]): the start, what it is (for the record)
+/// and its gate: with `within`, made only when the fit before it in the step scored at
+/// most that many times the fit it was read against
+/// ([`super::coarse_light::RESORT_WITHIN`]).
+pub struct StepStart {
+    pub from: Materials0,
+    pub what: &'static str,
+    pub within: Option<f64>,
+}
+
+/// What became of one start of a step ([`fit_in_turn`]).
+pub enum StepOutcome {
+    /// Fitted against the fit kept before it: whether it was kept, the two scores (that
+    /// fit's, its own) and its record.
+    Fitted {
+        what: &'static str,
+        kept_restart: bool,
+        scores: [f64; 2],
+        record: StartRecord,
+    },
+    /// Not made: its gate saw the fit before it score `before[1]` against `before[0]`.
+    Skipped {
+        what: &'static str,
+        within: f64,
+        before: [f64; 2],
+    },
+}
+
+/// A restart step: each of `starts` in turn fitted against the fit kept before it
+/// ([`fit_again`], each kept when its validation error is lower) unless its gate skips
+/// it; with more than one start, every held fit starts from `first`'s lights. Returns the
+/// fit kept and each start's outcome, in order. `on_iter(n, …)` sees every iteration of
+/// the `n`-th fit made.
+pub fn fit_in_turn(
+    problem: &Problem,
+    first: Estimate,
+    starts: Vec<StepStart>,
+    opts: &EstimateOptions,
+    on_iter: &mut dyn FnMut(usize, &Iteration, &IterState),
+) -> Result<(Estimate, Vec<StepOutcome>)> {
+    let lights_from = (starts.len() > 1).then(|| first.lights.clone());
+    let (mut est, mut last, mut made) = (first, None::<[f64; 2]>, 0);
+    let mut outcomes = Vec::with_capacity(starts.len());
+    for s in starts {
+        if let (Some(within), Some(before)) = (s.within, last) {
+            let near = before[1] <= within * before[0];
+            if !near {
+                outcomes.push(StepOutcome::Skipped {
+                    what: s.what,
+                    within,
+                    before,
+                });
+                continue;
+            }
+        }
+        let n = made;
+        let done = fit_again(
+            problem,
+            est,
+            s.from,
+            s.what,
+            opts,
+            lights_from.as_deref(),
+            &mut |it, state| on_iter(n, it, state),
+        )?;
+        made += 1;
+        last = Some(done.scores);
+        est = done.est;
+        outcomes.push(StepOutcome::Fitted {
+            what: s.what,
+            kept_restart: done.kept_restart,
+            scores: done.scores,
+            record: done.record,
+        });
+    }
+    Ok((est, outcomes))
+}
+
 /// Step 3 with [`Reweight::Project`]: per labelled vertex, the NNLS `min ‖Λ w − β̂_x‖²`,
 /// `Λ` the `B·3 × K` matrix of the new materials.
 fn project(
