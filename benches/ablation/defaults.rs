@@ -228,7 +228,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     est = match std::env::var("ABLATION_DEFAULTS_START").as_deref() {
         Ok(
             v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
-            | "sh-ratio2" | "coarse-light" | "coarse-light-free"),
+            | "sh-ratio2" | "coarse-light" | "coarse-light-free" | "truth-held"),
             // Kept whatever its score unless `ABLATION_REFIT_PICK=1`.
         ) => {
             let pick = crate::env_flag("ABLATION_REFIT_PICK");
@@ -480,7 +480,59 @@ fn second_fit(
     };
     let ratios = |e: &Estimate| ratios_of(&e.lambda, &e.weights);
     let start_ratios = |m: &Materials0| ratios_of(&m.lambda, &m.weights);
-    let second = if v.starts_with("coarse-light") {
+    let second = if v == "truth-held" {
+        let m = truth_held_start(&est, case, seen, kept, lambert);
+        eprintln!(
+            "truth-held start: worst ratio {:.3?} (first fit {:.3?})",
+            start_ratios(&m),
+            ratios(&est)
+        );
+        let held = coarse_light::held_fit_options(opts);
+        estimate_from_lights(problem, m, &held, &est.lights, &mut |_, _| {}).expect("held fit")
+    } else if v == "coarse-light" && pick {
+        // As `run --restart coarse-light`: the library's starts (two over the Lambertian
+        // lobe alone, the tied one over a shiny basis), fitted in turn with the materials
+        // held, each kept when its validation error is lower (`reanchor::fit_in_turn`;
+        // `ABLATION_COARSE_WEIGHTS=fit`: the first alone).
+        let weights = relight_cpc::solve::materials::irradiance::normalised_weights(
+            &est.weights,
+            est.lambda.len(),
+        );
+        let input = coarse_light::CoarseRowsInput {
+            obs: problem.obs,
+            transport: problem.transport,
+            seen,
+            weights: &weights,
+            materials: est.lambda.len(),
+            lambert,
+            blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
+        };
+        let mut steps =
+            coarse_light::restart_starts(&input, &est.lambda, &est.weights, problem.n_photos)
+                .expect("the first fit's sizes");
+        if std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
+            steps.truncate(1);
+        }
+        let held = coarse_light::held_fit_options(opts);
+        let (kept, outcomes) =
+            fit_in_turn(problem, est.clone(), steps, &held, &mut |_, _, _| {}).expect("second fit");
+        for o in &outcomes {
+            match o {
+                StepOutcome::Fitted {
+                    scores,
+                    kept_restart,
+                    ..
+                } => eprintln!(
+                    "coarse-light held fit: validation {:.5} against {:.5}, kept {kept_restart}",
+                    scores[1], scores[0]
+                ),
+                StepOutcome::Skipped { before, .. } => {
+                    eprintln!("coarse-light held fit skipped ({before:.5?})")
+                }
+            }
+        }
+        kept
+    } else if v.starts_with("coarse-light") {
         let starts = coarse_light_starts(&est, case, seen, lambert);
         eprintln!(
             "coarse-light start: worst ratio {:.3?} (first fit {:.3?})",
@@ -488,31 +540,9 @@ fn second_fit(
             ratios(&est)
         );
         let held = coarse_light::held_fit_options(opts);
-        if v == "coarse-light" && pick {
-            // As `run --restart coarse-light`: the held fits over the fit's weights and
-            // over them re-sorted in turn (`reanchor::fit_in_turn`), the lower validation
-            // error kept (`ABLATION_COARSE_WEIGHTS=fit`: the first alone).
-            let mut steps = starts.into_steps();
-            if std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
-                steps.truncate(1);
-            }
-            let (kept, outcomes) =
-                fit_in_turn(problem, est.clone(), steps, &held, &mut |_, _, _| {})
-                    .expect("second fit");
-            for o in &outcomes {
-                match o {
-                    StepOutcome::Fitted { scores, kept_restart, .. } => eprintln!(
-                        "coarse-light held fit: validation {:.5} against {:.5}, kept {kept_restart}",
-                        scores[1], scores[0]
-                    ),
-                    StepOutcome::Skipped { before, .. } => {
-                        eprintln!("coarse-light held fit skipped ({before:.5?})")
-                    }
-                }
-            }
-            kept
-        } else if v == "coarse-light" {
-            // The first held fit whatever its score.
+        if v == "coarse-light" {
+            // The first held fit whatever its score, from the Lambertian model's start
+            // whatever the basis (section 3's `coarse-held` probe).
             estimate_from_lights(
                 problem,
                 starts.fit_weights,
@@ -755,6 +785,66 @@ fn coarse_light_starts(
     coarse_light::coarse_light_starts(&est.lambda, &est.weights, seen, lambert, &rows, n_photos)
         .expect("the first fit's sizes")
         .expect("every material has pure seen vertices")
+}
+
+/// `ABLATION_DEFAULTS_START=truth-held` (an oracle probe): the TRUE materials' λ over the
+/// kept lobes, matched to the first fit's materials by best accuracy and scaled per channel
+/// so the Lambertian lobes' geometric mean is the first fit's, over weights chosen by
+/// `ABLATION_ORACLE_WEIGHTS=fit` (the first fit's normalised, pure ones snapped; default),
+/// `resorted` (`coarse_light::resorted_weights`, snapped), `projected` (the first fit's
+/// re-sorted on the TRUE materials, `reanchor::projected_on`, snapped) or `true` (the
+/// truth's); the lights fitted again with them held (`bench-results/coarse-light-start.md`
+/// section 15).
+fn truth_held_start(
+    est: &Estimate,
+    case: &Case,
+    seen: &[bool],
+    kept: &[usize],
+    lambert: usize,
+) -> Materials0 {
+    use relight_cpc::solve::materials::{coarse_light, irradiance};
+    let kk = est.lambda.len();
+    let (_, _, perm) = crate::metrics::best_order(case, est, seen);
+    let mut lambda: Vec<Vec<[f64; 3]>> = perm
+        .iter()
+        .map(|&t| kept.iter().map(|&b| case.lambda[t][b]).collect())
+        .collect();
+    let mean_log = |v: &[f64]| v.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / kk as f64;
+    for c in 0..3 {
+        let first: Vec<f64> = est.lambda.iter().map(|l| l[lambert][c]).collect();
+        let truth: Vec<f64> = lambda.iter().map(|l| l[lambert][c]).collect();
+        let s = (mean_log(&first) - mean_log(&truth)).exp();
+        lambda
+            .iter_mut()
+            .for_each(|l| l.iter_mut().for_each(|v| v[c] *= s));
+    }
+    let weights = match std::env::var("ABLATION_ORACLE_WEIGHTS").as_deref() {
+        Ok("true") => {
+            let mut w = vec![0.0; case.nv * kk];
+            for x in 0..case.nv {
+                for j in 0..kk {
+                    w[x * kk + j] = case.weights[x * kk + perm[j]];
+                }
+            }
+            w
+        }
+        Ok("resorted") => irradiance::snap_pure(
+            coarse_light::resorted_weights(&est.lambda, &est.weights, seen).expect("re-sorted"),
+            kk,
+        ),
+        Ok("projected") => {
+            let w = relight_cpc::solve::materials::reanchor::projected_on(
+                &lambda,
+                &est.lambda,
+                &est.weights,
+                seen,
+            )
+            .expect("projection");
+            irradiance::snap_pure(irradiance::normalised_weights(&w, kk), kk)
+        }
+        _ => irradiance::snap_pure(irradiance::normalised_weights(&est.weights, kk), kk),
+    };
+    Materials0 { lambda, weights }
 }
 
 /// `ABLATION_DEFAULTS_START=sh-ratio`: `run --restart irradiance`'s start

@@ -97,26 +97,28 @@ fn the_runs_report_holds_the_irradiance_restart() {
     );
 }
 
-/// The same with `run --restart coarse-light` (the Lambertian ratios from a coarse
-/// non-negative light, `solve::materials::coarse_light`, the lights fitted again with the
-/// materials held over the fit's weights and over them re-sorted): two restarts, each read
-/// against the fit kept before it.
+/// The same with `run --restart coarse-light` over the example's shiny basis: one held
+/// fit, whose materials' colours come from the coarse-light model with each shiny lobe
+/// tied to its material's diffuse one (`solve::materials::coarse_light_shiny`), over the
+/// fit's weights re-sorted on them.
 #[test]
-fn the_runs_report_holds_the_coarse_light_restart() {
+fn the_runs_report_holds_the_coarse_light_restart_over_a_shiny_basis() {
     let dir = crate::scratch::scratch("restart", "report-coarse-light");
     let mut o = crate::scratch::small_example_options(&dir);
     o.restart = Restart::CoarseLight;
-    assert_options_restarts_reported(&o, &[COARSE_LIGHT_REASON, RESORTED_REASON]);
+    assert_options_restarts_reported(&o, &[TIED_REASON]);
 }
 
-/// The same with `run --restart on+coarse-light`: the re-anchored restart, then the
-/// coarse-light one's two from the fit kept, four starts, each restart's reason read against the
-/// fit kept before it.
+/// The same with `run --restart on+coarse-light` over the Lambertian lobe alone: the
+/// re-anchored restart, then the coarse-light one's two held fits from the fit kept, four
+/// starts, each restart's reason read against the fit kept before it.
 #[test]
 fn the_runs_report_holds_both_restarts_in_order() {
+    use relight_cpc::transport::brdf::BasisBrdf;
     let dir = crate::scratch::scratch("restart", "report-on-coarse-light");
     let mut o = crate::scratch::small_example_options(&dir);
     o.restart = Restart::ReanchorCoarseLight;
+    o.basis = vec![BasisBrdf::Lambert];
     assert_options_restarts_reported(&o, &[REANCHOR_REASON, COARSE_LIGHT_REASON, RESORTED_REASON]);
 }
 
@@ -125,6 +127,9 @@ const REANCHOR_REASON: &str = "restart from the fit's own materials";
 
 /// How the coarse-light restart's reason starts.
 const COARSE_LIGHT_REASON: &str = "restart from the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map";
+
+/// How the reason of the coarse-light restart over a shiny basis starts.
+const TIED_REASON: &str = "restart from the fit's weights re-sorted on materials whose colours were fitted with each photo's light a coarse non-negative map";
 
 /// How the reason of the coarse-light restart's second held fit (the weights re-sorted)
 /// starts.

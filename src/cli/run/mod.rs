@@ -209,9 +209,11 @@ pub(crate) struct RunArgs {
     /// materials). `coarse-light`: the ratios fitted with each photo's light a coarse
     /// non-negative map seen through the vertices' shadows, over every vertex one material
     /// holds, and the lights fitted again with those materials held, over the fit's
-    /// weights and over them re-sorted (Lambertian materials). `on+coarse-light`: `on`,
-    /// then `coarse-light` from the fit kept. `auto`: `coarse-light` when the fit's basis
-    /// is the Lambertian lobe alone, else none. One more fit each (`coarse-light`: two).
+    /// weights and over them re-sorted; with a shiny lobe, each tied to its material's
+    /// diffuse one by the fit's ratio, one held fit over the fit's weights re-sorted on the
+    /// model's materials. `on+coarse-light`: `on`, then `coarse-light` from the fit kept.
+    /// `auto`: `coarse-light` when the fit's basis is the Lambertian lobe alone, else none.
+    /// One more fit each (`coarse-light` over Lambert alone: two).
     #[arg(long, default_value = "auto", value_parser = ["auto", "off", "on", "irradiance", "coarse-light", "on+coarse-light"], help_heading = "Solver")]
     pub(crate) restart: String,
     /// Where each material's starting brightness comes from: `clustered` (its colour

@@ -135,7 +135,10 @@ pub enum Restart {
     /// each photo's light a coarse non-negative map seen through the Lambertian transport,
     /// over its pure seen vertices, the lights fitted again with those materials held,
     /// over the fit's weights and over them re-sorted (`coarse-light`,
-    /// [`crate::solve::materials::coarse_light`]).
+    /// [`crate::solve::materials::coarse_light`]). Over a basis with shiny lobes, each tied
+    /// to its material's diffuse lobe by the fit's ratio, one held fit over the fit's
+    /// weights re-sorted on the model's materials
+    /// ([`crate::solve::materials::coarse_light_shiny`]).
     CoarseLight,
     /// [`Restart::Reanchor`], then [`Restart::CoarseLight`] from the fit kept
     /// (`on+coarse-light`): the re-anchored fit sorts the vertices the first fit's
@@ -161,10 +164,11 @@ impl Restart {
     }
 
     /// The restart a fit over `basis` makes: `Auto` is [`Restart::CoarseLight`] when the
-    /// basis holds the Lambertian lobe alone and [`Restart::Off`] otherwise, since that
-    /// model reads every material as Lambertian (with a shiny lobe the highlights enter it
-    /// as light: on `spot-ggx` the error under the true light rose 4.6–4.7% while the
-    /// validation score kept it, `bench-results/coarse-light-start.md`). Not
+    /// basis holds the Lambertian lobe alone and [`Restart::Off`] otherwise. Over a shiny
+    /// basis the restart ties each shiny lobe to its material's diffuse one; through `run`
+    /// at 192² the validation score kept it on 7 of 8 rendered runs and the error under the
+    /// true light rose on all 7 (0.4–2.6%; `bench-results/coarse-light-start.md` section
+    /// 15). Not
     /// [`Restart::ReanchorCoarseLight`]: on the real Buddha photos its re-anchored fit is
     /// kept by validation margins of 0.4% and 1.4% and raises the headline held-out error
     /// by 0.6% and 1.3% (seeds 1–2, section 11 of that file). Any other mode is itself.

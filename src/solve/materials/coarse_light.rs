@@ -271,6 +271,28 @@ pub fn coarse_light_starts(
     }))
 }
 
+/// The coarse-light restart's starts from the first fit `(lambda, weights)` (`weights` as
+/// fitted; `input` over its normalised weights and the fit's transport): over the
+/// Lambertian lobe alone the two of [`CoarseStarts`], over a basis with shiny lobes the one
+/// of [`super::coarse_light_shiny`]. None when a material holds no pure seen vertex.
+pub fn restart_starts(
+    input: &CoarseRowsInput,
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    n_photos: usize,
+) -> Result<Vec<reanchor::StepStart>> {
+    use super::coarse_light_shiny::{lobe_ratios, tied_rows, tied_start, tied_step};
+    let (seen, lambert) = (input.seen, input.lambert);
+    if input.transport.n_basis > 1 {
+        let rows = tied_rows(input, &lobe_ratios(lambda, lambert));
+        let m = tied_start(lambda, weights, seen, lambert, &rows, n_photos)?;
+        return Ok(m.map_or_else(Vec::new, |m| vec![tied_step(m)]));
+    }
+    let rows = pure_seen_rows(input);
+    let m = coarse_light_starts(lambda, weights, seen, lambert, &rows, n_photos)?;
+    Ok(m.map_or_else(Vec::new, CoarseStarts::into_steps))
+}
+
 /// The first fit's weights re-sorted, normalised to sum 1: projected on its own materials
 /// re-anchored ([`reanchor::reanchor`] with [`reanchor::Reweight::Project`]: each
 /// material the median fitted reflectance of the vertices it dominates, each seen vertex's

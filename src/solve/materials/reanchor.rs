@@ -141,6 +141,33 @@ pub fn reanchor(
     })
 }
 
+/// The fit `(lambda, weights)`'s weights re-sorted on the materials `onto` (same count and
+/// lobes): each seen vertex's fitted reflectance projected on them by NNLS (module docs,
+/// step 3), the other vertices' weights as fitted. Errors as [`reanchor`].
+pub fn projected_on(
+    onto: &[Vec<[f64; 3]>],
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    seen: &[bool],
+) -> Result<Vec<f64>> {
+    let nv = seen.len();
+    let kk = lambda.len();
+    let nb = lambda.first().map_or(0, |l| l.len());
+    let sizes_agree = onto.len() == kk && onto.iter().chain(lambda).all(|l| l.len() == nb);
+    if kk == 0 || weights.len() != nv * kk || !sizes_agree {
+        return Err(Error::Internal(format!(
+            "re-sorting weights: {kk} materials ({} to project on), {} weights for {nv} vertices",
+            onto.len(),
+            weights.len()
+        )));
+    }
+    let label = labels(lambda, weights, seen);
+    let beta = beta_per_vertex(lambda, weights, nv);
+    let mut new_w = weights.to_vec();
+    project(onto, &beta, &label, &mut new_w)?;
+    Ok(new_w)
+}
+
 /// What [`restart`] and [`fit_again`] return: the fit kept and the restart's record.
 pub struct Restarted {
     /// The fit with the lower validation error (the first on a tie).
