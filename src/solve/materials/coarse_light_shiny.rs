@@ -261,21 +261,29 @@ mod tests {
         (obs, t, vec![true; 300])
     }
 
-    /// [`tied_start`] over [`scene`]'s rows, from a first fit `first` with `weights`.
-    fn start_from(first: &[Vec<[f64; 3]>], weights: &[f64]) -> Materials0 {
-        let (obs, t, seen) = scene();
-        let unit = normalised_weights(weights, 2);
-        let input = CoarseRowsInput {
-            obs: &obs,
-            transport: &t,
-            seen: &seen,
-            weights: &unit,
+    /// What the model reads of [`scene`] over the normalised weights `unit`.
+    fn input<'a>(
+        (obs, t, seen): &'a (Observations, Transport, Vec<bool>),
+        unit: &'a [f64],
+    ) -> CoarseRowsInput<'a> {
+        CoarseRowsInput {
+            obs,
+            transport: t,
+            seen,
+            weights: unit,
             materials: 2,
             lambert: 0,
             blocks: 8,
-        };
-        let rows = tied_rows(&input, &lobe_ratios(first, 0));
-        tied_start(first, weights, &seen, 0, &rows, 3)
+        }
+    }
+
+    /// [`tied_start`] over [`scene`]'s rows, from a first fit `first` with `weights`.
+    fn start_from(first: &[Vec<[f64; 3]>], weights: &[f64]) -> Materials0 {
+        let sc = scene();
+        let unit = normalised_weights(weights, 2);
+        let rows = tied_rows(&input(&sc, &unit), &lobe_ratios(first, 0));
+        let seen = &sc.2;
+        tied_start(first, weights, seen, 0, &rows, 3)
             .unwrap()
             .unwrap()
     }
@@ -348,20 +356,11 @@ mod tests {
         // material 0's highlights as light. Its worst ratio must be more than 3% off
         // (measured 5.4%, against the tied model's 1e-5 on the same rows), so the tie is
         // what the test above checks.
-        let (obs, t, seen) = scene();
+        let sc = scene();
         let unit: Vec<f64> = (0..300)
             .flat_map(|x| if x < 150 { [1.0, 0.0] } else { [0.0, 1.0] })
             .collect();
-        let input = CoarseRowsInput {
-            obs: &obs,
-            transport: &t,
-            seen: &seen,
-            weights: &unit,
-            materials: 2,
-            lambert: 0,
-            blocks: 8,
-        };
-        let rows = coarse_light::pure_seen_rows(&input);
+        let rows = coarse_light::pure_seen_rows(&input(&sc, &unit));
         let worst = (0..3)
             .map(|c| {
                 let rho = coarse_light::coarse_light_albedos(&rows, c, 3, &[1.0, 1.0]).unwrap();
