@@ -494,21 +494,8 @@ fn second_fit(
         // lobe alone, the tied one over a shiny basis), fitted in turn with the materials
         // held, each kept when its validation error is lower (`reanchor::fit_in_turn`;
         // `ABLATION_COARSE_WEIGHTS=fit`: the first alone).
-        let weights = relight_cpc::solve::materials::irradiance::normalised_weights(
-            &est.weights,
-            est.lambda.len(),
-        );
-        let input = coarse_light::CoarseRowsInput {
-            obs: problem.obs,
-            transport: problem.transport,
-            seen,
-            weights: &weights,
-            materials: est.lambda.len(),
-            lambert,
-            blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
-        };
         let mut steps =
-            coarse_light::restart_starts(&input, &est.lambda, &est.weights, problem.n_photos)
+            coarse_light::restart_starts(problem, &est.lambda, &est.weights, seen, lambert)
                 .expect("the first fit's sizes");
         if std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
             steps.truncate(1);

@@ -387,12 +387,12 @@ fn restart_starts(
             within: None,
         }]);
     }
-    let kk = est.lambda.len();
-    let weights = irradiance::normalised_weights(&est.weights, kk);
     let lambert = start.eopts.lambert_basis;
     if mode == Restart::CoarseLight {
-        return coarse_light_candidates(problem, est, seen, &weights, lambert);
+        return coarse_light::restart_starts(problem, &est.lambda, &est.weights, seen, lambert);
     }
+    let kk = est.lambda.len();
+    let weights = irradiance::normalised_weights(&est.weights, kk);
     let open = p.vis.open_fractions();
     let rows = irradiance::pure_open_rows(&irradiance::RowsInput {
         obs: problem.obs,
@@ -411,29 +411,6 @@ fn restart_starts(
             within: None,
         }]
     }))
-}
-
-/// The coarse-light restart's starts ([`coarse_light::restart_starts`]: two over the
-/// Lambertian lobe alone, one over a shiny basis) from the fit `est` (`weights` its
-/// normalised weights, `seen` the vertices a training photo sees); none when a material
-/// holds no seen vertex at [`irradiance::PURE`].
-fn coarse_light_candidates(
-    problem: &Problem,
-    est: &solve::Estimate,
-    seen: &[bool],
-    weights: &[f64],
-    lambert: usize,
-) -> Result<Vec<reanchor::StepStart>> {
-    let input = coarse_light::CoarseRowsInput {
-        obs: problem.obs,
-        transport: problem.transport,
-        seen,
-        weights,
-        materials: est.lambda.len(),
-        lambert,
-        blocks: coarse_light::BLOCKS.min(problem.transport.n_global),
-    };
-    coarse_light::restart_starts(&input, &est.lambda, &est.weights, problem.n_photos)
 }
 
 /// The second fit's options: `coarse-light` holds the start's materials (the model's

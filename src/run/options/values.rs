@@ -166,8 +166,8 @@ impl Restart {
     /// The restart a fit over `basis` makes: `Auto` is [`Restart::CoarseLight`] when the
     /// basis holds the Lambertian lobe alone and [`Restart::Off`] otherwise. Over a shiny
     /// basis the restart ties each shiny lobe to its material's diffuse one; through `run`
-    /// at 192² the validation score kept it on 7 of 8 rendered runs and the error under the
-    /// true light rose on all 7 (0.4–2.6%; `bench-results/coarse-light-start.md` section
+    /// at 192² it was made on 7 of 8 rendered runs (one skipped), the validation score kept
+    /// it on all 7 and the error under the true light rose on all 7 (0.4–2.6%; `bench-results/coarse-light-start.md` section
     /// 15). Not
     /// [`Restart::ReanchorCoarseLight`]: on the real Buddha photos its re-anchored fit is
     /// kept by validation margins of 0.4% and 1.4% and raises the headline held-out error

@@ -50,7 +50,7 @@ use crate::solve::materials::irradiance::{
 };
 use crate::solve::materials::reanchor;
 use crate::solve::qp::{nnls, NnlsOptions};
-use crate::solve::{EstimateOptions, Materials0};
+use crate::solve::{EstimateOptions, Materials0, Problem};
 use crate::sphere::haar;
 use crate::transport::Transport;
 use crate::Result;
@@ -142,20 +142,24 @@ pub fn block_responses(
     h.tr_mul(&corner).iter().copied().collect()
 }
 
+/// Observation `p`'s transport row of basis `b` ([`Transport::row`]) read as its response
+/// to each block ([`block_responses`], `h` from [`block_haar`]).
+pub fn row_block_responses(t: &Transport, p: usize, b: usize, h: &DMatrix<f64>) -> Vec<f64> {
+    let (idx, val) = t.row(p, b);
+    let entries = idx
+        .iter()
+        .zip(val)
+        .map(|(&m, &g)| (m as usize, f64::from(g)));
+    block_responses(entries, t.n_global, h)
+}
+
 /// The fitted (`α > 0`) observations of the seen vertices with one normalised weight ≥
 /// [`super::irradiance::PURE`] ([`pure_rows`]), each with its Lambertian row's response to
 /// each block ([`block_responses`]).
 pub fn pure_seen_rows(input: &CoarseRowsInput) -> Vec<ModelRow> {
-    let (t, n) = (input.transport, input.transport.n_global);
-    let h = block_haar(n, input.blocks);
-    let responses = |p: usize, _: usize| {
-        let (idx, val) = t.row(p, input.lambert);
-        let entries = idx
-            .iter()
-            .zip(val)
-            .map(|(&m, &g)| (m as usize, f64::from(g)));
-        block_responses(entries, n, &h)
-    };
+    let t = input.transport;
+    let h = block_haar(t.n_global, input.blocks);
+    let responses = |p: usize, _: usize| row_block_responses(t, p, input.lambert, &h);
     pure_rows(
         input.obs,
         (input.seen, input.weights, input.materials),
@@ -271,25 +275,36 @@ pub fn coarse_light_starts(
     }))
 }
 
-/// The coarse-light restart's starts from the first fit `(lambda, weights)` (`weights` as
-/// fitted; `input` over its normalised weights and the fit's transport): over the
-/// Lambertian lobe alone the two of [`CoarseStarts`], over a basis with shiny lobes the one
-/// of [`super::coarse_light_shiny`]. None when a material holds no pure seen vertex.
+/// The coarse-light restart's starts from the first fit `(lambda, weights)` of `problem`
+/// (`weights` as fitted; `seen` the vertices with training observations; `lambert` the
+/// Lambertian basis's index in `problem.transport`), the model read over [`BLOCKS`] per
+/// side: over the Lambertian lobe alone the two of [`CoarseStarts`], over a basis with
+/// shiny lobes the one of [`super::coarse_light_shiny`]. None when a material holds no
+/// pure seen vertex.
 pub fn restart_starts(
-    input: &CoarseRowsInput,
+    problem: &Problem,
     lambda: &[Vec<[f64; 3]>],
     weights: &[f64],
-    n_photos: usize,
+    seen: &[bool],
+    lambert: usize,
 ) -> Result<Vec<reanchor::StepStart>> {
-    use super::coarse_light_shiny::{lobe_ratios, tied_rows, tied_start, tied_step};
-    let (seen, lambert) = (input.seen, input.lambert);
-    if input.transport.n_basis > 1 {
-        let rows = tied_rows(input, &lobe_ratios(lambda, lambert));
-        let m = tied_start(lambda, weights, seen, lambert, &rows, n_photos)?;
+    use super::coarse_light_shiny::{tied_start, tied_step};
+    let unit = normalised_weights(weights, lambda.len());
+    let input = CoarseRowsInput {
+        obs: problem.obs,
+        transport: problem.transport,
+        seen,
+        weights: &unit,
+        materials: lambda.len(),
+        lambert,
+        blocks: BLOCKS.min(problem.transport.n_global),
+    };
+    if problem.transport.n_basis > 1 {
+        let m = tied_start(&input, lambda, weights, problem.n_photos)?;
         return Ok(m.map_or_else(Vec::new, |m| vec![tied_step(m)]));
     }
-    let rows = pure_seen_rows(input);
-    let m = coarse_light_starts(lambda, weights, seen, lambert, &rows, n_photos)?;
+    let rows = pure_seen_rows(&input);
+    let m = coarse_light_starts(lambda, weights, seen, lambert, &rows, problem.n_photos)?;
     Ok(m.map_or_else(Vec::new, CoarseStarts::into_steps))
 }
 

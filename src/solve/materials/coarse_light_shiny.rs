@@ -1,5 +1,5 @@
 //! The coarse-light restart over a basis with shiny lobes (`run --restart coarse-light`,
-//! and `auto` when the fit keeps a shiny lobe; not in the paper).
+//! opt-in: `auto` makes no restart over a shiny basis; not in the paper).
 //!
 //! [`super::coarse_light`] reads every material as Lambertian, so over a shiny basis the
 //! highlights would enter its model as light. Here each material's shiny lobes are tied to
@@ -75,21 +75,14 @@ pub fn lobe_ratios(lambda: &[Vec<[f64; 3]>], lambert: usize) -> Vec<Vec<[f64; 3]
 /// `A_{p,L} + Σ_{b≠L} q_{k,b,c} A_{p,b}` (module docs; `ratios` from [`lobe_ratios`], one
 /// row per material of every lobe of `input.transport`).
 pub fn tied_rows(input: &CoarseRowsInput, ratios: &[Vec<[f64; 3]>]) -> [Vec<ModelRow>; 3] {
-    let (t, n) = (input.transport, input.transport.n_global);
-    let h = coarse_light::block_haar(n, input.blocks);
+    let t = input.transport;
+    let h = coarse_light::block_haar(t.n_global, input.blocks);
     let jj = input.blocks * input.blocks;
     let nb = t.n_basis;
     // Every lobe's block responses, one after the other.
     let responses = |p: usize, _: usize| {
         (0..nb)
-            .flat_map(|b| {
-                let (idx, val) = t.row(p, b);
-                let entries = idx
-                    .iter()
-                    .zip(val)
-                    .map(|(&m, &g)| (m as usize, f64::from(g)));
-                coarse_light::block_responses(entries, n, &h)
-            })
+            .flat_map(|b| coarse_light::row_block_responses(t, p, b, &h))
             .collect::<Vec<f64>>()
     };
     let all = pure_rows(
@@ -122,28 +115,28 @@ pub fn tied_rows(input: &CoarseRowsInput, ratios: &[Vec<[f64; 3]>]) -> [Vec<Mode
 }
 
 /// The restart's start (module docs) from the first fit `(lambda, weights)` (`weights` as
-/// fitted, `V × K`; `seen` the vertices with training observations; `rows` from
-/// [`tied_rows`] over the first fit's [`lobe_ratios`]): each material's Lambertian colour
-/// from the model (the first fit's per-channel geometric mean kept, [`start_from_albedos`]),
-/// its shiny lobes at the first fit's ratios to it, and the weights re-sorted on those
-/// materials. `None` when the rows leave a material without observations.
+/// fitted, `V × K`; `input` over them normalised, its `seen` the vertices with training
+/// observations), the model read over [`tied_rows`] with the first fit's [`lobe_ratios`]:
+/// each material's Lambertian colour from the model (the first fit's per-channel geometric
+/// mean kept, [`start_from_albedos`]), its shiny lobes at the first fit's ratios to it, and
+/// the weights re-sorted on those materials. `None` when the rows leave a material without
+/// observations.
 pub fn tied_start(
+    input: &CoarseRowsInput,
     lambda: &[Vec<[f64; 3]>],
     weights: &[f64],
-    seen: &[bool],
-    lambert: usize,
-    rows: &[Vec<ModelRow>; 3],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
-    let kk = lambda.len();
+    let (kk, lambert, seen) = (lambda.len(), input.lambert, input.seen);
+    let ratios = lobe_ratios(lambda, lambert);
+    let rows = tied_rows(input, &ratios);
     let read = rows[0].iter().map(|r| r.material);
     let albedos =
         |c: usize, first: &[f64]| coarse_light::coarse_light_albedos(&rows[c], c, n_photos, first);
-    let fit = normalised_weights(weights, kk);
-    let Some(model) = start_from_albedos(lambda, fit, lambert, read, albedos)? else {
+    let Some(model) = start_from_albedos(lambda, input.weights.to_vec(), lambert, read, albedos)?
+    else {
         return Ok(None);
     };
-    let ratios = lobe_ratios(lambda, lambert);
     let mut tied = model.lambda;
     for (row, q) in tied.iter_mut().zip(&ratios) {
         let diffuse = row[lambert];
@@ -281,9 +274,7 @@ mod tests {
     fn start_from(first: &[Vec<[f64; 3]>], weights: &[f64]) -> Materials0 {
         let sc = scene();
         let unit = normalised_weights(weights, 2);
-        let rows = tied_rows(&input(&sc, &unit), &lobe_ratios(first, 0));
-        let seen = &sc.2;
-        tied_start(first, weights, seen, 0, &rows, 3)
+        tied_start(&input(&sc, &unit), first, weights, 3)
             .unwrap()
             .unwrap()
     }
