@@ -206,7 +206,7 @@ fn the_auto_restart_is_the_coarse_light_one_over_the_lambertian_lobe_alone() {
     assert!(r.starts.is_none(), "one fit: {:?}", r.starts);
     assert!(
         r.model.reasons.iter().any(|s| s.starts_with(
-            "--restart auto: no restart, as the fit keeps a shiny lobe (lambert, phong:50, phong:500)"
+            "--restart auto: no restart, as the fit keeps a shiny lobe (lambert, phong:50, phong:500, ggx:0.3)"
         )),
         "{:?}",
         r.model.reasons

@@ -33,7 +33,7 @@ pub(crate) struct RunArgs {
     /// ggx:ALPHA (shiny; larger N or smaller ALPHA is sharper).
     #[arg(
         long,
-        default_value = "lambert,phong:50,phong:500",
+        default_value = "lambert,phong:50,phong:500,ggx:0.3",
         help_heading = "Model"
     )]
     pub(crate) basis: String,

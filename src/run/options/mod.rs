@@ -272,6 +272,7 @@ impl RunOptions {
                 BasisBrdf::Lambert,
                 BasisBrdf::Phong { exponent: 50.0 },
                 BasisBrdf::Phong { exponent: 500.0 },
+                BasisBrdf::Ggx { alpha: 0.3 },
             ],
             global_resolution: 64,
             local_resolution: 32,

@@ -444,7 +444,7 @@ struct BasisChoice {
 fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
     let inp = f.inp;
     let shares = basis_shares(&f.problem, &full.est);
-    let mut kept: Vec<usize> = (0..inp.basis.len())
+    let kept: Vec<usize> = (0..inp.basis.len())
         .filter(|&b| b == inp.lambert || shares[b] >= DROP_SHARE)
         .collect();
     let dropped: Vec<usize> = (0..inp.basis.len()).filter(|b| !kept.contains(b)).collect();
@@ -479,16 +479,35 @@ fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
             "the pilot's λ system has condition number {worst:.1e} > {KAPPA_LAMBDA:.0e}: some lobes are nearly indistinguishable in these photos"
         ));
     }
-    // Held-out ablation: a lobe the shares keep may still be one the data cannot tell
-    // from the others (with a free light per photo, a sharp lobe can mimic the diffuse
-    // shading of a single view). Each kept non-Lambertian basis, sharpest first (smallest
-    // share first among equally sharp ones), is left out in turn; it goes when the pilot
-    // without it (and without those already dropped) predicts the held-out observations
-    // within BASIS_TOL of the pilot with every basis. The comparison is always against
-    // that full pilot, so the drops together cost at most BASIS_TOL of held-out error.
     let order = ablation_order(inp.basis, &shares, &kept, inp.lambert);
-    let mut ablation = Vec::new();
-    for b in order {
+    let kept = held_out_ablation(f, k, full, &order, kept, &mut reasons)?;
+    Ok(BasisChoice {
+        kept,
+        shares,
+        reason: reasons.join("; "),
+    })
+}
+
+/// Step 4's held-out ablation: a lobe the shares keep may still be one the data cannot
+/// tell from the others (with a free light per photo, a sharp lobe can mimic the diffuse
+/// shading of a single view). Each kept non-Lambertian basis in `order` (sharpest first,
+/// [`ablation_order`]) is left out in turn; it goes when the pilot without it (and without
+/// those already dropped) predicts the held-out observations within [`BASIS_TOL`] of the
+/// pilot with every basis (`full`). The comparison is always against that full pilot, so
+/// the drops together cost at most `BASIS_TOL` of held-out error. The first lobe kept ends
+/// it: the broader ones stay untested (stand-ins, module docs). Returns the bases kept
+/// and adds why to `reasons`.
+fn held_out_ablation(
+    f: &Fitter,
+    k: usize,
+    full: &PilotFit,
+    order: &[usize],
+    mut kept: Vec<usize>,
+    reasons: &mut Vec<String>,
+) -> Result<Vec<usize>> {
+    let basis = f.inp.basis;
+    let (mut ablation, mut stay) = (Vec::new(), None);
+    for (i, &b) in order.iter().enumerate() {
         let trial: Vec<usize> = kept.iter().copied().filter(|&x| x != b).collect();
         let Some(fit) = f.fit(k, &trial, full.prior, false)? else {
             continue;
@@ -496,12 +515,14 @@ fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
         let (e, ok) = (fit.heldout, as_good(fit.heldout, full.heldout, BASIS_TOL));
         ablation.push(format!(
             "without {} {e:.4e}{}",
-            inp.basis[b].label(),
+            basis[b].label(),
             if ok { " (dropped)" } else { " (kept)" }
         ));
-        if ok {
-            kept = trial;
+        if !ok {
+            stay = broader_stay(basis, &order[i + 1..]);
+            break;
         }
+        kept = trial;
     }
     if !ablation.is_empty() {
         reasons.push(format!(
@@ -511,10 +532,19 @@ fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
             100.0 * BASIS_TOL
         ));
     }
-    Ok(BasisChoice {
-        kept,
-        shares,
-        reason: reasons.join("; "),
+    reasons.extend(stay);
+    Ok(kept)
+}
+
+/// Why the lobes `rest` (broader than the shiny lobe the ablation just kept) stay without a
+/// test; `None` when there are none.
+fn broader_stay(basis: &[BasisBrdf], rest: &[usize]) -> Option<String> {
+    (!rest.is_empty()).then(|| {
+        let names: Vec<String> = rest.iter().map(|&b| basis[b].label()).collect();
+        format!(
+            "{} kept untested: broader than a kept shiny lobe, which would stand in for it in the pilot",
+            names.join(", ")
+        )
     })
 }
 
