@@ -79,7 +79,8 @@
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
-//! `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
+//! `ABLATION_ACCURACY_MISSES=1` (where the `defaults` row's material-accuracy misses are,
+//! [`metrics::accuracy_misses`]), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
@@ -681,6 +682,12 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 let d = defaults::fit_defaults(case, &base);
                 let figures = figures(case, &fl, &d.est, start_ratio_errors(case, &fl), d.seconds);
                 eprintln!("  {figures:?} pilot {:?}", d.pilot.material_scores);
+                if env_flag("ABLATION_ACCURACY_MISSES") {
+                    eprintln!(
+                        "  misses: {}",
+                        metrics::accuracy_misses(case, &d.est, &fl.seen)
+                    );
+                }
                 done.push(Done {
                     label: label.into(),
                     figures,
