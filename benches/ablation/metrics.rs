@@ -21,6 +21,13 @@ pub fn permutations(k: usize) -> Vec<Vec<usize>> {
     out
 }
 
+/// The index of the largest of a vertex's weights `w` (the last of equals, as `max_by`).
+fn argmax(w: &[f64]) -> usize {
+    (0..w.len())
+        .max_by(|&a, &b| w[a].total_cmp(&w[b]))
+        .unwrap_or(0)
+}
+
 /// Material accuracy (all seen, pure seen) over the best order of the estimated materials.
 pub fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
     let (a, p, _) = best_order(case, est, seen);
@@ -32,7 +39,6 @@ pub fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
 /// material `perm[k]`).
 pub fn best_order(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64, Vec<usize>) {
     let k = case.lambda.len();
-    let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
     let mut best = (0.0, 0.0, (0..k).collect());
     for perm in permutations(k) {
         let (mut ok, mut n, mut okp, mut np) = (0, 0, 0, 0);
@@ -136,7 +142,6 @@ pub fn half_error(case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64], left: 
 pub fn accuracy_misses(case: &Case, est: &Estimate, seen: &[bool]) -> String {
     let k = case.lambda.len();
     let (_, _, perm) = best_order(case, est, seen);
-    let argmax = |w: &[f64]| (0..w.len()).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
     let edges = [0.55, 0.6, 0.75, 0.95, f64::INFINITY];
     let mut swap = [0usize; 5];
     let mut outside = [0usize; 5];

@@ -254,17 +254,7 @@ fn a_lobe_broader_than_the_kept_one_stays_and_predicts_the_truth_better() {
         ]
     });
     assert_eq!(decision(&alone, "basis").chosen, "lambert,phong:50");
-    let check = |r: &relight_cpc::report::RunReport| {
-        assert!(
-            !r.truth_check.is_empty(),
-            "a synthetic workspace has a truth check"
-        );
-        r.truth_check
-            .iter()
-            .map(|t| t.relative_true_light)
-            .sum::<f64>()
-            / r.truth_check.len() as f64
-    };
+    let check = crate::run_fixtures::truth_check_mean;
     let (with, without) = (check(&both), check(&alone));
     eprintln!("truth check: with GGX 0.3 {with:.4}, Phong 50 alone {without:.4}");
     assert!(

@@ -153,6 +153,17 @@ pub(crate) fn truth_holdout(r: &RunReport) -> (f64, usize) {
     (t.iter().sum::<f64>() / t.len().max(1) as f64, t.len())
 }
 
+/// The mean over the training photos of the fit's relative error under their TRUE light
+/// (the report's truth check); a synthetic workspace always has one.
+pub(crate) fn truth_check_mean(r: &RunReport) -> f64 {
+    assert!(
+        !r.truth_check.is_empty(),
+        "a synthetic workspace has a truth check"
+    );
+    let sum: f64 = r.truth_check.iter().map(|t| t.relative_true_light).sum();
+    sum / r.truth_check.len() as f64
+}
+
 #[test]
 fn run_on_the_synth_scene_through_colmap_against_its_truth() {
     // A rerun of scripts/colmap_fixture_synth.sh when COLMAP_SYNTH_FIXTURE names one.

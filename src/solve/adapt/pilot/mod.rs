@@ -440,7 +440,7 @@ struct BasisChoice {
 }
 
 /// Step 4: the shares of `full` (the pilot with `k` materials and every basis), then the
-/// held-out ablation of each kept non-Lambertian basis against `full`.
+/// held-out ablation against `full` ([`held_out_ablation`]).
 fn basis_choice(f: &Fitter, k: usize, full: &PilotFit) -> Result<BasisChoice> {
     let inp = f.inp;
     let shares = basis_shares(&f.problem, &full.est);
