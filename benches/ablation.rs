@@ -97,7 +97,7 @@ use serde_json::{json, Value};
 use std::time::Instant;
 use synth_case::*;
 
-#[path = "ablation/defaults.rs"]
+#[path = "ablation/defaults/mod.rs"]
 mod defaults;
 #[path = "ablation/diagnose.rs"]
 mod diagnose;

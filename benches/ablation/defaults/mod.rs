@@ -1,0 +1,305 @@
+//! The row `defaults (the pilot's choices)`: what `relight-cpc run` does with no flags,
+//! on the bench's cases. The adaptive pilot ([`adapt::pilot`], the function `run` calls,
+//! with the inputs `run` gives it) chooses the material count (step 3), the blending
+//! weights' sum-to-one prior (step 3b) and which of the case's lobes to keep (step 4); the
+//! full fit then uses those choices with the paper's light model, the k-means start and
+//! `run`'s outer-iteration cap and tolerance ([`RunOptions`]: 8 and 10⁻³, where the other
+//! rows take the bench's 20 and 10⁻⁵; `ABLATION_DEFAULTS_ITERS=bench` gives it those too); then, as `run` does, the vertices no training
+//! photo sees take their seen neighbours' materials ([`propagate_unseen`]); the ratio step
+//! runs as `--ratio-steps auto` decides ([`ratio_step::default_rounds`]), and early stopping
+//! has `run`'s patience ([`RunOptions::DEFAULT_PATIENCE`]; `ABLATION_DEFAULTS_PATIENCE=N`
+//! gives it `run --patience N`; the neighbour prior over the case's vertex graph is on when the
+//! pilot keeps a shiny lobe, as `run --weights-smoothness auto` decides
+//! ([`adapt::neighbour_prior_for`]), and `ABLATION_DEFAULTS_NEIGHBOUR=X` gives it
+//! `run --weights-smoothness X`). The map sizes
+//! stay the bench's (16² / 8²: the pilot's resolution choice, step 5, is the only default
+//! left out).
+//!
+//! The probes of the ratio and start work (`ABLATION_DEFAULTS_START=…`) sit beside it:
+//! [`start_probes`] (other starts for the first fit), [`second`] (second fits from the first
+//! fit's materials, and `run --restart`'s) and [`diagnosis`] (the irradiance and
+//! coarse-light models' ratio errors against the truth).
+
+mod diagnosis;
+mod second;
+mod start_probes;
+
+use crate::synth_case::*;
+use relight_cpc::run::RunOptions;
+use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
+use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
+use relight_cpc::solve::materials::propagate::propagate_unseen;
+use relight_cpc::solve::ratio_step;
+use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
+
+/// The case's basis has its Lambertian lobe first (`fit_start`'s convention).
+const LAMBERT: usize = 0;
+
+/// The defaults' fit: its estimate over the case's full basis (a dropped lobe's weights
+/// 0) and what the pilot decided.
+pub struct DefaultsFit {
+    pub est: Estimate,
+    pub pilot: PilotOutcome,
+    pub seconds: f64,
+}
+
+/// Each vertex's mean colour over the training photos and whether one sees it: what the
+/// clustered start and the unmixed starts read.
+#[derive(Clone, Copy)]
+struct Colours<'a> {
+    mean_rgb: &'a [[f64; 3]],
+    seen: &'a [bool],
+}
+
+/// The pilot on the case's training photos, then the fit with its choices (the start, the
+/// first fit, `run --restart auto`'s second fits, the unseen vertices' materials); `base`:
+/// the bench's options (the paper's free weights, the paper's light model).
+pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
+    let t0 = std::time::Instant::now();
+    let base = &with_env_overrides(base);
+    let (mean_rgb, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
+    let colours = Colours {
+        mean_rgb: &mean_rgb,
+        seen: &seen,
+    };
+    let pilot = run_pilot(case, base, colours);
+    let sub = adapt::select_bases(&case.train.transport, &pilot.kept).expect("kept bases");
+    let problem = Problem {
+        transport: &sub,
+        ..case.train.problem(case.nv)
+    };
+    let init = clustered_start(case, &pilot, colours);
+    let m0 = start_materials(case, &pilot, &init, colours);
+    let opts = fit_options(case, base, &pilot);
+    let first = second::Fitted {
+        est: first_fit(&problem, m0, &opts, &init, colours),
+        kept: &pilot.kept,
+        seen: &seen,
+    };
+    let mut est = second::second_fits(&problem, first, &opts, case, pilot.materials);
+    propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
+        .expect("propagation");
+    est.lambda = est
+        .lambda
+        .iter()
+        .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
+        .collect();
+    DefaultsFit {
+        est,
+        pilot,
+        seconds: t0.elapsed().as_secs_f64(),
+    }
+}
+
+/// The bench's options with the pilot's and the fit's IRLS overridden: `run
+/// --irls-iterations N` with `ABLATION_DEFAULTS_IRLS=N`; the robust floor with
+/// `ABLATION_DEFAULTS_FLOOR=X`; Huber's `k` or Tukey's biweight with
+/// `ABLATION_DEFAULTS_ROBUST=K|tukey`; the maps' Laplacian weight with
+/// `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`).
+fn with_env_overrides(base: &EstimateOptions) -> EstimateOptions {
+    EstimateOptions {
+        irls_iters: crate::env_or("ABLATION_DEFAULTS_IRLS", base.irls_iters),
+        robust_floor: crate::env_or("ABLATION_DEFAULTS_FLOOR", base.robust_floor),
+        robust: match std::env::var("ABLATION_DEFAULTS_ROBUST").as_deref() {
+            Ok("tukey") => relight_cpc::solve::Robust::Tukey { c: 4.685 },
+            Ok(k) => k
+                .parse()
+                .map_or(base.robust, |k| relight_cpc::solve::Robust::Huber { k }),
+            Err(_) => base.robust,
+        },
+        smoothness: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS", base.smoothness),
+        ..base.clone()
+    }
+}
+
+/// The adaptive pilot with the inputs `run` gives it: it holds out its own observations,
+/// and its lighting sample has the run's strata. Every lobe of the case's basis is kept,
+/// whatever the pilot's shares, with `ABLATION_DEFAULTS_ALL_LOBES=1`.
+fn run_pilot(case: &Case, base: &EstimateOptions, colours: Colours) -> PilotOutcome {
+    let mut pilot = adapt::pilot(&PilotInput {
+        normals_env: &case.normals_env,
+        obs: &case.train.obs,
+        env_from_world: &case.env_from_world,
+        vis: &case.vis,
+        basis: &case.basis,
+        lambert: LAMBERT,
+        normal_grid: case.sizes.normal_grid,
+        global_resolution: case.sizes.global,
+        keep: case.sizes.keep,
+        estimate: EstimateOptions {
+            validation_fraction: 0.0,
+            lighting_strata: relight_cpc::solve::subsample::lighting_strata(
+                &case.normals_env,
+                &case.vis.open_fractions(),
+            ),
+            ..base.clone()
+        },
+        mean_rgb: colours.mean_rgb,
+        seen: colours.seen,
+        materials: None,
+        choose_weights_sum: true,
+        start: relight_cpc::solve::matched::StartBrightness::Auto,
+        max_vertices: adapt::PILOT_MAX_VERTICES,
+        seed: 1,
+    })
+    .expect("adaptive pilot");
+    if crate::env_flag("ABLATION_DEFAULTS_ALL_LOBES") {
+        pilot.kept = (0..case.basis.len()).collect();
+    }
+    pilot
+}
+
+/// The k-means start with the pilot's count, its brightness matched by normal when the
+/// pilot chose that start. `ABLATION_DEFAULTS_START=unmix-match`: the weights (and labels)
+/// unmixed from the clustered colours before the brightness is matched, so that only
+/// vertices the unmixing finds pure count there, then unmixed again over the matched
+/// colours.
+fn clustered_start(case: &Case, pilot: &PilotOutcome, colours: Colours) -> InitialMaterials {
+    let mut init = relight_cpc::solve::cluster::initial_materials(
+        colours.mean_rgb,
+        colours.seen,
+        pilot.materials,
+        1,
+    )
+    .expect("k-means start");
+    let unmix_match = start_variant().as_deref() == Some("unmix-match");
+    if unmix_match {
+        start_probes::unmix_initial(&mut init, colours);
+    }
+    if pilot.start == relight_cpc::solve::matched::StartBrightness::Matched {
+        let open = case.vis.open_fractions();
+        let obs = &case.train.obs;
+        relight_cpc::solve::matched::match_start(&mut init, obs, &case.normals_env, &open, true);
+    }
+    if unmix_match {
+        start_probes::unmix_initial(&mut init, colours);
+    }
+    init
+}
+
+/// `ABLATION_DEFAULTS_START`, the probe that replaces a part of the defaults' fit.
+fn start_variant() -> Option<String> {
+    std::env::var("ABLATION_DEFAULTS_START").ok()
+}
+
+/// The first fit's start over the kept lobes: the clustered start's, or with
+/// `ABLATION_DEFAULTS_START=truth | truth-weights | truth-lambda` (when the pilot took the
+/// true count) one of [`start_probes::truth_start`]'s; with `unmix`, each seen vertex's
+/// weights unmixed from its mean colour over the start's colours ([`unmixed_weights`],
+/// `--start-weights unmixed`); `unmix2`: over the best pair of materials only (a vertex
+/// blends at most two).
+fn start_materials(
+    case: &Case,
+    pilot: &PilotOutcome,
+    init: &InitialMaterials,
+    colours: Colours,
+) -> Materials0 {
+    let mut m0 = Materials0::from_initial(init, pilot.kept.len(), LAMBERT);
+    let variant = start_variant();
+    match variant.as_deref() {
+        Some(v @ ("truth" | "truth-weights" | "truth-lambda"))
+            if pilot.materials == case.lambda.len() =>
+        {
+            start_probes::truth_start(v, &mut m0, case, &pilot.kept)
+        }
+        Some("unmix") => m0.weights = unmixed_weights(init, colours.mean_rgb, colours.seen).0,
+        Some("unmix2") => start_probes::unmix_pairs(&mut m0, colours),
+        _ => {}
+    }
+    m0
+}
+
+/// The full fit's options: the pilot's choices, `run`'s cap, tolerance and patience (or
+/// with `ABLATION_DEFAULTS_ITERS=bench` the bench's cap and tolerance,
+/// `ABLATION_DEFAULTS_PATIENCE=N` `run --patience N`), the ratio step as `run --ratio-steps
+/// auto` (`ABLATION_RATIO_STEPS=N`: `--ratio-steps N`), the neighbour prior as `run
+/// --weights-smoothness auto` (`ABLATION_DEFAULTS_NEIGHBOUR=X`: `--weights-smoothness X`).
+/// `ABLATION_DEFAULTS_SCOPE=blends`: the sum-to-one prior on blended vertices whatever the
+/// pilot's scope; `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
+/// group of training photos under one true sky, with per-photo gains
+/// (`SYNTH_SHARED_SKIES=1` makes such groups).
+fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> EstimateOptions {
+    let (max_outer, rel_tol) =
+        if std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench") {
+            (base.max_outer, base.rel_tol)
+        } else {
+            (
+                RunOptions::DEFAULT_MAX_ITERATIONS,
+                RunOptions::DEFAULT_REL_TOL,
+            )
+        };
+    let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
+    let neighbour_prior = adapt::neighbour_prior_for(&kept).0;
+    let blends = std::env::var("ABLATION_DEFAULTS_SCOPE").is_ok_and(|v| v == "blends");
+    let default_rounds =
+        ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials);
+    let opts = EstimateOptions {
+        weights_sum: pilot.weights_sum,
+        weights_sum_scope: if blends {
+            relight_cpc::solve::SumScope::Blends {
+                floor: relight_cpc::solve::BLEND_FLOOR,
+            }
+        } else {
+            pilot.weights_sum_scope
+        },
+        max_outer,
+        patience: crate::env_or("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
+        rel_tol,
+        ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
+        weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
+        light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
+            .is_ok_and(|v| v == "shared")
+            .then(|| case.true_light_groups()),
+        ..base.clone()
+    };
+    crate::with_case_graph(case, opts)
+}
+
+/// The first fit from `m0`, or with `ABLATION_DEFAULTS_START=grid | grid-unmix` (up to three
+/// materials) the best of [`start_probes::grid_start_fit`]'s.
+fn first_fit(
+    problem: &Problem,
+    m0: Materials0,
+    opts: &EstimateOptions,
+    init: &InitialMaterials,
+    colours: Colours,
+) -> Estimate {
+    match start_variant().as_deref() {
+        Some(v @ ("grid" | "grid-unmix")) if m0.lambda.len() <= 3 => {
+            let unmix = (v == "grid-unmix").then_some(start_probes::UnmixFrom { init, colours });
+            start_probes::grid_start_fit(problem, &m0, opts, LAMBERT, unmix)
+        }
+        _ => estimate(problem, m0, opts, &mut |_, _| {}).expect("defaults' fit"),
+    }
+}
+
+/// A material's weights over the kept bases (`kept[i]`: index of the `i`-th in the full
+/// list) laid out over all `n` bases, 0 for a dropped one.
+pub(super) fn full_basis(row: &[[f64; 3]], kept: &[usize], n: usize) -> Vec<[f64; 3]> {
+    let mut full = vec![[0.0; 3]; n];
+    for (v, &b) in row.iter().zip(kept) {
+        full[b] = *v;
+    }
+    full
+}
+
+/// The pilot's choices in a sentence, for the table's notes.
+pub fn describe(case: &Case, p: &PilotOutcome) -> String {
+    let kept: Vec<String> = p.kept.iter().map(|&b| case.basis[b].label()).collect();
+    format!(
+        "the pilot chose K = {}, the {} start, the weights' sum-to-one prior at {}{} and the lobes {} ({}; {}; {})",
+        p.materials,
+        p.start.name(),
+        p.weights_sum,
+        match p.weights_sum_scope {
+            relight_cpc::solve::SumScope::Every => "",
+            relight_cpc::solve::SumScope::Blends { .. } => " on blended vertices",
+        },
+        kept.join(", "),
+        p.weights_sum_reason
+            .as_deref()
+            .unwrap_or("weights' prior not chosen"),
+        p.start_reason.as_deref().unwrap_or("start not chosen"),
+        p.basis_reason
+    )
+}
