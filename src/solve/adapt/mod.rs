@@ -104,7 +104,7 @@
 //!    where the materials' ratios are not consistent across photos and normals (residual
 //!    above [`crate::solve::matched::MAX_RESIDUAL`]) the clustered start stays. Else the
 //!    count with the prior of 3b is refitted from the matched start; unless that raises
-//!    the held-out RMSE by more than [`START_TOL`] (1%), it is kept and the later fits
+//!    the held-out RMSE by more than [`START_TOL`] (3%), it is kept and the later fits
 //!    (step 4) and the run's fit start so. Both fits share the clustering, the transport
 //!    and the held-out split, so they differ by the start alone.
 //! 4. **Basis BRDFs whose weights vanish** ([`basis_shares`]). With the pilot's `λ`, `w`
@@ -267,7 +267,7 @@ pub const WEIGHTS_SUM_GAIN: f64 = 0.13;
 /// sun of `spot-sky`.
 pub const BLEND_GAIN: f64 = BASIS_TOL;
 /// Relative rise of the pilot's held-out RMSE at which a consistent matched start is
-/// refused (step 3c): 1%. Where the materials' ratios are consistent the matched start is
+/// refused (step 3c): 3%. Where the materials' ratios are consistent the matched start is
 /// the physically better guess, and the pilot's 2-iteration scores tell the two starts
 /// apart only roughly: on the built-in example at seed 2 the pilot scored it +0.4% while
 /// the full fit from it predicted the held-out photos under their true light 27.5% better
@@ -275,8 +275,13 @@ pub const BLEND_GAIN: f64 = BASIS_TOL;
 /// ablation's glossy scene +0.6% against relit 0.1381 → 0.1373
 /// (`bench-results/matched-start.md`). Scored by validation alone (taken at any fall),
 /// the real Buddha photos' pilots took it at −1.0% and −0.2% and lost 3.6–4.5%; the
-/// consistency gate before this test keeps those.
-pub const START_TOL: f64 = 0.01;
+/// consistency gate before this test keeps those. At 1% the pilot refused it on three
+/// cases scored +1.3% to +1.6%, and each full fit from it is better
+/// (`bench-results/start-margin.md`): `spot-varying` at 192², seed 1, held-out error under
+/// the true light 0.0338 → 0.0315; `spot-three` with 12 photos, synth seed 3, 0.0488 →
+/// 0.0326; the ablation's glossy scene at seed 4, relit 1.040× → 1.032× the floor. The next
+/// score above 3% seen is the noise-free glossy scene's +3.9%.
+pub const START_TOL: f64 = 0.03;
 /// Absolute held-out RMSE margin added to [`MATERIAL_TOL`]: a quarter of the RMSE of
 /// rounding to the darkest 8-bit sRGB step (`1/(255·12.92)/√12` ≈ 8.8e-5 linear). Gains
 /// below it cannot be told from the photos' quantisation (on a nearly black scene every
