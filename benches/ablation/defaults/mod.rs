@@ -76,7 +76,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         kept: &pilot.kept,
         seen: &seen,
     };
-    let mut est = second::second_fits(&problem, first, &opts, case, pilot.materials);
+    let probe = second::Probe {
+        problem: &problem,
+        opts: &opts,
+        case,
+    };
+    let mut est = second::second_fits(probe, first, pilot.materials);
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
     est.lambda = est

@@ -19,26 +19,34 @@ pub(super) struct Fitted<'a> {
     pub seen: &'a [bool],
 }
 
+/// What every second fit works on: the first fit's problem and options, and the case.
+#[derive(Clone, Copy)]
+pub(super) struct Probe<'a> {
+    pub problem: &'a Problem<'a>,
+    pub opts: &'a EstimateOptions,
+    pub case: &'a Case,
+}
+
 impl Fitted<'_> {
-    /// The worst diffuse albedo ratio error per channel of materials over the kept lobes
-    /// ([`crate::metrics::ratio_errors`]).
-    fn ratios_of(&self, case: &Case, m: (&[Vec<[f64; 3]>], &[f64])) -> [f64; 3] {
-        let full: Vec<Vec<[f64; 3]>> =
-            m.0.iter()
-                .map(|row| full_basis(row, self.kept, case.basis.len()))
-                .collect();
-        crate::metrics::ratio_errors(case, &full, m.1, self.seen)
+    /// The worst diffuse albedo ratio error per channel of materials `lambda` with weights
+    /// `weights` over the kept lobes ([`crate::metrics::ratio_errors`]).
+    fn ratios_of(&self, case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64]) -> [f64; 3] {
+        let full: Vec<Vec<[f64; 3]>> = lambda
+            .iter()
+            .map(|row| full_basis(row, self.kept, case.basis.len()))
+            .collect();
+        crate::metrics::ratio_errors(case, &full, weights, self.seen)
     }
 
     fn ratios(&self, case: &Case, e: &Estimate) -> [f64; 3] {
-        self.ratios_of(case, (&e.lambda, &e.weights))
+        self.ratios_of(case, &e.lambda, &e.weights)
     }
 
     /// Prints a probe's start's worst ratio beside the first fit's.
     fn print_start(&self, case: &Case, name: &str, m: &Materials0) {
         eprintln!(
             "{name} start: worst ratio {:.3?} (first fit {:.3?})",
-            self.ratios_of(case, (&m.lambda, &m.weights)),
+            self.ratios_of(case, &m.lambda, &m.weights),
             self.ratios(case, &self.est)
         );
     }
@@ -48,27 +56,16 @@ impl Fitted<'_> {
 /// ([`second_fit`], kept whatever its score unless `ABLATION_REFIT_PICK=1`; `reanchor-coarse`:
 /// `run --restart on+coarse-light`); without one, as `run --restart auto`
 /// ([`auto_restart`]).
-pub(super) fn second_fits(
-    problem: &Problem,
-    first: Fitted,
-    opts: &EstimateOptions,
-    case: &Case,
-    materials: usize,
-) -> Estimate {
+pub(super) fn second_fits(p: Probe, first: Fitted, materials: usize) -> Estimate {
     match start_variant().as_deref() {
         Some(
             v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
             | "sh-ratio2" | "coarse-light" | "coarse-light-free" | "truth-held"),
-        ) => {
-            let pick = crate::env_flag("ABLATION_REFIT_PICK");
-            second_fit(v, problem, first, opts, case, pick)
-        }
-        Some("reanchor-coarse") => {
-            restarts(Restart::ReanchorCoarseLight, problem, first, opts, case)
-        }
+        ) => second_fit(p, v, first, crate::env_flag("ABLATION_REFIT_PICK")),
+        Some("reanchor-coarse") => restarts(p, Restart::ReanchorCoarseLight, first),
         _ => {
-            let kept: Vec<_> = first.kept.iter().map(|&b| case.basis[b]).collect();
-            restarts(auto_restart(&kept, materials), problem, first, opts, case)
+            let kept: Vec<_> = first.kept.iter().map(|&b| p.case.basis[b]).collect();
+            restarts(p, auto_restart(&kept, materials), first)
         }
     }
 }
@@ -79,27 +76,20 @@ pub(super) fn second_fits(
 /// `coarse-light-free`, `sh-ratio`, `sh-ratio2`: the functions of those names), returned
 /// whatever its score unless `pick`, which keeps the fit with the lower validation error as
 /// `run --restart` does. Prints both fits' worst ratio errors and validation errors.
-fn second_fit(
-    v: &str,
-    problem: &Problem,
-    first: Fitted,
-    opts: &EstimateOptions,
-    case: &Case,
-    pick: bool,
-) -> Estimate {
+fn second_fit(p: Probe, v: &str, first: Fitted, pick: bool) -> Estimate {
     let second = match v {
-        "truth-held" => truth_held_fit(problem, &first, opts, case),
-        "coarse-light" if pick => coarse_light_restart(problem, &first, opts),
-        "coarse-light" | "coarse-light-free" => coarse_light_fit(v, problem, &first, opts, case),
-        "sh-ratio" | "sh-ratio2" => sh_ratio_fit(v, problem, &first, opts, case),
-        "reanchor" | "reanchor2" | "reanchor-lambert" => reanchor_fit(v, problem, &first, opts),
-        _ => refit(problem, &first.est, opts, case, LAMBERT, v == "refit"),
+        "truth-held" => truth_held_fit(p, &first),
+        "coarse-light" if pick => coarse_light_restart(p, &first),
+        "coarse-light" | "coarse-light-free" => coarse_light_fit(p, v, &first),
+        "sh-ratio" | "sh-ratio2" => sh_ratio_fit(p, v, &first),
+        "reanchor" | "reanchor2" | "reanchor-lambert" => reanchor_fit(p, v, &first),
+        _ => refit(p.problem, &first.est, p.opts, p.case, LAMBERT, v == "refit"),
     };
     let score = |e: &Estimate| e.validation.as_ref().map(|v| v.best_error());
     eprintln!(
         "second fit {v}: worst ratio {:.3?} -> {:.3?}; validation {:?} -> {:?}",
-        first.ratios(case, &first.est),
-        first.ratios(case, &second),
+        first.ratios(p.case, &first.est),
+        first.ratios(p.case, &second),
         score(&first.est),
         score(&second)
     );
@@ -111,33 +101,28 @@ fn second_fit(
 }
 
 /// `truth-held`: the lights fitted again with [`truth_held_start`]'s materials held.
-fn truth_held_fit(
-    problem: &Problem,
-    first: &Fitted,
-    opts: &EstimateOptions,
-    case: &Case,
-) -> Estimate {
-    let m = truth_held_start(&first.est, case, first.seen, first.kept, LAMBERT);
-    first.print_start(case, "truth-held", &m);
-    let held = coarse_light::held_fit_options(opts);
-    estimate_from_lights(problem, m, &held, &first.est.lights, &mut |_, _| {}).expect("held fit")
+fn truth_held_fit(p: Probe, first: &Fitted) -> Estimate {
+    let m = truth_held_start(&first.est, p.case, first.seen, first.kept, LAMBERT);
+    first.print_start(p.case, "truth-held", &m);
+    let held = coarse_light::held_fit_options(p.opts);
+    estimate_from_lights(p.problem, m, &held, &first.est.lights, &mut |_, _| {}).expect("held fit")
 }
 
 /// `coarse-light` with `pick`, as `run --restart coarse-light`: the library's starts (two
 /// over the Lambertian lobe alone, the tied one over a shiny basis), fitted in turn with
 /// the materials held, each kept when its validation error is lower
 /// ([`fit_in_turn`]; `ABLATION_COARSE_WEIGHTS=fit`: the first alone).
-fn coarse_light_restart(problem: &Problem, first: &Fitted, opts: &EstimateOptions) -> Estimate {
+fn coarse_light_restart(p: Probe, first: &Fitted) -> Estimate {
     let est = &first.est;
     let mut steps =
-        coarse_light::restart_starts(problem, &est.lambda, &est.weights, first.seen, LAMBERT)
+        coarse_light::restart_starts(p.problem, &est.lambda, &est.weights, first.seen, LAMBERT)
             .expect("the first fit's sizes");
     if std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
         steps.truncate(1);
     }
-    let held = coarse_light::held_fit_options(opts);
+    let held = coarse_light::held_fit_options(p.opts);
     let (kept, outcomes) =
-        fit_in_turn(problem, est.clone(), steps, &held, &mut |_, _, _| {}).expect("second fit");
+        fit_in_turn(p.problem, est.clone(), steps, &held, &mut |_, _, _| {}).expect("second fit");
     for o in &outcomes {
         match o {
             StepOutcome::Fitted {
@@ -159,57 +144,45 @@ fn coarse_light_restart(problem: &Problem, first: &Fitted, opts: &EstimateOption
 /// `coarse-light` (without `pick`): the first held fit whatever its score, from the
 /// Lambertian model's start whatever the basis (section 3's `coarse-held` probe);
 /// `coarse-light-free`: a free fit from that start.
-fn coarse_light_fit(
-    v: &str,
-    problem: &Problem,
-    first: &Fitted,
-    opts: &EstimateOptions,
-    case: &Case,
-) -> Estimate {
-    let starts = coarse_light_starts(&first.est, case, first.seen, LAMBERT);
-    first.print_start(case, "coarse-light", &starts.fit_weights);
+fn coarse_light_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
+    let starts = coarse_light_starts(&first.est, p.case, first.seen, LAMBERT);
+    first.print_start(p.case, "coarse-light", &starts.fit_weights);
+    let m = starts.fit_weights;
     if v == "coarse-light" {
-        let held = coarse_light::held_fit_options(opts);
+        let held = coarse_light::held_fit_options(p.opts);
         let lights = &first.est.lights;
-        estimate_from_lights(problem, starts.fit_weights, &held, lights, &mut |_, _| {})
-            .expect("second fit")
+        estimate_from_lights(p.problem, m, &held, lights, &mut |_, _| {}).expect("second fit")
     } else {
-        estimate(problem, starts.fit_weights, opts, &mut |_, _| {}).expect("second fit")
+        estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("second fit")
     }
 }
 
 /// `sh-ratio`: a fit from [`sh_ratio_start`] (with `ABLATION_SH_TRUTH` first
 /// [`super::diagnosis::sh_truth_diagnosis`]); `sh-ratio2`: the model read again from that
 /// fit's weights, a third fit.
-fn sh_ratio_fit(
-    v: &str,
-    problem: &Problem,
-    first: &Fitted,
-    opts: &EstimateOptions,
-    case: &Case,
-) -> Estimate {
-    let m = sh_ratio_start(&first.est, case, first.seen, LAMBERT);
+fn sh_ratio_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
+    let m = sh_ratio_start(&first.est, p.case, first.seen, LAMBERT);
     if std::env::var("ABLATION_SH_TRUTH").is_ok() {
         let fits = (&first.est, &m);
-        super::diagnosis::sh_truth_diagnosis(case, fits, first.seen, first.kept, LAMBERT);
+        super::diagnosis::sh_truth_diagnosis(p.case, fits, first.seen, first.kept, LAMBERT);
         if std::env::var("ABLATION_SH_TRUTH").is_ok_and(|v| v == "only") {
             std::process::exit(0);
         }
     }
-    first.print_start(case, "sh-ratio", &m);
-    let mut second = estimate(problem, m, opts, &mut |_, _| {}).expect("second fit");
+    first.print_start(p.case, "sh-ratio", &m);
+    let mut second = estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("second fit");
     if v == "sh-ratio2" {
-        let ratios = first.ratios(case, &second);
+        let ratios = first.ratios(p.case, &second);
         eprintln!("sh-ratio2: second fit's worst ratio {ratios:.3?}");
-        let m = sh_ratio_start(&second, case, first.seen, LAMBERT);
-        second = estimate(problem, m, opts, &mut |_, _| {}).expect("third fit");
+        let m = sh_ratio_start(&second, p.case, first.seen, LAMBERT);
+        second = estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("third fit");
     }
     second
 }
 
 /// `reanchor`: a fit from the first fit's materials re-anchored ([`reanchor`], projected
 /// weights); `reanchor2` twice; `reanchor-lambert` with [`keep_gloss`].
-fn reanchor_fit(v: &str, problem: &Problem, first: &Fitted, opts: &EstimateOptions) -> Estimate {
+fn reanchor_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
     let mut from = first.est.clone();
     for _ in 0..if v == "reanchor2" { 2 } else { 1 } {
         let mut m = reanchor(&from.lambda, &from.weights, first.seen, Reweight::Project)
@@ -217,7 +190,7 @@ fn reanchor_fit(v: &str, problem: &Problem, first: &Fitted, opts: &EstimateOptio
         if v == "reanchor-lambert" {
             keep_gloss(&mut m.lambda, &from.lambda, LAMBERT);
         }
-        from = estimate(problem, m, opts, &mut |_, _| {}).expect("second fit");
+        from = estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("second fit");
     }
     from
 }
@@ -236,13 +209,7 @@ fn auto_restart(kept: &[relight_cpc::transport::brdf::BasisBrdf], materials: usi
 /// The second fits `run --restart mode` makes from `first` ([`Restart::steps`], each the
 /// [`second_fit`] of the same name from the fit kept before it, kept when its validation
 /// error is lower).
-fn restarts(
-    mode: Restart,
-    problem: &Problem,
-    first: Fitted,
-    opts: &EstimateOptions,
-    case: &Case,
-) -> Estimate {
+fn restarts(p: Probe, mode: Restart, first: Fitted) -> Estimate {
     let Fitted {
         mut est,
         kept,
@@ -256,7 +223,7 @@ fn restarts(
             Restart::Auto | Restart::Off | Restart::ReanchorCoarseLight => continue,
         };
         let from = Fitted { est, kept, seen };
-        est = second_fit(v, problem, from, opts, case, true);
+        est = second_fit(p, v, from, true);
     }
     est
 }
