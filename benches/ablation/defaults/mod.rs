@@ -1,5 +1,6 @@
-//! The row `defaults (the pilot's choices)`: what `relight-cpc run` does with no flags,
-//! on the bench's cases. The adaptive pilot ([`adapt::pilot`], the function `run` calls,
+//! The row `defaults (the pilot's choices)`: what `relight-cpc run --light paper` does with
+//! no other flags, on the bench's cases (without `--light`, `run` chooses the light model
+//! by validation on meshes below 50K vertices, which this row does not). The adaptive pilot ([`adapt::pilot`], the function `run` calls,
 //! with the inputs `run` gives it) chooses the material count (step 3), the blending
 //! weights' sum-to-one prior (step 3b) and which of the case's lobes to keep (step 4); the
 //! full fit then uses those choices with the paper's light model, the k-means start and

@@ -87,7 +87,10 @@ impl RunArgs {
         o.smoothness = self.smoothness;
         o.irls_iterations = self.irls_iterations;
         o.lighting_qp_iterations = self.lighting_qp_iterations;
-        o.light = relight_cpc::solve::light::choose::LightChoice::parse(&self.light)?;
+        match &self.light {
+            Some(l) => o.light = relight_cpc::solve::light::choose::LightChoice::parse(l)?,
+            None => o.light_by_size = true,
+        }
         o.validation = self.validation;
         o.validation_block = self.validation_block;
         o.validation_halves = self.validation_halves;

@@ -6,8 +6,8 @@ use clap::Parser;
 
 /// `run`'s flags repeat most defaults as literals beside `RunOptions::new`: parsing a
 /// bare `run WS --out OUT` must give the library's defaults, but for the two the CLI
-/// sets on purpose (`--adaptive on` and the large-mesh settings by mesh size; the
-/// library's defaults are the full model and the options as given).
+/// sets on purpose (`--adaptive on`, and the large-mesh settings and the light model by
+/// mesh size; the library's defaults are the full model and the options as given).
 #[test]
 fn bare_run_flags_give_the_library_defaults() {
     let cli = Cli::try_parse_from(["relight-cpc", "run", "ws", "--out", "o"]).unwrap();
@@ -23,6 +23,11 @@ fn bare_run_flags_give_the_library_defaults() {
         "the library's default is the options as given"
     );
     want.large_mesh_auto = true;
+    assert!(
+        !want.light_by_size,
+        "the library's default is the light as given"
+    );
+    want.light_by_size = true;
     // Debug prints every field, floats to the last bit, so this is exact equality.
     assert_eq!(format!("{got:?}"), format!("{want:?}"));
 }
@@ -206,4 +211,31 @@ fn flag_tables_state_the_cli_defaults() {
     // The README keeps a short table of the flags a user tunes first; fewer than 8
     // means its table was lost or mangled (it has 12 today).
     assert!(readme.len() >= 8, "README names only {readme:?}");
+}
+
+/// Without `--light` the run chooses the light model by mesh size; any `--light` value,
+/// `paper` included, is the user's choice and is kept at every size.
+#[test]
+fn a_given_light_model_is_kept_and_none_is_chosen_by_size() {
+    use relight_cpc::solve::light::choose::LightChoice;
+    let options = |extra: &[&str]| {
+        let base = ["relight-cpc", "run", "ws", "--out", "o"];
+        let cli = Cli::try_parse_from(base.iter().chain(extra).copied()).unwrap();
+        let Command::Run(args) = cli.command else {
+            panic!("`run` parsed as another subcommand");
+        };
+        args.options().unwrap()
+    };
+    assert!(options(&[]).light_by_size);
+    for (flag, want) in [
+        ("paper", LightChoice::Paper),
+        ("prior", LightChoice::Prior),
+        ("auto", LightChoice::Auto),
+    ] {
+        let o = options(&["--light", flag]);
+        assert!(!o.light_by_size, "--light {flag} is the user's choice");
+        assert_eq!(o.light, want);
+        let sized = relight_cpc::run::sized_light(&o, 10_000_000);
+        assert!(sized.is_none(), "--light {flag} kept on a large mesh");
+    }
 }

@@ -154,6 +154,12 @@ fn fit_light_models(
         let eopts = &light_models[pick].options;
         kept = fit_model(problem, family, eopts, monitor, &mut timeline, log)?;
     }
+    if opts.light_by_size {
+        light_decision.why = format!(
+            "{} (--light not given: the model for the mesh's size, see the notes)",
+            light_decision.why
+        );
+    }
     start.reasons.push(format!(
         "light model `{}`: {}",
         light_decision.model, light_decision.why

@@ -169,7 +169,7 @@ pub fn decide(choice: LightChoice, names: &[&str], scores: &[f64]) -> (usize, Li
             "--light auto: the lower validation score (relative RMSE of the held-back observations) of {list}"
         ),
         LightChoice::Auto => format!("--light auto: {} is the only model fitted", names[best]),
-        LightChoice::Paper => "--light paper, the default: the paper's \
+        LightChoice::Paper => "--light paper: the paper's \
             free map per photo (--light auto fits every model that applies and keeps the one \
             that predicts held-back data best)"
             .to_string(),
@@ -205,7 +205,7 @@ mod tests {
         let (i, d) = decide(LightChoice::Prior, &["prior"], &[f64::NAN]);
         assert_eq!((i, d.why.as_str()), (0, "--light prior, as given"));
         let (_, d) = decide(LightChoice::Paper, &["paper"], &[f64::NAN]);
-        assert!(d.why.starts_with("--light paper, the default"), "{}", d.why);
+        assert!(d.why.starts_with("--light paper: "), "{}", d.why);
     }
 
     #[test]
