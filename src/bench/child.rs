@@ -203,6 +203,8 @@ pub(crate) fn run_args(o: &RunOptions, model: &Model) -> Vec<String> {
     }
     let cap = o.lighting_qp_iterations.to_string();
     a.extend(["--lighting-qp-iterations".into(), cap]);
+    // The light model as the bench gives it, never chosen by mesh size.
+    a.extend(["--light".into(), o.light.name().into()]);
     // The model's settings as the bench gives them, never chosen by mesh size.
     a.push(
         if model.large_mesh {

@@ -201,8 +201,8 @@ fn assert_the_choice_beats_the_given(
 }
 
 /// The light model by mesh size (`run` without `--light`, [`RunOptions::light_by_size`]):
-/// the built-in example's 2.9K vertices are below the threshold, so the run chooses by
-/// validation (`--light auto`). Judged by the truth the choice never sees, the model kept
+/// the built-in example's 2.9K vertices are below the threshold and its pilot keeps shiny
+/// lobes, so the run chooses by validation (`--light auto`). Judged by the truth the choice never sees, the model kept
 /// must predict the held-out photos under their true light strictly better than the
 /// paper's free map (`--light paper`), and its headline (protocol `half` over the naive
 /// baseline) must be no worse: the example's regression when GGX 0.3 joined the basis was

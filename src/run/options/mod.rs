@@ -11,7 +11,7 @@ mod large_mesh;
 mod light_by_size;
 mod values;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
-pub use light_by_size::{light_for_mesh, sized_light};
+pub use light_by_size::{light_for_basis, light_for_mesh, sized_light};
 pub use values::{
     Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
 };
