@@ -14,10 +14,10 @@
 //! - the built-in example at seeds 1–6 (2.9K vertices, shiny lobes; `auto` kept `prior` at
 //!   6 of 6): the headline 0.3853 → 0.3178 (mean; better at 6 of 6), the held-out photos
 //!   under their true light 0.0415 → 0.0380 (better at 6 of 6), wall 3.4 → 14.7 s;
-//! - ten rendered workspaces at 192² (`spot-three`, `spot-ggx`, `spot-diffuse`,
-//!   `spot-varying`, `spot-sky` with and without geotags; synth seeds 2 and 3): under the
-//!   true light better on 4 (−1.9% to −17.7%, `prior` or `sky` kept), identical on 5
-//!   (`paper` kept) and 1.2% worse on geotagged `spot-sky`, whose headline falls 15%; the
+//! - 13 rendered workspaces at 192² (`spot-three`, `spot-ggx`, `spot-diffuse`,
+//!   `spot-varying`, `spot-sky` with and without geotags; synth seeds 2 and 3; 8 or 12
+//!   photos): under the true light better on 4 (−1.9% to −17.7%, `prior` or `sky` kept),
+//!   identical on 8 (`paper` kept) and 1.2% worse on geotagged `spot-sky`, whose headline falls 15%; the
 //!   headline never worse; wall 2.2–5.0×;
 //! - fits over the Lambertian lobe alone: `spot-diffuse` (2 workspaces) kept `paper`
 //!   (identical figures at 2.2–2.4× the wall time), and the real Buddha photos (6.6K
