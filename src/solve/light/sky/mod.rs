@@ -196,33 +196,21 @@ impl SkyBasis {
     /// The bases at `p` (texel averages by `sub × sub` sub-texels, [`TexelSamples`]).
     pub fn new(n: usize, sub: usize, p: &SunSky) -> Result<SkyBasis> {
         let samples = TexelSamples::shared(n, sub);
-        let state = sky_state(p)?;
-        let n2 = n * n;
-        let per = samples.per_texel();
-        let mut maps: [[Vec<f64>; 3]; N_BASIS] =
-            std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n2]));
+        let mut maps: [[Vec<f64>; 3]; N_BASIS] = Default::default();
+        maps[SKY] = Self::sky_map(&samples, p)?;
+        maps[SUN] = Self::lobe_map(&samples, p);
         maps[GROUND] = std::array::from_fn(|_| samples.ground.clone());
+        Ok(SkyBasis { n, maps })
+    }
+
+    /// The sky basis at `p`, texel averages over `samples`: the Hosek–Wilkie radiance,
+    /// scaled to unit integral per channel. It depends on `p`'s sun and turbidity only.
+    pub fn sky_map(samples: &TexelSamples, p: &SunSky) -> Result<[Vec<f64>; 3]> {
+        let state = sky_state(p)?;
         let sun = p.sun.normalize();
-        let lobe_norm = sun_lobe_norm(p.kappa);
-        for t in 0..n2 {
-            let mut acc = [[0.0_f64; 3]; N_BASIS];
-            for i in t * per..(t + 1) * per {
-                let (d, w) = (&samples.dir[i], samples.weight[i]);
-                let sky = sky_radiance_at(&state, d, samples.zenith[i], &sun);
-                let lobe = sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun));
-                for c in 0..3 {
-                    acc[SKY][c] += w * sky[c];
-                    acc[SUN][c] += w * lobe;
-                }
-            }
-            for j in [SKY, SUN] {
-                for c in 0..3 {
-                    maps[j][c][t] = acc[j][c] / samples.area[t];
-                }
-            }
-        }
-        // The sky to unit integral per channel (the lobe and the ground are by formula).
-        for ch in maps[SKY].iter_mut() {
+        let mut map =
+            samples.texel_means(|i, d| sky_radiance_at(&state, d, samples.zenith[i], &sun));
+        for ch in map.iter_mut() {
             let total: f64 = ch
                 .iter()
                 .zip(&samples.solid_angle)
@@ -232,7 +220,15 @@ impl SkyBasis {
                 ch.iter_mut().for_each(|v| *v /= total);
             }
         }
-        Ok(SkyBasis { n, maps })
+        Ok(map)
+    }
+
+    /// The sun lobe basis at `p` (unit integral by formula), texel averages over
+    /// `samples`. It depends on `p`'s sun and `κ` only.
+    pub fn lobe_map(samples: &TexelSamples, p: &SunSky) -> [Vec<f64>; 3] {
+        let sun = p.sun.normalize();
+        let lobe_norm = sun_lobe_norm(p.kappa);
+        samples.texel_means(|_, d| [sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun)); 3])
     }
 
     /// `Σ_j w_{j,c} B_{j,c}` per channel.

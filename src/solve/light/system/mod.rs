@@ -606,4 +606,4 @@ pub(crate) fn unhaar3(h: &[[f64; 3]], n: usize) -> Vec<f64> {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -271,7 +271,7 @@ fn random_blend_problem(
 
 /// [`random_blend_problem`] from `seed`, merged into a [`PhotoSystem`] at tolerance `eps`
 /// (unit weights, every observation): the transport, `β` and the system.
-fn random_blend_system(
+pub(crate) fn random_blend_system(
     seed: u64,
     eps: f64,
 ) -> (crate::transport::Transport, Vec<[f64; 3]>, PhotoSystem) {
