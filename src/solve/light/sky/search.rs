@@ -4,9 +4,10 @@
 //! then a pattern search with halving steps. The sky basis depends on the sun and `T`, the
 //! lobe on the sun and `κ`, so a move in `κ` reuses the sky (the Hosek–Wilkie radiance at
 //! every sub-texel, most of a `--light sky` run's time) and its response, and a move in
-//! `T` the lobe: on the built-in example `--light auto` takes 0.86× the wall time, on
-//! geotagged `spot-sky` (the sun fixed, only `κ` and `T` searched) `--light sky` 0.79×,
-//! every figure the same (`bench-results/sky-basis-reuse.md`).
+//! `T` the lobe; and the grid's maps, which depend on no photo, are made once per process
+//! ([`grid_maps`]). On the built-in example `--light auto` takes 0.85× the wall time,
+//! `--light sky` 0.82× on `spot-sky` and 0.79× on geotagged `spot-sky` (the sun fixed,
+//! only `κ` and `T` searched), every figure the same (`bench-results/sky-basis-reuse.md`).
 
 use nalgebra::{DMatrix, DVector};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -133,15 +134,26 @@ impl<'a> SearchData<'a> {
     /// [`SkyBasis::new`] afresh: a basis is reused only for the same bits of what it
     /// depends on.
     pub fn evaluate(&self, theta: SunSky) -> Result<Candidate> {
+        self.evaluate_with(
+            theta,
+            || SkyBasis::sky_map(&self.samples, &theta),
+            || SkyBasis::lobe_map(&self.samples, &theta),
+        )
+    }
+
+    /// [`Self::evaluate`] with the sky and lobe maps made by `sky_map` and `lobe_map` when
+    /// they are not kept.
+    fn evaluate_with(
+        &self,
+        theta: SunSky,
+        sky_map: impl FnOnce() -> Result<[Vec<f64>; 3]>,
+        lobe_map: impl FnOnce() -> [Vec<f64>; 3],
+    ) -> Result<Candidate> {
         let sun = [theta.sun.x, theta.sun.y, theta.sun.z].map(f64::to_bits);
         let sky_key = [sun[0], sun[1], sun[2], theta.turbidity.to_bits()];
         let lobe_key = [sun[0], sun[1], sun[2], theta.kappa.to_bits()];
-        let sky = self.part(&self.skies, sky_key, || {
-            SkyBasis::sky_map(&self.samples, &theta)
-        })?;
-        let lobe = self.part(&self.lobes, lobe_key, || {
-            Ok(SkyBasis::lobe_map(&self.samples, &theta))
-        })?;
+        let sky = self.part(&self.skies, sky_key, sky_map)?;
+        let lobe = self.part(&self.lobes, lobe_key, || Ok(lobe_map()))?;
         let mut resp: [&[[f64; 3]]; N_BASIS] = [&[]; N_BASIS];
         resp[SKY] = &sky.response;
         resp[SUN] = &lobe.response;
@@ -186,13 +198,12 @@ impl<'a> SearchData<'a> {
 
     /// The best of [`GRID_SUNS`] sun directions evenly spread over the upper hemisphere
     /// (a Fibonacci spiral, uniform in `s_z`) at turbidity `turbidity` and lobe `kappa`.
+    /// Their maps are the same for every photo and round ([`grid_maps`]).
     pub fn grid(&self, turbidity: f64, kappa: f64) -> Result<Candidate> {
-        let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
+        let points = grid_maps(&self.samples, turbidity, kappa)?;
         let mut best: Option<Candidate> = None;
-        for i in 0..GRID_SUNS {
-            let z = (i as f64 + 0.5) / GRID_SUNS as f64;
-            let theta = SunSky::from_angles(golden * i as f64, z.asin(), turbidity, kappa);
-            let c = self.evaluate(theta)?;
+        for p in points.iter() {
+            let c = self.evaluate_with(p.theta, || Ok(p.sky.clone()), || p.lobe.clone())?;
             if best.as_ref().is_none_or(|b| c.sse < b.sse) {
                 best = Some(c);
             }
@@ -265,6 +276,46 @@ fn from_coords(x: [f64; 4]) -> SunSky {
     SunSky::from_angles(x[0], x[1], x[3], x[2].exp())
 }
 
+/// One sun of the grid ([`SearchData::grid`]): `θ` and its sky and lobe maps.
+struct GridPoint {
+    theta: SunSky,
+    sky: [Vec<f64>; 3],
+    lobe: [Vec<f64>; 3],
+}
+
+/// The grid's [`GRID_SUNS`] suns at `(turbidity, kappa)` with their maps over `samples`,
+/// made at the first call per `(n, sub, turbidity, kappa)` and shared: the maps depend on
+/// no photo and no round, and the grid is searched for every photo in the first rounds.
+fn grid_maps(
+    samples: &Arc<TexelSamples>,
+    turbidity: f64,
+    kappa: f64,
+) -> Result<Arc<Vec<GridPoint>>> {
+    type Key = (usize, usize, u64, u64);
+    type Grids = Vec<(Key, Arc<Vec<GridPoint>>)>;
+    static CACHE: std::sync::OnceLock<Mutex<Grids>> = std::sync::OnceLock::new();
+    let key = (samples.n, samples.sub, turbidity.to_bits(), kappa.to_bits());
+    let mut list = lock(CACHE.get_or_init(|| Mutex::new(Vec::new())));
+    if let Some((_, points)) = list.iter().find(|(k, _)| *k == key) {
+        return Ok(points.clone());
+    }
+    let golden = std::f64::consts::PI * (3.0 - 5.0_f64.sqrt());
+    let points = (0..GRID_SUNS)
+        .map(|i| {
+            let z = (i as f64 + 0.5) / GRID_SUNS as f64;
+            let theta = SunSky::from_angles(golden * i as f64, z.asin(), turbidity, kappa);
+            Ok(GridPoint {
+                theta,
+                sky: SkyBasis::sky_map(samples, &theta)?,
+                lobe: SkyBasis::lobe_map(samples, &theta),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let points = Arc::new(points);
+    list.push((key, points.clone()));
+    Ok(points)
+}
+
 /// The guard of `m`, also after a panic elsewhere (the kept bases stay valid: each is
 /// complete before it is inserted).
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -313,5 +364,19 @@ mod tests {
         // (moved sun, κ 64).
         assert_eq!(lock(&kept.skies).len(), 3);
         assert_eq!(lock(&kept.lobes).len(), 3);
+        // The grid from the shared maps: the lowest error of a fresh evaluation of each
+        // of its suns (the first on ties), bit for bit.
+        let points = grid_maps(&TexelSamples::shared(sys.n, SUB_TEXELS), 3.0, 64.0).unwrap();
+        let fresh = SearchData::new(&sys, &target);
+        let mut best: Option<Candidate> = None;
+        for p in points.iter() {
+            let c = fresh.evaluate(p.theta).unwrap();
+            if best.as_ref().is_none_or(|b| c.sse < b.sse) {
+                best = Some(c);
+            }
+        }
+        let (best, grid) = (best.unwrap(), kept.grid(3.0, 64.0).unwrap());
+        assert_eq!(grid.sse.to_bits(), best.sse.to_bits());
+        assert_eq!(grid.basis.maps, best.basis.maps);
     }
 }
