@@ -51,9 +51,9 @@ mod write;
 pub use example::builtin_example;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    light_for_basis, light_for_mesh, sized_light, Holdout, LargeMeshSettings, MaterialCount,
-    PriorStrength, RatioSteps, Restart, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum,
-    DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
+    scene_light, Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps, Restart,
+    RunOptions, StartBrightness, WeightsSmoothness, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
+    DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
     LIGHTING_SAMPLE_MAX_RATIO,
 };
 pub use progress::Progress;

@@ -40,7 +40,7 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
     };
     let imported = import(opts, &mut log, progress)?;
     let sized = sized_for_mesh(opts, imported.scene.mesh.positions.len(), &mut log);
-    let opts = &sized;
+    let opts = sized.as_ref().unwrap_or(opts);
     let observed = observe_training(opts, &imported, &mut log, progress)?;
     let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
     let mut fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
@@ -96,25 +96,17 @@ fn evaluation(
     })
 }
 
-/// The run's options on a mesh of `vertices`: the large-mesh settings
-/// ([`LargeMeshSettings::for_mesh`]) and the light model ([`super::sized_light`]), each with
-/// a note when it differs from what was given.
-fn sized_for_mesh(opts: &RunOptions, vertices: usize, log: &mut RunLog) -> RunOptions {
-    let mut sized = opts.clone();
-    if let Some(large) = LARGE_MESH.for_mesh(&sized, vertices) {
-        log.notes.push(format!(
-            "large mesh: {vertices} vertices, at least {}, so the run uses the --large-mesh settings {} ({}; --no-large-mesh keeps the full settings)",
-            LargeMeshSettings::FROM_VERTICES,
-            LARGE_MESH.flags(),
-            LargeMeshSettings::GAIN
-        ));
-        sized = large;
-    }
-    if let Some((lit, note)) = super::sized_light(&sized, vertices) {
-        log.notes.push(note);
-        sized = lit;
-    }
-    sized
+/// The run's options on a mesh of `vertices` ([`LargeMeshSettings::for_mesh`]), with a
+/// note when they differ from those given.
+fn sized_for_mesh(opts: &RunOptions, vertices: usize, log: &mut RunLog) -> Option<RunOptions> {
+    let sized = LARGE_MESH.for_mesh(opts, vertices)?;
+    log.notes.push(format!(
+        "large mesh: {vertices} vertices, at least {}, so the run uses the --large-mesh settings {} ({}; --no-large-mesh keeps the full settings)",
+        LargeMeshSettings::FROM_VERTICES,
+        LARGE_MESH.flags(),
+        LargeMeshSettings::GAIN
+    ));
+    Some(sized)
 }
 
 /// Stage 1, import: the workspace, the model, the mesh and the photos; the held-out split.

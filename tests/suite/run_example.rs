@@ -200,7 +200,7 @@ fn assert_the_choice_beats_the_given(
     );
 }
 
-/// The light model by mesh size (`run` without `--light`, [`RunOptions::light_by_size`]):
+/// The light model by mesh size (`run` without `--light`, [`RunOptions::light_by_scene`]):
 /// the built-in example's 2.9K vertices are below the threshold and its pilot keeps shiny
 /// lobes, so the run chooses by validation (`--light auto`). Judged by the truth the choice never sees, the model kept
 /// must predict the held-out photos under their true light strictly better than the
@@ -224,7 +224,7 @@ fn the_light_model_chosen_by_size_beats_the_papers_map_on_the_example() {
     };
     let sized = adaptive_example(&dir, "sized", |o| {
         caps(o);
-        o.light_by_size = true
+        o.light_by_scene = true
     });
     let light = sized.model.light.as_ref().expect("a light decision");
     assert!(light.why.starts_with("--light auto"), "{}", light.why);

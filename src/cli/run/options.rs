@@ -89,7 +89,7 @@ impl RunArgs {
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         match &self.light {
             Some(l) => o.light = relight_cpc::solve::light::choose::LightChoice::parse(l)?,
-            None => o.light_by_size = true,
+            None => o.light_by_scene = true,
         }
         o.validation = self.validation;
         o.validation_block = self.validation_block;

@@ -24,10 +24,10 @@ fn bare_run_flags_give_the_library_defaults() {
     );
     want.large_mesh_auto = true;
     assert!(
-        !want.light_by_size,
+        !want.light_by_scene,
         "the library's default is the light as given"
     );
-    want.light_by_size = true;
+    want.light_by_scene = true;
     // Debug prints every field, floats to the last bit, so this is exact equality.
     assert_eq!(format!("{got:?}"), format!("{want:?}"));
 }
@@ -226,16 +226,17 @@ fn a_given_light_model_is_kept_and_none_is_chosen_by_size() {
         };
         args.options().unwrap()
     };
-    assert!(options(&[]).light_by_size);
+    assert!(options(&[]).light_by_scene);
     for (flag, want) in [
         ("paper", LightChoice::Paper),
         ("prior", LightChoice::Prior),
         ("auto", LightChoice::Auto),
     ] {
         let o = options(&["--light", flag]);
-        assert!(!o.light_by_size, "--light {flag} is the user's choice");
+        assert!(!o.light_by_scene, "--light {flag} is the user's choice");
         assert_eq!(o.light, want);
-        let sized = relight_cpc::run::sized_light(&o, 10_000_000);
+        let basis = [relight_cpc::transport::brdf::BasisBrdf::Lambert];
+        let sized = relight_cpc::run::scene_light(&o, 10_000_000, &basis);
         assert!(sized.is_none(), "--light {flag} kept on a large mesh");
     }
 }

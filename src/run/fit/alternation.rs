@@ -154,7 +154,7 @@ fn fit_light_models(
         let eopts = &light_models[pick].options;
         kept = fit_model(problem, family, eopts, monitor, &mut timeline, log)?;
     }
-    if opts.light_by_size {
+    if opts.light_by_scene {
         light_decision.why = format!(
             "{} (--light not given: the default for the mesh's size and the fit's lobes, see the notes)",
             light_decision.why

@@ -65,11 +65,14 @@ pub(crate) fn fit<'a>(
     let nv = scene.mesh.positions.len();
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
-    let for_basis = super::light_for_basis(opts, &p.eff.basis).map(|(o, note)| {
+    let chosen = super::scene_light(opts, nv, &p.eff.basis).map(|(light, note)| {
         log.notes.push(note);
-        o
+        RunOptions {
+            light,
+            ..opts.clone()
+        }
     });
-    let opts = for_basis.as_ref().unwrap_or(opts);
+    let opts = chosen.as_ref().unwrap_or(opts);
     let mut start = prepare_start(opts, im, &p, &train, &mut obs, log, progress)?;
     let problem = Problem {
         obs: &obs,

@@ -8,10 +8,10 @@ use crate::{Error, Result, Vec3};
 use std::path::PathBuf;
 
 mod large_mesh;
-mod light_by_size;
+mod light_by_scene;
 mod values;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
-pub use light_by_size::{light_for_basis, light_for_mesh, sized_light};
+pub use light_by_scene::scene_light;
 pub use values::{
     Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
 };
@@ -158,10 +158,11 @@ pub struct RunOptions {
     /// that applies, the one with the lower validation score kept,
     /// [`RunOptions::light_choice_halves`]).
     pub light: crate::solve::light::choose::LightChoice,
-    /// Choose [`RunOptions::light`] by the mesh's size ([`light_for_mesh`]): `auto` below
-    /// [`LargeMeshSettings::FROM_VERTICES`] vertices, `paper` from there. Off in
-    /// [`RunOptions::new`] (`light` as given); the CLI turns it on unless `--light` is given.
-    pub light_by_size: bool,
+    /// Choose [`RunOptions::light`] by the scene ([`scene_light`]): `auto` below
+    /// [`LargeMeshSettings::FROM_VERTICES`] vertices when the fit keeps a shiny lobe, else
+    /// `paper`. Off in [`RunOptions::new`] (`light` as given); the CLI turns it on unless
+    /// `--light` is given.
+    pub light_by_scene: bool,
     /// Mask transient occluders in the training photos before the estimate
     /// (`super::transients`): a short pilot fit, its residuals' spatially coherent
     /// outliers get weight 0, and each photo's mask is written to `outliers/`. Off by
@@ -320,7 +321,7 @@ impl RunOptions {
             adaptive: false,
             pilot_vertices: crate::solve::adapt::PILOT_MAX_VERTICES,
             large_mesh_auto: false,
-            light_by_size: false,
+            light_by_scene: false,
             light: crate::solve::light::choose::LightChoice::Paper,
             transients: false,
             edge_margin: true,

@@ -105,7 +105,7 @@ pub(crate) struct SearchData<'a> {
 
 /// One basis map at some `θ`, keyed by the bits of the values it depends on, and its
 /// response `A W B` per row.
-pub(crate) struct Part {
+struct Part {
     key: [u64; 4],
     map: [Vec<f64>; 3],
     response: Vec<[f64; 3]>,
