@@ -71,8 +71,9 @@
 //! on+coarse-light`), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
 //! sum-to-one prior on blended vertices whatever the pilot's scope), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
-//! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=shared` (the `defaults` row with
-//! `run --light shared`, the groups the photos' true skies), `SYNTH_SHARED_SKIES=1` (the
+//! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=paper|shared` (the `defaults` row with
+//! `run --light paper`, or `--light shared` with the groups the photos' true skies; without
+//! it the row's light is `run`'s choice by scene), `SYNTH_SHARED_SKIES=1` (the
 //! scenes rendered with photos `i` and `i + 8` under one sky: the same map at the same
 //! rotation, so the training photos form 6 groups of two seen from opposite sides and the
 //! `shared` row has groups; the held-out photos' maps stay unseen), `ABLATION_SEARCH`,
@@ -692,7 +693,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     label: label.into(),
                     figures,
                     k: Some((d.pilot.materials, d.pilot.material_scores.clone())),
-                    note: defaults::describe(case, &d.pilot),
+                    note: format!("{}; {}", defaults::describe(case, &d.pilot), d.light),
                     diagnosis: diagnosed(case, &d.est, label),
                 });
             }

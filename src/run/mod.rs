@@ -49,6 +49,7 @@ mod truth_check;
 mod write;
 
 pub use example::builtin_example;
+pub use fit::photo_halves;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
     scene_light, Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps, Restart,

@@ -89,6 +89,8 @@ pub struct Split {
     /// Per photo of the split (in its order), the true light's texels per channel.
     pub lights: Vec<[Vec<f64>; 3]>,
     pub names: Vec<String>,
+    /// The split's cameras, in its order (the photo halves `run --light auto` scores on).
+    pub views: Vec<scene::View>,
 }
 
 impl Split {
@@ -351,6 +353,7 @@ pub fn prepare_in(
             transport,
             lights,
             names: views.iter().map(|v| v.image.name.clone()).collect(),
+            views,
         }
     };
     let train = split(false);

@@ -1,9 +1,10 @@
-//! The row `defaults (the pilot's choices)`: what `relight-cpc run --light paper` does with
-//! no other flags, on the bench's cases (without `--light`, `run` chooses the light model
-//! by validation on meshes below 50K vertices, which this row does not). The adaptive pilot ([`adapt::pilot`], the function `run` calls,
+//! The row `defaults (the pilot's choices)`: what `relight-cpc run` does with no flags, on
+//! the bench's cases. The adaptive pilot ([`adapt::pilot`], the function `run` calls,
 //! with the inputs `run` gives it) chooses the material count (step 3), the blending
 //! weights' sum-to-one prior (step 3b) and which of the case's lobes to keep (step 4); the
-//! full fit then uses those choices with the paper's light model, the k-means start and
+//! full fit then uses those choices with the light model `run` chooses without `--light`
+//! ([`light::by_scene`]: validation among the light models when the pilot keeps a shiny
+//! lobe, else the paper's map; `ABLATION_DEFAULTS_LIGHT=paper` keeps the paper's), the k-means start and
 //! `run`'s outer-iteration cap and tolerance ([`RunOptions`]: 8 and 10⁻³, where the other
 //! rows take the bench's 20 and 10⁻⁵; `ABLATION_DEFAULTS_ITERS=bench` gives it those too); then, as `run` does, the vertices no training
 //! photo sees take their seen neighbours' materials ([`propagate_unseen`]); the ratio step
@@ -22,6 +23,7 @@
 //! coarse-light models' ratio errors against the truth).
 
 mod diagnosis;
+mod light;
 mod second;
 mod start_probes;
 
@@ -41,6 +43,8 @@ const LAMBERT: usize = 0;
 pub struct DefaultsFit {
     pub est: Estimate,
     pub pilot: PilotOutcome,
+    /// The light model the fit used and why ([`light::by_scene`]).
+    pub light: String,
     pub seconds: f64,
 }
 
@@ -71,7 +75,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     };
     let init = clustered_start(case, &pilot, colours);
     let m0 = start_materials(case, &pilot, &init, colours);
-    let opts = fit_options(case, base, &pilot);
+    let light = light::by_scene(case, &problem, &m0, fit_options(case, base, &pilot), &pilot);
+    let opts = light.options;
     let first = second::Fitted {
         est: first_fit(&problem, m0, &opts, &init, colours),
         kept: &pilot.kept,
@@ -93,6 +98,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     DefaultsFit {
         est,
         pilot,
+        light: light.note,
         seconds: t0.elapsed().as_secs_f64(),
     }
 }

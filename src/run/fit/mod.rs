@@ -24,6 +24,7 @@ use crate::solve::starts::MultiStart;
 use crate::solve::{self, EstimateOptions, Problem};
 use crate::Result;
 use alternation::{alternate, Estimated};
+pub use options::photo_halves;
 use start::prepare_start;
 
 /// After the fit: the fitted model and what the report needs of the fit.

@@ -2,13 +2,14 @@
 //! Lambertian lobe that carries the diffuse colour ([`lambert_of`]), and early stopping's
 //! split by photo half ([`photo_halves`]).
 
+use crate::import::scene::View;
 use crate::observe::Observations;
 use crate::run::half_fit::{projected_x, span_mid};
 use crate::run::RunOptions;
 use crate::solve::options::PhotoHalves;
 use crate::solve::{EstimateOptions, Robust};
 use crate::transport::brdf::BasisBrdf;
-use crate::{Error, Result};
+use crate::{Error, Result, Vec3};
 
 /// The index of the Lambertian basis BRDF, which carries the diffuse colour.
 pub(crate) fn lambert_of(basis: &[BasisBrdf]) -> Result<usize> {
@@ -53,26 +54,26 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
     }
 }
 
-/// Early stopping's split by photo half (`--validation-halves k`): `k` training photos
-/// spread evenly over the list (the middle of each of `k` equal runs), and in each the
-/// vertices it observes projecting at or right of the middle of their `x` span
-/// ([`span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or
-/// when `k` is not below the number of training photos.
-pub(super) fn photo_halves(
-    scene: &crate::import::scene::Scene,
-    train: &[usize],
+/// Early stopping's split by photo half (`--validation-halves k`), and the halves `--light
+/// auto` scores its candidates on: `k` of the training photos `train_views` (in the
+/// observations' order) spread evenly over the list (the middle of each of `k` equal runs),
+/// and in each the vertices it observes projecting at or right of the middle of their `x`
+/// span ([`span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or when
+/// `k` is not below the number of training photos.
+pub fn photo_halves(
+    train_views: &[&View],
+    positions: &[Vec3],
     obs: &Observations,
     k: usize,
 ) -> Option<std::sync::Arc<PhotoHalves>> {
-    let n = train.len();
+    let n = train_views.len();
     if k == 0 || k >= n {
         return None;
     }
-    let positions = &scene.mesh.positions;
     let right = (0..k)
         .map(|i| {
             let t = (2 * i + 1) * n / (2 * k);
-            let view = &scene.views[train[t]];
+            let view = train_views[t];
             let px: Vec<(usize, f64)> = obs
                 .photo_ranges
                 .get(t)

@@ -4,7 +4,7 @@
 //! matched by normal.
 
 use super::options::{estimate_options, lambert_of, photo_halves};
-use crate::import::scene::Scene;
+use crate::import::scene::{Scene, View};
 use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
 use crate::run::{choose_material_count, MaterialCount, Progress, RunOptions, StartBrightness};
@@ -161,9 +161,11 @@ impl FitStart {
                 self.reasons.push(format!("sun and sky: {}", c.source));
             }
         }
-        self.eopts.validation_halves = photo_halves(scene, train, obs, opts.validation_halves);
+        let views: Vec<&View> = train.iter().map(|&i| &scene.views[i]).collect();
+        let positions = &scene.mesh.positions;
+        self.eopts.validation_halves = photo_halves(&views, positions, obs, opts.validation_halves);
         if opts.light == LightChoice::Auto && self.eopts.validation_halves.is_none() {
-            self.choice_halves = photo_halves(scene, train, obs, opts.light_choice_halves);
+            self.choice_halves = photo_halves(&views, positions, obs, opts.light_choice_halves);
         }
         Ok(())
     }

@@ -1,0 +1,89 @@
+//! The defaults row's light model as `run` without `--light` chooses it
+//! ([`relight_cpc::run::scene_light`]): below 50K vertices, when the pilot keeps a shiny
+//! lobe, `--light auto` ([`choose::candidates`]: the paper's map, the map under the prior of
+//! real skies, the sun and sky) fits each candidate from the start with the right halves of
+//! [`DEFAULT_LIGHT_CHOICE_HALVES`] training photos held back ([`photo_halves`], the split
+//! `run` makes), keeps the one of lowest validation error on them ([`choose::decide`]), and
+//! the row's fit then runs with its options and early stopping's own held-back
+//! observations, as `run` fits the kept model again. Over the Lambertian lobe alone the
+//! paper's map. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
+//! given, the row before `run` chose by scene.
+
+use crate::synth_case::Case;
+use relight_cpc::run::{photo_halves, scene_light, RunOptions, DEFAULT_LIGHT_CHOICE_HALVES};
+use relight_cpc::solve::adapt::PilotOutcome;
+use relight_cpc::solve::light::choose::{self, LightChoice};
+use relight_cpc::solve::{estimate, EstimateOptions, Materials0, Problem};
+
+/// The light model chosen and why, for the table's notes.
+pub struct ChosenLight {
+    pub options: EstimateOptions,
+    pub note: String,
+}
+
+/// The row's light model for `opts` (the pilot's choices under the paper's map) from the
+/// start `m0`: as given when `ABLATION_DEFAULTS_LIGHT` is set, else `run`'s rule.
+pub fn by_scene(
+    case: &Case,
+    problem: &Problem,
+    m0: &Materials0,
+    opts: EstimateOptions,
+    pilot: &PilotOutcome,
+) -> ChosenLight {
+    if let Ok(given) = std::env::var("ABLATION_DEFAULTS_LIGHT") {
+        let note = format!("light `{given}` (ABLATION_DEFAULTS_LIGHT)");
+        return ChosenLight {
+            options: opts,
+            note,
+        };
+    }
+    let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
+    let mut run = RunOptions::new("ws".into(), "out".into());
+    run.light_by_scene = true;
+    let Some((LightChoice::Auto, _)) = scene_light(&run, case.nv, &kept) else {
+        let note = "light `paper` (run's rule: the Lambertian lobe alone)".to_string();
+        return ChosenLight {
+            options: opts,
+            note,
+        };
+    };
+    let base = EstimateOptions {
+        sun_clock: case.geotag_suns.clone(),
+        ..opts
+    };
+    let views: Vec<_> = case.train.views.iter().collect();
+    let halves = photo_halves(
+        &views,
+        &case.positions,
+        &case.train.obs,
+        DEFAULT_LIGHT_CHOICE_HALVES,
+    );
+    let candidates = choose::candidates(LightChoice::Auto, &base).expect("light candidates");
+    let scores: Vec<f64> = candidates
+        .iter()
+        .map(|c| {
+            let scored = EstimateOptions {
+                validation_halves: halves.clone(),
+                ..c.options.clone()
+            };
+            let est = estimate(problem, m0.clone(), &scored, &mut |_, _| {}).expect("light fit");
+            est.validation_error()
+        })
+        .collect();
+    let names: Vec<&str> = candidates.iter().map(|c| c.name).collect();
+    let (pick, decision) = choose::decide(LightChoice::Auto, &names, &scores);
+    let scored: Vec<String> = names
+        .iter()
+        .zip(&scores)
+        .map(|(n, s)| format!("{n} {s:.4e}"))
+        .collect();
+    ChosenLight {
+        options: candidates[pick].options.clone(),
+        note: format!(
+            "light `{}` by run's rule (--light auto on the right halves of {} photos: {})",
+            decision.model,
+            DEFAULT_LIGHT_CHOICE_HALVES,
+            scored.join(", ")
+        ),
+    }
+}
