@@ -42,6 +42,12 @@ pub struct TexelSamples {
     /// [`Self::ground`]'s Haar coefficients, in every channel: what the search's ground
     /// responses are taken from.
     pub ground_haar: Vec<[f64; 3]>,
+    /// Per texel, the unit mean of its sample directions (its centre).
+    pub centre: Vec<Vec3>,
+    /// Per texel, the largest angle (radians) from [`Self::centre`] to one of its samples.
+    pub radius: Vec<f64>,
+    /// Per texel, the least `ω_z` of its samples.
+    pub lowest_z: Vec<f64>,
 }
 
 impl TexelSamples {
@@ -77,6 +83,20 @@ impl TexelSamples {
         let mut h = ground.clone();
         haar::forward(&mut h, n);
         let ground_haar = h.into_iter().map(|v| [v; 3]).collect();
+        let texel = |t: usize| &dir[t * per..(t + 1) * per];
+        let centre: Vec<Vec3> = (0..grid.len())
+            .map(|t| texel(t).iter().sum::<Vec3>().normalize())
+            .collect();
+        let radius = (0..grid.len())
+            .map(|t| {
+                let c = &centre[t];
+                let least = texel(t).iter().fold(1.0_f64, |m, d| m.min(d.dot(c)));
+                least.clamp(-1.0, 1.0).acos()
+            })
+            .collect();
+        let lowest_z = (0..grid.len())
+            .map(|t| texel(t).iter().fold(1.0_f64, |m, d| m.min(d.z)))
+            .collect();
         TexelSamples {
             n,
             sub,
@@ -87,6 +107,9 @@ impl TexelSamples {
             solid_angle: grid.solid_angles(),
             ground,
             ground_haar,
+            centre,
+            radius,
+            lowest_z,
         }
     }
 
@@ -114,6 +137,19 @@ impl TexelSamples {
             }
         }
         map
+    }
+
+    /// Texel `t`'s mean of `f` over its samples (as [`Self::texel_means`]).
+    pub fn texel_mean(&self, t: usize, f: &impl Fn(usize, &Vec3) -> [f64; 3]) -> [f64; 3] {
+        let per = self.per_texel();
+        let mut acc = [0.0_f64; 3];
+        for i in t * per..(t + 1) * per {
+            let v = f(i, &self.dir[i]);
+            for c in 0..3 {
+                acc[c] += self.weight[i] * v[c];
+            }
+        }
+        acc.map(|a| a / self.area[t])
     }
 
     /// The shared samples of `(n, sub)`, computed at the first call.
