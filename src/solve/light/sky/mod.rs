@@ -25,8 +25,9 @@
 //! Texel values are the averages of the basis over the texel (`sub × sub` sub-texels with
 //! exact solid angles, [`crate::sphere::SphereGrid::sample_points`]). The sky's radiance is
 //! smooth away from the sun and the horizon, and there its texels average 3 × 3 sub-texels
-//! instead of 6 × 6 ([`SkySampling`]): 0.04% of the map's L1 norm on a 32² map, 0.85× the
-//! built-in example's wall time (`bench-results/sky-sampling.md`).
+//! instead of 6 × 6, as do the sun lobe's where it is below `e^{−12}` of its peak
+//! ([`SkySampling`]): 0.04% of the sky map's L1 norm on a 32² map, 0.85× the built-in
+//! example's wall time (`bench-results/sky-sampling.md`).
 //!
 //! **The residual's prior.** Natural illumination is sparse in wavelets (Dror et al. 2004,
 //! as in [`crate::solve::light::sh_prior`]): each Haar coefficient `h_k` of `r_c` (the
@@ -118,7 +119,26 @@ impl SkySampling {
         samples.lowest_z[t] >= self.above_horizon.sin()
             && to_sun - samples.radius[t] >= self.from_sun
     }
+
+    /// Whether the sun lobe of sharpness `kappa` is below `e^{−LOBE_COARSE_FROM}` of its
+    /// peak over all of texel `t` (`κ (1 − cos γ_min) ≥` [`LOBE_COARSE_FROM`], `γ_min` the
+    /// least angle from `sun` to the texel), where the coarse samples may average it.
+    pub fn lobe_negligible_at(
+        &self,
+        samples: &TexelSamples,
+        t: usize,
+        sun: &Vec3,
+        kappa: f64,
+    ) -> bool {
+        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
+        let nearest = (to_sun - samples.radius[t]).max(0.0);
+        kappa * (1.0 - nearest.cos()) >= LOBE_COARSE_FROM
+    }
 }
+
+/// The exponent below the sun lobe's peak beyond which its texels take the coarse samples
+/// ([`SkySampling::lobe_negligible_at`]): `e^{−12} ≈ 6·10⁻⁶`.
+pub const LOBE_COARSE_FROM: f64 = 12.0;
 
 /// The sky basis's sampling ([`SkySampling`]).
 pub const SKY_SAMPLING: SkySampling = SkySampling {
@@ -253,9 +273,8 @@ impl SkyBasis {
     ) -> Result<[Vec<f64>; 3]> {
         let state = sky_state(p)?;
         let sun = p.sun.normalize();
-        let radiance = |s: &TexelSamples, i: usize, d: &Vec3| {
-            sky_radiance_at(&state, d, s.zenith[i], &sun)
-        };
+        let radiance =
+            |s: &TexelSamples, i: usize, d: &Vec3| sky_radiance_at(&state, d, s.zenith[i], &sun);
         let coarse = sampling.map(|k| (k, TexelSamples::shared(samples.n, k.coarse_sub)));
         let n2 = samples.n * samples.n;
         let mut map: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n2]);
@@ -284,11 +303,33 @@ impl SkyBasis {
     }
 
     /// The sun lobe basis at `p` (unit integral by formula), texel averages over
-    /// `samples`. It depends on `p`'s sun and `κ` only.
+    /// `samples`. It depends on `p`'s sun and `κ` only. Texels where the whole lobe is
+    /// below `e^{−LOBE_COARSE_FROM}` of its peak ([`SkySampling::lobe_negligible_at`])
+    /// average the coarse samples of [`SKY_SAMPLING`].
     pub fn lobe_map(samples: &TexelSamples, p: &SunSky) -> [Vec<f64>; 3] {
+        Self::lobe_map_sampled(samples, p, Some(&SKY_SAMPLING))
+    }
+
+    /// [`Self::lobe_map`] with every texel over `samples` (`sampling` `None`) or the
+    /// coarse samples where `sampling` allows.
+    pub fn lobe_map_sampled(
+        samples: &TexelSamples,
+        p: &SunSky,
+        sampling: Option<&SkySampling>,
+    ) -> [Vec<f64>; 3] {
         let sun = p.sun.normalize();
         let lobe_norm = sun_lobe_norm(p.kappa);
-        samples.texel_means(|_, d| [sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun)); 3])
+        let lobe = |_: usize, d: &Vec3| [sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun)); 3];
+        let coarse = sampling.map(|k| (k, TexelSamples::shared(samples.n, k.coarse_sub)));
+        let map: Vec<f64> = (0..samples.n * samples.n)
+            .map(|t| match &coarse {
+                Some((k, c)) if k.lobe_negligible_at(samples, t, &sun, p.kappa) => {
+                    c.texel_mean(t, &lobe)[0]
+                }
+                _ => samples.texel_mean(t, &lobe)[0],
+            })
+            .collect();
+        [map.clone(), map.clone(), map]
     }
 
     /// `Σ_j w_{j,c} B_{j,c}` per channel.

@@ -118,28 +118,8 @@ impl TexelSamples {
         self.sub.max(1) * self.sub.max(1)
     }
 
-    /// Per channel and texel `t`, the mean of `f` over the texel's solid angle:
+    /// Per channel, texel `t`'s mean of `f` over its solid angle:
     /// `Σ_i w_i f(i, d_i) / area_t` over its samples `i` (in order).
-    pub fn texel_means(&self, f: impl Fn(usize, &Vec3) -> [f64; 3]) -> [Vec<f64>; 3] {
-        let n2 = self.n * self.n;
-        let per = self.per_texel();
-        let mut map: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n2]);
-        for t in 0..n2 {
-            let mut acc = [0.0_f64; 3];
-            for i in t * per..(t + 1) * per {
-                let v = f(i, &self.dir[i]);
-                for c in 0..3 {
-                    acc[c] += self.weight[i] * v[c];
-                }
-            }
-            for c in 0..3 {
-                map[c][t] = acc[c] / self.area[t];
-            }
-        }
-        map
-    }
-
-    /// Texel `t`'s mean of `f` over its samples (as [`Self::texel_means`]).
     pub fn texel_mean(&self, t: usize, f: &impl Fn(usize, &Vec3) -> [f64; 3]) -> [f64; 3] {
         let per = self.per_texel();
         let mut acc = [0.0_f64; 3];
