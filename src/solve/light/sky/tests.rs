@@ -321,9 +321,9 @@ fn the_sky_basis_on_coarse_samples_away_from_sun_and_horizon_matches_the_fine_on
         let mut coarse_share = 0.0;
         for _ in 0..40 {
             let p = SunSky::from_angles(
-                rng.gen_range(-3.1..3.1),
-                rng.gen_range(0.03..1.5),
-                rng.gen_range(1.2..9.5),
+                rng.random_range(-3.1..3.1),
+                rng.random_range(0.03..1.5),
+                rng.random_range(1.2..9.5),
                 64.0,
             );
             let exact = SkyBasis::sky_map_sampled(&fine, &p, None).unwrap();
@@ -363,8 +363,8 @@ fn the_sun_lobe_on_coarse_samples_where_negligible_matches_the_fine_one() {
         let mut coarse = 0;
         for _ in 0..20 {
             let p = SunSky::from_angles(
-                rng.gen_range(-3.1..3.1),
-                rng.gen_range(0.0..1.5),
+                rng.random_range(-3.1..3.1),
+                rng.random_range(0.0..1.5),
                 3.0,
                 kappa,
             );
