@@ -13,7 +13,8 @@
 //!
 //! - the built-in example at seeds 1–6 (2.9K vertices, shiny lobes; `auto` kept `prior` at
 //!   6 of 6): the headline 0.3853 → 0.3178 (mean; better at 6 of 6), the held-out photos
-//!   under their true light 0.0415 → 0.0380 (better at 6 of 6), wall 3.4 → 14.7 s;
+//!   under their true light 0.0415 → 0.0380 (better at 6 of 6), wall 3.4 → 14.7 s (4.05 →
+//!   9.29 s with the sun and sky's faster search and basis, `bench-results/sky-sampling.md`);
 //! - 13 rendered workspaces at 192² (`spot-three`, `spot-ggx`, `spot-diffuse`,
 //!   `spot-varying`, `spot-sky` with and without geotags; synth seeds 2 and 3; 8 or 12
 //!   photos): under the true light better on 4 (−1.9% to −17.7%, `prior` or `sky` kept),
