@@ -58,7 +58,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
 /// auto` scores its candidates on: `k` of the training photos `train_views` (in the
 /// observations' order) spread evenly over the list (the middle of each of `k` equal runs),
 /// and in each the vertices it observes projecting at or right of the middle of their `x`
-/// span ([`span_mid`], the left/right rule of protocol `half`). `None` for `k = 0` or when
+/// span (`span_mid`, the left/right rule of protocol `half`). `None` for `k = 0` or when
 /// `k` is not below the number of training photos.
 pub fn photo_halves(
     train_views: &[&View],

@@ -81,7 +81,7 @@ use hw_skymodel::rgb::{Channel, SkyParams, SkyState};
 use crate::{Error, Result, Vec3};
 
 pub use model::{SkyLight, SkyOptions};
-pub use samples::TexelSamples;
+pub use samples::{SkySampling, TexelSamples, LOBE_COARSE_FROM, SKY_SAMPLING};
 
 /// The number of basis maps: sky, sun, ground.
 pub const N_BASIS: usize = 3;
@@ -98,55 +98,6 @@ pub const SKY_GROUND_ALBEDO: f64 = 0.3;
 pub const GRID_SUNS: usize = 64;
 /// Sub-texels per texel side when texel averages are formed.
 pub const SUB_TEXELS: usize = 6;
-/// Where the sky basis averages fewer samples per texel ([`SkyBasis::sky_map`]): the
-/// Hosek–Wilkie radiance peaks only around the sun (its circumsolar and Mie terms) and
-/// steepens only near the horizon (its `√cos θ_v` term), so a texel wholly
-/// `above_horizon` radians above the horizon and at least `from_sun` radians (plus its own
-/// radius) from the sun takes `coarse_sub × coarse_sub` sub-texels instead of
-/// [`SUB_TEXELS`]².
-#[derive(Debug, Clone, Copy)]
-pub struct SkySampling {
-    pub coarse_sub: usize,
-    pub from_sun: f64,
-    pub above_horizon: f64,
-}
-
-impl SkySampling {
-    /// Whether texel `t` of `samples` (the fine ones) may take the coarse samples under
-    /// the sun `sun`.
-    pub fn smooth_at(&self, samples: &TexelSamples, t: usize, sun: &Vec3) -> bool {
-        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
-        samples.lowest_z[t] >= self.above_horizon.sin()
-            && to_sun - samples.radius[t] >= self.from_sun
-    }
-
-    /// Whether the sun lobe of sharpness `kappa` is below `e^{−LOBE_COARSE_FROM}` of its
-    /// peak over all of texel `t` (`κ (1 − cos γ_min) ≥` [`LOBE_COARSE_FROM`], `γ_min` the
-    /// least angle from `sun` to the texel), where the coarse samples may average it.
-    pub fn lobe_negligible_at(
-        &self,
-        samples: &TexelSamples,
-        t: usize,
-        sun: &Vec3,
-        kappa: f64,
-    ) -> bool {
-        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
-        let nearest = (to_sun - samples.radius[t]).max(0.0);
-        kappa * (1.0 - nearest.cos()) >= LOBE_COARSE_FROM
-    }
-}
-
-/// The exponent below the sun lobe's peak beyond which its texels take the coarse samples
-/// ([`SkySampling::lobe_negligible_at`]): `e^{−12} ≈ 6·10⁻⁶`.
-pub const LOBE_COARSE_FROM: f64 = 12.0;
-
-/// The sky basis's sampling ([`SkySampling`]).
-pub const SKY_SAMPLING: SkySampling = SkySampling {
-    coarse_sub: 3,
-    from_sun: 15.0 * std::f64::consts::PI / 180.0,
-    above_horizon: 2.0 * std::f64::consts::PI / 180.0,
-};
-
 /// Range of the sun lobe's `κ`: from a lobe ~40° wide to one well below a texel of the
 /// finest map the transport uses.
 pub const KAPPA_RANGE: (f64, f64) = (2.0, 4000.0);

@@ -13,11 +13,70 @@
 //! in [`super::search`]). Every value is computed
 //! by the same expressions in the same order as before, so the bases are the same to the
 //! last bit.
+//!
+//! Where the basis is smooth across a texel the sky and the sun lobe average a coarser set
+//! of samples instead ([`SkySampling`], `bench-results/sky-sampling.md`).
 
 use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::sphere::{haar, SphereGrid};
 use crate::Vec3;
+
+/// Where the sky basis averages fewer samples per texel ([`super::SkyBasis::sky_map`]): the
+/// Hosek–Wilkie radiance peaks only around the sun (its circumsolar and Mie terms) and
+/// steepens only near the horizon (its `√cos θ_v` term), so a texel wholly
+/// `above_horizon` radians above the horizon and at least `from_sun` radians (plus its own
+/// radius) from the sun takes `coarse_sub × coarse_sub` sub-texels instead of
+/// [`super::SUB_TEXELS`]².
+///
+/// The sun lobe's texels take the coarse samples where the lobe is below
+/// `e^{−`[`LOBE_COARSE_FROM`]`}` of its peak ([`SkySampling::lobe_negligible_at`]).
+#[derive(Debug, Clone, Copy)]
+pub struct SkySampling {
+    /// Sub-texels per side of the coarse samples.
+    pub coarse_sub: usize,
+    /// Least angle (radians) from the sun to a texel's nearest point for the sky's
+    /// coarse samples.
+    pub from_sun: f64,
+    /// Least elevation (radians) of a texel's samples for the sky's coarse samples.
+    pub above_horizon: f64,
+}
+
+impl SkySampling {
+    /// Whether texel `t` of `samples` (the fine ones) may take the coarse samples under
+    /// the sun `sun`.
+    pub fn smooth_at(&self, samples: &TexelSamples, t: usize, sun: &Vec3) -> bool {
+        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
+        samples.lowest_z[t] >= self.above_horizon.sin()
+            && to_sun - samples.radius[t] >= self.from_sun
+    }
+
+    /// Whether the sun lobe of sharpness `kappa` is below `e^{−LOBE_COARSE_FROM}` of its
+    /// peak over all of texel `t` (`κ (1 − cos γ_min) ≥` [`LOBE_COARSE_FROM`], `γ_min` the
+    /// least angle from `sun` to the texel), where the coarse samples may average it.
+    pub fn lobe_negligible_at(
+        &self,
+        samples: &TexelSamples,
+        t: usize,
+        sun: &Vec3,
+        kappa: f64,
+    ) -> bool {
+        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
+        let nearest = (to_sun - samples.radius[t]).max(0.0);
+        kappa * (1.0 - nearest.cos()) >= LOBE_COARSE_FROM
+    }
+}
+
+/// The exponent below the sun lobe's peak beyond which its texels take the coarse samples
+/// ([`SkySampling::lobe_negligible_at`]): `e^{−12} ≈ 6·10⁻⁶`.
+pub const LOBE_COARSE_FROM: f64 = 12.0;
+
+/// The sky basis's sampling ([`SkySampling`]).
+pub const SKY_SAMPLING: SkySampling = SkySampling {
+    coarse_sub: 3,
+    from_sun: 15.0 * std::f64::consts::PI / 180.0,
+    above_horizon: 2.0 * std::f64::consts::PI / 180.0,
+};
 
 /// The sub-texel samples of one grid (module docs).
 #[derive(Debug)]

@@ -5,7 +5,7 @@
 //! lobe on the sun and `κ`, so a move in `κ` reuses the sky (the Hosek–Wilkie radiance at
 //! every sub-texel, most of a `--light sky` run's time) and its response, and a move in
 //! `T` the lobe; and the grid's maps, which depend on no photo, are made once per process
-//! ([`grid_maps`]). On the built-in example `--light auto` takes 0.85× the wall time,
+//! (`grid_maps`). On the built-in example `--light auto` takes 0.85× the wall time,
 //! `--light sky` 0.82× on `spot-sky` and 0.79× on geotagged `spot-sky` (the sun fixed,
 //! only `κ` and `T` searched), every figure the same (`bench-results/sky-basis-reuse.md`).
 
