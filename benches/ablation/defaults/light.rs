@@ -7,7 +7,8 @@
 //! the row's fit then runs with its options and early stopping's own held-back
 //! observations, as `run` fits the kept model again. Over the Lambertian lobe alone the
 //! paper's map. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
-//! given, the row before `run` chose by scene.
+//! given, the row before `run` chose by scene; `ABLATION_LIGHT_HALVES=k` scores on `k`
+//! photos' halves (`run --light-choice-halves k`).
 
 use crate::synth_case::Case;
 use relight_cpc::run::{photo_halves, scene_light, RunOptions, DEFAULT_LIGHT_CHOICE_HALVES};
@@ -52,12 +53,8 @@ pub fn by_scene(
         ..opts
     };
     let views: Vec<_> = case.train.views.iter().collect();
-    let halves = photo_halves(
-        &views,
-        &case.positions,
-        &case.train.obs,
-        DEFAULT_LIGHT_CHOICE_HALVES,
-    );
+    let k = crate::env_or("ABLATION_LIGHT_HALVES", DEFAULT_LIGHT_CHOICE_HALVES);
+    let halves = photo_halves(&views, &case.positions, &case.train.obs, k);
     let candidates = choose::candidates(LightChoice::Auto, &base).expect("light candidates");
     let scores: Vec<f64> = candidates
         .iter()
@@ -82,7 +79,7 @@ pub fn by_scene(
         note: format!(
             "light `{}` by run's rule (--light auto on the right halves of {} photos: {})",
             decision.model,
-            DEFAULT_LIGHT_CHOICE_HALVES,
+            k,
             scored.join(", ")
         ),
     }
