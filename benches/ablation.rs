@@ -786,8 +786,8 @@ fn main() {
                 "## {what}: `{scene}`, {}\n\n{} materials, {} training / {} held-out photos, {} / {} observations.\n\n",
                 if clean { "noise-free" } else { "8-bit photos" },
                 k_true,
-                case.train.names.len(),
-                case.held.names.len(),
+                case.train.views.len(),
+                case.held.views.len(),
                 case.train.obs.len(),
                 case.held.obs.len()
             ));

@@ -22,8 +22,8 @@ pub(crate) fn convergence(md: &mut String) -> Value {
          reproduces the data exactly, so the floor is 0 and what remains is the estimator's own error. K = 2 from the k-means start \
          unless stated; ≤ {iters} outer iterations, `rel_tol` 0. Held-out = the held-out photos under their true light (best scale per channel).\n\n",
         case.nv,
-        case.train.names.len(),
-        case.held.names.len(),
+        case.train.views.len(),
+        case.held.views.len(),
         s.width,
         s.global,
         s.local

@@ -106,7 +106,7 @@ pub(crate) fn known(md: &mut String) -> Value {
                 }
                 m
             });
-            let held_lights = vec![mean; case.held.names.len()];
+            let held_lights = vec![mean; case.held.views.len()];
             let hp = predict_with(
                 &case.held,
                 case.nv,
@@ -134,7 +134,7 @@ pub(crate) fn known(md: &mut String) -> Value {
             rows.push(json!({
                 "scene": scene,
                 "vertices": case.nv,
-                "train_photos": case.train.names.len(),
+                "train_photos": case.train.views.len(),
                 "train_observations": case.train.obs.len(),
                 "floor_rel_rmse_true_map": floor,
                 "train_rel_rmse": train_rel,

@@ -26,14 +26,13 @@ fn sky_case() -> &'static SkyCase {
         .unwrap();
         let suns = case
             .train
-            .names
-            .iter()
+            .names()
             .map(|n| {
                 let p = manifest["photos"]
                     .as_array()
                     .unwrap()
                     .iter()
-                    .find(|p| p["name"] == n.as_str())
+                    .find(|p| p["name"] == n)
                     .unwrap_or_else(|| panic!("{n} not in the manifest"));
                 let s: Vec<f64> = p["sun"]
                     .as_array()

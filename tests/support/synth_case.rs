@@ -88,12 +88,16 @@ pub struct Split {
     pub transport: Transport,
     /// Per photo of the split (in its order), the true light's texels per channel.
     pub lights: Vec<[Vec<f64>; 3]>,
-    pub names: Vec<String>,
     /// The split's cameras, in its order (the photo halves `run --light auto` scores on).
     pub views: Vec<scene::View>,
 }
 
 impl Split {
+    /// The split's photo names, in its order.
+    pub fn names(&self) -> impl Iterator<Item = &str> {
+        self.views.iter().map(|v| v.image.name.as_str())
+    }
+
     pub fn problem(&self, nv: usize) -> Problem<'_> {
         Problem {
             obs: &self.obs,
@@ -140,8 +144,7 @@ impl Case {
     pub fn true_light_groups(&self) -> LightGroups {
         let labels: Vec<String> = self
             .train
-            .names
-            .iter()
+            .names()
             .map(|name| {
                 let p = self
                     .truth
@@ -352,7 +355,6 @@ pub fn prepare_in(
             obs,
             transport,
             lights,
-            names: views.iter().map(|v| v.image.name.clone()).collect(),
             views,
         }
     };
@@ -822,7 +824,7 @@ pub fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
     let per_photo = lp
         .per_photo
         .as_ref()
-        .map(|_| case.train.names.iter().map(|n| map_of(n)).collect());
+        .map(|_| case.train.names().map(map_of).collect());
     EstimateOptions {
         light_prior: Some(LightPriorOptions {
             stats: std::sync::Arc::new(stats),
