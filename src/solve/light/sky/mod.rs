@@ -224,22 +224,12 @@ impl SkyBasis {
     ) -> Result<[Vec<f64>; 3]> {
         let state = sky_state(p)?;
         let sun = p.sun.normalize();
-        let radiance =
-            |s: &TexelSamples, i: usize, d: &Vec3| sky_radiance_at(&state, d, s.zenith[i], &sun);
-        let coarse = sampling.map(|k| (k, TexelSamples::shared(samples.n, k.coarse_sub)));
-        let n2 = samples.n * samples.n;
-        let mut map: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n2]);
-        for t in 0..n2 {
-            let v = match &coarse {
-                Some((k, c)) if k.smooth_at(samples, t, &sun) => {
-                    c.texel_mean(t, &|i, d| radiance(c, i, d))
-                }
-                _ => samples.texel_mean(t, &|i, d| radiance(samples, i, d)),
-            };
-            for c in 0..3 {
-                map[c][t] = v[c];
-            }
-        }
+        let coarse = sampling.map(|k| TexelSamples::shared(samples.n, k.coarse_sub));
+        let mut map = samples.texel_means_mixed(
+            coarse.as_deref(),
+            |t| sampling.is_some_and(|k| k.smooth_at(samples, t, &sun)),
+            |s, i, d| sky_radiance_at(&state, d, s.zenith[i], &sun),
+        );
         for ch in map.iter_mut() {
             let total: f64 = ch
                 .iter()
@@ -270,17 +260,12 @@ impl SkyBasis {
     ) -> [Vec<f64>; 3] {
         let sun = p.sun.normalize();
         let lobe_norm = sun_lobe_norm(p.kappa);
-        let lobe = |_: usize, d: &Vec3| [sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun)); 3];
-        let coarse = sampling.map(|k| (k, TexelSamples::shared(samples.n, k.coarse_sub)));
-        let map: Vec<f64> = (0..samples.n * samples.n)
-            .map(|t| match &coarse {
-                Some((k, c)) if k.lobe_negligible_at(samples, t, &sun, p.kappa) => {
-                    c.texel_mean(t, &lobe)[0]
-                }
-                _ => samples.texel_mean(t, &lobe)[0],
-            })
-            .collect();
-        [map.clone(), map.clone(), map]
+        let coarse = sampling.map(|k| TexelSamples::shared(samples.n, k.coarse_sub));
+        samples.texel_means_mixed(
+            coarse.as_deref(),
+            |t| sampling.is_some_and(|k| k.lobe_negligible_at(samples, t, &sun, p.kappa)),
+            |_, _, d| [sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun)); 3],
+        )
     }
 
     /// `Σ_j w_{j,c} B_{j,c}` per channel.

@@ -46,9 +46,8 @@ impl SkySampling {
     /// Whether texel `t` of `samples` (the fine ones) may take the coarse samples under
     /// the sun `sun`.
     pub fn smooth_at(&self, samples: &TexelSamples, t: usize, sun: &Vec3) -> bool {
-        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
         samples.lowest_z[t] >= self.above_horizon.sin()
-            && to_sun - samples.radius[t] >= self.from_sun
+            && samples.angle_from(t, sun) >= self.from_sun
     }
 
     /// Whether the sun lobe of sharpness `kappa` is below `e^{−LOBE_COARSE_FROM}` of its
@@ -61,9 +60,7 @@ impl SkySampling {
         sun: &Vec3,
         kappa: f64,
     ) -> bool {
-        let to_sun = samples.centre[t].dot(sun).clamp(-1.0, 1.0).acos();
-        let nearest = (to_sun - samples.radius[t]).max(0.0);
-        kappa * (1.0 - nearest.cos()) >= LOBE_COARSE_FROM
+        kappa * (1.0 - samples.angle_from(t, sun).cos()) >= LOBE_COARSE_FROM
     }
 }
 
@@ -175,6 +172,33 @@ impl TexelSamples {
     /// Samples per texel.
     pub fn per_texel(&self) -> usize {
         self.sub.max(1) * self.sub.max(1)
+    }
+
+    /// The least angle (radians) from the unit direction `dir` to texel `t`, bounded by its
+    /// centre and radius: `max(0, ∠(centre_t, dir) − radius_t)`.
+    pub fn angle_from(&self, t: usize, dir: &Vec3) -> f64 {
+        let to_centre = self.centre[t].dot(dir).clamp(-1.0, 1.0).acos();
+        (to_centre - self.radius[t]).max(0.0)
+    }
+
+    /// Per channel and texel, the mean of `f(samples, i, ω_i)` over the texel's samples:
+    /// `coarse`'s where `use_coarse(t)` (the same grid at fewer sub-texels), else these.
+    pub fn texel_means_mixed(
+        &self,
+        coarse: Option<&TexelSamples>,
+        use_coarse: impl Fn(usize) -> bool,
+        f: impl Fn(&TexelSamples, usize, &Vec3) -> [f64; 3],
+    ) -> [Vec<f64>; 3] {
+        let n2 = self.n * self.n;
+        let mut map: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n2]);
+        for t in 0..n2 {
+            let s = coarse.filter(|_| use_coarse(t)).unwrap_or(self);
+            let v = s.texel_mean(t, &|i, d| f(s, i, d));
+            for c in 0..3 {
+                map[c][t] = v[c];
+            }
+        }
+        map
     }
 
     /// Per channel, texel `t`'s mean of `f` over its solid angle:
