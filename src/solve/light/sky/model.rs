@@ -356,10 +356,11 @@ impl SkyLight {
         let rows = Rows::new(problem, photo);
         let sys = self.photo_system(problem, beta, &rows);
         let best = self.search_theta(&sys, &rows, photo, outer_iteration)?;
-        let (scale, d) = self.residual_prior(&best, prev, &rows, n);
+        let basis = best.basis();
+        let (scale, d) = self.residual_prior(&best, &basis, prev, &rows, n);
         let qp = JointQp {
             sys: &sys,
-            basis: &best.basis,
+            basis: &basis,
             d,
         };
         let fit = self.joint_qp(&qp, problem, beta, &rows, &best, photo)?;
@@ -385,7 +386,7 @@ impl SkyLight {
         Ok(PhotoFit {
             photo: SkyPhoto {
                 theta: best.theta,
-                basis: Arc::new(best.basis),
+                basis: Arc::new(basis),
                 weights,
                 residual,
             },
@@ -466,16 +467,17 @@ impl SkyLight {
 
     /// Step 2, the residual prior at the current light's scale: `σ²` from the photo's mean
     /// square, `h0` the total light's mean per channel, and the per-coefficient weights
-    /// `d` ([`residual_weights`]).
+    /// `d` ([`residual_weights`]); `basis` is `best`'s ([`Candidate::basis`]).
     fn residual_prior(
         &self,
         best: &Candidate,
+        basis: &SkyBasis,
         prev: &SkyPhoto,
         rows: &Rows,
         n: usize,
     ) -> (ResidualScale, [Vec<f64>; 3]) {
         let sigma2 = self.sky.residual_noise.powi(2) * rows.mean_square();
-        let mut total = best.basis.combine(&best.weights);
+        let mut total = basis.combine(&best.weights);
         for (t, r) in total.iter_mut().zip(&prev.residual) {
             t.iter_mut().zip(r).for_each(|(a, b)| *a += b);
         }

@@ -27,13 +27,19 @@ pub const ALL_FREE: FreeCoords = [true; 4];
 /// The sun's direction fixed (a geotag gives it): only `κ` and `T` move.
 pub const SUN_FIXED: FreeCoords = [false, false, true, true];
 
-/// One evaluated `θ`: its bases, NNLS weights and weighted squared error.
-#[derive(Debug, Clone)]
+/// One evaluated `θ`: its bases, NNLS weights and weighted squared error. The bases are
+/// the search's kept maps, shared: a search evaluates hundreds of `θ` and keeps one, so
+/// the [`SkyBasis`] is assembled only when asked for ([`Candidate::basis`]).
+#[derive(Clone)]
 pub struct Candidate {
     /// The non-linear values.
     pub theta: SunSky,
-    /// The bases at `theta`.
-    pub basis: SkyBasis,
+    /// The sky map at `theta` (with its response).
+    sky: Arc<Part>,
+    /// The sun lobe at `theta` (with its response).
+    lobe: Arc<Part>,
+    /// The samples whose ground map completes the bases.
+    samples: Arc<TexelSamples>,
     /// `w_{j,c}` (basis, channel), `≥ 0`.
     pub weights: [[f64; 3]; N_BASIS],
     /// `Σ_q Σ_c d_{q,c} (y_{q,c} − Σ_j w_{j,c} s_{q,j,c})²`.
@@ -103,6 +109,20 @@ pub(crate) struct SearchData<'a> {
     lobes: Mutex<Vec<Arc<Part>>>,
 }
 
+impl Candidate {
+    /// The bases at `theta`.
+    pub fn basis(&self) -> SkyBasis {
+        let mut maps: [[Vec<f64>; 3]; N_BASIS] = Default::default();
+        maps[SKY] = self.sky.map.clone();
+        maps[SUN] = self.lobe.map.clone();
+        maps[GROUND] = std::array::from_fn(|_| self.samples.ground.clone());
+        SkyBasis {
+            n: self.samples.n,
+            maps,
+        }
+    }
+}
+
 /// One basis map at some `θ`, keyed by the bits of the values it depends on, and its
 /// response `A W B` per row.
 struct Part {
@@ -159,16 +179,11 @@ impl<'a> SearchData<'a> {
         resp[SUN] = &lobe.response;
         resp[GROUND] = &self.ground;
         let (weights, sse) = weights_nnls(resp, &self.sys.dw, self.target)?;
-        let mut maps: [[Vec<f64>; 3]; N_BASIS] = Default::default();
-        maps[SKY] = sky.map.clone();
-        maps[SUN] = lobe.map.clone();
-        maps[GROUND] = std::array::from_fn(|_| self.samples.ground.clone());
         Ok(Candidate {
             theta,
-            basis: SkyBasis {
-                n: self.sys.n,
-                maps,
-            },
+            sky,
+            lobe,
+            samples: self.samples.clone(),
             weights,
             sse,
         })
@@ -356,9 +371,9 @@ mod tests {
             let fresh = SearchData::new(&sys, &target).evaluate(theta).unwrap();
             assert_eq!(x.sse.to_bits(), fresh.sse.to_bits());
             assert_eq!(x.weights, fresh.weights);
-            assert_eq!(x.basis.maps, fresh.basis.maps);
+            assert_eq!(x.basis().maps, fresh.basis().maps);
             let built = SkyBasis::new(sys.n, SUB_TEXELS, &theta).unwrap();
-            assert_eq!(x.basis.maps, built.maps);
+            assert_eq!(x.basis().maps, built.maps);
         }
         // Skies: (a, T 3), (a, T 4), (moved sun, T 3); lobes: (a, κ 64), (a, κ 128),
         // (moved sun, κ 64).
@@ -377,6 +392,6 @@ mod tests {
         }
         let (best, grid) = (best.unwrap(), kept.grid(3.0, 64.0).unwrap());
         assert_eq!(grid.sse.to_bits(), best.sse.to_bits());
-        assert_eq!(grid.basis.maps, best.basis.maps);
+        assert_eq!(grid.basis().maps, best.basis().maps);
     }
 }
