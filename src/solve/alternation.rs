@@ -663,12 +663,14 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let sample_check = self
             .light
             .sample_check(self.problem, &self.lambda, &self.weights);
+        let observed = self.problem.observed_vertices();
         let normalisation = normalise(
             &mut self.light,
             &mut self.lambda,
             &mut self.weights,
             init,
             self.opts,
+            &observed,
         );
         Ok(Estimate {
             sky: self.light.sky_fit(),
