@@ -688,6 +688,10 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                         "  misses: {}",
                         metrics::accuracy_misses(case, &d.est, &fl.seen)
                     );
+                    eprintln!(
+                        "  blend shares: {}",
+                        metrics::blend_shares(case, &d.est, &fl.seen)
+                    );
                 }
                 done.push(Done {
                     label: label.into(),

@@ -38,13 +38,18 @@ pub fn assignment(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64) {
 /// all seen vertices, over the pure ones, `perm` with estimated material `k` = true
 /// material `perm[k]`).
 pub fn best_order(case: &Case, est: &Estimate, seen: &[bool]) -> (f64, f64, Vec<usize>) {
+    best_order_of(case, &est.weights, seen)
+}
+
+/// [`best_order`] of any blending weights `weights` (`n_vertices × K`).
+pub fn best_order_of(case: &Case, weights: &[f64], seen: &[bool]) -> (f64, f64, Vec<usize>) {
     let k = case.lambda.len();
     let mut best = (0.0, 0.0, (0..k).collect());
     for perm in permutations(k) {
         let (mut ok, mut n, mut okp, mut np) = (0, 0, 0, 0);
         for x in (0..case.nv).filter(|&x| seen[x]) {
             let t = argmax(&case.weights[x * k..(x + 1) * k]);
-            let hit = perm[argmax(&est.weights[x * k..(x + 1) * k])] == t;
+            let hit = perm[argmax(&weights[x * k..(x + 1) * k])] == t;
             n += 1;
             ok += usize::from(hit);
             if case.weights[x * k + t] >= 0.95 {
@@ -184,4 +189,77 @@ pub fn accuracy_misses(case: &Case, est: &Estimate, seen: &[bool]) -> String {
         "seen {n}; {}; a third material > 0.1 at {third}",
         cells.join("; ")
     )
+}
+
+/// `ABLATION_ACCURACY_MISSES=1`: for each pair of materials the truth blends, the median
+/// fitted share `ŵ_a / (ŵ_a + ŵ_b)` (under the best order) over the seen vertices binned
+/// by the true share `w_a / (w_a + w_b)` in tenths, where the two carry ≥ 0.95 of the true
+/// weight: a shift of the fitted boundary shows as medians off the bins' centres.
+pub fn blend_shares(case: &Case, est: &Estimate, seen: &[bool]) -> String {
+    let k = case.lambda.len();
+    let (_, _, perm) = best_order(case, est, seen);
+    let mut inv = vec![0; k];
+    for (e, &t) in perm.iter().enumerate() {
+        inv[t] = e;
+    }
+    let mut out = Vec::new();
+    for a in 0..k {
+        for b in a + 1..k {
+            let mut bins: Vec<Vec<(f64, f64)>> = vec![Vec::new(); 10];
+            for x in (0..case.nv).filter(|&x| seen[x]) {
+                let tw = &case.weights[x * k..(x + 1) * k];
+                let (ta, tb) = (tw[a], tw[b]);
+                if ta + tb < 0.95 || ta < 0.02 || tb < 0.02 {
+                    continue;
+                }
+                let ew = &est.weights[x * k..(x + 1) * k];
+                let (ea, eb) = (ew[inv[a]], ew[inv[b]]);
+                if ea + eb <= 0.0 {
+                    continue;
+                }
+                let bin = ((ta / (ta + tb)) * 10.0).floor().min(9.0) as usize;
+                bins[bin].push((ea / (ea + eb), ea + eb));
+            }
+            if bins.iter().all(|b| b.is_empty()) {
+                continue;
+            }
+            let cells: Vec<String> = bins
+                .iter_mut()
+                .enumerate()
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(i, v)| {
+                    v.sort_by(|p, q| p.0.total_cmp(&q.0));
+                    let sum: f64 = v.iter().map(|e| e.1).sum();
+                    format!(
+                        "{:.2}: {:.2} (n {}, mean sum {:.2})",
+                        (i as f64 + 0.5) / 10.0,
+                        v[v.len() / 2].0,
+                        v.len(),
+                        sum / v.len() as f64
+                    )
+                })
+                .collect();
+            out.push(format!("{a}-{b}: {}", cells.join(", ")));
+        }
+    }
+    for t in 0..k {
+        let mut v: Vec<f64> = (0..case.nv)
+            .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
+            .map(|x| est.weights[x * k + inv[t]])
+            .collect();
+        v.sort_by(f64::total_cmp);
+        if !v.is_empty() {
+            let q = |f: f64| v[((v.len() - 1) as f64 * f) as usize];
+            out.push(format!(
+                "pure {t}: fitted weight quartiles {:.2} / {:.2} / {:.2} / {:.2} / {:.2} (n {})",
+                q(0.0),
+                q(0.25),
+                q(0.5),
+                q(0.75),
+                q(1.0),
+                v.len()
+            ));
+        }
+    }
+    out.join("; ")
 }

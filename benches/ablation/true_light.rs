@@ -15,8 +15,14 @@
 //! The fit from the truth is the floor the tables quote ([`RatioFloor::worst`]): noise-free
 //! it is 0 to the third decimal, so what it measures on the 8-bit photos is what they hold
 //! of the ratios through this transport, whatever the light model.
+//!
+//! The same fits give the material accuracy the known light allows: of the fit from the
+//! truth, and of one weights step with the TRUE `λ` as well (each vertex's NNLS with
+//! everything else known). Where two materials blend near evenly, the argmax that the
+//! accuracy counts turns on a small difference of weights, so this is what the photos
+//! hold of the blends, whatever the estimator.
 
-use crate::metrics::ratio_errors;
+use crate::metrics::{best_order_of, ratio_errors};
 use crate::synth_case::*;
 use relight_cpc::solve::materials::LambdaCoupling;
 use relight_cpc::solve::{basis_responses, lambda_step, weights_step, Materials0};
@@ -24,12 +30,19 @@ use relight_cpc::solve::{basis_responses, lambda_step, weights_step, Materials0}
 /// Sweeps of the two alternating fits.
 const SWEEPS: usize = 30;
 
-/// Per channel, the worst ratio errors of the three fits (module docs).
+/// Per channel, the worst ratio errors of the three fits (module docs), and the material
+/// accuracy the known light allows.
 #[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct RatioFloor {
     pub true_weights: [f64; 3],
     pub from_truth: [f64; 3],
     pub from_start: [f64; 3],
+    /// Material accuracy over the seen vertices of one weights step (each vertex's NNLS)
+    /// with the TRUE `λ` and the true maps: what the photos hold of the blends when
+    /// everything but the weights is known.
+    pub accuracy_true_lambda: f64,
+    /// Material accuracy of the fit from the truth (the ratio floor's fit).
+    pub accuracy_from_truth: f64,
 }
 
 impl RatioFloor {
@@ -64,20 +77,28 @@ pub fn ratio_floor(case: &Case, seen: &[bool]) -> RatioFloor {
             .expect("λ step")
             .lambda
     };
+    let weights_of = |lambda: &[Vec<[f64; 3]>], weights: &[f64]| {
+        weights_step(&problem, &s, lambda, weights, &dw, None, None)
+            .expect("w step")
+            .weights
+    };
     let sweeps = |m: Materials0| {
         let (mut lambda, mut weights) = (m.lambda, m.weights);
         for _ in 0..SWEEPS {
             lambda = lambda_of(&weights);
-            weights = weights_step(&problem, &s, &lambda, &weights, &dw, None, None)
-                .expect("w step")
-                .weights;
+            weights = weights_of(&lambda, &weights);
         }
-        ratio_errors(case, &lambda, &weights, seen)
+        (lambda, weights)
     };
+    let accuracy = |weights: &[f64]| best_order_of(case, weights, seen).0;
+    let (truth_lambda, truth_weights) = sweeps(case.true_materials());
+    let (start_lambda, start_weights) = sweeps(crate::starts::fit_start(case));
     RatioFloor {
         true_weights: ratio_errors(case, &lambda_of(&case.weights), &case.weights, seen),
-        from_truth: sweeps(case.true_materials()),
-        from_start: sweeps(crate::starts::fit_start(case)),
+        from_truth: ratio_errors(case, &truth_lambda, &truth_weights, seen),
+        from_start: ratio_errors(case, &start_lambda, &start_weights, seen),
+        accuracy_true_lambda: accuracy(&weights_of(&case.lambda, &case.weights)),
+        accuracy_from_truth: accuracy(&truth_weights),
     }
 }
 
@@ -85,10 +106,12 @@ pub fn ratio_floor(case: &Case, seen: &[bool]) -> RatioFloor {
 pub fn describe(f: &RatioFloor) -> String {
     let r = |v: [f64; 3]| format!("{:.3} / {:.3} / {:.3}", v[0], v[1], v[2]);
     format!(
-        "worst albedo ratio error with the true maps (the material step alone, {SWEEPS} sweeps from the truth; R / G / B) {:.3} ({}; λ with the true weights {}; from the k-means start {})",
+        "worst albedo ratio error with the true maps (the material step alone, {SWEEPS} sweeps from the truth; R / G / B) {:.3} ({}; λ with the true weights {}; from the k-means start {}); material accuracy with the true maps {:.4} from the truth, {:.4} with the true λ (one weights step)",
         f.worst(),
         r(f.from_truth),
         r(f.true_weights),
-        r(f.from_start)
+        r(f.from_start),
+        f.accuracy_from_truth,
+        f.accuracy_true_lambda
     )
 }
