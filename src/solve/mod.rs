@@ -37,8 +37,7 @@
 //!
 //! Scale: `F` is invariant under `x → s x`, `λ → λ / s` (and `w_k → t w_k`, `λ_k → λ_k / t`)
 //! up to the tiny regularisers. After the alternation the result is normalised once:
-//! every material's median blending weight over the observed vertices where it is the
-//! largest is 1,
+//! every material's median blending weight over the observed vertices pure in it is 1,
 //! then the mean Lambertian weight
 //! (basis `lambert_basis`) over materials and channels equals that of the start (the initial
 //! materials' median colours), the maps taking the inverse scale. The exact rule is in
