@@ -45,7 +45,7 @@ fn accuracy(case: &Case, est: &Estimate, seen: &[bool]) -> f64 {
 }
 
 #[test]
-fn the_restart_sorts_the_blended_vertices_of_three_materials() {
+fn the_first_fit_sorts_the_blends_of_three_materials_and_the_restart_keeps_them() {
     let NoiseFree { case, seen, init } = noise_free("spot-three", "restart");
     let problem = case.train.problem(case.nv);
     let opts = EstimateOptions::default();
@@ -67,14 +67,15 @@ fn the_restart_sorts_the_blended_vertices_of_three_materials() {
     assert_eq!(done.kept_restart, s1 < s0);
     let kept_score = done.est.validation.as_ref().unwrap().best_error();
     assert_eq!(kept_score, s0.min(s1));
-    // On this case the restart predicts the held-back observations better and sorts more
-    // blended vertices right. Measured: accuracy 0.913 → 0.949, validation 0.0242 → 0.0233;
-    // on the ablation's 8-bit three-material scene under `run`'s defaults the restart gained
-    // 0.045–0.074 on five seeds (`bench-results/restart-probes.md`). A gain of 0.02 (2% of
-    // the seen vertices) leaves room for the renderer's noise and fails when the restart
-    // keeps the first fit's sorting.
+    // Measured: accuracy 0.9580 → 0.9536, validation 0.0242 → 0.0228 (restart kept).
+    // The first fit's accuracy is the scale normalisation's: with its median weight taken
+    // over every vertex, the unobserved ones' uniform start weights pulled one material's
+    // gauge off and the first fit read 0.913 (the restart, which renormalises, 0.949).
+    // 0.94 fails on that defect with room for the renderer's noise; the restart may move
+    // a few near-even blends either way, 0.01 (20 of the ~2,000 seen vertices) of them.
+    assert!(before >= 0.94, "first fit's accuracy {before:.4}");
     assert!(done.kept_restart, "validation {s0:.5} → {s1:.5}");
-    assert!(after >= before + 0.02, "accuracy {before:.4} → {after:.4}");
+    assert!(after >= before - 0.01, "accuracy {before:.4} → {after:.4}");
 }
 
 /// `run --restart on` on the built-in example (a small model, 2 materials): the report's
