@@ -242,7 +242,7 @@ pub(crate) struct RunArgs {
     /// paper). Keeps shading that all photos share out of the materials' colours. `auto`:
     /// the adaptive pilot fits both and keeps the prior where it predicts held-back
     /// observations at least 13% better, else the prior where materials blend when that
-    /// predicts them at least 3% better (free weights with --adaptive off).
+    /// predicts them better (free weights with --adaptive off).
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) weights_sum: String,
     /// Where a given --weights-sum applies: every surface point, or only where materials

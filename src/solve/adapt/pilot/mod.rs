@@ -594,7 +594,7 @@ fn choose_weights_sum(f: &Fitter, k: usize, free: PilotFit) -> Result<(PilotFit,
             label: "on blended vertices",
             gain: BLEND_GAIN,
             kept: format!("the weights' sum-to-one prior at {PILOT_WEIGHTS_SUM} on blended vertices (pure ones at {BLEND_FLOOR} of it)"),
-            rule: format!("the prior goes in everywhere when it lowers that by more than {every:.0}%, on blended vertices by more than {blends:.0}%"),
+            rule: format!("the prior goes in everywhere when it lowers that by more than {every:.0}%, on blended vertices when it lowers that by more than {blends:.0}%"),
         },
     ];
     let all = f.all();
