@@ -29,7 +29,9 @@
 //! Measured (`bench-results/coarse-light-start.md` section 15):
 //! - On the ablation's three-material scene (96², seeds 1–5, the true lobes) the validation
 //!   score keeps it on 4 of 5 seeds: held-out ≤ 1.2× the floor on 4 and relit ≤ 1.3× on 4
-//!   (the first fit: 3 and 3), material accuracy 0.899–0.933 → 0.903–0.977. On the glossy
+//!   (the first fit: 3 and 3), material accuracy 0.899–0.933 → 0.903–0.977 (a gain that
+//!   was the weights' scale, since fixed in [`crate::solve::normalise`]; after it
+//!   0.958–0.980, `bench-results/weights-gauge.md`). On the glossy
 //!   scene it is kept on 2 of 5, every figure within ±0.03 of the first fit's.
 //! - Through `run` at 192² (basis `lambert, phong:50`, against truths with GGX 0.3) it was
 //!   kept on 7 of 7 rendered runs that made it and raised the error under the true light

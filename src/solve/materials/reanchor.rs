@@ -31,7 +31,9 @@
 //! [`restart`] fits again from the re-anchored start and keeps whichever of the two fits
 //! predicts the held-back observations better (`run --restart on`). On the ablation's
 //! three-material scene (96² photos, 5 seeds, `run`'s defaults) it takes the material
-//! accuracy from 0.899–0.933 to 0.960–0.978, near the TRUE start's 0.977–0.983, but
+//! accuracy from 0.899–0.933 to 0.960–0.978, near the TRUE start's 0.977–0.983 (a gain
+//! that was the weights' scale, since fixed in [`crate::solve::normalise`]: the first fit
+//! now reads 0.958–0.977 and the restart 0.967–0.982, `bench-results/weights-gauge.md`), but
 //! through `run` at 192² it moved `spot-three`'s accuracy by −0.009 and +0.020 and its
 //! error under the true light up 5% on both seeds, and `sphere-plane`'s (4 materials
 //! fitted) error under the true light down 6% and 16%: it is opt-in
