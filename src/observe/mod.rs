@@ -96,6 +96,21 @@ impl Observations {
         count
     }
 
+    /// Per vertex, whether an observation of positive weight reads it: the vertices the
+    /// material step fits (one read only at weight 0 keeps its start weights, as one no
+    /// photo sees).
+    pub fn seen_vertices(&self, n_vertices: usize) -> Vec<bool> {
+        let mut seen = vec![false; n_vertices];
+        for (&v, &w) in self.vertex.iter().zip(&self.weight) {
+            if w > 0.0 {
+                if let Some(s) = seen.get_mut(v as usize) {
+                    *s = true;
+                }
+            }
+        }
+        seen
+    }
+
     /// The observations at positions `index` (ascending), in that order; each photo's
     /// range is that of its kept observations.
     pub fn gather(&self, index: &[usize]) -> Observations {

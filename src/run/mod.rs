@@ -239,7 +239,8 @@ pub fn choose_material_count(mean_rgb: &[[f64; 3]], seen: &[bool], seed: u64) ->
     )
 }
 
-/// Per-vertex mean colour (α-weighted) over the observations, and whether each vertex was seen.
+/// Per-vertex mean colour (α-weighted) over the observations, and whether each vertex was
+/// seen ([`Observations::seen_vertices`]).
 pub fn mean_colours(obs: &Observations, n_vertices: usize) -> (Vec<[f64; 3]>, Vec<bool>) {
     let mut sum = vec![[0.0f64; 3]; n_vertices];
     let mut wsum = vec![0.0f64; n_vertices];
@@ -254,7 +255,7 @@ pub fn mean_colours(obs: &Observations, n_vertices: usize) -> (Vec<[f64; 3]>, Ve
         }
         wsum[v] += w;
     }
-    let seen: Vec<bool> = wsum.iter().map(|&w| w > 0.0).collect();
+    let seen = obs.seen_vertices(n_vertices);
     let mean = sum
         .iter()
         .zip(&wsum)

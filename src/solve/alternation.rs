@@ -663,7 +663,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let sample_check = self
             .light
             .sample_check(self.problem, &self.lambda, &self.weights);
-        let observed = self.problem.observed_vertices();
+        let observed = self.problem.obs.seen_vertices(self.problem.n_vertices);
         let normalisation = normalise(
             &mut self.light,
             &mut self.lambda,

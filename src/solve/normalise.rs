@@ -2,7 +2,8 @@
 //!
 //! `F` is invariant under `x → s x`, `λ → λ / s` (and `w_k → t w_k`, `λ_k → λ_k / t`) up to
 //! the tiny regularisers. The result is normalised once: every material's median blending
-//! weight over the observed vertices pure in it becomes 1, so that a pure vertex has
+//! weight over the observed vertices (read by an observation of positive weight,
+//! [`crate::observe::Observations::seen_vertices`]) pure in it becomes 1, so that a pure vertex has
 //! weight ≈ 1 and `λ_k` is the material's own colour. A vertex is pure in `k` when `w_k`
 //! carries at least [`PURE_SHARE`] of its weights' sum, a test the gauge `w_k → t w_k`
 //! barely moves where the other weights are near 0; with fewer than [`MIN_PURE`] such

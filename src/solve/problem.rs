@@ -28,17 +28,6 @@ pub struct Problem<'a> {
 }
 
 impl Problem<'_> {
-    /// Per vertex, whether any observation reads it.
-    pub fn observed_vertices(&self) -> Vec<bool> {
-        let mut observed = vec![false; self.n_vertices];
-        for &v in &self.obs.vertex {
-            if let Some(o) = observed.get_mut(v as usize) {
-                *o = true;
-            }
-        }
-        observed
-    }
-
     /// Checks sizes and indices; `Error::Internal` naming the first inconsistency.
     pub fn validate(&self) -> Result<()> {
         let o = self.obs;
