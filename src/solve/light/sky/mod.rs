@@ -224,10 +224,9 @@ impl SkyBasis {
     ) -> Result<[Vec<f64>; 3]> {
         let state = sky_state(p)?;
         let sun = p.sun.normalize();
-        let coarse = sampling.map(|k| TexelSamples::shared(samples.n, k.coarse_sub));
         let mut map = samples.texel_means_mixed(
-            coarse.as_deref(),
-            |t| sampling.is_some_and(|k| k.smooth_at(samples, t, &sun)),
+            sampling,
+            |k, t| k.smooth_at(samples, t, &sun),
             |s, i, d| sky_radiance_at(&state, d, s.zenith[i], &sun),
         );
         for ch in map.iter_mut() {
@@ -245,7 +244,7 @@ impl SkyBasis {
 
     /// The sun lobe basis at `p` (unit integral by formula), texel averages over
     /// `samples`. It depends on `p`'s sun and `κ` only. Texels where the whole lobe is
-    /// below `e^{−LOBE_COARSE_FROM}` of its peak ([`SkySampling::lobe_negligible_at`])
+    /// below `e^{−`[`LOBE_COARSE_FROM`]`}` of its peak ([`SkySampling::lobe_negligible_at`])
     /// average the coarse samples of [`SKY_SAMPLING`].
     pub fn lobe_map(samples: &TexelSamples, p: &SunSky) -> [Vec<f64>; 3] {
         Self::lobe_map_sampled(samples, p, Some(&SKY_SAMPLING))
@@ -260,10 +259,9 @@ impl SkyBasis {
     ) -> [Vec<f64>; 3] {
         let sun = p.sun.normalize();
         let lobe_norm = sun_lobe_norm(p.kappa);
-        let coarse = sampling.map(|k| TexelSamples::shared(samples.n, k.coarse_sub));
         samples.texel_means_mixed(
-            coarse.as_deref(),
-            |t| sampling.is_some_and(|k| k.lobe_negligible_at(samples, t, &sun, p.kappa)),
+            sampling,
+            |k, t| k.lobe_negligible_at(samples, t, &sun, p.kappa),
             |_, _, d| [sun_lobe_normed(lobe_norm, p.kappa, d.dot(&sun)); 3],
         )
     }

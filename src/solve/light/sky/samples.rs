@@ -30,7 +30,7 @@ use crate::Vec3;
 /// [`super::SUB_TEXELS`]².
 ///
 /// The sun lobe's texels take the coarse samples where the lobe is below
-/// `e^{−`[`LOBE_COARSE_FROM`]`}` of its peak ([`SkySampling::lobe_negligible_at`]).
+/// `e^{−lobe_exponent}` of its peak ([`SkySampling::lobe_negligible_at`]).
 #[derive(Debug, Clone, Copy)]
 pub struct SkySampling {
     /// Sub-texels per side of the coarse samples.
@@ -40,6 +40,9 @@ pub struct SkySampling {
     pub from_sun: f64,
     /// Least elevation (radians) of a texel's samples for the sky's coarse samples.
     pub above_horizon: f64,
+    /// The exponent below the sun lobe's peak from which its texels take the coarse
+    /// samples.
+    pub lobe_exponent: f64,
 }
 
 impl SkySampling {
@@ -50,9 +53,9 @@ impl SkySampling {
             && samples.angle_from(t, sun) >= self.from_sun
     }
 
-    /// Whether the sun lobe of sharpness `kappa` is below `e^{−LOBE_COARSE_FROM}` of its
-    /// peak over all of texel `t` (`κ (1 − cos γ_min) ≥` [`LOBE_COARSE_FROM`], `γ_min` the
-    /// least angle from `sun` to the texel), where the coarse samples may average it.
+    /// Whether the sun lobe of sharpness `kappa` is below `e^{−lobe_exponent}` of its
+    /// peak over all of texel `t` (`κ (1 − cos γ_min) ≥ lobe_exponent`, `γ_min` the least
+    /// angle from `sun` to the texel), where the coarse samples may average it.
     pub fn lobe_negligible_at(
         &self,
         samples: &TexelSamples,
@@ -60,12 +63,12 @@ impl SkySampling {
         sun: &Vec3,
         kappa: f64,
     ) -> bool {
-        kappa * (1.0 - samples.angle_from(t, sun).cos()) >= LOBE_COARSE_FROM
+        kappa * (1.0 - samples.angle_from(t, sun).cos()) >= self.lobe_exponent
     }
 }
 
-/// The exponent below the sun lobe's peak beyond which its texels take the coarse samples
-/// ([`SkySampling::lobe_negligible_at`]): `e^{−12} ≈ 6·10⁻⁶`.
+/// [`SKY_SAMPLING`]'s exponent below the sun lobe's peak from which its texels take the
+/// coarse samples ([`SkySampling::lobe_negligible_at`]): `e^{−12} ≈ 6·10⁻⁶`.
 pub const LOBE_COARSE_FROM: f64 = 12.0;
 
 /// The sky basis's sampling ([`SkySampling`]).
@@ -73,6 +76,7 @@ pub const SKY_SAMPLING: SkySampling = SkySampling {
     coarse_sub: 3,
     from_sun: 15.0 * std::f64::consts::PI / 180.0,
     above_horizon: 2.0 * std::f64::consts::PI / 180.0,
+    lobe_exponent: LOBE_COARSE_FROM,
 };
 
 /// The sub-texel samples of one grid (module docs).
@@ -182,17 +186,22 @@ impl TexelSamples {
     }
 
     /// Per channel and texel, the mean of `f(samples, i, ω_i)` over the texel's samples:
-    /// `coarse`'s where `use_coarse(t)` (the same grid at fewer sub-texels), else these.
+    /// with `sampling`, the coarse ones (the same grid at `coarse_sub` sub-texels) where
+    /// `use_coarse(sampling, t)`, else these.
     pub fn texel_means_mixed(
         &self,
-        coarse: Option<&TexelSamples>,
-        use_coarse: impl Fn(usize) -> bool,
+        sampling: Option<&SkySampling>,
+        use_coarse: impl Fn(&SkySampling, usize) -> bool,
         f: impl Fn(&TexelSamples, usize, &Vec3) -> [f64; 3],
     ) -> [Vec<f64>; 3] {
+        let coarse = sampling.map(|k| (k, TexelSamples::shared(self.n, k.coarse_sub)));
         let n2 = self.n * self.n;
         let mut map: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n2]);
         for t in 0..n2 {
-            let s = coarse.filter(|_| use_coarse(t)).unwrap_or(self);
+            let s = match &coarse {
+                Some((k, c)) if use_coarse(k, t) => c.as_ref(),
+                _ => self,
+            };
             let v = s.texel_mean(t, &|i, d| f(s, i, d));
             for c in 0..3 {
                 map[c][t] = v[c];
