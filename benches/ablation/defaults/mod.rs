@@ -227,7 +227,8 @@ fn start_materials(
 /// auto` (`ABLATION_RATIO_STEPS=N`: `--ratio-steps N`), the neighbour prior as `run
 /// --weights-smoothness auto` (`ABLATION_DEFAULTS_NEIGHBOUR=X`: `--weights-smoothness X`).
 /// `ABLATION_DEFAULTS_SCOPE=blends`: the sum-to-one prior on blended vertices whatever the
-/// pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
+/// pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
+/// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
 /// group of training photos under one true sky, with per-photo gains
 /// (`SYNTH_SHARED_SKIES=1` makes such groups).
 fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> EstimateOptions {
