@@ -46,7 +46,7 @@
 //!
 //! Environment: `ABLATION_SCENES` (comma list), `ABLATION_ROWS` (`;`-separated row
 //! labels), `ABLATION_CLEAN=0|1` (only the 8-bit or only the noise-free cases),
-//! `ABLATION_WIDTH`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
+//! `ABLATION_WIDTH`, `ABLATION_VERTICES`, `ABLATION_PHOTOS`, `ABLATION_ITERS` (≤ outer iterations, default 20),
 //! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
 //! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`, `ABLATION_K1_ITERS` for `k1`),
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
@@ -384,7 +384,8 @@ fn env_or<T: std::str::FromStr>(k: &str, d: T) -> T {
         .unwrap_or(d)
 }
 
-/// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp (`ABLATION_SPP`), Spot's 2,930 vertices, 16²
+/// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp (`ABLATION_SPP`), Spot's 2,930
+/// vertices (`ABLATION_VERTICES=N`: at least N, the mesh subdivided as `synth --vertices`), 16²
 /// global / 8² local maps (`ABLATION_GLOBAL`, `ABLATION_LOCAL`), 2 shadow rays per local
 /// texel (`ABLATION_RAYS`), every coefficient kept.
 fn sizes() -> Sizes {
@@ -394,7 +395,7 @@ fn sizes() -> Sizes {
         photos: std::env::var("ABLATION_PHOTOS")
             .ok()
             .and_then(|v| v.parse().ok()),
-        vertices: 2_000,
+        vertices: env_or("ABLATION_VERTICES", 2_000),
         spp: env_or("ABLATION_SPP", 8) as u32,
         global: env_or("ABLATION_GLOBAL", small.global),
         local: env_or("ABLATION_LOCAL", small.local),

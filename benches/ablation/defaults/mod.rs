@@ -77,8 +77,23 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let m0 = start_materials(case, &pilot, &init, colours);
     let light = light::by_scene(case, &problem, &m0, fit_options(case, base, &pilot), &pilot);
     let opts = light.options;
+    let judge = std::env::var("ABLATION_GRID_JUDGE")
+        .is_ok_and(|v| v == "halves")
+        .then(|| {
+            let views: Vec<_> = case.train.views.iter().collect();
+            let k = relight_cpc::run::DEFAULT_LIGHT_CHOICE_HALVES;
+            EstimateOptions {
+                validation_halves: relight_cpc::run::photo_halves(
+                    &views,
+                    &case.positions,
+                    &case.train.obs,
+                    k,
+                ),
+                ..opts.clone()
+            }
+        });
     let first = second::Fitted {
-        est: first_fit(&problem, m0, &opts, &init, colours),
+        est: first_fit(&problem, m0, &opts, judge.as_ref(), &init, colours),
         kept: &pilot.kept,
         seen: &seen,
     };
@@ -230,7 +245,8 @@ fn start_materials(
 /// pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
 /// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
 /// group of training photos under one true sky, with per-photo gains
-/// (`SYNTH_SHARED_SKIES=1` makes such groups).
+/// (`SYNTH_SHARED_SKIES=1` makes such groups). `ABLATION_DEFAULTS_ACHROMATIC=1`: `run
+/// --achromatic-specular`.
 fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> EstimateOptions {
     let (max_outer, rel_tol) =
         if std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench") {
@@ -263,24 +279,27 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
             .is_ok_and(|v| v == "shared")
             .then(|| case.true_light_groups()),
+        achromatic_specular: std::env::var("ABLATION_DEFAULTS_ACHROMATIC").is_ok_and(|v| v == "1"),
         ..base.clone()
     };
     crate::with_case_graph(case, opts)
 }
 
 /// The first fit from `m0`, or with `ABLATION_DEFAULTS_START=grid | grid-unmix` (up to three
-/// materials) the best of [`start_probes::grid_start_fit`]'s.
+/// materials) the best of [`start_probes::grid_start_fit`]'s (`ABLATION_GRID_JUDGE=halves`:
+/// judged on the right halves of 4 training photos, as `--light auto` judges its models).
 fn first_fit(
     problem: &Problem,
     m0: Materials0,
     opts: &EstimateOptions,
+    judge: Option<&EstimateOptions>,
     init: &InitialMaterials,
     colours: Colours,
 ) -> Estimate {
     match start_variant().as_deref() {
         Some(v @ ("grid" | "grid-unmix")) if m0.lambda.len() <= 3 => {
             let unmix = (v == "grid-unmix").then_some(start_probes::UnmixFrom { init, colours });
-            start_probes::grid_start_fit(problem, &m0, opts, LAMBERT, unmix)
+            start_probes::grid_start_fit(problem, &m0, opts, judge, LAMBERT, unmix)
         }
         _ => estimate(problem, m0, opts, &mut |_, _| {}).expect("defaults' fit"),
     }

@@ -8,7 +8,7 @@ use crate::synth_case::*;
 use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
 use relight_cpc::solve::ratio_step;
 use relight_cpc::solve::starts::{estimate_best, Start};
-use relight_cpc::solve::{Estimate, EstimateOptions, Materials0, Problem};
+use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
 
 /// `ABLATION_DEFAULTS_START=truth | truth-weights | truth-lambda` (the pilot took the true
 /// count): the fit from the TRUE materials (the kept lobes' λ), from the true weights with
@@ -59,11 +59,13 @@ pub(super) struct UnmixFrom<'a> {
 /// `j < K − 1`, `t_j ∈ {−n·δ … n·δ}`, `δ = ABLATION_GRID_STEP` (0.2), `n = ABLATION_GRID_N`
 /// (3 with two materials, 2 otherwise)), its weights `m0`'s or (`grid-unmix`) unmixed
 /// from the mean colours over the start's Lambertian colours; the fit with the lowest
-/// validation score is kept. With more than three materials (a wrong count), the plain fit.
+/// validation score is kept (`judge`: scored with those options, the start kept fitted
+/// again with `opts`). With more than three materials (a wrong count), the plain fit.
 pub(super) fn grid_start_fit(
     problem: &Problem,
     m0: &Materials0,
     opts: &EstimateOptions,
+    judge: Option<&EstimateOptions>,
     lambert: usize,
     unmix: Option<UnmixFrom>,
 ) -> Estimate {
@@ -96,9 +98,22 @@ pub(super) fn grid_start_fit(
             }
         })
         .collect();
-    // The fit with the lowest validation score, as `--starts` keeps it.
-    let (est, multi) =
-        estimate_best(problem, starts, opts, &mut |_, _, _| {}).expect("grid starts' fits");
+    // The fit with the lowest validation score, as `--starts` keeps it; with `judge` (the
+    // right halves of some training photos held back) the start it picks is fitted again
+    // with `opts`, as `run` fits the light model `--light auto` keeps.
+    let scoring = judge.unwrap_or(opts);
+    let (est, multi) = estimate_best(problem, starts.clone(), scoring, &mut |_, _, _| {})
+        .expect("grid starts' fits");
+    let est = match judge {
+        Some(_) => estimate(
+            problem,
+            starts[multi.chosen].materials.clone(),
+            opts,
+            &mut |_, _| {},
+        )
+        .expect("the start kept, fitted again"),
+        None => est,
+    };
     for r in &multi.starts {
         eprintln!("grid start {}: validation {:.5}", r.label, r.score);
     }
