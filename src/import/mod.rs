@@ -4,6 +4,7 @@
 pub mod calendar;
 pub mod colmap;
 pub mod geotag;
+pub mod jpeg_end;
 pub mod mesh;
 pub mod photo;
 pub mod points;

@@ -99,8 +99,11 @@ impl Photo {
         if is_exr {
             return load_exr(path);
         }
-        let reader = image::ImageReader::open(path)
-            .map_err(|e| Error::io(path, e))?
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        // The JPEG decoder fills a truncated file's missing rows without an error.
+        crate::import::jpeg_end::check_complete(&bytes)
+            .map_err(|truncated| image_error(path, truncated.to_string()))?;
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| Error::io(path, e))?;
         let img = reader

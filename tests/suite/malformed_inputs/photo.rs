@@ -1,4 +1,4 @@
-//! Photos: unreadable, truncated, missing; CMYK, 16-bit and grey are read.
+//! Photos: unreadable, truncated (PNG and JPEG), missing; CMYK, 16-bit and grey are read.
 
 use super::*;
 use relight_cpc::import::photo::Photo;
@@ -15,6 +15,26 @@ fn photo_truncated_png() {
     let bytes = std::fs::read(repo("examples/spot/images/photo_000.png")).unwrap();
     let (_d, p) = file("photo-trunc", "photo_000.png", &bytes[..bytes.len() / 2]);
     expect(Photo::load(&p, 250.0 / 255.0), &p, &[]);
+}
+
+#[test]
+fn photo_truncated_jpeg() {
+    // A real camera JPEG of the Buddha collection cut at three quarters: the decoder
+    // would fill the missing rows, the end-of-image check refuses the file.
+    let bytes = std::fs::read(repo(
+        "tests/fixtures/colmap-dense-buddha/dense/images/00006.jpg",
+    ))
+    .unwrap();
+    let (_d, p) = file(
+        "photo-trunc-jpeg",
+        "00006.jpg",
+        &bytes[..bytes.len() * 3 / 4],
+    );
+    expect(
+        Photo::load(&p, 250.0 / 255.0),
+        &p,
+        &["truncated", "end-of-image"],
+    );
 }
 
 #[test]
