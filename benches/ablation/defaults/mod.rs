@@ -189,6 +189,9 @@ fn clustered_start(case: &Case, pilot: &PilotOutcome, colours: Colours) -> Initi
         1,
     )
     .expect("k-means start");
+    if start_variant().as_deref() == Some("core") {
+        start_probes::core_colours(&mut init, colours);
+    }
     let unmix_match = start_variant().as_deref() == Some("unmix-match");
     if unmix_match {
         start_probes::unmix_initial(&mut init, colours);
@@ -232,6 +235,17 @@ fn start_materials(
         Some("unmix") => m0.weights = unmixed_weights(init, colours.mean_rgb, colours.seen).0,
         Some("unmix2") => start_probes::unmix_pairs(&mut m0, colours),
         _ => {}
+    }
+    if std::env::var("ABLATION_START_RATIOS").is_ok_and(|v| v == "1") {
+        let lambda: Vec<_> = m0
+            .lambda
+            .iter()
+            .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
+            .collect();
+        eprintln!(
+            "  the first fit's start: worst ratio per channel {:?}",
+            crate::metrics::ratio_errors(case, &lambda, &m0.weights, colours.seen)
+        );
     }
     m0
 }

@@ -212,3 +212,39 @@ fn unmix_over(
     }
     Some((w, residual))
 }
+
+/// `ABLATION_DEFAULTS_START=core`: each cluster's colour the per-channel median over its
+/// core, the `ABLATION_CORE` fraction (0.3) of its seen members nearest its centroid in
+/// hue space, instead of over all its members: a band's blended vertices tint the median
+/// of a material's weak channels, and they lie at the cluster's edge.
+pub(super) fn core_colours(init: &mut InitialMaterials, colours: Colours) {
+    use relight_cpc::solve::cluster::hue_feature;
+    let frac: f64 = crate::env_or("ABLATION_CORE", 0.3);
+    for (k, centre) in init.centroids.iter().enumerate() {
+        let mut members: Vec<(f64, usize)> = (0..colours.seen.len())
+            .filter(|&x| colours.seen[x] && init.labels[x] == k)
+            .map(|x| {
+                let f = hue_feature(colours.mean_rgb[x]);
+                let d: f64 = (0..3).map(|i| (f[i] - centre[i]).powi(2)).sum();
+                (d, x)
+            })
+            .collect();
+        if members.len() < 10 {
+            continue;
+        }
+        members.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let keep = ((members.len() as f64 * frac).ceil() as usize).max(5);
+        let core = &members[..keep];
+        let before = init.albedo[k];
+        for c in 0..3 {
+            let mut v: Vec<f64> = core.iter().map(|&(_, x)| colours.mean_rgb[x][c]).collect();
+            v.sort_by(f64::total_cmp);
+            init.albedo[k][c] = v[v.len() / 2];
+        }
+        eprintln!(
+            "core colour of cluster {k}: {before:.4?} -> {:.4?} ({keep} of {} members)",
+            init.albedo[k],
+            members.len()
+        );
+    }
+}
