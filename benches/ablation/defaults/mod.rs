@@ -180,7 +180,7 @@ fn run_pilot(case: &Case, base: &EstimateOptions, colours: Colours) -> PilotOutc
 /// pilot chose that start. `ABLATION_DEFAULTS_START=unmix-match`: the weights (and labels)
 /// unmixed from the clustered colours before the brightness is matched, so that only
 /// vertices the unmixing finds pure count there, then unmixed again over the matched
-/// colours.
+/// colours; `core`: each cluster's colour from its core ([`start_probes::core_colours`]).
 fn clustered_start(case: &Case, pilot: &PilotOutcome, colours: Colours) -> InitialMaterials {
     let mut init = relight_cpc::solve::cluster::initial_materials(
         colours.mean_rgb,
@@ -217,7 +217,7 @@ fn start_variant() -> Option<String> {
 /// true count) one of [`start_probes::truth_start`]'s; with `unmix`, each seen vertex's
 /// weights unmixed from its mean colour over the start's colours ([`unmixed_weights`],
 /// `--start-weights unmixed`); `unmix2`: over the best pair of materials only (a vertex
-/// blends at most two).
+/// blends at most two). `ABLATION_START_RATIOS=1` prints the start's worst ratio errors.
 fn start_materials(
     case: &Case,
     pilot: &PilotOutcome,
