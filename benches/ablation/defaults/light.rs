@@ -7,7 +7,8 @@
 //! the row's fit then runs with its options and early stopping's own held-back
 //! observations, as `run` fits the kept model again. Over the Lambertian lobe alone the
 //! paper's map. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
-//! given, the row before `run` chose by scene; `ABLATION_LIGHT_HALVES=k` scores on `k`
+//! given, the row before `run` chose by scene (`prior` or `sky`: that candidate of
+//! `--light auto`, forced); `ABLATION_LIGHT_HALVES=k` scores on `k`
 //! photos' halves (`run --light-choice-halves k`).
 
 use crate::synth_case::Case;
@@ -33,10 +34,16 @@ pub fn by_scene(
 ) -> ChosenLight {
     if let Ok(given) = std::env::var("ABLATION_DEFAULTS_LIGHT") {
         let note = format!("light `{given}` (ABLATION_DEFAULTS_LIGHT)");
-        return ChosenLight {
-            options: opts,
-            note,
+        let base = EstimateOptions {
+            sun_clock: case.geotag_suns.clone(),
+            ..opts.clone()
         };
+        let candidates = choose::candidates(LightChoice::Auto, &base).expect("light candidates");
+        let options = match candidates.into_iter().find(|c| c.name == given) {
+            Some(c) if given == "prior" || given == "sky" => c.options,
+            _ => opts,
+        };
+        return ChosenLight { options, note };
     }
     let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
     let mut run = RunOptions::new("ws".into(), "out".into());
