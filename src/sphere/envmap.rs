@@ -208,8 +208,17 @@ impl LatLong {
         let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
         let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
             .map_err(|e| err(format!("cannot decode Radiance HDR: {e}")))?;
+        let header = decoder.metadata();
         let img = image::DynamicImage::from_decoder(decoder)
-            .map_err(|e| err(format!("cannot decode Radiance HDR: {e}")))?
+            .map_err(|e| match e {
+                image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                    err(format!(
+                        "the Radiance HDR pixel data ends before the {} × {} pixels its header announces: the file is truncated",
+                        header.width, header.height
+                    ))
+                }
+                e => err(format!("cannot decode Radiance HDR: {e}")),
+            })?
             .into_rgb32f();
         let (w, h) = (img.width() as usize, img.height() as usize);
         let rgb = img.pixels().map(|p| p.0).collect();

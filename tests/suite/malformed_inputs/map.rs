@@ -50,6 +50,25 @@ fn env_map_truncated() {
 }
 
 #[test]
+fn env_map_truncated_radiance_hdr() {
+    // A 32 × 16 Radiance map written by the `image` crate's encoder, cut at half: the
+    // error says the pixels run out, with the size the header announced.
+    let d = scratch("malformed", "env-hdr-trunc");
+    let whole = d.join("whole.hdr");
+    let pixels: Vec<image::Rgb<f32>> = (0..32 * 16)
+        .map(|i| image::Rgb([1.0 + i as f32 * 0.01, 0.5, 0.25]))
+        .collect();
+    let out = std::io::BufWriter::new(std::fs::File::create(&whole).unwrap());
+    image::codecs::hdr::HdrEncoder::new(out)
+        .encode(&pixels, 32, 16)
+        .unwrap();
+    assert!(LatLong::read_hdr(&whole).is_ok(), "the whole map must read");
+    let bytes = std::fs::read(&whole).unwrap();
+    let (_d2, p) = file("env-hdr-half", "sky.hdr", &bytes[..bytes.len() / 2]);
+    expect(LatLong::read_hdr(&p), &p, &["truncated", "32 × 16"]);
+}
+
+#[test]
 fn env_map_header_claiming_more_pixels_than_the_file_holds() {
     // The data window of the 64 × 32 fixture grown to 50000 × 50000 in the header: refused
     // before any allocation (found by the envmap fuzz target: it aborted the process).
