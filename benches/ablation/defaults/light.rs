@@ -8,7 +8,7 @@
 //! observations, as `run` fits the kept model again. Over the Lambertian lobe alone the
 //! paper's map. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
 //! given, the row before `run` chose by scene (`prior` or `sky`: that candidate of
-//! `--light auto`, forced); `ABLATION_LIGHT_HALVES=k` scores on `k`
+//! `--light auto`, forced; `auto`: `--light auto` whatever the lobes); `ABLATION_LIGHT_HALVES=k` scores on `k`
 //! photos' halves (`run --light-choice-halves k`).
 
 use crate::synth_case::Case;
@@ -32,7 +32,9 @@ pub fn by_scene(
     opts: EstimateOptions,
     pilot: &PilotOutcome,
 ) -> ChosenLight {
-    if let Ok(given) = std::env::var("ABLATION_DEFAULTS_LIGHT") {
+    let given = std::env::var("ABLATION_DEFAULTS_LIGHT").ok();
+    let forced_auto = given.as_deref() == Some("auto");
+    if let Some(given) = given.filter(|g| g != "auto") {
         let note = format!("light `{given}` (ABLATION_DEFAULTS_LIGHT)");
         let base = EstimateOptions {
             sun_clock: case.geotag_suns.clone(),
@@ -48,13 +50,17 @@ pub fn by_scene(
     let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
     let mut run = RunOptions::new("ws".into(), "out".into());
     run.light_by_scene = true;
-    let Some((LightChoice::Auto, _)) = scene_light(&run, case.nv, &kept) else {
+    let by_rule = matches!(
+        scene_light(&run, case.nv, &kept),
+        Some((LightChoice::Auto, _))
+    );
+    if !(by_rule || forced_auto) {
         let note = "light `paper` (run's rule: the Lambertian lobe alone)".to_string();
         return ChosenLight {
             options: opts,
             note,
         };
-    };
+    }
     let base = EstimateOptions {
         sun_clock: case.geotag_suns.clone(),
         ..opts
