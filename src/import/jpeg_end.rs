@@ -46,7 +46,8 @@ const SOS: u8 = 0xDA;
 
 /// `Ok` when `bytes` (a file that starts with the JPEG signature `FF D8`) reaches its
 /// end-of-image marker (module docs); files without that signature are not JPEGs and
-/// pass.
+/// pass, and so do files damaged where a marker must begin (the check is for truncation;
+/// the decoder judges damage).
 pub fn check_complete(bytes: &[u8]) -> Result<(), Truncated> {
     if bytes.len() < 2 || bytes[0] != 0xFF || bytes[1] != SOI {
         return Ok(());
@@ -57,7 +58,12 @@ pub fn check_complete(bytes: &[u8]) -> Result<(), Truncated> {
     };
     let mut i = 2;
     loop {
-        let (code, after) = read_marker(bytes, i).ok_or(truncated("a marker"))?;
+        let (code, after) = match read_marker(bytes, i) {
+            Marker::At(code, after) => (code, after),
+            Marker::Ends => return Err(truncated("a marker")),
+            // Damaged, not cut short: whether it decodes is the decoder's to say.
+            Marker::Missing => return Ok(()),
+        };
         i = match code {
             EOI => return Ok(()),
             0x01 | 0xD0..=0xD7 => after,
@@ -77,16 +83,30 @@ pub fn check_complete(bytes: &[u8]) -> Result<(), Truncated> {
     }
 }
 
-/// The marker at `i`: its code and the offset after it, fill bytes skipped. `None` when
-/// the data ends first (or holds no `FF` at `i`, which a decoder cannot read either).
-fn read_marker(bytes: &[u8], mut i: usize) -> Option<(u8, usize)> {
-    if *bytes.get(i)? != 0xFF {
-        return None;
+/// What stands where a marker must begin.
+enum Marker {
+    /// A marker: its code and the offset after it, fill bytes skipped.
+    At(u8, usize),
+    /// The data ends first.
+    Ends,
+    /// A byte other than `FF`: the file is damaged there, not truncated.
+    Missing,
+}
+
+/// The marker at `i` ([`Marker`]).
+fn read_marker(bytes: &[u8], mut i: usize) -> Marker {
+    match bytes.get(i) {
+        None => return Marker::Ends,
+        Some(&b) if b != 0xFF => return Marker::Missing,
+        Some(_) => {}
     }
-    while *bytes.get(i)? == 0xFF {
+    while bytes.get(i) == Some(&0xFF) {
         i += 1;
     }
-    Some((bytes[i], i + 1))
+    match bytes.get(i) {
+        Some(&code) => Marker::At(code, i + 1),
+        None => Marker::Ends,
+    }
 }
 
 /// The 16-bit big-endian segment length at `i`.
@@ -184,6 +204,16 @@ mod tests {
         assert!(sos >= 2, "the fixture is not progressive ({sos} scans)");
         assert_eq!(check_complete(jpeg), Ok(()));
         assert!(check_complete(&jpeg[..jpeg.len() - 10]).is_err());
+    }
+
+    #[test]
+    fn a_damaged_marker_is_left_to_the_decoder_not_called_truncated() {
+        // The first segment's length grown by one: the walk lands a byte past the next
+        // marker, on a byte that is not FF. The file is damaged, not short.
+        let mut jpeg = baseline_jpeg();
+        let len = u16::from_be_bytes([jpeg[4], jpeg[5]]) + 1;
+        jpeg[4..6].copy_from_slice(&len.to_be_bytes());
+        assert_eq!(check_complete(&jpeg), Ok(()));
     }
 
     #[test]
