@@ -8,8 +8,8 @@
 //! observations, as `run` fits the kept model again. Over the Lambertian lobe alone the
 //! paper's map. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
 //! given, the row before `run` chose by scene (`prior` or `sky`: that candidate of
-//! `--light auto`, forced; `auto`: `--light auto` whatever the lobes); `ABLATION_LIGHT_HALVES=k` scores on `k`
-//! photos' halves (`run --light-choice-halves k`).
+//! `--light auto`, forced; `auto`: `--light auto` whatever the lobes);
+//! `ABLATION_LIGHT_HALVES=k` scores on `k` photos' halves (`run --light-choice-halves k`).
 
 use crate::synth_case::Case;
 use relight_cpc::run::{photo_halves, scene_light, RunOptions, DEFAULT_LIGHT_CHOICE_HALVES};
@@ -36,13 +36,14 @@ pub fn by_scene(
     let forced_auto = given.as_deref() == Some("auto");
     if let Some(given) = given.filter(|g| g != "auto") {
         let note = format!("light `{given}` (ABLATION_DEFAULTS_LIGHT)");
-        let base = EstimateOptions {
-            sun_clock: case.geotag_suns.clone(),
-            ..opts.clone()
-        };
-        let candidates = choose::candidates(LightChoice::Auto, &base).expect("light candidates");
-        let options = match candidates.into_iter().find(|c| c.name == given) {
-            Some(c) if given == "prior" || given == "sky" => c.options,
+        let options = match given.as_str() {
+            "prior" | "sky" => {
+                candidates(case, opts)
+                    .into_iter()
+                    .find(|c| c.name == given)
+                    .expect("a candidate of --light auto")
+                    .options
+            }
             _ => opts,
         };
         return ChosenLight { options, note };
@@ -61,14 +62,9 @@ pub fn by_scene(
             note,
         };
     }
-    let base = EstimateOptions {
-        sun_clock: case.geotag_suns.clone(),
-        ..opts
-    };
-    let views: Vec<_> = case.train.views.iter().collect();
     let k = crate::env_or("ABLATION_LIGHT_HALVES", DEFAULT_LIGHT_CHOICE_HALVES);
-    let halves = photo_halves(&views, &case.positions, &case.train.obs, k);
-    let candidates = choose::candidates(LightChoice::Auto, &base).expect("light candidates");
+    let halves = choice_halves(case, k);
+    let candidates = candidates(case, opts);
     let scores: Vec<f64> = candidates
         .iter()
         .map(|c| {
@@ -96,4 +92,24 @@ pub fn by_scene(
             scored.join(", ")
         ),
     }
+}
+
+/// `--light auto`'s candidate models for `opts`, with the case's geotagged suns as `run`
+/// reads them.
+fn candidates(case: &Case, opts: EstimateOptions) -> Vec<choose::LightCandidate> {
+    let base = EstimateOptions {
+        sun_clock: case.geotag_suns.clone(),
+        ..opts
+    };
+    choose::candidates(LightChoice::Auto, &base).expect("light candidates")
+}
+
+/// The right halves of `k` training photos held back whole, the split `run` scores
+/// `--light auto` on ([`photo_halves`]).
+pub fn choice_halves(
+    case: &Case,
+    k: usize,
+) -> Option<std::sync::Arc<relight_cpc::solve::options::PhotoHalves>> {
+    let views: Vec<_> = case.train.views.iter().collect();
+    photo_halves(&views, &case.positions, &case.train.obs, k)
 }

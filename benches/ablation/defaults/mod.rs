@@ -79,18 +79,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let opts = light.options;
     let judge = std::env::var("ABLATION_GRID_JUDGE")
         .is_ok_and(|v| v == "halves")
-        .then(|| {
-            let views: Vec<_> = case.train.views.iter().collect();
-            let k = relight_cpc::run::DEFAULT_LIGHT_CHOICE_HALVES;
-            EstimateOptions {
-                validation_halves: relight_cpc::run::photo_halves(
-                    &views,
-                    &case.positions,
-                    &case.train.obs,
-                    k,
-                ),
-                ..opts.clone()
-            }
+        .then(|| EstimateOptions {
+            validation_halves: light::choice_halves(
+                case,
+                relight_cpc::run::DEFAULT_LIGHT_CHOICE_HALVES,
+            ),
+            ..opts.clone()
         });
     let first = second::Fitted {
         est: first_fit(&problem, m0, &opts, judge.as_ref(), &init, colours),

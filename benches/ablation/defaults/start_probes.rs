@@ -101,17 +101,14 @@ pub(super) fn grid_start_fit(
     // The fit with the lowest validation score, as `--starts` keeps it; with `judge` (the
     // right halves of some training photos held back) the start it picks is fitted again
     // with `opts`, as `run` fits the light model `--light auto` keeps.
-    let scoring = judge.unwrap_or(opts);
-    let (est, multi) = estimate_best(problem, starts.clone(), scoring, &mut |_, _, _| {})
+    let refit_from = judge.map(|_| starts.clone());
+    let (est, multi) = estimate_best(problem, starts, judge.unwrap_or(opts), &mut |_, _, _| {})
         .expect("grid starts' fits");
-    let est = match judge {
-        Some(_) => estimate(
-            problem,
-            starts[multi.chosen].materials.clone(),
-            opts,
-            &mut |_, _| {},
-        )
-        .expect("the start kept, fitted again"),
+    let est = match refit_from {
+        Some(mut starts) => {
+            let kept = starts.swap_remove(multi.chosen).materials;
+            estimate(problem, kept, opts, &mut |_, _| {}).expect("the start kept, fitted again")
+        }
         None => est,
     };
     for r in &multi.starts {
