@@ -386,27 +386,33 @@ fn albedo_truth_table(s: &mut String, a: &crate::report::metrics::AlbedoTruth) {
          fix it); the ratio error is scaled / true − 1 (largest: <b>{:.4}</b>). The last \
          column compares the scaled per-vertex diffuse albedo itself over the vertices of one \
          true material alone (true weight ≥ {}), which does not depend on how free blending \
-         weights split brightness between w and λ (largest: <b>{:.4}</b>).</p>",
+         weights split brightness between w and λ (largest: <b>{:.4}</b>). Its mean moves \
+         with the vertices whose colour the photos leave open (surfaces that face away \
+         from every camera); the median is the material's own albedo, and the ratios between \
+         the materials' medians, free of the scale, are the diffuse albedo ratios (largest \
+         error: <b>{:.4}</b>).</p>",
         a.vertices,
         a.scale[0],
         a.scale[1],
         a.scale[2],
         a.max_ratio_error,
         crate::report::metrics::PURE_WEIGHT,
-        a.max_pure_ratio_error
+        a.max_pure_ratio_error,
+        a.max_median_ratio_error
     );
     let _ = writeln!(
         s,
         "<table><tr><th class=\"l\">material</th><th class=\"l\">true material (share)</th>\
          <th>recovered</th><th>scaled</th><th>true</th><th>ratio error R / G / B</th>\
-         <th>pure vertices: albedo error R / G / B</th></tr>"
+         <th>pure vertices: mean albedo error R / G / B</th>\
+         <th>pure vertices: median albedo error R / G / B</th></tr>"
     );
     let rgb = |v: [f64; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
     for m in &a.materials {
         let _ = writeln!(
             s,
             "<tr><td class=\"l\">{}</td><td class=\"l\">{} ({:.3})</td><td>{}</td><td>{}</td><td>{}</td>\
-             <td>{:+.4} / {:+.4} / {:+.4}</td><td>{}</td></tr>",
+             <td>{:+.4} / {:+.4} / {:+.4}</td><td>{}</td><td>{}</td></tr>",
             m.material,
             esc(&m.true_material),
             m.agreement,
@@ -416,7 +422,8 @@ fn albedo_truth_table(s: &mut String, a: &crate::report::metrics::AlbedoTruth) {
             m.ratio_error[0],
             m.ratio_error[1],
             m.ratio_error[2],
-            crate::report::metrics::pure_errors(m)
+            crate::report::metrics::pure_errors(m),
+            crate::report::metrics::pure_median_errors(m)
         );
     }
     let _ = writeln!(s, "</table>");

@@ -302,25 +302,30 @@ impl RunReport {
              the true one ({} vertices); largest ratio error {:.4}. The last column compares \
              the per-vertex diffuse albedo itself over the vertices of one true material alone \
              (true weight ≥ {}), which does not depend on how free blending weights split \
-             brightness between `w` and `λ`; largest {:.4}.\n",
+             brightness between `w` and `λ`; largest {:.4}. Its mean moves with the \
+             vertices whose colour the photos leave open (surfaces that face away from every \
+             camera); the median is the material's own albedo, and the ratios between the \
+             materials' medians, free of the scale, are the diffuse albedo ratios: largest \
+             error **{:.4}**.\n",
             a.scale[0],
             a.scale[1],
             a.scale[2],
             a.vertices,
             a.max_ratio_error,
             crate::report::metrics::PURE_WEIGHT,
-            a.max_pure_ratio_error
+            a.max_pure_ratio_error,
+            a.max_median_ratio_error
         );
         let _ = writeln!(
             s,
-            "| material | true material (share) | recovered | scaled | true | ratio error R / G / B | pure vertices: albedo error R / G / B |"
+            "| material | true material (share) | recovered | scaled | true | ratio error R / G / B | pure vertices: mean albedo error R / G / B | pure vertices: median albedo error R / G / B |"
         );
-        let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
         let rgb = |v: [f64; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
         for m in &a.materials {
             let _ = writeln!(
                 s,
-                "| {} | {} ({:.3}) | {} | {} | {} | {:+.4} / {:+.4} / {:+.4} | {} |",
+                "| {} | {} ({:.3}) | {} | {} | {} | {:+.4} / {:+.4} / {:+.4} | {} | {} |",
                 m.material,
                 m.true_material,
                 m.agreement,
@@ -330,7 +335,8 @@ impl RunReport {
                 m.ratio_error[0],
                 m.ratio_error[1],
                 m.ratio_error[2],
-                metrics::pure_errors(m)
+                metrics::pure_errors(m),
+                metrics::pure_median_errors(m)
             );
         }
         let _ = writeln!(s);

@@ -26,7 +26,7 @@ use super::shading::{fitted_env, valid_mask};
 use super::{Fitted, Truth};
 use crate::render::{Raster, ShadedViews, ViewToShade};
 use crate::report::metrics::{
-    rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry, PURE_WEIGHT,
+    rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry, PURE_OFF, PURE_WEIGHT,
 };
 use crate::sphere::envmap::OctEnv;
 use crate::transport::brdf::BasisBrdf;
@@ -369,7 +369,7 @@ fn dominant(weights: &[f64], k: usize) -> Vec<Option<usize>> {
 /// material `k` stands for the true material most vertices it dominates are dominated by;
 /// its ratio error is `s_c λ_{k,lb,c} / λ^true_{j,lambert,c} − 1`; its pure-vertex error is
 /// the mean of `s_c β_{x,c}` over the vertices it dominates whose true weight of `j` is at
-/// least [`PURE_WEIGHT`], over `λ^true_{j,lambert,c}`, − 1.
+/// least [`PURE_WEIGHT`], over `λ^true_{j,lambert,c}`, − 1; beside it their median ([`PureFigures`]).
 pub(crate) fn albedo_truth(f: &Fitted, t: &TrueMaterials) -> Option<AlbedoTruth> {
     let nv = f.scene.mesh.positions.len();
     let (kk, jj) = (f.est.lambda.len(), t.names.len());
@@ -398,6 +398,7 @@ pub(crate) fn albedo_truth(f: &Fitted, t: &TrueMaterials) -> Option<AlbedoTruth>
                 .flat_map(|m| m.pure_ratio_error)
                 .filter(|e| e.is_finite()),
         ),
+        max_median_ratio_error: crate::report::metrics::max_median_ratio_error(&materials),
         materials,
     })
 }
@@ -474,30 +475,99 @@ fn material_albedo(
     let pure: Vec<usize> = (0..nv)
         .filter(|&x| dom.fit[x] == Some(k) && t.weights[x * jj + j] >= PURE_WEIGHT)
         .collect();
-    let pure_ratio_error = [0, 1, 2].map(|c| {
-        let mean = pure
-            .iter()
-            .map(|&x| scale[c] * f.beta[x * nb + lb][c])
-            .sum::<f64>()
-            / pure.len() as f64;
-        mean / t.diffuse(j)[c] - 1.0
-    });
+    let truth = t.diffuse(j);
+    let scaled: Vec<[f64; 3]> = pure
+        .iter()
+        .map(|&x| [0, 1, 2].map(|c| scale[c] * f.beta[x * nb + lb][c]))
+        .collect();
+    let figures = pure_figures(&scaled, truth);
     Some(AlbedoTruthEntry {
         material: k,
         true_material: t.names[j].clone(),
         agreement: v as f64 / total as f64,
         recovered,
         recovered_scaled,
-        truth: t.diffuse(j),
+        truth,
         ratio_error,
         pure_vertices: pure.len(),
-        pure_ratio_error,
+        pure_ratio_error: figures.mean_error,
+        pure_median_error: figures.median_error,
+        pure_off_share: figures.off_share,
     })
+}
+
+/// One material's scaled per-vertex diffuse albedo over its pure vertices against the
+/// truth ([`AlbedoTruthEntry`]'s last three fields).
+#[derive(Debug, PartialEq)]
+struct PureFigures {
+    /// `mean_x a_{x,c} / t_c − 1`.
+    mean_error: [f64; 3],
+    /// `median_x a_{x,c} / t_c − 1` ([`upper_median`]).
+    median_error: [f64; 3],
+    /// The share of `x` with `|a_{x,c} / t_c − 1| > PURE_OFF` in some channel.
+    off_share: f64,
+}
+
+/// [`PureFigures`] of the scaled albedos `a` against the true albedo `t` (NaN errors and a
+/// share of 0 when `a` is empty).
+fn pure_figures(a: &[[f64; 3]], t: [f64; 3]) -> PureFigures {
+    let channel = |c: usize| a.iter().map(|v| v[c]).collect::<Vec<f64>>();
+    let off = a
+        .iter()
+        .filter(|v| (0..3).any(|c| (v[c] / t[c] - 1.0).abs() > PURE_OFF))
+        .count();
+    PureFigures {
+        mean_error: [0, 1, 2].map(|c| channel(c).iter().sum::<f64>() / a.len() as f64 / t[c] - 1.0),
+        median_error: [0, 1, 2].map(|c| upper_median(channel(c)) / t[c] - 1.0),
+        off_share: if a.is_empty() {
+            0.0
+        } else {
+            off as f64 / a.len() as f64
+        },
+    }
+}
+
+/// The element at index `⌊n / 2⌋` of `values` in ascending order (NaN when empty): the
+/// median for an odd count, the upper of the two middle values for an even one.
+fn upper_median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Five vertices of a material whose true albedo is (0.5, 0.2, 0.1): the mean, the
+    /// median and the share off by more than 10%, counted by hand.
+    #[test]
+    fn pure_figures_read_the_mean_the_median_and_the_share_off() {
+        let t = [0.5, 0.2, 0.1];
+        let a = [
+            [0.50, 0.20, 0.10], // exact
+            [0.52, 0.20, 0.10], // +4% in red: within 10%
+            [0.50, 0.19, 0.10], // −5% in green
+            [0.50, 0.20, 0.15], // +50% in blue: off
+            [0.40, 0.20, 0.10], // −20% in red: off
+        ];
+        let f = pure_figures(&a, t);
+        let close = |x: f64, y: f64| (x - y).abs() < 1e-12;
+        // Means 2.42 / 5, 0.99 / 5, 0.55 / 5; medians 0.50, 0.20, 0.10.
+        for (c, mean) in [2.42 / 5.0, 0.99 / 5.0, 0.55 / 5.0].iter().enumerate() {
+            assert!(close(f.mean_error[c], mean / t[c] - 1.0), "{f:?}");
+            assert!(close(f.median_error[c], 0.0), "{f:?}");
+        }
+        assert!(close(f.off_share, 2.0 / 5.0), "{f:?}");
+        // An even count takes the upper of the two middle values.
+        let even = pure_figures(&[[0.4, 0.2, 0.1], [0.6, 0.2, 0.1]], t);
+        assert!(close(even.median_error[0], 0.6 / 0.5 - 1.0), "{even:?}");
+        let none = pure_figures(&[], t);
+        assert!(none.mean_error[0].is_nan() && none.median_error[0].is_nan());
+        assert_eq!(none.off_share, 0.0);
+    }
 
     #[test]
     fn the_true_reflectance_goes_into_the_fits_basis_lobe_by_lobe() {

@@ -313,6 +313,7 @@ fn check_albedo_truth(out: &Path) {
     }
     let entries = a["materials"].as_array().unwrap();
     assert_eq!(entries.len(), kk);
+    let mut medians: Vec<[f64; 3]> = Vec::new();
     for e in entries {
         let k = e["material"].as_u64().unwrap() as usize;
         let mut votes = vec![0usize; jj];
@@ -353,5 +354,42 @@ fn check_albedo_truth(out: &Path) {
                 "material {k} channel {c}: pure-vertex error {rep}, recomputed {err}"
             );
         }
+        // The median over the same vertices (the element at n / 2 in ascending order) and
+        // the share of them off the truth by more than 10% in some channel.
+        let scaled = |x: usize| [0, 1, 2].map(|c| scale[c] * cols[c][x] / tdiff[j][c] - 1.0);
+        let mut median = [0.0; 3];
+        for (c, m) in median.iter_mut().enumerate() {
+            let mut v: Vec<f64> = pure.iter().map(|&x| scaled(x)[c]).collect();
+            v.sort_by(f64::total_cmp);
+            *m = v[v.len() / 2];
+            let rep = e["pure_median_error"][c].as_f64().unwrap();
+            assert!(
+                (rep - *m).abs() < 1e-5,
+                "material {k} channel {c}: median error {rep}, recomputed {m}"
+            );
+        }
+        medians.push(median);
+        let off = pure
+            .iter()
+            .filter(|&&x| scaled(x).iter().any(|e| e.abs() > 0.1))
+            .count() as f64
+            / pure.len() as f64;
+        let rep = e["pure_off_share"].as_f64().unwrap();
+        // A vertex within f32 rounding of the 10% line could count on one side only.
+        assert!(
+            (rep - off).abs() <= 1.5 / pure.len() as f64,
+            "{rep} against {off}"
+        );
     }
+    // The materials' ratios: every ordered pair, every channel, the medians' ratio.
+    let mut worst: f64 = 0.0;
+    for (a, ma) in medians.iter().enumerate() {
+        for (_, mb) in medians.iter().enumerate().filter(|&(b, _)| b != a) {
+            for c in 0..3 {
+                worst = worst.max(((1.0 + ma[c]) / (1.0 + mb[c]) - 1.0).abs());
+            }
+        }
+    }
+    let rep = a["max_median_ratio_error"].as_f64().unwrap();
+    assert!((rep - worst).abs() < 1e-5, "{rep} against {worst}");
 }
