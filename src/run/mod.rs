@@ -52,10 +52,10 @@ pub use example::builtin_example;
 pub use fit::photo_halves;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    scene_light, Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps, Restart,
-    RunOptions, StartBrightness, WeightsSmoothness, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
+    scene_light, FitShape, Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps,
+    Restart, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
     DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
-    LIGHTING_SAMPLE_MAX_RATIO,
+    LIGHTING_SAMPLE_MAX_RATIO, PRIOR_FROM_PHOTOS,
 };
 pub use progress::Progress;
 pub use shading::{fine_rays, render_local_resolution};

@@ -6,13 +6,16 @@
 //! `run` makes), keeps the one of lowest validation error on them ([`choose::decide`]), and
 //! the row's fit then runs with its options and early stopping's own held-back
 //! observations, as `run` fits the kept model again. Over the Lambertian lobe alone the
-//! paper's map. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
+//! paper's map, or the prior of real skies with two or more materials from
+//! [`relight_cpc::run::PRIOR_FROM_PHOTOS`] training photos. `ABLATION_DEFAULTS_LIGHT=paper` (or `shared`) keeps the row's light as
 //! given, the row before `run` chose by scene (`prior` or `sky`: that candidate of
 //! `--light auto`, forced; `auto`: `--light auto` whatever the lobes);
 //! `ABLATION_LIGHT_HALVES=k` scores on `k` photos' halves (`run --light-choice-halves k`).
 
 use crate::synth_case::Case;
-use relight_cpc::run::{photo_halves, scene_light, RunOptions, DEFAULT_LIGHT_CHOICE_HALVES};
+use relight_cpc::run::{
+    photo_halves, scene_light, FitShape, RunOptions, DEFAULT_LIGHT_CHOICE_HALVES,
+};
 use relight_cpc::solve::adapt::PilotOutcome;
 use relight_cpc::solve::light::choose::{self, LightChoice};
 use relight_cpc::solve::{estimate, EstimateOptions, Materials0, Problem};
@@ -51,11 +54,23 @@ pub fn by_scene(
     let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
     let mut run = RunOptions::new("ws".into(), "out".into());
     run.light_by_scene = true;
-    let by_rule = matches!(
-        scene_light(&run, case.nv, &kept),
-        Some((LightChoice::Auto, _))
-    );
-    if !(by_rule || forced_auto) {
+    let shape = FitShape {
+        vertices: case.nv,
+        basis: &kept,
+        photos: case.train.obs.photo_ranges.len(),
+        materials: Some(pilot.materials),
+    };
+    let by_rule = scene_light(&run, shape).map(|(light, _)| light);
+    if by_rule == Some(LightChoice::Prior) && !forced_auto {
+        let note = "light `prior` (run's rule: the Lambertian lobe alone, two or more materials and many photos)".to_string();
+        let options = candidates(case, opts)
+            .into_iter()
+            .find(|c| c.name == "prior")
+            .expect("a candidate of --light auto")
+            .options;
+        return ChosenLight { options, note };
+    }
+    if !(by_rule == Some(LightChoice::Auto) || forced_auto) {
         let note = "light `paper` (run's rule: the Lambertian lobe alone)".to_string();
         return ChosenLight {
             options: opts,

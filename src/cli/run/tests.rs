@@ -236,7 +236,13 @@ fn a_given_light_model_is_kept_and_none_is_chosen_by_size() {
         assert!(!o.light_by_scene, "--light {flag} is the user's choice");
         assert_eq!(o.light, want);
         let basis = [relight_cpc::transport::brdf::BasisBrdf::Lambert];
-        let sized = relight_cpc::run::scene_light(&o, 10_000_000, &basis);
+        let shape = relight_cpc::run::FitShape {
+            vertices: 10_000_000,
+            basis: &basis,
+            photos: 100,
+            materials: Some(2),
+        };
+        let sized = relight_cpc::run::scene_light(&o, shape);
         assert!(sized.is_none(), "--light {flag} kept on a large mesh");
     }
 }

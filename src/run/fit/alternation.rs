@@ -156,7 +156,7 @@ fn fit_light_models(
     }
     if opts.light_by_scene {
         light_decision.why = format!(
-            "{} (--light not given: the default for the mesh's size and the fit's lobes, see the notes)",
+            "{} (--light not given: the default for the mesh's size, the fit's lobes and, over the Lambertian lobe alone, its materials and training photos; see the notes)",
             light_decision.why
         );
     }

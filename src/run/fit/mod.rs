@@ -66,7 +66,20 @@ pub(crate) fn fit<'a>(
     let nv = scene.mesh.positions.len();
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
-    let chosen = super::scene_light(opts, nv, &p.eff.basis).map(|(light, note)| {
+    let shape = super::FitShape {
+        vertices: nv,
+        basis: &p.eff.basis,
+        photos: train.len(),
+        materials: p
+            .pilot_k
+            .as_ref()
+            .map(|(k, _)| *k)
+            .or(match opts.materials {
+                crate::run::MaterialCount::Fixed(k) => Some(k),
+                crate::run::MaterialCount::Auto => None,
+            }),
+    };
+    let chosen = super::scene_light(opts, shape).map(|(light, note)| {
         log.notes.push(note);
         RunOptions {
             light,

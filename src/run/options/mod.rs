@@ -11,7 +11,7 @@ mod large_mesh;
 mod light_by_scene;
 mod values;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
-pub use light_by_scene::scene_light;
+pub use light_by_scene::{scene_light, FitShape, PRIOR_FROM_PHOTOS};
 pub use values::{
     Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
 };
@@ -159,8 +159,9 @@ pub struct RunOptions {
     /// [`RunOptions::light_choice_halves`]).
     pub light: crate::solve::light::choose::LightChoice,
     /// Choose [`RunOptions::light`] by the scene ([`scene_light`]): `auto` below
-    /// [`LargeMeshSettings::FROM_VERTICES`] vertices when the fit keeps a shiny lobe, else
-    /// `paper`. Off in [`RunOptions::new`] (`light` as given); the CLI turns it on unless
+    /// [`LargeMeshSettings::FROM_VERTICES`] vertices when the fit keeps a shiny lobe;
+    /// `prior` below it for two or more materials over the Lambertian lobe alone from
+    /// [`PRIOR_FROM_PHOTOS`] training photos; else `paper`. Off in [`RunOptions::new`] (`light` as given); the CLI turns it on unless
     /// `--light` is given.
     pub light_by_scene: bool,
     /// Mask transient occluders in the training photos before the estimate
