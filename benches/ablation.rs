@@ -81,7 +81,9 @@
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
 //! `ABLATION_ACCURACY_MISSES=1` (where the `defaults` row's material-accuracy misses are,
-//! [`metrics::accuracy_misses`]), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
+//! [`metrics::accuracy_misses`]), `ABLATION_TAIL=1` (the share of each material's seen
+//! pure vertices far off its median albedo, facing down and not, for the true maps and the
+//! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]

@@ -263,3 +263,49 @@ pub fn blend_shares(case: &Case, est: &Estimate, seen: &[bool]) -> String {
     }
     out.join("; ")
 }
+
+/// `ABLATION_TAIL=1` (`bench-results/light-prior-many-photos.md`, section 3): per true
+/// material, the share of its seen pure vertices (true weight ≥ 0.95) whose diffuse albedo
+/// `β` is more than 10% off the material's median `β` in some channel, over those whose
+/// normal faces down (its up component in the map frame below −0.5) and over the others.
+pub fn tail_shares(
+    case: &Case,
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    seen: &[bool],
+) -> String {
+    let k = case.lambda.len();
+    let nb = case.basis.len();
+    let beta = beta_per_vertex(lambda, weights, case.nv);
+    let mut out = Vec::new();
+    for t in 0..k {
+        let pure: Vec<usize> = (0..case.nv)
+            .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
+            .collect();
+        let median = [0, 1, 2].map(|c| {
+            let mut v: Vec<f64> = pure.iter().map(|&x| beta[x * nb][c]).collect();
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+        });
+        let off = |x: usize| (0..3).any(|c| (beta[x * nb][c] / median[c] - 1.0).abs() > 0.1);
+        let share = |down: bool| {
+            let set: Vec<usize> = pure
+                .iter()
+                .copied()
+                .filter(|&x| (case.normals_env[x].z < -0.5) == down)
+                .collect();
+            let n = set.iter().filter(|&&x| off(x)).count();
+            format!(
+                "{:.0}% of {}",
+                100.0 * n as f64 / set.len().max(1) as f64,
+                set.len()
+            )
+        };
+        out.push(format!(
+            "material {t}: down {}, others {}",
+            share(true),
+            share(false)
+        ));
+    }
+    out.join("; ")
+}

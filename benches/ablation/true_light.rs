@@ -93,6 +93,12 @@ pub fn ratio_floor(case: &Case, seen: &[bool]) -> RatioFloor {
     let accuracy = |weights: &[f64]| best_order_of(case, weights, seen).0;
     let (truth_lambda, truth_weights) = sweeps(case.true_materials());
     let (start_lambda, start_weights) = sweeps(crate::starts::fit_start(case));
+    if crate::env_flag("ABLATION_TAIL") {
+        eprintln!(
+            "  pure vertices more than 10% off their median, the true maps (from the start): {}",
+            crate::metrics::tail_shares(case, &start_lambda, &start_weights, seen)
+        );
+    }
     RatioFloor {
         true_weights: ratio_errors(case, &lambda_of(&case.weights), &case.weights, seen),
         from_truth: ratio_errors(case, &truth_lambda, &truth_weights, seen),

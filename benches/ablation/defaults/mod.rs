@@ -104,6 +104,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         .iter()
         .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
         .collect();
+    if crate::env_flag("ABLATION_TAIL") {
+        eprintln!(
+            "  pure vertices more than 10% off their median, the defaults' fit: {}",
+            crate::metrics::tail_shares(case, &est.lambda, &est.weights, &seen)
+        );
+    }
     DefaultsFit {
         est,
         pilot,
