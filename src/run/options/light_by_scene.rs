@@ -33,8 +33,9 @@
 //!   `spot-diffuse` with 24 training photos the worst albedo ratio better on 4 of 5 ablation
 //!   seeds (median 0.062 → 0.052, relit better or equal on 5) and on 4 of 4 runs at 192²
 //!   (the median ratios 0.024 / 0.037 / 0.046 / 0.050 → 0.022 / 0.026 / 0.034 / 0.038; the
-//!   held-out photos under their true light −6% to +3%); with 12, better on 2 of 5 and 2 of
-//!   4. On 28 real grey photos of the Buddha (23 training, one material, so no ratio to
+//!   held-out photos under their true light −6% to +3%); with 18 training photos better on
+//!   3 of 4 runs, the held-out photos under their true light +2% to +6% on 4 of 4; with 12
+//!   better on 2 of 5 and 2 of 4. On 28 real grey photos of the Buddha (23 training, one material, so no ratio to
 //!   hold) the prior's headline is +0.7% on average over 10 seeds, better on 5 and worse on
 //!   5 (−2.2% to +3.2%): within the seeds' spread, and such a fit keeps the paper's map.
 //!   `auto` does not find the prior's gain (its halves score kept `paper` on 3 of the 5
@@ -56,8 +57,10 @@ use crate::transport::brdf::BasisBrdf;
 /// map (module docs). Each photo's free map can move brightness between surfaces that face
 /// different ways, which moves the albedo ratios between materials; the more photos, the
 /// more maps to move it. The ablation's `spot-diffuse` with 24 training photos: the worst
-/// ratio better on 4 of 5 seeds, at 192² through `run` on 4 of 4; with 12, on 2 of 5 and
-/// 2 of 4 (`bench-results/light-prior-many-photos.md`). 20 lies between the two counts.
+/// ratio better on 4 of 5 seeds, at 192² through `run` on 4 of 4; with 18 on 3 of 4 runs
+/// but the held-out photos under their true light 2–6% worse on 4 of 4; with 12, better on
+/// 2 of 5 and 2 of 4 (`bench-results/light-prior-many-photos.md`). 20 lies between 18
+/// and 24.
 pub const PRIOR_FROM_PHOTOS: usize = 20;
 
 /// What the light model of a run without `--light` depends on.
