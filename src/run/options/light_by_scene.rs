@@ -28,16 +28,17 @@
 //!   +2.4%, +1.4%, +1.3%) at 3.4–4.9× the wall time. With no shiny lobe the free map is
 //!   seen only through the cosine lobe's low frequencies, and the right halves' score that
 //!   ranks the light models does not carry to held-out photos;
-//! - fits of two materials over the Lambertian lobe alone with many photos (2026-12-05,
+//! - fits of two materials over the Lambertian lobe alone with many photos (2026-12-04,
 //!   `bench-results/light-prior-many-photos.md`), `prior` forced against `paper`: on
 //!   `spot-diffuse` with 24 training photos the worst albedo ratio better on 4 of 5 ablation
 //!   seeds (median 0.062 → 0.052, relit better or equal on 5) and on 4 of 4 runs at 192²
 //!   (the median ratios 0.024 / 0.037 / 0.046 / 0.050 → 0.022 / 0.026 / 0.034 / 0.038; the
 //!   held-out photos under their true light −6% to +3%); with 18 training photos better on
 //!   3 of 4 runs, the held-out photos under their true light +2% to +6% on 4 of 4; with 12
-//!   better on 2 of 5 and 2 of 4. On 28 real grey photos of the Buddha (23 training, one material, so no ratio to
-//!   hold) the prior's headline is +0.7% on average over 10 seeds, better on 5 and worse on
-//!   5 (−2.2% to +3.2%): within the seeds' spread, and such a fit keeps the paper's map.
+//!   better on 2 of 5 and 2 of 4. On 28 real grey photos of the Buddha (23 training, one
+//!   material, so no ratio to hold) the prior's headline is +0.7% on average over 10
+//!   seeds, better on 5 and worse on 5 (−2.2% to +3.2%): within the seeds' spread, and such
+//!   a fit keeps the paper's map.
 //!   `auto` does not find the prior's gain (its halves score kept `paper` on 3 of the 5
 //!   ablation seeds, where the prior's ratios were the better ones);
 //! - 100K vertices × 13 photos (`paper` kept): wall 82 → 288 s (3.5×), the estimate stage
