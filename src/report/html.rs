@@ -384,12 +384,13 @@ fn albedo_truth_table(s: &mut String, a: &crate::report::metrics::AlbedoTruth) {
          is multiplied by the per-channel scale that best matches the recovered per-vertex \
          diffuse albedo to the true one over {} vertices (×{:.4} / {:.4} / {:.4}: photos cannot \
          fix it); the ratio error is scaled / true − 1 (largest: <b>{:.4}</b>). The last \
-         column compares the scaled per-vertex diffuse albedo itself over the vertices of one \
-         true material alone (true weight ≥ {}), which does not depend on how free blending \
-         weights split brightness between w and λ (largest: <b>{:.4}</b>). Its mean moves \
-         with the vertices whose colour the photos leave open (surfaces that face away \
-         from every camera); the median is the material's own albedo, and the ratios between \
-         the materials' medians, free of the scale, are the diffuse albedo ratios (largest \
+         two columns compare the scaled per-vertex diffuse albedo itself over the vertices of \
+         one true material alone (true weight ≥ {}), which does not depend on how free \
+         blending weights split brightness between w and λ: its mean (largest: \
+         <b>{:.4}</b>), which the vertices whose colour the photos leave open move (surfaces \
+         seen at grazing angles or by no camera), and its median, the material's own albedo, \
+         with the share of those vertices more than 10% off. The ratios between the \
+         materials' medians, free of the scale, are the diffuse albedo ratios (largest \
          error: <b>{:.4}</b>).</p>",
         a.vertices,
         a.scale[0],

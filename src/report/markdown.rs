@@ -299,14 +299,15 @@ impl RunReport {
             s,
             "Diffuse albedo per material against the truth, after the per-channel scale \
              ×{:.4} / {:.4} / {:.4} that best matches the recovered per-vertex diffuse albedo to \
-             the true one ({} vertices); largest ratio error {:.4}. The last column compares \
-             the per-vertex diffuse albedo itself over the vertices of one true material alone \
-             (true weight ≥ {}), which does not depend on how free blending weights split \
-             brightness between `w` and `λ`; largest {:.4}. Its mean moves with the \
-             vertices whose colour the photos leave open (surfaces that face away from every \
-             camera); the median is the material's own albedo, and the ratios between the \
-             materials' medians, free of the scale, are the diffuse albedo ratios: largest \
-             error **{:.4}**.\n",
+             the true one ({} vertices); largest ratio error {:.4}. The last two columns \
+             compare the per-vertex diffuse albedo itself over the vertices of one true \
+             material alone (true weight ≥ {}), which does not depend on how free blending \
+             weights split brightness between `w` and `λ`: its mean (largest {:.4}), which \
+             the vertices whose colour the photos leave open move (surfaces seen at grazing \
+             angles or by no camera), and its median, the material's own albedo, with the \
+             share of those vertices more than 10% off. The ratios between the materials' \
+             medians, free of the scale, are the diffuse albedo ratios: largest error \
+             **{:.4}**.\n",
             a.scale[0],
             a.scale[1],
             a.scale[2],

@@ -464,8 +464,9 @@ pub struct AlbedoTruthEntry {
     pub pure_ratio_error: [f64; 3],
     /// Over the same vertices, the median of `s_c β_{x,c}` over the truth, − 1, per channel
     /// (NaN without such vertices): the material's own albedo, which the vertices whose
-    /// colour the photos leave open (surfaces that face away from every camera, whose light
-    /// comes from where nothing else faces) do not move as they move the mean.
+    /// colour the photos leave open (surfaces seen at grazing angles, dark and by few
+    /// cameras, or by none) do not move as they move the mean: their weights cannot go below
+    /// zero, so their noise only adds other materials.
     pub pure_median_error: [f64; 3],
     /// The share of those vertices whose `s_c β_{x,c}` is off the truth by more than
     /// [`PURE_OFF`] in some channel (0 without such vertices).
