@@ -475,14 +475,15 @@ pub struct AlbedoTruthEntry {
 
 /// `pure_ratio_error` as `"+e / +e / +e (n)"`, or `–` without pure vertices.
 pub fn pure_errors(m: &AlbedoTruthEntry) -> String {
+    pure_column(m, m.pure_ratio_error, &m.pure_vertices.to_string())
+}
+
+/// One pure-vertex column: `"+e / +e / +e (note)"`, or `–` without pure vertices.
+fn pure_column(m: &AlbedoTruthEntry, e: [f64; 3], note: &str) -> String {
     if m.pure_vertices == 0 {
         return "–".into();
     }
-    let e = m.pure_ratio_error;
-    format!(
-        "{:+.4} / {:+.4} / {:+.4} ({})",
-        e[0], e[1], e[2], m.pure_vertices
-    )
+    format!("{:+.4} / {:+.4} / {:+.4} ({note})", e[0], e[1], e[2])
 }
 
 /// Least true blending weight of a vertex that counts as its true material alone.
@@ -496,18 +497,12 @@ pub const PURE_OFF: f64 = 0.1;
 /// `pure_median_error` as `"+e / +e / +e"` with the off share in percent, or `–` without
 /// pure vertices.
 pub fn pure_median_errors(m: &AlbedoTruthEntry) -> String {
-    if m.pure_vertices == 0 {
-        return "–".into();
-    }
-    let e = m.pure_median_error;
-    format!(
-        "{:+.4} / {:+.4} / {:+.4} ({:.1}% off by > {:.0}%)",
-        e[0],
-        e[1],
-        e[2],
+    let note = format!(
+        "{:.1}% off by > {:.0}%",
         100.0 * m.pure_off_share,
         100.0 * PURE_OFF
-    )
+    );
+    pure_column(m, m.pure_median_error, &note)
 }
 
 /// [`AlbedoTruth::max_median_ratio_error`] of `materials`.
