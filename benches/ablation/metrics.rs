@@ -76,15 +76,8 @@ pub fn ratio_errors(
     let k = case.lambda.len();
     let nb = case.basis.len();
     let beta = beta_per_vertex(lambda, weights, case.nv);
-    let median = |mut v: Vec<f64>| -> f64 {
-        if v.is_empty() {
-            return f64::NAN;
-        }
-        let mid = v.len() / 2;
-        *v.select_nth_unstable_by(mid, f64::total_cmp).1
-    };
     let pure = |t: usize, c: usize| -> f64 {
-        median(
+        upper_median(
             (0..case.nv)
                 .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
                 .map(|x| beta[x * nb][c])
@@ -282,11 +275,8 @@ pub fn tail_shares(
         let pure: Vec<usize> = (0..case.nv)
             .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
             .collect();
-        let median = [0, 1, 2].map(|c| {
-            let mut v: Vec<f64> = pure.iter().map(|&x| beta[x * nb][c]).collect();
-            v.sort_by(f64::total_cmp);
-            v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-        });
+        let median =
+            [0, 1, 2].map(|c| upper_median(pure.iter().map(|&x| beta[x * nb][c]).collect()));
         let off = |x: usize| (0..3).any(|c| (beta[x * nb][c] / median[c] - 1.0).abs() > 0.1);
         let share = |down: bool| {
             let set: Vec<usize> = pure
@@ -308,4 +298,14 @@ pub fn tail_shares(
         ));
     }
     out.join("; ")
+}
+
+/// The element at index `⌊n / 2⌋` of `v` in ascending order (NaN when empty), as the run's
+/// report reads a material's median albedo.
+fn upper_median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }

@@ -17,7 +17,7 @@ use super::state::{Evaluated, Imported, Observed, Prepared, RunLog};
 use super::truth::Truth;
 use super::{
     decisions::adaptive_decisions, env_from_world, estimate_up, holdout_rule, holdout_views,
-    mean_colours, Holdout, LargeMeshSettings, MaterialCount, Progress, RunOptions, LARGE_MESH,
+    mean_colours, Holdout, LargeMeshSettings, Progress, RunOptions, LARGE_MESH,
 };
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
@@ -600,10 +600,7 @@ fn adapt(
             },
             mean_rgb: d.mean_rgb,
             seen: d.seen,
-            materials: match opts.materials {
-                MaterialCount::Fixed(k) => Some(k),
-                MaterialCount::Auto => None,
-            },
+            materials: opts.materials.fixed(),
             choose_weights_sum: opts.weights_sum == super::WeightsSum::Auto,
             start: opts.start_brightness,
             max_vertices: opts.pilot_vertices,

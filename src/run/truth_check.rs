@@ -511,14 +511,19 @@ struct PureFigures {
 /// [`PureFigures`] of the scaled albedos `a` against the true albedo `t` (NaN errors and a
 /// share of 0 when `a` is empty).
 fn pure_figures(a: &[[f64; 3]], t: [f64; 3]) -> PureFigures {
-    let channel = |c: usize| a.iter().map(|v| v[c]).collect::<Vec<f64>>();
+    let (mut mean_error, mut median_error) = ([0.0; 3], [0.0; 3]);
+    for c in 0..3 {
+        let values: Vec<f64> = a.iter().map(|v| v[c]).collect();
+        mean_error[c] = values.iter().sum::<f64>() / a.len() as f64 / t[c] - 1.0;
+        median_error[c] = upper_median(values) / t[c] - 1.0;
+    }
     let off = a
         .iter()
         .filter(|v| (0..3).any(|c| (v[c] / t[c] - 1.0).abs() > PURE_OFF))
         .count();
     PureFigures {
-        mean_error: [0, 1, 2].map(|c| channel(c).iter().sum::<f64>() / a.len() as f64 / t[c] - 1.0),
-        median_error: [0, 1, 2].map(|c| upper_median(channel(c)) / t[c] - 1.0),
+        mean_error,
+        median_error,
         off_share: if a.is_empty() {
             0.0
         } else {

@@ -40,17 +40,27 @@ pub fn by_scene(
     if let Some(given) = given.filter(|g| g != "auto") {
         let note = format!("light `{given}` (ABLATION_DEFAULTS_LIGHT)");
         let options = match given.as_str() {
-            "prior" | "sky" => {
-                candidates(case, opts)
-                    .into_iter()
-                    .find(|c| c.name == given)
-                    .expect("a candidate of --light auto")
-                    .options
-            }
+            "prior" | "sky" => candidate(case, opts, &given),
             _ => opts,
         };
         return ChosenLight { options, note };
     }
+    match (run_rule(case, pilot), forced_auto) {
+        (_, true) | (Some(LightChoice::Auto), _) => chosen_on_halves(case, problem, m0, opts),
+        (Some(LightChoice::Prior), _) => ChosenLight {
+            options: candidate(case, opts, "prior"),
+            note: "light `prior` (run's rule: the Lambertian lobe alone, two or more materials and many photos)".to_string(),
+        },
+        _ => ChosenLight {
+            options: opts,
+            note: "light `paper` (run's rule: the Lambertian lobe alone)".to_string(),
+        },
+    }
+}
+
+/// The light model `run` without `--light` takes for the case's fit with the pilot's
+/// choices ([`scene_light`]).
+fn run_rule(case: &Case, pilot: &PilotOutcome) -> Option<LightChoice> {
     let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
     let mut run = RunOptions::new("ws".into(), "out".into());
     run.light_by_scene = true;
@@ -60,23 +70,17 @@ pub fn by_scene(
         photos: case.train.obs.photo_ranges.len(),
         materials: Some(pilot.materials),
     };
-    let by_rule = scene_light(&run, shape).map(|(light, _)| light);
-    if by_rule == Some(LightChoice::Prior) && !forced_auto {
-        let note = "light `prior` (run's rule: the Lambertian lobe alone, two or more materials and many photos)".to_string();
-        let options = candidates(case, opts)
-            .into_iter()
-            .find(|c| c.name == "prior")
-            .expect("a candidate of --light auto")
-            .options;
-        return ChosenLight { options, note };
-    }
-    if !(by_rule == Some(LightChoice::Auto) || forced_auto) {
-        let note = "light `paper` (run's rule: the Lambertian lobe alone)".to_string();
-        return ChosenLight {
-            options: opts,
-            note,
-        };
-    }
+    scene_light(&run, shape).map(|(light, _)| light)
+}
+
+/// `--light auto`: each candidate fitted from `m0` with the right halves of
+/// `ABLATION_LIGHT_HALVES` training photos held back, the lowest validation error kept.
+fn chosen_on_halves(
+    case: &Case,
+    problem: &Problem,
+    m0: &Materials0,
+    opts: EstimateOptions,
+) -> ChosenLight {
     let k = crate::env_or("ABLATION_LIGHT_HALVES", DEFAULT_LIGHT_CHOICE_HALVES);
     let halves = choice_halves(case, k);
     let candidates = candidates(case, opts);
@@ -107,6 +111,15 @@ pub fn by_scene(
             scored.join(", ")
         ),
     }
+}
+
+/// The options of `--light auto`'s candidate `name` (`prior`, `sky`) for `opts`.
+fn candidate(case: &Case, opts: EstimateOptions, name: &str) -> EstimateOptions {
+    candidates(case, opts)
+        .into_iter()
+        .find(|c| c.name == name)
+        .expect("a candidate of --light auto")
+        .options
 }
 
 /// `--light auto`'s candidate models for `opts`, with the case's geotagged suns as `run`

@@ -70,14 +70,12 @@ pub(crate) fn fit<'a>(
         vertices: nv,
         basis: &p.eff.basis,
         photos: train.len(),
+        // The pilot's count, else `--materials N`.
         materials: p
             .pilot_k
             .as_ref()
             .map(|(k, _)| *k)
-            .or(match opts.materials {
-                crate::run::MaterialCount::Fixed(k) => Some(k),
-                crate::run::MaterialCount::Auto => None,
-            }),
+            .or(opts.materials.fixed()),
     };
     let chosen = super::scene_light(opts, shape).map(|(light, note)| {
         log.notes.push(note);

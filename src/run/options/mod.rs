@@ -161,8 +161,8 @@ pub struct RunOptions {
     /// Choose [`RunOptions::light`] by the scene ([`scene_light`]): `auto` below
     /// [`LargeMeshSettings::FROM_VERTICES`] vertices when the fit keeps a shiny lobe;
     /// `prior` below it for two or more materials over the Lambertian lobe alone from
-    /// [`PRIOR_FROM_PHOTOS`] training photos; else `paper`. Off in [`RunOptions::new`] (`light` as given); the CLI turns it on unless
-    /// `--light` is given.
+    /// [`PRIOR_FROM_PHOTOS`] training photos; else `paper`. Off in [`RunOptions::new`]
+    /// (`light` as given); the CLI turns it on unless `--light` is given.
     pub light_by_scene: bool,
     /// Mask transient occluders in the training photos before the estimate
     /// (`super::transients`): a short pilot fit, its residuals' spatially coherent

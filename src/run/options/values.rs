@@ -17,6 +17,16 @@ pub enum MaterialCount {
     Fixed(usize),
 }
 
+impl MaterialCount {
+    /// The count when given (`--materials N`), `None` for `auto`.
+    pub fn fixed(self) -> Option<usize> {
+        match self {
+            MaterialCount::Fixed(k) => Some(k),
+            MaterialCount::Auto => None,
+        }
+    }
+}
+
 /// A flag's value that is `auto` (`None`) or a `T`; anything else is an error naming the
 /// flag, the value and `what` a value must be.
 fn parse_auto_or<T: std::str::FromStr>(s: &str, flag: &str, what: &str) -> Result<Option<T>> {
