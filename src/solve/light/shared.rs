@@ -74,6 +74,14 @@ struct PhotoWork {
     omega: Vec<[f64; 3]>,
 }
 
+/// A group's normal equations before the smoothness term ([`SharedLight::group_normal`]).
+struct GroupNormal {
+    /// Diagonal of the data term, per texel and channel.
+    diag: Vec<[f64; 3]>,
+    /// Right-hand side in Haar coefficients.
+    hb: Vec<[f64; 3]>,
+}
+
 /// One group's QP answer.
 struct GroupSolve {
     map: [Vec<f64>; 3],
@@ -198,33 +206,8 @@ impl SharedLight {
         let n = self.lap_n(work);
         let n2 = n * n;
         let members = &self.members[g];
-        let gains = &self.params.gains;
-        let mut diag = vec![[0.0_f64; 3]; n2];
-        let mut hb = vec![[0.0_f64; 3]; n2];
-        for &i in members {
-            let (w, a) = (&work[i], gains[i]);
-            for (d, t) in diag.iter_mut().zip(&w.tdiag) {
-                for c in 0..3 {
-                    d[c] += a[c] * a[c] * t[c];
-                }
-            }
-            let u: Vec<[f64; 3]> = (0..w.data.pos.len())
-                .map(|r| {
-                    let q = w.data.pos[r];
-                    [0, 1, 2].map(|c| w.data.alpha[r] * w.omega[q][c] * a[c] * w.data.y[r][c])
-                })
-                .collect();
-            w.sys.adjoint_rows(&u, &mut hb);
-        }
-        let mu = match self.state.mu_first[g] {
-            Some(m) => m.map(|v| v * mu_factor),
-            None => diag.iter().fold([0.0_f64; 3], |mut m, v| {
-                for c in 0..3 {
-                    m[c] = m[c].max(self.state.opts.smoothness * v[c]);
-                }
-                m
-            }),
-        };
+        let GroupNormal { diag, hb } = self.group_normal(work, g, n2);
+        let mu = self.group_mu(g, &diag, mu_factor);
         let b = unhaar3(&hb, n);
         let start: Vec<f64> = self.params.maps[g].iter().flatten().copied().collect();
         let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
@@ -269,6 +252,45 @@ impl SharedLight {
             mu,
             res: Some(res),
         })
+    }
+
+    /// The group's normal equations in the pixel basis: the diagonal of `Σ_i a_i² TᵀWT`
+    /// and the right-hand side `Σ_i Tᵀ W (a_i ∘ y_i)` (still in Haar coefficients), summed
+    /// over the group's photos `i` with their gains `a_i`.
+    fn group_normal(&self, work: &[PhotoWork], g: usize, n2: usize) -> GroupNormal {
+        let gains = &self.params.gains;
+        let mut diag = vec![[0.0_f64; 3]; n2];
+        let mut hb = vec![[0.0_f64; 3]; n2];
+        for &i in &self.members[g] {
+            let (w, a) = (&work[i], gains[i]);
+            for (d, t) in diag.iter_mut().zip(&w.tdiag) {
+                for c in 0..3 {
+                    d[c] += a[c] * a[c] * t[c];
+                }
+            }
+            let u: Vec<[f64; 3]> = (0..w.data.pos.len())
+                .map(|r| {
+                    let q = w.data.pos[r];
+                    [0, 1, 2].map(|c| w.data.alpha[r] * w.omega[q][c] * a[c] * w.data.y[r][c])
+                })
+                .collect();
+            w.sys.adjoint_rows(&u, &mut hb);
+        }
+        GroupNormal { diag, hb }
+    }
+
+    /// The smoothness weight `μ` per channel: the group's first one times `mu_factor`, or
+    /// at the first step `smoothness` times the largest diagonal entry.
+    fn group_mu(&self, g: usize, diag: &[[f64; 3]], mu_factor: f64) -> [f64; 3] {
+        match self.state.mu_first[g] {
+            Some(m) => m.map(|v| v * mu_factor),
+            None => diag.iter().fold([0.0_f64; 3], |mut m, v| {
+                for c in 0..3 {
+                    m[c] = m[c].max(self.state.opts.smoothness * v[c]);
+                }
+                m
+            }),
+        }
     }
 
     fn lap_n(&self, work: &[PhotoWork]) -> usize {
