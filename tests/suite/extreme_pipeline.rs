@@ -252,6 +252,38 @@ fn two_nearly_identical_viewpoints() {
     }
 }
 
+/// Two materials asked for on grey photos (each pixel's channels set to their mean, as a
+/// greyscale collection): every vertex has the same hue, so the start's k-means finds one
+/// cluster, one material is fitted, and the report's reasons say why in plain words. With
+/// `run`'s light by scene and 21 training photos (from `PRIOR_FROM_PHOTOS` = 20) the light
+/// follows the one material fitted, not the two asked for: the paper's map, not the prior.
+#[test]
+fn more_materials_asked_than_the_colours_hold() {
+    let d = scratch("one-hue");
+    let photos = relight_cpc::run::PRIOR_FROM_PHOTOS + 1;
+    let ws = workspace(&d.0, "sphere-diffuse", photos, 300);
+    edit_photos(&ws, |im| {
+        im.pixels_mut().for_each(|p| {
+            let grey = p.0.iter().map(|&v| v as u32).sum::<u32>() / 3;
+            p.0 = [grey as u8; 3];
+        })
+    });
+    let mut o = fast(&ws, &d.0.join("out"));
+    o.materials = MaterialCount::Fixed(2);
+    o.light_by_scene = true;
+    // The scene's one lobe, so that the rule's Lambertian branch applies.
+    o.basis = vec![relight_cpc::transport::brdf::BasisBrdf::Lambert];
+    let s = run::run(&o).expect("a one-colour sphere fits");
+    stable(&s);
+    let m = &s.report.model;
+    assert_eq!(m.materials, 1, "{:#?}", m.reasons);
+    let light = m.light.as_ref().expect("the report names the light model");
+    assert_eq!(light.model, "paper", "{}", light.why);
+    let why = "2 materials were asked for, but the seen vertices' colours form only \
+               1 distinct hue cluster (grey photos have one hue), so 1 material is fitted";
+    assert!(m.reasons.iter().any(|r| r == why), "{:#?}", m.reasons);
+}
+
 /// The adaptive model on stiff inputs: one photo (the pilot holds out observations of
 /// the only photo), a nearly black environment, and a one-colour sphere with
 /// `--materials auto` (k-means finds no second distinct cluster): a stable run or a clear

@@ -9,7 +9,7 @@ use crate::run::state::Prepared;
 use crate::run::state::RunLog;
 use crate::run::tracker::HoldoutTracker;
 use crate::run::{Progress, Restart, RunOptions};
-use crate::solve::light::choose::{self, LightDecision};
+use crate::solve::light::choose::{self, LightChoice, LightDecision};
 use crate::solve::materials::{brightness, coarse_light, irradiance, reanchor};
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
@@ -155,10 +155,7 @@ fn fit_light_models(
         kept = fit_model(problem, family, eopts, monitor, &mut timeline, log)?;
     }
     if opts.light_by_scene {
-        light_decision.why = format!(
-            "{} (--light not given: the default for the mesh's size, the fit's lobes and, over the Lambertian lobe alone, its materials and training photos; see the notes)",
-            light_decision.why
-        );
+        light_decision.why = by_scene_why(opts.light, &light_decision.why);
     }
     start.reasons.push(format!(
         "light model `{}`: {}",
@@ -496,4 +493,16 @@ fn iteration_line(
         holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
         it.seconds
     )
+}
+
+/// The report's words for a light model `run` picked without `--light`: `auto`'s scores,
+/// or the model `choice` named (not "as given", which it was not), then why it is the
+/// default.
+fn by_scene_why(choice: LightChoice, decided: &str) -> String {
+    let why = "--light not given: the default for the mesh's size, the fit's lobes and, over \
+               the Lambertian lobe alone, its materials and training photos; see the notes";
+    match choice {
+        LightChoice::Auto => format!("{decided} ({why})"),
+        c => format!("--light {} ({why})", c.name()),
+    }
 }

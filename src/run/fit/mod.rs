@@ -66,26 +66,9 @@ pub(crate) fn fit<'a>(
     let nv = scene.mesh.positions.len();
     // The baseline is the photos' own colours: its medians ignore the transient mask.
     let baseline = super::baseline::VertexMedians::from_observations(&obs, nv);
-    let shape = super::FitShape {
-        vertices: nv,
-        basis: &p.eff.basis,
-        photos: train.len(),
-        // The pilot's count, else `--materials N`.
-        materials: p
-            .pilot_k
-            .as_ref()
-            .map(|(k, _)| *k)
-            .or(opts.materials.fixed()),
-    };
-    let chosen = super::scene_light(opts, shape).map(|(light, note)| {
-        log.notes.push(note);
-        RunOptions {
-            light,
-            ..opts.clone()
-        }
-    });
-    let opts = chosen.as_ref().unwrap_or(opts);
     let mut start = prepare_start(opts, im, &p, &train, &mut obs, log, progress)?;
+    let chosen = start.by_scene.take();
+    let opts = chosen.as_ref().unwrap_or(opts);
     let problem = Problem {
         obs: &obs,
         transport: &p.tr,

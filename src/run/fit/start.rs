@@ -7,7 +7,10 @@ use super::options::{estimate_options, lambert_of, photo_halves};
 use crate::import::scene::{Scene, View};
 use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
-use crate::run::{choose_material_count, MaterialCount, Progress, RunOptions, StartBrightness};
+use crate::run::{
+    choose_material_count, scene_light, FitShape, MaterialCount, Progress, RunOptions,
+    StartBrightness,
+};
 use crate::solve::cluster::{initial_materials, unmixed_weights, InitialMaterials, StartWeights};
 use crate::solve::light::choose::LightChoice;
 use crate::solve::starts;
@@ -15,8 +18,10 @@ use crate::solve::{EstimateOptions, Materials0};
 use crate::Result;
 
 /// The start and the estimator's options ([`FitStart`]): the transient pass when on (it
-/// masks occluders in `obs`, and the start keeps what it masked), the options that depend on the observations kept, and the
-/// start's brightness matched by normal when the pilot chose it.
+/// masks occluders in `obs`, and the start keeps what it masked), the light model when
+/// `--light` is not given (by the start's material count, [`light_by_scene`]), the
+/// options that depend on the observations kept, and the start's brightness matched by
+/// normal when the pilot chose it.
 pub(super) fn prepare_start(
     opts: &RunOptions,
     im: &Imported,
@@ -29,14 +34,41 @@ pub(super) fn prepare_start(
     let scene = &im.scene;
     let lambert = lambert_of(&p.eff.basis)?;
     let mut start = FitStart::new(opts, p, &scene.mesh.positions, lambert, train.len())?;
+    let fitted = start.init.albedo.len();
+    if let Some(asked) = opts.materials.fixed().filter(|&k| k > fitted) {
+        progress.warn(&cluster_shortfall(asked, fitted));
+    }
     if p.eff.transients {
         start.mask_transients(opts, obs, p, scene, log, progress)?;
     }
+    let shape = FitShape {
+        vertices: scene.mesh.positions.len(),
+        basis: &p.eff.basis,
+        photos: train.len(),
+        materials: Some(start.init.albedo.len()),
+    };
+    let by_scene = light_by_scene(opts, shape, log);
+    let opts = by_scene.as_ref().unwrap_or(opts);
     start.finish_options(opts, scene, train, obs)?;
     if p.eff.start_brightness == StartBrightness::Matched {
         start.match_brightness(p, obs);
     }
+    start.by_scene = by_scene;
     Ok(start)
+}
+
+/// The run's options with the light model `run` picks for a fit of `shape` when `--light`
+/// is not given ([`scene_light`]), the choice noted in the log; `None` keeps `opts` as
+/// they are. The material count is the start's: what the photos' colours give, which can
+/// be fewer than `--materials` or the pilot asked for.
+fn light_by_scene(opts: &RunOptions, shape: FitShape, log: &mut RunLog) -> Option<RunOptions> {
+    scene_light(opts, shape).map(|(light, note)| {
+        log.notes.push(note);
+        RunOptions {
+            light,
+            ..opts.clone()
+        }
+    })
 }
 
 /// The fit's start: the initial materials, the estimator's options and the reasons so far.
@@ -54,6 +86,9 @@ pub(super) struct FitStart {
     /// The photo halves `--light auto` scores its candidates on
     /// ([`RunOptions::light_choice_halves`]); `None`: early stopping's own score.
     pub(super) choice_halves: Option<std::sync::Arc<crate::solve::options::PhotoHalves>>,
+    /// The run's options with the light model `run` picked for this fit when `--light`
+    /// was not given ([`light_by_scene`]); `None`: the run's own.
+    pub(super) by_scene: Option<RunOptions>,
 }
 
 impl FitStart {
@@ -97,6 +132,7 @@ impl FitStart {
             transients: None,
             recoloured: None,
             choice_halves: None,
+            by_scene: None,
         })
     }
 
@@ -247,11 +283,27 @@ fn starting_materials(
     let init = initial_materials(mean_rgb, seen, k, opts.seed)?;
     reasons.push(k_reason);
     if init.albedo.len() < k {
-        reasons.push(format!(
-            "only {} distinct colour clusters exist, so {} materials are fitted",
-            init.albedo.len(),
-            init.albedo.len()
-        ));
+        reasons.push(cluster_shortfall(k, init.albedo.len()));
     }
     Ok(init)
+}
+
+/// Why fewer materials than `asked` are fitted: the start clusters the seen vertices by
+/// hue and saturation ([`crate::solve::cluster::hue_feature`]), so photos without colour,
+/// or an object of one colour, give fewer distinct clusters.
+fn cluster_shortfall(asked: usize, got: usize) -> String {
+    let clusters = if got == 1 {
+        "1 distinct hue cluster".to_string()
+    } else {
+        format!("{got} distinct hue clusters")
+    };
+    let fitted = if got == 1 {
+        "1 material is".to_string()
+    } else {
+        format!("{got} materials are")
+    };
+    format!(
+        "{asked} materials were asked for, but the seen vertices' colours form only \
+         {clusters} (grey photos have one hue), so {fitted} fitted"
+    )
 }

@@ -73,8 +73,9 @@ pub struct FitShape<'a> {
     pub basis: &'a [BasisBrdf],
     /// Training photos.
     pub photos: usize,
-    /// The material count when it is known before the fit (the adaptive pilot's or
-    /// `--materials`).
+    /// The materials the fit starts with (`run`: the start's clusters, which the photos'
+    /// colours can make fewer than the pilot or `--materials` asked for); `None` when not
+    /// known.
     pub materials: Option<usize>,
 }
 
