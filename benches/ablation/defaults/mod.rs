@@ -255,8 +255,8 @@ fn start_materials(
 /// `ABLATION_DEFAULTS_PATIENCE=N` `run --patience N`), the ratio step as `run --ratio-steps
 /// auto` (`ABLATION_RATIO_STEPS=N`: `--ratio-steps N`), the neighbour prior as `run
 /// --weights-smoothness auto` (`ABLATION_DEFAULTS_NEIGHBOUR=X`: `--weights-smoothness X`).
-/// `ABLATION_DEFAULTS_SCOPE=blends`: the sum-to-one prior on blended vertices whatever the
-/// pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
+/// `ABLATION_DEFAULTS_SCOPE=blends|every`: the sum-to-one prior on blended vertices, or on
+/// every vertex, whatever the pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
 /// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
 /// group of training photos under one true sky, with per-photo gains
 /// (`SYNTH_SHARED_SKIES=1` makes such groups). `ABLATION_DEFAULTS_ACHROMATIC=1`: `run
@@ -273,17 +273,17 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         };
     let kept: Vec<_> = pilot.kept.iter().map(|&b| case.basis[b]).collect();
     let neighbour_prior = adapt::neighbour_prior_for(&kept).0;
-    let blends = std::env::var("ABLATION_DEFAULTS_SCOPE").is_ok_and(|v| v == "blends");
+    let scope = std::env::var("ABLATION_DEFAULTS_SCOPE").unwrap_or_default();
     let default_rounds =
         ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials);
     let opts = EstimateOptions {
         weights_sum: crate::env_or("ABLATION_DEFAULTS_WEIGHTS_SUM", pilot.weights_sum),
-        weights_sum_scope: if blends {
-            relight_cpc::solve::SumScope::Blends {
+        weights_sum_scope: match scope.as_str() {
+            "blends" => relight_cpc::solve::SumScope::Blends {
                 floor: relight_cpc::solve::BLEND_FLOOR,
-            }
-        } else {
-            pilot.weights_sum_scope
+            },
+            "every" => relight_cpc::solve::SumScope::Every,
+            _ => pilot.weights_sum_scope,
         },
         max_outer,
         patience: crate::env_or("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
