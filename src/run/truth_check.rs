@@ -170,59 +170,18 @@ impl TrueMaterials {
         let Some(lt) = lobes.iter().position(|l| l["type"] == "lambert") else {
             return Ok(None);
         };
-        let lobe_types: Vec<Option<BasisBrdf>> = lobes.iter().map(lobe_of).collect();
-        let mut names = Vec::new();
-        let mut lambda = Vec::new();
-        for m in json["materials"]
+        let materials = json["materials"]
             .as_array()
-            .ok_or_else(|| bad("no `materials` list"))?
-        {
-            names.push(m["name"].as_str().unwrap_or("?").to_string());
-            let mut rows = Vec::with_capacity(lobes.len());
-            for b in 0..lobes.len() {
-                let d = &m["lambda"][b];
-                let rgb = [0, 1, 2].map(|c| d[c].as_f64());
-                if rgb.iter().any(Option::is_none) {
-                    return Err(bad(&format!(
-                        "material `{}`: the weight of lobe {b} is not three numbers",
-                        names.last().map_or("?", String::as_str)
-                    )));
-                }
-                rows.push(rgb.map(|v| v.unwrap_or(0.0)));
-            }
-            lambda.push(rows);
-        }
-        let wpath = truth.dir.join("weights.ply");
-        let Ok(file) = std::fs::File::open(&wpath) else {
+            .ok_or_else(|| bad("no `materials` list"))?;
+        let (names, lambda) = read_lambda(&path, materials, lobes.len())?;
+        let Some(weights) = read_weights(&truth.dir.join("weights.ply"), names.len())? else {
             return Ok(None);
         };
-        let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
-            .read_ply(&mut std::io::BufReader::new(file))
-            .map_err(|_| Error::format(&wpath, "header", "not a readable PLY file"))?;
-        let verts = ply.payload.get("vertex").map_or(&[][..], |v| v.as_slice());
-        let j = names.len();
-        let mut weights = Vec::with_capacity(verts.len() * j);
-        for (x, v) in verts.iter().enumerate() {
-            for m in 0..j {
-                let w = match v.get(&format!("w{m}")) {
-                    Some(ply_rs::ply::Property::Float(w)) => *w as f64,
-                    Some(ply_rs::ply::Property::Double(w)) => *w,
-                    _ => {
-                        return Err(Error::format(
-                            &wpath,
-                            format!("vertex {x}"),
-                            format!("no float property w{m}"),
-                        ))
-                    }
-                };
-                weights.push(w);
-            }
-        }
         Ok(Some(TrueMaterials {
             names,
             lambert: lt,
             weights,
-            lobes: lobe_types,
+            lobes: lobes.iter().map(lobe_of).collect(),
             lambda,
         }))
     }
@@ -275,6 +234,66 @@ impl TrueMaterials {
         }
         Some(beta)
     }
+}
+
+/// Each material's name and per-lobe colour weights `λ` from the truth's
+/// `materials.json` (`path`, for errors): `n_lobes` triples of numbers per material.
+fn read_lambda(
+    path: &std::path::Path,
+    materials: &[serde_json::Value],
+    n_lobes: usize,
+) -> Result<(Vec<String>, Vec<Vec<[f64; 3]>>)> {
+    let mut names = Vec::new();
+    let mut lambda = Vec::new();
+    for m in materials {
+        let name = m["name"].as_str().unwrap_or("?").to_string();
+        let mut rows = Vec::with_capacity(n_lobes);
+        for b in 0..n_lobes {
+            let d = &m["lambda"][b];
+            let rgb = [0, 1, 2].map(|c| d[c].as_f64());
+            if rgb.iter().any(Option::is_none) {
+                return Err(Error::format(
+                    path,
+                    "materials",
+                    format!("material `{name}`: the weight of lobe {b} is not three numbers"),
+                ));
+            }
+            rows.push(rgb.map(|v| v.unwrap_or(0.0)));
+        }
+        names.push(name);
+        lambda.push(rows);
+    }
+    Ok((names, lambda))
+}
+
+/// The truth's blending weights from `weights.ply` (`w0 … w{j−1}` per vertex, vertex-major);
+/// `None` when the file is absent.
+fn read_weights(path: &std::path::Path, j: usize) -> Result<Option<Vec<f64>>> {
+    let Ok(file) = std::fs::File::open(path) else {
+        return Ok(None);
+    };
+    let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
+        .read_ply(&mut std::io::BufReader::new(file))
+        .map_err(|_| Error::format(path, "header", "not a readable PLY file"))?;
+    let verts = ply.payload.get("vertex").map_or(&[][..], |v| v.as_slice());
+    let mut weights = Vec::with_capacity(verts.len() * j);
+    for (x, v) in verts.iter().enumerate() {
+        for m in 0..j {
+            let w = match v.get(&format!("w{m}")) {
+                Some(ply_rs::ply::Property::Float(w)) => *w as f64,
+                Some(ply_rs::ply::Property::Double(w)) => *w,
+                _ => {
+                    return Err(Error::format(
+                        path,
+                        format!("vertex {x}"),
+                        format!("no float property w{m}"),
+                    ))
+                }
+            };
+            weights.push(w);
+        }
+    }
+    Ok(Some(weights))
 }
 
 /// A truth lobe of `materials.json` (`{"type": "lambert" | "phong", "exponent" | "ggx",
@@ -572,6 +591,49 @@ mod tests {
         let none = pure_figures(&[], t);
         assert!(none.mean_error[0].is_nan() && none.median_error[0].is_nan());
         assert_eq!(none.off_share, 0.0);
+    }
+
+    /// The truth's `materials.json` and `weights.ply` readers: values as written, an
+    /// absent weights file as "no truth to check", and bad records named by file, material
+    /// or vertex.
+    #[test]
+    fn the_truth_readers_take_good_files_and_name_bad_records() {
+        let dir =
+            std::env::temp_dir().join(format!("relight-truth-readers-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let json = dir.join("materials.json");
+        let good: serde_json::Value = serde_json::json!([
+            {"name": "a", "lambda": [[0.1, 0.2, 0.3]]},
+            {"name": "b", "lambda": [[0.4, 0.5, 0.6]]}
+        ]);
+        let (names, lambda) = read_lambda(&json, good.as_array().unwrap(), 1).unwrap();
+        assert_eq!(names, ["a", "b"]);
+        assert_eq!(lambda, [vec![[0.1, 0.2, 0.3]], vec![[0.4, 0.5, 0.6]]]);
+        let short = serde_json::json!([{"name": "b", "lambda": [[0.4, 0.5]]}]);
+        let e = read_lambda(&json, short.as_array().unwrap(), 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("materials.json") && e.contains("material `b`"),
+            "{e}"
+        );
+        assert!(e.contains("lobe 0 is not three numbers"), "{e}");
+
+        let ply = dir.join("weights.ply");
+        assert!(read_weights(&ply, 2).unwrap().is_none());
+        let header =
+            |props: &str| format!("ply\nformat ascii 1.0\nelement vertex 2\n{props}end_header\n");
+        let two = "property float w0\nproperty float w1\n";
+        std::fs::write(&ply, header(two) + "0.25 0.75\n1 0\n").unwrap();
+        assert_eq!(
+            read_weights(&ply, 2).unwrap().unwrap(),
+            [0.25, 0.75, 1.0, 0.0]
+        );
+        std::fs::write(&ply, header("property float w0\n") + "0.25\n1\n").unwrap();
+        let e = read_weights(&ply, 2).unwrap_err().to_string();
+        assert!(e.contains("weights.ply") && e.contains("vertex 0"), "{e}");
+        assert!(e.contains("no float property w1"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]
