@@ -56,67 +56,82 @@ pub fn export_result(result_dir: &Path, opts: &ExportOptions) -> Result<ExportSu
     }
     let mut summary = ExportSummary::default();
     if let Some(path) = &opts.gltf {
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .ok_or_else(|| {
-                Error::Config(format!("--gltf {}: needs a file name", path.display()))
-            })?;
-        let folder = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        // One named file in a shared folder, usually beside the result it came from: an
-        // earlier export is replaced only with --force, any other file never.
-        let files = OutFiles::claim(folder, &[&name], opts.force, &[result_dir], is_our_glb)?;
-        let m = crate::render::relight::load_result(result_dir)?;
-        let mesh = gltf::gltf_mesh(
-            &m.mesh.positions,
-            &m.normals_env,
-            &m.mesh.faces,
-            &m.env_from_world,
-            &m.basis,
-            &m.beta,
-        )?;
-        let label = result_dir
-            .canonicalize()
-            .ok()
-            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-            .unwrap_or_else(|| "relight-cpc".into());
-        let (bytes, s) = gltf::glb_bytes(&mesh, &label)?;
-        files.write(&name, &bytes)?;
-        summary.gltf = Some((path.clone(), s));
+        summary.gltf = Some(export_gltf(result_dir, path, opts.force)?);
     }
     if let Some(dir) = &opts.envmaps {
-        let src = result_dir.join("envmaps");
-        let mut maps: Vec<PathBuf> = std::fs::read_dir(&src)
-            .map_err(|e| Error::io(&src, e))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.to_string_lossy().ends_with(".latlong.exr"))
-            .collect();
-        maps.sort();
-        if maps.is_empty() {
-            return Err(Error::Workspace {
-                path: src,
-                message: "no NAME.latlong.exr map in the result".into(),
-            });
-        }
-        let claim = crate::out_dir::OutDir::claim(dir, opts.force, &[result_dir], "export")?;
-        for p in maps {
-            let file = p.file_name().map(|n| n.to_string_lossy().into_owned());
-            let stem = file
-                .as_deref()
-                .and_then(|n| n.strip_suffix(".latlong.exr"))
-                .unwrap_or("map")
-                .to_string();
-            let ll = crate::sphere::envmap::LatLong::read_exr(&p)?.0;
-            for written in envmap::export_blender(&ll, claim.path(), &stem)? {
-                summary
-                    .envmaps
-                    .push(dir.join(written.file_name().unwrap_or_default()));
-            }
-        }
-        claim.commit()?;
+        summary.envmaps = export_envmaps(result_dir, dir, opts.force)?;
     }
     Ok(summary)
+}
+
+/// `--gltf FILE.glb`: the fitted mesh with its diffuse albedo as a binary glTF, in the
+/// folder of `path`; an earlier export is replaced only with `force`.
+fn export_gltf(
+    result_dir: &Path,
+    path: &Path,
+    force: bool,
+) -> Result<(PathBuf, gltf::GltfSummary)> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .ok_or_else(|| Error::Config(format!("--gltf {}: needs a file name", path.display())))?;
+    let folder = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    // One named file in a shared folder, usually beside the result it came from: an
+    // earlier export is replaced only with --force, any other file never.
+    let files = OutFiles::claim(folder, &[&name], force, &[result_dir], is_our_glb)?;
+    let m = crate::render::relight::load_result(result_dir)?;
+    let mesh = gltf::gltf_mesh(
+        &m.mesh.positions,
+        &m.normals_env,
+        &m.mesh.faces,
+        &m.env_from_world,
+        &m.basis,
+        &m.beta,
+    )?;
+    let label = result_dir
+        .canonicalize()
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| "relight-cpc".into());
+    let (bytes, s) = gltf::glb_bytes(&mesh, &label)?;
+    files.write(&name, &bytes)?;
+    Ok((path.to_path_buf(), s))
+}
+
+/// `--envmaps DIR`: every recovered map of the result (`envmaps/NAME.latlong.exr`) as the
+/// files Blender's world shader reads (EXR and HDR per map), into `dir` claimed as a
+/// whole; the files written.
+fn export_envmaps(result_dir: &Path, dir: &Path, force: bool) -> Result<Vec<PathBuf>> {
+    let src = result_dir.join("envmaps");
+    let mut maps: Vec<PathBuf> = std::fs::read_dir(&src)
+        .map_err(|e| Error::io(&src, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.to_string_lossy().ends_with(".latlong.exr"))
+        .collect();
+    maps.sort();
+    if maps.is_empty() {
+        return Err(Error::Workspace {
+            path: src,
+            message: "no NAME.latlong.exr map in the result".into(),
+        });
+    }
+    let claim = crate::out_dir::OutDir::claim(dir, force, &[result_dir], "export")?;
+    let mut exported = Vec::new();
+    for p in maps {
+        let file = p.file_name().map(|n| n.to_string_lossy().into_owned());
+        let stem = file
+            .as_deref()
+            .and_then(|n| n.strip_suffix(".latlong.exr"))
+            .unwrap_or("map")
+            .to_string();
+        let ll = crate::sphere::envmap::LatLong::read_exr(&p)?.0;
+        for written in envmap::export_blender(&ll, claim.path(), &stem)? {
+            exported.push(dir.join(written.file_name().unwrap_or_default()));
+        }
+    }
+    claim.commit()?;
+    Ok(exported)
 }

@@ -173,7 +173,7 @@ impl TrueMaterials {
         let materials = json["materials"]
             .as_array()
             .ok_or_else(|| bad("no `materials` list"))?;
-        let (names, lambda) = read_lambda(&path, materials, lobes.len())?;
+        let TrueLambda { names, lambda } = read_lambda(&path, materials, lobes.len())?;
         let Some(weights) = read_weights(&truth.dir.join("weights.ply"), names.len())? else {
             return Ok(None);
         };
@@ -236,13 +236,21 @@ impl TrueMaterials {
     }
 }
 
+/// The truth's materials as `materials.json` lists them ([`read_lambda`]).
+#[derive(Debug)]
+struct TrueLambda {
+    names: Vec<String>,
+    /// Per material, per lobe, RGB.
+    lambda: Vec<Vec<[f64; 3]>>,
+}
+
 /// Each material's name and per-lobe colour weights `λ` from the truth's
 /// `materials.json` (`path`, for errors): `n_lobes` triples of numbers per material.
 fn read_lambda(
     path: &std::path::Path,
     materials: &[serde_json::Value],
     n_lobes: usize,
-) -> Result<(Vec<String>, Vec<Vec<[f64; 3]>>)> {
+) -> Result<TrueLambda> {
     let mut names = Vec::new();
     let mut lambda = Vec::new();
     for m in materials {
@@ -263,7 +271,7 @@ fn read_lambda(
         names.push(name);
         lambda.push(rows);
     }
-    Ok((names, lambda))
+    Ok(TrueLambda { names, lambda })
 }
 
 /// The truth's blending weights from `weights.ply` (`w0 … w{j−1}` per vertex, vertex-major);
@@ -606,7 +614,7 @@ mod tests {
             {"name": "a", "lambda": [[0.1, 0.2, 0.3]]},
             {"name": "b", "lambda": [[0.4, 0.5, 0.6]]}
         ]);
-        let (names, lambda) = read_lambda(&json, good.as_array().unwrap(), 1).unwrap();
+        let TrueLambda { names, lambda } = read_lambda(&json, good.as_array().unwrap(), 1).unwrap();
         assert_eq!(names, ["a", "b"]);
         assert_eq!(lambda, [vec![[0.1, 0.2, 0.3]], vec![[0.4, 0.5, 0.6]]]);
         let short = serde_json::json!([{"name": "b", "lambda": [[0.4, 0.5]]}]);
