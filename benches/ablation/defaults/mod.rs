@@ -252,7 +252,8 @@ fn start_materials(
 
 /// The full fit's options: the pilot's choices, `run`'s cap, tolerance and patience (or
 /// with `ABLATION_DEFAULTS_ITERS=bench` the bench's cap and tolerance,
-/// `ABLATION_DEFAULTS_PATIENCE=N` `run --patience N`), the ratio step as `run --ratio-steps
+/// `ABLATION_DEFAULTS_PATIENCE=N` `run --patience N`; `ABLATION_DEFAULTS_VALIDATION=0`: no
+/// observations held back, so no early stopping and the last iterate kept), the ratio step as `run --ratio-steps
 /// auto` (`ABLATION_RATIO_STEPS=N`: `--ratio-steps N`), the neighbour prior as `run
 /// --weights-smoothness auto` (`ABLATION_DEFAULTS_NEIGHBOUR=X`: `--weights-smoothness X`).
 /// `ABLATION_DEFAULTS_SCOPE=blends|every`: the sum-to-one prior on blended vertices, or on
@@ -287,6 +288,10 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         },
         max_outer,
         patience: crate::env_or("ABLATION_DEFAULTS_PATIENCE", RunOptions::DEFAULT_PATIENCE),
+        validation_fraction: crate::env_or(
+            "ABLATION_DEFAULTS_VALIDATION",
+            base.validation_fraction,
+        ),
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
