@@ -122,7 +122,9 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
 /// --irls-iterations N` with `ABLATION_DEFAULTS_IRLS=N`; the robust floor with
 /// `ABLATION_DEFAULTS_FLOOR=X`; Huber's `k` or Tukey's biweight with
 /// `ABLATION_DEFAULTS_ROBUST=K|tukey`; the maps' Laplacian weight with
-/// `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`).
+/// `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`), its schedule with
+/// `ABLATION_DEFAULTS_DECAY=D` and `ABLATION_DEFAULTS_SMOOTHNESS_MIN=M` (the estimator's
+/// `smoothness_decay` and `smoothness_min`, which `run` leaves at 1 and 0).
 fn with_env_overrides(base: &EstimateOptions) -> EstimateOptions {
     EstimateOptions {
         irls_iters: crate::env_or("ABLATION_DEFAULTS_IRLS", base.irls_iters),
@@ -135,6 +137,8 @@ fn with_env_overrides(base: &EstimateOptions) -> EstimateOptions {
             Err(_) => base.robust,
         },
         smoothness: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS", base.smoothness),
+        smoothness_decay: crate::env_or("ABLATION_DEFAULTS_DECAY", base.smoothness_decay),
+        smoothness_min: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS_MIN", base.smoothness_min),
         ..base.clone()
     }
 }
