@@ -68,6 +68,8 @@ fn run_rule(case: &Case, pilot: &PilotOutcome) -> Option<LightChoice> {
         vertices: case.nv,
         basis: &kept,
         photos: case.train.obs.photo_ranges.len(),
+        // `run` counts the materials its start clusters; on these coloured scenes the
+        // clustering finds every material the pilot chose.
         materials: Some(pilot.materials),
     };
     scene_light(&run, shape).map(|(light, _)| light)
