@@ -312,22 +312,10 @@ pub(crate) fn lighting_step_warm(
     let jacobi = jacobi_scaling(tdiag.as_deref(), &lap, mu, n2);
     let mut x = start_texels(start, n2)?;
     let mut omega = vec![[1.0_f64; 3]; data.range.len()];
-    let mut passes = if opts.robust == Robust::None {
-        1
-    } else {
-        opts.irls_iters.max(1)
-    };
-    // The light prior is linearised at the current iterate: from zero, a second pass.
     let prior_proj = opts.light_prior.as_ref().map(|_| ShProjection::new(n, 4));
-    if prior_proj.is_some() && x.iter().all(|v| *v == 0.0) {
-        passes = passes.max(2);
-    }
+    let IrlsPasses { passes, warm } = irls_passes(opts, &x, prior_proj.is_some(), warm_irls);
     let y_ms = data.mean_square();
     let mut stats = QpStats::new();
-    let warm = warm_irls && passes > 1 && x.iter().any(|v| *v != 0.0);
-    if warm {
-        passes = 1;
-    }
     for pass in 0..passes {
         // Reweight from the current residuals (the first pass: unit weights, a restart,
         // unless warm).
@@ -350,6 +338,33 @@ pub(crate) fn lighting_step_warm(
         unconverged_qps: stats.unconverged_qps,
         matvecs_max: stats.matvecs_max,
     })
+}
+
+/// How many weighted solves a lighting step makes, and whether the first is reweighted
+/// from the start's residuals ([`irls_passes`]).
+struct IrlsPasses {
+    passes: usize,
+    warm: bool,
+}
+
+/// The passes of a lighting step from `start` (texels `x`): [`EstimateOptions::irls_iters`]
+/// with a robust loss, else 1; at least 2 from a zero start under the light prior, which is
+/// linearised at the current iterate; and 1 warm pass (weights from the start's
+/// residuals) when `warm_irls` asks for it and the start is not zero.
+fn irls_passes(opts: &EstimateOptions, x: &[f64], prior: bool, warm_irls: bool) -> IrlsPasses {
+    let mut passes = if opts.robust == Robust::None {
+        1
+    } else {
+        opts.irls_iters.max(1)
+    };
+    if prior && x.iter().all(|v| *v == 0.0) {
+        passes = passes.max(2);
+    }
+    let warm = warm_irls && passes > 1 && x.iter().any(|v| *v != 0.0);
+    IrlsPasses {
+        passes: if warm { 1 } else { passes },
+        warm,
+    }
 }
 
 /// `μ` per channel when not given: `smoothness` × the system diagonal's largest (or mean)
@@ -610,4 +625,39 @@ pub fn fit_light_frozen(
     opts: &EstimateOptions,
 ) -> Result<[Vec<f64>; 3]> {
     Ok(lighting_step_full(problem, beta, photo, start, None, opts)?.light)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The pass count by its rules, each case by hand: the robust loss's `irls_iters`
+    /// (Huber, 3) or one solve (plain least squares); two from a zero start under the
+    /// light prior; one warm pass from a non-zero start when asked.
+    #[test]
+    fn irls_passes_follow_the_loss_the_prior_and_the_start() {
+        let huber = EstimateOptions {
+            robust: Robust::Huber { k: 1.345 },
+            irls_iters: 3,
+            ..EstimateOptions::default()
+        };
+        let plain = EstimateOptions {
+            robust: Robust::None,
+            ..huber.clone()
+        };
+        let (zero, lit) = ([0.0; 4], [0.0, 1.0, 0.0, 0.0]);
+        let count = |o: &EstimateOptions, x: &[f64], prior, warm| {
+            let p = irls_passes(o, x, prior, warm);
+            (p.passes, p.warm)
+        };
+        assert_eq!(count(&huber, &lit, false, false), (3, false));
+        assert_eq!(count(&plain, &lit, false, false), (1, false));
+        assert_eq!(count(&plain, &zero, true, false), (2, false));
+        assert_eq!(count(&plain, &lit, true, false), (1, false));
+        assert_eq!(count(&huber, &lit, false, true), (1, true));
+        // A zero start has no residuals to reweight from: the full count, not warm.
+        assert_eq!(count(&huber, &zero, false, true), (3, false));
+        // One pass has nothing to warm.
+        assert_eq!(count(&plain, &lit, false, true), (1, false));
+    }
 }
