@@ -3,6 +3,7 @@
 //! the held-out half protocol.
 
 use crate::synth_case::*;
+use relight_cpc::report::metrics::upper_median;
 use relight_cpc::solve::{beta_per_vertex, fit_light_frozen, Estimate, EstimateOptions};
 
 /// All permutations of `0..k` (k ≤ 4).
@@ -298,14 +299,4 @@ pub fn tail_shares(
         ));
     }
     out.join("; ")
-}
-
-/// The element at index `⌊n / 2⌋` of `v` in ascending order (NaN when empty), as the run's
-/// report reads a material's median albedo.
-fn upper_median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }

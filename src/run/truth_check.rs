@@ -26,7 +26,8 @@ use super::shading::{fitted_env, valid_mask};
 use super::{Fitted, Truth};
 use crate::render::{Raster, ShadedViews, ViewToShade};
 use crate::report::metrics::{
-    rmse_after_channel_scale, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry, PURE_OFF, PURE_WEIGHT,
+    rmse_after_channel_scale, upper_median, AlbedoTruth, AlbedoTruthEntry, TruthCheckEntry,
+    PURE_OFF, PURE_WEIGHT,
 };
 use crate::sphere::envmap::OctEnv;
 use crate::transport::brdf::BasisBrdf;
@@ -557,16 +558,6 @@ fn pure_figures(a: &[[f64; 3]], t: [f64; 3]) -> PureFigures {
             off as f64 / a.len() as f64
         },
     }
-}
-
-/// The element at index `⌊n / 2⌋` of `values` in ascending order (NaN when empty): the
-/// median for an odd count, the upper of the two middle values for an even one.
-fn upper_median(mut values: Vec<f64>) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    let mid = values.len() / 2;
-    *values.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 #[cfg(test)]

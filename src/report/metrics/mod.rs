@@ -505,6 +505,18 @@ pub fn pure_median_errors(m: &AlbedoTruthEntry) -> String {
     pure_column(m, m.pure_median_error, &note)
 }
 
+/// The element at index `⌊n / 2⌋` of `values` in ascending order (NaN when empty): the
+/// median for an odd count, the upper of the two middle values for an even one. The
+/// report's median pure-vertex albedo ([`AlbedoTruthEntry::pure_median_error`]) and the
+/// ablation's ratio errors read the same element.
+pub fn upper_median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mid = values.len() / 2;
+    *values.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
 /// [`AlbedoTruth::max_median_ratio_error`] of `materials`.
 pub fn max_median_ratio_error(materials: &[AlbedoTruthEntry]) -> f64 {
     let mut worst: f64 = 0.0;
