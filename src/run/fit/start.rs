@@ -34,18 +34,19 @@ pub(super) fn prepare_start(
     let scene = &im.scene;
     let lambert = lambert_of(&p.eff.basis)?;
     let mut start = FitStart::new(opts, p, &scene.mesh.positions, lambert, train.len())?;
+    if p.eff.transients {
+        start.mask_transients(opts, obs, p, scene, log, progress)?;
+    }
+    // The materials the fit starts with, after the transient pass clustered them again.
     let fitted = start.init.albedo.len();
     if let Some(asked) = opts.materials.fixed().filter(|&k| k > fitted) {
         progress.warn(&cluster_shortfall(asked, fitted));
-    }
-    if p.eff.transients {
-        start.mask_transients(opts, obs, p, scene, log, progress)?;
     }
     let shape = FitShape {
         vertices: scene.mesh.positions.len(),
         basis: &p.eff.basis,
         photos: train.len(),
-        materials: Some(start.init.albedo.len()),
+        materials: Some(fitted),
     };
     let by_scene = light_by_scene(opts, shape, log);
     let opts = by_scene.as_ref().unwrap_or(opts);
@@ -292,15 +293,16 @@ fn starting_materials(
 /// hue and saturation ([`crate::solve::cluster::hue_feature`]), so photos without colour,
 /// or an object of one colour, give fewer distinct clusters.
 fn cluster_shortfall(asked: usize, got: usize) -> String {
-    let clusters = if got == 1 {
-        "1 distinct hue cluster".to_string()
+    let (clusters, fitted) = if got == 1 {
+        (
+            "1 distinct hue cluster".to_string(),
+            "1 material is".to_string(),
+        )
     } else {
-        format!("{got} distinct hue clusters")
-    };
-    let fitted = if got == 1 {
-        "1 material is".to_string()
-    } else {
-        format!("{got} materials are")
+        (
+            format!("{got} distinct hue clusters"),
+            format!("{got} materials are"),
+        )
     };
     format!(
         "{asked} materials were asked for, but the seen vertices' colours form only \
