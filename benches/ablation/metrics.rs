@@ -3,7 +3,7 @@
 //! the held-out half protocol.
 
 use crate::synth_case::*;
-use relight_cpc::report::metrics::upper_median;
+use relight_cpc::report::metrics::{upper_median, PURE_OFF, PURE_WEIGHT};
 use relight_cpc::solve::{beta_per_vertex, fit_light_frozen, Estimate, EstimateOptions};
 
 /// All permutations of `0..k` (k ≤ 4).
@@ -77,19 +77,14 @@ pub fn ratio_errors(
     let k = case.lambda.len();
     let nb = case.basis.len();
     let beta = beta_per_vertex(lambda, weights, case.nv);
-    let pure = |t: usize, c: usize| -> f64 {
-        upper_median(
-            (0..case.nv)
-                .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
-                .map(|x| beta[x * nb][c])
-                .collect(),
-        )
-    };
+    let medians: Vec<[f64; 3]> = (0..k)
+        .map(|t| pure_medians(&beta, nb, &pure_seen(case, seen, t)))
+        .collect();
     [0, 1, 2].map(|c| {
         (1..k)
             .map(|j| {
                 let r_true = case.lambda[j][0][c] / case.lambda[0][0][c];
-                (pure(j, c) / pure(0, c) / r_true - 1.0).abs()
+                (medians[j][c] / medians[0][c] / r_true - 1.0).abs()
             })
             .fold(0.0, f64::max)
     })
@@ -259,8 +254,8 @@ pub fn blend_shares(case: &Case, est: &Estimate, seen: &[bool]) -> String {
 }
 
 /// `ABLATION_TAIL=1` (`bench-results/light-prior-many-photos.md`, section 3): per true
-/// material, the share of its seen pure vertices (true weight ≥ 0.95) whose diffuse albedo
-/// `β` is more than 10% off the material's median `β` in some channel, over those whose
+/// material, the share of its seen pure vertices ([`pure_seen`]) whose diffuse albedo `β`
+/// is more than [`PURE_OFF`] (10%) off the material's median `β` in some channel, over those whose
 /// normal faces down (its up component in the map frame below −0.5) and over the others.
 pub fn tail_shares(
     case: &Case,
@@ -273,12 +268,9 @@ pub fn tail_shares(
     let beta = beta_per_vertex(lambda, weights, case.nv);
     let mut out = Vec::new();
     for t in 0..k {
-        let pure: Vec<usize> = (0..case.nv)
-            .filter(|&x| seen[x] && case.weights[x * k + t] >= 0.95)
-            .collect();
-        let median =
-            [0, 1, 2].map(|c| upper_median(pure.iter().map(|&x| beta[x * nb][c]).collect()));
-        let off = |x: usize| (0..3).any(|c| (beta[x * nb][c] / median[c] - 1.0).abs() > 0.1);
+        let pure = pure_seen(case, seen, t);
+        let median = pure_medians(&beta, nb, &pure);
+        let off = |x: usize| (0..3).any(|c| (beta[x * nb][c] / median[c] - 1.0).abs() > PURE_OFF);
         let share = |down: bool| {
             let set: Vec<usize> = pure
                 .iter()
@@ -299,4 +291,18 @@ pub fn tail_shares(
         ));
     }
     out.join("; ")
+}
+
+/// The seen vertices of true material `t` alone (true weight ≥ [`PURE_WEIGHT`], as the
+/// run's report counts them).
+fn pure_seen(case: &Case, seen: &[bool], t: usize) -> Vec<usize> {
+    let k = case.lambda.len();
+    (0..case.nv)
+        .filter(|&x| seen[x] && case.weights[x * k + t] >= PURE_WEIGHT)
+        .collect()
+}
+
+/// Per channel, the [`upper_median`] of the Lambertian `β` (row stride `nb`) over `pure`.
+fn pure_medians(beta: &[[f64; 3]], nb: usize, pure: &[usize]) -> [f64; 3] {
+    [0, 1, 2].map(|c| upper_median(pure.iter().map(|&x| beta[x * nb][c]).collect()))
 }
