@@ -36,6 +36,10 @@ pub(crate) struct SynthArgs {
     /// Random per-photo white balance.
     #[arg(long)]
     white_balance: bool,
+    /// The linear value the object's 99th-percentile brightness is exposed to: 1 clips
+    /// about 1% of its pixels, 0.6 nearly none.
+    #[arg(long, default_value_t = 1.0)]
+    exposure_peak: f64,
     /// Photos lit by the same map share its rotation, so they share a sky (for
     /// `run --light shared`; scenes whose map turns from photo to photo).
     #[arg(long)]
@@ -74,6 +78,7 @@ impl SynthArgs {
             exact_vertices,
             noise,
             white_balance,
+            exposure_peak,
             shared_skies,
             geotag,
             spp,
@@ -99,6 +104,7 @@ impl SynthArgs {
             exact_vertices,
             noise,
             white_balance,
+            exposure_peak,
             shared_skies,
             geotag,
             samples: relight_cpc::transport::reference::Samples {

@@ -81,6 +81,10 @@ pub struct SynthOptions {
     pub noise: f64,
     /// Random per-photo white balance (channel gains in `[0.85, 1.15]`, green fixed at 1).
     pub white_balance: bool,
+    /// The linear value the 99th percentile of the object's brightest channel is exposed
+    /// to: 1 clips about 1% of the object's pixels (more where the sun's highlight is
+    /// large), below about 0.7 nearly none.
+    pub exposure_peak: f64,
     /// Photos lit by the same map see it at the same rotation, so they share one sky (as
     /// photos taken in one session do): with a scene's 16 photos cycling 8 maps, photos `i`
     /// and `i + 8` stand on opposite sides under one sky. For the scenes whose map turns
@@ -110,6 +114,7 @@ impl Default for SynthOptions {
             exact_vertices: false,
             noise: 0.0,
             white_balance: false,
+            exposure_peak: 1.0,
             shared_skies: false,
             geotag: false,
             samples: Samples {
@@ -258,6 +263,12 @@ fn check_options(def: &SceneDef, opts: &SynthOptions) -> Result<usize> {
     }
     if !(opts.noise.is_finite() && opts.noise >= 0.0) {
         return Err(Error::Config(format!("noise σ {} must be ≥ 0", opts.noise)));
+    }
+    if !(opts.exposure_peak.is_finite() && opts.exposure_peak > 0.0) {
+        return Err(Error::Config(format!(
+            "exposure peak {} must be a positive number",
+            opts.exposure_peak
+        )));
     }
     let n_photos = opts.photos.unwrap_or(def.photos);
     if n_photos == 0 {

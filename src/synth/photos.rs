@@ -57,7 +57,7 @@ pub(super) fn render_all(rng: &mut Pcg32, shoot: &Shoot) -> Result<Rendered> {
         } else {
             [1.0; 3]
         };
-        let exposure = exposure(&img, &wb);
+        let exposure = opts.exposure_peak * exposure(&img, &wb);
         let bytes = encode(&img, exposure, &wb, opts, i);
         let size = (opts.width, opts.height);
         let exif = match &shoot.lighting.geotags[i] {

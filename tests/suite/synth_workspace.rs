@@ -26,6 +26,7 @@ fn small(photos: usize, seed: u64) -> SynthOptions {
         exact_vertices: false,
         noise: 0.0,
         white_balance: true,
+        exposure_peak: 1.0,
         shared_skies: false,
         geotag: false,
         samples: Samples {
@@ -225,6 +226,74 @@ fn truth_is_complete_and_exposure_clips_about_one_percent() {
         );
     }
     std::fs::remove_dir_all(&out).ok();
+}
+
+/// The object's pixels of photo `name` in workspace `out`: each one's brightest channel,
+/// decoded to linear (IEC 61966-2-1).
+fn object_peaks(out: &Path, name: &str) -> Vec<f64> {
+    let photo = image::open(out.join("images").join(name))
+        .unwrap()
+        .to_rgb8();
+    let mask = image::open(out.join("truth/masks").join(name))
+        .unwrap()
+        .to_luma8();
+    photo
+        .pixels()
+        .zip(mask.pixels())
+        .filter(|(_, m)| m.0[0] > 0)
+        .map(|(px, _)| {
+            let top = *px.0.iter().max().unwrap() as f64 / 255.0;
+            if top <= 0.04045 {
+                top / 12.92
+            } else {
+                ((top + 0.055) / 1.055).powf(2.4)
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn exposure_peak_sets_the_objects_99th_percentile() {
+    // The same render exposed to peak 1 and to peak 0.5: the manifest's exposure halves
+    // exactly (one f64 product by 0.5), no object pixel reaches 255 at 0.5, and the 99th
+    // percentile of the decoded brightest channel lands at 0.5 (±4%: one 8-bit code near
+    // 0.5 is 0.5% of it, and the percentile of a few hundred pixels moves by a tie).
+    let (one, half) = (tmp("peak-1"), tmp("peak-half"));
+    let mut opts = small(2, 4);
+    opts.width = 96;
+    opts.height = 96;
+    build("spot-diffuse", &one, &opts).unwrap();
+    opts.exposure_peak = 0.5;
+    build("spot-diffuse", &half, &opts).unwrap();
+    let manifest = |out: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(out.join("truth/manifest.json")).unwrap())
+            .unwrap()
+    };
+    let (m1, mh) = (manifest(&one), manifest(&half));
+    for (p1, ph) in m1["photos"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(mh["photos"].as_array().unwrap())
+    {
+        let (e1, eh) = (
+            p1["exposure"].as_f64().unwrap(),
+            ph["exposure"].as_f64().unwrap(),
+        );
+        assert_eq!(eh, 0.5 * e1);
+        let name = ph["name"].as_str().unwrap();
+        let mut peaks = object_peaks(&half, name);
+        assert!(peaks.len() > 200, "{name}: {} object pixels", peaks.len());
+        assert!(peaks.iter().all(|&v| v < 1.0), "{name}: a pixel clipped");
+        peaks.sort_by(f64::total_cmp);
+        let p99 = peaks[(peaks.len() as f64 * 0.99) as usize];
+        assert!(
+            (0.48..=0.52).contains(&p99),
+            "{name}: 99th percentile {p99}"
+        );
+    }
+    std::fs::remove_dir_all(&one).ok();
+    std::fs::remove_dir_all(&half).ok();
 }
 
 fn files(dir: &Path) -> Vec<PathBuf> {

@@ -248,6 +248,12 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
             // `SYNTH_GEOTAG=1`: a sun-and-sky scene's suns from a day's clock, each photo
             // geotagged (`synth --geotag`; the cases' `geotag_suns`).
             geotag: std::env::var("SYNTH_GEOTAG").is_ok_and(|v| v == "1"),
+            // `SYNTH_EXPOSURE_PEAK=P`: the 99th percentile exposed to P (`synth
+            // --exposure-peak`; 0.6 clips nearly nothing).
+            exposure_peak: std::env::var("SYNTH_EXPOSURE_PEAK")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(1.0),
             ..SynthOptions::default()
         },
     )
