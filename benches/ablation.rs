@@ -68,7 +68,8 @@
 //! fitted again with the start's materials held, `coarse-light-free` a free second fit
 //! from the same start; without one, the row makes `run --restart auto`'s second fit,
 //! `ABLATION_DEFAULTS_RESTART=off` none; `reanchor-coarse` is `run --restart
-//! on+coarse-light`), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
+//! on+coarse-light`; `ABLATION_ONE_SE=0` keeps each coarse-light held fit on the lower
+//! validation error alone, without the one-standard-error rule), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
 //! sum-to-one prior on blended vertices whatever the pilot's scope), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=paper|shared` (the `defaults` row with

@@ -71,6 +71,7 @@ pub mod materials;
 pub mod normalise;
 pub mod objective;
 pub mod options;
+pub mod paired;
 pub mod problem;
 pub mod qp;
 pub mod ratio_step;

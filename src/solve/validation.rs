@@ -115,26 +115,13 @@ fn validation_sums(
     idx: &[usize],
 ) -> (f64, f64) {
     let t = problem.transport;
-    let (n, nb) = (t.n_global, t.n_basis);
-    let hs: Vec<Vec<[f64; 3]>> = lights.par_iter().map(|l| haar3(l, n)).collect();
+    let hs: Vec<Vec<[f64; 3]>> = lights.par_iter().map(|l| haar3(l, t.n_global)).collect();
     let parts: Vec<(f64, f64)> = idx
         .par_chunks(CHUNK)
         .map(|ch| {
             let (mut se, mut yy) = (0.0, 0.0);
             for &p in ch {
-                let h = &hs[obs.photo[p] as usize];
-                let x = obs.vertex[p] as usize;
-                let mut pred = [0.0; 3];
-                for b in 0..nb {
-                    let (ix, val) = t.row(p, b);
-                    let be = beta[x * nb + b];
-                    for (&m, &g) in ix.iter().zip(val) {
-                        let hm = h[m as usize];
-                        for c in 0..3 {
-                            pred[c] += be[c] * f64::from(g) * hm[c];
-                        }
-                    }
-                }
+                let pred = predict_observation(t, &hs[obs.photo[p] as usize], beta, obs, p);
                 let a = obs.weight[p] as f64;
                 for c in 0..3 {
                     let y = obs.rgb[p][c] as f64;
@@ -148,6 +135,54 @@ fn validation_sums(
     parts
         .into_iter()
         .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
+/// Observation `p`'s prediction `ŷ_p = Σ_b β_{x,b} ⊙ (T_{p,b} · h)` (Eq. 9) under its
+/// photo's light `h` (the map's Haar coefficients per channel, [`haar3`]) and the
+/// per-vertex reflectance `beta` (`V × B` row-major).
+fn predict_observation(
+    t: &crate::transport::Transport,
+    h: &[[f64; 3]],
+    beta: &[[f64; 3]],
+    obs: &Observations,
+    p: usize,
+) -> [f64; 3] {
+    let (nb, x) = (t.n_basis, obs.vertex[p] as usize);
+    let mut pred = [0.0; 3];
+    for b in 0..nb {
+        let (ix, val) = t.row(p, b);
+        let be = beta[x * nb + b];
+        for (&m, &g) in ix.iter().zip(val) {
+            let hm = h[m as usize];
+            for c in 0..3 {
+                pred[c] += be[c] * f64::from(g) * hm[c];
+            }
+        }
+    }
+    pred
+}
+
+/// Per observation of `idx`, in order, its term `Σ_c α (y − ŷ)²` of
+/// [`validation_error`]'s numerator under `(lights, beta)`: what a paired comparison of two
+/// fits on the same held-back observations reads ([`crate::solve::paired`]).
+pub(crate) fn validation_terms(
+    problem: &Problem,
+    obs: &Observations,
+    lights: &[[Vec<f64>; 3]],
+    beta: &[[f64; 3]],
+    idx: &[usize],
+) -> Vec<f64> {
+    let t = problem.transport;
+    let hs: Vec<Vec<[f64; 3]>> = lights.par_iter().map(|l| haar3(l, t.n_global)).collect();
+    idx.par_iter()
+        .map(|&p| {
+            let pred = predict_observation(t, &hs[obs.photo[p] as usize], beta, obs, p);
+            let a = obs.weight[p] as f64;
+            (0..3)
+                .map(|c| a * (obs.rgb[p][c] as f64 - pred[c]).powi(2))
+                .sum()
+        })
+        .collect()
 }
 
 /// GPCG iterations and CG steps per GPCG iteration of [`half_score`]'s light fits, which
@@ -649,6 +684,67 @@ mod tests {
             );
             let want = (e / (1.0_f64 + e)).abs();
             assert!((got - want).abs() <= 1e-6, "e = {e}: {got} against {want}");
+        }
+    }
+
+    /// `validation_terms` are each observation's `α Σ_c (y − ŷ)²`: with every observation
+    /// the model's prediction (from [`crate::solve::predict`], a separate code path) times
+    /// `1 + e`, the term is `α e² Σ_c ŷ_c²` exactly, on any subset in its order; the
+    /// tolerance 1e-6 relative covers the `f32` storage of the observations (rounding
+    /// 6e-8 of `1.2 ŷ` is 3.6e-7 of the residual `0.2 ŷ`, 7.2e-7 of its square).
+    #[test]
+    fn validation_terms_are_each_observations_weighted_squared_residual() {
+        use crate::solve::{predict, Estimate};
+        use crate::transport::Transport;
+        let (nv, per) = (5, 4);
+        let mut obs = grid_obs(nv, per);
+        let n = obs.len();
+        obs.photo_ranges = std::iter::once(0..n).collect();
+        obs.photo.iter_mut().for_each(|k| *k = 0);
+        let t = Transport {
+            n_global: 2,
+            n_basis: 1,
+            n_obs: n,
+            offsets: (0..=n).collect(),
+            index: (0..n).map(|p| (p % 4) as u16).collect(),
+            value: (0..n)
+                .map(|p| crate::transport::TransportValue::from_f64(0.3 + 0.05 * p as f64))
+                .collect(),
+        };
+        let light = [
+            vec![1.0, 0.4, 2.0, 0.6],
+            vec![0.9; 4],
+            vec![0.3, 1.2, 0.8, 1.6],
+        ];
+        let lambda = vec![vec![[0.7, 0.4, 0.2]]];
+        let weights: Vec<f64> = (0..nv).map(|i| 0.5 + 0.2 * i as f64).collect();
+        let est = Estimate::from_parts(vec![light.clone()], lambda.clone(), weights.clone());
+        let problem = Problem {
+            obs: &obs,
+            transport: &t,
+            n_vertices: nv,
+            n_photos: 1,
+        };
+        let pred = predict(&problem, &est);
+        let e = 0.2;
+        let mut scaled = obs.clone();
+        for p in 0..n {
+            scaled.rgb[p] = pred[p].map(|v| ((1.0 + e) * v) as f32);
+        }
+        let problem = Problem {
+            obs: &scaled,
+            ..problem
+        };
+        let beta = crate::solve::beta_per_vertex(&lambda, &weights, nv);
+        let idx: Vec<usize> = (0..n).rev().step_by(3).collect();
+        let terms = validation_terms(&problem, &scaled, std::slice::from_ref(&light), &beta, &idx);
+        assert_eq!(terms.len(), idx.len());
+        for (&p, got) in idx.iter().zip(&terms) {
+            let want = scaled.weight[p] as f64 * e * e * pred[p].iter().map(|v| v * v).sum::<f64>();
+            assert!(
+                (got - want).abs() <= 1e-6 * want.max(1e-12),
+                "p = {p}: {got} against {want}"
+            );
         }
     }
 

@@ -93,7 +93,10 @@ fn second_fit(p: Probe, v: &str, first: Fitted, pick: bool) -> Estimate {
         score(&first.est),
         score(&second)
     );
-    if !pick || score(&second) < score(&first.est) {
+    // `coarse-light` with `pick` chose inside `fit_in_turn`, as `run` does (the held fit
+    // also within one standard error of the first).
+    let chosen = pick && v == "coarse-light";
+    if !pick || chosen || score(&second) < score(&first.est) {
         second
     } else {
         first.est
@@ -120,6 +123,13 @@ fn coarse_light_restart(p: Probe, first: &Fitted) -> Estimate {
     if std::env::var("ABLATION_COARSE_WEIGHTS").is_ok_and(|w| w == "fit") {
         steps.truncate(1);
     }
+    // `ABLATION_ONE_SE=0`: each held fit kept on the lower validation error alone, as
+    // before the one-standard-error rule (`bench-results/one-standard-error.md`).
+    if std::env::var("ABLATION_ONE_SE").is_ok_and(|v| v == "0") {
+        for s in &mut steps {
+            s.keep = relight_cpc::solve::materials::reanchor::Keep::Lower;
+        }
+    }
     let held = coarse_light::held_fit_options(p.opts);
     let (kept, outcomes) =
         fit_in_turn(p.problem, est.clone(), steps, &held, &mut |_, _, _| {}).expect("second fit");
@@ -128,10 +138,16 @@ fn coarse_light_restart(p: Probe, first: &Fitted) -> Estimate {
             StepOutcome::Fitted {
                 scores,
                 kept_restart,
+                paired,
                 ..
             } => eprintln!(
-                "coarse-light held fit: validation {:.5} against {:.5}, kept {kept_restart}",
-                scores[1], scores[0]
+                "coarse-light held fit: validation {:.5} against {:.5}, kept {kept_restart}{}",
+                scores[1],
+                scores[0],
+                paired.map_or(String::new(), |q| format!(
+                    " (paired: {:.2} standard errors above)",
+                    q.difference / q.standard_error
+                ))
             ),
             StepOutcome::Skipped { before, .. } => {
                 eprintln!("coarse-light held fit skipped ({before:.5?})")

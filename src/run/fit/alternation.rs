@@ -341,14 +341,22 @@ fn restart_reason(outcome: &reanchor::StepOutcome, first_kept: bool) -> String {
             what,
             kept_restart,
             scores: [before, score],
+            paired,
             ..
         } => {
-            let kept = if kept_restart {
-                "kept"
-            } else if first_kept {
-                "the first fit kept"
-            } else {
-                "the previous fit kept"
+            let kept = match (kept_restart, paired) {
+                (true, Some(q)) => format!(
+                    "kept: {} above the fit before it on the same held-back observations, within one, and with its materials held the more constrained fit (the one-standard-error rule)",
+                    standard_errors(&q)
+                ),
+                (true, None) => "kept".to_string(),
+                (false, q) => {
+                    let which = if first_kept { "the first fit" } else { "the previous fit" };
+                    let why = q.map_or(String::new(), |q| {
+                        format!(" ({} above it, beyond one)", standard_errors(&q))
+                    });
+                    format!("{which} kept{why}")
+                }
             };
             format!("restart from {what}: validation error {score:.4} against {before:.4}, {kept}")
         }
@@ -360,6 +368,16 @@ fn restart_reason(outcome: &reanchor::StepOutcome, first_kept: bool) -> String {
             "restart from {what} skipped: the held fit before it scored {score:.4} against {before:.4}, more than {:.0}% above",
             100.0 * (within - 1.0)
         ),
+    }
+}
+
+/// A paired difference in its standard errors, for the reasons ("0.62 standard errors");
+/// "a difference with no spread" when the standard error is 0.
+fn standard_errors(q: &crate::solve::paired::Paired) -> String {
+    if q.standard_error > 0.0 {
+        format!("{:.2} standard errors", q.difference / q.standard_error)
+    } else {
+        "a difference with no spread".to_string()
     }
 }
 
@@ -388,6 +406,7 @@ fn restart_starts(
             from: m,
             what: "the fit's own materials re-anchored (median fitted reflectance per material, weights projected)",
             within: None,
+            keep: reanchor::Keep::Lower,
         }]);
     }
     let lambert = start.eopts.lambert_basis;
@@ -412,6 +431,7 @@ fn restart_starts(
             from: m,
             what: "the fit's weights with each material's Lambertian colour ratios fitted by an order-2 irradiance model over its pure, open vertices",
             within: None,
+            keep: reanchor::Keep::Lower,
         }]
     }))
 }

@@ -29,8 +29,11 @@
 //! free second fit moves the ratios through the weights), from the first fit's lights,
 //! twice: over the first fit's weights and over them re-sorted on its own re-anchored
 //! materials ([`coarse_light_starts`], [`resorted_weights`]); the validation score keeps
-//! one of the three fits. A held fit keeps its weights, so only the re-sorted one can
-//! move a vertex the first fit left in the wrong material.
+//! one of the three fits, a held one also when it scores within one standard error above
+//! the first fit, compared paired on the same held-back observations (the
+//! one-standard-error rule, [`crate::solve::paired`]: of two fits the score cannot tell
+//! apart, the one whose materials are held). A held fit keeps its weights, so only the
+//! re-sorted one can move a vertex the first fit left in the wrong material.
 //!
 //! Measured (`bench-results/coarse-light-start.md`) on the ablation's diffuse scene:
 //! - Over the TRUE pure seen vertices, on exact data (the true model through the case's
@@ -239,11 +242,13 @@ impl CoarseStarts {
                 from: self.fit_weights,
                 what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
                 within: None,
+                keep: reanchor::Keep::SecondWithinOneSe,
             },
             reanchor::StepStart {
                 from: self.resorted,
                 what: "the fit's weights re-sorted on its own re-anchored materials, with the same coarse-light colour ratios, and the lights fitted again with those materials held",
                 within: Some(RESORT_WITHIN),
+                keep: reanchor::Keep::SecondWithinOneSe,
             },
         ]
     }

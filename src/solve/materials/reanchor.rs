@@ -42,8 +42,10 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::solve::alternation::estimate_from_lights;
+use crate::solve::paired::Paired;
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::solve::starts::StartRecord;
+use crate::solve::validation::{validation_terms, HeldBack};
 use crate::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, IterState, Iteration, Materials0, Problem,
 };
@@ -172,14 +174,29 @@ pub fn projected_on(
 
 /// What [`restart`] and [`fit_again`] return: the fit kept and the restart's record.
 pub struct Restarted {
-    /// The fit with the lower validation error (the first on a tie).
+    /// The fit kept ([`choose`]).
     pub est: Estimate,
     /// Whether `est` is the restart's fit.
     pub kept_restart: bool,
     /// The early-stopping validation error of the first fit and of the restart's.
     pub scores: [f64; 2],
+    /// With [`Keep::SecondWithinOneSe`] and the restart's score not the lower: the paired
+    /// comparison that decided ([`crate::solve::paired`]).
+    pub paired: Option<Paired>,
     /// The restart's fit as a start of the run's record.
     pub record: StartRecord,
+}
+
+/// How [`fit_again`] chooses between the fit before it and the second fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Keep {
+    /// The lower validation error; the first on a tie or a score that is not finite.
+    Lower,
+    /// As [`Keep::Lower`], and the second also when its validation error is within one
+    /// standard error above the first's, the two compared paired on the same held-back
+    /// observations ([`crate::solve::paired`]): for a second fit that is the more
+    /// constrained model (its materials held).
+    SecondWithinOneSe,
 }
 
 /// The restart (module docs): `first` re-anchored with projected weights ([`reanchor`],
@@ -194,39 +211,49 @@ pub fn restart(
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Restarted> {
     let start = reanchor(&first.lambda, &first.weights, seen, Reweight::Project)?;
-    fit_again(
-        problem,
-        first,
+    let second = SecondFit {
         start,
-        "the fit's own materials re-anchored",
-        opts,
-        None,
-        on_iter,
-    )
+        what: "the fit's own materials re-anchored",
+        lights_from: None,
+        keep: Keep::Lower,
+    };
+    fit_again(problem, first, second, opts, on_iter)
 }
 
-/// A second fit from `start` (what `what` names, for the record), and the one of `first`
-/// and it with the lower early-stopping validation error kept; without validation (or on
-/// a tie, or a non-finite score) `first`. With the materials held
-/// ([`EstimateOptions::fixed_materials`]) its one lighting fit starts from `lights_from`
-/// ([`estimate_from_lights`]; `None`: `first`'s lights).
+/// What [`fit_again`] fits after `first`: its start, what it is (for the record), the
+/// lights a held fit's one lighting fit starts from (`None`: `first`'s) and how it is
+/// weighed against `first`.
+pub struct SecondFit<'a> {
+    pub start: Materials0,
+    pub what: &'a str,
+    pub lights_from: Option<&'a [[Vec<f64>; 3]]>,
+    pub keep: Keep,
+}
+
+/// The second fit `second` after `first`, and the one of the two its [`Keep`] chooses
+/// kept ([`choose`]). With the materials held ([`EstimateOptions::fixed_materials`]) the
+/// second is one lighting fit from [`SecondFit::lights_from`]
+/// ([`estimate_from_lights`]), else a whole fit ([`estimate`]).
 pub fn fit_again(
     problem: &Problem,
     first: Estimate,
-    start: Materials0,
-    what: &str,
+    second: SecondFit,
     opts: &EstimateOptions,
-    lights_from: Option<&[[Vec<f64>; 3]]>,
     on_iter: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Result<Restarted> {
+    let SecondFit {
+        start,
+        what,
+        lights_from,
+        keep,
+    } = second;
     let second = if opts.fixed_materials {
         let lights = lights_from.unwrap_or(&first.lights);
         estimate_from_lights(problem, start, opts, lights, on_iter)?
     } else {
         estimate(problem, start, opts, on_iter)?
     };
-    let scores = [first.validation_error(), second.validation_error()];
-    let kept_restart = scores[1] < scores[0];
+    let (kept_restart, scores, paired) = choose(problem, &first, &second, keep, opts);
     let record = StartRecord::of(
         format!(
             "{what} (validation {:.4} against the fit kept before it, {:.4})",
@@ -239,8 +266,47 @@ pub fn fit_again(
         est: if kept_restart { second } else { first },
         kept_restart,
         scores,
+        paired,
         record,
     })
+}
+
+/// Whether `second` is kept over `first` by `keep`, their validation errors, and the
+/// paired comparison when it was made: the lower error wins; without validation, on a tie
+/// or a score that is not finite, `first`; with [`Keep::SecondWithinOneSe`] a `second`
+/// scored higher is kept when within one standard error ([`paired_scores`]).
+fn choose(
+    problem: &Problem,
+    first: &Estimate,
+    second: &Estimate,
+    keep: Keep,
+    opts: &EstimateOptions,
+) -> (bool, [f64; 2], Option<Paired>) {
+    let scores = [first.validation_error(), second.validation_error()];
+    let lower = scores[1] < scores[0];
+    let consult = keep == Keep::SecondWithinOneSe && !lower && scores.iter().all(|s| s.is_finite());
+    let paired = consult
+        .then(|| paired_scores(problem, first, second, opts))
+        .flatten();
+    let kept = lower || paired.is_some_and(|p| p.second_within_one_se());
+    (kept, scores, paired)
+}
+
+/// The paired comparison ([`Paired`]) of `first` and `second` on the observations early
+/// stopping holds back under `opts` ([`HeldBack`]), each fit's reflectance `β` from its
+/// materials; `None` without held-back observations.
+fn paired_scores(
+    problem: &Problem,
+    first: &Estimate,
+    second: &Estimate,
+    opts: &EstimateOptions,
+) -> Option<Paired> {
+    let held = HeldBack::new(problem, opts);
+    let terms = |e: &Estimate| {
+        let beta = beta_per_vertex(&e.lambda, &e.weights, problem.n_vertices);
+        validation_terms(problem, problem.obs, &e.lights, &beta, &held.idx)
+    };
+    Paired::of(&terms(first), &terms(second))
 }
 
 /// One start of a restart step ([`fit_in_turn`]): the start, what it is (for the record)
@@ -251,6 +317,9 @@ pub struct StepStart {
     pub from: Materials0,
     pub what: &'static str,
     pub within: Option<f64>,
+    /// How it is weighed against the step's first fit ([`fit_again`]); against a start of
+    /// the step kept before it, always [`Keep::Lower`] (two fits of one kind).
+    pub keep: Keep,
 }
 
 /// What became of one start of a step ([`fit_in_turn`]).
@@ -261,6 +330,8 @@ pub enum StepOutcome {
         what: &'static str,
         kept_restart: bool,
         scores: [f64; 2],
+        /// The paired comparison when it decided ([`Restarted::paired`]).
+        paired: Option<Paired>,
         record: StartRecord,
     },
     /// Not made: its gate saw the fit before it score `before[1]` against `before[0]`.
@@ -272,8 +343,9 @@ pub enum StepOutcome {
 }
 
 /// A restart step: each of `starts` in turn fitted against the fit kept before it
-/// ([`fit_again`], each kept when its validation error is lower) unless its gate skips
-/// it; with more than one start, every held fit starts from `first`'s lights. Returns the
+/// ([`fit_again`], each kept by its [`StepStart::keep`] while `first` is the fit kept, by
+/// the lower validation error after) unless its gate skips it; with more than one start,
+/// every held fit starts from `first`'s lights. Returns the
 /// fit kept and each start's outcome, in order. `on_iter(n, …)` sees every iteration of
 /// the `n`-th fit made.
 pub fn fit_in_turn(
@@ -286,6 +358,7 @@ pub fn fit_in_turn(
     let lights_from = (starts.len() > 1).then(|| first.lights.clone());
     let (mut est, mut last, mut made) = (first, None::<[f64; 2]>, 0);
     let mut outcomes = Vec::with_capacity(starts.len());
+    let mut first_kept = true;
     for s in starts {
         if let (Some(within), Some(before)) = (s.within, last) {
             let near = before[1] <= within * before[0];
@@ -299,22 +372,24 @@ pub fn fit_in_turn(
             }
         }
         let n = made;
-        let done = fit_again(
-            problem,
-            est,
-            s.from,
-            s.what,
-            opts,
-            lights_from.as_deref(),
-            &mut |it, state| on_iter(n, it, state),
-        )?;
+        let second = SecondFit {
+            start: s.from,
+            what: s.what,
+            lights_from: lights_from.as_deref(),
+            keep: if first_kept { s.keep } else { Keep::Lower },
+        };
+        let done = fit_again(problem, est, second, opts, &mut |it, state| {
+            on_iter(n, it, state)
+        })?;
         made += 1;
         last = Some(done.scores);
         est = done.est;
+        first_kept &= !done.kept_restart;
         outcomes.push(StepOutcome::Fitted {
             what: s.what,
             kept_restart: done.kept_restart,
             scores: done.scores,
+            paired: done.paired,
             record: done.record,
         });
     }
