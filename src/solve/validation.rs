@@ -630,6 +630,31 @@ mod tests {
         assert!(photo_halves_split(&obs, &PhotoHalves::default()).is_empty());
     }
 
+    /// [`grid_obs`] as one photo's, with a one-lobe transport on a 2 × 2 map: observation
+    /// `p` reads texel `p mod 4` with the value `base + step · p`.
+    fn one_photo(
+        n_vertices: usize,
+        per_vertex: usize,
+        base: f64,
+        step: f64,
+    ) -> (Observations, crate::transport::Transport) {
+        let mut obs = grid_obs(n_vertices, per_vertex);
+        let n = obs.len();
+        obs.photo_ranges = std::iter::once(0..n).collect();
+        obs.photo.iter_mut().for_each(|k| *k = 0);
+        let t = crate::transport::Transport {
+            n_global: 2,
+            n_basis: 1,
+            n_obs: n,
+            offsets: (0..=n).collect(),
+            index: (0..n).map(|p| (p % 4) as u16).collect(),
+            value: (0..n)
+                .map(|p| crate::transport::TransportValue::from_f64(base + step * p as f64))
+                .collect(),
+        };
+        (obs, t)
+    }
+
     /// `training_score` is the relative RMSE of the prediction: with every observation the
     /// model's own prediction times `1 + e` it is `e / (1 + e)` exactly (the residual is
     /// `e ŷ`, the observation `(1 + e) ŷ`), whatever the transport. The prediction comes
@@ -640,21 +665,8 @@ mod tests {
         use crate::solve::{predict, Estimate};
         use crate::transport::Transport;
         let (nv, per) = (6, 3);
-        let mut obs = grid_obs(nv, per);
-        let all = 0..obs.len();
-        obs.photo_ranges = std::iter::once(all).collect();
-        obs.photo.iter_mut().for_each(|k| *k = 0);
+        let (mut obs, t) = one_photo(nv, per, 0.5, 0.1);
         let n = obs.len();
-        let t = Transport {
-            n_global: 2,
-            n_basis: 1,
-            n_obs: n,
-            offsets: (0..=n).collect(),
-            index: (0..n).map(|p| (p % 4) as u16).collect(),
-            value: (0..n)
-                .map(|p| crate::transport::TransportValue::from_f64(0.5 + 0.1 * p as f64))
-                .collect(),
-        };
         let light = [
             vec![1.0, 2.0, 0.5, 3.0],
             vec![0.7; 4],
@@ -695,22 +707,9 @@ mod tests {
     #[test]
     fn validation_terms_are_each_observations_weighted_squared_residual() {
         use crate::solve::{predict, Estimate};
-        use crate::transport::Transport;
         let (nv, per) = (5, 4);
-        let mut obs = grid_obs(nv, per);
+        let (obs, t) = one_photo(nv, per, 0.3, 0.05);
         let n = obs.len();
-        obs.photo_ranges = std::iter::once(0..n).collect();
-        obs.photo.iter_mut().for_each(|k| *k = 0);
-        let t = Transport {
-            n_global: 2,
-            n_basis: 1,
-            n_obs: n,
-            offsets: (0..=n).collect(),
-            index: (0..n).map(|p| (p % 4) as u16).collect(),
-            value: (0..n)
-                .map(|p| crate::transport::TransportValue::from_f64(0.3 + 0.05 * p as f64))
-                .collect(),
-        };
         let light = [
             vec![1.0, 0.4, 2.0, 0.6],
             vec![0.9; 4],

@@ -206,19 +206,9 @@ fn truth_is_complete_and_exposure_clips_about_one_percent() {
     // boundary allow 0.3%–3%.
     for p in photos {
         let name = p["name"].as_str().unwrap();
-        let photo = image::open(out.join("images").join(name))
-            .unwrap()
-            .to_rgb8();
-        let mask = image::open(out.join("truth/masks").join(name))
-            .unwrap()
-            .to_luma8();
-        let (mut obj, mut clipped) = (0usize, 0usize);
-        for (px, m) in photo.pixels().zip(mask.pixels()) {
-            if m.0[0] > 0 {
-                obj += 1;
-                clipped += usize::from(px.0.contains(&255));
-            }
-        }
+        let pixels = object_pixels(&out, name);
+        let obj = pixels.len();
+        let clipped = pixels.iter().filter(|px| px.contains(&255)).count();
         let frac = clipped as f64 / obj as f64;
         assert!(
             obj > 200 && (0.003..=0.03).contains(&frac),
@@ -228,9 +218,9 @@ fn truth_is_complete_and_exposure_clips_about_one_percent() {
     std::fs::remove_dir_all(&out).ok();
 }
 
-/// The object's pixels of photo `name` in workspace `out`: each one's brightest channel,
-/// decoded to linear (IEC 61966-2-1).
-fn object_peaks(out: &Path, name: &str) -> Vec<f64> {
+/// The 8-bit RGB of the object's pixels (coverage > 0 in the truth mask) of photo `name`
+/// in workspace `out`.
+fn object_pixels(out: &Path, name: &str) -> Vec<[u8; 3]> {
     let photo = image::open(out.join("images").join(name))
         .unwrap()
         .to_rgb8();
@@ -241,8 +231,17 @@ fn object_peaks(out: &Path, name: &str) -> Vec<f64> {
         .pixels()
         .zip(mask.pixels())
         .filter(|(_, m)| m.0[0] > 0)
-        .map(|(px, _)| {
-            let top = *px.0.iter().max().unwrap() as f64 / 255.0;
+        .map(|(px, _)| px.0)
+        .collect()
+}
+
+/// The object's pixels of photo `name` in workspace `out`: each one's brightest channel,
+/// decoded to linear (IEC 61966-2-1).
+fn object_peaks(out: &Path, name: &str) -> Vec<f64> {
+    object_pixels(out, name)
+        .iter()
+        .map(|px| {
+            let top = *px.iter().max().unwrap() as f64 / 255.0;
             if top <= 0.04045 {
                 top / 12.92
             } else {
