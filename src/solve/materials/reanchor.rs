@@ -45,7 +45,7 @@ use crate::solve::alternation::estimate_from_lights;
 use crate::solve::paired::Paired;
 use crate::solve::qp::{nnls, NnlsOptions};
 use crate::solve::starts::StartRecord;
-use crate::solve::validation::{validation_terms, HeldBack};
+use crate::solve::validation::{held_back_indices, validation_terms};
 use crate::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, IterState, Iteration, Materials0, Problem,
 };
@@ -293,18 +293,18 @@ fn choose(
 }
 
 /// The paired comparison ([`Paired`]) of `first` and `second` on the observations early
-/// stopping holds back under `opts` ([`HeldBack`]), each fit's reflectance `β` from its
-/// materials; `None` without held-back observations.
+/// stopping holds back under `opts` ([`held_back_indices`]), each fit's reflectance `β`
+/// from its materials; `None` without held-back observations.
 fn paired_scores(
     problem: &Problem,
     first: &Estimate,
     second: &Estimate,
     opts: &EstimateOptions,
 ) -> Option<Paired> {
-    let held = HeldBack::new(problem, opts);
+    let idx = held_back_indices(problem, opts);
     let terms = |e: &Estimate| {
         let beta = beta_per_vertex(&e.lambda, &e.weights, problem.n_vertices);
-        validation_terms(problem, problem.obs, &e.lights, &beta, &held.idx)
+        validation_terms(problem, problem.obs, &e.lights, &beta, &idx)
     };
     Paired::of(&terms(first), &terms(second))
 }
