@@ -81,6 +81,7 @@
 //! `ABLATION_SEARCH_ROUNDS`, `ABLATION_SEARCH_CHANNELS`, `ABLATION_SEARCH_SCORE` (the start
 //! search, `ablation/search.rs`), `ABLATION_QP` (solver steps per lighting fit inside a
 //! round, `run --lighting-qp-iterations`; default the estimator's),
+//! `ABLATION_CLIPPED_BOUNDS=1` (clipped channels read as lower bounds, `run --clipped bound`),
 //! `ABLATION_ACCURACY_MISSES=1` (where the `defaults` row's material-accuracy misses are,
 //! [`metrics::accuracy_misses`]), `ABLATION_TAIL=1` (the share of each material's seen
 //! pure vertices far off its median albedo, facing down and not, for the true maps and the
@@ -695,6 +696,10 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     eprintln!(
                         "  blend shares: {}",
                         metrics::blend_shares(case, &d.est, &fl.seen)
+                    );
+                    eprintln!(
+                        "  rescaled: {}",
+                        metrics::rescaled_accuracy(case, &d.est, &fl.seen)
                     );
                 }
                 done.push(Done {

@@ -37,6 +37,23 @@ pub struct Photo {
     pub rgb: Vec<[f32; 3]>,
     /// Per pixel: any channel at or above the clip threshold.
     pub overexposed: Vec<bool>,
+    /// The clip threshold in linear units: a channel at or above it may have been clipped,
+    /// so its true value is at least this ([`Sample::clipped`]); `f32::INFINITY` when the
+    /// format has none (EXR, [`Photo::from_linear`]).
+    pub clip_level: f32,
+}
+
+/// A bilinear sample of a photo ([`Photo::sample_bounds`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Linear RGB.
+    pub rgb: [f32; 3],
+    /// Whether any pixel contributing with non-zero weight is overexposed.
+    pub overexposed: bool,
+    /// Bit `c` set when a contributing pixel's channel `c` is at or above
+    /// [`Photo::clip_level`]: the sample's channel `c` is then a lower bound of the
+    /// radiance (the other pixels are exact, the clipped one at least its value).
+    pub clipped: u8,
 }
 
 /// sRGB decoding, exact piecewise curve (IEC 61966-2-1): encoded `[0, 1]` → linear.
@@ -79,6 +96,7 @@ impl Photo {
             height,
             rgb,
             overexposed: vec![false; n],
+            clip_level: f32::INFINITY,
         }
     }
 
@@ -113,6 +131,7 @@ impl Photo {
         let n = width as usize * height as usize;
         let mut rgb = Vec::with_capacity(n);
         let mut overexposed = Vec::with_capacity(n);
+        let clip_level;
         match img {
             image::DynamicImage::ImageLuma8(_)
             | image::DynamicImage::ImageLumaA8(_)
@@ -121,6 +140,7 @@ impl Photo {
                 // 8 bit: one table lookup per channel.
                 let lut: Vec<f32> = (0..256).map(|c| srgb_to_linear(c as f32 / 255.0)).collect();
                 let clip = clip_code(clip_threshold, 255.0);
+                clip_level = level_of_code(clip, 255.0);
                 for px in img.into_rgb8().pixels() {
                     let [r, g, b] = px.0;
                     rgb.push([lut[r as usize], lut[g as usize], lut[b as usize]]);
@@ -129,6 +149,7 @@ impl Photo {
             }
             other => {
                 let clip = clip_code(clip_threshold, 65535.0);
+                clip_level = level_of_code(clip, 65535.0);
                 for px in other.into_rgb16().pixels() {
                     let [r, g, b] = px.0;
                     rgb.push([r, g, b].map(|c| srgb_to_linear(c as f32 / 65535.0)));
@@ -141,6 +162,7 @@ impl Photo {
             height,
             rgb,
             overexposed,
+            clip_level,
         })
     }
 
@@ -157,6 +179,11 @@ impl Photo {
     /// image's half-pixel border. `None` outside `[0, width] × [0, height]`. The flag is true
     /// when any pixel contributing with non-zero weight is overexposed.
     pub fn sample(&self, pixel: [f64; 2]) -> Option<([f32; 3], bool)> {
+        self.sample_bounds(pixel).map(|s| (s.rgb, s.overexposed))
+    }
+
+    /// [`Photo::sample`] with the channels that are lower bounds ([`Sample::clipped`]).
+    pub fn sample_bounds(&self, pixel: [f64; 2]) -> Option<Sample> {
         let (w, h) = (self.width as f64, self.height as f64);
         let [x, y] = pixel;
         if !(x >= 0.0 && x <= w && y >= 0.0 && y <= h) || self.rgb.is_empty() {
@@ -178,17 +205,33 @@ impl Photo {
             (y1 * stride + x0, (1.0 - tx) * ty),
             (y1 * stride + x1, tx * ty),
         ];
-        let mut out = [0.0f32; 3];
-        let mut over = false;
-        for (i, wgt) in taps {
-            if wgt > 0.0 {
-                over |= self.overexposed[i];
-                for (o, v) in out.iter_mut().zip(self.rgb[i]) {
-                    *o += wgt * v;
+        let mut out = Sample {
+            rgb: [0.0; 3],
+            overexposed: false,
+            clipped: 0,
+        };
+        for (i, wgt) in taps.into_iter().filter(|t| t.1 > 0.0) {
+            out.overexposed |= self.overexposed[i];
+            for (c, v) in self.rgb[i].into_iter().enumerate() {
+                out.rgb[c] += wgt * v;
+                if v >= self.clip_level {
+                    out.clipped |= 1 << c;
                 }
             }
         }
-        Some((out, over))
+        Some(out)
+    }
+}
+
+/// The linear value of integer code `code` on a `max_code` scale (the clip level of
+/// [`Photo::clip_level`]); infinite above the scale, where nothing can clip.
+fn level_of_code(code: f64, max_code: f64) -> f32 {
+    if code > max_code {
+        f32::INFINITY
+    } else {
+        // The decoding tables' own arithmetic (f32 division), so a clipped code's value
+        // compares equal.
+        srgb_to_linear(code as f32 / max_code as f32)
     }
 }
 
@@ -229,6 +272,7 @@ fn load_exr(path: &Path) -> Result<Photo> {
         height: size.height() as u32,
         rgb: buf.rgb,
         overexposed: buf.over,
+        clip_level: f32::INFINITY,
     })
 }
 
@@ -306,6 +350,30 @@ pub(crate) mod tests {
         assert!(photo.sample([-0.1, 1.0]).is_none());
         assert!(photo.sample([1.0, 5.01]).is_none());
         assert!(photo.sample([f64::NAN, 1.0]).is_none());
+    }
+
+    #[test]
+    fn clipped_channels_are_flagged_per_channel_on_the_encoded_scale() {
+        // A 2×1 PNG: (255, 10, 249) then (100, 250, 100). With the clip at 250/255, the
+        // first pixel's red and the second's green are at or above it (249 is not); a
+        // sample flags a channel when a pixel contributing to it with non-zero weight does.
+        let dir = std::env::temp_dir().join(format!("relight-clip-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("c.png");
+        let mut img = image::RgbImage::new(2, 1);
+        img.put_pixel(0, 0, image::Rgb([255, 10, 249]));
+        img.put_pixel(1, 0, image::Rgb([100, 250, 100]));
+        img.save(&path).unwrap();
+        let photo = Photo::load(&path, DEFAULT_CLIP).unwrap();
+        assert_eq!(photo.clip_level, srgb_to_linear(250.0 / 255.0));
+        let at = |x: f64| photo.sample_bounds([x, 0.5]).unwrap();
+        assert_eq!((at(0.5).clipped, at(0.5).overexposed), (0b001, true));
+        assert_eq!((at(1.5).clipped, at(1.5).overexposed), (0b010, true));
+        assert_eq!(at(1.0).clipped, 0b011);
+        // Without an encoded scale nothing is a bound.
+        let linear = Photo::from_linear(1, 1, vec![[5.0; 3]]);
+        assert_eq!(linear.sample_bounds([0.5, 0.5]).unwrap().clipped, 0);
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     /// A 4×4 grey JPEG whose EXIF block (an APP1 segment after the start-of-image marker,

@@ -27,7 +27,10 @@
 //!
 //! `α_p = ((cos θ − min_cos) / (1 − min_cos))^grazing_power`, and `α_p = 0` when any pixel
 //! under the bilinear footprint is overexposed (the observation is kept with zero weight,
-//! so counts stay honest).
+//! so counts stay honest). Its clipped channels, those where a pixel under the footprint is
+//! at the clip level, are lower bounds of the radiance: the observation records them and
+//! the confidence it would have had ([`Observations::clipped`], `bound_weight`), which a fit
+//! reads as a one-sided term when asked ([`crate::solve::EstimateOptions::clipped_bounds`]).
 //!
 //! **Margins** ([`margins`]): with [`ObserveOptions::edge_margin`], `α_p` is further
 //! multiplied by a ramp in the pixel distance from `π(X_cam)` to the nearest silhouette or
@@ -67,9 +70,31 @@ pub struct Observations {
     pub dir: Vec<[f32; 3]>,
     /// Observations of photo `i` are `photo_ranges[i]`.
     pub photo_ranges: Vec<Range<usize>>,
+    /// Per observation, the channels of `rgb` that are lower bounds (bit `c`,
+    /// [`crate::import::photo::Sample::clipped`]): a pixel under its footprint was at the clip
+    /// level there. Empty, or one entry per observation.
+    pub clipped: Vec<u8>,
+    /// Per observation, the confidence an overexposed one takes when the fit reads its
+    /// clipped channels as lower bounds (`α_p` as if not overexposed; 0 for the others and
+    /// for any masked out): [`crate::solve::EstimateOptions::clipped_bounds`]. Empty with
+    /// `clipped`.
+    pub bound_weight: Vec<f32>,
 }
 
 impl Observations {
+    /// Gives observation `p` no weight, as a bound too ([`Observations::bound_weight`]).
+    pub fn mask_out(&mut self, p: usize) {
+        self.weight[p] = 0.0;
+        if let Some(b) = self.bound_weight.get_mut(p) {
+            *b = 0.0;
+        }
+    }
+
+    /// Whether any observation can be read as a lower bound.
+    pub fn has_bounds(&self) -> bool {
+        self.bound_weight.iter().any(|&b| b > 0.0)
+    }
+
     /// Number of observations.
     pub fn len(&self) -> usize {
         self.vertex.len()
@@ -82,7 +107,10 @@ impl Observations {
 
     /// Bytes held by the arrays.
     pub fn memory_bytes(&self) -> usize {
-        self.len() * (4 + 4 + 12 + 4 + 12) + self.photo_ranges.len() * 16
+        self.len() * (4 + 4 + 12 + 4 + 12)
+            + self.clipped.len()
+            + self.bound_weight.len() * 4
+            + self.photo_ranges.len() * 16
     }
 
     /// How many photos see each of `n_vertices` vertices.
@@ -121,6 +149,8 @@ impl Observations {
             weight: index.iter().map(|&p| self.weight[p]).collect(),
             dir: index.iter().map(|&p| self.dir[p]).collect(),
             photo_ranges: Vec::with_capacity(self.photo_ranges.len()),
+            clipped: gather_some(&self.clipped, index),
+            bound_weight: gather_some(&self.bound_weight, index),
         };
         for range in &self.photo_ranges {
             let start = index.partition_point(|&p| p < range.start);
@@ -128,6 +158,15 @@ impl Observations {
             out.photo_ranges.push(start..end);
         }
         out
+    }
+}
+
+/// `v` at positions `index`, or empty when `v` is.
+fn gather_some<T: Copy>(v: &[T], index: &[usize]) -> Vec<T> {
+    if v.is_empty() {
+        Vec::new()
+    } else {
+        index.iter().map(|&p| v[p]).collect()
     }
 }
 
@@ -204,6 +243,10 @@ struct Record {
     px: [f64; 2],
     rgb: [f32; 3],
     weight: f32,
+    /// Channels that are lower bounds ([`Observations::clipped`]).
+    clipped: u8,
+    /// The weight as a bound ([`Observations::bound_weight`]).
+    bound_weight: f32,
     dir: [f32; 3],
 }
 
@@ -310,23 +353,22 @@ impl ViewGeometry<'_> {
                 }
             }
         }
-        let Some((rgb, over)) = self
+        let Some(sample) = self
             .photo
-            .sample([px[0] * self.scale[0], px[1] * self.scale[1]])
+            .sample_bounds([px[0] * self.scale[0], px[1] * self.scale[1]])
         else {
             return Outcome::Outside;
         };
-        let weight = if over {
-            0.0
-        } else {
-            grazing_confidence(cos, opts) as f32
-        };
+        let (over, alpha) = (sample.overexposed, grazing_confidence(cos, opts) as f32);
+        let bound = over && sample.clipped != 0;
         Outcome::Kept(
             Record {
                 vertex: v as u32,
                 px,
-                rgb,
-                weight,
+                rgb: sample.rgb,
+                weight: if over { 0.0 } else { alpha },
+                clipped: if bound { sample.clipped } else { 0 },
+                bound_weight: if bound { alpha } else { 0.0 },
                 dir: [wo.x as f32, wo.y as f32, wo.z as f32],
             },
             over,
@@ -419,6 +461,7 @@ fn keep_outcomes(
                 s.near_edge += 1;
             }
             r.weight *= f;
+            r.bound_weight *= f;
         }
         s.overexposed += over as usize;
         obs.vertex.push(r.vertex);
@@ -426,6 +469,8 @@ fn keep_outcomes(
         obs.rgb.push(r.rgb);
         obs.weight.push(r.weight);
         obs.dir.push(r.dir);
+        obs.clipped.push(r.clipped);
+        obs.bound_weight.push(r.bound_weight);
     }
     s
 }
@@ -508,6 +553,8 @@ mod tests {
             weight: (0..n).map(|p| 0.1 * p as f32).collect(),
             dir: (0..n).map(|p| [0.0, p as f32, 1.0]).collect(),
             photo_ranges: vec![0..4, 4..4, 4..7],
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
         };
         let g = obs.gather(&[1, 3, 5]);
         assert_eq!(g.photo_ranges, vec![0..2, 2..2, 2..3]);

@@ -282,6 +282,8 @@ mod tests {
             weight: vec![1.0; n],
             dir: vec![[0.0, 0.0, 1.0]; n],
             photo_ranges: std::iter::once(0..n).collect(),
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
         };
         (obs, adj)
     }
@@ -330,6 +332,8 @@ mod tests {
             weight: vec![1.0, 1.0, 1.0, 1.0, 0.0],
             dir: vec![[0.0, 0.0, 1.0]; 5],
             photo_ranges: vec![0..2, 2..3, 3..5],
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
         };
         let e = excess_over_vertex_median(&obs, &[1.0, 8.0, 2.0, 9.0, 5.0], 3);
         assert_eq!(e, vec![0.0, 0.0, 0.0, 7.0, 0.0]);

@@ -226,6 +226,16 @@ fn extract_observations(
         );
         (bvh, obs)
     });
+    let bounds = obs.bound_weight.iter().filter(|&&b| b > 0.0).count();
+    log.notes.push(format!(
+        "overexposed observations with a clipped channel: {bounds} of {}; {}",
+        obs.len(),
+        if opts.clipped_bounds {
+            "their clipped channels read as lower bounds, their others as values (--clipped bound, with the paper's per-photo map)"
+        } else {
+            "left out (--clipped drop)"
+        }
+    ));
     let budget = crate::solve::budget::check(&sizes(obs.len() as u64))?;
     log.notes.push(format!(
         "memory plan: {:.0} MiB for the large arrays (largest: {})",

@@ -97,6 +97,9 @@ pub(crate) fn mask_transients(
         for p in r.clone() {
             if mask[p] {
                 obs.weight[p] = 0.0;
+                if let Some(b) = obs.bound_weight.get_mut(p) {
+                    *b = 0.0;
+                }
                 masked[k].push(obs.vertex[p]);
             }
         }

@@ -415,6 +415,8 @@ mod tests {
             weight: vec![],
             dir: vec![],
             photo_ranges: vec![],
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
         };
         for p in 0..n_photos {
             let sun = unit(&mut rng) + Vec3::new(0.0, 0.0, 0.8);

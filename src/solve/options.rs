@@ -206,6 +206,12 @@ pub struct EstimateOptions {
     /// (the sum-to-one prior's scale) and `w̄_N(x)` the mean over [`Self::weights_graph`]'s
     /// neighbours of `x`, taken at the step's start (a Jacobi sweep per material step).
     pub weights_smoothness: f64,
+    /// Overexposed observations' clipped channels read as lower bounds (issue 25, not in
+    /// the paper): each takes its confidence [`crate::observe::Observations::bound_weight`]
+    /// and a one-sided data term ([`crate::solve::light::photo::censor`]) in the fit, with
+    /// the paper's per-photo map (the sun-and-sky and shared models leave them out). Off,
+    /// an overexposed observation has no weight, as in the paper.
+    pub clipped_bounds: bool,
     /// The vertex graph of [`Self::weights_smoothness`]; empty = off.
     pub weights_graph: std::sync::Arc<crate::solve::materials::propagate::VertexGraph>,
     /// Specular lobes reflect the light's colour (issue 25, not in the paper): every basis
@@ -405,6 +411,7 @@ impl Default for EstimateOptions {
             weights_sum: WEIGHTS_SUM,
             weights_sum_scope: SumScope::Every,
             weights_smoothness: 0.0,
+            clipped_bounds: false,
             weights_graph: Default::default(),
             achromatic_specular: false,
             anderson_depth: 0,

@@ -139,6 +139,9 @@ fn with_env_overrides(base: &EstimateOptions) -> EstimateOptions {
         smoothness: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS", base.smoothness),
         smoothness_decay: crate::env_or("ABLATION_DEFAULTS_DECAY", base.smoothness_decay),
         smoothness_min: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS_MIN", base.smoothness_min),
+        // `ABLATION_CLIPPED_BOUNDS=1|0`: clipped channels read as lower bounds, or left out.
+        clipped_bounds: std::env::var("ABLATION_CLIPPED_BOUNDS")
+            .map_or(base.clipped_bounds, |v| v == "1"),
         ..base.clone()
     }
 }

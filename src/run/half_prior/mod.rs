@@ -328,6 +328,7 @@ pub fn thin_observations(obs: Observations, max: usize) -> Observations {
     let scale = n_all as f32 / kept.len() as f32;
     let mut out = obs.gather(&kept);
     out.weight.iter_mut().for_each(|w| *w *= scale);
+    out.bound_weight.iter_mut().for_each(|w| *w *= scale);
     out
 }
 
@@ -360,9 +361,9 @@ fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
         .filter(|&p| seen(p) && px[p].is_some_and(|u| u >= mid))
         .collect();
     let mut fit = obs.clone();
-    for (p, w) in fit.weight.iter_mut().enumerate() {
-        if !seen(p) || px[p].is_some_and(|u| u >= mid) {
-            *w = 0.0;
+    for (p, at) in px.iter().enumerate() {
+        if !seen(p) || at.is_some_and(|u| u >= mid) {
+            fit.mask_out(p);
         }
     }
     if right.is_empty() || fit.weight.iter().all(|&w| w <= 0.0) {

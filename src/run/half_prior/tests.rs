@@ -203,6 +203,8 @@ fn numbered_observations(n: usize, w: impl Fn(usize) -> f32) -> Observations {
         weight: (0..n).map(w).collect(),
         dir: vec![[0.0, 0.0, 1.0]; n],
         photo_ranges: vec![all],
+        clipped: Vec::new(),
+        bound_weight: Vec::new(),
     }
 }
 

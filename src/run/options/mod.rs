@@ -131,6 +131,9 @@ pub struct RunOptions {
     pub validation_halves: usize,
     /// Overexposure threshold on the encoded [0, 1] scale.
     pub clip: f32,
+    /// Overexposed observations' clipped channels read as lower bounds
+    /// ([`crate::solve::EstimateOptions::clipped_bounds`]); off by default.
+    pub clipped_bounds: bool,
     /// Seed of every random choice.
     pub seed: u64,
     /// Progress bars on standard error.
@@ -315,6 +318,7 @@ impl RunOptions {
             validation_block: 0,
             validation_halves: 0,
             clip: crate::import::photo::DEFAULT_CLIP,
+            clipped_bounds: false,
             seed: 1,
             progress: true,
             force: false,

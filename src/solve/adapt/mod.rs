@@ -499,7 +499,7 @@ pub fn holdout_split(obs: &Observations, seed: u64) -> (Observations, Vec<usize>
     let mut held = Vec::new();
     for p in 0..obs.len() {
         if obs.weight[p] > 0.0 && held_out(obs, p, seed) {
-            train.weight[p] = 0.0;
+            train.mask_out(p);
             held.push(p);
         }
     }

@@ -75,6 +75,10 @@ pub fn drop_photos(obs: &Observations, drop: &[usize]) -> Observations {
             out.rgb.push(obs.rgb[p]);
             out.weight.push(obs.weight[p]);
             out.dir.push(obs.dir[p]);
+            if !obs.clipped.is_empty() {
+                out.clipped.push(obs.clipped[p]);
+                out.bound_weight.push(obs.bound_weight[p]);
+            }
         }
         out.photo_ranges.push(lo..out.vertex.len());
         new_index += 1;

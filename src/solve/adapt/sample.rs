@@ -141,6 +141,8 @@ mod tests {
             weight: vec![1.0; n],
             dir: vec![[0.0, 0.0, 1.0]; n],
             photo_ranges: vec![0..3, 3..6],
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
         };
         let sub = observations_of(&obs, &[false, true, false, true]);
         assert_eq!(sub.vertex, vec![1, 1, 3]);

@@ -18,8 +18,8 @@
 
 use crate::solve::light::laplacian::Laplacian;
 use crate::solve::light::photo::{
-    jacobi_scaling, reweight, set_pass_weights, smoothness_weights, solve_pass, start_texels,
-    take_pass, PassSystem, PhotoData, QpStats,
+    censor, jacobi_scaling, reweight, set_pass_weights, smoothness_weights, solve_pass,
+    start_texels, take_pass, PassSystem, PhotoData, QpStats,
 };
 use crate::solve::light::sh_prior::ShProjection;
 use crate::solve::light::system::{split3, texel_diag_vec, PhotoSystem};
@@ -80,6 +80,7 @@ pub fn fit_light_scheduled(
         if pass > 0 {
             reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
+        censor(problem, beta, &sys, &x, &data, &mut omega);
         set_pass_weights(&mut sys, &data, &omega);
         let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let pass_opts = EstimateOptions {

@@ -97,8 +97,26 @@ pub(crate) struct PhotoData {
     alpha_all: Vec<f64>,
     /// `y_{p,c}` of every observation of the photo.
     y_all: Vec<[f64; 3]>,
+    /// The channels that are lower bounds ([`crate::observe::Observations::clipped`]) of
+    /// every observation of the photo, when one with `α > 0` has any; else empty.
+    clipped_all: Vec<u8>,
     /// Whether the rows are a sample.
     sampled: bool,
+}
+
+/// The clipped channels of the observations in `range`, or empty when none of weight
+/// `α > 0` has one (the fit reads bounds only when [`crate::solve::EstimateOptions::clipped_bounds`]
+/// gave them their weight).
+fn bounds_of(obs: &crate::observe::Observations, range: std::ops::Range<usize>) -> Vec<u8> {
+    let any = !obs.clipped.is_empty()
+        && range
+            .clone()
+            .any(|p| obs.clipped[p] != 0 && obs.weight[p] > 0.0);
+    if any {
+        range.map(|p| obs.clipped[p]).collect()
+    } else {
+        Vec::new()
+    }
 }
 
 impl PhotoData {
@@ -119,10 +137,16 @@ impl PhotoData {
             y: rows.map(|p| obs.rgb[p].map(f64::from)).collect(),
             alpha_all: range.clone().map(|p| obs.weight[p] as f64).collect(),
             y_all: range.clone().map(|p| obs.rgb[p].map(f64::from)).collect(),
+            clipped_all: bounds_of(obs, range.clone()),
             sampled: sample.is_some(),
             pos,
             range,
         }
+    }
+
+    /// Whether some observation of the photo is read as a lower bound ([`censor`]).
+    pub(crate) fn has_bounds(&self) -> bool {
+        !self.clipped_all.is_empty()
     }
 
     /// The QP's rows as observation indices.
@@ -322,6 +346,7 @@ pub(crate) fn lighting_step_warm(
         if pass > 0 || warm {
             reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
         }
+        censor(problem, beta, &sys, &x, &data, &mut omega);
         set_pass_weights(&mut sys, &data, &omega);
         let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let res = solve_pass(&system, &data, &x, opts, photo)?;
@@ -442,16 +467,9 @@ pub(crate) fn reweight(
     opts: &EstimateOptions,
     omega: &mut [[f64; 3]],
 ) {
-    let (n, len) = (sys.n, data.range.len());
+    let len = data.range.len();
     let (alpha, y) = (&data.alpha_all, &data.y_all);
-    let h = haar3(&split3(x, n * n), n);
-    let pred = if data.sampled {
-        forward_full(problem, beta, data.range.clone(), &h)
-    } else {
-        let mut pred = vec![[0.0; 3]; len];
-        sys.forward_rows(&h, &mut pred);
-        pred
-    };
+    let pred = predict_all(problem, beta, sys, x, data);
     for c in 0..3 {
         let mut ab: Vec<f64> = (0..len)
             .filter(|&q| alpha[q] > 0.0)
@@ -478,6 +496,53 @@ pub(crate) fn reweight(
             .max(f64::MIN_POSITIVE);
         for q in 0..len {
             omega[q][c] = robust_weight(opts.robust, y[q][c] - pred[q][c], sigma);
+        }
+    }
+}
+
+/// The prediction of texels `x` at every observation of the photo.
+fn predict_all(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    sys: &PhotoSystem,
+    x: &[f64],
+    data: &PhotoData,
+) -> Vec<[f64; 3]> {
+    let n = sys.n;
+    let h = haar3(&split3(x, n * n), n);
+    if data.sampled {
+        forward_full(problem, beta, data.range.clone(), &h)
+    } else {
+        let mut pred = vec![[0.0; 3]; data.range.len()];
+        sys.forward_rows(&h, &mut pred);
+        pred
+    }
+}
+
+/// Clipped channels as lower bounds (a censored, one-sided data term; Tobin 1958 for the
+/// censored regression, here its least-squares form): channel `c` of an observation whose
+/// recorded `y_c` is a lower bound contributes `α ω (y_c − ŷ_c)²` while the prediction
+/// `ŷ_c` of the current texels `x` is below it and nothing once `ŷ_c ≥ y_c`, so its `ω` is
+/// set to 0 there. Each pass's weighted solve then minimises the squared hinge
+/// `max(0, y_c − ŷ_c)²` on the set of active bounds, which is re-read before every pass
+/// (and the material step keeps the lighting step's last set).
+pub(crate) fn censor(
+    problem: &Problem,
+    beta: &[[f64; 3]],
+    sys: &PhotoSystem,
+    x: &[f64],
+    data: &PhotoData,
+    omega: &mut [[f64; 3]],
+) {
+    if !data.has_bounds() || x.iter().all(|&v| v == 0.0) {
+        return;
+    }
+    let pred = predict_all(problem, beta, sys, x, data);
+    for (q, &mask) in data.clipped_all.iter().enumerate() {
+        for c in (0..3).filter(|c| mask & (1 << c) != 0) {
+            if pred[q][c] >= data.y_all[q][c] {
+                omega[q][c] = 0.0;
+            }
         }
     }
 }

@@ -228,3 +228,80 @@ fn warm_irls_passes_continue_to_the_robust_fit() {
     );
     assert!(3.0 * e_warm < e_ls, "warm {e_warm}, least squares {e_ls}");
 }
+
+#[test]
+fn clipped_channels_read_as_bounds_recover_the_light_clipping_hides() {
+    // Noise-free rows; every channel value above the 80th percentile clipped to it (a
+    // photo's overexposure). Read as exact values, the clipped rows pull the map down;
+    // read as lower bounds (the one-sided term, its active set re-read as each lighting
+    // step starts from the last one's light, as the alternation runs it) the fit must come
+    // back to the planted light, which satisfies every bound and fits every other row
+    // exactly: within 5% of the exact reading's distance from it, and no clipped channel
+    // predicted more than 0.5% below its bound (the QP's tolerance and the Laplacian's
+    // pull are far below both).
+    let n = 16;
+    let (mut obs, t) = planted_photo(3000, n, 0.0, 5);
+    let mut all: Vec<f32> = obs.rgb.iter().flatten().copied().collect();
+    all.sort_by(f32::total_cmp);
+    let level = all[all.len() * 8 / 10];
+    for rgb in obs.rgb.iter_mut() {
+        let mask = (0..3)
+            .filter(|&c| rgb[c] > level)
+            .fold(0u8, |m, c| m | 1 << c);
+        for c in (0..3).filter(|&c| mask & 1 << c != 0) {
+            rgb[c] = level;
+        }
+        obs.clipped.push(mask);
+        obs.bound_weight.push(if mask != 0 { 1.0 } else { 0.0 });
+    }
+    let beta = vec![[1.0; 3]; obs.len()];
+    let opts = EstimateOptions {
+        robust: Robust::None,
+        irls_iters: 1,
+        smoothness: 1e-6,
+        qp_rel_tol: 1e-10,
+        qp_max_iter: 1000,
+        ..EstimateOptions::default()
+    };
+    let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
+        (0..n * n)
+            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+            .collect()
+    });
+    let exact_reading = Observations {
+        clipped: Vec::new(),
+        bound_weight: Vec::new(),
+        ..obs.clone()
+    };
+    let problem = one_photo(&exact_reading, &t);
+    let naive = lighting_step_full(&problem, &beta, 0, None, None, &opts).unwrap();
+    let naive_err = reached_distance(&naive.light, &truth, n);
+    let problem = one_photo(&obs, &t);
+    let mut light = None;
+    for _ in 0..15 {
+        let start = light.as_ref();
+        let r = lighting_step_warm(&problem, &beta, 0, start, None, &opts, None, false).unwrap();
+        light = Some(r.light);
+    }
+    let light = light.unwrap();
+    let err = reached_distance(&light, &truth, n);
+    assert!(
+        naive_err > 0.05,
+        "clipping must bias the exact reading: {naive_err}"
+    );
+    assert!(
+        err < 0.05 * naive_err,
+        "bounds {err} against exact reading {naive_err}"
+    );
+    let pred = predict_from(
+        &problem,
+        &beta,
+        &basis_responses(&problem, std::slice::from_ref(&light)),
+    );
+    for (p, (&mask, pred)) in obs.clipped.iter().zip(&pred).enumerate() {
+        for c in (0..3).filter(|&c| mask & 1 << c != 0) {
+            let short = (level as f64 - pred[c]) / level as f64;
+            assert!(short < 0.005, "observation {p} channel {c}: {short} below");
+        }
+    }
+}

@@ -496,6 +496,8 @@ mod tests {
             weight: vec![1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0],
             dir: vec![[0.0, 0.0, 1.0]; 7],
             photo_ranges: vec![0..5, 5..7],
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
         };
         let normals_env = vec![Vec3::z(); 5];
         let open = [1.0, 0.5, 1.0, 1.0, 0.97];

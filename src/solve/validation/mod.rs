@@ -312,9 +312,9 @@ fn refit_sums(
 ) -> crate::Result<(f64, f64)> {
     let obs = problem.obs;
     let mut fit_obs = obs.clone();
-    for (w, &h) in fit_obs.weight.iter_mut().zip(held) {
+    for (p, &h) in held.iter().enumerate() {
         if h {
-            *w = 0.0;
+            fit_obs.mask_out(p);
         }
     }
     let fit_problem = Problem {
@@ -397,16 +397,36 @@ pub(crate) fn held_back_indices(problem: &Problem, opts: &EstimateOptions) -> Ve
     }
 }
 
+/// Whether the fit reads clipped channels as lower bounds: asked, with the paper's
+/// per-photo map (with or without its prior), and some observation is one.
+fn reads_bounds(problem: &Problem, opts: &EstimateOptions) -> bool {
+    opts.clipped_bounds
+        && opts.light_sky.is_none()
+        && opts.light_groups.is_none()
+        && problem.obs.has_bounds()
+}
+
 impl HeldBack {
-    /// The split of [`held_back_indices`], masked for the fit.
+    /// The split of [`held_back_indices`], masked for the fit; the fit's copy gives the
+    /// clipped observations their weight as bounds when asked
+    /// ([`EstimateOptions::clipped_bounds`]).
     pub(crate) fn new(problem: &Problem, opts: &EstimateOptions) -> Self {
         let idx = held_back_indices(problem, opts);
         let halves = opts.validation_halves.is_some();
         let blocked = !halves && opts.validation_block > 0;
-        let masked = (!idx.is_empty()).then(|| {
+        let bounds = reads_bounds(problem, opts);
+        let masked = (!idx.is_empty() || bounds).then(|| {
             let mut m = problem.obs.clone();
+            if bounds {
+                let seen = problem.obs.seen_vertices(problem.n_vertices);
+                for p in 0..m.len() {
+                    if seen[m.vertex[p] as usize] {
+                        m.weight[p] = m.weight[p].max(problem.obs.bound_weight[p]);
+                    }
+                }
+            }
             for &p in &idx {
-                m.weight[p] = 0.0;
+                m.mask_out(p);
             }
             m
         });

@@ -238,3 +238,48 @@ fn left_by_view_splits_each_photo_at_its_centroid() {
     // Photo 1: d = y, right = y × z = x, so left is x < 3.
     assert_eq!(&left[6..], &[true, true, true, false, false, false]);
 }
+
+/// The fit's copy reads an overexposed observation as a bound only when asked, with the
+/// paper's map, and at a vertex some un-clipped observation also reads: vertex 0 has one
+/// value and one bound, vertex 1 only a bound (nothing would hold its weights from above).
+#[test]
+fn bounds_join_the_fit_only_where_a_value_also_reads_the_vertex() {
+    let mut obs = grid_obs(2, 2);
+    obs.weight = vec![1.0, 0.0, 0.0, 0.0];
+    obs.clipped = vec![0, 0b001, 0b011, 0];
+    obs.bound_weight = vec![0.0, 0.7, 0.9, 0.0];
+    obs.photo_ranges = std::iter::once(0..4).collect();
+    let t = crate::transport::Transport::default();
+    let problem = Problem {
+        obs: &obs,
+        transport: &t,
+        n_vertices: 2,
+        n_photos: 1,
+    };
+    let weights = |opts: &EstimateOptions| {
+        let held = HeldBack::new(&problem, opts);
+        held.fit_problem(&problem).obs.weight.clone()
+    };
+    let base = EstimateOptions {
+        validation_fraction: 0.0,
+        ..EstimateOptions::default()
+    };
+    assert_eq!(weights(&base), vec![1.0, 0.0, 0.0, 0.0], "off by default");
+    let on = EstimateOptions {
+        clipped_bounds: true,
+        ..base.clone()
+    };
+    assert_eq!(weights(&on), vec![1.0, 0.7, 0.0, 0.0]);
+    let sky = EstimateOptions {
+        light_groups: Some(crate::solve::options::LightGroups {
+            group: vec![0],
+            source: "test".into(),
+        }),
+        ..on.clone()
+    };
+    assert_eq!(
+        weights(&sky),
+        vec![1.0, 0.0, 0.0, 0.0],
+        "not with the shared light"
+    );
+}

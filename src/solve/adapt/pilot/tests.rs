@@ -44,6 +44,8 @@ fn the_count_is_scored_at_vertices_two_training_observations_see() {
         weight,
         dir: vec![[0.0, 0.0, 1.0]; n],
         photo_ranges: std::iter::once(0..n).collect(),
+        clipped: Vec::new(),
+        bound_weight: Vec::new(),
     };
     let held = [3, 5, 8, 9];
     // Counted by hand: vertex 0 has 3 ≥ 2, vertex 1 has 1, vertex 2 has 1 (the α = 0
