@@ -24,6 +24,7 @@
 //! run never leaves a folder that looks finished.
 
 mod baseline;
+mod clipped;
 mod decisions;
 mod evaluate;
 mod example;
@@ -52,10 +53,10 @@ pub use example::builtin_example;
 pub use fit::photo_halves;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    scene_light, FitShape, Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps,
-    Restart, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum, DEFAULT_LIGHTING_SAMPLE,
-    DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
-    LIGHTING_SAMPLE_MAX_RATIO, PRIOR_FROM_PHOTOS,
+    scene_light, Clipped, FitShape, Holdout, LargeMeshSettings, MaterialCount, PriorStrength,
+    RatioSteps, Restart, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum,
+    CLIPPED_AUTO_SHARE, DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES,
+    DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO, PRIOR_FROM_PHOTOS,
 };
 pub use progress::Progress;
 pub use shading::{fine_rays, render_local_resolution};

@@ -42,6 +42,8 @@ pub(crate) fn run_into(opts: &RunOptions, dir: &Path, progress: &Progress) -> Re
     let sized = sized_for_mesh(opts, imported.scene.mesh.positions.len(), &mut log);
     let opts = sized.as_ref().unwrap_or(opts);
     let observed = observe_training(opts, &imported, &mut log, progress)?;
+    let resolved = super::clipped::resolve(opts, &observed.obs, &mut log);
+    let opts = resolved.as_ref().unwrap_or(opts);
     let (observed, prepared) = prepare(opts, &imported, observed, &mut log, progress)?;
     let mut fit = super::fit::fit(opts, &imported, observed, prepared, &mut log, progress)?;
     let evaluated = evaluation(opts, &imported, &mut fit, &mut log, dir, progress)?;
@@ -226,16 +228,6 @@ fn extract_observations(
         );
         (bvh, obs)
     });
-    let bounds = obs.bound_weight.iter().filter(|&&b| b > 0.0).count();
-    log.notes.push(format!(
-        "overexposed observations with a clipped channel: {bounds} of {}; {}",
-        obs.len(),
-        if opts.clipped_bounds {
-            "their clipped channels read as lower bounds, their others as values (--clipped bound, with the paper's per-photo map)"
-        } else {
-            "left out (--clipped drop)"
-        }
-    ));
     let budget = crate::solve::budget::check(&sizes(obs.len() as u64))?;
     log.notes.push(format!(
         "memory plan: {:.0} MiB for the large arrays (largest: {})",

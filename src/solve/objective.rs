@@ -10,6 +10,18 @@ use rayon::prelude::*;
 
 use crate::solve::problem::{basis_responses, beta_per_vertex, predict_from, Problem, CHUNK};
 
+/// The residual `r = y − ŷ` of observation `p`'s channel `c`; of a channel read as a lower
+/// bound ([`crate::observe::Observations::clipped`], weighted only when the fit reads
+/// bounds), the shortfall `max(0, y − ŷ)`: a prediction above a bound is no error.
+fn residual(obs: &crate::observe::Observations, p: usize, c: usize, pred: f64) -> f64 {
+    let r = obs.rgb[p][c] as f64 - pred;
+    if obs.clipped.get(p).is_some_and(|m| m & (1 << c) != 0) {
+        r.max(0.0)
+    } else {
+        r
+    }
+}
+
 /// Data term, train RMSE: `(Σ α ω r², RMSE over α > 0)`.
 pub(crate) fn data_fit(problem: &Problem, pred: &[[f64; 3]], omega: &[[f32; 3]]) -> (f64, f64) {
     let obs = problem.obs;
@@ -25,7 +37,7 @@ pub(crate) fn data_fit(problem: &Problem, pred: &[[f64; 3]], omega: &[[f32; 3]])
                 }
                 cnt += 1;
                 for c in 0..3 {
-                    let r = obs.rgb[p][c] as f64 - pred[p][c];
+                    let r = residual(obs, p, c, pred[p][c]);
                     f += a * omega[p][c] as f64 * r * r;
                     sq += r * r;
                 }
@@ -63,7 +75,7 @@ pub(crate) fn channel_data_fit(
             continue;
         }
         for c in 0..3 {
-            let r = obs.rgb[p][c] as f64 - pred[p][c];
+            let r = residual(obs, p, c, pred[p][c]);
             f[c] += a * omega[p][c] as f64 * r * r;
         }
     }
@@ -138,4 +150,72 @@ pub(crate) fn gauge(lambda: &[Vec<[f64; 3]>], weights: &[f64], n_vertices: usize
         }
     }
     g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observe::Observations;
+
+    /// Two observations of value 0.5 in every channel, the second with its red channel a
+    /// lower bound: predicted 0.8 there the bound is met (no error), predicted 0.2 it falls
+    /// 0.3 short, as a value would; green and blue are values either way.
+    #[test]
+    fn a_bound_met_is_no_error_and_a_bound_missed_counts_its_shortfall() {
+        let obs = Observations {
+            vertex: vec![0, 1],
+            photo: vec![0, 0],
+            rgb: vec![[0.5; 3]; 2],
+            weight: vec![1.0, 2.0],
+            dir: vec![[0.0, 0.0, 1.0]; 2],
+            photo_ranges: std::iter::once(0..2).collect(),
+            clipped: vec![0, 0b001],
+            bound_weight: vec![0.0, 2.0],
+        };
+        let t = crate::transport::Transport::default();
+        let problem = Problem {
+            obs: &obs,
+            transport: &t,
+            n_vertices: 2,
+            n_photos: 1,
+        };
+        let omega = vec![[1.0_f32; 3]; 2];
+        let met = [[0.4, 0.5, 0.5], [0.8, 0.5, 0.5]];
+        let (f, rmse) = data_fit(&problem, &met, &omega);
+        // Only the first observation's red misses, by 0.1: F = 1 · 0.01; RMSE over 6 terms.
+        assert!((f - 0.01).abs() < 1e-12, "{f}");
+        assert!((rmse - (0.01_f64 / 6.0).sqrt()).abs() < 1e-12, "{rmse}");
+        let missed = [[0.4, 0.5, 0.5], [0.2, 0.6, 0.5]];
+        let per_channel = channel_data_fit(&problem, &missed, &omega);
+        // Red: 0.01 + 2 · 0.09; green: 2 · 0.01; blue: 0.
+        let want = [0.01 + 2.0 * 0.09, 2.0 * 0.01, 0.0];
+        for c in 0..3 {
+            assert!((per_channel[c] - want[c]).abs() < 1e-12, "{per_channel:?}");
+        }
+    }
+
+    /// A problem whose clipped channels do not cover every observation is refused, with the
+    /// counts named (a derived set of observations that dropped them half-way).
+    #[test]
+    fn clipped_channels_must_cover_every_observation() {
+        let obs = Observations {
+            vertex: vec![0, 1],
+            photo: vec![0, 0],
+            rgb: vec![[0.5; 3]; 2],
+            weight: vec![1.0; 2],
+            dir: vec![[0.0, 0.0, 1.0]; 2],
+            photo_ranges: std::iter::once(0..2).collect(),
+            clipped: vec![1],
+            bound_weight: vec![1.0],
+        };
+        let t = crate::transport::Transport::default();
+        let problem = Problem {
+            obs: &obs,
+            transport: &t,
+            n_vertices: 2,
+            n_photos: 1,
+        };
+        let err = problem.validate().unwrap_err().to_string();
+        assert!(err.contains("clipped channels (1)"), "{err}");
+    }
 }

@@ -41,6 +41,12 @@ impl Problem<'_> {
                 o.weight.len()
             ));
         }
+        let (nc, nb) = (o.clipped.len(), o.bound_weight.len());
+        if nc != nb || (nc != 0 && nc != p) {
+            return bad(format!(
+                "clipped channels ({nc}) and bound weights ({nb}) for {p} observations"
+            ));
+        }
         let t = self.transport;
         if t.n_obs != p || t.offsets.len() != p * t.n_basis + 1 {
             return bad(format!(

@@ -20,6 +20,7 @@ mod uv_sphere;
 mod adapt;
 mod bench_isolated;
 mod brdf_slices;
+mod clipped_bounds;
 mod cluster_init;
 mod colmap_camera;
 mod colmap_errors;

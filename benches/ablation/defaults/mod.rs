@@ -61,7 +61,7 @@ struct Colours<'a> {
 /// the bench's options (the paper's free weights, the paper's light model).
 pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let t0 = std::time::Instant::now();
-    let base = &with_env_overrides(base);
+    let base = &with_env_overrides(base, &case.train.obs);
     let (mean_rgb, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
     let colours = Colours {
         mean_rgb: &mean_rgb,
@@ -125,7 +125,16 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
 /// `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`), its schedule with
 /// `ABLATION_DEFAULTS_DECAY=D` and `ABLATION_DEFAULTS_SMOOTHNESS_MIN=M` (the estimator's
 /// `smoothness_decay` and `smoothness_min`, which `run` leaves at 1 and 0).
-fn with_env_overrides(base: &EstimateOptions) -> EstimateOptions {
+/// `run`'s `--clipped auto` on the training observations `obs`.
+fn clipped_auto(obs: &relight_cpc::observe::Observations) -> bool {
+    let bounds = obs.bound_weight.iter().filter(|&&b| b > 0.0).count();
+    bounds as f64 >= relight_cpc::run::CLIPPED_AUTO_SHARE * obs.len() as f64 && bounds > 0
+}
+
+fn with_env_overrides(
+    base: &EstimateOptions,
+    obs: &relight_cpc::observe::Observations,
+) -> EstimateOptions {
     EstimateOptions {
         irls_iters: crate::env_or("ABLATION_DEFAULTS_IRLS", base.irls_iters),
         robust_floor: crate::env_or("ABLATION_DEFAULTS_FLOOR", base.robust_floor),
@@ -139,9 +148,10 @@ fn with_env_overrides(base: &EstimateOptions) -> EstimateOptions {
         smoothness: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS", base.smoothness),
         smoothness_decay: crate::env_or("ABLATION_DEFAULTS_DECAY", base.smoothness_decay),
         smoothness_min: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS_MIN", base.smoothness_min),
-        // `ABLATION_CLIPPED_BOUNDS=1|0`: clipped channels read as lower bounds, or left out.
+        // `ABLATION_CLIPPED_BOUNDS=1|0`: clipped channels read as lower bounds, or left out;
+        // unset, `run`'s `--clipped auto` (bounds from a tenth of the observations on).
         clipped_bounds: std::env::var("ABLATION_CLIPPED_BOUNDS")
-            .map_or(base.clipped_bounds, |v| v == "1"),
+            .map_or(clipped_auto(obs), |v| v == "1"),
         ..base.clone()
     }
 }

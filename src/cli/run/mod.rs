@@ -25,10 +25,11 @@ pub(crate) struct RunArgs {
     /// ignored.
     #[arg(long, default_value_t = 250.0, help_heading = "Input")]
     pub(crate) clip: f32,
-    /// What an overexposed pixel tells the fit: `drop` (nothing, the paper) or `bound`
-    /// (its clipped channels are lower bounds of the radiance, its other channels exact;
-    /// with the paper's per-photo map, with or without `--light prior`).
-    #[arg(long, default_value = "drop", value_parser = ["drop", "bound"], help_heading = "Input")]
+    /// What an overexposed pixel tells the fit: `drop` (nothing, the paper), `bound` (its
+    /// clipped channels are lower bounds of the radiance, its other channels values; with
+    /// the paper's per-photo map, with or without `--light prior`), or `auto` (`bound` when
+    /// a fifth or more of the training observations have a clipped channel).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "drop", "bound"], help_heading = "Input")]
     pub(crate) clipped: String,
 
     /// Number of materials, or `auto`.

@@ -74,7 +74,7 @@ impl RunArgs {
         o.adaptive = self.adaptive == "on";
         o.pilot_vertices = self.pilot_vertices;
         o.clip = self.clip / 255.0;
-        o.clipped_bounds = self.clipped == "bound";
+        o.clipped = relight_cpc::run::Clipped::parse(&self.clipped)?;
         o.transients = self.transients;
         o.edge_margin = !self.no_edge_margin;
         Ok(())

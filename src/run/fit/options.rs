@@ -50,7 +50,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         blend_tolerance: o.blend_tolerance,
         lighting_strata: strata.to_vec(),
         scale_anchor: o.scale_anchor,
-        clipped_bounds: o.clipped_bounds,
+        clipped_bounds: o.clipped == super::super::Clipped::Bound,
         ..EstimateOptions::default()
     }
 }
