@@ -156,29 +156,39 @@ pub(crate) fn gauge(lambda: &[Vec<[f64; 3]>], weights: &[f64], n_vertices: usize
 mod tests {
     use super::*;
     use crate::observe::Observations;
+    use crate::transport::Transport;
 
-    /// Two observations of value 0.5 in every channel, the second with its red channel a
-    /// lower bound: predicted 0.8 there the bound is met (no error), predicted 0.2 it falls
-    /// 0.3 short, as a value would; green and blue are values either way.
-    #[test]
-    fn a_bound_met_is_no_error_and_a_bound_missed_counts_its_shortfall() {
-        let obs = Observations {
+    /// Two observations of value 0.5 in every channel, of weights 1 and 2, one photo.
+    fn two(clipped: Vec<u8>, bound_weight: Vec<f32>) -> Observations {
+        Observations {
             vertex: vec![0, 1],
             photo: vec![0, 0],
             rgb: vec![[0.5; 3]; 2],
             weight: vec![1.0, 2.0],
             dir: vec![[0.0, 0.0, 1.0]; 2],
             photo_ranges: std::iter::once(0..2).collect(),
-            clipped: vec![0, 0b001],
-            bound_weight: vec![0.0, 2.0],
-        };
-        let t = crate::transport::Transport::default();
-        let problem = Problem {
-            obs: &obs,
-            transport: &t,
+            clipped,
+            bound_weight,
+        }
+    }
+
+    fn problem_of<'a>(obs: &'a Observations, t: &'a Transport) -> Problem<'a> {
+        Problem {
+            obs,
+            transport: t,
             n_vertices: 2,
             n_photos: 1,
-        };
+        }
+    }
+
+    /// The second observation's red channel a lower bound: predicted 0.8 there the bound is
+    /// met (no error), predicted 0.2 it falls 0.3 short, as a value would; green and blue
+    /// are values either way.
+    #[test]
+    fn a_bound_met_is_no_error_and_a_bound_missed_counts_its_shortfall() {
+        let obs = two(vec![0, 0b001], vec![0.0, 2.0]);
+        let t = Transport::default();
+        let problem = problem_of(&obs, &t);
         let omega = vec![[1.0_f32; 3]; 2];
         let met = [[0.4, 0.5, 0.5], [0.8, 0.5, 0.5]];
         let (f, rmse) = data_fit(&problem, &met, &omega);
@@ -198,24 +208,9 @@ mod tests {
     /// counts named (a derived set of observations that dropped them half-way).
     #[test]
     fn clipped_channels_must_cover_every_observation() {
-        let obs = Observations {
-            vertex: vec![0, 1],
-            photo: vec![0, 0],
-            rgb: vec![[0.5; 3]; 2],
-            weight: vec![1.0; 2],
-            dir: vec![[0.0, 0.0, 1.0]; 2],
-            photo_ranges: std::iter::once(0..2).collect(),
-            clipped: vec![1],
-            bound_weight: vec![1.0],
-        };
-        let t = crate::transport::Transport::default();
-        let problem = Problem {
-            obs: &obs,
-            transport: &t,
-            n_vertices: 2,
-            n_photos: 1,
-        };
-        let err = problem.validate().unwrap_err().to_string();
+        let obs = two(vec![1], vec![1.0]);
+        let t = Transport::default();
+        let err = problem_of(&obs, &t).validate().unwrap_err().to_string();
         assert!(err.contains("clipped channels (1)"), "{err}");
     }
 }
