@@ -112,6 +112,9 @@ pub struct InspectReport {
     pub skipped: Vec<String>,
     /// Observations kept over all photos.
     pub observations: usize,
+    /// Of those, the overexposed ones with a clipped channel: what `run --clipped` reads as
+    /// lower bounds ([`Observations::clipped`]).
+    pub clipped_observations: usize,
     /// Vertices seen by at least one photo.
     pub vertices_observed: usize,
     /// The fused point cloud, when present.
@@ -150,6 +153,7 @@ impl InspectReport {
             views_used: scene.views.len(),
             skipped: scene.skipped.clone(),
             observations: obs.len(),
+            clipped_observations: obs.clipped.iter().filter(|&&m| m != 0).count(),
             vertices_observed: obs
                 .views_per_vertex(scene.mesh.positions.len())
                 .iter()
@@ -318,6 +322,12 @@ impl fmt::Display for InspectReport {
         for s in &self.skipped {
             writeln!(f, "  skipped {s}")?;
         }
+        writeln!(
+            f,
+            "  with a clipped channel: {} ({:.1}%; `run --clipped` reads them as lower bounds or leaves them out)",
+            self.clipped_observations,
+            100.0 * self.clipped_observations as f64 / self.observations.max(1) as f64
+        )?;
         writeln!(
             f,
             "  {:<24} {:>9} {:>8} {:>8} {:>9} {:>9}",

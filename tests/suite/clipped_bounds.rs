@@ -70,6 +70,9 @@ fn clipped_channels_and_bound_weights_match_an_extraction_that_clips_nothing() {
         "peak 2 clips a large share: {bounds} of {}",
         clipped.len()
     );
+    // `inspect` counts the same observations (its extraction is the default one).
+    let report = relight_cpc::observe::inspect::inspect(&ws, None).unwrap();
+    assert_eq!(report.clipped_observations, bounds);
     for p in 0..clipped.len() {
         assert_eq!(clipped.rgb[p], plain.rgb[p], "observation {p}: the sample");
         if clipped.clipped[p] != 0 {
