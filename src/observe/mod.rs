@@ -90,6 +90,18 @@ impl Observations {
         }
     }
 
+    /// Gives each observation that can be read as a lower bound its bound weight as its
+    /// weight, at the vertices an observation of positive weight (a value) also reads: a
+    /// vertex seen only clipped would have nothing holding its weights from above.
+    pub fn weigh_bounds(&mut self, n_vertices: usize) {
+        let seen = self.seen_vertices(n_vertices);
+        for (p, &b) in self.bound_weight.iter().enumerate() {
+            if seen[self.vertex[p] as usize] {
+                self.weight[p] = self.weight[p].max(b);
+            }
+        }
+    }
+
     /// Whether any observation can be read as a lower bound.
     pub fn has_bounds(&self) -> bool {
         self.bound_weight.iter().any(|&b| b > 0.0)

@@ -9,6 +9,18 @@ use crate::observe::Observations;
 use crate::run::options::{Clipped, RunOptions, CLIPPED_AUTO_SHARE};
 use crate::run::state::RunLog;
 
+/// The observations of `obs` a fit can read as bounds (bound weight > 0), and their share.
+fn bound_share(obs: &Observations) -> (usize, f64) {
+    let bounds = obs.bound_weight.iter().filter(|&&b| b > 0.0).count();
+    (bounds, bounds as f64 / obs.len().max(1) as f64)
+}
+
+/// Whether `--clipped auto` reads the bounds of the training observations `obs`: at least
+/// [`CLIPPED_AUTO_SHARE`] of them have one.
+pub fn auto_reads_bounds(obs: &Observations) -> bool {
+    bound_share(obs).1 >= CLIPPED_AUTO_SHARE
+}
+
 /// The options with `--clipped auto` resolved for `obs` (`None` when nothing to resolve);
 /// the report's note says how many observations have a clipped channel and what the fit
 /// does with them.
@@ -17,10 +29,9 @@ pub(super) fn resolve(
     obs: &Observations,
     log: &mut RunLog,
 ) -> Option<RunOptions> {
-    let bounds = obs.bound_weight.iter().filter(|&&b| b > 0.0).count();
-    let share = bounds as f64 / obs.len().max(1) as f64;
+    let (bounds, share) = bound_share(obs);
     let rule = match opts.clipped {
-        Clipped::Auto if share >= CLIPPED_AUTO_SHARE => Clipped::Bound,
+        Clipped::Auto if auto_reads_bounds(obs) => Clipped::Bound,
         Clipped::Auto => Clipped::Drop,
         given => given,
     };

@@ -49,6 +49,7 @@ mod truth;
 mod truth_check;
 mod write;
 
+pub use clipped::auto_reads_bounds;
 pub use example::builtin_example;
 pub use fit::photo_halves;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};

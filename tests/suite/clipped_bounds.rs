@@ -7,20 +7,17 @@ use relight_cpc::import::scene::{load_photos, load_scene};
 use relight_cpc::import::workspace::Workspace;
 use relight_cpc::observe::trace::SceneBvh;
 use relight_cpc::observe::{self, ObserveOptions};
-use relight_cpc::run::{run, Clipped, MaterialCount, RunOptions};
+use relight_cpc::run::{run, Clipped, MaterialCount};
 use relight_cpc::synth::{build, SynthOptions};
 use relight_cpc::transport::reference::Samples;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-fn tmp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relight-clipped-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
+use crate::scratch::{scratch, small_options};
 
-/// A small Spot whose photos expose the object's 99th percentile to 2: a large share clips.
-fn clipped_workspace(tag: &str) -> PathBuf {
-    let ws = tmp(tag);
+/// A small Spot in `dir/ws` whose photos expose the object's 99th percentile to 2: a large
+/// share clips.
+fn clipped_workspace(dir: &Path) -> PathBuf {
+    let ws = dir.join("ws");
     let opts = SynthOptions {
         width: 64,
         height: 64,
@@ -46,7 +43,8 @@ fn clipped_channels_and_bound_weights_match_an_extraction_that_clips_nothing() {
     // flagged observation has weight 0, the same sample, and bound weight equal to that α;
     // an unflagged one keeps that α as its weight (one threshold marks both a pixel
     // overexposed and its channel clipped, so no observation is overexposed unflagged).
-    let ws = clipped_workspace("plumbing");
+    let dir = scratch("clipped", "plumbing");
+    let ws = clipped_workspace(&dir);
     let scene = load_scene(Workspace::discover(&ws, None).unwrap()).unwrap();
     let bvh = SceneBvh::new(&scene.mesh);
     let opts = ObserveOptions::default();
@@ -86,7 +84,6 @@ fn clipped_channels_and_bound_weights_match_an_extraction_that_clips_nothing() {
             assert_eq!(clipped.weight[p], plain.weight[p], "observation {p}");
         }
     }
-    std::fs::remove_dir_all(&ws).ok();
 }
 
 #[test]
@@ -95,19 +92,11 @@ fn run_reads_bounds_when_asked_and_says_so() {
     // finish with a finite headline, the report names the count of observations with a
     // clipped channel and which rule the fit used, and the training RMSE (bounds met count
     // no error) stays within 2× of the run that drops them.
-    let ws = clipped_workspace("run");
+    let dir = scratch("clipped", "run");
+    let ws = clipped_workspace(&dir);
     let small = |tag: &str, bounds: bool| {
-        let mut o = RunOptions::new(ws.clone(), tmp(tag));
-        o.global_resolution = 16;
-        o.local_resolution = 8;
-        o.normal_grid = 8;
-        o.keep = 32;
-        o.max_iterations = 3;
-        o.rays_per_texel = 1;
-        o.edge_rays = 0;
+        let mut o = small_options(ws.clone(), dir.join(tag));
         o.materials = MaterialCount::Fixed(1);
-        o.progress = false;
-        o.render_training = false;
         o.clipped = if bounds {
             Clipped::Bound
         } else {
@@ -130,8 +119,6 @@ fn run_reads_bounds_when_asked_and_says_so() {
         };
         assert!(md.contains(rule), "{tag}: the rule");
         reports.push(json["train_rmse"].as_f64().unwrap());
-        std::fs::remove_dir_all(&o.out).ok();
     }
     assert!(reports[1] < 2.0 * reports[0], "train RMSE {reports:?}");
-    std::fs::remove_dir_all(&ws).ok();
 }

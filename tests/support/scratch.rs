@@ -1,7 +1,7 @@
 //! Shared by the tests that write files: a scratch folder (or a file in its own scratch
 //! folder) removed on drop, so a test run leaves nothing under the temporary folder, a
-//! small `synth` workspace in it, and small options for `run` on the built-in example with
-//! the check that its report's timeline follows its starts.
+//! small `synth` workspace in it, and small options for `run` (on the built-in example, with
+//! the check that its report's timeline follows its starts).
 
 #![allow(dead_code)]
 
@@ -115,13 +115,11 @@ pub fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     out
 }
 
-/// Options for `run` on the built-in example at small sizes (16² / 8² maps, 8² normal grid,
-/// 32 coefficients, at most 3 outer iterations, 1 ray per texel, 2 materials, no progress,
-/// no training renders), writing into `dir/out`: for tests of what the report records of
-/// the fit.
-pub fn small_example_options(dir: &Path) -> relight_cpc::run::RunOptions {
-    use relight_cpc::run::{builtin_example, MaterialCount, RunOptions};
-    let mut o = RunOptions::new(builtin_example().unwrap(), dir.join("out"));
+/// Options for `run` on `workspace` at small sizes (16² / 8² maps, 8² normal grid, 32
+/// coefficients, at most 3 outer iterations, 1 ray per texel, no progress, no training
+/// renders), writing into `out`.
+pub fn small_options(workspace: PathBuf, out: PathBuf) -> relight_cpc::run::RunOptions {
+    let mut o = relight_cpc::run::RunOptions::new(workspace, out);
     (
         o.global_resolution,
         o.local_resolution,
@@ -129,8 +127,16 @@ pub fn small_example_options(dir: &Path) -> relight_cpc::run::RunOptions {
         o.keep,
     ) = (16, 8, 8, 32);
     (o.max_iterations, o.rays_per_texel, o.edge_rays) = (3, 1, 0);
-    o.materials = MaterialCount::Fixed(2);
     (o.progress, o.render_training) = (false, false);
+    o
+}
+
+/// [`small_options`] on the built-in example with 2 materials, writing into `dir/out`: for
+/// tests of what the report records of the fit.
+pub fn small_example_options(dir: &Path) -> relight_cpc::run::RunOptions {
+    use relight_cpc::run::{builtin_example, MaterialCount};
+    let mut o = small_options(builtin_example().unwrap(), dir.join("out"));
+    o.materials = MaterialCount::Fixed(2);
     o
 }
 

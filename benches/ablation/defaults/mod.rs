@@ -125,12 +125,6 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
 /// `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`), its schedule with
 /// `ABLATION_DEFAULTS_DECAY=D` and `ABLATION_DEFAULTS_SMOOTHNESS_MIN=M` (the estimator's
 /// `smoothness_decay` and `smoothness_min`, which `run` leaves at 1 and 0).
-/// `run`'s `--clipped auto` on the training observations `obs`.
-fn clipped_auto(obs: &relight_cpc::observe::Observations) -> bool {
-    let bounds = obs.bound_weight.iter().filter(|&&b| b > 0.0).count();
-    bounds as f64 >= relight_cpc::run::CLIPPED_AUTO_SHARE * obs.len() as f64 && bounds > 0
-}
-
 fn with_env_overrides(
     base: &EstimateOptions,
     obs: &relight_cpc::observe::Observations,
@@ -151,7 +145,7 @@ fn with_env_overrides(
         // `ABLATION_CLIPPED_BOUNDS=1|0`: clipped channels read as lower bounds, or left out;
         // unset, `run`'s `--clipped auto` (bounds from a tenth of the observations on).
         clipped_bounds: std::env::var("ABLATION_CLIPPED_BOUNDS")
-            .map_or(clipped_auto(obs), |v| v == "1"),
+            .map_or(relight_cpc::run::auto_reads_bounds(obs), |v| v == "1"),
         ..base.clone()
     }
 }

@@ -16,10 +16,11 @@
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
+use crate::solve::light::irls::pass_weights;
 use crate::solve::light::laplacian::Laplacian;
 use crate::solve::light::photo::{
-    censor, jacobi_scaling, reweight, set_pass_weights, smoothness_weights, solve_pass,
-    start_texels, take_pass, PassSystem, PhotoData, QpStats,
+    jacobi_scaling, set_pass_weights, smoothness_weights, solve_pass, start_texels, take_pass,
+    PassSystem, PhotoData, QpStats,
 };
 use crate::solve::light::sh_prior::ShProjection;
 use crate::solve::light::system::{split3, texel_diag_vec, PhotoSystem};
@@ -77,10 +78,7 @@ pub fn fit_light_scheduled(
         _ => passes,
     };
     for (pass, caps) in passes.iter().enumerate() {
-        if pass > 0 {
-            reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
-        }
-        censor(problem, beta, &sys, &x, &data, &mut omega);
+        pass_weights(problem, beta, &sys, &x, &data, opts, pass > 0, &mut omega);
         set_pass_weights(&mut sys, &data, &omega);
         let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let pass_opts = EstimateOptions {

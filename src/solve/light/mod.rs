@@ -32,8 +32,10 @@ use crate::solve::problem::Problem;
 use crate::solve::result::Conditioning;
 use crate::Result;
 
+pub(crate) mod bounds;
 pub mod choose;
 pub mod frozen;
+pub(crate) mod irls;
 pub mod laplacian;
 pub(crate) mod map_fit;
 pub mod paper;

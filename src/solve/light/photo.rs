@@ -19,6 +19,7 @@
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
+use crate::solve::light::irls::pass_weights;
 use crate::solve::light::laplacian::Laplacian;
 use crate::solve::light::sh_prior::{LightPriorOptions, ShProjection};
 use crate::solve::light::system::{split3, texel_diag, texel_diag_vec, unhaar3, PhotoSystem};
@@ -60,28 +61,6 @@ pub struct LightingResult {
     pub matvecs_max: usize,
 }
 
-pub(crate) fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
-    match robust {
-        Robust::None => 1.0,
-        Robust::Huber { k } => {
-            let t = k * sigma;
-            if r.abs() <= t {
-                1.0
-            } else {
-                t / r.abs()
-            }
-        }
-        Robust::Tukey { c } => {
-            let u = r / (c * sigma);
-            if u.abs() < 1.0 {
-                (1.0 - u * u).powi(2)
-            } else {
-                0.0
-            }
-        }
-    }
-}
-
 /// One photo's observations as its lighting step reads them: the QP's rows (all of the
 /// photo's observations, or its lighting sample) and every observation (IRLS's scale and
 /// weights come from all of them).
@@ -94,29 +73,14 @@ pub(crate) struct PhotoData {
     /// `y_{p,c}` per row.
     pub(crate) y: Vec<[f64; 3]>,
     /// `α_p` of every observation of the photo.
-    alpha_all: Vec<f64>,
+    pub(super) alpha_all: Vec<f64>,
     /// `y_{p,c}` of every observation of the photo.
-    y_all: Vec<[f64; 3]>,
+    pub(super) y_all: Vec<[f64; 3]>,
     /// The channels that are lower bounds ([`crate::observe::Observations::clipped`]) of
     /// every observation of the photo, when one with `α > 0` has any; else empty.
-    clipped_all: Vec<u8>,
+    pub(super) clipped_all: Vec<u8>,
     /// Whether the rows are a sample.
-    sampled: bool,
-}
-
-/// The clipped channels of the observations in `range`, or empty when none of weight
-/// `α > 0` has one (the fit reads bounds only when [`crate::solve::EstimateOptions::clipped_bounds`]
-/// gave them their weight).
-fn bounds_of(obs: &crate::observe::Observations, range: std::ops::Range<usize>) -> Vec<u8> {
-    let any = !obs.clipped.is_empty()
-        && range
-            .clone()
-            .any(|p| obs.clipped[p] != 0 && obs.weight[p] > 0.0);
-    if any {
-        range.map(|p| obs.clipped[p]).collect()
-    } else {
-        Vec::new()
-    }
+    pub(super) sampled: bool,
 }
 
 impl PhotoData {
@@ -137,7 +101,7 @@ impl PhotoData {
             y: rows.map(|p| obs.rgb[p].map(f64::from)).collect(),
             alpha_all: range.clone().map(|p| obs.weight[p] as f64).collect(),
             y_all: range.clone().map(|p| obs.rgb[p].map(f64::from)).collect(),
-            clipped_all: bounds_of(obs, range.clone()),
+            clipped_all: super::bounds::clipped_in(obs, range.clone()),
             sampled: sample.is_some(),
             pos,
             range,
@@ -343,10 +307,8 @@ pub(crate) fn lighting_step_warm(
     for pass in 0..passes {
         // Reweight from the current residuals (the first pass: unit weights, a restart,
         // unless warm).
-        if pass > 0 || warm {
-            reweight(problem, beta, &sys, &x, &data, opts, &mut omega);
-        }
-        censor(problem, beta, &sys, &x, &data, &mut omega);
+        let reweigh = pass > 0 || warm;
+        pass_weights(problem, beta, &sys, &x, &data, opts, reweigh, &mut omega);
         set_pass_weights(&mut sys, &data, &omega);
         let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let res = solve_pass(&system, &data, &x, opts, photo)?;
@@ -456,52 +418,8 @@ pub(super) fn start_texels(start: Option<&[Vec<f64>; 3]>, n2: usize) -> Result<V
     Ok(x)
 }
 
-/// IRLS: `ω` of every observation of the photo from the residuals of `x`, per channel
-/// scaled by `σ = max(1.4826 · MAD, robust_floor · rms(y))` (module docs).
-pub(crate) fn reweight(
-    problem: &Problem,
-    beta: &[[f64; 3]],
-    sys: &PhotoSystem,
-    x: &[f64],
-    data: &PhotoData,
-    opts: &EstimateOptions,
-    omega: &mut [[f64; 3]],
-) {
-    let len = data.range.len();
-    let (alpha, y) = (&data.alpha_all, &data.y_all);
-    let pred = predict_all(problem, beta, sys, x, data);
-    for c in 0..3 {
-        let mut ab: Vec<f64> = (0..len)
-            .filter(|&q| alpha[q] > 0.0)
-            .map(|q| (y[q][c] - pred[q][c]).abs())
-            .collect();
-        if ab.is_empty() {
-            continue;
-        }
-        let n_fit = ab.len();
-        let mid = n_fit / 2;
-        let (_, med, _) = ab.select_nth_unstable_by(mid, f64::total_cmp);
-        let scale = y.iter().map(|v| v[c].abs()).sum::<f64>() / y.len() as f64;
-        // The noise floor: a fraction of the RMS observed radiance (struct docs of
-        // `EstimateOptions::robust_floor`).
-        let rms = ((0..len)
-            .filter(|&q| alpha[q] > 0.0)
-            .map(|q| y[q][c] * y[q][c])
-            .sum::<f64>()
-            / n_fit as f64)
-            .sqrt();
-        let sigma = (1.4826 * *med)
-            .max(opts.robust_floor * rms)
-            .max(1e-9 * scale)
-            .max(f64::MIN_POSITIVE);
-        for q in 0..len {
-            omega[q][c] = robust_weight(opts.robust, y[q][c] - pred[q][c], sigma);
-        }
-    }
-}
-
 /// The prediction of texels `x` at every observation of the photo.
-fn predict_all(
+pub(super) fn predict_all(
     problem: &Problem,
     beta: &[[f64; 3]],
     sys: &PhotoSystem,
@@ -516,34 +434,6 @@ fn predict_all(
         let mut pred = vec![[0.0; 3]; data.range.len()];
         sys.forward_rows(&h, &mut pred);
         pred
-    }
-}
-
-/// Clipped channels as lower bounds (a censored, one-sided data term; Tobin 1958 for the
-/// censored regression, here its least-squares form): channel `c` of an observation whose
-/// recorded `y_c` is a lower bound contributes `α ω (y_c − ŷ_c)²` while the prediction
-/// `ŷ_c` of the current texels `x` is below it and nothing once `ŷ_c ≥ y_c`, so its `ω` is
-/// set to 0 there. Each pass's weighted solve then minimises the squared hinge
-/// `max(0, y_c − ŷ_c)²` on the set of active bounds, which is re-read before every pass
-/// (and the material step keeps the lighting step's last set).
-pub(crate) fn censor(
-    problem: &Problem,
-    beta: &[[f64; 3]],
-    sys: &PhotoSystem,
-    x: &[f64],
-    data: &PhotoData,
-    omega: &mut [[f64; 3]],
-) {
-    if !data.has_bounds() || x.iter().all(|&v| v == 0.0) {
-        return;
-    }
-    let pred = predict_all(problem, beta, sys, x, data);
-    for (q, &mask) in data.clipped_all.iter().enumerate() {
-        for c in (0..3).filter(|c| mask & (1 << c) != 0) {
-            if pred[q][c] >= data.y_all[q][c] {
-                omega[q][c] = 0.0;
-            }
-        }
     }
 }
 

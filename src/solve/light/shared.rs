@@ -36,11 +36,12 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
+use crate::solve::light::irls::reweight;
 use crate::solve::light::laplacian::{
     combine_maps, extrapolate_maps, smoothness_factor, WeightedMaps,
 };
 use crate::solve::light::map_fit::MapFitState;
-use crate::solve::light::photo::{reweight, PhotoData};
+use crate::solve::light::photo::PhotoData;
 use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 pub use crate::solve::options::LightGroups;

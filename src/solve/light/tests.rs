@@ -21,6 +21,16 @@ pub(super) fn one_photo<'a>(obs: &'a Observations, t: &'a Transport) -> Problem<
     }
 }
 
+/// The smooth light [`planted_photo`] plants on an `n²` map, texels per channel:
+/// `1 + ½ sin(u + c)` with `u` the texel's column over `n`.
+pub(super) fn planted_light(n: usize) -> [Vec<f64>; 3] {
+    [0, 1, 2].map(|c| {
+        (0..n * n)
+            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
+            .collect()
+    })
+}
+
 /// One photo of `rows` observations (vertex = observation) over an `n²` map: each row
 /// 24 random Haar coefficients of the low levels (the first `n²/4`), positive values;
 /// `y` from a known smooth light plus Gaussian-like noise (`σ` relative).
@@ -32,14 +42,7 @@ pub(super) fn planted_photo(
 ) -> (Observations, Transport) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let n2 = n * n;
-    let light: Vec<[f64; 3]> = {
-        let tex: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
-            (0..n2)
-                .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
-                .collect()
-        });
-        haar3(&tex, n)
-    };
+    let light: Vec<[f64; 3]> = haar3(&planted_light(n), n);
     let mut t = Transport {
         n_global: n,
         n_basis: 1,
@@ -107,11 +110,7 @@ fn a_lighting_sample_leaves_the_map_where_all_observations_put_it() {
     let full = lighting_step_full(&problem, &beta, 0, None, None, &opts).unwrap();
     // Only the coefficients the rows reach are determined by the data.
     let dist = |a: &[Vec<f64>; 3], b: &[Vec<f64>; 3]| reached_distance(a, b, n);
-    let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
-        (0..n * n)
-            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
-            .collect()
-    });
+    let truth = planted_light(n);
     let full_err = dist(&full.light, &truth);
     assert!(full_err < 0.05, "the full fit itself: {full_err}");
     for seed in 1..=4 {
@@ -194,11 +193,7 @@ fn warm_irls_passes_continue_to_the_robust_fit() {
         irls_iters: 1,
         ..robust.clone()
     };
-    let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
-        (0..n * n)
-            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
-            .collect()
-    });
+    let truth = planted_light(n);
     let ls = lighting_step_full(&problem, &beta, 0, None, None, &plain).unwrap();
     let restarted = lighting_step_full(&problem, &beta, 0, None, None, &robust).unwrap();
     let mut light = ls.light.clone();
@@ -263,11 +258,7 @@ fn clipped_channels_read_as_bounds_recover_the_light_clipping_hides() {
         qp_max_iter: 1000,
         ..EstimateOptions::default()
     };
-    let truth: [Vec<f64>; 3] = [0, 1, 2].map(|c| {
-        (0..n * n)
-            .map(|t| 1.0 + 0.5 * ((t % n) as f64 / n as f64 + c as f64).sin())
-            .collect()
-    });
+    let truth = planted_light(n);
     let exact_reading = Observations {
         clipped: Vec::new(),
         bound_weight: Vec::new(),

@@ -418,12 +418,7 @@ impl HeldBack {
         let masked = (!idx.is_empty() || bounds).then(|| {
             let mut m = problem.obs.clone();
             if bounds {
-                let seen = problem.obs.seen_vertices(problem.n_vertices);
-                for p in 0..m.len() {
-                    if seen[m.vertex[p] as usize] {
-                        m.weight[p] = m.weight[p].max(problem.obs.bound_weight[p]);
-                    }
-                }
+                m.weigh_bounds(problem.n_vertices);
             }
             for &p in &idx {
                 m.mask_out(p);
