@@ -4,10 +4,13 @@
 //! (`truth/manifest.json`), every 4th photo held out.
 
 use crate::synth_case::*;
+use relight_cpc::observe::Observations;
 use relight_cpc::solve::light::sky::clock::{ClockSun, ClockSuns};
 use relight_cpc::solve::light::sky::{SkyLight, SkyOptions, SunSky};
 use relight_cpc::solve::light::{LightModel, LightingInput, LightingOutput};
-use relight_cpc::solve::{beta_per_vertex, estimate, Conditioning, Estimate, EstimateOptions};
+use relight_cpc::solve::{
+    basis_responses, beta_per_vertex, estimate, Conditioning, Estimate, EstimateOptions,
+};
 use relight_cpc::Vec3;
 
 /// The case and the true sun direction of each training photo (from the manifest).
@@ -560,4 +563,119 @@ fn a_held_out_sky_fit_extrapolates_where_the_free_map_cannot() {
         e_sky < 0.6 * e_paper,
         "sky {e_sky:.4} against the free map's {e_paper:.4}"
     );
+}
+
+/// `sky_case`'s training observations with every channel value above the `q`-quantile of
+/// all of them clipped to it (a photo's overexposure: the sunlit surfaces), the clipped
+/// channels flagged and given their confidence as bounds; and the values before clipping.
+fn clipped_training(c: &SkyCase, q: f64) -> (Observations, Vec<[f32; 3]>, f32) {
+    let mut obs = c.case.train.obs.clone();
+    let original = obs.rgb.clone();
+    let mut all: Vec<f32> = obs
+        .rgb
+        .iter()
+        .zip(&obs.weight)
+        .filter(|(_, &a)| a > 0.0)
+        .flat_map(|(v, _)| *v)
+        .collect();
+    all.sort_by(f32::total_cmp);
+    let level = all[(all.len() as f64 * q) as usize];
+    obs.clipped.clear();
+    obs.bound_weight.clear();
+    for (rgb, &a) in obs.rgb.iter_mut().zip(&obs.weight) {
+        let mask = (0..3)
+            .filter(|&c| a > 0.0 && rgb[c] > level)
+            .fold(0u8, |m, c| m | 1 << c);
+        for c in (0..3).filter(|&c| mask & 1 << c != 0) {
+            rgb[c] = level;
+        }
+        obs.clipped.push(mask);
+        obs.bound_weight.push(if mask != 0 { a } else { 0.0 });
+    }
+    (obs, original, level)
+}
+
+/// `steps` sky lighting steps (outer iterations 1, 2, …) with the true materials fixed on
+/// `obs`; the prediction of every observation under the light reached.
+fn sky_steps(c: &SkyCase, obs: &Observations, steps: usize) -> Vec<[f64; 3]> {
+    let case = &c.case;
+    let problem = relight_cpc::solve::Problem {
+        obs,
+        transport: &case.train.transport,
+        n_vertices: case.nv,
+        n_photos: obs.photo_ranges.len(),
+    };
+    let opts = EstimateOptions::default();
+    let mut light = SkyLight::new(&problem, &opts, &SkyOptions::default()).unwrap();
+    let beta = beta_per_vertex(&case.lambda, &case.weights, case.nv);
+    let mut irls = vec![[0.0_f32; 3]; obs.rgb.len()];
+    let mut cond = Conditioning::default();
+    for outer_iteration in 1..=steps {
+        let input = LightingInput {
+            problem: &problem,
+            beta: &beta,
+            outer_iteration,
+        };
+        let mut out = LightingOutput {
+            irls_weights: &mut irls,
+            conditioning: &mut cond,
+        };
+        light.fit(&input, &mut out).unwrap();
+    }
+    let s = basis_responses(&problem, &light.maps(light.params()));
+    let nb = case.train.transport.n_basis;
+    (0..obs.rgb.len())
+        .map(|p| {
+            let x = obs.vertex[p] as usize;
+            std::array::from_fn(|ch| {
+                (0..nb)
+                    .map(|b| beta[x * nb + b][ch] * s[p * nb + b][ch])
+                    .sum()
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn clipped_channels_read_as_bounds_give_the_sun_back_its_power() {
+    // The true materials fixed; every channel above the 80th percentile of the training
+    // values clipped to it (a fifth of the channel values: the sunlit ones). Read as
+    // exact values the clipped rows pull the sun down: the clipped channels are predicted
+    // far below what the photo held before clipping. Read as lower bounds (the one-sided
+    // term, its set re-read as each pass starts) the sun must come back: the relative RMS
+    // error of the clipped channels against their unclipped values at most half the
+    // exact reading's (measured 0.116 against 0.355), and at most 10% of the clipped
+    // channels predicted more than 5% below their bound (measured 3.9%, the exact reading
+    // 31%; 8-bit photos on a 16² map: the fit does not reach every row exactly even
+    // unclipped).
+    let c = sky_case();
+    let (obs, original, level) = clipped_training(c, 0.8);
+    let exact_reading = Observations {
+        clipped: Vec::new(),
+        bound_weight: Vec::new(),
+        ..obs.clone()
+    };
+    let clipped_error = |pred: &[[f64; 3]]| {
+        let (mut num, mut den, mut short, mut n) = (0.0, 0.0, 0, 0);
+        for (p, &mask) in obs.clipped.iter().enumerate() {
+            for ch in (0..3).filter(|&ch| mask & 1 << ch != 0) {
+                let y0 = f64::from(original[p][ch]);
+                num += (pred[p][ch] - y0).powi(2);
+                den += y0 * y0;
+                n += 1;
+                short += usize::from(pred[p][ch] < 0.95 * f64::from(level));
+            }
+        }
+        ((num / den).sqrt(), short as f64 / n as f64, n)
+    };
+    let (e_exact, short_exact, n) = clipped_error(&sky_steps(c, &exact_reading, 3));
+    let (e_bounds, short_bounds, _) = clipped_error(&sky_steps(c, &obs, 3));
+    eprintln!(
+        "{n} clipped channels: relative RMS error exact reading {e_exact:.4} ({:.1}% short), \
+         bounds {e_bounds:.4} ({:.1}% short)",
+        100.0 * short_exact,
+        100.0 * short_bounds
+    );
+    assert!(e_bounds <= 0.5 * e_exact, "{e_bounds} vs {e_exact}");
+    assert!(short_bounds <= 0.1, "{short_bounds}");
 }

@@ -4,7 +4,9 @@
 //! frame azimuth of north, chosen before the photos' steps from their summed search errors
 //! (each photo's profile over the candidates computed in parallel, summed in photo order). The model fits by plain
 //! least squares (its IRLS weights are 1) on all of a photo's observations (no lighting
-//! sample).
+//! sample); clipped channels read as lower bounds, when asked, have weight 0 where the
+//! light a pass starts at already meets them ([`SkyLight::bound_weights`], the one-sided
+//! term of [`crate::solve::light::bounds`]).
 
 // Kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
@@ -23,6 +25,7 @@ mod north;
 use super::{
     coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
 };
+use crate::solve::light::bounds::{censor, clipped_in};
 use crate::solve::light::sh_prior::{haar_diag_in_texels, LightPrior};
 use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
@@ -52,6 +55,10 @@ const WARM_EVALS: usize = 60;
 /// early on, and a sun found under the starting materials may be a wrong local minimum);
 /// the better of the grid's best and the previous `θ` is refined.
 const REGRID_ITERATIONS: usize = 3;
+/// Most passes of a photo's step when clipped channels are read as bounds: each pass
+/// re-reads which bounds its start meets, as the paper's map does before each of its
+/// IRLS passes ([`crate::solve::light::bounds`]).
+const BOUND_PASSES: usize = 3;
 
 /// Options of the sun-and-sky model ([`EstimateOptions::light_sky`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -204,6 +211,19 @@ struct PhotoFit {
     photo: SkyPhoto,
     scale: ResidualScale,
     qp: Option<QpResult>,
+    /// The data weights `ω` of the photo's observations: 1, or 0 on a clipped channel
+    /// whose bound the step's last pass started at meeting ([`SkyLight::bound_weights`]).
+    omega: Vec<[f64; 3]>,
+}
+
+/// What every pass of a photo's step reads ([`SkyLight::fit_pass`]).
+#[derive(Clone, Copy)]
+struct PassInput<'a> {
+    problem: &'a Problem<'a>,
+    beta: &'a [[f64; 3]],
+    rows: &'a Rows,
+    photo: usize,
+    outer_iteration: usize,
 }
 
 /// The photo's observations as the step reads them.
@@ -211,6 +231,8 @@ struct Rows {
     range: std::ops::Range<usize>,
     alpha: Vec<f64>,
     y: Vec<[f64; 3]>,
+    /// The channels read as lower bounds, or empty ([`clipped_in`]).
+    clipped: Vec<u8>,
 }
 
 impl Rows {
@@ -220,6 +242,7 @@ impl Rows {
         Rows {
             alpha: range.clone().map(|p| o.weight[p] as f64).collect(),
             y: range.clone().map(|p| o.rgb[p].map(f64::from)).collect(),
+            clipped: clipped_in(o, range.clone()),
             range,
         }
     }
@@ -343,7 +366,10 @@ impl JointQp<'_> {
 impl SkyLight {
     /// One photo's lighting step: the `θ` search with the residual fixed, the residual
     /// prior at the current light's scale, then the joint QP over the sky's colour weights
-    /// and the residual.
+    /// and the residual ([`Self::fit_pass`]). With clipped channels read as bounds the step
+    /// makes up to [`BOUND_PASSES`] passes, each with the bounds its start meets left out
+    /// ([`Self::bound_weights`]): the first from the previous light, the next from the pass
+    /// before, until that set stops changing.
     fn fit_photo(
         &self,
         problem: &Problem,
@@ -351,19 +377,63 @@ impl SkyLight {
         photo: usize,
         outer_iteration: usize,
     ) -> Result<PhotoFit> {
+        let rows = Rows::new(problem, photo);
+        let mut sys = self.photo_system(problem, beta, &rows);
+        let mut omega = self.bound_weights(&sys, &rows, &self.params[photo]);
+        let pass = PassInput {
+            problem,
+            beta,
+            rows: &rows,
+            photo,
+            outer_iteration,
+        };
+        let mut fit = self.fit_pass(&pass, &mut sys, &omega)?;
+        let passes = if rows.clipped.is_empty() {
+            1
+        } else {
+            BOUND_PASSES
+        };
+        for _ in 1..passes {
+            let next = self.bound_weights(&sys, &rows, &fit.photo);
+            if next == omega {
+                break;
+            }
+            omega = next;
+            fit = self.fit_pass(&pass, &mut sys, &omega)?;
+        }
+        fit.omega = omega;
+        Ok(fit)
+    }
+
+    /// One pass of the photo's step with the data weights `α ω`; the search and the QP
+    /// start from the previous outer iteration's light whichever pass it is.
+    fn fit_pass(
+        &self,
+        pass: &PassInput,
+        sys: &mut PhotoSystem,
+        omega: &[[f64; 3]],
+    ) -> Result<PhotoFit> {
+        let PassInput {
+            problem,
+            beta,
+            rows,
+            photo,
+            outer_iteration,
+        } = *pass;
         let n = problem.transport.n_global;
         let prev = &self.params[photo];
-        let rows = Rows::new(problem, photo);
-        let sys = self.photo_system(problem, beta, &rows);
-        let best = self.search_theta(&sys, &rows, photo, outer_iteration)?;
+        for (q, (d, o)) in sys.dw.iter_mut().zip(omega).enumerate() {
+            *d = o.map(|v| v * rows.alpha[q]);
+        }
+        let best = self.search_theta(sys, rows, photo, outer_iteration)?;
         let basis = best.basis();
-        let (scale, d) = self.residual_prior(&best, &basis, prev, &rows, n);
+        let (scale, d) = self.residual_prior(&best, &basis, prev, rows, n);
         let qp = JointQp {
-            sys: &sys,
+            sys,
             basis: &basis,
             d,
         };
-        let fit = self.joint_qp(&qp, problem, beta, &rows, &best, photo)?;
+        let fit = self.joint_qp(&qp, problem, beta, rows, &best, photo)?;
         let n2 = n * n;
         let (weights, residual, res) = match fit {
             Some(res) => {
@@ -392,7 +462,25 @@ impl SkyLight {
             },
             scale,
             qp: res,
+            omega: Vec::new(),
         })
+    }
+
+    /// The data weights `ω` of the photo's observations: 1, and 0 on each clipped channel
+    /// whose bound the light `start` already meets at the current materials ([`censor`]);
+    /// a pass then fits the squared hinge on the bounds still active. A zero light meets
+    /// no bound.
+    fn bound_weights(&self, sys: &PhotoSystem, rows: &Rows, start: &SkyPhoto) -> Vec<[f64; 3]> {
+        let mut omega = vec![[1.0; 3]; rows.y.len()];
+        let lit = start.weights.iter().flatten().any(|&w| w != 0.0)
+            || start.residual.iter().flatten().any(|&r| r != 0.0);
+        if rows.clipped.is_empty() || !lit {
+            return omega;
+        }
+        let mut pred = vec![[0.0; 3]; rows.y.len()];
+        sys.forward_rows(&haar3(&start.map(), sys.n), &mut pred);
+        censor(&rows.clipped, &rows.y, &pred, &mut omega);
+        omega
     }
 
     /// The photo's lighting system at the materials `beta` (its rows weighted by `α`).
@@ -582,7 +670,9 @@ impl LightModel for SkyLight {
         for (i, r) in results.into_iter().enumerate() {
             let fit = r?;
             let range = problem.obs.photo_ranges[i].clone();
-            out.irls_weights[range].fill([1.0; 3]);
+            for (o, w) in out.irls_weights[range].iter_mut().zip(&fit.omega) {
+                *o = w.map(|v| v as f32);
+            }
             if let Some(res) = &fit.qp {
                 cond.lighting.push(res.cond_lower_bound);
                 cond.qp_unconverged += usize::from(!res.converged);
