@@ -49,7 +49,7 @@ pub(super) fn resolve(
         _ => String::new(),
     };
     let what = match rule {
-        Clipped::Bound => "their clipped channels read as lower bounds, their other channels as values, at vertices an un-clipped observation also reads (with the paper's per-photo map)",
+        Clipped::Bound => "their clipped channels read as lower bounds, their other channels as values, at vertices an un-clipped observation also reads",
         _ => "left out",
     };
     log.notes.push(format!(

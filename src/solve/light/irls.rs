@@ -32,20 +32,6 @@ pub(crate) fn robust_weight(robust: Robust, r: f64, sigma: f64) -> f64 {
     }
 }
 
-/// IRLS: `ω` of every observation of the photo from the residuals of `x` ([`robust_weights`]).
-pub(crate) fn reweight(
-    problem: &Problem,
-    beta: &[[f64; 3]],
-    sys: &PhotoSystem,
-    x: &[f64],
-    data: &PhotoData,
-    opts: &EstimateOptions,
-    omega: &mut [[f64; 3]],
-) {
-    let pred = predict_all(problem, beta, sys, x, data);
-    robust_weights(&pred, data, opts, omega);
-}
-
 /// A pass's data weights `ω` from the texels `x` it starts at: IRLS ([`robust_weights`])
 /// when `reweigh`, else as they are; then the bounds already met set to 0
 /// ([`super::bounds::censor`]). One prediction serves both; none is made when neither

@@ -22,7 +22,9 @@
 //! Each step lowers (or keeps) the data term for the other's value, so the step is monotone
 //! in it. A group of one photo is the paper's model with a gain fixed at 1. IRLS (Huber or
 //! Tukey, [`crate::solve::light::photo`]) reweighs each photo from its own residuals under
-//! `a_I m_g`, restarting from unit weights at every call as the paper's step does; the
+//! `a_I m_g`, restarting from unit weights at every call as the paper's step does, and
+//! clipped channels read as lower bounds leave each pass where its start meets them
+//! ([`crate::solve::light::bounds`], as in the paper's step); the
 //! lighting sample ([`crate::solve::EstimateOptions::lighting_sample`]) applies per photo.
 //! `μ_{g,c}` = `smoothness` × the largest texel-basis diagonal entry of the group's
 //! system at its first lighting step, decayed as the paper's
@@ -36,7 +38,7 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
-use crate::solve::light::irls::reweight;
+use crate::solve::light::irls::pass_weights;
 use crate::solve::light::laplacian::{
     combine_maps, extrapolate_maps, smoothness_factor, WeightedMaps,
 };
@@ -399,14 +401,24 @@ impl LightModel for SharedLight {
         cond.qp_unconverged = 0;
         cond.qp_alternation_capped = 0;
         for pass in 0..passes {
-            if pass > 0 {
-                let (params, groups) = (&self.params, &self.groups.group);
-                let opts = &self.state.opts;
-                work.par_iter_mut().enumerate().for_each(|(i, w)| {
+            let (params, groups) = (&self.params, &self.groups.group);
+            let opts = &self.state.opts;
+            work.par_iter_mut().enumerate().for_each(|(i, w)| {
+                let reweigh = pass > 0;
+                if reweigh || w.data.has_bounds() {
                     let x = SharedLight::photo_texels(params, groups[i], i);
-                    reweight(problem, beta, &w.sys, &x, &w.data, opts, &mut w.omega);
-                });
-            }
+                    pass_weights(
+                        problem,
+                        beta,
+                        &w.sys,
+                        &x,
+                        &w.data,
+                        opts,
+                        reweigh,
+                        &mut w.omega,
+                    );
+                }
+            });
             for _ in 0..INNER_ROUNDS {
                 self.set_row_weights(&mut work);
                 self.maps_round(problem, &work, mu_factor, cond)?;

@@ -397,13 +397,10 @@ pub(crate) fn held_back_indices(problem: &Problem, opts: &EstimateOptions) -> Ve
     }
 }
 
-/// Whether the fit reads clipped channels as lower bounds: asked, with the paper's
-/// per-photo map (with or without its prior), and some observation is one.
+/// Whether the fit reads clipped channels as lower bounds: asked (every light model
+/// reads them), and some observation is one.
 fn reads_bounds(problem: &Problem, opts: &EstimateOptions) -> bool {
-    opts.clipped_bounds
-        && opts.light_sky.is_none()
-        && opts.light_groups.is_none()
-        && problem.obs.has_bounds()
+    opts.clipped_bounds && problem.obs.has_bounds()
 }
 
 impl HeldBack {

@@ -270,16 +270,19 @@ fn bounds_join_the_fit_only_where_a_value_also_reads_the_vertex() {
         ..base.clone()
     };
     assert_eq!(weights(&on), vec![1.0, 0.7, 0.0, 0.0]);
-    let sky = EstimateOptions {
+    // Every light model reads them: the shared light and the sun and sky as the paper's map.
+    let shared = EstimateOptions {
         light_groups: Some(crate::solve::options::LightGroups {
             group: vec![0],
             source: "test".into(),
         }),
         ..on.clone()
     };
-    assert_eq!(
-        weights(&sky),
-        vec![1.0, 0.0, 0.0, 0.0],
-        "not with the shared light"
-    );
+    let sky = EstimateOptions {
+        light_sky: Some(crate::solve::light::sky::SkyOptions::default()),
+        ..on.clone()
+    };
+    for opts in [&shared, &sky] {
+        assert_eq!(weights(opts), vec![1.0, 0.7, 0.0, 0.0]);
+    }
 }
