@@ -86,18 +86,38 @@ pub(crate) fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3
     view.camera.project(&cam).map(|px| px[0])
 }
 
-/// View `v`'s weighted observations whose vertex projects left of `mid_x` (one photo).
+/// View `v`'s observations whose vertex projects left of `mid_x` (one photo), as the
+/// light fit reads them ([`fit_rows`]).
 pub(super) fn left_half_observations(f: &Fitted, v: usize, mid_x: f64) -> Observations {
     let view = &f.scene.views[v];
-    let obs = f.observations_of(v);
+    let positions = &f.scene.mesh.positions;
+    let left = |x: usize| projected_x(view, &positions[x]).is_some_and(|px| px < mid_x);
+    fit_rows(
+        &f.observations_of(v),
+        left,
+        f.estimate_options.clipped_bounds,
+    )
+}
+
+/// The observations of `obs` at vertices `keep` accepts that a held-out light fit reads:
+/// those of positive weight, and with `bounds` (the fit read clipped channels as lower
+/// bounds, [`EstimateOptions::clipped_bounds`]) the overexposed ones too, weighted by
+/// their bound weight, so that the light step reads them as the fit's did. With the
+/// reflectance frozen nothing else has to hold a vertex seen only clipped, so every such
+/// observation takes part, not only those at vertices a value also reads.
+fn fit_rows(obs: &Observations, keep: impl Fn(usize) -> bool, bounds: bool) -> Observations {
+    let bounds = bounds && obs.has_bounds();
     let kept: Vec<usize> = (0..obs.len())
-        .filter(|&p| {
-            let x = obs.vertex[p] as usize;
-            obs.weight[p] > 0.0
-                && projected_x(view, &f.scene.mesh.positions[x]).is_some_and(|px| px < mid_x)
-        })
+        .filter(|&p| obs.weight[p] > 0.0 || (bounds && obs.bound_weight[p] > 0.0))
+        .filter(|&p| keep(obs.vertex[p] as usize))
         .collect();
-    obs.gather(&kept)
+    let mut rows = obs.gather(&kept);
+    if bounds {
+        for (a, &b) in rows.weight.iter_mut().zip(&rows.bound_weight) {
+            *a = a.max(b);
+        }
+    }
+    rows
 }
 
 /// Protocol (b): fit the light on the observations of view `v` left of `mid_x`, frozen
@@ -166,6 +186,34 @@ pub(super) fn held_out_suns(f: &Fitted) -> Vec<Option<ClockSun>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Four observations of one photo at vertices 0–3: a value, an overexposed one, an
+    /// overexposed one at a vertex `keep` refuses, one masked out (no weight as either).
+    /// Without bounds only the value is read; with them the overexposed one at a kept
+    /// vertex too, its weight its bound weight and its clipped channels carried along.
+    #[test]
+    fn the_held_out_fit_reads_overexposed_observations_only_with_bounds() {
+        let obs = Observations {
+            vertex: vec![0, 1, 2, 3],
+            photo: vec![0; 4],
+            rgb: vec![[0.5; 3], [1.0; 3], [1.0; 3], [0.2; 3]],
+            weight: vec![0.7, 0.0, 0.0, 0.0],
+            dir: vec![[0.0, 0.0, 1.0]; 4],
+            photo_ranges: std::iter::once(0..4).collect(),
+            clipped: vec![0, 0b101, 0b111, 0],
+            bound_weight: vec![0.0, 0.6, 0.9, 0.0],
+        };
+        let keep = |x: usize| x != 2;
+        let values = fit_rows(&obs, keep, false);
+        assert_eq!(values.vertex, [0]);
+        assert_eq!(values.weight, [0.7]);
+        let bounded = fit_rows(&obs, keep, true);
+        assert_eq!(bounded.vertex, [0, 1]);
+        assert_eq!(bounded.weight, [0.7, 0.6]);
+        assert_eq!(bounded.clipped, [0, 0b101]);
+        assert_eq!(bounded.photo_ranges.first(), Some(&(0..2)));
+        assert_eq!(bounded.photo_ranges.len(), 1);
+    }
 
     #[test]
     fn half_fit_passes_halve_every_pass_but_the_last() {
