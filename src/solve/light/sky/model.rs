@@ -226,6 +226,20 @@ struct PassInput<'a> {
     outer_iteration: usize,
 }
 
+/// The joint QP's answer `z = (w, r)` as the colour weights and the residual's texels per
+/// channel (`n × n` maps); zero when there was no QP (no light reaches any weighted
+/// observation, so the minimiser is zero).
+fn split_joint(res: Option<&QpResult>, n: usize) -> ([[f64; 3]; N_BASIS], [Vec<f64>; 3]) {
+    let n2 = n * n;
+    match res {
+        Some(res) => {
+            let weights = std::array::from_fn(|j| std::array::from_fn(|c| res.x[j * 3 + c]));
+            (weights, split3(&res.x[JointQp::NW..], n2))
+        }
+        None => ([[0.0; 3]; N_BASIS], std::array::from_fn(|_| vec![0.0; n2])),
+    }
+}
+
 /// The photo's observations as the step reads them.
 struct Rows {
     range: std::ops::Range<usize>,
@@ -433,26 +447,8 @@ impl SkyLight {
             basis: &basis,
             d,
         };
-        let fit = self.joint_qp(&qp, problem, beta, rows, &best, photo)?;
-        let n2 = n * n;
-        let (weights, residual, res) = match fit {
-            Some(res) => {
-                let mut weights = [[0.0; 3]; N_BASIS];
-                for j in 0..N_BASIS {
-                    for c in 0..3 {
-                        weights[j][c] = res.x[j * 3 + c];
-                    }
-                }
-                let residual = split3(&res.x[JointQp::NW..], n2);
-                (weights, residual, Some(res))
-            }
-            // No light reaches any weighted observation: the minimiser is zero.
-            None => (
-                [[0.0; 3]; N_BASIS],
-                std::array::from_fn(|_| vec![0.0; n2]),
-                None,
-            ),
-        };
+        let qp_result = self.joint_qp(&qp, problem, beta, rows, &best, photo)?;
+        let (weights, residual) = split_joint(qp_result.as_ref(), n);
         Ok(PhotoFit {
             photo: SkyPhoto {
                 theta: best.theta,
@@ -461,7 +457,7 @@ impl SkyLight {
                 residual,
             },
             scale,
-            qp: res,
+            qp: qp_result,
             omega: Vec::new(),
         })
     }
