@@ -95,8 +95,14 @@ impl Observations {
     /// vertex seen only clipped would have nothing holding its weights from above.
     pub fn weigh_bounds(&mut self, n_vertices: usize) {
         let seen = self.seen_vertices(n_vertices);
+        self.weigh_bounds_at(|x| seen[x]);
+    }
+
+    /// Gives each observation that can be read as a lower bound its bound weight as its
+    /// weight, at the vertices `at` accepts.
+    pub fn weigh_bounds_at(&mut self, at: impl Fn(usize) -> bool) {
         for (p, &b) in self.bound_weight.iter().enumerate() {
-            if seen[self.vertex[p] as usize] {
+            if at(self.vertex[p] as usize) {
                 self.weight[p] = self.weight[p].max(b);
             }
         }

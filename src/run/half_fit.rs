@@ -113,9 +113,7 @@ fn fit_rows(obs: &Observations, keep: impl Fn(usize) -> bool, bounds: bool) -> O
         .collect();
     let mut rows = obs.gather(&kept);
     if bounds {
-        for (a, &b) in rows.weight.iter_mut().zip(&rows.bound_weight) {
-            *a = a.max(b);
-        }
+        rows.weigh_bounds_at(|_| true);
     }
     rows
 }
