@@ -17,21 +17,23 @@ use std::sync::Arc;
 use super::clock::ClockSun;
 use super::search::{Candidate, SearchData, ALL_FREE, SUN_FIXED};
 use super::summary::{SkyFit, SkyPhotoFit};
+use joint::{split_joint, JointQp};
 pub(super) use mix::combine_photo;
 use north::clock_theta;
 
+mod joint;
 mod mix;
 mod north;
 use super::{
     coefficient_scales, residual_penalty, residual_weights, SkyBasis, SunSky, N_BASIS, SUB_TEXELS,
 };
 use crate::solve::light::bounds::{censor, clipped_in};
-use crate::solve::light::sh_prior::{haar_diag_in_texels, LightPrior};
-use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
+use crate::solve::light::sh_prior::LightPrior;
+use crate::solve::light::system::PhotoSystem;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
 use crate::solve::problem::{haar3, par_largest_first, Problem};
-use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
+use crate::solve::qp::QpResult;
 use crate::{Error, Result};
 
 /// Relative noise level `η` of the residual's prior by default (`σ = η · rms(y)`).
@@ -211,8 +213,8 @@ struct PhotoFit {
     photo: SkyPhoto,
     scale: ResidualScale,
     qp: Option<QpResult>,
-    /// The data weights `ω` of the photo's observations: 1, or 0 on a clipped channel
-    /// whose bound the step's last pass started at meeting ([`SkyLight::bound_weights`]).
+    /// The data weights `ω` of the photo's observations the pass read: 1, or 0 on a
+    /// clipped channel whose bound the light it started at met ([`SkyLight::bound_weights`]).
     omega: Vec<[f64; 3]>,
 }
 
@@ -224,20 +226,6 @@ struct PassInput<'a> {
     rows: &'a Rows,
     photo: usize,
     outer_iteration: usize,
-}
-
-/// The joint QP's answer `z = (w, r)` as the colour weights and the residual's texels per
-/// channel (`n × n` maps); zero when there was no QP (no light reaches any weighted
-/// observation, so the minimiser is zero).
-fn split_joint(res: Option<&QpResult>, n: usize) -> ([[f64; 3]; N_BASIS], [Vec<f64>; 3]) {
-    let n2 = n * n;
-    match res {
-        Some(res) => {
-            let weights = std::array::from_fn(|j| std::array::from_fn(|c| res.x[j * 3 + c]));
-            (weights, split3(&res.x[JointQp::NW..], n2))
-        }
-        None => ([[0.0; 3]; N_BASIS], std::array::from_fn(|_| vec![0.0; n2])),
-    }
 }
 
 /// The photo's observations as the step reads them.
@@ -276,107 +264,6 @@ impl Rows {
     }
 }
 
-/// The joint QP of one photo in `z = (w, r)` (module docs of the parent).
-struct JointQp<'a> {
-    sys: &'a PhotoSystem,
-    basis: &'a SkyBasis,
-    /// Residual weights `d_k` per channel.
-    d: [Vec<f64>; 3],
-}
-
-impl JointQp<'_> {
-    const NW: usize = N_BASIS * 3;
-
-    /// The texels `x = B w + r`, channel-major, of `z`.
-    fn texels(&self, z: &[f64]) -> Vec<f64> {
-        let n2 = self.sys.n * self.sys.n;
-        let mut x = z[Self::NW..].to_vec();
-        for j in 0..N_BASIS {
-            for c in 0..3 {
-                let w = z[j * 3 + c];
-                if w != 0.0 {
-                    let bm = &self.basis.maps[j][c];
-                    x[c * n2..(c + 1) * n2]
-                        .iter_mut()
-                        .zip(bm)
-                        .for_each(|(a, b)| *a += w * b);
-                }
-            }
-        }
-        x
-    }
-
-    /// `out = (Bᵀ g, g)` for a texel-space gradient `g` (channel-major).
-    fn pull_back(&self, g: &[f64], out: &mut [f64]) {
-        let n2 = self.sys.n * self.sys.n;
-        for j in 0..N_BASIS {
-            for c in 0..3 {
-                let bm = &self.basis.maps[j][c];
-                out[j * 3 + c] = bm
-                    .iter()
-                    .zip(&g[c * n2..(c + 1) * n2])
-                    .map(|(a, b)| a * b)
-                    .sum();
-            }
-        }
-        out[Self::NW..].copy_from_slice(g);
-    }
-
-    /// `Wᵀ Aᵀ D A W x` for channel-major texels.
-    fn data_hessian(&self, x: &[f64]) -> Vec<f64> {
-        let n = self.sys.n;
-        let h = haar3(&split3(x, n * n), n);
-        let mut hb = vec![[0.0; 3]; n * n];
-        self.sys.normal_rows(&h, &mut hb);
-        unhaar3(&hb, n)
-    }
-
-    /// The Hessian product.
-    fn hess(&self, z: &[f64], out: &mut [f64]) {
-        let n = self.sys.n;
-        let n2 = n * n;
-        let hx = self.data_hessian(&self.texels(z));
-        self.pull_back(&hx, out);
-        let mut h = haar3(&split3(&z[Self::NW..], n2), n);
-        for (k, hk) in h.iter_mut().enumerate() {
-            for c in 0..3 {
-                hk[c] *= self.d[c][k];
-            }
-        }
-        let pen = unhaar3(&h, n);
-        out[Self::NW..]
-            .iter_mut()
-            .zip(&pen)
-            .for_each(|(a, b)| *a += b);
-    }
-
-    /// The Jacobi scaling: `B_jᵀ H B_j` per weight, the texel diagonal of the data term
-    /// plus the prior's per residual texel.
-    fn diagonal(&self, tdiag: &[[f64; 3]]) -> Vec<f64> {
-        let n = self.sys.n;
-        let n2 = n * n;
-        let mut diag = vec![0.0; Self::NW + 3 * n2];
-        for j in 0..N_BASIS {
-            let x: Vec<f64> = self.basis.maps[j].iter().flatten().copied().collect();
-            let hx = self.data_hessian(&x);
-            for c in 0..3 {
-                diag[j * 3 + c] = self.basis.maps[j][c]
-                    .iter()
-                    .zip(&hx[c * n2..(c + 1) * n2])
-                    .map(|(a, b)| a * b)
-                    .sum();
-            }
-        }
-        for c in 0..3 {
-            let pd = haar_diag_in_texels(&self.d[c], n);
-            for t in 0..n2 {
-                diag[Self::NW + c * n2 + t] = tdiag[t][c] + pd[t];
-            }
-        }
-        diag
-    }
-}
-
 impl SkyLight {
     /// One photo's lighting step: the `θ` search with the residual fixed, the residual
     /// prior at the current light's scale, then the joint QP over the sky's colour weights
@@ -393,7 +280,7 @@ impl SkyLight {
     ) -> Result<PhotoFit> {
         let rows = Rows::new(problem, photo);
         let mut sys = self.photo_system(problem, beta, &rows);
-        let mut omega = self.bound_weights(&sys, &rows, &self.params[photo]);
+        let omega = self.bound_weights(&sys, &rows, &self.params[photo]);
         let pass = PassInput {
             problem,
             beta,
@@ -401,7 +288,7 @@ impl SkyLight {
             photo,
             outer_iteration,
         };
-        let mut fit = self.fit_pass(&pass, &mut sys, &omega)?;
+        let mut fit = self.fit_pass(&pass, &mut sys, omega)?;
         let passes = if rows.clipped.is_empty() {
             1
         } else {
@@ -409,23 +296,22 @@ impl SkyLight {
         };
         for _ in 1..passes {
             let next = self.bound_weights(&sys, &rows, &fit.photo);
-            if next == omega {
+            if next == fit.omega {
                 break;
             }
-            omega = next;
-            fit = self.fit_pass(&pass, &mut sys, &omega)?;
+            fit = self.fit_pass(&pass, &mut sys, next)?;
         }
-        fit.omega = omega;
         Ok(fit)
     }
 
-    /// One pass of the photo's step with the data weights `α ω`; the search and the QP
-    /// start from the previous outer iteration's light whichever pass it is.
+    /// One pass of the photo's step with the data weights `α ω` (kept in its result); the
+    /// search and the QP start from the previous outer iteration's light whichever pass
+    /// it is.
     fn fit_pass(
         &self,
         pass: &PassInput,
         sys: &mut PhotoSystem,
-        omega: &[[f64; 3]],
+        omega: Vec<[f64; 3]>,
     ) -> Result<PhotoFit> {
         let PassInput {
             problem,
@@ -436,7 +322,7 @@ impl SkyLight {
         } = *pass;
         let n = problem.transport.n_global;
         let prev = &self.params[photo];
-        for (q, (d, o)) in sys.dw.iter_mut().zip(omega).enumerate() {
+        for (q, (d, o)) in sys.dw.iter_mut().zip(&omega).enumerate() {
             *d = o.map(|v| v * rows.alpha[q]);
         }
         let best = self.search_theta(sys, rows, photo, outer_iteration)?;
@@ -458,7 +344,7 @@ impl SkyLight {
             },
             scale,
             qp: qp_result,
-            omega: Vec::new(),
+            omega,
         })
     }
 
@@ -574,49 +460,6 @@ impl SkyLight {
             residual_weights(&hc, h0[c], &self.b, sigma2)
         });
         (ResidualScale { sigma2, h0 }, d)
-    }
-
-    /// Step 3, the joint QP from the search's weights and the previous residual, Jacobi
-    /// scaled; `None` when no light reaches any weighted observation (`b = 0`).
-    fn joint_qp(
-        &self,
-        qp: &JointQp,
-        problem: &Problem,
-        beta: &[[f64; 3]],
-        rows: &Rows,
-        best: &Candidate,
-        photo: usize,
-    ) -> Result<Option<QpResult>> {
-        let (sys, n) = (qp.sys, qp.sys.n);
-        let n2 = n * n;
-        let prev = &self.params[photo];
-        let u: Vec<[f64; 3]> = (0..rows.y.len())
-            .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * rows.y[q][c]))
-            .collect();
-        let mut hb = vec![[0.0; 3]; n2];
-        sys.adjoint_rows(&u, &mut hb);
-        let bx = unhaar3(&hb, n);
-        let mut b = vec![0.0; JointQp::NW + 3 * n2];
-        qp.pull_back(&bx, &mut b);
-        let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-        if bmax == 0.0 {
-            return Ok(None);
-        }
-        let mut z0: Vec<f64> = best.weights.iter().flatten().copied().collect();
-        z0.extend(prev.residual.iter().flatten());
-        let tdiag = texel_diag_vec(problem, beta, rows.range.clone(), &rows.alpha);
-        let jac = qp.diagonal(&tdiag);
-        let opts = QpOptions {
-            tol: self.opts.qp_rel_tol * bmax,
-            max_iter: self.qp_max_iter,
-            max_cg: self.qp_max_cg.max(1),
-        };
-        bound_qp_scaled(|v, o| qp.hess(v, o), &b, &z0, &opts, Some(&jac))
-            .map(Some)
-            .map_err(|e| Error::Numeric {
-                stage: format!("sky lighting step, photo {photo}"),
-                message: e.to_string(),
-            })
     }
 }
 
