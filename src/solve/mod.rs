@@ -91,7 +91,9 @@ pub use options::{
     EstimateOptions, Robust, SmoothnessScale, SumScope, ALTERNATION_CG_ITERS, ALTERNATION_QP_ITERS,
     BLEND_FLOOR, PATIENCE, ROBUST_FLOOR, VALIDATION_MIN_FIT, WEIGHTS_SUM,
 };
-pub use problem::{basis_responses, beta_per_vertex, par_largest_first, predict, Problem};
+pub use problem::{
+    basis_responses, beta_per_vertex, par_largest_first, predict, predict_from, Problem,
+};
 pub use result::{
     Conditioning, Estimate, IterState, Iteration, Materials0, RatioMoves, StepTimes, Validation,
 };

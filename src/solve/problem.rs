@@ -196,7 +196,9 @@ pub fn predict(problem: &Problem, est: &Estimate) -> Vec<[f64; 3]> {
     predict_from(problem, &beta, &s)
 }
 
-pub(crate) fn predict_from(problem: &Problem, beta: &[[f64; 3]], s: &[[f64; 3]]) -> Vec<[f64; 3]> {
+/// [`predict`] from per-vertex reflectance `beta` (`V × B`) and the basis responses `s`
+/// ([`basis_responses`]).
+pub fn predict_from(problem: &Problem, beta: &[[f64; 3]], s: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let nb = problem.transport.n_basis;
     (0..problem.obs.vertex.len())
         .into_par_iter()

@@ -9,7 +9,8 @@ use relight_cpc::solve::light::sky::clock::{ClockSun, ClockSuns};
 use relight_cpc::solve::light::sky::{SkyLight, SkyOptions, SunSky};
 use relight_cpc::solve::light::{LightModel, LightingInput, LightingOutput};
 use relight_cpc::solve::{
-    basis_responses, beta_per_vertex, estimate, Conditioning, Estimate, EstimateOptions,
+    basis_responses, beta_per_vertex, estimate, predict_from, Conditioning, Estimate,
+    EstimateOptions,
 };
 use relight_cpc::Vec3;
 
@@ -623,17 +624,7 @@ fn sky_steps(c: &SkyCase, obs: &Observations, steps: usize) -> Vec<[f64; 3]> {
         light.fit(&input, &mut out).unwrap();
     }
     let s = basis_responses(&problem, &light.maps(light.params()));
-    let nb = case.train.transport.n_basis;
-    (0..obs.rgb.len())
-        .map(|p| {
-            let x = obs.vertex[p] as usize;
-            std::array::from_fn(|ch| {
-                (0..nb)
-                    .map(|b| beta[x * nb + b][ch] * s[p * nb + b][ch])
-                    .sum()
-            })
-        })
-        .collect()
+    predict_from(&problem, &beta, &s)
 }
 
 #[test]
