@@ -85,7 +85,11 @@
 //! `ABLATION_ACCURACY_MISSES=1` (where the `defaults` row's material-accuracy misses are,
 //! [`metrics::accuracy_misses`]), `ABLATION_TAIL=1` (the share of each material's seen
 //! pure vertices far off its median albedo, facing down and not, for the true maps and the
-//! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
+//! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_LAMBDA=1` (every fit's `λ` per
+//! material and lobe against the truth's, after the per-channel scale of the diffuse
+//! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
+//! start with every lobe but the Lambertian one at `X` times its `λ`: with
+//! `ABLATION_DEFAULTS_START=truth-lambda`, `X` times the truth's), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
 //! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
@@ -527,6 +531,9 @@ fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f
     } else {
         ((f64::NAN, f64::NAN), [f64::NAN; 3])
     };
+    if crate::env_flag("ABLATION_LAMBDA") && est.lambda.len() == case.lambda.len() {
+        eprint!("{}", crate::metrics::scaled_lambda(case, est, &fl.seen));
+    }
     Figures {
         heldout: half_error(case, &est.lambda, &est.weights, &fl.left),
         heldout_floor: fl.heldout,

@@ -90,6 +90,34 @@ pub fn ratio_errors(
     })
 }
 
+/// `ABLATION_LAMBDA=1`: each fitted material's `λ` per lobe, every channel `c` scaled by
+/// `s_c = Σ_k λ*_{k,0,c} λ_{k,0,c} / Σ_k λ_{k,0,c}²` (the least-squares fit of the diffuse
+/// colours to the truth's, the per-channel scale no photo fixes), beside its true
+/// material's (the best order of [`best_order`]). Assumes the fit's lobes are the case's.
+pub fn scaled_lambda(case: &Case, est: &Estimate, seen: &[bool]) -> String {
+    let (_, _, perm) = best_order(case, est, seen);
+    let scale: [f64; 3] = [0, 1, 2].map(|c| {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (k, l) in est.lambda.iter().enumerate() {
+            num += case.lambda[perm[k]][0][c] * l[0][c];
+            den += l[0][c] * l[0][c];
+        }
+        num / den
+    });
+    let mut out = String::new();
+    for (k, l) in est.lambda.iter().enumerate() {
+        let scaled: Vec<[f64; 3]> = l
+            .iter()
+            .map(|b| [0, 1, 2].map(|c| b[c] * scale[c]))
+            .collect();
+        out += &format!(
+            "  λ of material {k}, scaled: {scaled:.3?}; the truth's: {:?}\n",
+            case.lambda[perm[k]]
+        );
+    }
+    out
+}
+
 /// The held-out split's observations cut in two per photo by the plane through the
 /// observed vertices' centroid spanned by the mean viewing direction and the world up
 /// axis: `true` = left (the light is fitted there), `false` = right (evaluated).

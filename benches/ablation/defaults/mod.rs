@@ -247,6 +247,12 @@ fn start_materials(
         Some("unmix2") => start_probes::unmix_pairs(&mut m0, colours),
         _ => {}
     }
+    if let Some(x) = std::env::var("ABLATION_SPECULAR_START")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        scale_specular(&mut m0, x);
+    }
     if std::env::var("ABLATION_START_RATIOS").is_ok_and(|v| v == "1") {
         let lambda: Vec<_> = m0
             .lambda
@@ -259,6 +265,19 @@ fn start_materials(
         );
     }
     m0
+}
+
+/// `ABLATION_SPECULAR_START=X`: every lobe of the start but the Lambertian one at `X` times
+/// its `λ` (the start the alternation keeps the specular strength near,
+/// `bench-results/targets-192.md` section 11).
+fn scale_specular(m0: &mut Materials0, x: f64) {
+    for row in &mut m0.lambda {
+        for (b, v) in row.iter_mut().enumerate() {
+            if b != LAMBERT {
+                *v = v.map(|l| l * x);
+            }
+        }
+    }
 }
 
 /// The full fit's options: the pilot's choices, `run`'s cap, tolerance and patience (or
