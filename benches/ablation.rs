@@ -333,6 +333,8 @@ fn extra_rows() -> Vec<Row> {
     vec![
         Row::Fit { label: "prior SH η=0.1", make: |b| prior(b, 0.1, 0.0) },
         Row::Fit { label: "prior SH η=1", make: |b| prior(b, 1.0, 0.0) },
+        Row::Fit { label: "prior SH η=0.3, Haar η=0.1", make: |b| prior(b, 0.3, 0.1) },
+        Row::Fit { label: "prior SH η=0.3, Haar η=0.3", make: |b| prior(b, 0.3, 0.3) },
         Row::Fit { label: "paper, Σw=1 prior 0.1", make: |b| sum1(choice("paper", b), 0.1) },
         Row::Fit { label: "paper, Σw=1 prior 1 on blends", make: |b| on_blends(sum1(choice("paper", b), 1.0)) },
         Row::Fit { label: "paper, neighbour prior 0.1", make: |b| pull(choice("paper", b), 0.1) },
