@@ -506,13 +506,7 @@ pub(super) fn solve_pass(
 ) -> Result<Option<QpResult>> {
     let (sys, n) = (p.sys, p.sys.n);
     let n2 = n * n;
-    // Right-hand side Wᵀ Aᵀ D y.
-    let u: Vec<[f64; 3]> = (0..data.pos.len())
-        .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * data.y[q][c]))
-        .collect();
-    let mut hb = vec![[0.0; 3]; n2];
-    sys.adjoint_rows(&u, &mut hb);
-    let b = unhaar3(&hb, n);
+    let b = sys.texel_rhs(&data.y);
     let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
     if bmax == 0.0 {
         return Ok(None);

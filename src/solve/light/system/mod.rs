@@ -242,6 +242,19 @@ impl PhotoSystem {
         }
     }
 
+    /// The data term's right-hand side `Wᵀ Aᵀ D y` in the texel basis, `y` per observation
+    /// of the range (`D = dw`, `W` the Haar synthesis, [`unhaar3`]).
+    pub(crate) fn texel_rhs(&self, y: &[[f64; 3]]) -> Vec<f64> {
+        let u: Vec<[f64; 3]> = y
+            .iter()
+            .zip(&self.dw)
+            .map(|(yq, d)| [0, 1, 2].map(|c| d[c] * yq[c]))
+            .collect();
+        let mut hb = vec![[0.0; 3]; self.n * self.n];
+        self.adjoint_rows(&u, &mut hb);
+        unhaar3(&hb, self.n)
+    }
+
     /// `out += Aᵀ D A h` in the Haar basis (`D = dw`), one pass over the merged rows:
     /// each row's response is formed and scattered back at once, so the rows are read
     /// once per product instead of twice. The rows are cut into [`PRODUCT_CHUNKS`] parts

@@ -147,12 +147,7 @@ impl SkyLight {
         let (sys, n) = (qp.sys, qp.sys.n);
         let n2 = n * n;
         let prev = &self.params[photo];
-        let u: Vec<[f64; 3]> = (0..rows.y.len())
-            .map(|q| [0, 1, 2].map(|c| sys.dw[q][c] * rows.y[q][c]))
-            .collect();
-        let mut hb = vec![[0.0; 3]; n2];
-        sys.adjoint_rows(&u, &mut hb);
-        let bx = unhaar3(&hb, n);
+        let bx = sys.texel_rhs(&rows.y);
         let mut b = vec![0.0; JointQp::NW + 3 * n2];
         qp.pull_back(&bx, &mut b);
         let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
