@@ -29,7 +29,7 @@ use super::{
 };
 use crate::solve::light::bounds::{censor, clipped_in};
 use crate::solve::light::sh_prior::LightPrior;
-use crate::solve::light::system::PhotoSystem;
+use crate::solve::light::system::{texel_diag_vec, PhotoSystem};
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::options::EstimateOptions;
 use crate::solve::problem::{haar3, par_largest_first, Problem};
@@ -222,8 +222,10 @@ struct PhotoFit {
 #[derive(Clone, Copy)]
 struct PassInput<'a> {
     problem: &'a Problem<'a>,
-    beta: &'a [[f64; 3]],
     rows: &'a Rows,
+    /// The texel-basis diagonal of the data term (`α`, without `ω`): the same for every
+    /// pass, the joint QP's Jacobi scaling ([`texel_diag_vec`]).
+    tdiag: &'a [[f64; 3]],
     photo: usize,
     outer_iteration: usize,
 }
@@ -281,10 +283,11 @@ impl SkyLight {
         let rows = Rows::new(problem, photo);
         let mut sys = self.photo_system(problem, beta, &rows);
         let omega = self.bound_weights(&sys, &rows, &self.params[photo]);
+        let tdiag = texel_diag_vec(problem, beta, rows.range.clone(), &rows.alpha);
         let pass = PassInput {
             problem,
-            beta,
             rows: &rows,
+            tdiag: &tdiag,
             photo,
             outer_iteration,
         };
@@ -315,8 +318,8 @@ impl SkyLight {
     ) -> Result<PhotoFit> {
         let PassInput {
             problem,
-            beta,
             rows,
+            tdiag,
             photo,
             outer_iteration,
         } = *pass;
@@ -333,7 +336,7 @@ impl SkyLight {
             basis: &basis,
             d,
         };
-        let qp_result = self.joint_qp(&qp, problem, beta, rows, &best, photo)?;
+        let qp_result = self.joint_qp(&qp, rows, &best, photo, tdiag)?;
         let (weights, residual) = split_joint(qp_result.as_ref(), n);
         Ok(PhotoFit {
             photo: SkyPhoto {

@@ -9,8 +9,8 @@
 use super::{Candidate, Rows, SkyLight, N_BASIS};
 use crate::solve::light::sh_prior::haar_diag_in_texels;
 use crate::solve::light::sky::SkyBasis;
-use crate::solve::light::system::{split3, texel_diag_vec, unhaar3, PhotoSystem};
-use crate::solve::problem::{haar3, Problem};
+use crate::solve::light::system::{split3, unhaar3, PhotoSystem};
+use crate::solve::problem::haar3;
 use crate::solve::qp::{bound_qp_scaled, QpOptions, QpResult};
 use crate::{Error, Result};
 
@@ -134,15 +134,15 @@ impl JointQp<'_> {
 
 impl SkyLight {
     /// Step 3, the joint QP from the search's weights and the previous residual, Jacobi
-    /// scaled; `None` when no light reaches any weighted observation (`b = 0`).
+    /// scaled from the data term's texel diagonal `tdiag`; `None` when no light reaches any
+    /// weighted observation (`b = 0`).
     pub(super) fn joint_qp(
         &self,
         qp: &JointQp,
-        problem: &Problem,
-        beta: &[[f64; 3]],
         rows: &Rows,
         best: &Candidate,
         photo: usize,
+        tdiag: &[[f64; 3]],
     ) -> Result<Option<QpResult>> {
         let (sys, n) = (qp.sys, qp.sys.n);
         let n2 = n * n;
@@ -156,8 +156,7 @@ impl SkyLight {
         }
         let mut z0: Vec<f64> = best.weights.iter().flatten().copied().collect();
         z0.extend(prev.residual.iter().flatten());
-        let tdiag = texel_diag_vec(problem, beta, rows.range.clone(), &rows.alpha);
-        let jac = qp.diagonal(&tdiag);
+        let jac = qp.diagonal(tdiag);
         let opts = QpOptions {
             tol: self.opts.qp_rel_tol * bmax,
             max_iter: self.qp_max_iter,
