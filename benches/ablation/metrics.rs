@@ -3,7 +3,7 @@
 //! the held-out half protocol.
 
 use crate::synth_case::*;
-use relight_cpc::report::metrics::{upper_median, PURE_OFF, PURE_WEIGHT};
+use relight_cpc::report::metrics::{channel_scales, upper_median, PURE_OFF, PURE_WEIGHT};
 use relight_cpc::solve::{beta_per_vertex, fit_light_frozen, Estimate, EstimateOptions};
 
 /// All permutations of `0..k` (k ≤ 4).
@@ -91,19 +91,16 @@ pub fn ratio_errors(
 }
 
 /// `ABLATION_LAMBDA=1`: each fitted material's `λ` per lobe, every channel `c` scaled by
-/// `s_c = Σ_k λ*_{k,0,c} λ_{k,0,c} / Σ_k λ_{k,0,c}²` (the least-squares fit of the diffuse
-/// colours to the truth's, the per-channel scale no photo fixes), beside its true
-/// material's (the best order of [`best_order`]). Assumes the fit's lobes are the case's.
+/// `s_c = Σ_k λ*_{k,0,c} λ_{k,0,c} / Σ_k λ_{k,0,c}²` ([`channel_scales`] of the diffuse
+/// colours against the truth's: the per-channel scale no photo fixes), beside its true
+/// material's (the best order of [`best_order`]). Every row's `λ` is over the case's lobes
+/// (the `defaults` row's expanded from the pilot's).
 pub fn scaled_lambda(case: &Case, est: &Estimate, seen: &[bool]) -> String {
     let (_, _, perm) = best_order(case, est, seen);
-    let scale: [f64; 3] = [0, 1, 2].map(|c| {
-        let (mut num, mut den) = (0.0, 0.0);
-        for (k, l) in est.lambda.iter().enumerate() {
-            num += case.lambda[perm[k]][0][c] * l[0][c];
-            den += l[0][c] * l[0][c];
-        }
-        num / den
-    });
+    let diffuse = |l: &Vec<[f64; 3]>| l[0].map(|v| v as f32);
+    let truth: Vec<[f32; 3]> = perm.iter().map(|&t| diffuse(&case.lambda[t])).collect();
+    let fitted: Vec<[f32; 3]> = est.lambda.iter().map(diffuse).collect();
+    let scale = channel_scales(&truth, &fitted, &vec![true; fitted.len()]);
     let mut out = String::new();
     for (k, l) in est.lambda.iter().enumerate() {
         let scaled: Vec<[f64; 3]> = l
