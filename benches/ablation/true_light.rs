@@ -25,7 +25,7 @@
 use crate::metrics::{best_order_of, ratio_errors};
 use crate::synth_case::*;
 use relight_cpc::solve::materials::LambdaCoupling;
-use relight_cpc::solve::{basis_responses, lambda_step, weights_step, Materials0};
+use relight_cpc::solve::{basis_responses, lambda_step, weights_step, Materials0, WeightsRules};
 
 /// Sweeps of the two alternating fits.
 const SWEEPS: usize = 30;
@@ -78,7 +78,7 @@ pub fn ratio_floor(case: &Case, seen: &[bool]) -> RatioFloor {
             .lambda
     };
     let weights_of = |lambda: &[Vec<[f64; 3]>], weights: &[f64]| {
-        weights_step(&problem, &s, lambda, weights, &dw, None, None)
+        weights_step(&problem, &s, lambda, weights, &dw, WeightsRules::default())
             .expect("w step")
             .weights
     };

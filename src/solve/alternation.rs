@@ -28,7 +28,7 @@ use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
     blend_scaled_gamma, data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty,
-    weights_step, LambdaCoupling, NeighbourPull,
+    weights_step, LambdaCoupling, NeighbourPull, WeightsRules,
 };
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{channel_data_fit, evaluate, gauge, Objective, Point};
@@ -291,8 +291,11 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             &self.lambda,
             &self.weights,
             &dw.weights,
-            self.sum_gamma.as_deref(),
-            None,
+            WeightsRules {
+                gamma: self.sum_gamma.as_deref(),
+                pull: None,
+                bic: self.opts.weights_bic,
+            },
         )?;
         let kk = self.lambda.len();
         for &p in held {
@@ -329,8 +332,11 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 &alt.lambda,
                 &alt.weights,
                 &dw.weights,
-                sum_gamma.as_deref(),
-                None,
+                WeightsRules {
+                    gamma: sum_gamma.as_deref(),
+                    pull: None,
+                    bic: alt.opts.weights_bic,
+                },
             )?;
             alt.weights = w.weights;
             alt.lighting(outer_it)?;
@@ -516,8 +522,11 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 &self.lambda,
                 &self.weights,
                 &dw.weights,
-                self.sum_gamma.as_deref(),
-                self.pull(),
+                WeightsRules {
+                    gamma: self.sum_gamma.as_deref(),
+                    pull: self.pull(),
+                    bic: opts.weights_bic,
+                },
             )?;
             self.weights = w.weights;
             self.cond.weights_max = w.cond_max;

@@ -86,7 +86,7 @@ pub use light::photo::{
     fit_light_frozen, lighting_sample, lighting_step, lighting_step_full, lighting_step_on,
     LightingResult,
 };
-pub use materials::{lambda_step, weights_step, LambdaStep, WeightsStep};
+pub use materials::{lambda_step, weights_step, LambdaStep, WeightsRules, WeightsStep};
 pub use options::{
     EstimateOptions, Robust, SmoothnessScale, SumScope, ALTERNATION_CG_ITERS, ALTERNATION_QP_ITERS,
     BLEND_FLOOR, PATIENCE, ROBUST_FLOOR, VALIDATION_MIN_FIT, WEIGHTS_SUM,

@@ -206,6 +206,13 @@ pub struct EstimateOptions {
     /// (the sum-to-one prior's scale) and `w̄_N(x)` the mean over [`Self::weights_graph`]'s
     /// neighbours of `x`, taken at the step's start (a Jacobi sweep per material step).
     pub weights_smoothness: f64,
+    /// Each vertex drops the materials it does not need (not in the paper; 0 = off, the
+    /// paper's NNLS that keeps every material lowering the vertex's data term at all):
+    /// after each `w` step, backward elimination by the Bayesian information criterion
+    /// with its penalty `σ² ln n_x` times this ([`crate::solve::materials::support`]).
+    /// NNLS gives a vertex of one material a few percent of the others wherever that fits
+    /// its noise, which moves its albedo by that share of the colours' difference.
+    pub weights_bic: f64,
     /// Overexposed observations' clipped channels read as lower bounds (issue 25, not in
     /// the paper): each takes its confidence [`crate::observe::Observations::bound_weight`]
     /// and a one-sided data term ([`crate::solve::light::photo::censor`]) in the fit, with
@@ -411,6 +418,7 @@ impl Default for EstimateOptions {
             weights_sum: WEIGHTS_SUM,
             weights_sum_scope: SumScope::Every,
             weights_smoothness: 0.0,
+            weights_bic: 0.0,
             clipped_bounds: false,
             weights_graph: Default::default(),
             achromatic_specular: false,

@@ -40,6 +40,7 @@ pub mod coarse_light_shiny;
 pub mod irradiance;
 pub mod propagate;
 pub mod reanchor;
+pub mod support;
 
 #[cfg(test)]
 pub(crate) mod test_normals {
@@ -437,11 +438,41 @@ impl NeighbourPull<'_> {
     }
 }
 
+/// What [`weights_step`] adds to each vertex's data term, and how it picks a vertex's
+/// materials.
+#[derive(Clone, Copy, Default)]
+pub struct WeightsRules<'a> {
+    /// `γ_x` of the sum-to-one prior ([`sum_weights_gamma`]), when on.
+    pub gamma: Option<&'a [f64]>,
+    /// The neighbour prior, when on.
+    pub pull: Option<NeighbourPull<'a>>,
+    /// The multiple of BIC's penalty by which each vertex drops materials
+    /// ([`EstimateOptions::weights_bic`], [`support`]); 0 = off: NNLS keeps every
+    /// material that lowers the vertex's term at all (the paper).
+    pub bic: f64,
+}
+
+/// Every fitted vertex's weights through [`support::select_support`], each with the
+/// penalty `bic · σ² ln n_x`: `σ²` the data term per weighted observation over all fitted
+/// vertices (at their NNLS weights), `n_x` the vertex's weighted observations.
+fn select_supports(fits: &mut [Option<VertexFit>], bic: f64) {
+    let (sse, n) = fits
+        .iter()
+        .flatten()
+        .fold((0.0, 0usize), |(s, n), f| (s + f.sse, n + f.n));
+    let sigma2 = sse / n.max(1) as f64;
+    fits.par_iter_mut().flatten().for_each(|f| {
+        let penalty = bic * sigma2 * (f.n.max(2) as f64).ln();
+        f.w = support::select_support(&f.mat, &f.rhs, &f.w, penalty);
+    });
+}
+
 /// Material step, w part (Eq. 12): per vertex, NNLS over its observations in all channels,
-/// plus the sum-to-one prior `γ_x (Σ_k w_k − 1)²` when `gamma` is given (its normal
+/// plus the sum-to-one prior `γ_x (Σ_k w_k − 1)²` when `rules.gamma` is given (its normal
 /// equations gain `γ_x 1 1ᵀ` and `γ_x 1`, [`sum_weights_gamma`]), and the neighbour prior
-/// when `pull` is given (`η_x I` and `η_x w̄_N(x)`, the neighbours' mean at the step's
-/// start: [`NeighbourPull`]). Vertices without weighted
+/// when `rules.pull` is given (`η_x I` and `η_x w̄_N(x)`, the neighbours' mean at the step's
+/// start: [`NeighbourPull`]); with `rules.bic > 0` each vertex then drops the materials
+/// BIC finds it does not need ([`select_supports`]). Vertices without weighted
 /// observations keep their weights (after the fit, `run` gives the ones no training photo
 /// sees their seen neighbours' materials: [`propagate`]). Returns the new weights, the largest finite condition
 /// number and the count of singular systems.
@@ -451,9 +482,9 @@ pub fn weights_step(
     lambda: &[Vec<[f64; 3]>],
     weights: &[f64],
     dw: &[[f64; 3]],
-    gamma: Option<&[f64]>,
-    pull: Option<NeighbourPull>,
+    rules: WeightsRules,
 ) -> Result<WeightsStep> {
+    let WeightsRules { gamma, pull, bic } = rules;
     let kk = lambda.len();
     let (off, list) = by_vertex(problem.obs, problem.n_vertices);
     let data = WeightsData {
@@ -462,12 +493,13 @@ pub fn weights_step(
         lambda,
         dw,
     };
-    let rows: Vec<Result<(Vec<f64>, f64)>> = (0..problem.n_vertices)
+    let rows: Vec<Result<Option<VertexFit>>> = (0..problem.n_vertices)
         .into_par_iter()
         .map(|x| {
-            let Some((mut mat, mut rhs)) = data.normal_equations(&list[off[x]..off[x + 1]]) else {
-                return Ok((weights[x * kk..(x + 1) * kk].to_vec(), 0.0));
+            let Some(sys) = data.normal_equations(&list[off[x]..off[x + 1]]) else {
+                return Ok(None);
             };
+            let (mut mat, mut rhs) = (sys.mat.clone(), sys.rhs.clone());
             if let Some(g) = gamma.map(|g| g[x]).filter(|&g| g > 0.0) {
                 add_sum_prior(&mut mat, &mut rhs, g);
             }
@@ -484,7 +516,33 @@ pub fn weights_step(
                 stage: format!("material step (w, vertex {x})"),
                 message: e.to_string(),
             })?;
-            Ok((sol.iter().copied().collect(), cond))
+            let w: Vec<f64> = sol.iter().copied().collect();
+            let sse = (support::quadratic(&sys.mat, &sys.rhs, &w) + sys.yy).max(0.0);
+            Ok(Some(VertexFit {
+                w,
+                cond,
+                sse,
+                n: sys.n,
+                mat,
+                rhs,
+            }))
+        })
+        .collect();
+    let mut fits = Vec::with_capacity(rows.len());
+    for r in rows {
+        fits.push(r?);
+    }
+    if bic > 0.0 {
+        select_supports(&mut fits, bic);
+    }
+    let rows: Vec<Result<(Vec<f64>, f64)>> = fits
+        .into_iter()
+        .enumerate()
+        .map(|(x, f)| {
+            Ok(match f {
+                Some(f) => (f.w, f.cond),
+                None => (weights[x * kk..(x + 1) * kk].to_vec(), 0.0),
+            })
         })
         .collect();
     let mut out = Vec::with_capacity(weights.len());
@@ -518,26 +576,27 @@ impl WeightsData<'_> {
     /// One vertex's data term `Σ_{p,c} d_{p,c} (a_{p,c}ᵀ w − y_{p,c})²` as normal equations
     /// `(Σ d a aᵀ, Σ d a y)`, with `a_{p,c,k} = Σ_b λ_{k,b,c} s_{p,b,c}` over its observations
     /// `ps`; `None` when none of them has weight.
-    fn normal_equations(&self, ps: &[usize]) -> Option<(DMatrix<f64>, DVector<f64>)> {
+    fn normal_equations(&self, ps: &[usize]) -> Option<VertexSystem> {
         let nb = self.problem.transport.n_basis;
         let kk = self.lambda.len();
         let mut mat = DMatrix::<f64>::zeros(kk, kk);
         let mut rhs = DVector::<f64>::zeros(kk);
         let mut a = vec![0.0; kk];
-        let mut any = false;
+        let (mut yy, mut n) = (0.0, 0usize);
         for &p in ps {
             for c in 0..3 {
                 let d = self.dw[p][c];
                 if d == 0.0 {
                     continue;
                 }
-                any = true;
+                n += 1;
                 for k in 0..kk {
                     a[k] = (0..nb)
                         .map(|b| self.lambda[k][b][c] * self.s[p * nb + b][c])
                         .sum();
                 }
                 let yc = self.problem.obs.rgb[p][c] as f64;
+                yy += d * yc * yc;
                 for i in 0..kk {
                     rhs[i] += d * a[i] * yc;
                     for j in 0..kk {
@@ -546,8 +605,28 @@ impl WeightsData<'_> {
                 }
             }
         }
-        any.then_some((mat, rhs))
+        (n > 0).then_some(VertexSystem { mat, rhs, yy, n })
     }
+}
+
+/// One vertex's data term as normal equations ([`WeightsData::normal_equations`]):
+/// `F_x(w) = wᵀ mat w − 2 wᵀ rhs + yy` over its `n` weighted observations (per channel).
+struct VertexSystem {
+    mat: DMatrix<f64>,
+    rhs: DVector<f64>,
+    yy: f64,
+    n: usize,
+}
+
+/// One vertex's weights from [`weights_step`]: the solution, its system's condition number,
+/// its data term `sse` over `n` weighted observations, and the system with the priors.
+struct VertexFit {
+    w: Vec<f64>,
+    cond: f64,
+    sse: f64,
+    n: usize,
+    mat: DMatrix<f64>,
+    rhs: DVector<f64>,
 }
 
 /// The sum-to-one prior `γ (Σ_k w_k − 1)²` added to normal equations: `γ 1 1ᵀ` and `γ 1`.

@@ -113,7 +113,19 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
         [b[0] + g, b[1] + g],
     );
     assert!(soft.iter().all(|&v| v > 0.0), "{soft:?}");
-    let w = weights_step(&problem, s, lambda, &w0, &dw, Some(&gamma), None).unwrap();
+    let w = weights_step(
+        &problem,
+        s,
+        lambda,
+        &w0,
+        &dw,
+        WeightsRules {
+            gamma: Some(&gamma),
+            pull: None,
+            bic: 0.0,
+        },
+    )
+    .unwrap();
     for k in 0..2 {
         assert!(
             (w.weights[k] - soft[k]).abs() < 1e-10,
@@ -123,7 +135,19 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
     }
     // Off: the plain least squares, whose weights do not sum to one.
     let free = solve2(m, b);
-    let w = weights_step(&problem, s, lambda, &w0, &dw, None, None).unwrap();
+    let w = weights_step(
+        &problem,
+        s,
+        lambda,
+        &w0,
+        &dw,
+        WeightsRules {
+            gamma: None,
+            pull: None,
+            bic: 0.0,
+        },
+    )
+    .unwrap();
     for k in 0..2 {
         assert!((w.weights[k] - free[k]).abs() < 1e-10);
     }
@@ -135,7 +159,19 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
     let nu = (mi_b[0] + mi_b[1] - 1.0) / (mi_1[0] + mi_1[1]);
     let hard = [mi_b[0] - nu * mi_1[0], mi_b[1] - nu * mi_1[1]];
     let gamma = sum_weights_gamma(obs, 1, 1e8);
-    let w = weights_step(&problem, s, lambda, &w0, &dw, Some(&gamma), None).unwrap();
+    let w = weights_step(
+        &problem,
+        s,
+        lambda,
+        &w0,
+        &dw,
+        WeightsRules {
+            gamma: Some(&gamma),
+            pull: None,
+            bic: 0.0,
+        },
+    )
+    .unwrap();
     for k in 0..2 {
         assert!(
             (w.weights[k] - hard[k]).abs() < 1e-6,
@@ -353,7 +389,19 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
             [b[0] + eta * m_nb[0], b[1] + eta * m_nb[1]],
         );
         assert!(want.iter().all(|&v| v > 0.0), "{want:?}");
-        let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
+        let w = weights_step(
+            &problem,
+            s,
+            lambda,
+            &w0,
+            &dw,
+            WeightsRules {
+                gamma: None,
+                pull: Some(pull),
+                bic: 0.0,
+            },
+        )
+        .unwrap();
         for k in 0..2 {
             assert!(
                 (w.weights[k] - want[k]).abs() < 1e-10,
@@ -372,7 +420,19 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
         eta: &[1e8, 1.0],
         graph: &graph,
     };
-    let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
+    let w = weights_step(
+        &problem,
+        s,
+        lambda,
+        &w0,
+        &dw,
+        WeightsRules {
+            gamma: None,
+            pull: Some(pull),
+            bic: 0.0,
+        },
+    )
+    .unwrap();
     for k in 0..2 {
         assert!((w.weights[k] - m_nb[k]).abs() < 1e-6, "{:?}", w.weights);
     }
@@ -381,8 +441,32 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
         eta: &[1.0, 0.0],
         graph: &graph,
     };
-    let free = weights_step(&problem, s, lambda, &w0, &dw, None, None).unwrap();
-    let w = weights_step(&problem, s, lambda, &w0, &dw, None, Some(pull)).unwrap();
+    let free = weights_step(
+        &problem,
+        s,
+        lambda,
+        &w0,
+        &dw,
+        WeightsRules {
+            gamma: None,
+            pull: None,
+            bic: 0.0,
+        },
+    )
+    .unwrap();
+    let w = weights_step(
+        &problem,
+        s,
+        lambda,
+        &w0,
+        &dw,
+        WeightsRules {
+            gamma: None,
+            pull: Some(pull),
+            bic: 0.0,
+        },
+    )
+    .unwrap();
     assert_eq!(w.weights, free.weights);
 }
 
@@ -410,4 +494,94 @@ fn blend_share_is_zero_at_a_pure_vertex_and_one_at_an_even_blend() {
     for x in 0..3 {
         assert!((scaled[x] - want[x]).abs() < 1e-15, "{scaled:?}");
     }
+}
+
+/// `nv` vertices seen by `np` photos each (one basis), two materials with correlated
+/// colours; vertex `x`'s true weights `truth(x)` and Gaussian noise of σ on every channel.
+fn noisy_vertices(
+    nv: usize,
+    np: usize,
+    sigma: f64,
+    truth: impl Fn(usize) -> [f64; 2],
+) -> (OneVertex, usize) {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let lambda = vec![vec![[0.8, 0.5, 0.3]], vec![[0.5, 0.5, 0.6]]];
+    let (mut obs, mut s) = (Observations::default(), Vec::new());
+    for p in 0..np {
+        let start = obs.len();
+        for x in 0..nv {
+            let sp = [0, 1, 2].map(|_| 0.5 + rng.random::<f64>());
+            let w = truth(x);
+            let y = [0, 1, 2].map(|c| {
+                let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+                let e = (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+                ((w[0] * lambda[0][0][c] + w[1] * lambda[1][0][c]) * sp[c] + sigma * e) as f32
+            });
+            obs.vertex.push(x as u32);
+            obs.photo.push(p as u32);
+            obs.rgb.push(y);
+            obs.weight.push(1.0);
+            obs.dir.push([0.0, 0.0, 1.0]);
+            s.push(sp);
+        }
+        obs.photo_ranges.push(start..obs.len());
+    }
+    let n = obs.len();
+    let transport = Transport {
+        n_global: 2,
+        n_basis: 1,
+        n_obs: n,
+        offsets: vec![0; n + 1],
+        ..Default::default()
+    };
+    (
+        OneVertex {
+            obs,
+            transport,
+            s,
+            lambda,
+        },
+        np,
+    )
+}
+
+/// With `bic = 1` a vertex of one material keeps a second one about as often as BIC's
+/// rate predicts, and a real blend keeps both. 400 pure vertices and 100 blends (60/40),
+/// 20 photos × 3 channels each (`ln 60 = 4.09`), σ = 0.03. Expected share of pure vertices
+/// keeping the second material: `½ P(χ²₁ > 4.09) = 0.0215` (support.rs's tests), with σ²
+/// estimated from the step's own residuals; its standard deviation over 400 is 0.0072, so
+/// 0.06 is more than 5 of them. Without BIC, NNLS keeps it on about half (its unconstrained
+/// estimate is unbiased around 0): more than 0.3 allows 8 standard deviations (0.025).
+#[test]
+fn bic_drops_the_second_material_of_pure_vertices_and_keeps_blends() {
+    let (nv, pure) = (500, 400);
+    let truth = |x: usize| if x < pure { [1.0, 0.0] } else { [0.6, 0.4] };
+    let (v, np) = noisy_vertices(nv, 20, 0.03, truth);
+    let problem = Problem {
+        obs: &v.obs,
+        transport: &v.transport,
+        n_vertices: nv,
+        n_photos: np,
+    };
+    let dw = vec![[1.0; 3]; v.obs.len()];
+    let w0 = vec![0.5; nv * 2];
+    let share = |bic: f64| {
+        let rules = WeightsRules {
+            bic,
+            ..Default::default()
+        };
+        let w = weights_step(&problem, &v.s, &v.lambda, &w0, &dw, rules).unwrap();
+        let kept = (0..pure).filter(|&x| w.weights[2 * x + 1] > 0.0).count();
+        let blends = (pure..nv).filter(|&x| w.weights[2 * x] > 0.0 && w.weights[2 * x + 1] > 0.0);
+        (kept as f64 / pure as f64, blends.count())
+    };
+    let (with_bic, blends) = share(1.0);
+    assert!(
+        with_bic < 0.06,
+        "pure vertices keeping a second material: {with_bic}"
+    );
+    assert_eq!(blends, nv - pure, "every blend keeps both materials");
+    let (without, _) = share(0.0);
+    assert!(without > 0.3, "NNLS alone: {without}");
 }
