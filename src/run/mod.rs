@@ -54,9 +54,9 @@ pub use example::builtin_example;
 pub use fit::photo_halves;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub use options::{
-    scene_light, Clipped, FitShape, Holdout, LargeMeshSettings, MaterialCount, PriorStrength,
-    RatioSteps, Restart, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum,
-    CLIPPED_AUTO_SHARE, DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES,
+    scene_light, weights_bic_for, Clipped, FitShape, Holdout, LargeMeshSettings, MaterialCount,
+    PriorStrength, RatioSteps, Restart, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum,
+    BIC_FROM_PHOTOS, CLIPPED_AUTO_SHARE, DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES,
     DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH, LIGHTING_SAMPLE_MAX_RATIO, PRIOR_FROM_PHOTOS,
 };
 pub use progress::Progress;

@@ -286,6 +286,18 @@ fn weights_smoothness_outside_its_range_is_refused() {
     );
 }
 
+/// `--weights-bic` is a non-negative multiple of BIC's penalty: negative, NaN or infinite
+/// refused, naming the flag.
+#[test]
+fn weights_bic_outside_its_range_is_refused() {
+    assert_range_checked(
+        "--weights-bic",
+        |o, v| o.weights_bic = relight_cpc::run::PriorStrength::Fixed(v),
+        &[-1.0, f64::NAN, f64::INFINITY],
+        &[0.0, 1.0, 2.5],
+    );
+}
+
 /// `--robust-floor` is a fraction of the RMS radiance: outside [0, 1) (or NaN) refused,
 /// naming the flag.
 #[test]

@@ -325,6 +325,17 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
+        // `run --weights-bic auto` by the training photos and the pilot's count, or
+        // `ABLATION_DEFAULTS_WEIGHTS_BIC=X` (`--weights-bic X`).
+        weights_bic: crate::env_or(
+            "ABLATION_DEFAULTS_WEIGHTS_BIC",
+            relight_cpc::run::weights_bic_for(
+                relight_cpc::run::PriorStrength::Auto,
+                case.train.obs.photo_ranges.len(),
+                pilot.materials,
+            )
+            .0,
+        ),
         light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
             .is_ok_and(|v| v == "shared")
             .then(|| case.true_light_groups()),

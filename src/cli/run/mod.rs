@@ -265,6 +265,13 @@ pub(crate) struct RunArgs {
     /// photo constrains the weights; 0.1 raised the real Buddha photos' error by 3–5%)
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) weights_smoothness: String,
+    /// How readily each surface point drops materials it does not need, as a multiple of
+    /// the Bayesian information criterion's penalty (0 = off: every material that lowers
+    /// the point's error at all stays, as the paper). Without it a point of one material
+    /// keeps a few percent of another wherever that fits the photos' noise. `auto`: 1 for
+    /// two or more materials from 20 training photos, else off.
+    #[arg(long, default_value = "auto", help_heading = "Solver")]
+    pub(crate) weights_bic: String,
     /// Specular lobes take the light's colour: one specular weight per material shared by
     /// R, G and B, the colour in the diffuse lobe (dielectrics).
     #[arg(long, help_heading = "Solver")]

@@ -123,6 +123,8 @@ impl RunArgs {
             "--weights-smoothness",
             "off",
         )?;
+        o.weights_bic =
+            relight_cpc::run::PriorStrength::parse(&self.weights_bic, "--weights-bic", "off")?;
         o.achromatic_specular = self.achromatic_specular;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;

@@ -8,8 +8,8 @@ use crate::import::scene::{Scene, View};
 use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
 use crate::run::{
-    choose_material_count, scene_light, FitShape, MaterialCount, Progress, RunOptions,
-    StartBrightness,
+    choose_material_count, scene_light, weights_bic_for, FitShape, MaterialCount, Progress,
+    RunOptions, StartBrightness,
 };
 use crate::solve::cluster::{initial_materials, unmixed_weights, InitialMaterials, StartWeights};
 use crate::solve::light::choose::LightChoice;
@@ -121,6 +121,9 @@ impl FitStart {
         let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
         let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
         eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos, init.albedo.len());
+        let (bic, why) = weights_bic_for(p.eff.weights_bic, training_photos, init.albedo.len());
+        eopts.weights_bic = bic;
+        reasons.extend(why);
         if eopts.weights_smoothness > 0.0 {
             // The neighbour prior's graph: the one the unseen vertices' materials spread over.
             use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};

@@ -10,11 +10,13 @@ use std::path::PathBuf;
 mod large_mesh;
 mod light_by_scene;
 mod values;
+mod weights_bic;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
 pub use light_by_scene::{scene_light, FitShape, PRIOR_FROM_PHOTOS};
 pub use values::{
     Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
 };
+pub use weights_bic::{weights_bic_for, BIC_FROM_PHOTOS};
 
 /// Checked options of a run.
 #[derive(Debug, Clone)]
@@ -117,6 +119,10 @@ pub struct RunOptions {
     /// graph of the vertices ([`crate::solve::materials::propagate::knn_graph`]), or the
     /// pilot's choice ([`WeightsSmoothness::Auto`]).
     pub weights_smoothness: WeightsSmoothness,
+    /// The multiple of BIC's penalty by which each vertex drops materials it does not need
+    /// ([`EstimateOptions::weights_bic`]; 0 = off, the paper's NNLS), or by the fit's
+    /// photos and materials ([`PriorStrength::Auto`], [`weights_bic_for`]).
+    pub weights_bic: PriorStrength,
     /// One specular weight per material across R, G and B
     /// ([`EstimateOptions::achromatic_specular`]).
     pub achromatic_specular: bool,
@@ -265,6 +271,7 @@ impl RunOptions {
     /// figures (×1.17 wall). The built-in example and every run of the scaling table reach
     /// the cap with patience 1, so their figures and times do not change.
     pub const DEFAULT_PATIENCE: usize = 3;
+
     /// Default of [`RunOptions::max_iterations`]: outer rounds at most.
     pub const DEFAULT_MAX_ITERATIONS: usize = 8;
     /// Default of [`RunOptions::rel_tol`]: the relative-improvement stop.
@@ -312,6 +319,7 @@ impl RunOptions {
             weights_sum: WeightsSum::Auto,
             weights_sum_scope: SumScope::Every,
             weights_smoothness: WeightsSmoothness::Auto,
+            weights_bic: PriorStrength::Auto,
             achromatic_specular: false,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
@@ -481,6 +489,9 @@ impl RunOptions {
         }
         if let WeightsSmoothness::Fixed(v) = self.weights_smoothness {
             non_negative("--weights-smoothness", v, " (0 = off)")?;
+        }
+        if let PriorStrength::Fixed(v) = self.weights_bic {
+            non_negative("--weights-bic", v, " (0 = off)")?;
         }
         if self.starts == 0 {
             return Err(Error::Config(
