@@ -325,7 +325,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
-        // `run --weights-bic auto` by the training photos and the pilot's count, or
+        // `run --weights-bic auto` by the training photos, the pilot's count and lobes, or
         // `ABLATION_DEFAULTS_WEIGHTS_BIC=X` (`--weights-bic X`).
         weights_bic: crate::env_or(
             "ABLATION_DEFAULTS_WEIGHTS_BIC",
@@ -333,6 +333,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
                 relight_cpc::run::PriorStrength::Auto,
                 case.train.obs.photo_ranges.len(),
                 pilot.materials,
+                &kept,
             )
             .0,
         ),

@@ -121,7 +121,12 @@ impl FitStart {
         let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
         let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
         eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos, init.albedo.len());
-        let (bic, why) = weights_bic_for(p.eff.weights_bic, training_photos, init.albedo.len());
+        let (bic, why) = weights_bic_for(
+            p.eff.weights_bic,
+            training_photos,
+            init.albedo.len(),
+            &p.eff.basis,
+        );
         eopts.weights_bic = bic;
         reasons.extend(why);
         if eopts.weights_smoothness > 0.0 {

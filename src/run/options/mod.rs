@@ -121,7 +121,7 @@ pub struct RunOptions {
     pub weights_smoothness: WeightsSmoothness,
     /// The multiple of BIC's penalty by which each vertex drops materials it does not need
     /// ([`EstimateOptions::weights_bic`]; 0 = off, the paper's NNLS), or by the fit's
-    /// photos and materials ([`PriorStrength::Auto`], [`weights_bic_for`]).
+    /// lobes, photos and materials ([`PriorStrength::Auto`], [`weights_bic_for`]).
     pub weights_bic: PriorStrength,
     /// One specular weight per material across R, G and B
     /// ([`EstimateOptions::achromatic_specular`]).
