@@ -11,6 +11,14 @@ struct OneVertex {
 }
 
 impl OneVertex {
+    /// The `w` step's weights from `w0` under `rules`, every observation at data weight 1.
+    fn weights(&self, w0: &[f64], rules: WeightsRules) -> Vec<f64> {
+        let dw = vec![[1.0; 3]; self.obs.len()];
+        weights_step(&self.problem(), &self.s, &self.lambda, w0, &dw, rules)
+            .unwrap()
+            .weights
+    }
+
     /// The `w` step's problem over this one vertex and its four photos.
     fn problem(&self) -> Problem<'_> {
         Problem {
@@ -96,8 +104,6 @@ fn solve2(m: [[f64; 2]; 2], b: [f64; 2]) -> [f64; 2] {
 fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
     let v = one_vertex();
     let (obs, s, lambda) = (&v.obs, &v.s, &v.lambda);
-    let problem = v.problem();
-    let dw = vec![[1.0; 3]; 4];
     let w0 = vec![0.5, 0.5];
     // γ by hand: Σ_p Σ_c y² of the four observations.
     let y2: f64 = obs.rgb.iter().flatten().map(|&v| (v as f64).powi(2)).sum();
@@ -113,43 +119,21 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
         [b[0] + g, b[1] + g],
     );
     assert!(soft.iter().all(|&v| v > 0.0), "{soft:?}");
-    let w = weights_step(
-        &problem,
-        s,
-        lambda,
+    let w = v.weights(
         &w0,
-        &dw,
         WeightsRules {
             gamma: Some(&gamma),
-            pull: None,
-            bic: 0.0,
+            ..Default::default()
         },
-    )
-    .unwrap();
+    );
     for k in 0..2 {
-        assert!(
-            (w.weights[k] - soft[k]).abs() < 1e-10,
-            "{:?} vs {soft:?}",
-            w.weights
-        );
+        assert!((w[k] - soft[k]).abs() < 1e-10, "{:?} vs {soft:?}", w);
     }
     // Off: the plain least squares, whose weights do not sum to one.
     let free = solve2(m, b);
-    let w = weights_step(
-        &problem,
-        s,
-        lambda,
-        &w0,
-        &dw,
-        WeightsRules {
-            gamma: None,
-            pull: None,
-            bic: 0.0,
-        },
-    )
-    .unwrap();
+    let w = v.weights(&w0, WeightsRules::default());
     for k in 0..2 {
-        assert!((w.weights[k] - free[k]).abs() < 1e-10);
+        assert!((w[k] - free[k]).abs() < 1e-10);
     }
     assert!((free[0] + free[1] - 1.0).abs() > 0.05, "{free:?}");
     // The hard limit (τ = 10⁸): least squares on the line w₀ + w₁ = 1, by Lagrange:
@@ -159,25 +143,15 @@ fn sum_to_one_prior_matches_the_closed_form_and_its_hard_limit() {
     let nu = (mi_b[0] + mi_b[1] - 1.0) / (mi_1[0] + mi_1[1]);
     let hard = [mi_b[0] - nu * mi_1[0], mi_b[1] - nu * mi_1[1]];
     let gamma = sum_weights_gamma(obs, 1, 1e8);
-    let w = weights_step(
-        &problem,
-        s,
-        lambda,
+    let w = v.weights(
         &w0,
-        &dw,
         WeightsRules {
             gamma: Some(&gamma),
-            pull: None,
-            bic: 0.0,
+            ..Default::default()
         },
-    )
-    .unwrap();
+    );
     for k in 0..2 {
-        assert!(
-            (w.weights[k] - hard[k]).abs() < 1e-6,
-            "{:?} vs {hard:?}",
-            w.weights
-        );
+        assert!((w[k] - hard[k]).abs() < 1e-6, "{:?} vs {hard:?}", w);
     }
     // The penalty's value at a point off the line, by hand.
     let p = sum_weights_penalty(&[2.0, 0.0], &[0.7, 0.6, 5.0, 5.0], 2);
@@ -366,8 +340,6 @@ fn achromatic_step_is_the_least_squares_of_the_reduced_design() {
 fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
     let v = one_vertex();
     let (obs, s, lambda) = (&v.obs, &v.s, &v.lambda);
-    let problem = v.problem();
-    let dw = vec![[1.0; 3]; 4];
     // Vertex 0 (the fitted one) has one neighbour, vertex 1, whose weights are fixed here:
     // the pull's mean is vertex 1's weights.
     let m_nb = [0.2, 0.9];
@@ -389,28 +361,18 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
             [b[0] + eta * m_nb[0], b[1] + eta * m_nb[1]],
         );
         assert!(want.iter().all(|&v| v > 0.0), "{want:?}");
-        let w = weights_step(
-            &problem,
-            s,
-            lambda,
+        let w = v.weights(
             &w0,
-            &dw,
             WeightsRules {
-                gamma: None,
                 pull: Some(pull),
-                bic: 0.0,
+                ..Default::default()
             },
-        )
-        .unwrap();
+        );
         for k in 0..2 {
-            assert!(
-                (w.weights[k] - want[k]).abs() < 1e-10,
-                "{:?} vs {want:?}",
-                w.weights
-            );
+            assert!((w[k] - want[k]).abs() < 1e-10, "{:?} vs {want:?}", w);
         }
         // The penalty η ‖w − w̄‖² of that answer (vertex 1 has no neighbours: no term).
-        let mut both = w.weights.clone();
+        let mut both = w.clone();
         both.extend_from_slice(&m_nb);
         let pen = eta * ((want[0] - m_nb[0]).powi(2) + (want[1] - m_nb[1]).powi(2));
         assert!((pull.penalty(&both, 2) - pen).abs() < 1e-12);
@@ -420,54 +382,30 @@ fn neighbour_pull_matches_the_closed_form_and_its_hard_limit() {
         eta: &[1e8, 1.0],
         graph: &graph,
     };
-    let w = weights_step(
-        &problem,
-        s,
-        lambda,
+    let w = v.weights(
         &w0,
-        &dw,
         WeightsRules {
-            gamma: None,
             pull: Some(pull),
-            bic: 0.0,
+            ..Default::default()
         },
-    )
-    .unwrap();
+    );
     for k in 0..2 {
-        assert!((w.weights[k] - m_nb[k]).abs() < 1e-6, "{:?}", w.weights);
+        assert!((w[k] - m_nb[k]).abs() < 1e-6, "{:?}", w);
     }
     // A neighbour without fitted weights (η = 0) is not pulled toward: no pull at all.
     let pull = NeighbourPull {
         eta: &[1.0, 0.0],
         graph: &graph,
     };
-    let free = weights_step(
-        &problem,
-        s,
-        lambda,
+    let free = v.weights(&w0, WeightsRules::default());
+    let w = v.weights(
         &w0,
-        &dw,
         WeightsRules {
-            gamma: None,
-            pull: None,
-            bic: 0.0,
-        },
-    )
-    .unwrap();
-    let w = weights_step(
-        &problem,
-        s,
-        lambda,
-        &w0,
-        &dw,
-        WeightsRules {
-            gamma: None,
             pull: Some(pull),
-            bic: 0.0,
+            ..Default::default()
         },
-    )
-    .unwrap();
-    assert_eq!(w.weights, free.weights);
+    );
+    assert_eq!(w, free);
 }
 
 #[test]
