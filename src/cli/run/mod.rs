@@ -269,7 +269,7 @@ pub(crate) struct RunArgs {
     /// the Bayesian information criterion's penalty (0 = off: every material that lowers
     /// the point's error at all stays, as the paper). Without it a point of one material
     /// keeps a few percent of another wherever that fits the photos' noise. `auto`: 1 for
-    /// two or more materials when the fit keeps a shiny lobe and has 12 training photos or
+    /// two or more materials when the fit keeps a shiny lobe and has 20 training photos or
     /// more, else off.
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) weights_bic: String,

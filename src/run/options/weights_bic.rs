@@ -13,7 +13,10 @@
 //! each), so it stays off there. With the built-in example's 6 training photos (a shiny lobe
 //! kept) the held-out photos under their true light are 0.2–11% worse on 8 of 8 seeds
 //! (the ratios better on all 8): with few observations per vertex BIC's penalty drops
-//! real blends with the noise's. The pilot's held-out error cannot choose it (up to 0.6%
+//! real blends with the noise's. Through `run` on the glossy Spot with 12 training
+//! photos one of two seeds got much worse (headline +21%, the truth check +11%), with 9
+//! the truth checks moved 4–8% (one seed each way), with 24 no headline of six runs rose
+//! more than 1.5% (the median ratio lower on 5): so from 20. The pilot's held-out error cannot choose it (up to 0.6%
 //! higher on 13 of 15 cases at 24 photos, where the relit error falls on 13): the rule
 //! follows the lobes and the photo count, as the neighbour prior's and the light model's
 //! do ([`crate::solve::adapt::neighbour_prior_for`], [`super::PRIOR_FROM_PHOTOS`]).
@@ -22,7 +25,7 @@ use super::values::PriorStrength;
 use crate::transport::brdf::BasisBrdf;
 
 /// Least training photos from which `--weights-bic auto` turns the drop on (module docs).
-pub const BIC_FROM_PHOTOS: usize = 12;
+pub const BIC_FROM_PHOTOS: usize = 20;
 
 /// The BIC multiple of `--weights-bic` given as `opt`, for a fit of `materials` materials
 /// over `basis` from `photos` training photos, and with `auto` why.
@@ -58,13 +61,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn auto_drops_with_a_shiny_lobe_from_twelve_photos_and_two_materials() {
+    fn auto_drops_with_a_shiny_lobe_from_twenty_photos_and_two_materials() {
         let auto = PriorStrength::Auto;
         let shiny = [BasisBrdf::Lambert, BasisBrdf::Phong { exponent: 50.0 }];
         let matte = [BasisBrdf::Lambert];
-        assert_eq!(weights_bic_for(auto, 12, 2, &shiny).0, 1.0);
+        assert_eq!(weights_bic_for(auto, 20, 2, &shiny).0, 1.0);
         assert_eq!(weights_bic_for(auto, 24, 2, &matte).0, 0.0);
-        assert_eq!(weights_bic_for(auto, 11, 3, &shiny).0, 0.0);
+        assert_eq!(weights_bic_for(auto, 19, 3, &shiny).0, 0.0);
         assert_eq!(weights_bic_for(auto, 40, 1, &shiny).0, 0.0);
         let why = weights_bic_for(auto, 6, 2, &shiny).1.unwrap();
         assert!(why.contains("6 training photos"), "{why}");
