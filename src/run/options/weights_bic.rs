@@ -10,14 +10,15 @@
 //! held-out error meets 1.2× the photo floor on 5 of 5 (4 before) and the accuracy 0.98
 //! on 3 (2 before). Over the Lambertian lobe alone the diffuse scene's worst ratio is
 //! higher on 4 of 5 seeds with 12 photos and on 3 with 24 (the 3% target lost on 1 at
-//! each), so it stays off there. With the built-in example's 6 training photos (a shiny lobe
-//! kept) the held-out photos under their true light are 0.2–11% worse on 8 of 8 seeds
+//! each), so it stays off there. With the built-in example's 6 training photos (a shiny
+//! lobe kept) the held-out photos under their true light are 0.2–11% worse on 8 of 8 seeds
 //! (the ratios better on all 8): with few observations per vertex BIC's penalty drops
 //! real blends with the noise's. Through `run` on the glossy Spot with 12 training
 //! photos one of two seeds got much worse (headline +21%, the truth check +11%), with 9
 //! the truth checks moved 4–8% (one seed each way), with 24 no headline of six runs rose
-//! more than 1.5% (the median ratio lower on 5): so from 20. The pilot's held-out error cannot choose it (up to 0.6%
-//! higher on 13 of 15 cases at 24 photos, where the relit error falls on 13): the rule
+//! more than 1.5% (the median ratio lower on 5): so from 20. The pilot's held-out error
+//! cannot choose it (up to 0.6% higher on 13 of 15 cases at 24 photos, where the relit
+//! error falls on 13): the rule
 //! follows the lobes and the photo count, as the neighbour prior's and the light model's
 //! do ([`crate::solve::adapt::neighbour_prior_for`], [`super::PRIOR_FROM_PHOTOS`]).
 

@@ -484,7 +484,6 @@ pub fn weights_step(
     dw: &[[f64; 3]],
     rules: WeightsRules,
 ) -> Result<WeightsStep> {
-    let WeightsRules { gamma, pull, bic } = rules;
     let kk = lambda.len();
     let (off, list) = by_vertex(problem.obs, problem.n_vertices);
     let data = WeightsData {
@@ -493,62 +492,21 @@ pub fn weights_step(
         lambda,
         dw,
     };
-    let rows: Vec<Result<Option<VertexFit>>> = (0..problem.n_vertices)
+    let mut fits: Vec<Option<VertexFit>> = (0..problem.n_vertices)
         .into_par_iter()
-        .map(|x| {
-            let Some(sys) = data.normal_equations(&list[off[x]..off[x + 1]]) else {
-                return Ok(None);
-            };
-            let (mut mat, mut rhs) = (sys.mat.clone(), sys.rhs.clone());
-            if let Some(g) = gamma.map(|g| g[x]).filter(|&g| g > 0.0) {
-                add_sum_prior(&mut mat, &mut rhs, g);
-            }
-            if let Some(pl) = pull.filter(|pl| pl.eta[x] > 0.0) {
-                if let Some(m) = pl.mean(x, weights, kk) {
-                    for i in 0..kk {
-                        rhs[i] += pl.eta[x] * m[i];
-                        mat[(i, i)] += pl.eta[x];
-                    }
-                }
-            }
-            let cond = condition_number(&mat);
-            let sol = nnls(&mat, &rhs, &NnlsOptions::default()).map_err(|e| Error::Numeric {
-                stage: format!("material step (w, vertex {x})"),
-                message: e.to_string(),
-            })?;
-            let w: Vec<f64> = sol.iter().copied().collect();
-            let sse = (support::quadratic(&sys.mat, &sys.rhs, &w) + sys.yy).max(0.0);
-            Ok(Some(VertexFit {
-                w,
-                cond,
-                sse,
-                n: sys.n,
-                mat,
-                rhs,
-            }))
-        })
-        .collect();
-    let mut fits = Vec::with_capacity(rows.len());
-    for r in rows {
-        fits.push(r?);
+        .map(|x| data.fit_vertex(x, &list[off[x]..off[x + 1]], weights, rules))
+        .collect::<Result<_>>()?;
+    if rules.bic > 0.0 {
+        select_supports(&mut fits, rules.bic);
     }
-    if bic > 0.0 {
-        select_supports(&mut fits, bic);
-    }
-    let rows: Vec<Result<(Vec<f64>, f64)>> = fits
-        .into_iter()
-        .enumerate()
-        .map(|(x, f)| {
-            Ok(match f {
-                Some(f) => (f.w, f.cond),
-                None => (weights[x * kk..(x + 1) * kk].to_vec(), 0.0),
-            })
-        })
-        .collect();
     let mut out = Vec::with_capacity(weights.len());
     let (mut cmax, mut singular) = (0.0_f64, 0usize);
-    for r in rows {
-        let (w, c) = r?;
+    for (x, f) in fits.into_iter().enumerate() {
+        // Vertices without weighted observations keep their weights (condition 0).
+        let (w, c) = f.map_or_else(
+            || (weights[x * kk..(x + 1) * kk].to_vec(), 0.0),
+            |f| (f.w, f.cond),
+        );
         out.extend(w);
         if c.is_finite() {
             cmax = cmax.max(c);
@@ -573,6 +531,53 @@ struct WeightsData<'a> {
 }
 
 impl WeightsData<'_> {
+    /// Vertex `x`'s NNLS weights over its observations `ps`, with the priors of `rules`
+    /// (`weights`: the step's start, for the neighbours' mean); `None` when no observation
+    /// has weight. Its data term's value is kept for [`select_supports`] only when
+    /// `rules.bic > 0`.
+    fn fit_vertex(
+        &self,
+        x: usize,
+        ps: &[usize],
+        weights: &[f64],
+        rules: WeightsRules,
+    ) -> Result<Option<VertexFit>> {
+        let Some(sys) = self.normal_equations(ps) else {
+            return Ok(None);
+        };
+        let kk = self.lambda.len();
+        let data_term = (rules.bic > 0.0).then(|| (sys.mat.clone(), sys.rhs.clone()));
+        let (mut mat, mut rhs) = (sys.mat, sys.rhs);
+        if let Some(g) = rules.gamma.map(|g| g[x]).filter(|&g| g > 0.0) {
+            add_sum_prior(&mut mat, &mut rhs, g);
+        }
+        if let Some(pl) = rules.pull.filter(|pl| pl.eta[x] > 0.0) {
+            if let Some(m) = pl.mean(x, weights, kk) {
+                for i in 0..kk {
+                    rhs[i] += pl.eta[x] * m[i];
+                    mat[(i, i)] += pl.eta[x];
+                }
+            }
+        }
+        let cond = condition_number(&mat);
+        let sol = nnls(&mat, &rhs, &NnlsOptions::default()).map_err(|e| Error::Numeric {
+            stage: format!("material step (w, vertex {x})"),
+            message: e.to_string(),
+        })?;
+        let w: Vec<f64> = sol.iter().copied().collect();
+        let sse = data_term.map_or(0.0, |(m, r)| {
+            (support::quadratic(&m, &r, &w) + sys.yy).max(0.0)
+        });
+        Ok(Some(VertexFit {
+            w,
+            cond,
+            sse,
+            n: sys.n,
+            mat,
+            rhs,
+        }))
+    }
+
     /// One vertex's data term `Σ_{p,c} d_{p,c} (a_{p,c}ᵀ w − y_{p,c})²` as normal equations
     /// `(Σ d a aᵀ, Σ d a y)`, with `a_{p,c,k} = Σ_b λ_{k,b,c} s_{p,b,c}` over its observations
     /// `ps`; `None` when none of them has weight.
@@ -619,7 +624,8 @@ struct VertexSystem {
 }
 
 /// One vertex's weights from [`weights_step`]: the solution, its system's condition number,
-/// its data term `sse` over `n` weighted observations, and the system with the priors.
+/// its data term `sse` over `n` weighted observations (0 unless BIC is on), and the system
+/// with the priors.
 struct VertexFit {
     w: Vec<f64>,
     cond: f64,
