@@ -8,7 +8,10 @@
 //! coefficients kept per transport row (both bounded by the global side); the Laplacian
 //! prior's weight (raised when the pilot's lighting systems are ill-conditioned).
 
-use super::{MaterialCount, RunOptions, StartBrightness, WeightsSmoothness, WeightsSum};
+use super::{
+    smoothness_base, MaterialCount, PriorStrength, RunOptions, StartBrightness, WeightsSmoothness,
+    WeightsSum,
+};
 use crate::solve::adapt::{self, Decision, PilotOutcome, KAPPA_LIGHTING};
 use crate::solve::SumScope;
 use crate::transport::brdf::BasisBrdf;
@@ -138,9 +141,10 @@ fn smoothness_decision(
     outcome: &PilotOutcome,
     eff: &mut RunOptions,
 ) -> Decision {
-    let full = format!("{:e}", opts.smoothness);
-    if outcome.kappa_lighting > KAPPA_LIGHTING && opts.smoothness < 1e-4 {
-        eff.smoothness = 1e-4;
+    let base = smoothness_base(opts.smoothness);
+    let full = format!("{base:e}");
+    if outcome.kappa_lighting > KAPPA_LIGHTING && base < 1e-4 {
+        eff.smoothness = PriorStrength::Fixed(1e-4);
         return Decision::new(
             "smoothness",
             full,

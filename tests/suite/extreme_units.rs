@@ -298,6 +298,18 @@ fn weights_bic_outside_its_range_is_refused() {
     );
 }
 
+/// `--smoothness` is a weight ≥ 0 (or `auto`): negative, NaN and infinite refused, naming
+/// the flag.
+#[test]
+fn smoothness_outside_its_range_is_refused() {
+    assert_range_checked(
+        "--smoothness",
+        |o, v| o.smoothness = relight_cpc::run::PriorStrength::Fixed(v),
+        &[-1e-3, f64::NAN, f64::INFINITY],
+        &[0.0, 1e-3, 1.6e-2],
+    );
+}
+
 /// `--robust-floor` is a fraction of the RMS radiance: outside [0, 1) (or NaN) refused,
 /// naming the flag.
 #[test]

@@ -146,9 +146,11 @@ pub(crate) struct RunArgs {
     )]
     pub(crate) tolerance: f64,
     /// How strongly the recovered lighting is smoothed, as a fraction of the system's
-    /// largest value.
-    #[arg(long, default_value_t = 1e-3, help_heading = "Solver")]
-    pub(crate) smoothness: f64,
+    /// largest value. `auto`: 1e-3, and 16 times that when the fit keeps a shiny lobe and
+    /// has 20 training photos or more on 32² maps (the weight is relative to the photos,
+    /// and on a finer map the same number smooths less).
+    #[arg(long, default_value = "auto", help_heading = "Solver")]
+    pub(crate) smoothness: String,
     /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least
     /// squares).
     #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]

@@ -85,7 +85,8 @@ impl RunArgs {
     fn set_solver(&self, o: &mut relight_cpc::run::RunOptions) -> anyhow::Result<()> {
         o.max_iterations = self.iterations;
         o.rel_tol = self.tolerance;
-        o.smoothness = self.smoothness;
+        o.smoothness =
+            relight_cpc::run::PriorStrength::parse(&self.smoothness, "--smoothness", "off")?;
         o.irls_iterations = self.irls_iterations;
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         match &self.light {

@@ -8,8 +8,8 @@ use crate::import::scene::{Scene, View};
 use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
 use crate::run::{
-    choose_material_count, scene_light, weights_bic_for, FitShape, MaterialCount, Progress,
-    RunOptions, StartBrightness,
+    choose_material_count, scene_light, smoothness_for, weights_bic_for, FitShape, MaterialCount,
+    Progress, RunOptions, StartBrightness,
 };
 use crate::solve::cluster::{initial_materials, unmixed_weights, InitialMaterials, StartWeights};
 use crate::solve::light::choose::LightChoice;
@@ -128,6 +128,14 @@ impl FitStart {
             &p.eff.basis,
         );
         eopts.weights_bic = bic;
+        reasons.extend(why);
+        let (s, why) = smoothness_for(
+            p.eff.smoothness,
+            training_photos,
+            p.eff.global_resolution,
+            &p.eff.basis,
+        );
+        eopts.smoothness = s;
         reasons.extend(why);
         if eopts.weights_smoothness > 0.0 {
             // The neighbour prior's graph: the one the unseen vertices' materials spread over.

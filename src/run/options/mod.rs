@@ -9,10 +9,14 @@ use std::path::PathBuf;
 
 mod large_mesh;
 mod light_by_scene;
+mod smoothness;
 mod values;
 mod weights_bic;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
 pub use light_by_scene::{scene_light, FitShape, PRIOR_FROM_PHOTOS};
+pub use smoothness::{
+    smoothness_base, smoothness_for, MANY_PHOTOS_FACTOR, SMOOTHNESS, SMOOTHNESS_FROM_PHOTOS,
+};
 pub use values::{
     Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
 };
@@ -64,8 +68,9 @@ pub struct RunOptions {
     pub max_iterations: usize,
     /// Stop when the objective improves by less than this fraction.
     pub rel_tol: f64,
-    /// Laplacian smoothness, as a fraction of the largest system value.
-    pub smoothness: f64,
+    /// Laplacian smoothness, as a fraction of the largest system value, or by the fit's
+    /// photos and map size ([`PriorStrength::Auto`], [`smoothness_for`]).
+    pub smoothness: PriorStrength,
     /// IRLS passes per lighting step (1 = no reweighting).
     pub irls_iterations: usize,
     /// GPCG iterations per lighting QP inside the alternation
@@ -302,7 +307,7 @@ impl RunOptions {
             ray_lattice: 1,
             max_iterations: Self::DEFAULT_MAX_ITERATIONS,
             rel_tol: Self::DEFAULT_REL_TOL,
-            smoothness: 1e-3,
+            smoothness: PriorStrength::Auto,
             irls_iterations: 3,
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
@@ -454,7 +459,9 @@ impl RunOptions {
 
     /// The estimator: the prior strengths, tolerances, iteration counts and early stopping.
     fn check_estimator(&self) -> Result<()> {
-        non_negative("--smoothness", self.smoothness, "")?;
+        if let PriorStrength::Fixed(v) = self.smoothness {
+            non_negative("--smoothness", v, "")?;
+        }
         non_negative("--tolerance", self.rel_tol, "")?;
         if self.max_iterations == 0 {
             return Err(Error::Config(

@@ -1,0 +1,114 @@
+//! `run --smoothness auto` (the default): the weight of the maps' Laplacian prior, raised
+//! for fits with many training photos on maps finer than the pilot's.
+//!
+//! The prior is `μ ‖Δ x‖²` on each map's texels `x` ([`crate::solve::light`]), with
+//! `μ = s × max_t D_t`, `D_t` the texel-basis diagonal of the photo's data term
+//! (`Σ α A_{o,t}²` over its observations `o`) and `s` this flag. A texel's transport
+//! weight `A_{o,t}` grows with its solid angle, `Ω_t ∝ h²` for a texel side `h`, so
+//! `D_t ∝ h⁴`; for a smooth light the graph Laplacian `Δx` shrinks as `h²` over `1/h²`
+//! texels, so `‖Δx‖² ∝ h²`. The same `s` on a map of twice the side (the main fit's 32²
+//! after the pilot's 16²) is a prior `2⁴ · 2² = 64` times weaker on the smooth part of the
+//! light, relative to the photos; on a texel-sized sun `‖Δx‖²` grows by 16 and the prior is
+//! unchanged.
+//!
+//! `auto` keeps `s` = [`SMOOTHNESS`] (1e-3), and multiplies it by
+//! [`MANY_PHOTOS_FACTOR`] (16: the `h⁴` of the data diagonal alone) when the fit keeps a
+//! shiny lobe, has [`SMOOTHNESS_FROM_PHOTOS`] training photos or more and a global map of
+//! 32² (the size measured). Measured (`bench-results/smoothness-32.md`), the ablation's
+//! `defaults` row at 32² / 16² maps (`run`'s size on the rendered Spot scenes), 192²
+//! photos, 24 training photos, seeds 1–5: the glossy worst albedo ratio lower on 3 of 5
+//! (0.268 → 0.090 at seed 4, higher on 2), the three-material scene better in every
+//! column at seed 1 (accuracy 0.9789 → 0.9806) and worse in four at seed 2 (held-out
+//! 1.23× → 1.28× the photo floor). Through `run` on six 24-photo shiny Spots the
+//! headline is lower on 6 of 6 (−1.0% to −5.1%) and the materials' median ratio on 5.
+//! Over the Lambertian lobe alone (where `run` fits the light prior) the ablation's
+//! diffuse ratios fell on 4 of 5 seeds, but through `run` the held-out photos under their
+//! true light rose 0.5–2.7% on 3 of 3: so not there. With 6 training photos (the built-in
+//! example) 16× raised the headline 3.2–4.9% on 4 of 4 seeds, and 64× made runs with 9
+//! training photos 15–51% worse: so from 20 photos, at 16×.
+
+use super::values::PriorStrength;
+use crate::transport::brdf::BasisBrdf;
+
+/// The Laplacian weight `s` of `run`'s maps when not raised (module docs).
+pub const SMOOTHNESS: f64 = 1e-3;
+
+/// Least training photos from which `--smoothness auto` raises the weight (module docs).
+pub const SMOOTHNESS_FROM_PHOTOS: usize = 20;
+
+/// The factor `--smoothness auto` puts on [`SMOOTHNESS`] with many photos on 32² maps.
+pub const MANY_PHOTOS_FACTOR: f64 = 16.0;
+
+/// The map side at which the raised weight was measured, and applies.
+const RAISED_AT_SIDE: usize = 32;
+
+/// `s` before the fit's size is known (the pilot's): the given value, else [`SMOOTHNESS`].
+pub fn smoothness_base(opt: PriorStrength) -> f64 {
+    match opt {
+        PriorStrength::Auto => SMOOTHNESS,
+        PriorStrength::Fixed(v) => v,
+    }
+}
+
+/// `s` of `--smoothness` given as `opt` for a fit over `basis` from `photos` training
+/// photos on `global_side`² maps, and with `auto` why.
+pub fn smoothness_for(
+    opt: PriorStrength,
+    photos: usize,
+    global_side: usize,
+    basis: &[BasisBrdf],
+) -> (f64, Option<String>) {
+    if let PriorStrength::Fixed(v) = opt {
+        return (v, None);
+    }
+    let shiny = basis.iter().any(|b| !matches!(b, BasisBrdf::Lambert));
+    let raised = shiny && photos >= SMOOTHNESS_FROM_PHOTOS && global_side == RAISED_AT_SIDE;
+    let fit = format!(
+        "{photos} training photos, {global_side}² maps, {}",
+        if shiny {
+            "a shiny lobe kept"
+        } else {
+            "the Lambertian lobe alone"
+        }
+    );
+    if raised {
+        let s = SMOOTHNESS * MANY_PHOTOS_FACTOR;
+        (
+            s,
+            Some(format!(
+                "the maps' Laplacian weight {s:.1e} = {SMOOTHNESS:.0e} × {MANY_PHOTOS_FACTOR} (--smoothness auto: {fit}): relative to the photos, the same weight on a {RAISED_AT_SIDE}² map is a prior 16–64× weaker than on the pilot's 16², which left the free maps room to move brightness between the materials; --smoothness 1e-3 keeps the weight"
+            )),
+        )
+    } else {
+        (
+            SMOOTHNESS,
+            Some(format!(
+                "the maps' Laplacian weight {SMOOTHNESS:.0e} (--smoothness auto: {fit}; raised ×{MANY_PHOTOS_FACTOR} with a shiny lobe from {SMOOTHNESS_FROM_PHOTOS} training photos on {RAISED_AT_SIDE}² maps)"
+            )),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_raises_the_weight_with_a_shiny_lobe_from_twenty_photos_on_32_maps_only() {
+        let auto = PriorStrength::Auto;
+        let shiny = [BasisBrdf::Lambert, BasisBrdf::Ggx { alpha: 0.3 }];
+        let matte = [BasisBrdf::Lambert];
+        assert_eq!(smoothness_for(auto, 24, 32, &shiny).0, 1.6e-2);
+        assert_eq!(smoothness_for(auto, 20, 32, &shiny).0, 1.6e-2);
+        assert_eq!(smoothness_for(auto, 24, 32, &matte).0, 1e-3);
+        assert_eq!(smoothness_for(auto, 19, 32, &shiny).0, 1e-3);
+        assert_eq!(smoothness_for(auto, 24, 16, &shiny).0, 1e-3);
+        assert_eq!(smoothness_for(auto, 24, 64, &shiny).0, 1e-3);
+        let why = smoothness_for(auto, 6, 32, &shiny).1.unwrap();
+        assert!(why.contains("6 training photos, 32² maps"), "{why}");
+        let given = PriorStrength::Fixed(2e-3);
+        assert_eq!(smoothness_for(given, 24, 32, &shiny), (2e-3, None));
+        assert_eq!(smoothness_base(given), 2e-3);
+        assert_eq!(smoothness_base(auto), SMOOTHNESS);
+    }
+}
