@@ -27,7 +27,7 @@
 //! example) 16× raised the headline 3.2–4.9% on 4 of 4 seeds, and 64× made runs with 9
 //! training photos 15–51% worse: so from 20 photos, at 16×.
 
-use super::values::PriorStrength;
+use super::values::{shiny_lobes, PriorStrength};
 use crate::transport::brdf::BasisBrdf;
 
 /// The Laplacian weight `s` of `run`'s maps when not raised (module docs).
@@ -61,16 +61,9 @@ pub fn smoothness_for(
     if let PriorStrength::Fixed(v) = opt {
         return (v, None);
     }
-    let shiny = basis.iter().any(|b| !matches!(b, BasisBrdf::Lambert));
+    let (shiny, lobes) = shiny_lobes(basis);
     let raised = shiny && photos >= SMOOTHNESS_FROM_PHOTOS && global_side == RAISED_AT_SIDE;
-    let fit = format!(
-        "{photos} training photos, {global_side}² maps, {}",
-        if shiny {
-            "a shiny lobe kept"
-        } else {
-            "the Lambertian lobe alone"
-        }
-    );
+    let fit = format!("{photos} training photos, {global_side}² maps, {lobes}");
     if raised {
         let s = SMOOTHNESS * MANY_PHOTOS_FACTOR;
         (

@@ -4,6 +4,16 @@
 use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result};
 
+/// Whether `basis` keeps a lobe other than Lambert's, and the words a report's reason uses
+/// for it (the `auto` rules that follow the fit's lobes).
+pub(crate) fn shiny_lobes(basis: &[BasisBrdf]) -> (bool, &'static str) {
+    if basis.iter().any(|b| !matches!(b, BasisBrdf::Lambert)) {
+        (true, "a shiny lobe kept")
+    } else {
+        (false, "the Lambertian lobe alone")
+    }
+}
+
 /// How many materials to fit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MaterialCount {

@@ -22,7 +22,7 @@
 //! follows the lobes and the photo count, as the neighbour prior's and the light model's
 //! do ([`crate::solve::adapt::neighbour_prior_for`], [`super::PRIOR_FROM_PHOTOS`]).
 
-use super::values::PriorStrength;
+use super::values::{shiny_lobes, PriorStrength};
 use crate::transport::brdf::BasisBrdf;
 
 /// Least training photos from which `--weights-bic auto` turns the drop on (module docs).
@@ -39,16 +39,9 @@ pub fn weights_bic_for(
     if let PriorStrength::Fixed(v) = opt {
         return (v, None);
     }
-    let shiny = basis.iter().any(|b| !matches!(b, BasisBrdf::Lambert));
+    let (shiny, lobes) = shiny_lobes(basis);
     let on = shiny && photos >= BIC_FROM_PHOTOS && materials >= 2;
-    let fit = format!(
-        "{materials} material(s), {photos} training photos, {}",
-        if shiny {
-            "a shiny lobe kept"
-        } else {
-            "the Lambertian lobe alone"
-        }
-    );
+    let fit = format!("{materials} material(s), {photos} training photos, {lobes}");
     let why = if on {
         format!("each vertex drops the materials BIC finds it does not need (--weights-bic auto: {fit}); --weights-bic 0 keeps every material NNLS gives it")
     } else {
