@@ -26,7 +26,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
     EstimateOptions {
         max_outer: o.max_iterations,
         rel_tol: o.rel_tol,
-        smoothness: super::super::smoothness_base(o.smoothness),
+        smoothness: crate::run::smoothness_base(o.smoothness),
         robust: if o.irls_iterations > 1 {
             Robust::Huber { k: 1.345 }
         } else {
