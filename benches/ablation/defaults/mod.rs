@@ -286,8 +286,8 @@ fn scale_specular(m0: &mut Materials0, x: f64) {
 /// observations held back, so no early stopping and the last iterate kept), the ratio step as `run --ratio-steps
 /// auto` (`ABLATION_RATIO_STEPS=N`: `--ratio-steps N`), the neighbour prior as `run
 /// --weights-smoothness auto` (`ABLATION_DEFAULTS_NEIGHBOUR=X`: `--weights-smoothness X`),
-/// the maps' Laplacian weight as `run --smoothness auto` (raised with a shiny lobe at 32²
-/// maps from 20 training photos; `ABLATION_DEFAULTS_SMOOTHNESS=X` gives it).
+/// the maps' Laplacian weight as `run --smoothness auto` (raised with a shiny lobe and two
+/// materials at 32² maps from 20 training photos; `ABLATION_DEFAULTS_SMOOTHNESS=X` gives it).
 /// `ABLATION_DEFAULTS_SCOPE=blends|every`: the sum-to-one prior on blended vertices, or on
 /// every vertex, whatever the pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
 /// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
@@ -347,6 +347,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
             relight_cpc::run::smoothness_for(
                 relight_cpc::run::PriorStrength::Auto,
                 case.train.obs.photo_ranges.len(),
+                pilot.materials,
                 case.sizes.global,
                 &kept,
             )

@@ -132,6 +132,7 @@ impl FitStart {
         let (s, why) = smoothness_for(
             p.eff.smoothness,
             training_photos,
+            init.albedo.len(),
             p.eff.global_resolution,
             &p.eff.basis,
         );
