@@ -55,10 +55,10 @@ pub use fit::photo_halves;
 pub use holdout::{default_holdout, DEFAULT_HOLDOUT_EVERY};
 pub(crate) use options::smoothness_base;
 pub use options::{
-    scene_light, smoothness_for, weights_bic_for, Clipped, FitShape, Holdout, LargeMeshSettings,
-    MaterialCount, PriorStrength, RatioSteps, Restart, RunOptions, StartBrightness,
-    WeightsSmoothness, WeightsSum, BIC_FROM_PHOTOS, CLIPPED_AUTO_SHARE, DEFAULT_LIGHTING_SAMPLE,
-    DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
+    pilot_smoothness_for, scene_light, smoothness_for, weights_bic_for, Clipped, FitShape, Holdout,
+    LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps, Restart, RunOptions,
+    StartBrightness, WeightsSmoothness, WeightsSum, BIC_FROM_PHOTOS, CLIPPED_AUTO_SHARE,
+    DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
     LIGHTING_SAMPLE_MAX_RATIO, PRIOR_FROM_PHOTOS, SMOOTHNESS_FROM_PHOTOS,
 };
 pub use progress::Progress;

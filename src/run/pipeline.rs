@@ -17,7 +17,8 @@ use super::state::{Evaluated, Imported, Observed, Prepared, RunLog};
 use super::truth::Truth;
 use super::{
     decisions::adaptive_decisions, env_from_world, estimate_up, holdout_rule, holdout_views,
-    mean_colours, Holdout, LargeMeshSettings, Progress, RunOptions, LARGE_MESH,
+    mean_colours, pilot_smoothness_for, Holdout, LargeMeshSettings, Progress, RunOptions,
+    LARGE_MESH,
 };
 use crate::import::scene::{self, Scene};
 use crate::import::workspace::Workspace;
@@ -582,6 +583,8 @@ fn adapt(
     progress.stage("pilot");
     let spinner = progress.spinner("pilot fits");
     let lambert = lambert_of(&opts.basis)?;
+    let (smoothness, why) = pilot_smoothness_for(opts.smoothness, d.obs.photo_ranges.len());
+    log.notes.extend(why);
     let outcome = log.stages.run("pilot", || {
         crate::solve::adapt::pilot(&crate::solve::adapt::PilotInput {
             normals_env: d.normals_env,
@@ -598,6 +601,7 @@ fn adapt(
             // it does not converge one.
             estimate: EstimateOptions {
                 validation_fraction: 0.0,
+                smoothness,
                 ..estimate_options(opts, lambert, d.strata)
             },
             mean_rgb: d.mean_rgb,

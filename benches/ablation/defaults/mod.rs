@@ -150,6 +150,16 @@ fn with_env_overrides(
     }
 }
 
+/// `run --smoothness` as the defaults' row gives it: `auto`, or with
+/// `ABLATION_DEFAULTS_SMOOTHNESS` the weight it set in `base` (the pilot's and the fit's).
+fn smoothness_flag(base: &EstimateOptions) -> relight_cpc::run::PriorStrength {
+    if std::env::var("ABLATION_DEFAULTS_SMOOTHNESS").is_ok() {
+        relight_cpc::run::PriorStrength::Fixed(base.smoothness)
+    } else {
+        relight_cpc::run::PriorStrength::Auto
+    }
+}
+
 /// The adaptive pilot with the inputs `run` gives it: it holds out its own observations,
 /// and its lighting sample has the run's strata. Every lobe of the case's basis is kept,
 /// whatever the pilot's shares, with `ABLATION_DEFAULTS_ALL_LOBES=1`.
@@ -166,6 +176,12 @@ fn run_pilot(case: &Case, base: &EstimateOptions, colours: Colours) -> PilotOutc
         keep: case.sizes.keep,
         estimate: EstimateOptions {
             validation_fraction: 0.0,
+            // `run --smoothness auto`'s pilot weight by the training photos.
+            smoothness: relight_cpc::run::pilot_smoothness_for(
+                smoothness_flag(base),
+                case.train.obs.photo_ranges.len(),
+            )
+            .0,
             lighting_strata: relight_cpc::solve::subsample::lighting_strata(
                 &case.normals_env,
                 &case.vis.open_fractions(),
@@ -339,20 +355,15 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
             )
             .0,
         ),
-        // `run --smoothness auto` by the training photos and the map side, unless
-        // `ABLATION_DEFAULTS_SMOOTHNESS` gave the weight (to the pilot too).
-        smoothness: if std::env::var("ABLATION_DEFAULTS_SMOOTHNESS").is_ok() {
-            base.smoothness
-        } else {
-            relight_cpc::run::smoothness_for(
-                relight_cpc::run::PriorStrength::Auto,
-                case.train.obs.photo_ranges.len(),
-                pilot.materials,
-                case.sizes.global,
-                &kept,
-            )
-            .0
-        },
+        // `run --smoothness auto` by the training photos, materials and map side.
+        smoothness: relight_cpc::run::smoothness_for(
+            smoothness_flag(base),
+            case.train.obs.photo_ranges.len(),
+            pilot.materials,
+            case.sizes.global,
+            &kept,
+        )
+        .0,
         light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
             .is_ok_and(|v| v == "shared")
             .then(|| case.true_light_groups()),
