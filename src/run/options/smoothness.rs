@@ -24,13 +24,13 @@
 //! over its floor and the materials' median ratio on 4 of 4 (1.132 → 1.097, 0.132 →
 //! 0.086), the held-out photos under their true light on 3 (−2.6% to −5.0%; +0.5%); with
 //! the pilot at 1e-3 one of the four lost its GGX lobe and came out worse. With three
-//! materials it is worse: in the
-//! ablation on 4 of 5 seeds (the held-out target lost on 2), through `run` the held-out
-//! photos under their true light 5.0–7.0% higher on 3 of 5 seeds: so two materials only. Over the Lambertian lobe alone (where
-//! `run` fits the light prior) the held-out photos under their true light rose 0.4–3.3% on
-//! 3 of 3. With 6 training photos (the built-in example) 16× raised the headline 3.2–4.9%
-//! on 4 of 4 seeds (the held-out photos under their true light fell 6–8%), and 64× made
-//! runs with 9 training photos 15–51% worse: so from 20 photos, at 16×.
+//! materials it is worse: in the ablation on 4 of 5 seeds (the held-out target lost on
+//! 2), through `run` the held-out photos under their true light 5.0–7.0% higher on 3 of 5
+//! seeds: so two materials only. Over the Lambertian lobe alone (where `run` fits the
+//! light prior) the held-out photos under their true light rose 0.4–3.3% on 3 of 3. With
+//! 6 training photos (the built-in example) 16× raised the headline 3.2–4.9% on 4 of 4
+//! seeds (the held-out photos under their true light fell 3.4–8.0%), and 64× made the
+//! headline of runs with 9 training photos 15–51% worse: so from 20 photos, at 16×.
 //!
 //! The pilot ([`pilot_smoothness_for`]) fits 16² maps with every lobe of `--basis` and
 //! drops a lobe that carries less than 1% of every material's predicted radiance. From
