@@ -146,9 +146,10 @@ pub(crate) struct RunArgs {
     )]
     pub(crate) tolerance: f64,
     /// How strongly the recovered lighting is smoothed, as a fraction of the system's
-    /// largest value. `auto`: 1e-3, and 16 times that when the fit keeps a shiny lobe and
-    /// has 20 training photos or more on 32² maps (the weight is relative to the photos,
-    /// and on a finer map the same number smooths less).
+    /// largest value. `auto`: 1e-3, and 16 times that for the adaptive pilot from 20
+    /// training photos, and for the fit when it keeps a shiny lobe, has two materials and
+    /// 20 training photos or more on 32² maps (the weight is relative to the photos, and on
+    /// a finer map the same number smooths less).
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) smoothness: String,
     /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least

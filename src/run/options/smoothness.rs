@@ -60,12 +60,12 @@ const RAISED_AT_SIDE: usize = 32;
 /// three it came out worse (module docs).
 const RAISED_FOR_MATERIALS: usize = 2;
 
+/// `s` raised: [`SMOOTHNESS`] × [`MANY_PHOTOS_FACTOR`].
+const RAISED: f64 = SMOOTHNESS * MANY_PHOTOS_FACTOR;
+
 /// `s` before the fit's size is known: the given value, else [`SMOOTHNESS`].
 pub fn smoothness_base(opt: PriorStrength) -> f64 {
-    match opt {
-        PriorStrength::Auto => SMOOTHNESS,
-        PriorStrength::Fixed(v) => v,
-    }
+    opt.value_or(SMOOTHNESS)
 }
 
 /// `s` of the adaptive pilot (16² maps, every lobe of `--basis`) for `--smoothness` given
@@ -78,11 +78,10 @@ pub fn pilot_smoothness_for(opt: PriorStrength, photos: usize) -> (f64, Option<S
     if photos < SMOOTHNESS_FROM_PHOTOS {
         return (SMOOTHNESS, None);
     }
-    let s = SMOOTHNESS * MANY_PHOTOS_FACTOR;
     (
-        s,
+        RAISED,
         Some(format!(
-            "the pilot's maps at Laplacian weight {s:.1e} = {SMOOTHNESS:.0e} × {MANY_PHOTOS_FACTOR} (--smoothness auto: {photos} training photos, from {SMOOTHNESS_FROM_PHOTOS}): with many free maps a weaker prior lets the maps carry the highlights, and the pilot then drops the shiny lobe that makes them"
+            "the pilot's maps at Laplacian weight {RAISED:.1e} = {SMOOTHNESS:.0e} × {MANY_PHOTOS_FACTOR} (--smoothness auto: {photos} training photos, from {SMOOTHNESS_FROM_PHOTOS}): with many free maps a weaker prior lets the maps carry the highlights, and the pilot then drops the shiny lobe that makes them"
         )),
     )
 }
@@ -107,11 +106,10 @@ pub fn smoothness_for(
     let fit =
         format!("{materials} material(s), {photos} training photos, {global_side}² maps, {lobes}");
     if raised {
-        let s = SMOOTHNESS * MANY_PHOTOS_FACTOR;
         (
-            s,
+            RAISED,
             Some(format!(
-                "the maps' Laplacian weight {s:.1e} = {SMOOTHNESS:.0e} × {MANY_PHOTOS_FACTOR} (--smoothness auto: {fit}): relative to the photos, the same weight on a {RAISED_AT_SIDE}² map is a prior 16–64× weaker than on the pilot's 16², which left the free maps room to move brightness between the materials; --smoothness 1e-3 keeps the weight"
+                "the maps' Laplacian weight {RAISED:.1e} = {SMOOTHNESS:.0e} × {MANY_PHOTOS_FACTOR} (--smoothness auto: {fit}): relative to the photos, the same weight on a {RAISED_AT_SIDE}² map is a prior 16–64× weaker than on the pilot's 16², which left the free maps room to move brightness between the materials; --smoothness 1e-3 keeps the weight"
             )),
         )
     } else {

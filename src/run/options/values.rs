@@ -73,8 +73,13 @@ impl PriorStrength {
 
     /// The strength in effect before the pilot's choice, or without a pilot: `Auto` is 0.
     pub fn value(self) -> f64 {
+        self.value_or(0.0)
+    }
+
+    /// The given strength, or `auto`'s value when the flag is `auto`.
+    pub fn value_or(self, auto: f64) -> f64 {
         match self {
-            PriorStrength::Auto => 0.0,
+            PriorStrength::Auto => auto,
             PriorStrength::Fixed(v) => v,
         }
     }
