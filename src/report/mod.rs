@@ -148,6 +148,10 @@ pub struct HalfFitPriorReport {
     /// The scale of the light model's noise levels in the fit when its prior is used
     /// (`crate::run` `half_prior::MODEL_PRIOR_SCALE`), else 0.
     pub model_prior_scale: f64,
+    /// `--half-smoothness`: `fit` (the fit's own weight) or `fixed`.
+    pub smoothness_mode: String,
+    /// The Laplacian's weight `s` in the fit (`μ = s × max D_t`).
+    pub smoothness: f64,
     /// Candidates of `auto`, `none` first (empty otherwise).
     pub candidates: Vec<String>,
     /// Per candidate, the mean over replayed photos of ln(right-half RMSE / RMSE without
@@ -181,8 +185,12 @@ impl HalfFitPriorReport {
             ),
             _ => format!("the training maps' shape prior at η = {}", self.eta),
         };
+        let weight = format!("Laplacian weight {:.1e}", self.smoothness);
         let why = if self.candidates.is_empty() {
-            format!("set by `--half-prior {}`", self.mode)
+            format!(
+                "set by `--half-prior {}` and `--half-smoothness {}`",
+                self.mode, self.smoothness_mode
+            )
         } else {
             let scores: Vec<String> = self
                 .candidates
@@ -204,7 +212,7 @@ impl HalfFitPriorReport {
                 self.cpu_seconds
             )
         };
-        format!("Protocol `half` fits the light with {what} ({why}).")
+        format!("Protocol `half` fits the light with {what}, at {weight} ({why}).")
     }
 }
 

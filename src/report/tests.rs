@@ -101,6 +101,8 @@ fn half_fit_prior_sentence_names_the_prior_used_and_why() {
         prior: "light model's".into(),
         eta: 0.0,
         model_prior_scale: 0.2,
+        smoothness_mode: "fit".into(),
+        smoothness: 1.6e-2,
         candidates: vec!["none".into(), "training maps η 3".into()],
         log_rmse_ratio: vec![0.0, 1.25],
         replayed_photos: 4,
@@ -111,15 +113,19 @@ fn half_fit_prior_sentence_names_the_prior_used_and_why() {
     assert!(s.contains("at 0.2× its noise levels"), "{s}");
     assert!(s.contains("no training-map prior chosen"), "{s}");
     assert!(s.contains("training maps η 3: +1.2500"), "{s}");
+    assert!(s.contains("at Laplacian weight 1.6e-2"), "{s}");
     let fixed = HalfFitPriorReport {
         mode: "fixed".into(),
         prior: "training maps η 3".into(),
         eta: 3.0,
+        smoothness_mode: "fit".into(),
         ..Default::default()
     };
     let s = fixed.sentence();
     assert!(
-        s.contains("shape prior at η = 3") && s.contains("`--half-prior fixed`"),
+        s.contains("shape prior at η = 3")
+            && s.contains("`--half-prior fixed`")
+            && s.contains("`--half-smoothness fit`"),
         "{s}"
     );
     let off = HalfFitPriorReport {

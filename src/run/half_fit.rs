@@ -140,6 +140,7 @@ pub(super) fn fit_left_half(
     let opts = EstimateOptions {
         lighting_sample: 0,
         light_prior: f.half_prior.clone(),
+        smoothness: f.half_smoothness,
         ..f.estimate_options.clone()
     };
     let north = f.est.sky.as_ref().and_then(|s| s.north);

@@ -84,9 +84,10 @@ fn evaluation(
     } else {
         let hp = log.stages.run("half-fit prior", || {
             let o = super::half_prior::half_fit_options(&fit.fitted);
-            super::half_prior::prepare(&fit.fitted, opts.half_prior, &o)
+            super::half_prior::prepare(&fit.fitted, opts.half_prior, opts.half_smoothness, &o)
         })?;
         fit.fitted.half_prior = hp.options;
+        fit.fitted.half_smoothness = hp.smoothness;
         Some(hp.report)
     };
     let evaluation = log.stages.run("evaluation", || {

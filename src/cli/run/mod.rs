@@ -305,6 +305,10 @@ pub(crate) struct RunArgs {
     /// prior.
     #[arg(long, default_value = "auto", help_heading = "Evaluation")]
     pub(crate) half_prior: String,
+    /// Laplacian weight of the held-out `half` protocol's light fit: `fit` (the training
+    /// fit's own, as `--smoothness` chose it) or a fixed weight > 0.
+    #[arg(long, default_value = "fit", help_heading = "Evaluation")]
+    pub(crate) half_smoothness: String,
     /// Hold out these photos (image names, comma-separated) to score the result; `none`
     /// holds out nothing. Default: the workspace's truth/manifest.json list, else every 5th
     /// photo (at least one).

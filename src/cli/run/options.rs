@@ -97,6 +97,8 @@ impl RunArgs {
         o.validation_block = self.validation_block;
         o.validation_halves = self.validation_halves;
         o.half_prior = relight_cpc::run::half_prior::HalfPriorMode::parse(&self.half_prior)?;
+        o.half_smoothness =
+            relight_cpc::run::half_prior::HalfSmoothnessMode::parse(&self.half_smoothness)?;
         o.lighting_cg_iterations = self.lighting_cg_iterations;
         o.lighting_sample = self.lighting_sample;
         o.patience = self.patience;

@@ -66,6 +66,9 @@ use crate::solve::{EstimateOptions, Problem};
 use crate::{Error, Result};
 use rayon::prelude::*;
 
+mod smoothness;
+pub use smoothness::HalfSmoothnessMode;
+
 /// Shrinkage of the training maps' shape covariance toward its diagonal (module docs).
 pub const SHRINKAGE: f64 = 0.5;
 /// Floor `f` of the shape covariance, in units of the shape `ĉ` (module docs).
@@ -453,6 +456,8 @@ pub fn log_ratio_scores(errors: &[Vec<f64>]) -> (Vec<f64>, usize) {
 pub(crate) struct HalfPrior {
     /// The light prior the half fit adds to the Laplacian (`None`: none).
     pub options: Option<LightPriorOptions>,
+    /// The Laplacian's weight `s` in the half fit ([`HalfSmoothnessMode`]).
+    pub smoothness: f64,
     /// report.json's `half_fit_prior`.
     pub report: HalfFitPriorReport,
 }
@@ -541,14 +546,21 @@ pub(crate) fn half_fit_options(f: &super::Fitted) -> EstimateOptions {
     }
 }
 
-/// The half fit's prior under `mode`; `opts` the half fit's options (its `light_prior` the
-/// light model's own).
+/// The half fit's prior under `mode` and its Laplacian weight under `smoothness`; `opts`
+/// the half fit's options (its `light_prior` the light model's own, its `smoothness` the
+/// fit's).
 pub(crate) fn prepare(
     f: &super::Fitted,
     mode: HalfPriorMode,
+    smoothness: HalfSmoothnessMode,
     opts: &EstimateOptions,
 ) -> Result<HalfPrior> {
     let watch = crate::stages::Stopwatch::start();
+    let s = smoothness.weight(opts.smoothness);
+    let opts = &EstimateOptions {
+        smoothness: s,
+        ..opts.clone()
+    };
     let priors = candidates();
     let choice = match mode {
         HalfPriorMode::Off => fixed(HalfLightPrior::Laplacian),
@@ -570,9 +582,13 @@ pub(crate) fn prepare(
         .kept
         .options(&f.est.lights, n, opts.light_prior.as_ref())?;
     let (_, cpu) = watch.elapsed();
+    let mut report = prior_report(mode, &priors, choice, cpu);
+    report.smoothness_mode = smoothness.name().to_string();
+    report.smoothness = s;
     Ok(HalfPrior {
         options,
-        report: prior_report(mode, &priors, choice, cpu),
+        smoothness: s,
+        report,
     })
 }
 
@@ -601,6 +617,8 @@ fn prior_report(
             HalfLightPrior::Model => MODEL_PRIOR_SCALE,
             _ => 0.0,
         },
+        smoothness_mode: String::new(),
+        smoothness: 0.0,
         candidates: if replayed {
             priors.iter().map(HalfLightPrior::name).collect()
         } else {

@@ -191,6 +191,10 @@ pub struct RunOptions {
     /// `Model` (the light model's own, at [`super::half_prior::MODEL_PRIOR_SCALE`] of its
     /// noise levels) or a fixed weight of the training maps' prior.
     pub half_prior: super::half_prior::HalfPriorMode,
+    /// The Laplacian weight of held-out protocol (b)'s fit
+    /// ([`super::half_prior::HalfSmoothnessMode`]): `Fit` (the training fit's own) or a
+    /// fixed weight.
+    pub half_smoothness: super::half_prior::HalfSmoothnessMode,
     /// Groups of photos under one sky for `--light shared` ([`super::light_groups`]); `None`:
     /// by EXIF capture time.
     pub light_groups: Option<std::path::PathBuf>,
@@ -342,6 +346,7 @@ impl RunOptions {
             transients: false,
             edge_margin: true,
             half_prior: super::half_prior::HalfPriorMode::Auto,
+            half_smoothness: super::half_prior::HalfSmoothnessMode::Fit,
             light_groups: None,
             light_group_minutes: DEFAULT_LIGHT_GROUP_MINUTES,
             geotag_suns: true,
