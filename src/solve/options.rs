@@ -69,6 +69,9 @@ pub struct EstimateOptions {
     pub smoothness_decay: f64,
     /// The smallest relative Laplacian weight the schedule reaches (see `smoothness_decay`).
     pub smoothness_min: f64,
+    /// Weight `κ` of the chroma smoothness prior relative to the Laplacian's,
+    /// `ν = κ · mean_c μ_c` ([`crate::solve::light::chroma`]); 0 = off.
+    pub chroma_smoothness: f64,
     /// Robust loss of the lighting step (IRLS); its final weights carry to the materials.
     pub robust: Robust,
     /// IRLS passes per lighting step (the first one unweighted); 1 = plain weighted LS.
@@ -386,6 +389,7 @@ impl Default for EstimateOptions {
             smoothness_scale: SmoothnessScale::TexelMax,
             smoothness_decay: 1.0,
             smoothness_min: 0.0,
+            chroma_smoothness: 0.0,
             robust: Robust::Huber { k: 1.345 },
             irls_iters: 4,
             beta: 1e-8,

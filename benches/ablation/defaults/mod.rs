@@ -124,7 +124,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
 /// `ABLATION_DEFAULTS_ROBUST=K|tukey`; the maps' Laplacian weight with
 /// `ABLATION_DEFAULTS_SMOOTHNESS=X` (`run --smoothness X`), its schedule with
 /// `ABLATION_DEFAULTS_DECAY=D` and `ABLATION_DEFAULTS_SMOOTHNESS_MIN=M` (the estimator's
-/// `smoothness_decay` and `smoothness_min`, which `run` leaves at 1 and 0).
+/// `smoothness_decay` and `smoothness_min`, which `run` leaves at 1 and 0); the chroma
+/// prior's `κ` with `ABLATION_DEFAULTS_CHROMA=K` (`run --chroma-smoothness K`).
 fn with_env_overrides(
     base: &EstimateOptions,
     obs: &relight_cpc::observe::Observations,
@@ -142,6 +143,7 @@ fn with_env_overrides(
         smoothness: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS", base.smoothness),
         smoothness_decay: crate::env_or("ABLATION_DEFAULTS_DECAY", base.smoothness_decay),
         smoothness_min: crate::env_or("ABLATION_DEFAULTS_SMOOTHNESS_MIN", base.smoothness_min),
+        chroma_smoothness: crate::env_or("ABLATION_DEFAULTS_CHROMA", base.chroma_smoothness),
         // `ABLATION_CLIPPED_BOUNDS=1|0`: clipped channels read as lower bounds, or left out;
         // unset, `run`'s `--clipped auto` (bounds from a tenth of the observations on).
         clipped_bounds: std::env::var("ABLATION_CLIPPED_BOUNDS")

@@ -152,6 +152,11 @@ pub(crate) struct RunArgs {
     /// a finer map the same number smooths less).
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) smoothness: String,
+    /// How strongly the recovered lighting's colour is smoothed over directions, relative
+    /// to `--smoothness` (0 = off): white balance and exposure stay free, colour that
+    /// changes with direction is penalised.
+    #[arg(long, default_value_t = 0.0, help_heading = "Solver")]
+    pub(crate) chroma_smoothness: f64,
     /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least
     /// squares).
     #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]

@@ -87,6 +87,13 @@ impl RunArgs {
         o.rel_tol = self.tolerance;
         o.smoothness =
             relight_cpc::run::PriorStrength::parse(&self.smoothness, "--smoothness", "off")?;
+        if !(self.chroma_smoothness.is_finite() && self.chroma_smoothness >= 0.0) {
+            anyhow::bail!(
+                "--chroma-smoothness {}: expected a number ≥ 0 (0 = off)",
+                self.chroma_smoothness
+            );
+        }
+        o.chroma_smoothness = self.chroma_smoothness;
         o.irls_iterations = self.irls_iterations;
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         match &self.light {

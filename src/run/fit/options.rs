@@ -27,6 +27,7 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         max_outer: o.max_iterations,
         rel_tol: o.rel_tol,
         smoothness: crate::run::smoothness_base(o.smoothness),
+        chroma_smoothness: o.chroma_smoothness,
         robust: if o.irls_iterations > 1 {
             Robust::Huber { k: 1.345 }
         } else {

@@ -70,6 +70,9 @@ pub struct RunOptions {
     /// Laplacian smoothness, as a fraction of the largest system value, or by the fit's
     /// photos and map size ([`PriorStrength::Auto`], [`smoothness_for`]).
     pub smoothness: PriorStrength,
+    /// Weight `κ` of the maps' chroma smoothness prior relative to the Laplacian's
+    /// ([`crate::solve::light`] `chroma`); 0 = off.
+    pub chroma_smoothness: f64,
     /// IRLS passes per lighting step (1 = no reweighting).
     pub irls_iterations: usize,
     /// GPCG iterations per lighting QP inside the alternation
@@ -311,6 +314,7 @@ impl RunOptions {
             max_iterations: Self::DEFAULT_MAX_ITERATIONS,
             rel_tol: Self::DEFAULT_REL_TOL,
             smoothness: PriorStrength::Auto,
+            chroma_smoothness: 0.0,
             irls_iterations: 3,
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),

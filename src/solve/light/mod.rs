@@ -34,6 +34,7 @@ use crate::Result;
 
 pub(crate) mod bounds;
 pub mod choose;
+mod chroma;
 pub mod frozen;
 pub(crate) mod irls;
 pub mod laplacian;

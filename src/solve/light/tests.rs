@@ -40,9 +40,20 @@ pub(super) fn planted_photo(
     noise: f64,
     seed: u64,
 ) -> (Observations, Transport) {
+    planted_photo_under(&planted_light(n), rows, n, noise, seed)
+}
+
+/// [`planted_photo`] under the texels `texels` (per channel).
+pub(super) fn planted_photo_under(
+    texels: &[Vec<f64>; 3],
+    rows: usize,
+    n: usize,
+    noise: f64,
+    seed: u64,
+) -> (Observations, Transport) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let n2 = n * n;
-    let light: Vec<[f64; 3]> = haar3(&planted_light(n), n);
+    let light: Vec<[f64; 3]> = haar3(texels, n);
     let mut t = Transport {
         n_global: n,
         n_basis: 1,
@@ -295,4 +306,39 @@ fn clipped_channels_read_as_bounds_recover_the_light_clipping_hides() {
             assert!(short < 0.005, "observation {p} channel {c}: {short} below");
         }
     }
+}
+
+#[test]
+fn the_chroma_prior_pools_noise_across_channels_when_the_light_has_one_colour() {
+    // A light whose channels are one smooth shape times three gains: the chroma prior
+    // costs nothing at the truth, so it can only pull each channel's noise toward what
+    // the other two say. 5% independent noise per channel on 200 rows: the fit with the
+    // prior (κ = 1000) must land closer to the truth on the coefficients the rows reach
+    // than the Laplacian alone, by at least 10% (pooling three channels could at best
+    // cut the noise part by √3; measured 23% at this seed, 25–27% at seeds 1–3).
+    let n = 16;
+    let shape = planted_light(n)[0].clone();
+    let gains = [1.2, 1.0, 0.6];
+    let truth = gains.map(|g| shape.iter().map(|v| g * v).collect::<Vec<f64>>());
+    let (obs, t) = planted_photo_under(&truth, 200, n, 0.05, 5);
+    let problem = one_photo(&obs, &t);
+    let beta = vec![[1.0; 3]; obs.len()];
+    let fit = |kappa: f64| {
+        let opts = EstimateOptions {
+            robust: Robust::None,
+            irls_iters: 2,
+            smoothness: 1e-4,
+            chroma_smoothness: kappa,
+            qp_rel_tol: 1e-9,
+            qp_max_iter: 500,
+            ..EstimateOptions::default()
+        };
+        lighting_step_full(&problem, &beta, 0, None, None, &opts).unwrap()
+    };
+    let plain = reached_distance(&fit(0.0).light, &truth, n);
+    let pooled = reached_distance(&fit(1000.0).light, &truth, n);
+    assert!(
+        pooled < 0.9 * plain,
+        "with the prior {pooled}, without {plain}"
+    );
 }
