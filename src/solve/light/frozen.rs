@@ -80,16 +80,7 @@ pub fn fit_light_scheduled(
     for (pass, caps) in passes.iter().enumerate() {
         pass_weights(problem, beta, &sys, &x, &data, opts, pass > 0, &mut omega);
         set_pass_weights(&mut sys, &data, &omega);
-        let system = PassSystem::new(
-            &sys,
-            &lap,
-            mu,
-            jacobi.as_deref(),
-            opts,
-            &prior_proj,
-            y_ms,
-            &x,
-        );
+        let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let pass_opts = EstimateOptions {
             qp_max_iter: caps.gpcg,
             qp_max_cg: caps.cg,

@@ -311,16 +311,7 @@ pub(crate) fn lighting_step_warm(
         let reweigh = pass > 0 || warm;
         pass_weights(problem, beta, &sys, &x, &data, opts, reweigh, &mut omega);
         set_pass_weights(&mut sys, &data, &omega);
-        let system = PassSystem::new(
-            &sys,
-            &lap,
-            mu,
-            jacobi.as_deref(),
-            opts,
-            &prior_proj,
-            y_ms,
-            &x,
-        );
+        let system = PassSystem::new(&sys, &lap, mu, jacobi.as_deref(), opts, &prior_proj, y_ms);
         let res = solve_pass(&system, &data, &x, opts, photo)?;
         take_pass(res, &mut x, &mut stats);
     }
@@ -458,8 +449,6 @@ pub(super) struct PassSystem<'a> {
     pub(super) prior: Option<(&'a LightPriorOptions, &'a ShProjection)>,
     /// The rows' mean square radiance (the prior's scale).
     pub(super) y_ms: f64,
-    /// The chroma smoothness prior, when on ([`super::chroma`]).
-    pub(super) chroma: Option<ChromaPrior>,
 }
 
 /// Pass `k`'s data weights `D_k = α ω_k` into the system's rows (`omega`: the IRLS
@@ -485,9 +474,7 @@ pub(super) fn take_pass(res: Option<QpResult>, x: &mut Vec<f64>, stats: &mut QpS
 }
 
 impl<'a> PassSystem<'a> {
-    /// The pass's quadratic; the light prior from `opts` with its projection when on, the
-    /// chroma prior's gains from the pass's start `x`.
-    #[allow(clippy::too_many_arguments)]
+    /// The pass's quadratic; the light prior from `opts` with its projection when on.
     pub(super) fn new(
         sys: &'a PhotoSystem,
         lap: &'a Laplacian,
@@ -496,10 +483,8 @@ impl<'a> PassSystem<'a> {
         opts: &'a EstimateOptions,
         prior_proj: &'a Option<ShProjection>,
         y_ms: f64,
-        x: &[f64],
     ) -> Self {
         let prior = opts.light_prior.as_ref().zip(prior_proj.as_ref());
-        let chroma = ChromaPrior::for_pass(opts.chroma_smoothness, mu, x, sys.n * sys.n);
         PassSystem {
             sys,
             lap,
@@ -507,7 +492,6 @@ impl<'a> PassSystem<'a> {
             jacobi,
             prior,
             y_ms,
-            chroma,
         }
     }
 }
@@ -531,11 +515,13 @@ pub(super) fn solve_pass(
     let prior = p
         .prior
         .and_then(|(lp, pp)| lp.pass(photo, pp, x, n, p.y_ms));
+    // The chroma prior's gains from the pass's start, as the light prior is linearised there.
+    let chroma = ChromaPrior::for_pass(opts.chroma_smoothness, p.mu, x, n2);
     let mut jac_pass: Option<Vec<f64>> = match (p.jacobi, &prior) {
         (Some(j), Some(pr)) => Some(j.iter().zip(pr.diagonal()).map(|(a, b)| a + b).collect()),
         (j, _) => j.map(<[f64]>::to_vec),
     };
-    if let (Some(j), Some(ch)) = (jac_pass.as_mut(), &p.chroma) {
+    if let (Some(j), Some(ch)) = (jac_pass.as_mut(), &chroma) {
         j.iter_mut()
             .zip(ch.diagonal(p.lap))
             .for_each(|(a, b)| *a += b);
@@ -560,7 +546,7 @@ pub(super) fn solve_pass(
                 &mut out[c * n2..(c + 1) * n2],
             );
         }
-        if let Some(ch) = &p.chroma {
+        if let Some(ch) = &chroma {
             ch.add_normal(p.lap, v, out);
         }
     };
