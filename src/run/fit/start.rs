@@ -138,6 +138,12 @@ impl FitStart {
         );
         eopts.smoothness = s;
         reasons.extend(why);
+        if eopts.chroma_smoothness > 0.0 {
+            reasons.push(format!(
+                "the maps' colour smoothed over directions at {} × their Laplacian weight (--chroma-smoothness; exposure and white balance free)",
+                eopts.chroma_smoothness
+            ));
+        }
         if eopts.weights_smoothness > 0.0 {
             // The neighbour prior's graph: the one the unseen vertices' materials spread over.
             use crate::solve::materials::propagate::{knn_graph, NEIGHBOURS};
