@@ -137,10 +137,14 @@ pub(super) fn fit_left_half(
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
+    let (light_prior, smoothness) = match &f.half_fit {
+        Some(h) => (h.light_prior.clone(), h.smoothness),
+        None => (None, f.estimate_options.smoothness),
+    };
     let opts = EstimateOptions {
         lighting_sample: 0,
-        light_prior: f.half_prior.clone(),
-        smoothness: f.half_smoothness,
+        light_prior,
+        smoothness,
         ..f.estimate_options.clone()
     };
     let north = f.est.sky.as_ref().and_then(|s| s.north);

@@ -300,12 +300,10 @@ pub(crate) struct Fitted<'a> {
     pub bvh: SceneBvh,
     /// The naive baseline's per-vertex colours ([`baseline`]).
     pub baseline: baseline::VertexMedians,
-    /// The light prior held-out protocol (b)'s fit adds to the Laplacian ([`half_prior`]);
-    /// `None`: none.
-    pub half_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
-    /// The Laplacian weight `s` of held-out protocol (b)'s fit ([`half_prior`]'s
-    /// `--half-smoothness`); the fit's own before the evaluation.
-    pub half_smoothness: f64,
+    /// The light prior and Laplacian weight of held-out protocol (b)'s fit
+    /// ([`half_prior`]); `None` before the evaluation chose them: no prior, the training
+    /// fit's weight.
+    pub half_fit: Option<half_prior::HalfFitSetup>,
     /// Per held-out view (in `held`'s order), its sun from its geotag when protocol (b)
     /// fits its light within the sun and sky ([`half_fit::held_out_suns`]); empty before
     /// the evaluation or when none does.

@@ -86,8 +86,7 @@ fn evaluation(
             let o = super::half_prior::half_fit_options(&fit.fitted);
             super::half_prior::prepare(&fit.fitted, opts.half_prior, opts.half_smoothness, &o)
         })?;
-        fit.fitted.half_prior = hp.options;
-        fit.fitted.half_smoothness = hp.smoothness;
+        fit.fitted.half_fit = Some(hp.setup);
         Some(hp.report)
     };
     let evaluation = log.stages.run("evaluation", || {

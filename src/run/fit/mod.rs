@@ -194,11 +194,10 @@ fn fitted_model<'a>(im: &'a Imported, p: Prepared, parts: FitParts) -> Fitted<'a
         beta: parts.beta,
         train_predictions: parts.train_predictions,
         opts: eff,
-        half_smoothness: parts.estimate_options.smoothness,
         estimate_options: parts.estimate_options,
         bvh: parts.bvh,
         baseline: parts.baseline,
-        half_prior: None,
+        half_fit: None,
         held_out_suns: Vec::new(),
     }
 }

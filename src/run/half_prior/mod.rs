@@ -452,12 +452,19 @@ pub fn log_ratio_scores(errors: &[Vec<f64>]) -> (Vec<f64>, usize) {
     (score, ok.len())
 }
 
-/// The half fit's prior for a fitted run and what the report says of it.
-pub(crate) struct HalfPrior {
+/// What protocol (b)'s light fit takes beyond the training fit's options.
+#[derive(Debug, Clone)]
+pub(crate) struct HalfFitSetup {
     /// The light prior the half fit adds to the Laplacian (`None`: none).
-    pub options: Option<LightPriorOptions>,
+    pub light_prior: Option<LightPriorOptions>,
     /// The Laplacian's weight `s` in the half fit ([`HalfSmoothnessMode`]).
     pub smoothness: f64,
+}
+
+/// The half fit's prior and weight for a fitted run and what the report says of them.
+pub(crate) struct HalfPrior {
+    /// The half fit's prior and weight.
+    pub setup: HalfFitSetup,
     /// report.json's `half_fit_prior`.
     pub report: HalfFitPriorReport,
 }
@@ -582,19 +589,20 @@ pub(crate) fn prepare(
         .kept
         .options(&f.est.lights, n, opts.light_prior.as_ref())?;
     let (_, cpu) = watch.elapsed();
-    let mut report = prior_report(mode, &priors, choice, cpu);
-    report.smoothness_mode = smoothness.name().to_string();
-    report.smoothness = s;
     Ok(HalfPrior {
-        options,
-        smoothness: s,
-        report,
+        report: prior_report(mode, (smoothness, s), &priors, choice, cpu),
+        setup: HalfFitSetup {
+            light_prior: options,
+            smoothness: s,
+        },
     })
 }
 
-/// report.json's `half_fit_prior`: `choice` among `priors` under `mode`, in `cpu` seconds.
+/// report.json's `half_fit_prior`: `choice` among `priors` under `mode`, at the weight
+/// `smoothness` gives (the flag and its value), in `cpu` seconds.
 fn prior_report(
     mode: HalfPriorMode,
+    smoothness: (HalfSmoothnessMode, f64),
     priors: &[HalfLightPrior],
     choice: ReplayChoice,
     cpu: f64,
@@ -617,8 +625,8 @@ fn prior_report(
             HalfLightPrior::Model => MODEL_PRIOR_SCALE,
             _ => 0.0,
         },
-        smoothness_mode: String::new(),
-        smoothness: 0.0,
+        smoothness_mode: smoothness.0.name().to_string(),
+        smoothness: smoothness.1,
         candidates: if replayed {
             priors.iter().map(HalfLightPrior::name).collect()
         } else {

@@ -41,7 +41,7 @@ pub(crate) struct ChromaPrior {
 
 /// Channel gains `g_c = S_c / mean_c S_c` of channel-major texels `x` (3 × `n2`); all 1
 /// when any channel sums to zero or less (no white balance to keep).
-pub(crate) fn gains(x: &[f64], n2: usize) -> [f64; 3] {
+fn gains(x: &[f64], n2: usize) -> [f64; 3] {
     let s: [f64; 3] = [0, 1, 2].map(|c| x[c * n2..(c + 1) * n2].iter().sum());
     let mean = (s[0] + s[1] + s[2]) / 3.0;
     if s.iter().any(|&v| v <= 0.0 || !v.is_finite()) || mean <= 0.0 {
