@@ -49,6 +49,10 @@ pub(crate) struct SynthArgs {
     /// carries that place and UTC time as an EXIF geotag (for `run --light sky`).
     #[arg(long)]
     geotag: bool,
+    /// The pixels the object does not cover show the map it is lit by, as a photo's sky
+    /// does (for `run --background-light`); without it they are black.
+    #[arg(long)]
+    sky_background: bool,
     /// Primary rays per pixel.
     #[arg(long, default_value_t = 4)]
     spp: u32,
@@ -81,6 +85,7 @@ impl SynthArgs {
             exposure_peak,
             shared_skies,
             geotag,
+            sky_background,
             spp,
             light_samples,
             points,
@@ -107,6 +112,7 @@ impl SynthArgs {
             exposure_peak,
             shared_skies,
             geotag,
+            sky_background,
             samples: relight_cpc::transport::reference::Samples {
                 per_pixel: spp,
                 light: light_samples,

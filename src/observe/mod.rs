@@ -39,6 +39,7 @@
 //! Output is a struct of arrays sorted by photo then vertex, identical for any thread count:
 //! each photo's vertices are processed in parallel with rayon and collected in order.
 
+pub mod background;
 pub mod cone;
 pub mod inspect;
 pub mod margins;

@@ -97,6 +97,10 @@ pub struct SynthOptions {
     /// ([`crate::solve::light::sky::clock`]; the manifest's `north_radians`), and its PNG
     /// carries the place and time as an EXIF geotag ([`crate::import::geotag`]).
     pub geotag: bool,
+    /// The pixels the object does not cover show the light along their ray (the map the
+    /// photo is lit by, at the pixel's centre, under the photo's exposure and white
+    /// balance; a pixel the object covers partly is blended by its coverage). Off: black.
+    pub sky_background: bool,
     /// Reference-renderer effort.
     pub samples: Samples,
     /// Surface points sampled for `points3D.txt`.
@@ -117,6 +121,7 @@ impl Default for SynthOptions {
             exposure_peak: 1.0,
             shared_skies: false,
             geotag: false,
+            sky_background: false,
             samples: Samples {
                 per_pixel: 4,
                 light: 64,

@@ -58,6 +58,11 @@ pub(super) fn render_all(rng: &mut Pcg32, shoot: &Shoot) -> Result<Rendered> {
             [1.0; 3]
         };
         let exposure = opts.exposure_peak * exposure(&img, &wb);
+        let img = if opts.sky_background {
+            with_sky(img, &env, cam)
+        } else {
+            img
+        };
         let bytes = encode(&img, exposure, &wb, opts, i);
         let size = (opts.width, opts.height);
         let exif = match &shoot.lighting.geotags[i] {
@@ -122,6 +127,23 @@ fn render_photo(
         ..opts.samples
     };
     scene.render(cam, &samples)
+}
+
+/// `img` with each pixel's uncovered share showing the light along the ray through its
+/// centre: `rgb += (1 − coverage) L̃(d)` ([`SynthOptions::sky_background`]).
+fn with_sky(mut img: ReferenceImage, env: &Environment, cam: &PinholeCamera) -> ReferenceImage {
+    let w = img.width;
+    for (i, (p, &cov)) in img.rgb.iter_mut().zip(&img.coverage).enumerate() {
+        if cov >= 1.0 {
+            continue;
+        }
+        let d = cam.ray_dir((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+        let l = env.radiance(&d);
+        for c in 0..3 {
+            p[c] += ((1.0 - f64::from(cov)) * l[c]) as f32;
+        }
+    }
+    img
 }
 
 /// Exposure: the 99th percentile of the object's brightest channel (after white balance

@@ -90,6 +90,10 @@ pub struct Split {
     pub lights: Vec<[Vec<f64>; 3]>,
     /// The split's cameras, in its order (the photo halves `run --light auto` scores on).
     pub views: Vec<scene::View>,
+    /// Per photo of the split, the texels its background pixels observe on the
+    /// `global²` map ([`observe::background`]; empty lists unless the photos were
+    /// rendered with `SYNTH_SKY_BACKGROUND=1`, black pixels giving texels of 0).
+    pub background: observe::background::BackgroundLight,
 }
 
 impl Split {
@@ -248,6 +252,9 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
             // `SYNTH_GEOTAG=1`: a sun-and-sky scene's suns from a day's clock, each photo
             // geotagged (`synth --geotag`; the cases' `geotag_suns`).
             geotag: std::env::var("SYNTH_GEOTAG").is_ok_and(|v| v == "1"),
+            // `SYNTH_SKY_BACKGROUND=1`: the photos' backgrounds show their maps
+            // (`synth --sky-background`).
+            sky_background: std::env::var("SYNTH_SKY_BACKGROUND").is_ok_and(|v| v == "1"),
             // `SYNTH_EXPOSURE_PEAK=P`: the 99th percentile exposed to P (`synth
             // --exposure-peak`; 0.6 clips nearly nothing).
             exposure_peak: std::env::var("SYNTH_EXPOSURE_PEAK")
@@ -357,11 +364,19 @@ pub fn prepare_in(
                 [0, 1, 2].map(|c| env.channel(c))
             })
             .collect();
+        let background = observe::background::extract(
+            &sc.mesh,
+            &views,
+            &ph,
+            &env_from_world,
+            &observe::background::BackgroundOptions::new(sizes.global),
+        );
         Split {
             obs,
             transport,
             lights,
             views,
+            background,
         }
     };
     let train = split(false);
