@@ -184,6 +184,11 @@ pub struct EstimateOptions {
     /// Prior on each photo's map (issue 25, not in the paper; `None`: the paper's free
     /// map): extra quadratic terms of the lighting QP ([`crate::solve::light::sh_prior`]).
     pub light_prior: Option<crate::solve::light::sh_prior::LightPriorOptions>,
+    /// The photos' background pixels as direct views of their maps (beyond the paper;
+    /// `None`: off): a diagonal term of the paper's lighting QP
+    /// ([`crate::solve::light::background`]), indexed by the problem's photos, so options
+    /// for another set of photos must not carry it.
+    pub background: Option<std::sync::Arc<crate::solve::light::background::BackgroundTerm>>,
     /// The sun-and-sky light model instead of the paper's free map (issue 25, `--light
     /// sky`; `None`: the paper's map, with `light_prior` if set): [`crate::solve::light::sky`].
     pub light_sky: Option<crate::solve::light::sky::SkyOptions>,
@@ -417,6 +422,7 @@ impl Default for EstimateOptions {
             lighting_strata: Vec::new(),
             blend_tolerance: 0.0,
             light_prior: None,
+            background: None,
             light_sky: None,
             sun_clock: None,
             weights_sum: WEIGHTS_SUM,

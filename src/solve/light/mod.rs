@@ -32,6 +32,7 @@ use crate::solve::problem::Problem;
 use crate::solve::result::Conditioning;
 use crate::Result;
 
+pub mod background;
 pub(crate) mod bounds;
 pub mod choose;
 mod chroma;

@@ -53,6 +53,15 @@ impl PaperLight {
         }
     }
 
+    /// The background term of `F` per channel ([`crate::solve::light::background`]; 0 when off).
+    fn background_penalty(&self, params: &Maps) -> [f64; 3] {
+        self.state
+            .opts
+            .background
+            .as_ref()
+            .map_or([0.0; 3], |t| t.channel_penalty(params))
+    }
+
     /// Takes one photo's lighting result into the state and the outputs.
     fn absorb(&mut self, problem: &Problem, i: usize, r: LightingResult, out: &mut LightingOutput) {
         let range = problem.obs.photo_ranges[i].clone();
@@ -122,7 +131,7 @@ impl LightModel for PaperLight {
     }
 
     fn penalty(&self, params: &Maps) -> f64 {
-        self.state.penalty(params)
+        self.state.penalty(params) + self.background_penalty(params).iter().sum::<f64>()
     }
 
     fn combine(&self, parts: &[(&Maps, [f64; 3])]) -> Option<Maps> {
@@ -131,7 +140,11 @@ impl LightModel for PaperLight {
     }
 
     fn channel_penalty(&self, params: &Maps) -> Option<[f64; 3]> {
-        Some(self.state.channel_penalty(params))
+        let (lap, bg) = (
+            self.state.channel_penalty(params),
+            self.background_penalty(params),
+        );
+        Some([0, 1, 2].map(|c| lap[c] + bg[c]))
     }
 
     fn extrapolate(&self, params: &Maps, prev: &Maps, sigma: f64) -> Maps {

@@ -512,6 +512,11 @@ pub(super) fn solve_pass(
     if bmax == 0.0 {
         return Ok(None);
     }
+    let mut b = b;
+    let background = opts.background.as_deref().and_then(|t| t.photo(photo, n));
+    if let Some(bg) = &background {
+        bg.add_rhs(&mut b, [1.0; 3]);
+    }
     let prior = p
         .prior
         .and_then(|(lp, pp)| lp.pass(photo, pp, x, n, p.y_ms));
@@ -525,6 +530,9 @@ pub(super) fn solve_pass(
         j.iter_mut()
             .zip(ch.diagonal(p.lap))
             .for_each(|(a, b)| *a += b);
+    }
+    if let (Some(j), Some(bg)) = (jac_pass.as_mut(), &background) {
+        bg.add_diagonal(j, [1.0; 3]);
     }
     let prior_ref = prior.as_ref();
     let hess = |v: &[f64], out: &mut [f64]| {
@@ -548,6 +556,9 @@ pub(super) fn solve_pass(
         }
         if let Some(ch) = &chroma {
             ch.add_normal(p.lap, v, out);
+        }
+        if let Some(bg) = &background {
+            bg.add_normal(v, out, [1.0; 3]);
         }
     };
     let qp = QpOptions {

@@ -30,6 +30,13 @@
 //! system at its first lighting step, decayed as the paper's
 //! (`smoothness_decay`, `smoothness_min`). The statistical prior of
 //! [`crate::solve::light::sh_prior`] is not applied here.
+//!
+//! **Backgrounds** ([`EstimateOptions::background`], [`crate::solve::light::background`]):
+//! photo `I`'s background texels add `γ n_t (a_{I,c} m_{g,t,c} − ȳ_{I,t,c})²`. The map step
+//! gains `a_{I,c}² γ n_t` on its diagonal and `a_{I,c} γ n_t ȳ` in `b`, the gain step
+//! `Σ_t γ n_t ȳ m` and `Σ_t γ n_t m²` in its sums, and the gauge leaves `a m`, so the
+//! term, unchanged. Under one map, a photo's background is the light on the side of the
+//! object that the group's photos from the other side see.
 
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
@@ -38,6 +45,7 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
+use crate::solve::light::background::PhotoBackground;
 use crate::solve::light::irls::pass_weights;
 use crate::solve::light::laplacian::{
     combine_maps, extrapolate_maps, smoothness_factor, WeightedMaps,
@@ -184,6 +192,25 @@ impl SharedLight {
         })
     }
 
+    /// Photo `i`'s background term on an `n²` map, when on.
+    fn background(&self, i: usize, n: usize) -> Option<PhotoBackground<'_>> {
+        self.state.opts.background.as_ref()?.photo(i, n)
+    }
+
+    /// The background term of `F` per channel at `params` (0 when off).
+    fn background_penalty(&self, params: &SharedParams) -> [f64; 3] {
+        let mut e = [0.0; 3];
+        for (i, &g) in self.groups.group.iter().enumerate() {
+            let m = &params.maps[g];
+            let n = (m[0].len() as f64).sqrt().round() as usize;
+            if let Some(bg) = self.background(i, n) {
+                let pe = bg.energy(m, params.gains[i]);
+                (0..3).for_each(|c| e[c] += pe[c]);
+            }
+        }
+        e
+    }
+
     fn photo_texels(params: &SharedParams, g: usize, i: usize) -> Vec<f64> {
         let (m, a) = (&params.maps[g], params.gains[i]);
         (0..3)
@@ -211,7 +238,16 @@ impl SharedLight {
         let members = &self.members[g];
         let GroupNormal { diag, hb } = self.group_normal(work, g, n2);
         let mu = self.group_mu(g, &diag, mu_factor);
-        let b = unhaar3(&hb, n);
+        let mut b = unhaar3(&hb, n);
+        // The members' backgrounds, each through its photo's gains
+        // ([`crate::solve::light::background`]).
+        let backgrounds: Vec<_> = members
+            .iter()
+            .filter_map(|&i| Some((self.background(i, n)?, self.params.gains[i])))
+            .collect();
+        for (bg, a) in &backgrounds {
+            bg.add_rhs(&mut b, *a);
+        }
         let start: Vec<f64> = self.params.maps[g].iter().flatten().copied().collect();
         let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
         if bmax == 0.0 {
@@ -224,10 +260,13 @@ impl SharedLight {
             });
         }
         let ld = self.state.lap.normal_diag();
-        let jacobi: Vec<f64> = (0..3)
+        let mut jacobi: Vec<f64> = (0..3)
             .flat_map(|c| (0..n2).map(move |t| (c, t)))
             .map(|(c, t)| diag[t][c] + mu[c] * ld[t])
             .collect();
+        for (bg, a) in &backgrounds {
+            bg.add_diagonal(&mut jacobi, *a);
+        }
         let hess = |v: &[f64], out: &mut [f64]| {
             let h = haar3(&split3(v, n2), n);
             let mut acc = vec![[0.0; 3]; n2];
@@ -238,6 +277,9 @@ impl SharedLight {
             for c in 0..3 {
                 let r = c * n2..(c + 1) * n2;
                 self.state.lap.add_normal(&v[r.clone()], mu[c], &mut out[r]);
+            }
+            for (bg, a) in &backgrounds {
+                bg.add_normal(v, out, *a);
             }
         };
         let qp = QpOptions {
@@ -312,7 +354,9 @@ impl SharedLight {
             .map(|(i, w)| {
                 let mut s = vec![[0.0; 3]; w.data.pos.len()];
                 w.sys.forward_rows(&hmaps[groups[i]], &mut s);
-                let (mut num, mut den) = ([0.0_f64; 3], [0.0_f64; 3]);
+                let (mut num, mut den) = self.background(i, n).map_or(([0.0; 3], [0.0; 3]), |bg| {
+                    bg.gain_sums(&self.params.maps[groups[i]])
+                });
                 for (r, &q) in w.data.pos.iter().enumerate() {
                     for c in 0..3 {
                         let d = w.data.alpha[r] * w.omega[q][c];
@@ -450,11 +494,15 @@ impl LightModel for SharedLight {
     }
 
     fn penalty(&self, params: &SharedParams) -> f64 {
-        self.state.penalty(&params.maps)
+        self.state.penalty(&params.maps) + self.background_penalty(params).iter().sum::<f64>()
     }
 
     fn channel_penalty(&self, params: &SharedParams) -> Option<[f64; 3]> {
-        Some(self.state.channel_penalty(&params.maps))
+        let (lap, bg) = (
+            self.state.channel_penalty(&params.maps),
+            self.background_penalty(params),
+        );
+        Some([0, 1, 2].map(|c| lap[c] + bg[c]))
     }
 
     /// The groups' maps and the photos' gains each mixed per channel with the weights,
