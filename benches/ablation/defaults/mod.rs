@@ -61,7 +61,10 @@ struct Colours<'a> {
 /// the bench's options (the paper's free weights, the paper's light model).
 pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let t0 = std::time::Instant::now();
-    let base = &with_env_overrides(base, &case.train.obs);
+    let base = &with_env_overrides(base, case);
+    if base.background.is_some() {
+        eprintln!("  background: {}", background_check(case));
+    }
     let (mean_rgb, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
     let colours = Colours {
         mean_rgb: &mean_rgb,
@@ -104,6 +107,12 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         .iter()
         .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
         .collect();
+    if !case.train.background.iter().all(Vec::is_empty) {
+        eprintln!(
+            "  background against the fit: {}",
+            background_fit(case, &est.lights)
+        );
+    }
     if crate::env_flag("ABLATION_TAIL") {
         eprintln!(
             "  pure vertices more than 10% off their median, the defaults' fit: {}",
@@ -126,11 +135,22 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
 /// `ABLATION_DEFAULTS_DECAY=D` and `ABLATION_DEFAULTS_SMOOTHNESS_MIN=M` (the estimator's
 /// `smoothness_decay` and `smoothness_min`, which `run` leaves at 1 and 0); the chroma
 /// prior's `κ` with `ABLATION_DEFAULTS_CHROMA=K` (`run --chroma-smoothness K`).
-fn with_env_overrides(
-    base: &EstimateOptions,
-    obs: &relight_cpc::observe::Observations,
-) -> EstimateOptions {
+fn with_env_overrides(base: &EstimateOptions, case: &Case) -> EstimateOptions {
+    let obs = &case.train.obs;
+    // `ABLATION_BACKGROUND=γ`: the training photos' backgrounds pull their maps
+    // (`run --background-light γ`; photos rendered with `SYNTH_SKY_BACKGROUND=1`).
+    let background = std::env::var("ABLATION_BACKGROUND")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .map(|weight| {
+            std::sync::Arc::new(relight_cpc::solve::light::background::BackgroundTerm {
+                weight,
+                n_global: case.sizes.global,
+                photos: case.train.background.clone(),
+            })
+        });
     EstimateOptions {
+        background: background.or_else(|| base.background.clone()),
         irls_iters: crate::env_or("ABLATION_DEFAULTS_IRLS", base.irls_iters),
         robust_floor: crate::env_or("ABLATION_DEFAULTS_FLOOR", base.robust_floor),
         robust: match std::env::var("ABLATION_DEFAULTS_ROBUST").as_deref() {
@@ -150,6 +170,70 @@ fn with_env_overrides(
             .map_or(relight_cpc::run::auto_reads_bounds(obs), |v| v == "1"),
         ..base.clone()
     }
+}
+
+/// The training backgrounds against the truth: texels and pixels read, and per channel the
+/// median of `ȳ_t / x_true,t` over the texels (1 when the background is the light the
+/// object sees in the model's units).
+fn background_check(case: &Case) -> String {
+    let (mut texels, mut pixels) = (0, 0);
+    let mut ratios: [Vec<f64>; 3] = Default::default();
+    for (bg, truth) in case.train.background.iter().zip(&case.train.lights) {
+        texels += bg.len();
+        for b in bg {
+            pixels += b.pixels as usize;
+            for c in 0..3 {
+                let t = truth[c][b.texel as usize];
+                if t > 0.0 {
+                    ratios[c].push(f64::from(b.mean[c]) / t);
+                }
+            }
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let m = ratios.each_mut().map(median);
+    format!(
+        "{texels} texels, {pixels} pixels over {} photos; median background / true texel {:.3} / {:.3} / {:.3}",
+        case.train.background.len(),
+        m[0],
+        m[1],
+        m[2]
+    )
+}
+
+/// The fitted maps in the training backgrounds' texels: per channel the median and the
+/// quartiles of `x_t / ȳ_t` after the one scale per channel that best fits them (the fit's
+/// normalisation rescales the maps).
+fn background_fit(case: &Case, lights: &[[Vec<f64>; 3]]) -> String {
+    let mut r: [Vec<f64>; 3] = Default::default();
+    for (bg, m) in case.train.background.iter().zip(lights) {
+        for b in bg {
+            for c in 0..3 {
+                let y = f64::from(b.mean[c]);
+                if y > 0.0 {
+                    r[c].push(m[c][b.texel as usize] / y);
+                }
+            }
+        }
+    }
+    let q = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let at = |f: f64| {
+            v.get((f * v.len() as f64) as usize)
+                .copied()
+                .unwrap_or(f64::NAN)
+        };
+        let med = at(0.5);
+        (med, at(0.25) / med, at(0.75) / med)
+    };
+    let s = r.each_mut().map(q);
+    format!(
+        "x / ȳ median {:.3} / {:.3} / {:.3}, quartiles over the median R {:.2}–{:.2}, G {:.2}–{:.2}, B {:.2}–{:.2}",
+        s[0].0, s[1].0, s[2].0, s[0].1, s[0].2, s[1].1, s[1].2, s[2].1, s[2].2
+    )
 }
 
 /// `run --smoothness` as the defaults' row gives it: `auto`, or with
