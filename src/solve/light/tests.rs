@@ -354,9 +354,9 @@ fn the_background_pins_the_texels_it_shows() {
     // 22% off free, 0.05% pinned; rows 8.4e-5 both).
     let n = 16;
     let mut truth = planted_light(n);
-    for c in 0..3 {
+    for ch in truth.iter_mut() {
         for i in (3..14).step_by(2) {
-            truth[c][5 * n + i] *= 1.4;
+            ch[5 * n + i] *= 1.4;
         }
     }
     let (obs, t) = planted_photo_under(&truth, 300, n, 0.0, 3);
