@@ -50,7 +50,7 @@ pub(crate) struct SynthArgs {
     #[arg(long)]
     geotag: bool,
     /// The pixels the object does not cover show the map it is lit by, as a photo's sky
-    /// does (for `run --background-light`); without it they are black.
+    /// does; without it they are black.
     #[arg(long)]
     sky_background: bool,
     /// Primary rays per pixel.

@@ -91,8 +91,8 @@ pub struct Split {
     /// The split's cameras, in its order (the photo halves `run --light auto` scores on).
     pub views: Vec<scene::View>,
     /// Per photo of the split, the texels its background pixels observe on the
-    /// `global²` map ([`observe::background`]; empty lists unless the photos were
-    /// rendered with `SYNTH_SKY_BACKGROUND=1`, black pixels giving texels of 0).
+    /// `global²` map ([`observe::background`]); empty unless the photos were rendered with
+    /// `SYNTH_SKY_BACKGROUND=1`.
     pub background: observe::background::BackgroundLight,
 }
 
@@ -216,6 +216,12 @@ fn read_weights(path: &Path, k: usize) -> Vec<f64> {
     out
 }
 
+/// Whether the scenes are rendered with sky backgrounds (`SYNTH_SKY_BACKGROUND=1`,
+/// `synth --sky-background`), and so their backgrounds read.
+pub fn sky_backgrounds() -> bool {
+    std::env::var("SYNTH_SKY_BACKGROUND").is_ok_and(|v| v == "1")
+}
+
 /// Build `scene` with `synth`, then observations and transport of the training and
 /// held-out photos (the manifest's split).
 pub fn prepare(scene_name: &str, sizes: Sizes, seed: u64, tag: &str) -> Case {
@@ -254,7 +260,7 @@ pub fn synthesize(scene_name: &str, ws: &Path, sizes: Sizes, seed: u64) -> f64 {
             geotag: std::env::var("SYNTH_GEOTAG").is_ok_and(|v| v == "1"),
             // `SYNTH_SKY_BACKGROUND=1`: the photos' backgrounds show their maps
             // (`synth --sky-background`).
-            sky_background: std::env::var("SYNTH_SKY_BACKGROUND").is_ok_and(|v| v == "1"),
+            sky_background: sky_backgrounds(),
             // `SYNTH_EXPOSURE_PEAK=P`: the 99th percentile exposed to P (`synth
             // --exposure-peak`; 0.6 clips nearly nothing).
             exposure_peak: std::env::var("SYNTH_EXPOSURE_PEAK")
@@ -364,13 +370,17 @@ pub fn prepare_in(
                 [0, 1, 2].map(|c| env.channel(c))
             })
             .collect();
-        let background = observe::background::extract(
-            &sc.mesh,
-            &views,
-            &ph,
-            &env_from_world,
-            &observe::background::BackgroundOptions::new(sizes.global),
-        );
+        let background = if sky_backgrounds() {
+            observe::background::extract(
+                &sc.mesh,
+                &views,
+                &ph,
+                &env_from_world,
+                &observe::background::BackgroundOptions::new(sizes.global),
+            )
+        } else {
+            Vec::new()
+        };
         Split {
             obs,
             transport,

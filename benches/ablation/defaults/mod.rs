@@ -28,6 +28,7 @@ mod second;
 mod start_probes;
 
 use crate::synth_case::*;
+use relight_cpc::observe::background::BackgroundTexel;
 use relight_cpc::run::RunOptions;
 use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
 use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
@@ -137,8 +138,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
 /// prior's `κ` with `ABLATION_DEFAULTS_CHROMA=K` (`run --chroma-smoothness K`).
 fn with_env_overrides(base: &EstimateOptions, case: &Case) -> EstimateOptions {
     let obs = &case.train.obs;
-    // `ABLATION_BACKGROUND=γ`: the training photos' backgrounds pull their maps
-    // (`run --background-light γ`; photos rendered with `SYNTH_SKY_BACKGROUND=1`).
+    // `ABLATION_BACKGROUND=γ`: the training photos' backgrounds pull their maps (photos
+    // rendered with `SYNTH_SKY_BACKGROUND=1`; not a flag of `run`).
     let background = std::env::var("ABLATION_BACKGROUND")
         .ok()
         .and_then(|v| v.parse::<f64>().ok())
@@ -172,64 +173,63 @@ fn with_env_overrides(base: &EstimateOptions, case: &Case) -> EstimateOptions {
     }
 }
 
+/// Per channel, sorted, `value(i, b, c)` over the texels `b` the training photos `i`'
+/// backgrounds read, where it is given.
+fn over_background_texels(
+    case: &Case,
+    value: impl Fn(usize, &BackgroundTexel, usize) -> Option<f64>,
+) -> [Vec<f64>; 3] {
+    let mut v: [Vec<f64>; 3] = Default::default();
+    for (i, bg) in case.train.background.iter().enumerate() {
+        for b in bg {
+            (0..3).for_each(|c| v[c].extend(value(i, b, c)));
+        }
+    }
+    v.iter_mut().for_each(|c| c.sort_by(f64::total_cmp));
+    v
+}
+
+/// The `f`-quantile of the sorted `v` (NaN when empty).
+fn quantile(v: &[f64], f: f64) -> f64 {
+    v.get((f * v.len() as f64) as usize)
+        .copied()
+        .unwrap_or(f64::NAN)
+}
+
 /// The training backgrounds against the truth: texels and pixels read, and per channel the
 /// median of `ȳ_t / x_true,t` over the texels (1 when the background is the light the
 /// object sees in the model's units).
 fn background_check(case: &Case) -> String {
-    let (mut texels, mut pixels) = (0, 0);
-    let mut ratios: [Vec<f64>; 3] = Default::default();
-    for (bg, truth) in case.train.background.iter().zip(&case.train.lights) {
-        texels += bg.len();
-        for b in bg {
-            pixels += b.pixels as usize;
-            for c in 0..3 {
-                let t = truth[c][b.texel as usize];
-                if t > 0.0 {
-                    ratios[c].push(f64::from(b.mean[c]) / t);
-                }
-            }
-        }
-    }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
-    let m = ratios.each_mut().map(median);
+    let bg = &case.train.background;
+    let texels: usize = bg.iter().map(Vec::len).sum();
+    let pixels: usize = bg.iter().flatten().map(|b| b.pixels as usize).sum();
+    let lights = &case.train.lights;
+    let ratios = over_background_texels(case, |i, b, c| {
+        let t = lights[i][c][b.texel as usize];
+        (t > 0.0).then(|| f64::from(b.mean[c]) / t)
+    });
+    let m = ratios.each_ref().map(|v| quantile(v, 0.5));
     format!(
         "{texels} texels, {pixels} pixels over {} photos; median background / true texel {:.3} / {:.3} / {:.3}",
-        case.train.background.len(),
+        bg.len(),
         m[0],
         m[1],
         m[2]
     )
 }
 
-/// The fitted maps in the training backgrounds' texels: per channel the median and the
-/// quartiles of `x_t / ȳ_t` after the one scale per channel that best fits them (the fit's
-/// normalisation rescales the maps).
+/// The fitted maps in the training backgrounds' texels: per channel the median of
+/// `x_t / ȳ_t` and its quartiles over the median (the fit's normalisation rescales the
+/// maps, so one scale per channel is free).
 fn background_fit(case: &Case, lights: &[[Vec<f64>; 3]]) -> String {
-    let mut r: [Vec<f64>; 3] = Default::default();
-    for (bg, m) in case.train.background.iter().zip(lights) {
-        for b in bg {
-            for c in 0..3 {
-                let y = f64::from(b.mean[c]);
-                if y > 0.0 {
-                    r[c].push(m[c][b.texel as usize] / y);
-                }
-            }
-        }
-    }
-    let q = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        let at = |f: f64| {
-            v.get((f * v.len() as f64) as usize)
-                .copied()
-                .unwrap_or(f64::NAN)
-        };
-        let med = at(0.5);
-        (med, at(0.25) / med, at(0.75) / med)
-    };
-    let s = r.each_mut().map(q);
+    let r = over_background_texels(case, |i, b, c| {
+        let y = f64::from(b.mean[c]);
+        (y > 0.0).then(|| lights[i][c][b.texel as usize] / y)
+    });
+    let s = r.each_ref().map(|v| {
+        let med = quantile(v, 0.5);
+        (med, quantile(v, 0.25) / med, quantile(v, 0.75) / med)
+    });
     format!(
         "x / ȳ median {:.3} / {:.3} / {:.3}, quartiles over the median R {:.2}–{:.2}, G {:.2}–{:.2}, B {:.2}–{:.2}",
         s[0].0, s[1].0, s[2].0, s[0].1, s[0].2, s[1].1, s[1].2, s[2].1, s[2].2

@@ -45,13 +45,17 @@ impl BackgroundTerm {
         })
     }
 
-    /// `Σ_I E_bg,I` per channel at the maps `maps` (per photo and channel, texels).
-    pub fn channel_penalty(&self, maps: &[[Vec<f64>; 3]]) -> [f64; 3] {
+    /// `Σ_I E_bg,I` per channel, photo `I` (in order) seeing the map `g_I m_I` of
+    /// `photo_maps` (`m` per channel, `n²` texels; `g` its gains, 1 for the paper's map).
+    pub fn channel_penalty<'m>(
+        &self,
+        n: usize,
+        photo_maps: impl IntoIterator<Item = (&'m [Vec<f64>; 3], [f64; 3])>,
+    ) -> [f64; 3] {
         let mut e = [0.0; 3];
-        for (i, m) in maps.iter().enumerate() {
-            let n = (m[0].len() as f64).sqrt().round() as usize;
+        for (i, (m, g)) in photo_maps.into_iter().enumerate() {
             if let Some(p) = self.photo(i, n) {
-                let pe = p.energy(m, [1.0; 3]);
+                let pe = p.energy(m, g);
                 (0..3).for_each(|c| e[c] += pe[c]);
             }
         }
@@ -244,11 +248,11 @@ mod tests {
         for b in &t.photos[0] {
             (0..3).for_each(|c| m[c][b.texel as usize] = f64::from(b.mean[c]));
         }
-        assert_eq!(t.channel_penalty(&[m.clone()]), [0.0; 3]);
+        assert_eq!(t.channel_penalty(2, [(&m, [1.0; 3])]), [0.0; 3]);
         assert!(t.photo(1, 2).is_none());
         assert!(t.photo(0, 4).is_none(), "a finer map than the texels'");
         let off = BackgroundTerm { weight: 0.0, ..t };
         assert!(off.photo(0, 2).is_none());
-        assert_eq!(off.channel_penalty(&[m]), [0.0; 3]);
+        assert_eq!(off.channel_penalty(2, [(&m, [1.0; 3])]), [0.0; 3]);
     }
 }

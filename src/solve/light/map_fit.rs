@@ -31,6 +31,8 @@ pub(crate) struct MapFitState {
     pub(crate) light_opts: EstimateOptions,
     /// The Laplacian of an `n_global²` map.
     pub(crate) lap: Laplacian,
+    /// `n_global`, the maps' side.
+    n_global: usize,
     /// Each vertex's dominant starting material (the lighting sample's strata).
     dominant: Vec<u32>,
     /// The lighting sample of each photo, drawn by [`Self::draw_samples`].
@@ -52,6 +54,7 @@ impl MapFitState {
             opts: opts.clone(),
             light_opts: opts.alternation_lighting(),
             lap: Laplacian::new(n_global),
+            n_global,
             dominant: dominant_material(&init.weights, init.lambda.len()),
             samples: None,
         }
@@ -93,6 +96,18 @@ impl MapFitState {
     /// The prior's term of `F` per channel.
     pub(crate) fn channel_penalty(&self, maps: &[[Vec<f64>; 3]]) -> [f64; 3] {
         channel_maps_penalty(&self.lap, maps, &self.mu)
+    }
+
+    /// The background term of `F` per channel, photo `I` (in order) seeing the map
+    /// `g_I m_I` of `photo_maps` ([`crate::solve::light::background`]; 0 when off).
+    pub(crate) fn background_penalty<'m>(
+        &self,
+        photo_maps: impl IntoIterator<Item = (&'m [Vec<f64>; 3], [f64; 3])>,
+    ) -> [f64; 3] {
+        self.opts
+            .background
+            .as_ref()
+            .map_or([0.0; 3], |t| t.channel_penalty(self.n_global, photo_maps))
     }
 
     /// The weights after the maps were divided by `s`: `μ s²` keeps each map's prior term.

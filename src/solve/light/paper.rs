@@ -53,13 +53,10 @@ impl PaperLight {
         }
     }
 
-    /// The background term of `F` per channel ([`crate::solve::light::background`]; 0 when off).
+    /// The background term of `F` per channel ([`MapFitState::background_penalty`]).
     fn background_penalty(&self, params: &Maps) -> [f64; 3] {
         self.state
-            .opts
-            .background
-            .as_ref()
-            .map_or([0.0; 3], |t| t.channel_penalty(params))
+            .background_penalty(params.iter().map(|m| (m, [1.0; 3])))
     }
 
     /// Takes one photo's lighting result into the state and the outputs.

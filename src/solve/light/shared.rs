@@ -197,18 +197,12 @@ impl SharedLight {
         self.state.opts.background.as_ref()?.photo(i, n)
     }
 
-    /// The background term of `F` per channel at `params` (0 when off).
+    /// The background term of `F` per channel at `params`, each photo seeing its group's
+    /// map through its gains ([`MapFitState::background_penalty`]).
     fn background_penalty(&self, params: &SharedParams) -> [f64; 3] {
-        let mut e = [0.0; 3];
-        for (i, &g) in self.groups.group.iter().enumerate() {
-            let m = &params.maps[g];
-            let n = (m[0].len() as f64).sqrt().round() as usize;
-            if let Some(bg) = self.background(i, n) {
-                let pe = bg.energy(m, params.gains[i]);
-                (0..3).for_each(|c| e[c] += pe[c]);
-            }
-        }
-        e
+        let photo_maps = (self.groups.group.iter().enumerate())
+            .map(|(i, &g)| (&params.maps[g], params.gains[i]));
+        self.state.background_penalty(photo_maps)
     }
 
     fn photo_texels(params: &SharedParams, g: usize, i: usize) -> Vec<f64> {
