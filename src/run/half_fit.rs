@@ -137,15 +137,13 @@ pub(super) fn fit_left_half(
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
-    let (light_prior, smoothness) = match &f.half_fit {
-        Some(h) => (h.light_prior.clone(), h.smoothness),
-        None => (None, f.estimate_options.smoothness),
-    };
-    let opts = EstimateOptions {
-        lighting_sample: 0,
-        light_prior,
-        smoothness,
-        ..f.estimate_options.clone()
+    let base = super::half_prior::half_fit_base(f);
+    let opts = match &f.half_fit {
+        Some(h) => h.options(base),
+        None => EstimateOptions {
+            light_prior: None,
+            ..base
+        },
     };
     let north = f.est.sky.as_ref().and_then(|s| s.north);
     let sun = f

@@ -461,6 +461,17 @@ pub(crate) struct HalfFitSetup {
     pub smoothness: f64,
 }
 
+impl HalfFitSetup {
+    /// The half fit's options: `base` ([`half_fit_options`]) with this prior and weight.
+    pub(crate) fn options(&self, base: EstimateOptions) -> EstimateOptions {
+        EstimateOptions {
+            light_prior: self.light_prior.clone(),
+            smoothness: self.smoothness,
+            ..base
+        }
+    }
+}
+
 /// The half fit's prior and weight for a fitted run and what the report says of them.
 pub(crate) struct HalfPrior {
     /// The half fit's prior and weight.
@@ -542,14 +553,22 @@ fn only_errors(errors: &[(usize, Vec<f64>)]) -> Vec<Vec<f64>> {
     errors.iter().map(|e| e.1.clone()).collect()
 }
 
-/// The options of protocol (b)'s light fit without its prior (as
-/// [`super::evaluate`]'s fit sets them: its iteration caps, every observation).
+/// The options of protocol (b)'s light fit before its prior is chosen: the fit's, over
+/// every observation ([`HalfFitSetup::options`] adds the prior).
+pub(crate) fn half_fit_base(f: &super::Fitted) -> EstimateOptions {
+    EstimateOptions {
+        lighting_sample: 0,
+        ..f.estimate_options.clone()
+    }
+}
+
+/// [`half_fit_base`] with the half fit's iteration caps, for the replays that choose its
+/// prior ([`super::half_fit::fit_left_half`]'s passes set the caps of each IRLS pass).
 pub(crate) fn half_fit_options(f: &super::Fitted) -> EstimateOptions {
     EstimateOptions {
         qp_max_iter: super::half_fit::HALF_FIT_GPCG,
         qp_max_cg: super::half_fit::HALF_FIT_CG,
-        lighting_sample: 0,
-        ..f.estimate_options.clone()
+        ..half_fit_base(f)
     }
 }
 

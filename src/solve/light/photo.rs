@@ -508,13 +508,14 @@ pub(super) fn solve_pass(
     let (sys, n) = (p.sys, p.sys.n);
     let n2 = n * n;
     let mut b = sys.texel_rhs(&data.y);
-    let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-    if bmax == 0.0 {
-        return Ok(None);
-    }
     let background = opts.background.as_deref().and_then(|t| t.photo(photo, n));
     if let Some(bg) = &background {
         bg.add_rhs(&mut b, [1.0; 3]);
+    }
+    // A photo with no lit observation and no background read keeps its map at 0.
+    let bmax = b.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    if bmax == 0.0 {
+        return Ok(None);
     }
     let prior = p
         .prior
