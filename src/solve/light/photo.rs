@@ -19,10 +19,11 @@
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
+use crate::solve::light::background::PhotoBackground;
 use crate::solve::light::chroma::ChromaPrior;
 use crate::solve::light::irls::pass_weights;
 use crate::solve::light::laplacian::Laplacian;
-use crate::solve::light::sh_prior::{LightPriorOptions, ShProjection};
+use crate::solve::light::sh_prior::{LightPriorOptions, PriorPass, ShProjection};
 use crate::solve::light::system::{split3, texel_diag, texel_diag_vec, unhaar3, PhotoSystem};
 use crate::solve::options::{EstimateOptions, Robust, SmoothnessScale};
 use crate::solve::problem::{haar3, Problem};
@@ -522,18 +523,7 @@ pub(super) fn solve_pass(
         .and_then(|(lp, pp)| lp.pass(photo, pp, x, n, p.y_ms));
     // The chroma prior's gains from the pass's start, as the light prior is linearised there.
     let chroma = ChromaPrior::for_pass(opts.chroma_smoothness, p.mu, x, n2);
-    let mut jac_pass: Option<Vec<f64>> = match (p.jacobi, &prior) {
-        (Some(j), Some(pr)) => Some(j.iter().zip(pr.diagonal()).map(|(a, b)| a + b).collect()),
-        (j, _) => j.map(<[f64]>::to_vec),
-    };
-    if let (Some(j), Some(ch)) = (jac_pass.as_mut(), &chroma) {
-        j.iter_mut()
-            .zip(ch.diagonal(p.lap))
-            .for_each(|(a, b)| *a += b);
-    }
-    if let (Some(j), Some(bg)) = (jac_pass.as_mut(), &background) {
-        bg.add_diagonal(j, [1.0; 3]);
-    }
+    let jac_pass = pass_jacobi(p, prior.as_ref(), chroma.as_ref(), background.as_ref());
     let prior_ref = prior.as_ref();
     let hess = |v: &[f64], out: &mut [f64]| {
         let h = haar3(&split3(v, n2), n);
@@ -572,6 +562,29 @@ pub(super) fn solve_pass(
             message: e.to_string(),
         })?;
     Ok(Some(res))
+}
+
+/// The Jacobi preconditioner of one pass: the system's texel diagonal (`None` when off)
+/// plus the diagonals of the pass's light prior, chroma prior and background terms.
+fn pass_jacobi(
+    p: &PassSystem,
+    prior: Option<&PriorPass>,
+    chroma: Option<&ChromaPrior>,
+    background: Option<&PhotoBackground>,
+) -> Option<Vec<f64>> {
+    let mut j = p.jacobi?.to_vec();
+    if let Some(pr) = prior {
+        j.iter_mut().zip(pr.diagonal()).for_each(|(a, b)| *a += b);
+    }
+    if let Some(ch) = chroma {
+        j.iter_mut()
+            .zip(ch.diagonal(p.lap))
+            .for_each(|(a, b)| *a += b);
+    }
+    if let Some(bg) = background {
+        bg.add_diagonal(&mut j, [1.0; 3]);
+    }
+    Some(j)
 }
 
 /// Lighting step (Eq. 10 + Laplacian + IRLS) for one photo from zero: its three channels'
