@@ -389,7 +389,8 @@ fn scale_specular(m0: &mut Materials0, x: f64) {
 /// auto` (`ABLATION_RATIO_STEPS=N`: `--ratio-steps N`), the neighbour prior as `run
 /// --weights-smoothness auto` (`ABLATION_DEFAULTS_NEIGHBOUR=X`: `--weights-smoothness X`),
 /// the maps' Laplacian weight as `run --smoothness auto` (raised with a shiny lobe and two
-/// materials at 32² maps from 20 training photos; `ABLATION_DEFAULTS_SMOOTHNESS=X` gives it).
+/// materials at 32² maps from 20 training photos; `ABLATION_DEFAULTS_SMOOTHNESS=X` gives it,
+/// `ABLATION_DEFAULTS_FIT_SMOOTHNESS=X` the fit's weight alone).
 /// `ABLATION_DEFAULTS_SCOPE=blends|every`: the sum-to-one prior on blended vertices, or on
 /// every vertex, whatever the pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
 /// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
@@ -441,15 +442,20 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
             )
             .0,
         ),
-        // `run --smoothness auto` by the training photos, materials and map side.
-        smoothness: relight_cpc::run::smoothness_for(
-            smoothness_flag(base),
-            case.train.obs.photo_ranges.len(),
-            pilot.materials,
-            case.sizes.global,
-            &kept,
-        )
-        .0,
+        // `run --smoothness auto` by the training photos, materials and map side;
+        // `ABLATION_DEFAULTS_FIT_SMOOTHNESS=X` sets the fit's weight alone (the pilot's
+        // stays `run`'s).
+        smoothness: crate::env_or(
+            "ABLATION_DEFAULTS_FIT_SMOOTHNESS",
+            relight_cpc::run::smoothness_for(
+                smoothness_flag(base),
+                case.train.obs.photo_ranges.len(),
+                pilot.materials,
+                case.sizes.global,
+                &kept,
+            )
+            .0,
+        ),
         light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
             .is_ok_and(|v| v == "shared")
             .then(|| case.true_light_groups()),
