@@ -44,8 +44,9 @@ pub mod transport;
 pub mod bench;
 pub mod synth;
 
-// Wall time, CPU time and memory per stage.
+// Wall time, CPU time and memory per stage; order statistics the stages share.
 pub mod stages;
+pub mod stats;
 
 pub use error::{Error, Result};
 

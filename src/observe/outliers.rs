@@ -32,6 +32,7 @@
 use rayon::prelude::*;
 
 use super::Observations;
+use crate::stats::median;
 
 /// Tunables of the mask (module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -105,20 +106,6 @@ impl Adjacency {
     }
 }
 
-/// Median of `v` (sorts it); 0 when empty.
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_unstable_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// The score `s_p` of every observation (module docs); 0 where `α = 0`.
 pub fn scores(obs: &Observations, pred: &[[f64; 3]], floor: f64) -> Vec<f32> {
     let mut out = vec![0.0f32; obs.len()];
@@ -133,7 +120,7 @@ pub fn scores(obs: &Observations, pred: &[[f64; 3]], floor: f64) -> Vec<f32> {
                 .iter()
                 .map(|&p| (obs.rgb[p][c] as f64 - pred[p][c]).abs())
                 .collect();
-            let mad = 1.4826 * median(&mut ab);
+            let mad = 1.4826 * median(&mut ab).unwrap_or(0.0);
             let rms = (used
                 .iter()
                 .map(|&p| (obs.rgb[p][c] as f64).powi(2))
@@ -170,7 +157,7 @@ pub fn excess_over_vertex_median(obs: &Observations, score: &[f32], n_vertices: 
             lists[x].push(score[p] as f64);
         }
     }
-    let med: Vec<f64> = lists.iter_mut().map(|l| median(l)).collect();
+    let med: Vec<f64> = lists.iter_mut().map(|l| median(l).unwrap_or(0.0)).collect();
     (0..obs.len())
         .map(|p| {
             let x = obs.vertex[p] as usize;

@@ -19,6 +19,7 @@
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
 
+use crate::stats::median;
 use crate::{Error, Result};
 use linfa::prelude::*;
 use linfa::DatasetBase;
@@ -95,16 +96,6 @@ fn kmeans_pp(points: &[[f64; 3]], k: usize, rng: &mut Pcg64) -> Vec<[f64; 3]> {
         }
     }
     centres
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Initial materials from per-vertex mean linear colours (`mean_rgb`, `V` entries; only
@@ -265,7 +256,8 @@ fn cluster_medians(
                 .filter(|(_, &m)| m == c)
                 .map(|(&x, _)| mean_rgb[x][ch])
                 .collect();
-            *a = median(&mut vals);
+            // Every cluster kept has members (empty ones are dropped).
+            *a = median(&mut vals).unwrap_or(0.0);
         }
     }
     albedo

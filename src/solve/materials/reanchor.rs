@@ -49,6 +49,7 @@ use crate::solve::validation::{held_back_indices, validation_terms};
 use crate::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, IterState, Iteration, Materials0, Problem,
 };
+use crate::stats::median;
 use crate::{Error, Result};
 
 /// How the re-anchored start's blending weights are made (module docs, step 3).
@@ -82,17 +83,6 @@ pub fn labels(lambda: &[Vec<[f64; 3]>], weights: &[f64], seen: &[bool]) -> Vec<O
         .collect()
 }
 
-/// The component-wise median of `vals` (non-empty).
-fn median(vals: &mut [f64]) -> f64 {
-    vals.sort_by(f64::total_cmp);
-    let n = vals.len();
-    if n % 2 == 1 {
-        vals[n / 2]
-    } else {
-        0.5 * (vals[n / 2 - 1] + vals[n / 2])
-    }
-}
-
 /// The re-anchored start of a fit `(lambda, weights)` (`weights` row-major `V × K`, `seen`
 /// the vertices with training observations). Errors: `Internal` when the sizes disagree;
 /// `Numeric` from a vertex's projection.
@@ -122,7 +112,7 @@ pub fn reanchor(
         for (b, v) in row.iter_mut().enumerate() {
             for (c, vc) in v.iter_mut().enumerate() {
                 let mut vals: Vec<f64> = members.iter().map(|&x| beta[x * nb + b][c]).collect();
-                *vc = median(&mut vals);
+                *vc = median(&mut vals).unwrap_or(0.0);
             }
         }
     }
