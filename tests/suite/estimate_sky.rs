@@ -444,7 +444,8 @@ fn a_geotagged_workspace_gives_run_its_suns() {
 /// back whole, then fits the model it keeps again with the run's own early stopping: the
 /// result is that model's run, to the last bit (the refit has the same options, data and
 /// seed as `--light <model>`; the scores are the halves' and not what the kept fit's early
-/// stopping saw). The reason says how the candidates were scored.
+/// stopping saw). The reason says how the candidates were scored. `--light constrained`
+/// scores the same candidates but the paper's map to the same bits.
 #[test]
 fn light_auto_scores_on_photo_halves_and_refits_the_model_kept() {
     use relight_cpc::run::run;
@@ -487,6 +488,34 @@ fn light_auto_scores_on_photo_halves_and_refits_the_model_kept() {
         .find(|(n, _)| *n == decision.model)
         .map(|(_, s)| *s);
     assert_eq!(kept_score, Some(best), "{decision:?}");
+    // `--light constrained`: the same candidates but the paper's map, scored on the same
+    // halves with the same options and seed, so each score is auto's to the bit, and the
+    // lower of the two is kept.
+    let constrained = run(&options(LightChoice::Constrained, "constrained"))
+        .expect("run --light constrained")
+        .report;
+    let c = constrained
+        .model
+        .light
+        .as_ref()
+        .expect("the light decision");
+    let names: Vec<&str> = c.scores.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["prior", "sky"], "{c:?}");
+    for (n, s) in &c.scores {
+        let in_auto = decision
+            .scores
+            .iter()
+            .find(|(m, _)| m == n)
+            .map(|(_, v)| *v);
+        assert_eq!(in_auto.map(f64::to_bits), Some(s.to_bits()), "{n}: {c:?}");
+    }
+    let lower = if c.scores[0].1 <= c.scores[1].1 {
+        "prior"
+    } else {
+        "sky"
+    };
+    assert_eq!(c.model, lower, "{c:?}");
+    assert!(c.why.starts_with("--light constrained: "), "{}", c.why);
 }
 
 /// Held-out protocol (b) under the sun and sky (`fit_held_out`): the light of a photo

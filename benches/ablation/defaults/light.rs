@@ -1,7 +1,9 @@
 //! The defaults row's light model as `run` without `--light` chooses it
 //! ([`relight_cpc::run::scene_light`]): below 50K vertices, when the pilot keeps a shiny
 //! lobe, `--light auto` ([`choose::candidates`]: the paper's map, the map under the prior of
-//! real skies, the sun and sky) fits each candidate from the start with the right halves of
+//! real skies, the sun and sky; `--light constrained`, without the paper's map, with two
+//! or more materials from [`relight_cpc::run::PRIOR_FROM_PHOTOS`] training photos) fits
+//! each candidate from the start with the right halves of
 //! [`DEFAULT_LIGHT_CHOICE_HALVES`] training photos held back ([`photo_halves`], the split
 //! `run` makes), keeps the one of lowest validation error on them ([`choose::decide`]), and
 //! the row's fit then runs with its options and early stopping's own held-back
@@ -46,7 +48,8 @@ pub fn by_scene(
         return ChosenLight { options, note };
     }
     match (run_rule(case, pilot), forced_auto) {
-        (_, true) | (Some(LightChoice::Auto), _) => chosen_on_halves(case, problem, m0, opts),
+        (_, true) => chosen_on_halves(case, problem, m0, opts, LightChoice::Auto),
+        (Some(c), _) if c.chooses() => chosen_on_halves(case, problem, m0, opts, c),
         (Some(LightChoice::Prior), _) => ChosenLight {
             options: candidate(case, opts, "prior"),
             note: "light `prior` (run's rule: the Lambertian lobe alone, two or more materials and many photos)".to_string(),
@@ -82,10 +85,11 @@ fn chosen_on_halves(
     problem: &Problem,
     m0: &Materials0,
     opts: EstimateOptions,
+    choice: LightChoice,
 ) -> ChosenLight {
     let k = crate::env_or("ABLATION_LIGHT_HALVES", DEFAULT_LIGHT_CHOICE_HALVES);
     let halves = choice_halves(case, k);
-    let candidates = candidates(case, opts);
+    let candidates = candidates_of(case, opts, choice);
     let scores: Vec<f64> = candidates
         .iter()
         .map(|c| {
@@ -98,7 +102,7 @@ fn chosen_on_halves(
         })
         .collect();
     let names: Vec<&str> = candidates.iter().map(|c| c.name).collect();
-    let (pick, decision) = choose::decide(LightChoice::Auto, &names, &scores);
+    let (pick, decision) = choose::decide(choice, &names, &scores);
     let scored: Vec<String> = names
         .iter()
         .zip(&scores)
@@ -107,8 +111,9 @@ fn chosen_on_halves(
     ChosenLight {
         options: candidates[pick].options.clone(),
         note: format!(
-            "light `{}` by run's rule (--light auto on the right halves of {} photos: {})",
+            "light `{}` by run's rule (--light {} on the right halves of {} photos: {})",
             decision.model,
+            choice.name(),
             k,
             scored.join(", ")
         ),
@@ -124,14 +129,23 @@ fn candidate(case: &Case, opts: EstimateOptions, name: &str) -> EstimateOptions 
         .options
 }
 
-/// `--light auto`'s candidate models for `opts`, with the case's geotagged suns as `run`
-/// reads them.
+/// `--light auto`'s candidate models for `opts` ([`candidates_of`]).
 fn candidates(case: &Case, opts: EstimateOptions) -> Vec<choose::LightCandidate> {
+    candidates_of(case, opts, LightChoice::Auto)
+}
+
+/// The candidate models of `choice` for `opts`, with the case's geotagged suns as `run`
+/// reads them.
+fn candidates_of(
+    case: &Case,
+    opts: EstimateOptions,
+    choice: LightChoice,
+) -> Vec<choose::LightCandidate> {
     let base = EstimateOptions {
         sun_clock: case.geotag_suns.clone(),
         ..opts
     };
-    choose::candidates(LightChoice::Auto, &base).expect("light candidates")
+    choose::candidates(choice, &base).expect("light candidates")
 }
 
 /// The right halves of `k` training photos held back whole, the split `run` scores

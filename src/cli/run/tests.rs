@@ -231,6 +231,7 @@ fn a_given_light_model_is_kept_and_none_is_chosen_by_size() {
         ("paper", LightChoice::Paper),
         ("prior", LightChoice::Prior),
         ("auto", LightChoice::Auto),
+        ("constrained", LightChoice::Constrained),
     ] {
         let o = options(&["--light", flag]);
         assert!(!o.light_by_scene, "--light {flag} is the user's choice");

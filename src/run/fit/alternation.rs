@@ -522,7 +522,7 @@ fn by_scene_why(choice: LightChoice, decided: &str) -> String {
     let why = "--light not given: the default for the mesh's size, the fit's lobes and, over \
                the Lambertian lobe alone, its materials and training photos; see the notes";
     match choice {
-        LightChoice::Auto => format!("{decided} ({why})"),
+        c if c.chooses() => format!("{decided} ({why})"),
         c => format!("--light {} ({why})", c.name()),
     }
 }

@@ -207,7 +207,7 @@ impl FitStart {
                 self.eopts.weights_smoothness
             ));
         }
-        if matches!(opts.light, LightChoice::Shared | LightChoice::Auto) {
+        if opts.light == LightChoice::Shared || opts.light.chooses() {
             let file = opts.light_groups.as_deref();
             self.eopts.light_groups =
                 crate::run::light_groups::resolve(file, opts.light_group_minutes, scene, train)?;
@@ -215,7 +215,7 @@ impl FitStart {
                 self.reasons.push(format!("shared light: {}", g.source));
             }
         }
-        if opts.geotag_suns && matches!(opts.light, LightChoice::Sky | LightChoice::Auto) {
+        if opts.geotag_suns && (opts.light == LightChoice::Sky || opts.light.chooses()) {
             self.eopts.sun_clock = crate::run::geotag_suns::resolve(scene, train);
             if let Some(c) = &self.eopts.sun_clock {
                 self.reasons.push(format!("sun and sky: {}", c.source));
@@ -224,7 +224,7 @@ impl FitStart {
         let views: Vec<&View> = train.iter().map(|&i| &scene.views[i]).collect();
         let positions = &scene.mesh.positions;
         self.eopts.validation_halves = photo_halves(&views, positions, obs, opts.validation_halves);
-        if opts.light == LightChoice::Auto && self.eopts.validation_halves.is_none() {
+        if opts.light.chooses() && self.eopts.validation_halves.is_none() {
             self.choice_halves = photo_halves(&views, positions, obs, opts.light_choice_halves);
         }
         Ok(())

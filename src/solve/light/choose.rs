@@ -7,7 +7,10 @@
 //! validation score (the same seeded held-back data for all, [`crate::solve::Validation`]),
 //! as `--adaptive` chooses the model order by held-out error. `run` holds back the right
 //! halves of a few training photos for that score and fits the model kept again with its
-//! own early stopping (docs/method.md, "Choosing the light model").
+//! own early stopping (docs/method.md, "Choosing the light model"). `constrained` chooses
+//! the same way among the models that constrain the map, all but the paper's free map:
+//! with many photos the free maps can move brightness between the materials, which the
+//! validation score does not see ([`crate::run::scene_light`]).
 
 use crate::solve::light::sh_prior::LightPriorOptions;
 use crate::solve::EstimateOptions;
@@ -36,10 +39,13 @@ pub enum LightChoice {
     Sky,
     /// Every model that applies fitted; the lowest validation score kept.
     Auto,
+    /// As `Auto` without the paper's free map: the prior, the sun and sky, and the shared
+    /// map when some group holds two photos or more.
+    Constrained,
 }
 
 impl LightChoice {
-    /// Parse `paper`, `prior`, `shared`, `sky` or `auto`.
+    /// Parse `paper`, `prior`, `shared`, `sky`, `auto` or `constrained`.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
             "paper" => Ok(LightChoice::Paper),
@@ -47,8 +53,9 @@ impl LightChoice {
             "shared" => Ok(LightChoice::Shared),
             "sky" => Ok(LightChoice::Sky),
             "auto" => Ok(LightChoice::Auto),
+            "constrained" => Ok(LightChoice::Constrained),
             other => Err(Error::Config(format!(
-                "--light {other}: expected `paper`, `prior`, `shared`, `sky` or `auto`"
+                "--light {other}: expected `paper`, `prior`, `shared`, `sky`, `auto` or `constrained`"
             ))),
         }
     }
@@ -61,7 +68,14 @@ impl LightChoice {
             LightChoice::Shared => "shared",
             LightChoice::Sky => "sky",
             LightChoice::Auto => "auto",
+            LightChoice::Constrained => "constrained",
         }
+    }
+
+    /// Whether the choice fits several models and keeps one by validation (`auto`,
+    /// `constrained`).
+    pub fn chooses(self) -> bool {
+        matches!(self, LightChoice::Auto | LightChoice::Constrained)
     }
 }
 
@@ -134,6 +148,8 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
         LightChoice::Sky => vec![sky()],
         LightChoice::Auto if any_shared => vec![paper(), prior()?, shared()?, sky()],
         LightChoice::Auto => vec![paper(), prior()?, sky()],
+        LightChoice::Constrained if any_shared => vec![prior()?, shared()?, sky()],
+        LightChoice::Constrained => vec![prior()?, sky()],
     })
 }
 
@@ -165,10 +181,12 @@ pub fn decide(choice: LightChoice, names: &[&str], scores: &[f64]) -> (usize, Li
         .collect::<Vec<_>>()
         .join(", ");
     let why = match choice {
-        LightChoice::Auto if names.len() > 1 => format!(
-            "--light auto: the lower validation score (relative RMSE of the held-back observations) of {list}"
+        c if c.chooses() && names.len() > 1 => format!(
+            "--light {}: the lower validation score (relative RMSE of the held-back observations) of {list}{}",
+            c.name(),
+            if c == LightChoice::Constrained { " (the paper's free map not a candidate)" } else { "" }
         ),
-        LightChoice::Auto => format!("--light auto: {} is the only model fitted", names[best]),
+        c if c.chooses() => format!("--light {}: {} is the only model fitted", c.name(), names[best]),
         LightChoice::Paper => "--light paper: the paper's \
             free map per photo (--light auto fits every model that applies and keeps the one \
             that predicts held-back data best)"
@@ -204,6 +222,13 @@ mod tests {
         assert_eq!(i, 1, "a NaN score never wins");
         let (i, d) = decide(LightChoice::Prior, &["prior"], &[f64::NAN]);
         assert_eq!((i, d.why.as_str()), (0, "--light prior, as given"));
+        let (i, d) = decide(LightChoice::Constrained, &["prior", "sky"], &[0.2, 0.1]);
+        assert_eq!(i, 1);
+        assert!(
+            d.why.starts_with("--light constrained: ") && d.why.contains("not a candidate"),
+            "{}",
+            d.why
+        );
         let (_, d) = decide(LightChoice::Paper, &["paper"], &[f64::NAN]);
         assert!(d.why.starts_with("--light paper: "), "{}", d.why);
     }
@@ -216,6 +241,7 @@ mod tests {
             LightChoice::Shared,
             LightChoice::Sky,
             LightChoice::Auto,
+            LightChoice::Constrained,
         ] {
             assert_eq!(LightChoice::parse(c.name()).unwrap(), c);
         }
@@ -245,10 +271,18 @@ mod tests {
             names(&candidates(LightChoice::Auto, &single).unwrap()).len(),
             3
         );
+        assert_eq!(
+            names(&candidates(LightChoice::Constrained, &single).unwrap()),
+            ["prior", "sky"]
+        );
         let grouped = EstimateOptions {
             light_groups: Some(LightGroups::from_labels(&[0, 0, 1], String::new())),
             ..base
         };
+        assert_eq!(
+            names(&candidates(LightChoice::Constrained, &grouped).unwrap()),
+            ["prior", "shared", "sky"]
+        );
         let c = candidates(LightChoice::Auto, &grouped).unwrap();
         assert_eq!(names(&c), ["paper", "prior", "shared", "sky"]);
         for m in &c {
