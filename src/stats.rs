@@ -4,18 +4,42 @@
 //! `½ (v₍n/2₎ + v₍n/2+1₎)` for even `n`: the value with at least half the values on
 //! either side, and for even `n` the midpoint of the two that are.
 
-/// The median of `v` (module docs); `None` when `v` is empty. Sorts `v` by
-/// [`f64::total_cmp`], so a NaN sorts last (or first, when negative) instead of panicking.
-pub fn median(v: &mut [f64]) -> Option<f64> {
+/// The floating-point types the stages take medians of (`f64`, and the photos' `f32`),
+/// with the arithmetic of the median in the type itself.
+pub trait Float: Copy + std::ops::Add<Output = Self> + std::ops::Mul<Output = Self> {
+    /// One half.
+    const HALF: Self;
+    /// IEEE 754 total order ([`f64::total_cmp`]).
+    fn total_order(&self, other: &Self) -> std::cmp::Ordering;
+}
+
+impl Float for f64 {
+    const HALF: f64 = 0.5;
+    fn total_order(&self, other: &Self) -> std::cmp::Ordering {
+        self.total_cmp(other)
+    }
+}
+
+impl Float for f32 {
+    const HALF: f32 = 0.5;
+    fn total_order(&self, other: &Self) -> std::cmp::Ordering {
+        self.total_cmp(other)
+    }
+}
+
+/// The median of `v` (module docs), computed in `T`; `None` when `v` is empty. Sorts `v`
+/// in the total order, so a NaN sorts last (or first, when negative) instead of
+/// panicking.
+pub fn median<T: Float>(v: &mut [T]) -> Option<T> {
     if v.is_empty() {
         return None;
     }
-    v.sort_unstable_by(f64::total_cmp);
+    v.sort_unstable_by(T::total_order);
     let n = v.len();
     Some(if n % 2 == 1 {
         v[n / 2]
     } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
+        T::HALF * (v[n / 2 - 1] + v[n / 2])
     })
 }
 
@@ -61,6 +85,9 @@ mod tests {
                 assert_eq!(median(&mut w), Some(want), "{v:?}");
             }
         }
-        assert_eq!(median(&mut []), None);
+        assert_eq!(median::<f64>(&mut []), None);
+        // In `f32` the midpoint is the `f32` one, as the photos' values are.
+        let (a, b) = (0.1f32, 0.7f32);
+        assert_eq!(median(&mut [b, a]), Some(0.5f32 * (a + b)));
     }
 }

@@ -21,6 +21,7 @@
 use crate::import::mesh::Mesh;
 use crate::observe::raster::Raster;
 use crate::observe::Observations;
+use crate::stats::median;
 
 /// The baseline's per-vertex colours.
 #[derive(Debug, Clone)]
@@ -29,20 +30,6 @@ pub(crate) struct VertexMedians {
     pub rgb: Vec<[f32; 3]>,
     /// Vertices no training observation saw.
     pub unseen: usize,
-}
-
-/// Median of `v` (NaN-free), the mean of the two middle values for an even count. Sorts `v`.
-fn median(v: &mut [f32]) -> Option<f32> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_unstable_by(f32::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
 }
 
 /// Per-vertex, per-channel medians of the observations with `weight > 0`; `None` for a
