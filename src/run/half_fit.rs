@@ -28,7 +28,7 @@ use super::Fitted;
 use crate::observe::Observations;
 use crate::solve::light::frozen::{fit_light_scheduled, PassCaps};
 use crate::solve::light::sky::clock::{ClockSun, ClockSuns};
-use crate::solve::{EstimateOptions, Problem};
+use crate::solve::Problem;
 use crate::sphere::envmap::OctEnv;
 use crate::Result;
 
@@ -137,14 +137,7 @@ pub(super) fn fit_left_half(
         n_vertices: f.scene.mesh.positions.len(),
         n_photos: 1,
     };
-    let base = super::half_prior::half_fit_base(f);
-    let opts = match &f.half_fit {
-        Some(h) => h.options(base),
-        None => EstimateOptions {
-            light_prior: None,
-            ..base
-        },
-    };
+    let opts = super::half_prior::left_half_options(f);
     let north = f.est.sky.as_ref().and_then(|s| s.north);
     let sun = f
         .held

@@ -562,6 +562,20 @@ pub(crate) fn half_fit_base(f: &super::Fitted) -> EstimateOptions {
     }
 }
 
+/// The options of protocol (b)'s light fit of a held-out photo's left half
+/// ([`super::half_fit::fit_left_half`]): [`half_fit_base`] with the prior chosen for it
+/// ([`HalfFitSetup::options`]), or with no light prior when none was chosen.
+pub(crate) fn left_half_options(f: &super::Fitted) -> EstimateOptions {
+    let base = half_fit_base(f);
+    match &f.half_fit {
+        Some(h) => h.options(base),
+        None => EstimateOptions {
+            light_prior: None,
+            ..base
+        },
+    }
+}
+
 /// [`half_fit_base`] with the half fit's iteration caps, for the replays that choose its
 /// prior ([`super::half_fit::fit_left_half`]'s passes set the caps of each IRLS pass).
 pub(crate) fn half_fit_options(f: &super::Fitted) -> EstimateOptions {
