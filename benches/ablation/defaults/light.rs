@@ -89,7 +89,7 @@ fn chosen_on_halves(
 ) -> ChosenLight {
     let k = crate::env_or("ABLATION_LIGHT_HALVES", DEFAULT_LIGHT_CHOICE_HALVES);
     let halves = choice_halves(case, k);
-    let candidates = candidates_of(case, opts, choice);
+    let candidates = candidates(case, opts, choice);
     let scores: Vec<f64> = candidates
         .iter()
         .map(|c| {
@@ -122,21 +122,16 @@ fn chosen_on_halves(
 
 /// The options of `--light auto`'s candidate `name` (`prior`, `sky`) for `opts`.
 fn candidate(case: &Case, opts: EstimateOptions, name: &str) -> EstimateOptions {
-    candidates(case, opts)
+    candidates(case, opts, LightChoice::Auto)
         .into_iter()
         .find(|c| c.name == name)
         .expect("a candidate of --light auto")
         .options
 }
 
-/// `--light auto`'s candidate models for `opts` ([`candidates_of`]).
-fn candidates(case: &Case, opts: EstimateOptions) -> Vec<choose::LightCandidate> {
-    candidates_of(case, opts, LightChoice::Auto)
-}
-
 /// The candidate models of `choice` for `opts`, with the case's geotagged suns as `run`
 /// reads them.
-fn candidates_of(
+fn candidates(
     case: &Case,
     opts: EstimateOptions,
     choice: LightChoice,

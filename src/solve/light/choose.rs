@@ -146,10 +146,19 @@ pub fn candidates(choice: LightChoice, base: &EstimateOptions) -> Result<Vec<Lig
         LightChoice::Prior => vec![prior()?],
         LightChoice::Shared => vec![shared()?],
         LightChoice::Sky => vec![sky()],
-        LightChoice::Auto if any_shared => vec![paper(), prior()?, shared()?, sky()],
-        LightChoice::Auto => vec![paper(), prior()?, sky()],
-        LightChoice::Constrained if any_shared => vec![prior()?, shared()?, sky()],
-        LightChoice::Constrained => vec![prior()?, sky()],
+        // `auto` and `constrained` fit the same list, `constrained` without the paper's map.
+        LightChoice::Auto | LightChoice::Constrained => {
+            let mut models = Vec::with_capacity(4);
+            if choice == LightChoice::Auto {
+                models.push(paper());
+            }
+            models.push(prior()?);
+            if any_shared {
+                models.push(shared()?);
+            }
+            models.push(sky());
+            models
+        }
     })
 }
 
