@@ -112,6 +112,8 @@ mod defaults;
 mod diagnose;
 #[path = "ablation/metrics.rs"]
 mod metrics;
+#[path = "ablation/run_half.rs"]
+mod run_half;
 #[path = "support/run_line.rs"]
 mod run_line;
 #[path = "ablation/search.rs"]
@@ -695,7 +697,24 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 }
                 eprintln!("{}: {label}", case.scene);
                 let d = defaults::fit_defaults(case, &base);
-                let figures = figures(case, &fl, &d.est, start_ratio_errors(case, &fl), d.seconds);
+                let mut figures =
+                    figures(case, &fl, &d.est, start_ratio_errors(case, &fl), d.seconds);
+                if run_half::wanted() {
+                    figures.heldout = run_half::run_half_error(
+                        case,
+                        &d.est.lambda,
+                        &d.est.weights,
+                        &d.est.lights,
+                        &d.opts,
+                    );
+                    figures.heldout_floor = run_half::run_half_error(
+                        case,
+                        &case.lambda,
+                        &case.weights,
+                        &case.train.lights,
+                        &d.opts,
+                    );
+                }
                 eprintln!("  {figures:?} pilot {:?}", d.pilot.material_scores);
                 if env_flag("ABLATION_ACCURACY_MISSES") {
                     eprintln!(

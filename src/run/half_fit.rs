@@ -46,9 +46,9 @@ use crate::Result;
 /// The caps before were measured on the Minerva model (2,930 vertices,
 /// `bench-results/archive/pipeline-scaling.md`): 300 × 100 from zero took 10.9 CPU s
 /// against 4.0, the `half` RMSEs within 0.2%; 5 × 20 under-solved (1–3% off).
-pub(crate) const HALF_FIT_GPCG: usize = 28;
+pub const HALF_FIT_GPCG: usize = 28;
 /// See [`HALF_FIT_GPCG`].
-pub(crate) const HALF_FIT_CG: usize = 7;
+pub const HALF_FIT_CG: usize = 7;
 
 /// Protocol (b)'s IRLS passes ([`fit_light_scheduled`]), `irls_iters` of them (at least
 /// one): those before the last, which only set the next pass's weights, at half the last's
@@ -57,7 +57,7 @@ pub(crate) const HALF_FIT_CG: usize = 7;
 /// 1,885 → 1,314 / 1,291 / 1,277 per fit (−34%), the right half's RMSE over its
 /// observations −1.3% / −0.3% / +0.1%; a fit converged in every pass (KKT tolerance 10⁻⁷)
 /// takes 4,373 / 7,306 / 4,624 products and moves that RMSE by +0.1% / +0.2% / −0.1%.
-pub(crate) fn half_fit_passes(irls_iters: usize) -> Vec<PassCaps> {
+pub fn half_fit_passes(irls_iters: usize) -> Vec<PassCaps> {
     let early = PassCaps {
         gpcg: HALF_FIT_GPCG / 2,
         cg: HALF_FIT_CG,
@@ -73,7 +73,7 @@ pub(crate) fn half_fit_passes(irls_iters: usize) -> Vec<PassCaps> {
 
 /// The middle of the span of `xs`, `(min + max) / 2` (pixel centres: the middle of the
 /// covered pixels), or `None` when empty: the left/right rule of protocol (b).
-pub(crate) fn span_mid(xs: impl Iterator<Item = f64>) -> Option<f64> {
+pub fn span_mid(xs: impl Iterator<Item = f64>) -> Option<f64> {
     let (lo, hi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
         (lo.min(x), hi.max(x))
     });
@@ -81,7 +81,7 @@ pub(crate) fn span_mid(xs: impl Iterator<Item = f64>) -> Option<f64> {
 }
 
 /// The pixel `x` at which `view` sees `point`, or `None` behind the camera.
-pub(crate) fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3) -> Option<f64> {
+pub fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3) -> Option<f64> {
     let cam = view.image.cam_from_world_point(point);
     view.camera.project(&cam).map(|px| px[0])
 }

@@ -30,7 +30,7 @@ mod evaluate;
 mod example;
 mod fit;
 pub mod geotag_suns;
-mod half_fit;
+pub mod half_fit;
 pub mod half_prior;
 mod holdout;
 mod html_inputs;

@@ -46,6 +46,8 @@ pub struct DefaultsFit {
     pub pilot: PilotOutcome,
     /// The light model the fit used and why ([`light::by_scene`]).
     pub light: String,
+    /// The fit's options (its light model, its Laplacian weight).
+    pub opts: EstimateOptions,
     pub seconds: f64,
 }
 
@@ -124,6 +126,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         est,
         pilot,
         light: light.note,
+        opts,
         seconds: t0.elapsed().as_secs_f64(),
     }
 }

@@ -335,67 +335,93 @@ pub fn thin_observations(obs: Observations, max: usize) -> Observations {
     out
 }
 
-/// Protocol (b) replayed on one training photo: its observations, thinned to
-/// [`REPLAY_MAX_OBSERVATIONS`] (transport built over them), the fit's copy with the right
-/// half's `α` zeroed, the right half's indices.
-struct Replay {
-    obs: Observations,
-    fit: Observations,
-    right: Vec<usize>,
-    transport: crate::transport::Transport,
+/// Protocol (b) replayed on one training photo: its observations (thinned to
+/// [`REPLAY_MAX_OBSERVATIONS`] by the caller), the fit's copy with the right half's `α`
+/// zeroed, the right half's indices, the transport over the observations.
+pub struct ReplayPhoto {
+    pub obs: Observations,
+    pub fit: Observations,
+    pub right: Vec<usize>,
+    pub transport: crate::transport::Transport,
 }
 
-/// [`Replay`] of training photo `k` (training order); `None` without both halves.
-fn replay(f: &super::Fitted, k: usize) -> Result<Option<Replay>> {
+impl ReplayPhoto {
+    /// The replay of one photo's observations `obs`, cut at the middle of the span of
+    /// `px` (each observation's projected `x`, `None` behind the camera) over the
+    /// observations of positive weight; `transport` builds the transport over the kept
+    /// observations. `None` without both halves.
+    pub fn new(
+        obs: Observations,
+        px: &[Option<f64>],
+        transport: impl FnOnce(&Observations) -> Result<crate::transport::Transport>,
+    ) -> Result<Option<Self>> {
+        let mut obs = obs;
+        let seen = |p: usize| obs.weight[p] > 0.0 && px[p].is_some();
+        let Some(mid) =
+            super::half_fit::span_mid((0..px.len()).filter(|&p| seen(p)).filter_map(|p| px[p]))
+        else {
+            return Ok(None);
+        };
+        let right: Vec<usize> = (0..px.len())
+            .filter(|&p| seen(p) && px[p].is_some_and(|u| u >= mid))
+            .collect();
+        let mut fit = obs.clone();
+        for (p, at) in px.iter().enumerate() {
+            if !seen(p) || at.is_some_and(|u| u >= mid) {
+                fit.mask_out(p);
+            }
+        }
+        if right.is_empty() || fit.weight.iter().all(|&w| w <= 0.0) {
+            return Ok(None);
+        }
+        let all = 0..obs.len();
+        obs.photo_ranges = vec![all.clone()];
+        fit.photo_ranges = vec![all];
+        let transport = transport(&obs)?;
+        Ok(Some(ReplayPhoto {
+            obs,
+            fit,
+            right,
+            transport,
+        }))
+    }
+}
+
+/// [`ReplayPhoto`] of training photo `k` (training order); `None` without both halves.
+fn replay(f: &super::Fitted, k: usize) -> Result<Option<ReplayPhoto>> {
     let view = &f.scene.views[f.train[k]];
-    let mut obs = thin_observations(f.observations_of(f.train[k]), REPLAY_MAX_OBSERVATIONS);
+    let obs = thin_observations(f.observations_of(f.train[k]), REPLAY_MAX_OBSERVATIONS);
     let px: Vec<Option<f64>> = obs
         .vertex
         .iter()
         .map(|&x| super::half_fit::projected_x(view, &f.scene.mesh.positions[x as usize]))
         .collect();
-    let seen = |p: usize| obs.weight[p] > 0.0 && px[p].is_some();
-    let Some(mid) =
-        super::half_fit::span_mid((0..px.len()).filter(|&p| seen(p)).filter_map(|p| px[p]))
-    else {
-        return Ok(None);
-    };
-    let right: Vec<usize> = (0..px.len())
-        .filter(|&p| seen(p) && px[p].is_some_and(|u| u >= mid))
-        .collect();
-    let mut fit = obs.clone();
-    for (p, at) in px.iter().enumerate() {
-        if !seen(p) || at.is_some_and(|u| u >= mid) {
-            fit.mask_out(p);
-        }
-    }
-    if right.is_empty() || fit.weight.iter().all(|&w| w <= 0.0) {
-        return Ok(None);
-    }
-    let all = 0..obs.len();
-    obs.photo_ranges = vec![all.clone()];
-    fit.photo_ranges = vec![all];
-    let transport = f.transport_for(&obs)?;
-    Ok(Some(Replay {
-        obs,
-        fit,
-        right,
-        transport,
-    }))
+    ReplayPhoto::new(obs, &px, |o| f.transport_for(o))
 }
 
-/// Right-half MSE of training photo `k` under each of `priors` (module docs); `opts` the
-/// half fit's options, whose `light_prior` is the light model's own.
-fn replay_errors(
-    f: &super::Fitted,
+/// What the replay of one training photo reads beyond the photo: the frozen reflectance
+/// per vertex (`beta`, the mesh's `n_vertices`), the training maps (side `n`) the training
+/// prior and the start are taken from, the half fit's options (`light_prior` the light
+/// model's own).
+#[derive(Clone, Copy)]
+pub struct ReplayInputs<'a> {
+    pub beta: &'a [[f64; 3]],
+    pub lights: &'a [[Vec<f64>; 3]],
+    pub n: usize,
+    pub n_vertices: usize,
+    pub opts: &'a EstimateOptions,
+}
+
+/// Right-half MSE of replay `r` of training photo `k` under each of `priors` (module
+/// docs): the start and the training prior from every training map but `k`'s.
+pub fn replay_errors_of(
+    r: &ReplayPhoto,
     k: usize,
-    opts: &EstimateOptions,
+    inputs: ReplayInputs,
     priors: &[HalfLightPrior],
-) -> Result<Option<Vec<f64>>> {
-    let Some(r) = replay(f, k)? else {
-        return Ok(None);
-    };
-    let lights = &f.est.lights;
+) -> Result<Vec<f64>> {
+    let lights = inputs.lights;
+    let opts = inputs.opts;
     let others: Vec<[Vec<f64>; 3]> = (0..lights.len())
         .filter(|&j| j != k)
         .map(|j| lights[j].clone())
@@ -404,19 +430,18 @@ fn replay_errors(
     let full = Problem {
         obs: &r.obs,
         transport: &r.transport,
-        n_vertices: f.scene.mesh.positions.len(),
+        n_vertices: inputs.n_vertices,
         n_photos: 1,
     };
     let fit = Problem {
         obs: &r.fit,
         ..full
     };
-    let n = f.opts.global_resolution;
     let mut out = Vec::with_capacity(priors.len());
     for prior in priors {
         // Too few lit maps for a training prior: this candidate scores nothing (the photo
         // is then left out of the choice, [`log_ratio_scores`]).
-        let Ok(light_prior) = prior.options(&others, n, opts.light_prior.as_ref()) else {
+        let Ok(light_prior) = prior.options(&others, inputs.n, opts.light_prior.as_ref()) else {
             out.push(f64::INFINITY);
             continue;
         };
@@ -427,12 +452,12 @@ fn replay_errors(
             irls_iters: REPLAY_IRLS,
             ..opts.clone()
         };
-        let l = crate::solve::fit_light_frozen(&fit, &f.beta, 0, Some(&start), &o)?;
+        let l = crate::solve::fit_light_frozen(&fit, inputs.beta, 0, Some(&start), &o)?;
         let s = crate::solve::basis_responses(&full, std::slice::from_ref(&l));
-        let pred = crate::solve::problem::predict_from(&full, &f.beta, &s);
+        let pred = crate::solve::problem::predict_from(&full, inputs.beta, &s);
         out.push(weighted_mse(&r.obs, &pred, &r.right));
     }
-    Ok(Some(out))
+    Ok(out)
 }
 
 /// The mean over photos of `½ ln(MSE_η / MSE_0)` per grid value (photos whose errors are
@@ -481,7 +506,7 @@ pub(crate) struct HalfPrior {
 }
 
 /// The replay's choice: the prior kept, every candidate's score, photos scored.
-pub(crate) struct ReplayChoice {
+pub struct ReplayChoice {
     /// The candidate kept.
     pub kept: HalfLightPrior,
     /// Per candidate of `priors` (the Laplacian's 0), the mean `½ ln(MSE / MSE_Laplacian)`.
@@ -500,7 +525,29 @@ pub(crate) fn choose_prior(
     opts: &EstimateOptions,
     priors: &[HalfLightPrior],
 ) -> Result<ReplayChoice> {
-    let kk = f.est.lights.len();
+    let inputs = ReplayInputs {
+        beta: &f.beta,
+        lights: &f.est.lights,
+        n: f.opts.global_resolution,
+        n_vertices: f.scene.mesh.positions.len(),
+        opts,
+    };
+    choose_prior_over(f.est.lights.len(), priors, |k| {
+        replay(f, k)?
+            .map(|r| replay_errors_of(&r, k, inputs, priors))
+            .transpose()
+    })
+}
+
+/// [`choose_prior`] over `kk` training photos, `errors(k)` the right-half MSEs of training
+/// photo `k` under each of `priors` ([`replay_errors_of`]; `None` when `k` has not both
+/// halves): the picks, the two rounds and the rule that keeps a prior. Fewer than three
+/// training photos keep the Laplacian without a replay.
+pub fn choose_prior_over(
+    kk: usize,
+    priors: &[HalfLightPrior],
+    errors: impl Fn(usize) -> Result<Option<Vec<f64>>> + Sync,
+) -> Result<ReplayChoice> {
     if kk < 3 {
         return Ok(fixed(HalfLightPrior::Laplacian));
     }
@@ -510,7 +557,7 @@ pub(crate) fn choose_prior(
     let replay_all = |round: &[usize]| -> Result<Vec<(usize, Vec<f64>)>> {
         round
             .par_iter()
-            .map(|&i| Ok(replay_errors(f, picks[i], opts, priors)?.map(|e| (i, e))))
+            .map(|&i| Ok(errors(picks[i])?.map(|e| (i, e))))
             .collect::<Result<Vec<_>>>()
             .map(|v| v.into_iter().flatten().collect())
     };

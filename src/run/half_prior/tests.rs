@@ -260,3 +260,85 @@ fn replay_rounds_take_every_pick_once_every_other_first() {
         }
     }
 }
+
+/// An empty transport over `n` observations (one basis function): the replay's cut
+/// never reads it.
+fn empty_transport(n: usize) -> crate::transport::Transport {
+    crate::transport::Transport {
+        n_global: 2,
+        n_basis: 1,
+        n_obs: n,
+        offsets: vec![0; n + 1],
+        index: Vec::new(),
+        value: Vec::new(),
+    }
+}
+
+#[test]
+fn a_replayed_photo_is_cut_at_the_middle_of_its_seen_span() {
+    // Six observations: x = 0, 10, 4, 6 seen; one behind the camera; one at x = 100 that
+    // weighs nothing (not seen: it neither widens the span nor lands in a half).
+    let obs = numbered_observations(6, |p| if p == 5 { 0.0 } else { 1.0 });
+    let px = [
+        Some(0.0),
+        Some(10.0),
+        Some(4.0),
+        Some(6.0),
+        None,
+        Some(100.0),
+    ];
+    let r = ReplayPhoto::new(obs.clone(), &px, |o| Ok(empty_transport(o.len())))
+        .unwrap()
+        .unwrap();
+    // The span of the seen x is 0..10, its middle 5: right = x ≥ 5 among the seen.
+    assert_eq!(r.right, vec![1, 3]);
+    // The fit reads the seen left half only: x = 0 and 4.
+    let fitted: Vec<usize> = (0..6).filter(|&p| r.fit.weight[p] > 0.0).collect();
+    assert_eq!(fitted, vec![0, 2]);
+    // The scored copy keeps every observation and its weight; one photo spans them.
+    assert_eq!(r.obs.weight, obs.weight);
+    assert_eq!(r.obs.photo_ranges, vec![0..6]);
+    assert_eq!(r.fit.photo_ranges, vec![0..6]);
+    // Every seen x equal: the left half is empty, no replay.
+    let flat = [Some(3.0); 6];
+    assert!(
+        ReplayPhoto::new(obs.clone(), &flat, |o| Ok(empty_transport(o.len())))
+            .unwrap()
+            .is_none()
+    );
+    // Nothing seen: no replay, and the transport is never built.
+    assert!(ReplayPhoto::new(obs, &[None; 6], |_| unreachable!())
+        .unwrap()
+        .is_none());
+}
+
+#[test]
+fn the_replay_keeps_the_lowest_negative_score_and_rules_out_early() {
+    let priors = candidates();
+    // Per training photo, MSE under the Laplacian, η = 3, η = 10: η = 3 lowers every
+    // photo's error by 19% (½ ln 0.81 ≈ −0.105), η = 10 by 1%; η = 3 is kept.
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let c = choose_prior_over(8, &priors, |_| {
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(Some(vec![1.0, 0.81, 0.99]))
+    })
+    .unwrap();
+    assert_eq!(c.kept, HalfLightPrior::Training(3.0));
+    assert_eq!(c.photos, LOO_PHOTOS);
+    assert_eq!(calls.into_inner(), LOO_PHOTOS);
+    assert!((c.scores[1] - 0.5 * 0.81_f64.ln()).abs() < 1e-12);
+    // Every prior raising the first round's error by e (score ½ ≥ RULE_OUT): the second
+    // round is skipped and the Laplacian kept.
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let c = choose_prior_over(8, &priors, |_| {
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(Some(vec![1.0, std::f64::consts::E, 10.0]))
+    })
+    .unwrap();
+    assert_eq!(c.kept, HalfLightPrior::Laplacian);
+    assert_eq!(calls.into_inner(), replay_rounds(LOO_PHOTOS)[0].len());
+    // Fewer than three training photos: the Laplacian, without a replay.
+    let c = choose_prior_over(2, &priors, |_| unreachable!()).unwrap();
+    assert_eq!(c.kept, HalfLightPrior::Laplacian);
+    assert!(c.scores.is_empty());
+}
