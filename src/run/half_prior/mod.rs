@@ -349,7 +349,7 @@ impl ReplayPhoto {
     /// The replay of one photo's observations `obs`, cut at the middle of the span of
     /// `px` (each observation's projected `x`, `None` behind the camera) over the
     /// observations of positive weight; `transport` builds the transport over the kept
-    /// observations. `None` without both halves.
+    /// observations. The replay is photo 0 of its own problem. `None` without both halves.
     pub fn new(
         obs: Observations,
         px: &[Option<f64>],
@@ -375,8 +375,10 @@ impl ReplayPhoto {
             return Ok(None);
         }
         let all = 0..obs.len();
-        obs.photo_ranges = vec![all.clone()];
-        fit.photo_ranges = vec![all];
+        for o in [&mut obs, &mut fit] {
+            o.photo_ranges = vec![all.clone()];
+            o.photo.iter_mut().for_each(|p| *p = 0);
+        }
         let transport = transport(&obs)?;
         Ok(Some(ReplayPhoto {
             obs,

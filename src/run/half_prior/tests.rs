@@ -278,7 +278,9 @@ fn empty_transport(n: usize) -> crate::transport::Transport {
 fn a_replayed_photo_is_cut_at_the_middle_of_its_seen_span() {
     // Six observations: x = 0, 10, 4, 6 seen; one behind the camera; one at x = 100 that
     // weighs nothing (not seen: it neither widens the span nor lands in a half).
-    let obs = numbered_observations(6, |p| if p == 5 { 0.0 } else { 1.0 });
+    let mut obs = numbered_observations(6, |p| if p == 5 { 0.0 } else { 1.0 });
+    // Photo 3 of a split: the replay is photo 0 of its own problem.
+    obs.photo = vec![3; 6];
     let px = [
         Some(0.0),
         Some(10.0),
@@ -297,6 +299,7 @@ fn a_replayed_photo_is_cut_at_the_middle_of_its_seen_span() {
     assert_eq!(fitted, vec![0, 2]);
     // The scored copy keeps every observation and its weight; one photo spans them.
     assert_eq!(r.obs.weight, obs.weight);
+    assert!(r.obs.photo.iter().chain(&r.fit.photo).all(|&p| p == 0));
     assert_eq!(r.obs.photo_ranges, vec![0..6]);
     assert_eq!(r.fit.photo_ranges, vec![0..6]);
     // Every seen x equal: the left half is empty, no replay.
