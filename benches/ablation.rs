@@ -14,7 +14,8 @@
 //! Per light model (one line of [`rows`] each) and case:
 //! - **held-out** (the run's half protocol, [`half_error`]): each held-out photo's light
 //!   fitted with the reflectance frozen on the observations left of its centre line (the
-//!   paper's Laplacian, no light prior, for every row alike), the right half predicted,
+//!   paper's Laplacian, no light prior, for every row alike; `ABLATION_HALF=run` judges
+//!   the `defaults` row as `run` does, [`run_half`]), the right half predicted,
 //!   relative RMSE after the best scale per channel; *photo floor* = the same protocol
 //!   with the TRUE reflectance;
 //! - **relit** under the unseen maps: the held-out photos predicted under their TRUE maps,
@@ -90,7 +91,9 @@
 //! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
 //! start with every lobe but the Lambertian one at `X` times its `λ`: with
 //! `ABLATION_DEFAULTS_START=truth-lambda`, `X` times the truth's), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
-//! `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
+//! `ABLATION_HALF=run` (the `defaults` row's held-out column and its floor judged as
+//! `run` judges its held-out photos, with the learned half prior and the fit's
+//! Laplacian weight, [`run_half`]), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
 

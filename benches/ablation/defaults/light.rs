@@ -1,8 +1,9 @@
 //! The defaults row's light model as `run` without `--light` chooses it
 //! ([`relight_cpc::run::scene_light`]): below 50K vertices, when the pilot keeps a shiny
 //! lobe, `--light auto` ([`choose::candidates`]: the paper's map, the map under the prior of
-//! real skies, the sun and sky; `--light constrained`, without the paper's map, with two
-//! or more materials from [`relight_cpc::run::PRIOR_FROM_PHOTOS`] training photos) fits
+//! real skies, the sun and sky; `--light constrained`, without the paper's map, with
+//! [`relight_cpc::run::CONSTRAINED_FROM_MATERIALS`] or more materials from
+//! [`relight_cpc::run::PRIOR_FROM_PHOTOS`] training photos) fits
 //! each candidate from the start with the right halves of
 //! [`DEFAULT_LIGHT_CHOICE_HALVES`] training photos held back ([`photo_halves`], the split
 //! `run` makes), keeps the one of lowest validation error on them ([`choose::decide`]), and

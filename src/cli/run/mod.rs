@@ -62,9 +62,10 @@ pub(crate) struct RunArgs {
     /// that applies fitted, the one that best predicts the right halves of a few training
     /// photos held back whole kept and fitted again; that many times the fitting time,
     /// plus one), `constrained` (as `auto` without the paper's map, so one fit fewer).
-    /// Default, below 50,000 vertices: `auto` when the fit keeps a shiny lobe; `prior` over
-    /// the Lambertian lobe alone with two or more materials and at least 20 training
-    /// photos; else `paper`.
+    /// Default, below 50,000 vertices: `auto` when the fit keeps a shiny lobe
+    /// (`constrained` with three or more materials and at least 20 training photos);
+    /// `prior` over the Lambertian lobe alone with two or more materials and at least 20
+    /// training photos; else `paper`.
     #[arg(long, value_parser = ["paper", "prior", "shared", "sky", "auto", "constrained"], help_heading = "Model")]
     pub(crate) light: Option<String>,
     /// Find people, cars and other things in front of the object in some photos (where a

@@ -519,8 +519,8 @@ fn iteration_line(
 /// or the model `choice` named (not "as given", which it was not), then why it is the
 /// default.
 fn by_scene_why(choice: LightChoice, decided: &str) -> String {
-    let why = "--light not given: the default for the mesh's size, the fit's lobes and, over \
-               the Lambertian lobe alone, its materials and training photos; see the notes";
+    let why = "--light not given: the default for the mesh's size, the fit's lobes, its \
+               materials and training photos; see the notes";
     match choice {
         c if c.chooses() => format!("{decided} ({why})"),
         c => format!("--light {} ({why})", c.name()),

@@ -13,7 +13,7 @@ mod smoothness;
 mod values;
 mod weights_bic;
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
-pub use light_by_scene::{scene_light, FitShape, PRIOR_FROM_PHOTOS};
+pub use light_by_scene::{scene_light, FitShape, CONSTRAINED_FROM_MATERIALS, PRIOR_FROM_PHOTOS};
 pub(crate) use smoothness::smoothness_base;
 pub use smoothness::{pilot_smoothness_for, smoothness_for, SMOOTHNESS_FROM_PHOTOS};
 pub use values::{
