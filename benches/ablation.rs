@@ -15,7 +15,7 @@
 //! - **held-out** (the run's half protocol, [`half_error`]): each held-out photo's light
 //!   fitted with the reflectance frozen on the observations left of its centre line (the
 //!   paper's Laplacian, no light prior, for every row alike; `ABLATION_HALF=run` judges
-//!   the `defaults` row as `run` does, [`run_half`]), the right half predicted,
+//!   each row as `run` would with its options, [`run_half`]), the right half predicted,
 //!   relative RMSE after the best scale per channel; *photo floor* = the same protocol
 //!   with the TRUE reflectance;
 //! - **relit** under the unseen maps: the held-out photos predicted under their TRUE maps,
@@ -91,9 +91,9 @@
 //! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
 //! start with every lobe but the Lambertian one at `X` times its `λ`: with
 //! `ABLATION_DEFAULTS_START=truth-lambda`, `X` times the truth's), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
-//! `ABLATION_HALF=run` (the `defaults` row's held-out column and its floor judged as
-//! `run` judges its held-out photos, with the learned half prior and the fit's
-//! Laplacian weight, [`run_half`]), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
+//! `ABLATION_HALF=run` (every row's held-out column and its floor judged as `run` judges
+//! its held-out photos, with the learned half prior and the row's Laplacian weight,
+//! [`run_half`]), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
 
@@ -518,12 +518,35 @@ fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     let t0 = Instant::now();
     let est = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
     let seconds = t0.elapsed().as_secs_f64();
-    let f = figures(case, fl, &est, start_ratio_errors(case, fl), seconds);
+    let f = figures(case, fl, (&est, o), start_ratio_errors(case, fl), seconds);
     (est, f)
 }
 
-/// The figures of a fitted reflectance `est`.
-fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f64) -> Figures {
+/// The held-out column of reflectance `est` fitted with options `o`, and its floor: the
+/// common judge ([`half_error`]) against the case's floor, or with `ABLATION_HALF=run`
+/// `run`'s judge with the row's options against the truth through that judge
+/// ([`run_half`]).
+fn held_out(case: &Case, fl: &Floors, est: &Estimate, o: &EstimateOptions) -> (f64, f64) {
+    if !run_half::wanted() {
+        return (
+            half_error(case, &est.lambda, &est.weights, &fl.left),
+            fl.heldout,
+        );
+    }
+    let fitted = run_half::run_half_error(case, &est.lambda, &est.weights, &est.lights, o);
+    let floor = run_half::run_half_error(case, &case.lambda, &case.weights, &case.train.lights, o);
+    (fitted, floor)
+}
+
+/// The figures of a fitted reflectance `est` and the options it was fitted with.
+fn figures(
+    case: &Case,
+    fl: &Floors,
+    (est, o): (&Estimate, &EstimateOptions),
+    start: [f64; 3],
+    seconds: f64,
+) -> Figures {
+    let (heldout, heldout_floor) = held_out(case, fl, est, o);
     let problem = case.train.problem(case.nv);
     let hp = case.predict_held(&est.lambda, &est.weights);
     let mut model = case.held.obs.clone();
@@ -542,8 +565,8 @@ fn figures(case: &Case, fl: &Floors, est: &Estimate, start: [f64; 3], seconds: f
         eprint!("{}", crate::metrics::scaled_lambda(case, est, &fl.seen));
     }
     Figures {
-        heldout: half_error(case, &est.lambda, &est.weights, &fl.left),
-        heldout_floor: fl.heldout,
+        heldout,
+        heldout_floor,
         relit: rel_rmse_per_channel(&case.held.obs, &hp),
         relit_floor: fl.relit,
         relit_model: rel_rmse_per_channel(&model, &hp),
@@ -571,11 +594,17 @@ fn diagnosed(case: &Case, est: &Estimate, label: &str) -> Option<(String, Value)
 /// propagated from the seen ones ([`propagate_unseen`]); the fit itself is unchanged, so
 /// the training figures and its `seconds` are the fit's (the propagation's own cost:
 /// `ESTIMATOR_BENCH=propagate`).
-fn propagated(case: &Case, fl: &Floors, mut est: Estimate, label: &str, seconds: f64) -> Done {
+fn propagated(
+    case: &Case,
+    fl: &Floors,
+    (mut est, o): (Estimate, &EstimateOptions),
+    label: &str,
+    seconds: f64,
+) -> Done {
     let k = est.lambda.len();
     let p = propagate_unseen(&case.positions, &fl.seen, &mut est.weights, k).expect("propagation");
     let label = format!("{label}, unseen propagated");
-    let f = figures(case, fl, &est, start_ratio_errors(case, fl), seconds);
+    let f = figures(case, fl, (&est, o), start_ratio_errors(case, fl), seconds);
     eprintln!("  {label}: {p:?} {f:?}");
     Done {
         diagnosis: diagnosed(case, &est, &label),
@@ -691,7 +720,7 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 let est = restarts(case, &fl, &o, est, label, &mut done);
                 let est = brightness_search(case, &fl, &o, est, label, &mut done);
                 if env_flag("ABLATION_PROPAGATE") {
-                    done.push(propagated(case, &fl, est, label, seconds));
+                    done.push(propagated(case, &fl, (est, &o), label, seconds));
                 }
             }
             Row::Defaults { label } => {
@@ -700,24 +729,13 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 }
                 eprintln!("{}: {label}", case.scene);
                 let d = defaults::fit_defaults(case, &base);
-                let mut figures =
-                    figures(case, &fl, &d.est, start_ratio_errors(case, &fl), d.seconds);
-                if run_half::wanted() {
-                    figures.heldout = run_half::run_half_error(
-                        case,
-                        &d.est.lambda,
-                        &d.est.weights,
-                        &d.est.lights,
-                        &d.opts,
-                    );
-                    figures.heldout_floor = run_half::run_half_error(
-                        case,
-                        &case.lambda,
-                        &case.weights,
-                        &case.train.lights,
-                        &d.opts,
-                    );
-                }
+                let figures = figures(
+                    case,
+                    &fl,
+                    (&d.est, &d.opts),
+                    start_ratio_errors(case, &fl),
+                    d.seconds,
+                );
                 eprintln!("  {figures:?} pilot {:?}", d.pilot.material_scores);
                 if env_flag("ABLATION_ACCURACY_MISSES") {
                     eprintln!(

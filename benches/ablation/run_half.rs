@@ -1,7 +1,8 @@
-//! `ABLATION_HALF=run`: the `defaults` row's held-out column judged as `relight-cpc run`
-//! judges its held-out photos (protocol (b) with `--half-prior auto`, docs/method.md
-//! "Held-out evaluation"), instead of the bench's common judge ([`crate::metrics::half_error`]:
-//! the paper's Laplacian at the default weight, from zero, for every row alike).
+//! `ABLATION_HALF=run`: each row's held-out column judged as `relight-cpc run` judges its
+//! held-out photos (protocol (b) with `--half-prior auto`, docs/method.md "Held-out
+//! evaluation") with the row's options, instead of the bench's common judge
+//! ([`crate::metrics::half_error`]: the paper's Laplacian at the default weight, from
+//! zero, for every row alike).
 //!
 //! As `run` does ([`relight_cpc::run::half_prior`]):
 //! - the half fit's light prior is chosen by replaying protocol (b) on up to four training
@@ -40,7 +41,9 @@ pub fn wanted() -> bool {
 }
 
 /// The held-out error of reflectance `(lambda, weights)` with training maps `lights`,
-/// fitted with options `opts`, under `run`'s judge (module docs).
+/// fitted with options `opts`, under `run`'s judge (module docs). The row's floor is the
+/// truth through the same call: under a light model with a prior of its own, the judge
+/// may add it, so each row's floor is its own.
 pub fn run_half_error(
     case: &Case,
     lambda: &[Vec<[f64; 3]>],

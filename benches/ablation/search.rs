@@ -32,7 +32,7 @@ pub fn restarts(
         let t0 = Instant::now();
         let next = estimate(&problem, init, o, &mut |_, _| {}).unwrap();
         let seconds = t0.elapsed().as_secs_f64();
-        let f = figures(case, fl, &next, start_ratio_errors(case, fl), seconds);
+        let f = figures(case, fl, (&next, o), start_ratio_errors(case, fl), seconds);
         let row = format!("{label}, re-anchored ({how:?}) ×{i}");
         eprintln!("  {row}: {f:?}");
         let better = score(&next) < score(&est);
@@ -154,7 +154,7 @@ impl Search<'_> {
         let fig = figures(
             case,
             fl,
-            &next,
+            (&next, self.o),
             start_ratio_errors(case, fl),
             t0.elapsed().as_secs_f64(),
         );
