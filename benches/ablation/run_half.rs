@@ -24,12 +24,10 @@
 
 use crate::synth_case::*;
 use relight_cpc::observe::Observations;
-use relight_cpc::run::half_fit::{
-    half_fit_passes, projected_x, span_mid, HALF_FIT_CG, HALF_FIT_GPCG,
-};
+use relight_cpc::run::half_fit::{half_fit_passes, projected_x, sides, HALF_FIT_CG, HALF_FIT_GPCG};
 use relight_cpc::run::half_prior::{
-    candidates, choose_prior_over, replay_errors_of, thin_observations, without_training_prior,
-    HalfLightPrior, ReplayInputs, ReplayPhoto, REPLAY_MAX_OBSERVATIONS,
+    candidates, choose_prior_over, mean_map, replay_errors_of, thin_observations,
+    without_training_prior, HalfLightPrior, ReplayInputs, ReplayPhoto, REPLAY_MAX_OBSERVATIONS,
 };
 use relight_cpc::solve::light::frozen::fit_light_scheduled;
 use relight_cpc::solve::{beta_per_vertex, EstimateOptions};
@@ -65,20 +63,8 @@ pub fn run_half_error(
         ..half
     };
     eprintln!("  run's half judge: prior {}", prior.name());
-    let start = mean_map(lights);
+    let start = mean_map(lights, n * n);
     held_right_error(case, &beta, &start, &fit_opts)
-}
-
-/// The mean of the training maps: the half fit's start.
-fn mean_map(lights: &[[Vec<f64>; 3]]) -> [Vec<f64>; 3] {
-    let inv = 1.0 / lights.len().max(1) as f64;
-    [0, 1, 2].map(|c| {
-        let mut m = vec![0.0; lights.first().map_or(0, |l| l[c].len())];
-        for l in lights {
-            m.iter_mut().zip(&l[c]).for_each(|(a, v)| *a += v * inv);
-        }
-        m
-    })
 }
 
 /// `run --half-prior auto`'s prior for the half fit (module docs).
@@ -120,17 +106,17 @@ fn replay_of(case: &Case, k: usize) -> relight_cpc::Result<Option<ReplayPhoto>> 
     let range = case.train.obs.photo_ranges[k].clone();
     let rows: Vec<usize> = range.collect();
     let obs = thin_observations(case.train.obs.gather(&rows), REPLAY_MAX_OBSERVATIONS);
-    let px = projected(case, &case.train.views[k], &obs);
+    let px = projected(case, &case.train.views[k], &obs.vertex);
     ReplayPhoto::new(obs, &px, |o| Ok(gathered_rows(case, &rows, o)))
 }
 
-/// Each observation's projected `x` in `view`.
+/// The projected `x` in `view` of each observation's vertex (`vertices`).
 fn projected(
     case: &Case,
     view: &relight_cpc::import::scene::View,
-    obs: &Observations,
+    vertices: &[u32],
 ) -> Vec<Option<f64>> {
-    obs.vertex
+    vertices
         .iter()
         .map(|&x| projected_x(view, &case.positions[x as usize]))
         .collect()
@@ -177,20 +163,10 @@ fn held_right_error(
     let mut fit_obs = held.obs.clone();
     let mut eval_obs = held.obs.clone();
     for (i, range) in held.obs.photo_ranges.iter().enumerate() {
-        let px = projected(
-            case,
-            &held.views[i],
-            &held.obs.gather(&range.clone().collect::<Vec<_>>()),
-        );
-        let seen = |q: usize| held.obs.weight[range.start + q] > 0.0 && px[q].is_some();
-        let mid = span_mid((0..px.len()).filter(|&q| seen(q)).filter_map(|q| px[q]));
-        for q in 0..px.len() {
-            let left = match (mid, px[q]) {
-                (Some(m), Some(u)) => u < m,
-                _ => false,
-            };
-            let p = range.start + q;
-            if left {
+        let px = projected(case, &held.views[i], &held.obs.vertex[range.clone()]);
+        let sides = sides(&held.obs.weight[range.clone()], &px);
+        for (q, p) in range.clone().enumerate() {
+            if sides.as_ref().is_some_and(|s| s[q] == Some(true)) {
                 eval_obs.weight[p] = 0.0;
             } else {
                 fit_obs.weight[p] = 0.0;

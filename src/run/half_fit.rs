@@ -80,6 +80,17 @@ pub fn span_mid(xs: impl Iterator<Item = f64>) -> Option<f64> {
     (lo <= hi).then_some(0.5 * (lo + hi))
 }
 
+/// Protocol (b)'s cut of one photo's observations by their projected `x` (`px`, `None`
+/// behind the camera): per observation, `Some(true)` left of the middle of the span of the
+/// seen ones (positive `weight`, in front of the camera, [`span_mid`]), `Some(false)` at
+/// or right of it, `None` not seen; `None` when no observation is seen.
+pub fn sides(weight: &[f32], px: &[Option<f64>]) -> Option<Vec<Option<bool>>> {
+    let seen = |p: usize| weight[p] > 0.0 && px[p].is_some();
+    let mid = span_mid((0..px.len()).filter(|&p| seen(p)).filter_map(|p| px[p]))?;
+    let side = |p: usize| px[p].is_some_and(|u| u < mid);
+    Some((0..px.len()).map(|p| seen(p).then(|| side(p))).collect())
+}
+
 /// The pixel `x` at which `view` sees `point`, or `None` behind the camera.
 pub fn projected_x(view: &crate::import::scene::View, point: &crate::Vec3) -> Option<f64> {
     let cam = view.image.cam_from_world_point(point);

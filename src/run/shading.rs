@@ -167,22 +167,11 @@ pub(crate) fn fitted_env(f: &Fitted, k: usize) -> OctEnv {
     OctEnv::from_channels(f.opts.global_resolution, [&l[0], &l[1], &l[2]])
 }
 
-/// The mean of the training maps.
+/// The mean of the training maps ([`super::half_prior::mean_map`]).
 pub(crate) fn mean_env(f: &Fitted) -> OctEnv {
-    let n2 = f.opts.global_resolution * f.opts.global_resolution;
-    let mut sum = [vec![0.0; n2], vec![0.0; n2], vec![0.0; n2]];
-    for l in &f.est.lights {
-        for c in 0..3 {
-            for (s, v) in sum[c].iter_mut().zip(&l[c]) {
-                *s += v;
-            }
-        }
-    }
-    let k = f.est.lights.len().max(1) as f64;
-    for ch in sum.iter_mut() {
-        ch.iter_mut().for_each(|v| *v /= k);
-    }
-    OctEnv::from_channels(f.opts.global_resolution, [&sum[0], &sum[1], &sum[2]])
+    let n = f.opts.global_resolution;
+    let mean = super::half_prior::mean_map(&f.est.lights, n * n);
+    OctEnv::from_channels(n, [&mean[0], &mean[1], &mean[2]])
 }
 
 /// Pixels that count: object pixels off the object's edges and not overexposed in the

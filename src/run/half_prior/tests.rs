@@ -1,4 +1,5 @@
 use super::*;
+use crate::observe::Observations;
 use crate::sphere::SphereGrid;
 
 /// Texel averages of `f` on the full grid of side `n` by 8² sub-texels.
