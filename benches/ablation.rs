@@ -12,12 +12,14 @@
 //! case's own transport, so every error is the estimator's).
 //!
 //! Per light model (one line of [`rows`] each) and case:
-//! - **held-out** (the run's half protocol, [`half_error`]): each held-out photo's light
-//!   fitted with the reflectance frozen on the observations left of its centre line (the
-//!   paper's Laplacian, no light prior, for every row alike; `ABLATION_HALF=run` judges
-//!   each row as `run` would with its options, [`run_half`]), the right half predicted,
-//!   relative RMSE after the best scale per channel; *photo floor* = the same protocol
-//!   with the TRUE reflectance;
+//! - **held-out** (the run's half protocol): each held-out photo's light fitted with the
+//!   reflectance frozen on the observations left of its centre line, judged as `run`
+//!   judges it with the row's options ([`run_half`]: the half prior `run` would learn,
+//!   the row's Laplacian weight, from the mean training map), the right half predicted,
+//!   relative RMSE after the best scale per channel; *photo floor* = the truth (true
+//!   reflectance, true training maps) through the same judge, so each row has its own.
+//!   `ABLATION_HALF=common` judges every row alike instead ([`half_error`]: the paper's
+//!   Laplacian, no light prior, from zero), against the truth through that judge;
 //! - **relit** under the unseen maps: the held-out photos predicted under their TRUE maps,
 //!   best scale per channel (the light colour is not observable), against the photos;
 //!   *MC floor* = the true reflectance doing the same (the renderer's noise and the
@@ -91,9 +93,9 @@
 //! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
 //! start with every lobe but the Lambertian one at `X` times its `λ`: with
 //! `ABLATION_DEFAULTS_START=truth-lambda`, `X` times the truth's), `ABLATION_SEED` (the scenes' `synth` seed, default 1: other photos, maps and noise),
-//! `ABLATION_HALF=run` (every row's held-out column and its floor judged as `run` judges
-//! its held-out photos, with the learned half prior and the row's Laplacian weight,
-//! [`run_half`]), `RESULTS_SUFFIX=S` (`estimator-ablation-S.*`).
+//! `ABLATION_HALF=common` (every row's held-out column judged by the common judge,
+//! [`half_error`], instead of `run`'s, [`run_half`]), `RESULTS_SUFFIX=S`
+//! (`estimator-ablation-S.*`).
 
 #![allow(clippy::needless_range_loop)]
 
@@ -522,10 +524,10 @@ fn fit(case: &Case, fl: &Floors, o: &EstimateOptions) -> (Estimate, Figures) {
     (est, f)
 }
 
-/// The held-out column of reflectance `est` fitted with options `o`, and its floor: the
-/// common judge ([`half_error`]) against the case's floor, or with `ABLATION_HALF=run`
+/// The held-out column of reflectance `est` fitted with options `o`, and its floor:
 /// `run`'s judge with the row's options against the truth through that judge
-/// ([`run_half`]).
+/// ([`run_half`]), or with `ABLATION_HALF=common` the common judge ([`half_error`])
+/// against the case's floor.
 fn held_out(case: &Case, fl: &Floors, est: &Estimate, o: &EstimateOptions) -> (f64, f64) {
     if !run_half::wanted() {
         return (
@@ -801,8 +803,14 @@ fn main() {
     let mut md = format!(
         "# Light-model ablation (issue 25)\n\nWritten by `cargo bench --bench ablation` (module docs of `benches/ablation.rs`: definitions). \
          Spot, {}² photos at {} spp × {} MIS pairs, 1 in 4 held out (maps 3 and 7, unseen in training), {}² global / {}² local maps, \
-         all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping.\n\n",
-        s.width, s.spp, s.light_samples, s.global, s.local, base.max_outer
+         all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping. \
+         Held-out photos judged {}.\n\n",
+        s.width, s.spp, s.light_samples, s.global, s.local, base.max_outer,
+        if run_half::wanted() {
+            "as `run` judges them (each row's learned half prior and Laplacian weight; its floor the truth through the same judge)"
+        } else {
+            "by the common judge (`ABLATION_HALF=common`: the paper's Laplacian, no light prior, for every row)"
+        }
     );
     md.push_str(&run_line::environment_line(
         "ablation",
