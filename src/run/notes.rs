@@ -43,6 +43,25 @@ fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
     }
 }
 
+/// The specular lobes' colour, when the fit has any besides the Lambertian one and the
+/// flag was given.
+fn specular_note(opts: &RunOptions, fitted: &Fitted) -> Option<String> {
+    // With `auto` the fit's reasons say it (`achromatic_for`).
+    if fitted.basis.len() < 2 || opts.achromatic_specular == super::Achromatic::Auto {
+        return None;
+    }
+    let flag = match opts.achromatic_specular {
+        super::Achromatic::Auto => "auto",
+        super::Achromatic::On => "on",
+        super::Achromatic::Off => "off",
+    };
+    Some(if fitted.estimate_options.achromatic_specular {
+        format!("specular lobes achromatic (--achromatic-specular {flag}): one specular weight per material for R, G and B, the colour in the diffuse lobe, as for dielectrics (docs/method.md, \"Achromatic specular lobes\")")
+    } else {
+        format!("specular lobes coloured (--achromatic-specular {flag}): each channel's specular weight free")
+    })
+}
+
 /// The report's notes on the fit: ill-conditioned solves, the starts tried, the scale
 /// normalisation, early stopping and the lighting sample.
 pub(crate) fn fit_notes(
@@ -55,6 +74,7 @@ pub(crate) fn fit_notes(
     log.notes
         .extend(conditioning_notes(opts, &est.conditioning));
     log.notes.push(ratio_note(opts, fitted));
+    log.notes.extend(specular_note(opts, fitted));
     log.notes.extend(starts_note(multi));
     log.notes
         .push(format!("scale normalisation: {}", est.normalisation));

@@ -249,6 +249,12 @@ fn smoothness_flag(base: &EstimateOptions) -> relight_cpc::run::PriorStrength {
     }
 }
 
+/// `run --achromatic-specular`: `auto` (the default) or `ABLATION_DEFAULTS_ACHROMATIC=on|off`.
+fn achromatic() -> relight_cpc::run::Achromatic {
+    let v = std::env::var("ABLATION_DEFAULTS_ACHROMATIC").unwrap_or_else(|_| "auto".into());
+    relight_cpc::run::Achromatic::parse(&v).expect("ABLATION_DEFAULTS_ACHROMATIC")
+}
+
 /// The adaptive pilot with the inputs `run` gives it: it holds out its own observations,
 /// and its lighting sample has the run's strata. Every lobe of the case's basis is kept,
 /// whatever the pilot's shares, with `ABLATION_DEFAULTS_ALL_LOBES=1`.
@@ -275,6 +281,8 @@ fn run_pilot(case: &Case, base: &EstimateOptions, colours: Colours) -> PilotOutc
                 &case.normals_env,
                 &case.vis.open_fractions(),
             ),
+            // As `run`: the pilot's colours free unless `on`.
+            achromatic_specular: achromatic() == relight_cpc::run::Achromatic::On,
             ..base.clone()
         },
         mean_rgb: colours.mean_rgb,
@@ -398,8 +406,8 @@ fn scale_specular(m0: &mut Materials0, x: f64) {
 /// every vertex, whatever the pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
 /// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
 /// group of training photos under one true sky, with per-photo gains
-/// (`SYNTH_SHARED_SKIES=1` makes such groups). `ABLATION_DEFAULTS_ACHROMATIC=1`: `run
-/// --achromatic-specular`.
+/// (`SYNTH_SHARED_SKIES=1` makes such groups). The specular lobes' colour as `run
+/// --achromatic-specular auto` ([`achromatic`]; `ABLATION_DEFAULTS_ACHROMATIC=on|off`).
 fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> EstimateOptions {
     let (max_outer, rel_tol) =
         if std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench") {
@@ -462,7 +470,8 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
             .is_ok_and(|v| v == "shared")
             .then(|| case.true_light_groups()),
-        achromatic_specular: std::env::var("ABLATION_DEFAULTS_ACHROMATIC").is_ok_and(|v| v == "1"),
+        achromatic_specular: relight_cpc::run::achromatic_for(achromatic(), pilot.materials, &kept)
+            .0,
         ..base.clone()
     };
     crate::with_case_graph(case, opts)

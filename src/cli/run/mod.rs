@@ -286,9 +286,11 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value = "auto", help_heading = "Solver")]
     pub(crate) weights_bic: String,
     /// Specular lobes take the light's colour: one specular weight per material shared by
-    /// R, G and B, the colour in the diffuse lobe (dielectrics).
-    #[arg(long, help_heading = "Solver")]
-    pub(crate) achromatic_specular: bool,
+    /// R, G and B, the colour in the diffuse lobe (dielectrics: stone, paint, plastic,
+    /// glaze). `off` gives each channel its own (coloured metals). `auto`: on in the fit
+    /// when it keeps a shiny lobe and has three or more materials.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "on", "off"], help_heading = "Solver")]
+    pub(crate) achromatic_specular: String,
     /// Fraction of the training observations held back to stop at the best round; 0 turns
     /// early stopping off.
     #[arg(long, default_value_t = 0.1, help_heading = "Solver")]

@@ -135,7 +135,7 @@ impl RunArgs {
         )?;
         o.weights_bic =
             relight_cpc::run::PriorStrength::parse(&self.weights_bic, "--weights-bic", "off")?;
-        o.achromatic_specular = self.achromatic_specular;
+        o.achromatic_specular = relight_cpc::run::Achromatic::parse(&self.achromatic_specular)?;
         o.light_groups = self.light_groups.clone();
         o.light_group_minutes = self.light_group_minutes;
         o.geotag_suns = !self.no_geotag_suns;

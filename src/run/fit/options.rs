@@ -39,7 +39,8 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         weights_sum_scope: o.weights_sum_scope,
         weights_smoothness: o.weights_smoothness.value(),
         weights_bic: o.weights_bic.value(),
-        achromatic_specular: o.achromatic_specular,
+        // `auto` leaves the pilot free; the full fit applies the rule ([`achromatic_for`]).
+        achromatic_specular: o.achromatic_specular == crate::run::Achromatic::On,
         alternation_qp_iters: (o.lighting_qp_iterations > 0).then_some(o.lighting_qp_iterations),
         alternation_cg_iters: (o.lighting_cg_iterations > 0).then_some(o.lighting_cg_iterations),
         patience: o.patience,

@@ -8,8 +8,8 @@ use crate::import::scene::{Scene, View};
 use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
 use crate::run::{
-    choose_material_count, scene_light, smoothness_for, weights_bic_for, FitShape, MaterialCount,
-    Progress, RunOptions, StartBrightness,
+    achromatic_for, choose_material_count, scene_light, smoothness_for, weights_bic_for, FitShape,
+    MaterialCount, Progress, RunOptions, StartBrightness,
 };
 use crate::solve::cluster::{initial_materials, unmixed_weights, InitialMaterials, StartWeights};
 use crate::solve::light::choose::LightChoice;
@@ -128,6 +128,10 @@ impl FitStart {
             &p.eff.basis,
         );
         eopts.weights_bic = bic;
+        reasons.extend(why);
+        let (tied, why) =
+            achromatic_for(p.eff.achromatic_specular, init.albedo.len(), &p.eff.basis);
+        eopts.achromatic_specular = tied;
         reasons.extend(why);
         let (s, why) = smoothness_for(
             p.eff.smoothness,

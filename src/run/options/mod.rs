@@ -7,11 +7,13 @@ use crate::transport::brdf::BasisBrdf;
 use crate::{Error, Result, Vec3};
 use std::path::PathBuf;
 
+mod achromatic;
 mod large_mesh;
 mod light_by_scene;
 mod smoothness;
 mod values;
 mod weights_bic;
+pub use achromatic::{achromatic_for, Achromatic, ACHROMATIC_FROM_MATERIALS};
 pub use large_mesh::{LargeMeshSettings, LARGE_MESH};
 pub use light_by_scene::{scene_light, FitShape, CONSTRAINED_FROM_MATERIALS, PRIOR_FROM_PHOTOS};
 pub(crate) use smoothness::smoothness_base;
@@ -131,8 +133,9 @@ pub struct RunOptions {
     /// lobes, photos and materials ([`PriorStrength::Auto`], [`weights_bic_for`]).
     pub weights_bic: PriorStrength,
     /// One specular weight per material across R, G and B
-    /// ([`EstimateOptions::achromatic_specular`]).
-    pub achromatic_specular: bool,
+    /// ([`EstimateOptions::achromatic_specular`]), or by the fit's materials and lobes
+    /// ([`Achromatic::Auto`], [`achromatic_for`]).
+    pub achromatic_specular: Achromatic,
     /// Fraction of the training observations held back, seeded, for early stopping
     /// ([`EstimateOptions::validation_fraction`]; 0 = off: the last iterate is returned).
     pub validation: f64,
@@ -332,7 +335,7 @@ impl RunOptions {
             weights_sum_scope: SumScope::Every,
             weights_smoothness: WeightsSmoothness::Auto,
             weights_bic: PriorStrength::Auto,
-            achromatic_specular: false,
+            achromatic_specular: Achromatic::Auto,
             validation: EstimateOptions::default().validation_fraction,
             validation_block: 0,
             validation_halves: 0,

@@ -192,11 +192,12 @@ pub fn lambda_step(
         cond[c] = if lo > 0.0 { hi / lo } else { f64::INFINITY };
     }
     let sol = match coupling.achromatic_except {
-        Some(lb) => {
+        // With the Lambertian lobe alone nothing is tied: the channels stay independent.
+        Some(lb) if nb > 1 => {
             let tied: Vec<bool> = (0..m).map(|i| i % nb != lb).collect();
             solve_tied(&sys, &tied)?
         }
-        None => {
+        _ => {
             let mut out = vec![[0.0; 3]; m];
             for c in 0..3 {
                 let x = nnls(&sys[c].0, &sys[c].1, &NnlsOptions::default()).map_err(|e| {
