@@ -44,22 +44,16 @@ fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
 }
 
 /// The specular lobes' colour, when the fit has any besides the Lambertian one and the
-/// flag was given.
+/// flag was given (with `auto` the fit's reasons say it, [`super::achromatic_for`]).
 fn specular_note(opts: &RunOptions, fitted: &Fitted) -> Option<String> {
-    // With `auto` the fit's reasons say it (`achromatic_for`).
-    if fitted.basis.len() < 2 || opts.achromatic_specular == super::Achromatic::Auto {
+    if fitted.basis.len() < 2 {
         return None;
     }
-    let flag = match opts.achromatic_specular {
-        super::Achromatic::Auto => "auto",
-        super::Achromatic::On => "on",
-        super::Achromatic::Off => "off",
-    };
-    Some(if fitted.estimate_options.achromatic_specular {
-        format!("specular lobes achromatic (--achromatic-specular {flag}): one specular weight per material for R, G and B, the colour in the diffuse lobe, as for dielectrics (docs/method.md, \"Achromatic specular lobes\")")
-    } else {
-        format!("specular lobes coloured (--achromatic-specular {flag}): each channel's specular weight free")
-    })
+    match opts.achromatic_specular {
+        super::Achromatic::Auto => None,
+        super::Achromatic::On => Some("specular lobes achromatic (--achromatic-specular on): one specular weight per material for R, G and B, the colour in the diffuse lobe, as for dielectrics (docs/method.md, \"Achromatic specular lobes\")".to_string()),
+        super::Achromatic::Off => Some("specular lobes coloured (--achromatic-specular off): each channel's specular weight free".to_string()),
+    }
 }
 
 /// The report's notes on the fit: ill-conditioned solves, the starts tried, the scale

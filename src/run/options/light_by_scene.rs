@@ -109,19 +109,19 @@ impl FitShape<'_> {
     /// Two or more materials over the Lambertian lobe alone, from [`PRIOR_FROM_PHOTOS`]
     /// training photos: the albedo ratios between materials that many free maps can move.
     fn many_maps_over_lambert(&self) -> bool {
-        matches!(self.basis, [BasisBrdf::Lambert])
-            && self.materials.is_some_and(|k| k >= 2)
-            && self.photos >= PRIOR_FROM_PHOTOS
+        matches!(self.basis, [BasisBrdf::Lambert]) && self.many_maps(2)
     }
 
     /// [`CONSTRAINED_FROM_MATERIALS`] or more materials with a shiny lobe, from
     /// [`PRIOR_FROM_PHOTOS`] training photos: the fit `--light constrained` serves.
     fn many_maps_many_materials(&self) -> bool {
-        !matches!(self.basis, [BasisBrdf::Lambert])
-            && self
-                .materials
-                .is_some_and(|k| k >= CONSTRAINED_FROM_MATERIALS)
-            && self.photos >= PRIOR_FROM_PHOTOS
+        !matches!(self.basis, [BasisBrdf::Lambert]) && self.many_maps(CONSTRAINED_FROM_MATERIALS)
+    }
+
+    /// At least `least_materials` materials (known) and [`PRIOR_FROM_PHOTOS`] training
+    /// photos.
+    fn many_maps(&self, least_materials: usize) -> bool {
+        self.materials.is_some_and(|k| k >= least_materials) && self.photos >= PRIOR_FROM_PHOTOS
     }
 }
 
