@@ -223,9 +223,9 @@ pub struct EstimateOptions {
     pub weights_bic: f64,
     /// Overexposed observations' clipped channels read as lower bounds (issue 25, not in
     /// the paper): each takes its confidence [`crate::observe::Observations::bound_weight`]
-    /// and a one-sided data term ([`crate::solve::light::photo::censor`]) in the fit, with
-    /// the paper's per-photo map (the sun-and-sky and shared models leave them out). Off,
-    /// an overexposed observation has no weight, as in the paper.
+    /// and a one-sided data term (`solve::light::bounds::censor`) in the fit, under
+    /// every light model (the sun and sky and the shared light re-read the active set before
+    /// each of their passes). Off, an overexposed observation has no weight, as in the paper.
     pub clipped_bounds: bool,
     /// The vertex graph of [`Self::weights_smoothness`]; empty = off.
     pub weights_graph: std::sync::Arc<crate::solve::materials::propagate::VertexGraph>,

@@ -26,8 +26,8 @@ pub(crate) struct RunArgs {
     #[arg(long, default_value_t = 250.0, help_heading = "Input")]
     pub(crate) clip: f32,
     /// What an overexposed pixel tells the fit: `drop` (nothing, the paper), `bound` (its
-    /// clipped channels are lower bounds of the radiance, its other channels values; with
-    /// the paper's per-photo map, with or without `--light prior`), or `auto` (`bound` when
+    /// clipped channels are lower bounds of the radiance, its other channels values; every
+    /// light model reads them), or `auto` (`bound` when
     /// a fifth or more of the training observations have a clipped channel).
     #[arg(long, default_value = "auto", value_parser = ["auto", "drop", "bound"], help_heading = "Input")]
     pub(crate) clipped: String,
