@@ -67,7 +67,11 @@
 //! `sh-ratio` (`run --restart irradiance`'s start) reads, `run`'s 0.95,
 //! `ABLATION_SH_TRUTH=1|only` its diagnosis over the true and the fitted pure vertices,
 //! `only` stopping after it, with `ABLATION_SH_BLOCKS=r,…` the coarse-light
-//! model's too; `coarse-light` is `run --restart coarse-light`, the lights
+//! model's too (over the pure vertices, on the photos, exact data and exact data plus the
+//! photos' residuals with random signs; `ABLATION_SH_BLOCKS_ERODED=1` for the eroded
+//! regions too, `ABLATION_SH_DIM=X` also with every observation whose brightest channel
+//! reaches `X` left out, `ABLATION_SH_MIX=s,…` the blend model over every observation with
+//! the weights mixed with their neighbours' by each `s`, `ablation/defaults/mixture.rs`); `coarse-light` is `run --restart coarse-light`, the lights
 //! fitted again with the start's materials held, `coarse-light-free` a free second fit
 //! from the same start; without one, the row makes `run --restart auto`'s second fit,
 //! `ABLATION_DEFAULTS_RESTART=off` none; `reanchor-coarse` is `run --restart

@@ -62,6 +62,10 @@ pub(super) fn sh_truth_diagnosis(
                 w = eroded(&w, &graph, kt);
             }
             if rings == 0 {
+                mixture_diagnosis(case, source, &exact_obs, (seen, &w, &order), &graph);
+            }
+            if rings == 0 || std::env::var("ABLATION_SH_BLOCKS_ERODED").is_ok() {
+                eprintln!("sh-blocks {source}: eroded {rings}");
                 block_light_diagnosis(case, source, &exact_obs, (seen, &w, &order));
             }
             let mut data = vec![("photos", &case.train.obs)];
@@ -74,6 +78,38 @@ pub(super) fn sh_truth_diagnosis(
                     "sh-truth {source} eroded {rings} {label}: {rows} rows, worst ratio per channel {errs:.3?}"
                 );
             }
+        }
+    }
+}
+
+/// `ABLATION_SH_MIX=s,…`: [`super::mixture`]'s model over every seen observation with the
+/// weights `w` mixed with their neighbours' by each `s`, 8 × 8 blocks, on the photos and,
+/// for the TRUE weights, on the exact data.
+fn mixture_diagnosis(
+    case: &Case,
+    source: &str,
+    exact: &relight_cpc::observe::Observations,
+    (seen, w, order): (&[bool], &[f64], &[usize]),
+    graph: &relight_cpc::solve::materials::propagate::VertexGraph,
+) {
+    let Ok(list) = std::env::var("ABLATION_SH_MIX") else {
+        return;
+    };
+    let kk = order.len();
+    for s in list
+        .split(',')
+        .map(|v| v.parse::<f64>().expect("a mixing share"))
+    {
+        let ws = super::mixture::smoothed(w, graph, kk, s);
+        let mut data = vec![("photos", &case.train.obs)];
+        if source == "truth" {
+            data.push(("exact", exact));
+        }
+        for (label, obs) in data {
+            let rho =
+                super::mixture::mixture_albedos(obs, &case.train.transport, (seen, &ws, kk), 8);
+            let errs = worst_ratio_errors(case, |k, c| rho[c][k], order);
+            eprintln!("sh-mix {source} s={s} {label}: worst ratio per channel {errs:.3?}");
         }
     }
 }
@@ -201,9 +237,26 @@ fn block_light_diagnosis(
         .split(',')
         .map(|v| v.parse::<usize>().expect("a block side"))
     {
+        let flipped = flipped_residuals(&case.train.obs, exact);
+        let dim: Option<f32> = std::env::var("ABLATION_SH_DIM")
+            .ok()
+            .and_then(|v| v.parse().ok());
+        let dimmed = dim.map(|x| {
+            (
+                dim_only(&case.train.obs, x),
+                dim_only_as(exact, &case.train.obs, x),
+            )
+        });
         let mut data = vec![("photos", &case.train.obs)];
         if source == "truth" {
             data.push(("exact", exact));
+            data.push(("exact+flipped", &flipped));
+        }
+        if let Some((p, e)) = &dimmed {
+            data.push(("photos dim", p));
+            if source == "truth" {
+                data.push(("exact dim", e));
+            }
         }
         for (label, obs) in data {
             let (rows, errs) = block_light_ratio_errors(case, obs, (seen, w, order), r);
@@ -212,6 +265,50 @@ fn block_light_diagnosis(
             );
         }
     }
+}
+
+/// The exact data plus the photos' own residual `y − ŷ` with a random sign per observation
+/// and channel: noise of the photos' size and place with its systematic part removed.
+fn flipped_residuals(
+    photos: &relight_cpc::observe::Observations,
+    exact: &relight_cpc::observe::Observations,
+) -> relight_cpc::observe::Observations {
+    let mut out = exact.clone();
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    for (p, y) in out.rgb.iter_mut().enumerate() {
+        for c in 0..3 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let sign = if state & 1 == 0 { 1.0 } else { -1.0 };
+            y[c] += sign * (photos.rgb[p][c] - exact.rgb[p][c]);
+        }
+    }
+    out
+}
+
+/// `obs` with every observation whose brightest channel reaches `x` (linear) given no
+/// weight: far from the clip level, so clipping selects none of those left.
+fn dim_only(
+    obs: &relight_cpc::observe::Observations,
+    x: f32,
+) -> relight_cpc::observe::Observations {
+    dim_only_as(obs, obs, x)
+}
+
+/// `obs` masked where `photos`' brightest channel reaches `x`.
+fn dim_only_as(
+    obs: &relight_cpc::observe::Observations,
+    photos: &relight_cpc::observe::Observations,
+    x: f32,
+) -> relight_cpc::observe::Observations {
+    let mut out = obs.clone();
+    for (p, y) in photos.rgb.iter().enumerate() {
+        if y.iter().any(|&v| v >= x) {
+            out.mask_out(p);
+        }
+    }
+    out
 }
 
 /// `ABLATION_SH_BLOCKS=r,…`: the worst ratio per channel of `run --restart coarse-light`'s

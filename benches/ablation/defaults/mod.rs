@@ -24,6 +24,7 @@
 
 mod diagnosis;
 mod light;
+mod mixture;
 mod second;
 mod start_probes;
 

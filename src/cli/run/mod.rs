@@ -225,8 +225,9 @@ pub(crate) struct RunArgs {
     /// with each material's Lambertian colour ratios fitted by a low-order irradiance model
     /// over the vertices one material holds that see most of the sky (Lambertian
     /// materials). `coarse-light`: the ratios fitted with each photo's light a coarse
-    /// non-negative map seen through the vertices' shadows, over every vertex one material
-    /// holds, and the lights fitted again with those materials held, over the fit's
+    /// non-negative map seen through the vertices' shadows, over every seen vertex with
+    /// the fit's blend of the materials, and the lights fitted again with those materials
+    /// held, over the fit's
     /// weights and over them re-sorted; with a shiny lobe, each tied to its material's
     /// diffuse one by the fit's ratio, one held fit over the fit's weights re-sorted on the
     /// model's materials. `on+coarse-light`: `on`, then `coarse-light` from the fit kept.

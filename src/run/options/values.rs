@@ -158,7 +158,9 @@ pub enum Restart {
     Irradiance,
     /// From the fit's weights normalised and each material's Lambertian ratios fitted with
     /// each photo's light a coarse non-negative map seen through the Lambertian transport,
-    /// over its pure seen vertices, the lights fitted again with those materials held,
+    /// over every seen observation with the fit's blend of the materials
+    /// ([`crate::solve::materials::coarse_light_blend`]), the lights fitted again with
+    /// those materials held,
     /// over the fit's weights and over them re-sorted (`coarse-light`,
     /// [`crate::solve::materials::coarse_light`]). Over a basis with shiny lobes, each tied
     /// to its material's diffuse lobe by the fit's ratio, one held fit over the fit's

@@ -25,6 +25,12 @@
 //! ([`BLOCKS`] = 8: 64 blocks of the map, each about π/16 sr) so that the light cannot
 //! follow each material's region.
 //!
+//! Over the Lambertian lobe alone `run` reads the model over every seen observation, each
+//! with the first fit's blend of the materials ([`super::coarse_light_blend`]): next to
+//! another material a pixel mixes in its colour, which the pure-vertex rows here read as
+//! the vertex's own. Those rows serve the tied model over a shiny basis
+//! ([`super::coarse_light_shiny`]).
+//!
 //! `run` fits the lights again with the start's materials held ([`held_fit_options`]; a
 //! free second fit moves the ratios through the weights), from the first fit's lights,
 //! twice: over the first fit's weights and over them re-sorted on its own re-anchored
@@ -48,6 +54,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::observe::Observations;
 use crate::solve::materials::bilinear::{self, ModelRow};
+use crate::solve::materials::coarse_light_blend::{self, BlendRow};
 use crate::solve::materials::irradiance::{
     normalised_weights, pure_rows, snap_pure, start_from_albedos,
 };
@@ -197,18 +204,18 @@ pub fn coarse_light_albedos(
 }
 
 /// The restart's start ([`start_from_albedos`]) with each material's Lambertian ratios
-/// from [`coarse_light_albedos`] over `rows`. `None` when the rows leave a material
-/// without observations.
+/// from the blend model over `rows` ([`coarse_light_blend::blend_albedos`]). `None` when
+/// the rows leave a material that no row holds the most of.
 pub fn coarse_light_start(
     lambda: &[Vec<[f64; 3]>],
     weights: Vec<f64>,
     lambert: usize,
-    rows: &[ModelRow],
+    rows: &[BlendRow],
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
-    let read = rows.iter().map(|r| r.material);
+    let read = coarse_light_blend::dominant_materials(rows);
     start_from_albedos(lambda, weights, lambert, read, |c, first| {
-        coarse_light_albedos(rows, c, n_photos, first)
+        coarse_light_blend::blend_albedos(rows, c, n_photos, first)
     })
 }
 
@@ -240,7 +247,7 @@ impl CoarseStarts {
         vec![
             reanchor::StepStart {
                 from: self.fit_weights,
-                what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over its pure seen vertices, and the lights fitted again with those materials held",
+                what: "the fit's weights with each material's Lambertian colour ratios fitted with each photo's light a coarse non-negative map over every seen observation with the fit's blend, and the lights fitted again with those materials held",
                 within: None,
                 keep: reanchor::Keep::SecondWithinOneSe,
             },
@@ -255,14 +262,15 @@ impl CoarseStarts {
 }
 
 /// [`CoarseStarts`] of the first fit `(lambda, weights)` (`weights` as fitted, `V × K`;
-/// `seen` the vertices with training observations). `None` when the rows leave a material
-/// without observations.
+/// `seen` the vertices with training observations; `rows` its observations with the
+/// fit's blends, [`coarse_light_blend::seen_blend_rows`]). `None` when the rows leave a
+/// material that no row holds the most of.
 pub fn coarse_light_starts(
     lambda: &[Vec<[f64; 3]>],
     weights: &[f64],
     seen: &[bool],
     lambert: usize,
-    rows: &[ModelRow],
+    rows: &[BlendRow],
     n_photos: usize,
 ) -> Result<Option<CoarseStarts>> {
     let kk = lambda.len();
@@ -283,9 +291,11 @@ pub fn coarse_light_starts(
 /// The coarse-light restart's starts from the first fit `(lambda, weights)` of `problem`
 /// (`weights` as fitted; `seen` the vertices with training observations; `lambert` the
 /// Lambertian basis's index in `problem.transport`), the model read over [`BLOCKS`] per
-/// side: over the Lambertian lobe alone the two of [`CoarseStarts`], over a basis with
-/// shiny lobes the one of [`super::coarse_light_shiny`]. None when a material holds no
-/// pure seen vertex.
+/// side: over the Lambertian lobe alone the two of [`CoarseStarts`] (the model read over
+/// every seen observation with the fit's blends, [`super::coarse_light_blend`]), over a
+/// basis with shiny lobes the one of [`super::coarse_light_shiny`] (pure seen vertices).
+/// None when a material holds no pure seen vertex, or over the Lambertian lobe alone no
+/// vertex it holds the most of.
 pub fn restart_starts(
     problem: &Problem,
     lambda: &[Vec<[f64; 3]>],
@@ -308,7 +318,7 @@ pub fn restart_starts(
         let m = tied_start(&input, lambda, weights, problem.n_photos)?;
         return Ok(m.map_or_else(Vec::new, |m| vec![tied_step(m)]));
     }
-    let rows = pure_seen_rows(&input);
+    let rows = coarse_light_blend::seen_blend_rows(&input);
     let m = coarse_light_starts(lambda, weights, seen, lambert, &rows, problem.n_photos)?;
     Ok(m.map_or_else(Vec::new, CoarseStarts::into_steps))
 }

@@ -36,6 +36,7 @@ use crate::{Error, Result};
 pub mod bilinear;
 pub mod brightness;
 pub mod coarse_light;
+pub mod coarse_light_blend;
 pub mod coarse_light_shiny;
 pub mod irradiance;
 pub mod propagate;

@@ -1,0 +1,56 @@
+//! `ABLATION_SH_MIX=s,…` (probe): the coarse-light model read over every seen observation
+//! with its vertex's blend of the materials instead of the pure vertices alone,
+//!
+//! `y_{p,c} = (Σ_k w̃_{p,k} ρ_{k,c}) a_pᵀ b_{I,c}`, `b_{I,c} ≥ 0`,
+//!
+//! with `w̃_x = (1 − s) w_x + s · mean_{y ∈ N(x)} w_y` (the 8 nearest vertices): a pixel
+//! around vertex `x` sees the surface between `x` and its neighbours, whose reflectance
+//! the renderer interpolates between the vertices, so a vertex pure in the model is not
+//! pure in its photos next to another material. The model is the library's
+//! ([`relight_cpc::solve::materials::coarse_light_blend`]); `s` = 0 is what `run` reads.
+
+use relight_cpc::observe::Observations;
+use relight_cpc::solve::materials::coarse_light::CoarseRowsInput;
+use relight_cpc::solve::materials::coarse_light_blend;
+use relight_cpc::solve::materials::propagate::VertexGraph;
+use relight_cpc::transport::Transport;
+
+/// `w` (`V × K`, each row summing to 1 or 0) mixed with its neighbours' mean by `s`.
+pub(super) fn smoothed(w: &[f64], graph: &VertexGraph, kk: usize, s: f64) -> Vec<f64> {
+    let mut out = w.to_vec();
+    for x in 0..w.len() / kk {
+        let nb = graph.neighbours(x);
+        if nb.is_empty() {
+            continue;
+        }
+        for k in 0..kk {
+            let mean = nb.iter().map(|&y| w[y as usize * kk + k]).sum::<f64>() / nb.len() as f64;
+            out[x * kk + k] = (1.0 - s) * w[x * kk + k] + s * mean;
+        }
+    }
+    out
+}
+
+/// Each channel's albedos of the library's blend model
+/// ([`relight_cpc::solve::materials::coarse_light_blend`]) over the fitted observations
+/// of the seen vertices with the weights `w`, `r × r` blocks.
+pub(super) fn mixture_albedos(
+    obs: &Observations,
+    t: &Transport,
+    (seen, w, kk): (&[bool], &[f64], usize),
+    r: usize,
+) -> [Vec<f64>; 3] {
+    let rows = coarse_light_blend::seen_blend_rows(&CoarseRowsInput {
+        obs,
+        transport: t,
+        seen,
+        weights: w,
+        materials: kk,
+        lambert: 0,
+        blocks: r,
+    });
+    let n_photos = obs.photo_ranges.len();
+    [0, 1, 2].map(|c| {
+        coarse_light_blend::blend_albedos(&rows, c, n_photos, &vec![1.0; kk]).expect("finite rows")
+    })
+}
