@@ -323,15 +323,8 @@ fn block_light_ratio_errors(
 ) -> (usize, [f64; 3]) {
     use relight_cpc::solve::materials::coarse_light;
     let kk = order.len();
-    let rows = coarse_light::pure_seen_rows(&coarse_light::CoarseRowsInput {
-        obs,
-        transport: &case.train.transport,
-        seen,
-        weights: w,
-        materials: kk,
-        lambert: 0,
-        blocks: r,
-    });
+    let input = super::mixture::rows_input(obs, &case.train.transport, (seen, w, kk), r);
+    let rows = coarse_light::pure_seen_rows(&input);
     let n_photos = obs.photo_ranges.len();
     let rho: Vec<Vec<f64>> = (0..3)
         .map(|c| {

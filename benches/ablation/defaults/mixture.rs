@@ -40,7 +40,22 @@ pub(super) fn mixture_albedos(
     (seen, w, kk): (&[bool], &[f64], usize),
     r: usize,
 ) -> [Vec<f64>; 3] {
-    let rows = coarse_light_blend::seen_blend_rows(&CoarseRowsInput {
+    let rows = coarse_light_blend::seen_blend_rows(&rows_input(obs, t, (seen, w, kk), r));
+    let n_photos = obs.photo_ranges.len();
+    [0, 1, 2].map(|c| {
+        coarse_light_blend::blend_albedos(&rows, c, n_photos, &vec![1.0; kk]).expect("finite rows")
+    })
+}
+
+/// What the coarse-light models read: `obs` through `t` (the Lambertian basis first), the
+/// seen vertices' normalised weights `w` (`V × K`), `r × r` blocks.
+pub(super) fn rows_input<'a>(
+    obs: &'a Observations,
+    t: &'a Transport,
+    (seen, w, kk): (&'a [bool], &'a [f64], usize),
+    r: usize,
+) -> CoarseRowsInput<'a> {
+    CoarseRowsInput {
         obs,
         transport: t,
         seen,
@@ -48,9 +63,5 @@ pub(super) fn mixture_albedos(
         materials: kk,
         lambert: 0,
         blocks: r,
-    });
-    let n_photos = obs.photo_ranges.len();
-    [0, 1, 2].map(|c| {
-        coarse_light_blend::blend_albedos(&rows, c, n_photos, &vec![1.0; kk]).expect("finite rows")
-    })
+    }
 }
