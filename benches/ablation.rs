@@ -497,6 +497,9 @@ fn floors(case: &Case) -> Floors {
     let left = left_half(case);
     let (_, seen) = relight_cpc::run::mean_colours(&case.train.obs, case.nv);
     let truth_held = true_prediction(case, &case.held);
+    if env_flag("ABLATION_FLOOR_FLIP") {
+        true_light::floor_sources(case, &seen);
+    }
     Floors {
         heldout: half_error(case, &case.lambda, &case.weights, &left),
         relit: rel_rmse_per_channel(&case.held.obs, &truth_held),

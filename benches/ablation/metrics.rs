@@ -398,3 +398,23 @@ pub fn rescaled_accuracy(case: &Case, est: &Estimate, seen: &[bool]) -> String {
         best.0
     )
 }
+
+/// The exact data plus the photos' own residual `y − ŷ` with a random sign per observation
+/// and channel: noise of the photos' size and place with its systematic part removed.
+pub fn flipped_residuals(
+    photos: &relight_cpc::observe::Observations,
+    exact: &relight_cpc::observe::Observations,
+) -> relight_cpc::observe::Observations {
+    let mut out = exact.clone();
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    for (p, y) in out.rgb.iter_mut().enumerate() {
+        for c in 0..3 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let sign = if state & 1 == 0 { 1.0 } else { -1.0 };
+            y[c] += sign * (photos.rgb[p][c] - exact.rgb[p][c]);
+        }
+    }
+    out
+}

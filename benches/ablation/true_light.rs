@@ -59,15 +59,22 @@ pub fn worst(r: [f64; 3]) -> f64 {
 
 /// The three fits of the module docs; `seen`: the vertices the ratios are taken over.
 pub fn ratio_floor(case: &Case, seen: &[bool]) -> RatioFloor {
-    let problem = case.train.problem(case.nv);
+    ratio_floor_of(case, &case.train.obs, seen)
+}
+
+/// [`ratio_floor`] with the training photos' colours read from `obs` (the same
+/// observations).
+fn ratio_floor_of(
+    case: &Case,
+    obs: &relight_cpc::observe::Observations,
+    seen: &[bool],
+) -> RatioFloor {
+    let problem = relight_cpc::solve::Problem {
+        obs,
+        ..case.train.problem(case.nv)
+    };
     let s = basis_responses(&problem, &case.train.lights);
-    let dw: Vec<[f64; 3]> = case
-        .train
-        .obs
-        .weight
-        .iter()
-        .map(|&a| [f64::from(a); 3])
-        .collect();
+    let dw: Vec<[f64; 3]> = obs.weight.iter().map(|&a| [f64::from(a); 3]).collect();
     let kk = case.lambda.len();
     let coupling = LambdaCoupling {
         achromatic_except: None,
@@ -120,4 +127,21 @@ pub fn describe(f: &RatioFloor) -> String {
         f.accuracy_from_truth,
         f.accuracy_true_lambda
     )
+}
+
+/// `ABLATION_FLOOR_FLIP=1`: the ratio floor's fit from the truth on the exact data (the
+/// true model through the case's transport at the same observations) and on the exact
+/// data plus the photos' residuals with random signs ([`crate::metrics::flipped_residuals`]):
+/// whether what the photos cost the floor is noise or systematic.
+pub fn floor_sources(case: &Case, seen: &[bool]) {
+    let mut exact = case.train.obs.clone();
+    replace_colours(&mut exact, &true_prediction(case, &case.train));
+    let flipped = crate::metrics::flipped_residuals(&case.train.obs, &exact);
+    for (label, obs) in [("exact", &exact), ("exact+flipped", &flipped)] {
+        let f = ratio_floor_of(case, obs, seen);
+        eprintln!(
+            "  floor on {label}: from the truth R / G / B {:.3?}, accuracy {:.4}",
+            f.from_truth, f.accuracy_from_truth
+        );
+    }
 }

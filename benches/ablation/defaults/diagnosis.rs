@@ -237,7 +237,7 @@ fn block_light_diagnosis(
         .split(',')
         .map(|v| v.parse::<usize>().expect("a block side"))
     {
-        let flipped = flipped_residuals(&case.train.obs, exact);
+        let flipped = crate::metrics::flipped_residuals(&case.train.obs, exact);
         let dim: Option<f32> = std::env::var("ABLATION_SH_DIM")
             .ok()
             .and_then(|v| v.parse().ok());
@@ -265,26 +265,6 @@ fn block_light_diagnosis(
             );
         }
     }
-}
-
-/// The exact data plus the photos' own residual `y − ŷ` with a random sign per observation
-/// and channel: noise of the photos' size and place with its systematic part removed.
-fn flipped_residuals(
-    photos: &relight_cpc::observe::Observations,
-    exact: &relight_cpc::observe::Observations,
-) -> relight_cpc::observe::Observations {
-    let mut out = exact.clone();
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    for (p, y) in out.rgb.iter_mut().enumerate() {
-        for c in 0..3 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let sign = if state & 1 == 0 { 1.0 } else { -1.0 };
-            y[c] += sign * (photos.rgb[p][c] - exact.rgb[p][c]);
-        }
-    }
-    out
 }
 
 /// `obs` with every observation whose brightest channel reaches `x` (linear) given no
