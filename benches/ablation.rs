@@ -92,7 +92,9 @@
 //! `ABLATION_ACCURACY_MISSES=1` (where the `defaults` row's material-accuracy misses are,
 //! [`metrics::accuracy_misses`]), `ABLATION_TAIL=1` (the share of each material's seen
 //! pure vertices far off its median albedo, facing down and not, for the true maps and the
-//! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_LAMBDA=1` (every fit's `λ` per
+//! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_FLOOR_FLIP=1` (the ratio floor's fit
+//! from the truth on exact data and on exact data plus the photos' residuals with random
+//! signs, [`true_light::floor_sources`]), `ABLATION_LAMBDA=1` (every fit's `λ` per
 //! material and lobe against the truth's, after the per-channel scale of the diffuse
 //! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
 //! start with every lobe but the Lambertian one at `X` times its `λ`: with
