@@ -418,3 +418,24 @@ pub fn flipped_residuals(
     }
     out
 }
+
+/// `w` (`V × K`, each row summing to 1 or 0) mixed with its neighbours' mean by `s`.
+pub fn smoothed(
+    w: &[f64],
+    graph: &relight_cpc::solve::materials::propagate::VertexGraph,
+    kk: usize,
+    s: f64,
+) -> Vec<f64> {
+    let mut out = w.to_vec();
+    for x in 0..w.len() / kk {
+        let nb = graph.neighbours(x);
+        if nb.is_empty() {
+            continue;
+        }
+        for k in 0..kk {
+            let mean = nb.iter().map(|&y| w[y as usize * kk + k]).sum::<f64>() / nb.len() as f64;
+            out[x * kk + k] = (1.0 - s) * w[x * kk + k] + s * mean;
+        }
+    }
+    out
+}

@@ -132,11 +132,23 @@ pub fn describe(f: &RatioFloor) -> String {
 /// `ABLATION_FLOOR_FLIP=1`: the ratio floor's fit from the truth on the exact data (the
 /// true model through the case's transport at the same observations) and on the exact
 /// data plus the photos' residuals with random signs ([`crate::metrics::flipped_residuals`]):
-/// whether what the photos cost the floor is noise or systematic.
+/// whether what the photos cost the floor is noise or systematic. Before them, one `λ` step
+/// with the TRUE weights mixed with their 8 nearest vertices' by 0, 0.15 and 0.3: whether
+/// reading each pixel as a blend with the neighbours lowers it.
 pub fn floor_sources(case: &Case, seen: &[bool]) {
     let mut exact = case.train.obs.clone();
     replace_colours(&mut exact, &true_prediction(case, &case.train));
     let flipped = crate::metrics::flipped_residuals(&case.train.obs, &exact);
+    let graph = relight_cpc::solve::materials::propagate::knn_graph(&case.positions, 8)
+        .expect("the vertex graph");
+    for s in [0.0, 0.15, 0.3] {
+        let w = crate::metrics::smoothed(&case.weights, &graph, case.lambda.len(), s);
+        let lambda = lambda_with(case, &case.train.obs, &w);
+        eprintln!(
+            "  floor's λ step on the photos with the TRUE weights mixed with their neighbours' by {s}: R / G / B {:.3?}",
+            ratio_errors(case, &lambda, &case.weights, seen)
+        );
+    }
     for (label, obs) in [("exact", &exact), ("exact+flipped", &flipped)] {
         let f = ratio_floor_of(case, obs, seen);
         eprintln!(
@@ -144,4 +156,33 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
             f.from_truth, f.accuracy_from_truth
         );
     }
+}
+
+/// One `λ` step under the true maps with the weights `w` held, the colours from `obs`.
+fn lambda_with(
+    case: &Case,
+    obs: &relight_cpc::observe::Observations,
+    w: &[f64],
+) -> Vec<Vec<[f64; 3]>> {
+    let problem = relight_cpc::solve::Problem {
+        obs,
+        ..case.train.problem(case.nv)
+    };
+    let s = basis_responses(&problem, &case.train.lights);
+    let dw: Vec<[f64; 3]> = obs.weight.iter().map(|&a| [f64::from(a); 3]).collect();
+    let coupling = LambdaCoupling {
+        achromatic_except: None,
+    };
+    lambda_step(
+        &problem,
+        &s,
+        w,
+        case.lambda.len(),
+        &dw,
+        None,
+        1e-8,
+        coupling,
+    )
+    .expect("λ step")
+    .lambda
 }

@@ -100,7 +100,7 @@ fn mixture_diagnosis(
         .split(',')
         .map(|v| v.parse::<f64>().expect("a mixing share"))
     {
-        let ws = super::mixture::smoothed(w, graph, kk, s);
+        let ws = crate::metrics::smoothed(w, graph, kk, s);
         let mut data = vec![("photos", &case.train.obs)];
         if source == "truth" {
             data.push(("exact", exact));

@@ -12,24 +12,7 @@
 use relight_cpc::observe::Observations;
 use relight_cpc::solve::materials::coarse_light::CoarseRowsInput;
 use relight_cpc::solve::materials::coarse_light_blend;
-use relight_cpc::solve::materials::propagate::VertexGraph;
 use relight_cpc::transport::Transport;
-
-/// `w` (`V × K`, each row summing to 1 or 0) mixed with its neighbours' mean by `s`.
-pub(super) fn smoothed(w: &[f64], graph: &VertexGraph, kk: usize, s: f64) -> Vec<f64> {
-    let mut out = w.to_vec();
-    for x in 0..w.len() / kk {
-        let nb = graph.neighbours(x);
-        if nb.is_empty() {
-            continue;
-        }
-        for k in 0..kk {
-            let mean = nb.iter().map(|&y| w[y as usize * kk + k]).sum::<f64>() / nb.len() as f64;
-            out[x * kk + k] = (1.0 - s) * w[x * kk + k] + s * mean;
-        }
-    }
-    out
-}
 
 /// Each channel's albedos of the library's blend model
 /// ([`relight_cpc::solve::materials::coarse_light_blend`]) over the fitted observations
