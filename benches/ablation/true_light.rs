@@ -134,7 +134,9 @@ pub fn describe(f: &RatioFloor) -> String {
 /// data plus the photos' residuals with random signs ([`crate::metrics::flipped_residuals`]):
 /// whether what the photos cost the floor is noise or systematic. Before them, one `λ` step
 /// with the TRUE weights mixed with their 8 nearest vertices' by 0, 0.15 and 0.3: whether
-/// reading each pixel as a blend with the neighbours lowers it.
+/// reading each pixel as a blend with the neighbours lowers it; and the same step without
+/// the observations the lobes other than the Lambertian one dominate (over 0.3, 0.1, 0.03
+/// of a channel's TRUE prediction).
 pub fn floor_sources(case: &Case, seen: &[bool]) {
     let mut exact = case.train.obs.clone();
     replace_colours(&mut exact, &true_prediction(case, &case.train));
@@ -146,6 +148,15 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
         let lambda = lambda_with(case, &case.train.obs, &w);
         eprintln!(
             "  floor's λ step on the photos with the TRUE weights mixed with their neighbours' by {s}: R / G / B {:.3?}",
+            ratio_errors(case, &lambda, &case.weights, seen)
+        );
+    }
+    for share in [0.3, 0.1, 0.03] {
+        let (obs, kept) = without_highlights(case, share);
+        let lambda = lambda_with(case, &obs, &case.weights);
+        eprintln!(
+            "  floor's λ step with the TRUE weights, observations whose true specular share is over {share} left out ({kept} of {} kept): R / G / B {:.3?}",
+            case.train.obs.weight.iter().filter(|&&a| a > 0.0).count(),
             ratio_errors(case, &lambda, &case.weights, seen)
         );
     }
@@ -185,4 +196,33 @@ fn lambda_with(
     )
     .expect("λ step")
     .lambda
+}
+
+/// The training observations with those whose TRUE prediction owes more than `share` of
+/// any channel to the lobes other than the Lambertian one given no weight, and how many
+/// fitted ones are left.
+fn without_highlights(case: &Case, share: f64) -> (relight_cpc::observe::Observations, usize) {
+    let problem = case.train.problem(case.nv);
+    let s = basis_responses(&problem, &case.train.lights);
+    let nb = problem.transport.n_basis;
+    let kk = case.lambda.len();
+    let mut obs = case.train.obs.clone();
+    for p in 0..obs.vertex.len() {
+        let x = obs.vertex[p] as usize;
+        let high = (0..3).any(|c| {
+            let part = |b: usize| -> f64 {
+                (0..kk)
+                    .map(|k| case.weights[x * kk + k] * case.lambda[k][b][c])
+                    .sum::<f64>()
+                    * s[p * nb + b][c]
+            };
+            let total: f64 = (0..nb).map(part).sum();
+            total > 0.0 && (total - part(0)) > share * total
+        });
+        if high {
+            obs.mask_out(p);
+        }
+    }
+    let kept = obs.weight.iter().filter(|&&a| a > 0.0).count();
+    (obs, kept)
 }
