@@ -94,8 +94,8 @@
 //! pure vertices far off its median albedo, facing down and not, for the true maps and the
 //! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_FLOOR_FLIP=1` (the ratio floor's fit
 //! from the truth on exact data and on exact data plus the photos' residuals with random
-//! signs, and one `λ` step with the TRUE weights mixed with their neighbours',
-//! [`true_light::floor_sources`]), `ABLATION_LAMBDA=1` (every fit's `λ` per
+//! signs, and one `λ` step with the TRUE weights mixed with their neighbours' and without
+//! the highlight-dominated observations, [`true_light::floor_sources`]), `ABLATION_LAMBDA=1` (every fit's `λ` per
 //! material and lobe against the truth's, after the per-channel scale of the diffuse
 //! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
 //! start with every lobe but the Lambertian one at `X` times its `λ`: with
