@@ -136,7 +136,7 @@ pub fn describe(f: &RatioFloor) -> String {
 /// with the TRUE weights mixed with their 8 nearest vertices' by 0, 0.15 and 0.3: whether
 /// reading each pixel as a blend with the neighbours lowers it; and the same step without
 /// the observations the lobes other than the Lambertian one dominate (over 0.3, 0.1, 0.03
-/// of a channel's TRUE prediction).
+/// of a channel's TRUE prediction), or with each weighed by `(1 − share)^q`, `q` = 1, 2, 4.
 pub fn floor_sources(case: &Case, seen: &[bool]) {
     let mut exact = case.train.obs.clone();
     replace_colours(&mut exact, &true_prediction(case, &case.train));
@@ -157,6 +157,14 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
         eprintln!(
             "  floor's λ step with the TRUE weights, observations whose true specular share is over {share} left out ({kept} of {} kept): R / G / B {:.3?}",
             case.train.obs.weight.iter().filter(|&&a| a > 0.0).count(),
+            ratio_errors(case, &lambda, &case.weights, seen)
+        );
+    }
+    for power in [1, 2, 4] {
+        let obs = highlights_down(case, power);
+        let lambda = lambda_with(case, &obs, &case.weights);
+        eprintln!(
+            "  floor's λ step with the TRUE weights, each observation weighed by (1 − its true specular share)^{power}: R / G / B {:.3?}",
             ratio_errors(case, &lambda, &case.weights, seen)
         );
     }
@@ -202,27 +210,54 @@ fn lambda_with(
 /// any channel to the lobes other than the Lambertian one given no weight, and how many
 /// fitted ones are left.
 fn without_highlights(case: &Case, share: f64) -> (relight_cpc::observe::Observations, usize) {
-    let problem = case.train.problem(case.nv);
-    let s = basis_responses(&problem, &case.train.lights);
-    let nb = problem.transport.n_basis;
-    let kk = case.lambda.len();
+    let shares = specular_shares(case);
     let mut obs = case.train.obs.clone();
-    for p in 0..obs.vertex.len() {
-        let x = obs.vertex[p] as usize;
-        let high = (0..3).any(|c| {
-            let part = |b: usize| -> f64 {
-                (0..kk)
-                    .map(|k| case.weights[x * kk + k] * case.lambda[k][b][c])
-                    .sum::<f64>()
-                    * s[p * nb + b][c]
-            };
-            let total: f64 = (0..nb).map(part).sum();
-            total > 0.0 && (total - part(0)) > share * total
-        });
-        if high {
+    for (p, &sh) in shares.iter().enumerate() {
+        if sh > share {
             obs.mask_out(p);
         }
     }
     let kept = obs.weight.iter().filter(|&&a| a > 0.0).count();
     (obs, kept)
+}
+
+/// The training observations, each weighed by `(1 − σ_p)^power`, `σ_p` its TRUE specular
+/// share ([`specular_shares`]).
+fn highlights_down(case: &Case, power: i32) -> relight_cpc::observe::Observations {
+    let shares = specular_shares(case);
+    let mut obs = case.train.obs.clone();
+    for (a, sh) in obs.weight.iter_mut().zip(shares) {
+        *a *= (1.0 - sh).powi(power) as f32;
+    }
+    obs
+}
+
+/// Per training observation, the largest share of a channel's TRUE prediction owed to the
+/// lobes other than the Lambertian one.
+fn specular_shares(case: &Case) -> Vec<f64> {
+    let problem = case.train.problem(case.nv);
+    let s = basis_responses(&problem, &case.train.lights);
+    let nb = problem.transport.n_basis;
+    let kk = case.lambda.len();
+    (0..problem.obs.vertex.len())
+        .map(|p| {
+            let x = problem.obs.vertex[p] as usize;
+            (0..3)
+                .map(|c| {
+                    let part = |b: usize| -> f64 {
+                        (0..kk)
+                            .map(|k| case.weights[x * kk + k] * case.lambda[k][b][c])
+                            .sum::<f64>()
+                            * s[p * nb + b][c]
+                    };
+                    let total: f64 = (0..nb).map(part).sum();
+                    if total > 0.0 {
+                        (total - part(0)) / total
+                    } else {
+                        0.0
+                    }
+                })
+                .fold(0.0, f64::max)
+        })
+        .collect()
 }
