@@ -115,18 +115,23 @@ pub fn alternate(
     solve: &dyn Fn(DMatrix<f64>, DVector<f64>) -> Result<DVector<f64>>,
     stopping: Stopping,
 ) -> Result<Vec<f64>> {
-    let kk = rho0.len();
     let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-9)).collect();
     for _ in 0..stopping.max_rounds {
         let x = m.photo_unknowns(&rho, solve)?;
         let next = m.albedos(&x, &rho);
-        let moved = (1..kk)
-            .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
-            .fold(0.0, f64::max);
+        let moved = largest_ratio_move(&next, &rho);
         rho = next;
         if moved <= stopping.ratio_tol {
             break;
         }
     }
     Ok(rho)
+}
+
+/// The largest relative move of a ratio `ρ_k / ρ_0` from `rho` to `next` (what
+/// [`Stopping::ratio_tol`] bounds).
+pub fn largest_ratio_move(next: &[f64], rho: &[f64]) -> f64 {
+    (1..rho.len())
+        .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
+        .fold(0.0, f64::max)
 }

@@ -189,13 +189,7 @@ pub fn coarse_light_albedos(
     rho0: &[f64],
 ) -> Result<Vec<f64>> {
     let m = bilinear::PhotoMoments::of(rows, c, n_photos, rho0.len());
-    let non_negative = |mut ata: DMatrix<f64>, atb: DVector<f64>| {
-        let ridge = 1e-12 * ata.diagonal().max().max(f64::MIN_POSITIVE);
-        for d in 0..ata.nrows() {
-            ata[(d, d)] += ridge;
-        }
-        nnls(&ata, &atb, &NnlsOptions::default())
-    };
+    let non_negative = |ata, atb| ridged_nnls(ata, &atb);
     let stopping = bilinear::Stopping {
         max_rounds: MAX_ROUNDS,
         ratio_tol: RATIO_TOL,
@@ -203,8 +197,18 @@ pub fn coarse_light_albedos(
     bilinear::alternate(&m, rho0, &non_negative, stopping)
 }
 
+/// A photo's block light from its normal equations by NNLS, with a ridge of `10⁻¹²` times
+/// the largest diagonal entry (so a photo whose rows miss some blocks still solves).
+pub(crate) fn ridged_nnls(mut ata: DMatrix<f64>, atb: &DVector<f64>) -> Result<DVector<f64>> {
+    let ridge = 1e-12 * ata.diagonal().max().max(f64::MIN_POSITIVE);
+    for d in 0..ata.nrows() {
+        ata[(d, d)] += ridge;
+    }
+    nnls(&ata, atb, &NnlsOptions::default())
+}
+
 /// The restart's start ([`start_from_albedos`]) with each material's Lambertian ratios
-/// from the blend model over `rows` ([`coarse_light_blend::blend_albedos`]). `None` when
+/// from the blend model over `rows` ([`coarse_light_blend::BlendMoments::albedos`]). `None` when
 /// the rows leave a material that no row holds the most of.
 pub fn coarse_light_start(
     lambda: &[Vec<[f64; 3]>],
@@ -214,8 +218,9 @@ pub fn coarse_light_start(
     n_photos: usize,
 ) -> Result<Option<Materials0>> {
     let read = coarse_light_blend::dominant_materials(rows);
+    let model = coarse_light_blend::BlendMoments::of(rows, n_photos, lambda.len());
     start_from_albedos(lambda, weights, lambert, read, |c, first| {
-        coarse_light_blend::blend_albedos(rows, c, n_photos, first)
+        model.albedos(c, first)
     })
 }
 

@@ -28,10 +28,10 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::solve::materials::bilinear::largest_ratio_move;
 use crate::solve::materials::coarse_light::{
-    block_haar, row_block_responses, CoarseRowsInput, MAX_ROUNDS, RATIO_TOL,
+    block_haar, ridged_nnls, row_block_responses, CoarseRowsInput, MAX_ROUNDS, RATIO_TOL,
 };
-use crate::solve::qp::{nnls, NnlsOptions};
 use crate::Result;
 
 /// One observation the blend model reads: its photo, its vertex's normalised weights, its
@@ -76,20 +76,23 @@ pub fn dominant_materials(rows: &[BlendRow]) -> impl Iterator<Item = usize> + '_
         .filter_map(|r| r.weights.iter().position(|&w| w >= 0.5))
 }
 
-/// One channel's rows summed per photo and pair of materials (module docs).
-struct BlendMoments {
+/// The rows summed per photo and pair of materials (module docs): `G` once, `h` per
+/// channel, so the three channels' fits share the `O(rows · K² · d²)` pass.
+pub struct BlendMoments {
     materials: usize,
     /// `(photo · K + k) · K + l`.
     g: Vec<DMatrix<f64>>,
-    /// `photo · K + k`.
-    h: Vec<DVector<f64>>,
+    /// Per channel, `photo · K + k`.
+    h: [Vec<DVector<f64>>; 3],
 }
 
 impl BlendMoments {
-    fn of(rows: &[BlendRow], c: usize, n_photos: usize, kk: usize) -> BlendMoments {
+    /// The moments of `rows` (designs of one length) over `n_photos` photos and `kk`
+    /// materials.
+    pub fn of(rows: &[BlendRow], n_photos: usize, kk: usize) -> BlendMoments {
         let d = rows.first().map_or(0, |r| r.design.len());
         let mut g = vec![DMatrix::zeros(d, d); n_photos * kk * kk];
-        let mut h = vec![DVector::zeros(d); n_photos * kk];
+        let mut h = [0, 1, 2].map(|_| vec![DVector::zeros(d); n_photos * kk]);
         for r in rows {
             let a = DVector::from_column_slice(&r.design);
             let aat = &a * a.transpose();
@@ -97,7 +100,9 @@ impl BlendMoments {
                 for (l, wl) in r.weights.iter().enumerate().filter(|(_, w)| **w > 0.0) {
                     g[(r.photo * kk + k) * kk + l] += &aat * (wk * wl);
                 }
-                h[r.photo * kk + k] += &a * (wk * r.rgb[c]);
+                for (hc, y) in h.iter_mut().zip(r.rgb) {
+                    hc[r.photo * kk + k] += &a * (wk * y);
+                }
             }
         }
         BlendMoments {
@@ -107,32 +112,49 @@ impl BlendMoments {
         }
     }
 
-    /// Each photo's block light with the albedos `rho` fixed, by NNLS (a ridge of `10⁻¹²`
-    /// of the largest diagonal entry, as the pure-vertex model).
-    fn photo_lights(&self, rho: &[f64]) -> Result<Vec<DVector<f64>>> {
+    /// Channel `c`'s albedo per material (module docs) from `rho0` (one positive value per
+    /// material), until no ratio `ρ_k / ρ_0` moves by more than [`RATIO_TOL`] in a round, after
+    /// [`MAX_ROUNDS`], or where the albedo step has no positive solution (the last albedos
+    /// kept).
+    pub fn albedos(&self, c: usize, rho0: &[f64]) -> Result<Vec<f64>> {
+        let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-9)).collect();
+        for _ in 0..MAX_ROUNDS {
+            let b = self.photo_lights(c, &rho)?;
+            let Some(next) = self.albedos_under(c, &b) else {
+                break;
+            };
+            let moved = largest_ratio_move(&next, &rho);
+            rho = next;
+            if moved <= RATIO_TOL {
+                break;
+            }
+        }
+        Ok(rho)
+    }
+
+    /// Each photo's block light in channel `c` with the albedos `rho` fixed, by the
+    /// pure-vertex model's ridged NNLS ([`ridged_nnls`]).
+    fn photo_lights(&self, c: usize, rho: &[f64]) -> Result<Vec<DVector<f64>>> {
         let kk = self.materials;
-        (0..self.h.len() / kk)
+        let h = &self.h[c];
+        (0..h.len() / kk)
             .map(|i| {
-                let d = self.h[i * kk].len();
+                let d = h[i * kk].len();
                 let (mut ata, mut atb) = (DMatrix::zeros(d, d), DVector::zeros(d));
                 for k in 0..kk {
                     for l in 0..kk {
                         ata += &self.g[(i * kk + k) * kk + l] * (rho[k] * rho[l]);
                     }
-                    atb += &self.h[i * kk + k] * rho[k];
+                    atb += &h[i * kk + k] * rho[k];
                 }
-                let ridge = 1e-12 * ata.diagonal().max().max(f64::MIN_POSITIVE);
-                for j in 0..d {
-                    ata[(j, j)] += ridge;
-                }
-                nnls(&ata, &atb, &NnlsOptions::default())
+                ridged_nnls(ata, &atb)
             })
             .collect()
     }
 
-    /// The albedos with the photos' lights `b` fixed; `None` when the normal equations are
-    /// singular or give an albedo that is not positive.
-    fn albedos(&self, b: &[DVector<f64>]) -> Option<Vec<f64>> {
+    /// Channel `c`'s albedos with the photos' lights `b` fixed; `None` when the normal
+    /// equations are singular or give an albedo that is not positive.
+    fn albedos_under(&self, c: usize, b: &[DVector<f64>]) -> Option<Vec<f64>> {
         let kk = self.materials;
         let (mut m, mut rhs) = (DMatrix::zeros(kk, kk), DVector::zeros(kk));
         for (i, bi) in b.iter().enumerate() {
@@ -140,7 +162,7 @@ impl BlendMoments {
                 for l in 0..kk {
                     m[(k, l)] += bi.dot(&(&self.g[(i * kk + k) * kk + l] * bi));
                 }
-                rhs[k] += bi.dot(&self.h[i * kk + k]);
+                rhs[k] += bi.dot(&self.h[c][i * kk + k]);
             }
         }
         let rho = m.lu().solve(&rhs)?;
@@ -148,35 +170,6 @@ impl BlendMoments {
             .all(|&r| r > 0.0)
             .then(|| rho.iter().copied().collect())
     }
-}
-
-/// Channel `c`'s albedo per material of the blend model (module docs) from `rho0` (one
-/// per material, > 0), until no ratio `ρ_k / ρ_0` moves by more than [`RATIO_TOL`] in a
-/// round, after [`MAX_ROUNDS`], or where the albedo step has no positive solution (the
-/// last albedos kept).
-pub fn blend_albedos(
-    rows: &[BlendRow],
-    c: usize,
-    n_photos: usize,
-    rho0: &[f64],
-) -> Result<Vec<f64>> {
-    let kk = rho0.len();
-    let m = BlendMoments::of(rows, c, n_photos, kk);
-    let mut rho: Vec<f64> = rho0.iter().map(|r| r.max(1e-9)).collect();
-    for _ in 0..MAX_ROUNDS {
-        let b = m.photo_lights(&rho)?;
-        let Some(next) = m.albedos(&b) else {
-            break;
-        };
-        let moved = (1..kk)
-            .map(|k| (next[k] / next[0] / (rho[k] / rho[0]) - 1.0).abs())
-            .fold(0.0, f64::max);
-        rho = next;
-        if moved <= RATIO_TOL {
-            break;
-        }
-    }
-    Ok(rho)
 }
 
 #[cfg(test)]
@@ -267,7 +260,8 @@ mod tests {
             }
         };
         let (blend, pure) = rows(3, leak);
-        let err = worst(|c| blend_albedos(&blend, c, 3, &[1.0, 4.0]).unwrap());
+        let model = BlendMoments::of(&blend, 3, 2);
+        let err = worst(|c| model.albedos(c, &[1.0, 4.0]).unwrap());
         assert!(err < 1e-6, "blend model: worst ratio error {err}");
         let off = worst(|c| coarse_light_albedos(&pure, c, 3, &[1.0, 4.0]).unwrap());
         assert!(off > 0.01, "pure-vertex model: worst ratio error {off}");
@@ -280,7 +274,9 @@ mod tests {
         // sums in a different order, f64).
         let (blend, pure) = rows(2, |_| 0.0);
         for c in 0..3 {
-            let a = blend_albedos(&blend, c, 2, &[1.0, 2.0]).unwrap();
+            let a = BlendMoments::of(&blend, 2, 2)
+                .albedos(c, &[1.0, 2.0])
+                .unwrap();
             let b = coarse_light_albedos(&pure, c, 2, &[1.0, 2.0]).unwrap();
             for (x, y) in a.iter().zip(&b) {
                 assert!((x / y - 1.0).abs() < 1e-9, "channel {c}: {a:?} vs {b:?}");
