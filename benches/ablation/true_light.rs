@@ -143,26 +143,39 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
     let flipped = crate::metrics::flipped_residuals(&case.train.obs, &exact);
     let graph = relight_cpc::solve::materials::propagate::knn_graph(&case.positions, 8)
         .expect("the vertex graph");
-    for s in [0.0, 0.15, 0.3] {
-        let w = crate::metrics::smoothed(&case.weights, &graph, case.lambda.len(), s);
-        let lambda = lambda_with(case, &case.train.obs, &w);
+    // The basis responses under the true maps depend on the observations' places, not on
+    // their colours or weights: one set serves every λ step below.
+    let s = basis_responses(&case.train.problem(case.nv), &case.train.lights);
+    let lambda_with =
+        |obs: &relight_cpc::observe::Observations, w: &[f64]| lambda_under(case, &s, obs, w);
+    for mix in [0.0, 0.15, 0.3] {
+        let w = crate::metrics::smoothed(&case.weights, &graph, case.lambda.len(), mix);
+        let lambda = lambda_with(&case.train.obs, &w);
         eprintln!(
-            "  floor's λ step on the photos with the TRUE weights mixed with their neighbours' by {s}: R / G / B {:.3?}",
+            "  floor's λ step on the photos with the TRUE weights mixed with their neighbours' by {mix}: R / G / B {:.3?}",
             ratio_errors(case, &lambda, &case.weights, seen)
         );
     }
+    let shares = specular_shares(case, &s);
+    let fitted = case.train.obs.weight.iter().filter(|&&a| a > 0.0).count();
     for share in [0.3, 0.1, 0.03] {
-        let (obs, kept) = without_highlights(case, share);
-        let lambda = lambda_with(case, &obs, &case.weights);
+        let mut obs = case.train.obs.clone();
+        for (p, _) in shares.iter().enumerate().filter(|(_, &sh)| sh > share) {
+            obs.mask_out(p);
+        }
+        let kept = obs.weight.iter().filter(|&&a| a > 0.0).count();
+        let lambda = lambda_with(&obs, &case.weights);
         eprintln!(
-            "  floor's λ step with the TRUE weights, observations whose true specular share is over {share} left out ({kept} of {} kept): R / G / B {:.3?}",
-            case.train.obs.weight.iter().filter(|&&a| a > 0.0).count(),
+            "  floor's λ step with the TRUE weights, observations whose true specular share is over {share} left out ({kept} of {fitted} kept): R / G / B {:.3?}",
             ratio_errors(case, &lambda, &case.weights, seen)
         );
     }
     for power in [1, 2, 4] {
-        let obs = highlights_down(case, power);
-        let lambda = lambda_with(case, &obs, &case.weights);
+        let mut obs = case.train.obs.clone();
+        for (a, sh) in obs.weight.iter_mut().zip(&shares) {
+            *a *= (1.0 - sh).powi(power) as f32;
+        }
+        let lambda = lambda_with(&obs, &case.weights);
         eprintln!(
             "  floor's λ step with the TRUE weights, each observation weighed by (1 − its true specular share)^{power}: R / G / B {:.3?}",
             ratio_errors(case, &lambda, &case.weights, seen)
@@ -177,9 +190,11 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
     }
 }
 
-/// One `λ` step under the true maps with the weights `w` held, the colours from `obs`.
-fn lambda_with(
+/// One `λ` step under the true maps (basis responses `s`) with the weights `w` held, the
+/// colours and confidences from `obs`.
+fn lambda_under(
     case: &Case,
+    s: &[[f64; 3]],
     obs: &relight_cpc::observe::Observations,
     w: &[f64],
 ) -> Vec<Vec<[f64; 3]>> {
@@ -187,61 +202,23 @@ fn lambda_with(
         obs,
         ..case.train.problem(case.nv)
     };
-    let s = basis_responses(&problem, &case.train.lights);
     let dw: Vec<[f64; 3]> = obs.weight.iter().map(|&a| [f64::from(a); 3]).collect();
     let coupling = LambdaCoupling {
         achromatic_except: None,
     };
-    lambda_step(
-        &problem,
-        &s,
-        w,
-        case.lambda.len(),
-        &dw,
-        None,
-        1e-8,
-        coupling,
-    )
-    .expect("λ step")
-    .lambda
-}
-
-/// The training observations with those whose TRUE prediction owes more than `share` of
-/// any channel to the lobes other than the Lambertian one given no weight, and how many
-/// fitted ones are left.
-fn without_highlights(case: &Case, share: f64) -> (relight_cpc::observe::Observations, usize) {
-    let shares = specular_shares(case);
-    let mut obs = case.train.obs.clone();
-    for (p, &sh) in shares.iter().enumerate() {
-        if sh > share {
-            obs.mask_out(p);
-        }
-    }
-    let kept = obs.weight.iter().filter(|&&a| a > 0.0).count();
-    (obs, kept)
-}
-
-/// The training observations, each weighed by `(1 − σ_p)^power`, `σ_p` its TRUE specular
-/// share ([`specular_shares`]).
-fn highlights_down(case: &Case, power: i32) -> relight_cpc::observe::Observations {
-    let shares = specular_shares(case);
-    let mut obs = case.train.obs.clone();
-    for (a, sh) in obs.weight.iter_mut().zip(shares) {
-        *a *= (1.0 - sh).powi(power) as f32;
-    }
-    obs
+    lambda_step(&problem, s, w, case.lambda.len(), &dw, None, 1e-8, coupling)
+        .expect("λ step")
+        .lambda
 }
 
 /// Per training observation, the largest share of a channel's TRUE prediction owed to the
-/// lobes other than the Lambertian one.
-fn specular_shares(case: &Case) -> Vec<f64> {
-    let problem = case.train.problem(case.nv);
-    let s = basis_responses(&problem, &case.train.lights);
-    let nb = problem.transport.n_basis;
+/// lobes other than the Lambertian one (`s`: the basis responses under the true maps).
+fn specular_shares(case: &Case, s: &[[f64; 3]]) -> Vec<f64> {
+    let nb = case.train.transport.n_basis;
     let kk = case.lambda.len();
-    (0..problem.obs.vertex.len())
+    (0..case.train.obs.vertex.len())
         .map(|p| {
-            let x = problem.obs.vertex[p] as usize;
+            let x = case.train.obs.vertex[p] as usize;
             (0..3)
                 .map(|c| {
                     let part = |b: usize| -> f64 {

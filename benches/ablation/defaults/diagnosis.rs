@@ -64,7 +64,7 @@ pub(super) fn sh_truth_diagnosis(
             if rings == 0 {
                 mixture_diagnosis(case, source, &exact_obs, (seen, &w, &order), &graph);
             }
-            if rings == 0 || std::env::var("ABLATION_SH_BLOCKS_ERODED").is_ok() {
+            if rings == 0 || crate::env_flag("ABLATION_SH_BLOCKS_ERODED") {
                 eprintln!("sh-blocks {source}: eroded {rings}");
                 block_light_diagnosis(case, source, &exact_obs, (seen, &w, &order));
             }
@@ -243,7 +243,7 @@ fn block_light_diagnosis(
             .and_then(|v| v.parse().ok());
         let dimmed = dim.map(|x| {
             (
-                dim_only(&case.train.obs, x),
+                dim_only_as(&case.train.obs, &case.train.obs, x),
                 dim_only_as(exact, &case.train.obs, x),
             )
         });
@@ -267,16 +267,8 @@ fn block_light_diagnosis(
     }
 }
 
-/// `obs` with every observation whose brightest channel reaches `x` (linear) given no
-/// weight: far from the clip level, so clipping selects none of those left.
-fn dim_only(
-    obs: &relight_cpc::observe::Observations,
-    x: f32,
-) -> relight_cpc::observe::Observations {
-    dim_only_as(obs, obs, x)
-}
-
-/// `obs` masked where `photos`' brightest channel reaches `x`.
+/// `obs` with every observation where `photos`' brightest channel reaches `x` (linear)
+/// given no weight: far from the clip level, so clipping selects none of those left.
 fn dim_only_as(
     obs: &relight_cpc::observe::Observations,
     photos: &relight_cpc::observe::Observations,

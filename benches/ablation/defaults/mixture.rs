@@ -24,10 +24,8 @@ pub(super) fn mixture_albedos(
     r: usize,
 ) -> [Vec<f64>; 3] {
     let rows = coarse_light_blend::seen_blend_rows(&rows_input(obs, t, (seen, w, kk), r));
-    let n_photos = obs.photo_ranges.len();
-    [0, 1, 2].map(|c| {
-        coarse_light_blend::blend_albedos(&rows, c, n_photos, &vec![1.0; kk]).expect("finite rows")
-    })
+    let model = coarse_light_blend::BlendMoments::of(&rows, obs.photo_ranges.len(), kk);
+    [0, 1, 2].map(|c| model.albedos(c, &vec![1.0; kk]).expect("finite rows"))
 }
 
 /// What the coarse-light models read: `obs` through `t` (the Lambertian basis first), the

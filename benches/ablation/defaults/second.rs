@@ -369,17 +369,10 @@ fn coarse_light_starts(
     use relight_cpc::solve::materials::{coarse_light, irradiance};
     let kk = est.lambda.len();
     let weights = irradiance::normalised_weights(&est.weights, kk);
-    let rows = relight_cpc::solve::materials::coarse_light_blend::seen_blend_rows(
-        &coarse_light::CoarseRowsInput {
-            obs: &case.train.obs,
-            transport: &case.train.transport,
-            seen,
-            weights: &weights,
-            materials: kk,
-            lambert: 0,
-            blocks: coarse_light::BLOCKS.min(case.train.transport.n_global),
-        },
-    );
+    let t = &case.train.transport;
+    let blocks = coarse_light::BLOCKS.min(t.n_global);
+    let input = super::mixture::rows_input(&case.train.obs, t, (seen, &weights, kk), blocks);
+    let rows = relight_cpc::solve::materials::coarse_light_blend::seen_blend_rows(&input);
     let n_photos = case.train.obs.photo_ranges.len();
     coarse_light::coarse_light_starts(&est.lambda, &est.weights, seen, lambert, &rows, n_photos)
         .expect("the first fit's sizes")
