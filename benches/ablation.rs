@@ -95,7 +95,12 @@
 //! `defaults` fit, [`metrics::tail_shares`]), `ABLATION_FLOOR_FLIP=1` (the ratio floor's fit
 //! from the truth on exact data and on exact data plus the photos' residuals with random
 //! signs, and one `λ` step with the TRUE weights mixed with their neighbours' and without
-//! the highlight-dominated observations, [`true_light::floor_sources`]), `ABLATION_LAMBDA=1` (every fit's `λ` per
+//! the highlight-dominated observations, and the photos' residuals kept on one class of
+//! observations at a time, [`true_light::floor_sources`]), `ABLATION_FIT_SHARE=1` (one `λ`
+//! step under the `defaults` fit's maps without the observations its own shiny lobes
+//! dominate, [`true_light::fitted_share_probe`]), `ABLATION_NORMAL_GRID=N` (the rotation's
+//! normal grid, `run`'s 32 by default; `SYNTH_SPLAT_ROTATION=1` rotates at each vertex's
+//! exact normal instead), `ABLATION_LAMBDA=1` (every fit's `λ` per
 //! material and lobe against the truth's, after the per-channel scale of the diffuse
 //! colours, [`metrics::scaled_lambda`]), `ABLATION_SPECULAR_START=X` (the `defaults` row's
 //! start with every lobe but the Lambertian one at `X` times its `λ`: with
@@ -411,7 +416,10 @@ fn env_or<T: std::str::FromStr>(k: &str, d: T) -> T {
 /// The cases' sizes: 96² photos (`ABLATION_WIDTH`), 8 spp (`ABLATION_SPP`), Spot's 2,930
 /// vertices (`ABLATION_VERTICES=N`: at least N, the mesh subdivided as `synth --vertices`), 16²
 /// global / 8² local maps (`ABLATION_GLOBAL`, `ABLATION_LOCAL`), 2 shadow rays per local
-/// texel (`ABLATION_RAYS`), every coefficient kept.
+/// texel (`ABLATION_RAYS`), `run`'s 32² normal grid for the rotation into each vertex's
+/// frame (`ABLATION_NORMAL_GRID`; the bench used 16² until 2026-12-06, which raised the
+/// three-material ratio floor, `bench-results/normal-grid-floor.md`), every coefficient
+/// kept.
 fn sizes() -> Sizes {
     let small = Sizes::spot_small();
     Sizes {
@@ -424,6 +432,10 @@ fn sizes() -> Sizes {
         global: env_or("ABLATION_GLOBAL", small.global),
         local: env_or("ABLATION_LOCAL", small.local),
         rays_per_texel: env_or("ABLATION_RAYS", small.rays_per_texel),
+        normal_grid: env_or(
+            "ABLATION_NORMAL_GRID",
+            relight_cpc::run::RunOptions::new(Default::default(), Default::default()).normal_grid,
+        ),
         ..small
     }
 }
@@ -749,6 +761,9 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                     d.seconds,
                 );
                 eprintln!("  {figures:?} pilot {:?}", d.pilot.material_scores);
+                if env_flag("ABLATION_FIT_SHARE") {
+                    true_light::fitted_share_probe(case, &d.est, &fl.seen);
+                }
                 if env_flag("ABLATION_ACCURACY_MISSES") {
                     eprintln!(
                         "  misses: {}",

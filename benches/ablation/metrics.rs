@@ -74,20 +74,32 @@ pub fn ratio_errors(
     weights: &[f64],
     seen: &[bool],
 ) -> [f64; 3] {
+    let signed = signed_ratio_errors(case, lambda, weights, seen);
+    [0, 1, 2].map(|c| signed.iter().map(|e| e[c].abs()).fold(0.0, f64::max))
+}
+
+/// Per material `j ≥ 1` and channel, the signed diffuse albedo ratio error against
+/// material 0 (the fitted ratio of the pure vertices' medians over the true one, minus 1).
+pub fn signed_ratio_errors(
+    case: &Case,
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+    seen: &[bool],
+) -> Vec<[f64; 3]> {
     let k = case.lambda.len();
     let nb = case.basis.len();
     let beta = beta_per_vertex(lambda, weights, case.nv);
     let medians: Vec<[f64; 3]> = (0..k)
         .map(|t| pure_medians(&beta, nb, &pure_seen(case, seen, t)))
         .collect();
-    [0, 1, 2].map(|c| {
-        (1..k)
-            .map(|j| {
+    (1..k)
+        .map(|j| {
+            [0, 1, 2].map(|c| {
                 let r_true = case.lambda[j][0][c] / case.lambda[0][0][c];
-                (medians[j][c] / medians[0][c] / r_true - 1.0).abs()
+                medians[j][c] / medians[0][c] / r_true - 1.0
             })
-            .fold(0.0, f64::max)
-    })
+        })
+        .collect()
 }
 
 /// `ABLATION_LAMBDA=1`: each fitted material's `λ` per lobe, every channel `c` scaled by

@@ -137,6 +137,9 @@ pub fn describe(f: &RatioFloor) -> String {
 /// reading each pixel as a blend with the neighbours lowers it; and the same step without
 /// the observations the lobes other than the Lambertian one dominate (over 0.3, 0.1, 0.03
 /// of a channel's TRUE prediction), or with each weighed by `(1 − share)^q`, `q` = 1, 2, 4.
+/// Between them, the photos' mean departure from the exact data per band of that share
+/// ([`share_bias`]) and the step with the photos' residuals on one class of observations
+/// alone ([`residual_split`]).
 pub fn floor_sources(case: &Case, seen: &[bool]) {
     let mut exact = case.train.obs.clone();
     replace_colours(&mut exact, &true_prediction(case, &case.train));
@@ -157,6 +160,11 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
         );
     }
     let shares = specular_shares(case, &s);
+    eprintln!(
+        "  the photos against the exact data by true specular share: {}",
+        share_bias(&case.train.obs, &exact, &shares)
+    );
+    residual_split(case, &exact, &shares, &s, seen);
     let fitted = case.train.obs.weight.iter().filter(|&&a| a > 0.0).count();
     for share in [0.3, 0.1, 0.03] {
         let mut obs = case.train.obs.clone();
@@ -190,6 +198,96 @@ pub fn floor_sources(case: &Case, seen: &[bool]) {
     }
 }
 
+/// Which observations a class of [`residual_split`] holds.
+type Keep<'a> = Box<dyn Fn(usize) -> bool + 'a>;
+
+/// The λ step with the TRUE weights under the true maps on the exact data plus the
+/// photos' residuals `y − ŷ` kept only on one class of observations (the exact data
+/// elsewhere): by the TRUE specular share (below 0.1, 0.1 to 0.3, over 0.3) and by the
+/// vertex's true material (pure in material `t`, or a blend). The step is linear in the
+/// data, so up to NNLS's active set each class's error adds to the others': which of them
+/// carries the floor.
+fn residual_split(
+    case: &Case,
+    exact: &relight_cpc::observe::Observations,
+    shares: &[f64],
+    s: &[[f64; 3]],
+    seen: &[bool],
+) {
+    let kk = case.lambda.len();
+    let class_of_vertex = |x: usize| {
+        (0..kk)
+            .find(|&t| case.weights[x * kk + t] >= 0.95)
+            .map_or("blend".to_string(), |t| format!("pure {t}"))
+    };
+    let mut classes: Vec<(String, Keep<'_>)> = vec![
+        ("every observation".into(), Box::new(|_| true)),
+        ("share < 0.1".into(), Box::new(|p| shares[p] < 0.1)),
+        (
+            "share 0.1–0.3".into(),
+            Box::new(|p| (0.1..0.3).contains(&shares[p])),
+        ),
+        ("share ≥ 0.3".into(), Box::new(|p| shares[p] >= 0.3)),
+        (
+            "blend".into(),
+            Box::new(|p| class_of_vertex(case.train.obs.vertex[p] as usize) == "blend"),
+        ),
+    ];
+    for t in 0..kk {
+        let name = format!("pure {t}");
+        classes.push((
+            format!("pure material {t}"),
+            Box::new(move |p| class_of_vertex(case.train.obs.vertex[p] as usize) == name),
+        ));
+    }
+    for (label, keep) in &classes {
+        let mut obs = exact.clone();
+        let mut n = 0;
+        for p in 0..obs.rgb.len() {
+            if keep(p) {
+                obs.rgb[p] = case.train.obs.rgb[p];
+                n += 1;
+            }
+        }
+        let lambda = lambda_under(case, s, &obs, &case.weights);
+        eprintln!(
+            "  λ step with the TRUE weights, the photos' residuals only on {label} ({n} obs): signed ratio error per material 1.. (R / G / B) {:+.3?}",
+            crate::metrics::signed_ratio_errors(case, &lambda, &case.weights, seen)
+        );
+    }
+}
+
+/// Per bin of the TRUE specular share, how many fitted observations it holds and per
+/// channel the photos' relative departure from the exact data, `Σ (y − ŷ) / Σ ŷ`: the
+/// systematic part's sign and size where the highlights are.
+fn share_bias(
+    photos: &relight_cpc::observe::Observations,
+    exact: &relight_cpc::observe::Observations,
+    shares: &[f64],
+) -> String {
+    let edges = [0.0, 0.1, 0.3, 0.6, 1.01];
+    let mut out = Vec::new();
+    for bin in edges.windows(2) {
+        let (mut n, mut diff, mut sum) = (0usize, [0.0f64; 3], [0.0f64; 3]);
+        for p in 0..shares.len() {
+            if photos.weight[p] <= 0.0 || shares[p] < bin[0] || shares[p] >= bin[1] {
+                continue;
+            }
+            n += 1;
+            for c in 0..3 {
+                diff[c] += f64::from(photos.rgb[p][c] - exact.rgb[p][c]);
+                sum[c] += f64::from(exact.rgb[p][c]);
+            }
+        }
+        let rel = [0, 1, 2].map(|c| if sum[c] > 0.0 { diff[c] / sum[c] } else { 0.0 });
+        out.push(format!(
+            "[{}, {}): {n} obs, R / G / B {:+.3} / {:+.3} / {:+.3}",
+            bin[0], bin[1], rel[0], rel[1], rel[2]
+        ));
+    }
+    out.join("; ")
+}
+
 /// One `λ` step under the true maps (basis responses `s`) with the weights `w` held, the
 /// colours and confidences from `obs`.
 fn lambda_under(
@@ -211,11 +309,68 @@ fn lambda_under(
         .lambda
 }
 
+/// `ABLATION_FIT_SHARE=1`: the `defaults` fit's own highlights left out. Under the fit's
+/// maps, with its weights held, one `λ` step over every training observation (weighed
+/// `α_p` times the fit's IRLS weight), then the same step without the observations whose
+/// FITTED specular share (its `λ` and weights) is over 0.5, 0.3 or 0.2, and with each
+/// weighed by `(1 − share)^4`: whether what the true-share probe of [`floor_sources`]
+/// found survives when the estimator, not the truth, says where the highlights are.
+pub fn fitted_share_probe(case: &Case, est: &relight_cpc::solve::Estimate, seen: &[bool]) {
+    let problem = case.train.problem(case.nv);
+    let s = basis_responses(&problem, &est.lights);
+    let shares = shares_of(case, &s, &est.lambda, &est.weights);
+    let base: Vec<f32> = (0..case.train.obs.vertex.len())
+        .map(|p| {
+            let o = est
+                .irls_weights
+                .get(p)
+                .map_or(1.0, |o| o.iter().fold(1.0_f32, |a, &b| a.min(b)));
+            case.train.obs.weight[p] * o
+        })
+        .collect();
+    let fitted = base.iter().filter(|&&a| a > 0.0).count();
+    let step = |keep: &dyn Fn(usize) -> f32| {
+        let mut obs = case.train.obs.clone();
+        for (p, a) in obs.weight.iter_mut().enumerate() {
+            *a = base[p] * keep(p);
+        }
+        let kept = obs.weight.iter().filter(|&&a| a > 0.0).count();
+        (kept, lambda_under(case, &s, &obs, &est.weights))
+    };
+    eprintln!(
+        "  the fit as it stands: R / G / B {:.3?}",
+        ratio_errors(case, &est.lambda, &est.weights, seen)
+    );
+    let (_, lambda) = step(&|_| 1.0);
+    eprintln!(
+        "  one λ step under the fit's maps, its weights held, every observation: R / G / B {:.3?}",
+        ratio_errors(case, &lambda, &est.weights, seen)
+    );
+    for cut in [0.5, 0.3, 0.2] {
+        let (kept, lambda) = step(&|p| if shares[p] > cut { 0.0 } else { 1.0 });
+        eprintln!(
+            "  the same without the observations whose fitted specular share is over {cut} ({kept} of {fitted} kept): R / G / B {:.3?}",
+            ratio_errors(case, &lambda, &est.weights, seen)
+        );
+    }
+    let (_, lambda) = step(&|p| (1.0 - shares[p]).powi(4) as f32);
+    eprintln!(
+        "  the same with each observation weighed by (1 − its fitted specular share)^4: R / G / B {:.3?}",
+        ratio_errors(case, &lambda, &est.weights, seen)
+    );
+}
+
 /// Per training observation, the largest share of a channel's TRUE prediction owed to the
 /// lobes other than the Lambertian one (`s`: the basis responses under the true maps).
 fn specular_shares(case: &Case, s: &[[f64; 3]]) -> Vec<f64> {
+    shares_of(case, s, &case.lambda, &case.weights)
+}
+
+/// [`specular_shares`] of the materials `lambda`, `weights` (over the case's basis, the
+/// Lambertian lobe first) under the maps whose basis responses are `s`.
+fn shares_of(case: &Case, s: &[[f64; 3]], lambda: &[Vec<[f64; 3]>], weights: &[f64]) -> Vec<f64> {
     let nb = case.train.transport.n_basis;
-    let kk = case.lambda.len();
+    let kk = lambda.len();
     (0..case.train.obs.vertex.len())
         .map(|p| {
             let x = case.train.obs.vertex[p] as usize;
@@ -223,7 +378,7 @@ fn specular_shares(case: &Case, s: &[[f64; 3]]) -> Vec<f64> {
                 .map(|c| {
                     let part = |b: usize| -> f64 {
                         (0..kk)
-                            .map(|k| case.weights[x * kk + k] * case.lambda[k][b][c])
+                            .map(|k| weights[x * kk + k] * lambda[k][b][c])
                             .sum::<f64>()
                             * s[p * nb + b][c]
                     };

@@ -24,7 +24,7 @@ use relight_cpc::solve::light::sky::clock::ClockSuns;
 use relight_cpc::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
 };
-use relight_cpc::sphere::rotation::{Rotation, RotationForm};
+use relight_cpc::sphere::rotation::{Rotation, RotationForm, SplatRotation};
 use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::transport::brdf::BasisBrdf;
 use relight_cpc::transport::reference::{Lobe, Samples};
@@ -350,15 +350,30 @@ pub fn prepare_in(
             ..ObserveOptions::default()
         };
         let obs = observe::extract(&sc.mesh, &bvh, &views, &ph, &opts);
-        let transport = transport::build(
-            &normals_env,
-            &obs,
-            &env_from_world,
-            &vis,
-            &basis,
-            &rot,
-            &topts,
-        )
+        // `SYNTH_SPLAT_ROTATION=1`: the light rotated into each vertex's frame at its exact
+        // normal (the renderer's splat) instead of the estimator's blend over the normal grid.
+        let transport = if std::env::var("SYNTH_SPLAT_ROTATION").is_ok_and(|v| v == "1") {
+            let splat = SplatRotation::with_default_supersample(sizes.global, sizes.local);
+            transport::build(
+                &normals_env,
+                &obs,
+                &env_from_world,
+                &vis,
+                &basis,
+                &splat,
+                &topts,
+            )
+        } else {
+            transport::build(
+                &normals_env,
+                &obs,
+                &env_from_world,
+                &vis,
+                &basis,
+                &rot,
+                &topts,
+            )
+        }
         .unwrap();
         let lights = views
             .iter()
