@@ -828,9 +828,9 @@ fn main() {
     let mut md = format!(
         "# Light-model ablation (issue 25)\n\nWritten by `cargo bench --bench ablation` (module docs of `benches/ablation.rs`: definitions). \
          Spot, {}² photos at {} spp × {} MIS pairs, 1 in 4 held out (maps 3 and 7, unseen in training), {}² global / {}² local maps, \
-         all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping. \
+         the light rotated over a {}² normal grid, all coefficients, the scene's true lobes as basis, the k-means start, ≤ {} outer iterations with the default early stopping. \
          Held-out photos judged {}.\n\n",
-        s.width, s.spp, s.light_samples, s.global, s.local, base.max_outer,
+        s.width, s.spp, s.light_samples, s.global, s.local, s.normal_grid, base.max_outer,
         if run_half::wanted() {
             "as `run` judges them (each row's learned half prior and Laplacian weight; its floor the truth through the same judge)"
         } else {
