@@ -14,6 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
+use nalgebra::Matrix3;
 use relight_cpc::import::scene;
 use relight_cpc::import::workspace::Workspace;
 use relight_cpc::observe::trace::SceneBvh;
@@ -24,7 +25,7 @@ use relight_cpc::solve::light::sky::clock::ClockSuns;
 use relight_cpc::solve::{
     beta_per_vertex, estimate, Estimate, EstimateOptions, Materials0, Problem,
 };
-use relight_cpc::sphere::rotation::{Rotation, RotationForm, SplatRotation};
+use relight_cpc::sphere::rotation::{LocalRotation, Rotation, RotationForm, SplatRotation};
 use relight_cpc::synth::{self, SynthOptions};
 use relight_cpc::transport::brdf::BasisBrdf;
 use relight_cpc::transport::reference::{Lobe, Samples};
@@ -334,6 +335,11 @@ pub fn prepare_in(
         sizes.normal_grid,
         RotationForm::Factored,
     );
+    // `SYNTH_SPLAT_ROTATION=1`: the light rotated into each vertex's frame at its exact
+    // normal (the renderer's splat) instead of the estimator's blend over the normal grid.
+    let splat = std::env::var("SYNTH_SPLAT_ROTATION")
+        .is_ok_and(|v| v == "1")
+        .then(|| SplatRotation::with_default_supersample(sizes.global, sizes.local));
     let topts = TransportOptions {
         n_global: sizes.global,
         n_local: sizes.local,
@@ -350,31 +356,18 @@ pub fn prepare_in(
             ..ObserveOptions::default()
         };
         let obs = observe::extract(&sc.mesh, &bvh, &views, &ph, &opts);
-        // `SYNTH_SPLAT_ROTATION=1`: the light rotated into each vertex's frame at its exact
-        // normal (the renderer's splat) instead of the estimator's blend over the normal grid.
-        let transport = if std::env::var("SYNTH_SPLAT_ROTATION").is_ok_and(|v| v == "1") {
-            let splat = SplatRotation::with_default_supersample(sizes.global, sizes.local);
-            transport::build(
-                &normals_env,
-                &obs,
-                &env_from_world,
-                &vis,
-                &basis,
-                &splat,
-                &topts,
-            )
-        } else {
-            transport::build(
-                &normals_env,
-                &obs,
-                &env_from_world,
-                &vis,
-                &basis,
-                &rot,
-                &topts,
-            )
-        }
-        .unwrap();
+        let inputs = TransportInputs {
+            normals_env: &normals_env,
+            obs: &obs,
+            env_from_world: &env_from_world,
+            vis: &vis,
+            basis: &basis,
+            opts: &topts,
+        };
+        let transport = match &splat {
+            Some(s) => inputs.build(s),
+            None => inputs.build(&rot),
+        };
         let lights = views
             .iter()
             .map(|v| {
@@ -878,5 +871,31 @@ pub fn with_case_priors(case: &Case, o: &EstimateOptions) -> EstimateOptions {
             ..lp.clone()
         }),
         ..o.clone()
+    }
+}
+
+/// What a split's transport is built from, whichever rotation takes the light into each
+/// vertex's frame.
+struct TransportInputs<'a> {
+    normals_env: &'a [Vec3],
+    obs: &'a Observations,
+    env_from_world: &'a Matrix3<f64>,
+    vis: &'a Visibility,
+    basis: &'a [BasisBrdf],
+    opts: &'a TransportOptions,
+}
+
+impl TransportInputs<'_> {
+    fn build<R: LocalRotation>(&self, rot: &R) -> Transport {
+        transport::build(
+            self.normals_env,
+            self.obs,
+            self.env_from_world,
+            self.vis,
+            self.basis,
+            rot,
+            self.opts,
+        )
+        .unwrap()
     }
 }
