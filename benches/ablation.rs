@@ -434,7 +434,7 @@ fn sizes() -> Sizes {
         rays_per_texel: env_or("ABLATION_RAYS", small.rays_per_texel),
         normal_grid: env_or(
             "ABLATION_NORMAL_GRID",
-            relight_cpc::run::RunOptions::new(Default::default(), Default::default()).normal_grid,
+            relight_cpc::run::RunOptions::DEFAULT_NORMAL_GRID,
         ),
         ..small
     }

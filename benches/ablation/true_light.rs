@@ -24,6 +24,7 @@
 
 use crate::metrics::{best_order_of, ratio_errors};
 use crate::synth_case::*;
+use relight_cpc::report::metrics::PURE_WEIGHT;
 use relight_cpc::solve::materials::LambdaCoupling;
 use relight_cpc::solve::{basis_responses, lambda_step, weights_step, Materials0, WeightsRules};
 
@@ -215,11 +216,15 @@ fn residual_split(
     seen: &[bool],
 ) {
     let kk = case.lambda.len();
-    let class_of_vertex = |x: usize| {
-        (0..kk)
-            .find(|&t| case.weights[x * kk + t] >= 0.95)
-            .map_or("blend".to_string(), |t| format!("pure {t}"))
-    };
+    // Each observation's vertex's true material when it is pure, `None` for a blend.
+    let pure: Vec<Option<usize>> = case
+        .train
+        .obs
+        .vertex
+        .iter()
+        .map(|&x| (0..kk).find(|&t| case.weights[x as usize * kk + t] >= PURE_WEIGHT))
+        .collect();
+    let pure = &pure;
     let mut classes: Vec<(String, Keep<'_>)> = vec![
         ("every observation".into(), Box::new(|_| true)),
         ("share < 0.1".into(), Box::new(|p| shares[p] < 0.1)),
@@ -228,16 +233,12 @@ fn residual_split(
             Box::new(|p| (0.1..0.3).contains(&shares[p])),
         ),
         ("share ≥ 0.3".into(), Box::new(|p| shares[p] >= 0.3)),
-        (
-            "blend".into(),
-            Box::new(|p| class_of_vertex(case.train.obs.vertex[p] as usize) == "blend"),
-        ),
+        ("blend".into(), Box::new(|p| pure[p].is_none())),
     ];
     for t in 0..kk {
-        let name = format!("pure {t}");
         classes.push((
             format!("pure material {t}"),
-            Box::new(move |p| class_of_vertex(case.train.obs.vertex[p] as usize) == name),
+            Box::new(move |p| pure[p] == Some(t)),
         ));
     }
     for (label, keep) in &classes {
@@ -311,9 +312,9 @@ fn lambda_under(
 
 /// `ABLATION_FIT_SHARE=1`: the `defaults` fit's own highlights left out. Under the fit's
 /// maps, with its weights held, one `λ` step over every training observation (weighed
-/// `α_p` times the fit's IRLS weight), then the same step without the observations whose
-/// FITTED specular share (its `λ` and weights) is over 0.5, 0.3 or 0.2, and with each
-/// weighed by `(1 − share)^4`: whether what the true-share probe of [`floor_sources`]
+/// `α_p` times the smallest of the fit's per-channel IRLS weights), then the same step
+/// without the observations whose FITTED specular share (its `λ` and weights) is over
+/// 0.5, 0.3 or 0.2, and with each weighed by `(1 − share)^4`: whether what the true-share probe of [`floor_sources`]
 /// found survives when the estimator, not the truth, says where the highlights are.
 pub fn fitted_share_probe(case: &Case, est: &relight_cpc::solve::Estimate, seen: &[bool]) {
     let problem = case.train.problem(case.nv);

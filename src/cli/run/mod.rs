@@ -115,7 +115,11 @@ pub(crate) struct RunArgs {
     pub(crate) render_local_resolution: Option<usize>,
     /// Number of surface directions (per side, a power of two) the light is pre-rotated
     /// to; vertices blend the nearest ones.
-    #[arg(long, default_value_t = 32, help_heading = "Model")]
+    #[arg(
+        long,
+        default_value_t = relight_cpc::run::RunOptions::DEFAULT_NORMAL_GRID,
+        help_heading = "Model"
+    )]
     pub(crate) normal_grid: usize,
     /// Light-transport terms kept per observation (0 = all): fewer is faster and coarser.
     #[arg(long, default_value_t = 128, help_heading = "Model")]

@@ -290,6 +290,10 @@ impl RunOptions {
     pub const DEFAULT_MAX_ITERATIONS: usize = 8;
     /// Default of [`RunOptions::rel_tol`]: the relative-improvement stop.
     pub const DEFAULT_REL_TOL: f64 = 1e-3;
+    /// Default of [`RunOptions::normal_grid`]: the light pre-rotated to `32²` normals
+    /// (a `64²` grid gave the ablation's glossy scene nothing more,
+    /// `bench-results/normal-grid-floor.md`, section 6).
+    pub const DEFAULT_NORMAL_GRID: usize = 32;
     /// Defaults for a workspace (the README says why each default).
     pub fn new(workspace: PathBuf, out: PathBuf) -> Self {
         RunOptions {
@@ -308,7 +312,7 @@ impl RunOptions {
             global_resolution: 64,
             local_resolution: 32,
             render_local_resolution: None,
-            normal_grid: 32,
+            normal_grid: Self::DEFAULT_NORMAL_GRID,
             keep: 128,
             blend_tolerance: crate::solve::options::BLEND_TOLERANCE,
             rays_per_texel: 2,
