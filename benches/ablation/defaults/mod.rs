@@ -98,12 +98,14 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         kept: &pilot.kept,
         seen: &seen,
     };
+    eprintln!("  ratio step, first fit: {}", moves_line(&first.est));
     let probe = second::Probe {
         problem: &problem,
         opts: &opts,
         case,
     };
     let mut est = second::second_fits(probe, first, pilot.materials);
+    eprintln!("  ratio step, the fit kept: {}", moves_line(&est));
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
     est.lambda = est
@@ -130,6 +132,17 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
         opts,
         seconds: t0.elapsed().as_secs_f64(),
     }
+}
+
+/// What the ratio step did in `est`'s alternation ([`ratio_step`]), in words.
+fn moves_line(est: &Estimate) -> String {
+    let m = &est.ratio_moves;
+    let stop = m
+        .stopped_after
+        .map_or("ran every round asked for".into(), |r| {
+            format!("stopped after round {r}")
+        });
+    format!("{} of {} moves kept, {stop}", m.kept, m.tried)
 }
 
 /// The bench's options with the pilot's and the fit's IRLS overridden: `run
