@@ -134,7 +134,8 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     }
 }
 
-/// What the ratio step did in `est`'s alternation ([`ratio_step`]), in words.
+/// What the ratio step did in `est`'s alternation ([`ratio_step`]), in words: the moves
+/// kept, the rounds the light model could not take it in, and where the patience stopped it.
 fn moves_line(est: &Estimate) -> String {
     let m = &est.ratio_moves;
     let stop = m
@@ -142,7 +143,11 @@ fn moves_line(est: &Estimate) -> String {
         .map_or("ran every round asked for".into(), |r| {
             format!("stopped after round {r}")
         });
-    format!("{} of {} moves kept, {stop}", m.kept, m.tried)
+    let unsupported = match m.unsupported {
+        0 => String::new(),
+        n => format!(", the light model could not take it in {n} rounds"),
+    };
+    format!("{} of {} moves kept{unsupported}, {stop}", m.kept, m.tried)
 }
 
 /// The bench's options with the pilot's and the fit's IRLS overridden: `run
