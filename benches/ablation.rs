@@ -59,7 +59,7 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse`
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse|stiff-spec`
 //! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last ten a second
 //! fit from the first fit's materials (`sh-ratio2`: and a third fit from the model read
 //! again over the second fit's weights), `ABLATION_REFIT_PICK=1` keeping the one with the
@@ -76,12 +76,15 @@
 //! from the same start; without one, the row makes `run --restart auto`'s second fit,
 //! `ABLATION_DEFAULTS_RESTART=off` none; `reanchor-coarse` is `run --restart
 //! on+coarse-light`; `ABLATION_ONE_SE=0` keeps each coarse-light held fit on the lower
-//! validation error alone, without the one-standard-error rule), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
+//! validation error alone, without the one-standard-error rule; `stiff-spec` starts the
+//! specular lobes from a stiff-light fit, `ABLATION_STIFF_HAAR`, `ABLATION_STIFF_ITERS`,
+//! `ABLATION_STIFF_TAKE=all`, `ablation/defaults/mod.rs`), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
 //! sum-to-one prior on blended vertices whatever the pilot's scope), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
-//! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=paper|shared` (the `defaults` row with
-//! `run --light paper`, or `--light shared` with the groups the photos' true skies; without
-//! it the row's light is `run`'s choice by scene), `SYNTH_SHARED_SKIES=1` (the
+//! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=paper|shared|oracle-sh` (the `defaults` row with
+//! `run --light paper`, or `--light shared` with the groups the photos' true skies, or the
+//! prior centred on each training photo's TRUE low-order shape at `ABLATION_ORACLE_FACTOR`
+//! times its precision, a probe; without it the row's light is `run`'s choice by scene), `SYNTH_SHARED_SKIES=1` (the
 //! scenes rendered with photos `i` and `i + 8` under one sky: the same map at the same
 //! rotation, so the training photos form 6 groups of two seen from opposite sides and the
 //! `shared` row has groups; the held-out photos' maps stay unseen), `ABLATION_SEARCH`,

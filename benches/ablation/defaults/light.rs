@@ -44,6 +44,7 @@ pub fn by_scene(
         let note = format!("light `{given}` (ABLATION_DEFAULTS_LIGHT)");
         let options = match given.as_str() {
             "prior" | "sky" => candidate(case, opts, &given),
+            "oracle-sh" => oracle_sh(case, candidate(case, opts, "prior")),
             _ => opts,
         };
         return ChosenLight { options, note };
@@ -121,8 +122,43 @@ fn chosen_on_halves(
     }
 }
 
+/// `ABLATION_DEFAULTS_LIGHT=oracle-sh` (a probe, not a model a collection can have): the
+/// prior's candidate with each training photo's SH shape prior centred on its TRUE map's
+/// shape (orders 1–2 over order 0, per channel, so exposure and white balance stay free)
+/// and its precision `ABLATION_ORACLE_FACTOR` (default 100) times the real skies'. What
+/// the fit's ratios would be if the maps' low-order shape were known.
+fn oracle_sh(case: &Case, mut opts: EstimateOptions) -> EstimateOptions {
+    use relight_cpc::run::half_prior::map_shape;
+    use relight_cpc::solve::light::sh_prior::ShProjection;
+    let lp = opts
+        .light_prior
+        .clone()
+        .expect("the prior candidate's prior");
+    let base = lp.stats[0].clone();
+    let factor: f64 = crate::env_or("ABLATION_ORACLE_FACTOR", 100.0);
+    let proj = ShProjection::new(case.sizes.global, 4);
+    let stats: Vec<_> = case
+        .train
+        .lights
+        .iter()
+        .map(|l| {
+            let mut p = base.clone();
+            p.shape_mean = map_shape(l, &proj).expect("a lit true map").to_vec();
+            p.shape_precision = base.shape_precision.iter().map(|v| v * factor).collect();
+            p
+        })
+        .collect();
+    let n = stats.len();
+    opts.light_prior = Some(relight_cpc::solve::light::sh_prior::LightPriorOptions {
+        stats: std::sync::Arc::new(stats),
+        per_photo: Some((0..n).collect()),
+        ..lp
+    });
+    opts
+}
+
 /// The options of `--light auto`'s candidate `name` (`prior`, `sky`) for `opts`.
-fn candidate(case: &Case, opts: EstimateOptions, name: &str) -> EstimateOptions {
+pub(super) fn candidate(case: &Case, opts: EstimateOptions, name: &str) -> EstimateOptions {
     candidates(case, opts, LightChoice::Auto)
         .into_iter()
         .find(|c| c.name == name)

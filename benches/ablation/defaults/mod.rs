@@ -84,6 +84,17 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let m0 = start_materials(case, &pilot, &init, colours);
     let light = light::by_scene(case, &problem, &m0, fit_options(case, base, &pilot), &pilot);
     let opts = light.options;
+    let m0 = if start_variant().as_deref() == Some("stiff-spec") {
+        stiff_specular_start(
+            case,
+            &problem,
+            m0,
+            fit_options(case, base, &pilot),
+            &pilot.kept,
+        )
+    } else {
+        m0
+    };
     let judge = std::env::var("ABLATION_GRID_JUDGE")
         .is_ok_and(|v| v == "halves")
         .then(|| EstimateOptions {
@@ -395,6 +406,53 @@ fn start_materials(
             "  the first fit's start: worst ratio per channel {:?}",
             crate::metrics::ratio_errors(case, &lambda, &m0.weights, colours.seen)
         );
+    }
+    m0
+}
+
+/// `ABLATION_DEFAULTS_START=stiff-spec` (a probe): the specular lobes' start from a fit under
+/// the light prior with a stiff wavelet term (`--light prior`'s Haar L1 at relative noise
+/// `ABLATION_STIFF_HAAR`, default 0.1 against the prior's 0.03), `ABLATION_STIFF_ITERS`
+/// outer iterations (default 20) without early stopping; penalising the maps' detail
+/// leaves more of each highlight to the lobes (`bench-results/targets-192.md` section 11).
+/// `ABLATION_STIFF_TAKE=all` takes its whole `λ` and weights, else its specular lobes alone.
+fn stiff_specular_start(
+    case: &Case,
+    problem: &Problem,
+    mut m0: Materials0,
+    opts: EstimateOptions,
+    kept: &[usize],
+) -> Materials0 {
+    let mut stiff = light::candidate(case, opts, "prior");
+    if let Some(lp) = stiff.light_prior.as_mut() {
+        lp.haar_noise = crate::env_or("ABLATION_STIFF_HAAR", 0.1);
+    }
+    stiff.max_outer = crate::env_or("ABLATION_STIFF_ITERS", 20);
+    stiff.validation_fraction = 0.0;
+    stiff.ratio_steps = 0;
+    let est = estimate(problem, m0.clone(), &stiff, &mut |_, _| {}).expect("stiff fit");
+    let lambda: Vec<_> = est
+        .lambda
+        .iter()
+        .map(|row| full_basis(row, kept, case.basis.len()))
+        .collect();
+    eprintln!(
+        "  stiff-light start: λ {:?}, worst ratio per channel {:?}",
+        est.lambda,
+        crate::metrics::ratio_errors(case, &lambda, &est.weights, &vec![true; case.nv])
+    );
+    if std::env::var("ABLATION_STIFF_TAKE").is_ok_and(|v| v == "all") {
+        return Materials0 {
+            lambda: est.lambda,
+            weights: est.weights,
+        };
+    }
+    for (row, fitted) in m0.lambda.iter_mut().zip(&est.lambda) {
+        for (b, v) in row.iter_mut().enumerate() {
+            if b != LAMBERT {
+                *v = fitted[b];
+            }
+        }
     }
     m0
 }
