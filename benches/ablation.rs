@@ -84,7 +84,9 @@
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=paper|shared|oracle-sh` (the `defaults` row with
 //! `run --light paper`, or `--light shared` with the groups the photos' true skies, or the
 //! prior centred on each training photo's TRUE low-order shape at `ABLATION_ORACLE_FACTOR`
-//! times its precision, a probe; without it the row's light is `run`'s choice by scene), `SYNTH_SHARED_SKIES=1` (the
+//! times its precision, a probe; without it the row's light is `run`'s choice by scene),
+//! `ABLATION_PRIOR_SH_NOISE=η`, `ABLATION_PRIOR_HAAR_NOISE=η` (the light prior's noise
+//! levels in the `defaults` row's fit when its model has the prior), `SYNTH_SHARED_SKIES=1` (the
 //! scenes rendered with photos `i` and `i + 8` under one sky: the same map at the same
 //! rotation, so the training photos form 6 groups of two seen from opposite sides and the
 //! `shared` row has groups; the held-out photos' maps stay unseen), `ABLATION_SEARCH`,

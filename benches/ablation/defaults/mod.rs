@@ -83,7 +83,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let init = clustered_start(case, &pilot, colours);
     let m0 = start_materials(case, &pilot, &init, colours);
     let light = light::by_scene(case, &problem, &m0, fit_options(case, base, &pilot), &pilot);
-    let opts = light.options;
+    let opts = with_prior_noise(light.options);
     let m0 = if start_variant().as_deref() == Some("stiff-spec") {
         stiff_specular_start(
             case,
@@ -408,6 +408,18 @@ fn start_materials(
         );
     }
     m0
+}
+
+/// `ABLATION_PRIOR_SH_NOISE=η`, `ABLATION_PRIOR_HAAR_NOISE=η` (probes): the light prior's
+/// relative noise levels in the row's fit, when its light model has the prior (`run`'s 0.3
+/// and 0.03, `solve::light::choose::PRIOR_SH_NOISE`, `PRIOR_HAAR_NOISE`); a lower level
+/// is a stronger prior.
+fn with_prior_noise(mut opts: EstimateOptions) -> EstimateOptions {
+    if let Some(lp) = opts.light_prior.as_mut() {
+        lp.sh_noise = crate::env_or("ABLATION_PRIOR_SH_NOISE", lp.sh_noise);
+        lp.haar_noise = crate::env_or("ABLATION_PRIOR_HAAR_NOISE", lp.haar_noise);
+    }
+    opts
 }
 
 /// `ABLATION_DEFAULTS_START=stiff-spec` (a probe): the specular lobes' start from a fit under
