@@ -82,16 +82,15 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     };
     let init = clustered_start(case, &pilot, colours);
     let m0 = start_materials(case, &pilot, &init, colours);
-    let light = light::by_scene(case, &problem, &m0, fit_options(case, base, &pilot), &pilot);
+    let fit_opts = fit_options(case, base, &pilot);
+    let light = light::by_scene(case, &problem, &m0, fit_opts.clone(), &pilot);
     let opts = with_prior_noise(light.options);
     let m0 = if start_variant().as_deref() == Some("stiff-spec") {
-        stiff_specular_start(
-            case,
-            &problem,
-            m0,
-            fit_options(case, base, &pilot),
-            &pilot.kept,
-        )
+        let scope = StartScope {
+            kept: &pilot.kept,
+            seen: &seen,
+        };
+        stiff_specular_start(case, &problem, m0, fit_opts, scope)
     } else {
         m0
     };
@@ -422,6 +421,13 @@ fn with_prior_noise(mut opts: EstimateOptions) -> EstimateOptions {
     opts
 }
 
+/// The pilot's kept lobes (indices into the case's basis) and the vertices a training
+/// photo sees, which the ratios are read over.
+struct StartScope<'a> {
+    kept: &'a [usize],
+    seen: &'a [bool],
+}
+
 /// `ABLATION_DEFAULTS_START=stiff-spec` (a probe): the specular lobes' start from a fit under
 /// the light prior with a stiff wavelet term (`--light prior`'s Haar L1 at relative noise
 /// `ABLATION_STIFF_HAAR`, default 0.1 against the prior's 0.03), `ABLATION_STIFF_ITERS`
@@ -433,7 +439,7 @@ fn stiff_specular_start(
     problem: &Problem,
     mut m0: Materials0,
     opts: EstimateOptions,
-    kept: &[usize],
+    scope: StartScope,
 ) -> Materials0 {
     let mut stiff = light::candidate(case, opts, "prior");
     if let Some(lp) = stiff.light_prior.as_mut() {
@@ -446,12 +452,12 @@ fn stiff_specular_start(
     let lambda: Vec<_> = est
         .lambda
         .iter()
-        .map(|row| full_basis(row, kept, case.basis.len()))
+        .map(|row| full_basis(row, scope.kept, case.basis.len()))
         .collect();
     eprintln!(
         "  stiff-light start: λ {:?}, worst ratio per channel {:?}",
         est.lambda,
-        crate::metrics::ratio_errors(case, &lambda, &est.weights, &vec![true; case.nv])
+        crate::metrics::ratio_errors(case, &lambda, &est.weights, scope.seen)
     );
     if std::env::var("ABLATION_STIFF_TAKE").is_ok_and(|v| v == "all") {
         return Materials0 {
