@@ -85,6 +85,8 @@
 //! `run --light paper`, or `--light shared` with the groups the photos' true skies, or the
 //! prior centred on each training photo's TRUE low-order shape at `ABLATION_ORACLE_FACTOR`
 //! times its precision, a probe; without it the row's light is `run`'s choice by scene),
+//! `ABLATION_DEFAULTS_GROUPS=1` (the training photos' groups under one true sky known to
+//! `run`'s choice, as EXIF capture times give them: `--light auto` adds the shared map),
 //! `ABLATION_PRIOR_SH_NOISE=η`, `ABLATION_PRIOR_HAAR_NOISE=η` (the light prior's noise
 //! levels in the `defaults` row's fit when its model has the prior), `SYNTH_SHARED_SKIES=1` (the
 //! scenes rendered with photos `i` and `i + 8` under one sky: the same map at the same

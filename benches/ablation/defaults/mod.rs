@@ -268,6 +268,15 @@ fn background_fit(case: &Case, lights: &[[Vec<f64>; 3]]) -> String {
     )
 }
 
+/// Whether the row's fit knows the training photos' groups under one true sky: under
+/// `ABLATION_DEFAULTS_LIGHT=shared`, or with `ABLATION_DEFAULTS_GROUPS=1`, where `run`'s
+/// rule chooses the light as it does for photos whose EXIF capture times group them
+/// (`--light auto` and `constrained` then fit the shared map as one more candidate).
+fn groups_given() -> bool {
+    std::env::var("ABLATION_DEFAULTS_LIGHT").is_ok_and(|v| v == "shared")
+        || crate::env_flag("ABLATION_DEFAULTS_GROUPS")
+}
+
 /// `run --smoothness` as the defaults' row gives it: `auto`, or with
 /// `ABLATION_DEFAULTS_SMOOTHNESS` the weight it set in `base` (the pilot's and the fit's).
 fn smoothness_flag(base: &EstimateOptions) -> relight_cpc::run::PriorStrength {
@@ -501,7 +510,8 @@ fn scale_specular(m0: &mut Materials0, x: f64) {
 /// every vertex, whatever the pilot's scope (`ABLATION_DEFAULTS_WEIGHTS_SUM=X`: at strength `X` whatever the
 /// pilot's); `ABLATION_DEFAULTS_LIGHT=shared`: `run --light shared` with one map per
 /// group of training photos under one true sky, with per-photo gains
-/// (`SYNTH_SHARED_SKIES=1` makes such groups). The specular lobes' colour as `run
+/// (`SYNTH_SHARED_SKIES=1` makes such groups); `ABLATION_DEFAULTS_GROUPS=1`: those groups
+/// known to `run`'s choice of light ([`groups_given`]). The specular lobes' colour as `run
 /// --achromatic-specular auto` ([`achromatic`]; `ABLATION_DEFAULTS_ACHROMATIC=on|off`).
 fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> EstimateOptions {
     let (max_outer, rel_tol) =
@@ -562,9 +572,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
             )
             .0,
         ),
-        light_groups: std::env::var("ABLATION_DEFAULTS_LIGHT")
-            .is_ok_and(|v| v == "shared")
-            .then(|| case.true_light_groups()),
+        light_groups: groups_given().then(|| case.true_light_groups()),
         achromatic_specular: relight_cpc::run::achromatic_for(achromatic(), pilot.materials, &kept)
             .0,
         ..base.clone()
