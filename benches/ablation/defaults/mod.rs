@@ -271,10 +271,15 @@ fn background_fit(case: &Case, lights: &[[Vec<f64>; 3]]) -> String {
 /// Whether the row's fit knows the training photos' groups under one true sky: under
 /// `ABLATION_DEFAULTS_LIGHT=shared`, or with `ABLATION_DEFAULTS_GROUPS=1`, where `run`'s
 /// rule chooses the light as it does for photos whose EXIF capture times group them
-/// (`--light auto` and `constrained` then fit the shared map as one more candidate).
+/// (`--light auto` and `constrained` then fit the shared map as one more candidate). A
+/// light forced to another model (`paper`, …) keeps no groups.
 fn groups_given() -> bool {
-    std::env::var("ABLATION_DEFAULTS_LIGHT").is_ok_and(|v| v == "shared")
-        || crate::env_flag("ABLATION_DEFAULTS_GROUPS")
+    let light = std::env::var("ABLATION_DEFAULTS_LIGHT");
+    match light.as_deref() {
+        Ok("shared") => true,
+        Ok("auto") | Err(_) => crate::env_flag("ABLATION_DEFAULTS_GROUPS"),
+        Ok(_) => false,
+    }
 }
 
 /// `run --smoothness` as the defaults' row gives it: `auto`, or with
