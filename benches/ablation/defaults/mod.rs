@@ -479,13 +479,7 @@ fn stiff_specular_start(
             weights: est.weights,
         };
     }
-    for (row, fitted) in m0.lambda.iter_mut().zip(&est.lambda) {
-        for (b, v) in row.iter_mut().enumerate() {
-            if b != LAMBERT {
-                *v = fitted[b];
-            }
-        }
-    }
+    each_specular(&mut m0, |k, b, v| *v = est.lambda[k][b]);
     m0
 }
 
@@ -493,10 +487,15 @@ fn stiff_specular_start(
 /// its `λ` (the start the alternation keeps the specular strength near,
 /// `bench-results/targets-192.md` section 11).
 fn scale_specular(m0: &mut Materials0, x: f64) {
-    for row in &mut m0.lambda {
+    each_specular(m0, |_, _, v| *v = v.map(|l| l * x));
+}
+
+/// `f(k, b, λ)` on every material `k`'s `λ` of each lobe `b` but the Lambertian one.
+fn each_specular(m0: &mut Materials0, mut f: impl FnMut(usize, usize, &mut [f64; 3])) {
+    for (k, row) in m0.lambda.iter_mut().enumerate() {
         for (b, v) in row.iter_mut().enumerate() {
             if b != LAMBERT {
-                *v = v.map(|l| l * x);
+                f(k, b, v);
             }
         }
     }
