@@ -80,6 +80,7 @@ pub(crate) mod start_check;
 pub mod starts;
 pub mod subsample;
 pub mod validation;
+pub mod varpro_step;
 
 pub use alternation::{estimate, estimate_with};
 pub use light::photo::{

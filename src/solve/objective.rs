@@ -82,6 +82,26 @@ pub(crate) fn channel_data_fit(
     f
 }
 
+/// Per observation and channel, the weighted residual `√(α_p ω_{p,c}) r_{p,c}` whose squares
+/// sum to the data term of [`channel_data_fit`] (0 where `α_p ≤ 0`).
+pub(crate) fn weighted_residuals(
+    problem: &Problem,
+    pred: &[[f64; 3]],
+    omega: &[[f32; 3]],
+) -> Vec<[f64; 3]> {
+    let obs = problem.obs;
+    (0..obs.vertex.len())
+        .into_par_iter()
+        .map(|p| {
+            let a = obs.weight[p] as f64;
+            if a <= 0.0 {
+                return [0.0; 3];
+            }
+            [0, 1, 2].map(|c| (a * omega[p][c] as f64).sqrt() * residual(obs, p, c, pred[p][c]))
+        })
+        .collect()
+}
+
 /// A state the objective is evaluated at: the light model's maps and its prior's value,
 /// and the materials.
 pub(crate) struct Point<'a> {

@@ -241,6 +241,10 @@ pub struct EstimateOptions {
     /// The first rounds that take the ratio step ([`crate::solve::ratio_step`], issue 25,
     /// not in the paper; two more lighting steps a round and direction); 0 = off.
     pub ratio_steps: usize,
+    /// The first rounds that take the variable-projection step
+    /// ([`crate::solve::varpro_step`], issue 25, not in the paper; `K·B + 2` more lighting
+    /// steps a round); 0 = off.
+    pub varpro_steps: usize,
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
     pub light_groups: Option<LightGroups>,
@@ -434,6 +438,7 @@ impl Default for EstimateOptions {
             achromatic_specular: false,
             anderson_depth: 0,
             ratio_steps: 0,
+            varpro_steps: 0,
             light_groups: None,
             scale_anchor: ScaleAnchor::Start,
         }

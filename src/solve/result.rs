@@ -174,6 +174,9 @@ pub struct Estimate {
     pub lighting_sample: Option<crate::solve::subsample::SampleCheck>,
     /// The ratio step's record ([`crate::solve::ratio_step`]).
     pub ratio_moves: RatioMoves,
+    /// The variable-projection step's record ([`crate::solve::varpro_step`]; its
+    /// `stopped_after` unused).
+    pub varpro_moves: RatioMoves,
     /// Each photo's recovered sun and sky under the sun-and-sky model
     /// ([`crate::solve::light::sky`]); `None` under another light model.
     pub sky: Option<crate::solve::light::sky::summary::SkyFit>,
@@ -222,6 +225,7 @@ impl Estimate {
             validation: None,
             lighting_sample: None,
             ratio_moves: RatioMoves::default(),
+            varpro_moves: RatioMoves::default(),
             sky: None,
         }
     }

@@ -65,6 +65,7 @@ mod synth_workspace;
 mod transport_agreement;
 mod transport_blended;
 mod transport_furnace;
+mod varpro_step;
 mod visibility_known;
 mod workspace_dense_buddha;
 mod workspace_discover;

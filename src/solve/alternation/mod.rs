@@ -8,7 +8,10 @@
 //!    ([`crate::solve::ratio_step`]: each material's brightness per channel moved along
 //!    the valley with the lights re-solved, kept only when `F` drops and the held-back
 //!    observations are predicted no worse; no more after [`ratio_step::PATIENCE`] rounds
-//!    in a row that kept none);
+//!    in a row that kept none); in the first [`EstimateOptions::varpro_steps`] rounds
+//!    then the variable-projection step ([`crate::solve::varpro_step`]: every material's
+//!    `λ` moved by a damped Gauss–Newton step with the lights re-solved, kept per channel
+//!    on the same two tests; `varpro`);
 //! 2. materials: `λ` then `w` ([`crate::solve::materials`]), `material_sweeps` times, then
 //!    the gauge `Σ_x Σ_b β_{x,b,c}` back to its start value (`fix_gauge`);
 //! 3. extrapolation (Bro 1998, "Multi-way analysis", §4.5: alternating least squares
@@ -18,6 +21,8 @@
 //!    ([`crate::solve::accel`], kept likewise only when `F` drops);
 //! 4. validation: the held-back observations scored, the best iterate kept
 //!    ([`crate::solve::validation`]).
+
+mod varpro;
 
 use std::time::Instant;
 
@@ -187,6 +192,8 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     ratio_moves: RatioMoves,
     /// Rounds in a row in which the ratio step kept no move.
     ratio_idle: usize,
+    /// The variable-projection step's record.
+    varpro_moves: RatioMoves,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -218,6 +225,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             anderson: (opts.anderson_depth > 0).then(|| AndersonHistory::new(opts.anderson_depth)),
             ratio_moves: RatioMoves::default(),
             ratio_idle: 0,
+            varpro_moves: RatioMoves::default(),
         }
     }
 
@@ -231,6 +239,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let (lighting_seconds, lighting_cpu_seconds) = self.lighting(outer_it)?;
         if !self.opts.fixed_materials {
             self.ratio_step(outer_it, stop)?;
+            self.varpro_step(outer_it, stop)?;
         }
         let watch = Stopwatch::start();
         let s = self.materials()?;
@@ -694,6 +703,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             validation,
             lighting_sample: sample_check,
             ratio_moves: self.ratio_moves,
+            varpro_moves: self.varpro_moves,
         })
     }
 }
