@@ -114,9 +114,22 @@ pub struct ModelReport {
     /// The ratio step (`--ratio-steps`): whether it ran, why, and what it did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ratio_step: Option<RatioStepReport>,
+    /// The variable-projection step (`--varpro-steps`): its rounds and what they did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub varpro_step: Option<VarproStepReport>,
     /// Each training photo's recovered sun and sky (the light model `sky`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sky: Option<sky::SkyReport>,
+}
+
+/// The variable-projection step's rounds and moves ([`crate::solve::varpro_step`]).
+#[derive(Debug, Clone, Serialize, Default, PartialEq, Eq)]
+pub struct VarproStepReport {
+    /// The first rounds that took it (0: off).
+    pub rounds: usize,
+    /// Steps tried and kept, rounds the light model could not take it in.
+    #[serde(flatten)]
+    pub moves: crate::solve::RatioMoves,
 }
 
 /// The ratio step's rounds and moves ([`crate::solve::ratio_step`]).

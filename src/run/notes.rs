@@ -43,6 +43,23 @@ fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
     }
 }
 
+/// What the variable-projection step (`--varpro-steps`) did, when asked for.
+fn varpro_note(fitted: &Fitted) -> Option<String> {
+    let rounds = fitted.estimate_options.varpro_steps;
+    let m = &fitted.est.varpro_moves;
+    (rounds > 0).then(|| {
+        let what = format!(
+            "the variable-projection step (--varpro-steps {rounds}) kept {} of {} Gauss-Newton steps of every material's lobes with the lights re-solved (docs/method.md, \"The variable-projection step\")",
+            m.kept, m.tried
+        );
+        if m.unsupported > 0 {
+            format!("{what}; the light model could not take it in {} rounds (its channels are not separable or its parameters do not mix)", m.unsupported)
+        } else {
+            what
+        }
+    })
+}
+
 /// The specular lobes' colour, when the fit has any besides the Lambertian one and the
 /// flag was given (with `auto` the fit's reasons say it, [`super::achromatic_for`]).
 fn specular_note(opts: &RunOptions, fitted: &Fitted) -> Option<String> {
@@ -68,6 +85,7 @@ pub(crate) fn fit_notes(
     log.notes
         .extend(conditioning_notes(opts, &est.conditioning));
     log.notes.push(ratio_note(opts, fitted));
+    log.notes.extend(varpro_note(fitted));
     log.notes.extend(specular_note(opts, fitted));
     log.notes.extend(starts_note(multi));
     log.notes

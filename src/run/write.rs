@@ -118,6 +118,10 @@ fn model_report(
             rule: fitted.est.normalisation.clone(),
         }),
         ratio_step: Some(ratio_step_report(opts, fitted)),
+        varpro_step: Some(crate::report::VarproStepReport {
+            rounds: fitted.estimate_options.varpro_steps,
+            moves: fitted.est.varpro_moves,
+        }),
         sky: None,
     }
 }

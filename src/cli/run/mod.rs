@@ -212,6 +212,10 @@ pub(crate) struct RunArgs {
         help_heading = "Solver"
     )]
     pub(crate) ratio_steps: String,
+    /// The first N rounds move every material's lobes at once by a Gauss-Newton step with
+    /// the lights re-solved (K x lobes + 2 more lighting steps a round); 0 = off.
+    #[arg(long, default_value_t = 0, value_name = "N", help_heading = "Solver")]
+    pub(crate) varpro_steps: usize,
     /// Starting points to try, the best kept: 1 = materials from colour clusters; 2 adds
     /// every shiny lobe at 0.3 × the matte weight, then one lobe per material in turn.
     /// Each costs one fit.

@@ -92,6 +92,9 @@ pub struct RunOptions {
     pub min_iterations: usize,
     /// The first rounds that take the ratio step ([`EstimateOptions::ratio_steps`]).
     pub ratio_steps: RatioSteps,
+    /// The first rounds that take the variable-projection step
+    /// ([`EstimateOptions::varpro_steps`]); 0 = off.
+    pub varpro_steps: usize,
     /// At most this many observations per photo in its lighting QPs, a stratified sample
     /// ([`EstimateOptions::lighting_sample`]); 0 = all.
     pub lighting_sample: usize,
@@ -328,6 +331,7 @@ impl RunOptions {
             patience: Self::DEFAULT_PATIENCE,
             min_iterations: crate::solve::options::MIN_ITERATIONS,
             ratio_steps: RatioSteps::Auto,
+            varpro_steps: 0,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_weights: crate::solve::cluster::StartWeights::Clustered,
