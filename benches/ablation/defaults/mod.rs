@@ -116,6 +116,13 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     };
     let mut est = second::second_fits(probe, first, pilot.materials);
     eprintln!("  ratio step, the fit kept: {}", moves_line(&est));
+    let v = &est.varpro_moves;
+    if v.tried + v.unsupported > 0 {
+        eprintln!(
+            "  variable-projection step, the fit kept: {} of {} kept, {} rounds unsupported",
+            v.kept, v.tried, v.unsupported
+        );
+    }
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
     est.lambda = est
@@ -549,6 +556,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         ),
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
+        varpro_steps: crate::env_or("ABLATION_VARPRO_STEPS", 0),
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
         // `run --weights-bic auto` by the training photos, the pilot's count and lobes, or
         // `ABLATION_DEFAULTS_WEIGHTS_BIC=X` (`--weights-bic X`).
