@@ -127,9 +127,13 @@ pub struct ModelReport {
 pub struct VarproStepReport {
     /// The first rounds that took it (0: off).
     pub rounds: usize,
-    /// Steps tried and kept, rounds the light model could not take it in.
-    #[serde(flatten)]
-    pub moves: crate::solve::RatioMoves,
+    /// Steps tried (one a round).
+    pub tried: usize,
+    /// Steps kept (`F` dropped in some channel and the held-back observations did not get
+    /// worse).
+    pub kept: usize,
+    /// Rounds the light model could not take it in.
+    pub unsupported: usize,
 }
 
 /// The ratio step's rounds and moves ([`crate::solve::ratio_step`]).

@@ -120,7 +120,9 @@ fn model_report(
         ratio_step: Some(ratio_step_report(opts, fitted)),
         varpro_step: Some(crate::report::VarproStepReport {
             rounds: fitted.estimate_options.varpro_steps,
-            moves: fitted.est.varpro_moves,
+            tried: fitted.est.varpro_moves.tried,
+            kept: fitted.est.varpro_moves.kept,
+            unsupported: fitted.est.varpro_moves.unsupported,
         }),
         sky: None,
     }

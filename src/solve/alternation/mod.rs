@@ -33,7 +33,7 @@ use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
 use crate::solve::materials::{
     blend_scaled_gamma, data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty,
-    weights_step, LambdaCoupling, NeighbourPull, WeightsRules,
+    weights_step, LambdaCoupling, NeighbourPull, WeightsRules, WeightsStep,
 };
 use crate::solve::normalise::normalise;
 use crate::solve::objective::{channel_data_fit, evaluate, gauge, Objective, Point};
@@ -294,18 +294,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     fn refit_held_weights(&mut self, full: &Problem, held: &[usize]) -> Result<()> {
         let dw = data_weights(full, &self.omega, self.opts);
         let s = basis_responses(full, &self.light.maps(self.light.params()));
-        let w = weights_step(
-            full,
-            &s,
-            &self.lambda,
-            &self.weights,
-            &dw.weights,
-            WeightsRules {
-                gamma: self.sum_gamma.as_deref(),
-                pull: None,
-                bic: self.opts.weights_bic,
-            },
-        )?;
+        let w = self.weights_on(full, &s, &dw.weights, false)?;
         let kk = self.lambda.len();
         for &p in held {
             let x = full.obs.vertex[p] as usize;
@@ -334,20 +323,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             alt.lambda = unflatten(&cand, &alt.lambda);
             let dw = data_weights(problem, &alt.omega, alt.opts);
             let s = basis_responses(problem, &alt.light.maps(alt.light.params()));
-            let sum_gamma = alt.sum_gamma.clone();
-            let w = weights_step(
-                problem,
-                &s,
-                &alt.lambda,
-                &alt.weights,
-                &dw.weights,
-                WeightsRules {
-                    gamma: sum_gamma.as_deref(),
-                    pull: None,
-                    bic: alt.opts.weights_bic,
-                },
-            )?;
-            alt.weights = w.weights;
+            alt.weights = alt.weights_on(problem, &s, &dw.weights, false)?.weights;
             alt.lighting(outer_it)?;
             let obj = alt.objective(None);
             if obj.value.is_finite() && obj.value < current.value {
@@ -525,18 +501,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             }
             self.lambda = l.lambda;
             self.cond.lambda = l.cond;
-            let w = weights_step(
-                problem,
-                &s,
-                &self.lambda,
-                &self.weights,
-                &dw.weights,
-                WeightsRules {
-                    gamma: self.sum_gamma.as_deref(),
-                    pull: self.pull(),
-                    bic: opts.weights_bic,
-                },
-            )?;
+            let w = self.weights_on(problem, &s, &dw.weights, true)?;
             self.weights = w.weights;
             self.cond.weights_max = w.cond_max;
             self.cond.weights_singular = w.singular;
@@ -545,6 +510,30 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             self.fix_gauge(&mut s);
         }
         Ok(s)
+    }
+
+    /// One w step (Eq. 12) on `problem` under the basis responses `s` and data weights
+    /// `dw`, from the current `λ` and weights, with the sum-to-one prior when on and the
+    /// neighbour prior when `pull` and on.
+    fn weights_on(
+        &self,
+        problem: &Problem,
+        s: &[[f64; 3]],
+        dw: &[[f64; 3]],
+        pull: bool,
+    ) -> Result<WeightsStep> {
+        weights_step(
+            problem,
+            s,
+            &self.lambda,
+            &self.weights,
+            dw,
+            WeightsRules {
+                gamma: self.sum_gamma.as_deref(),
+                pull: if pull { self.pull() } else { None },
+                bic: self.opts.weights_bic,
+            },
+        )
     }
 
     /// With [`SumScope::Blends`], the sum-to-one prior's `γ_x` for the coming material step
