@@ -15,7 +15,9 @@
 //!
 //! 1. the Jacobian by forward differences, one lighting step per `(k, b)` (all three
 //!    channels at once): `J_{:,i} = (r(θ + h_i e_i) − r(θ)) / h_i`, each probe's lights
-//!    re-solved from the current lights with the QPs run further than a block step;
+//!    re-solved from the current lights by one block step of the alternation (its QPs run
+//!    four times further bought nothing for 1.9× the fit's time: the glossy scene, seed 1,
+//!    the fit under the true light 0.0463 against 0.0464, `bench-results/varpro-step.md`);
 //!    `r(θ)` itself from one such re-solve at `θ`, so that the columns hold what the
 //!    lights' further convergence adds in common;
 //! 2. the Levenberg–Marquardt step `(JᵀJ + μ diag(JᵀJ)) Δ = −Jᵀ r(θ)` ([`damped_step`]);
@@ -44,12 +46,6 @@ pub const FLOOR_SHARE: f64 = 0.2;
 
 /// Levenberg–Marquardt's `μ` (relative to `diag(JᵀJ)`).
 pub const DAMPING: f64 = 1e-2;
-
-/// GPCG iterations of the probes' lighting QPs: the alternation's block steps' 3
-/// ([`crate::solve::options::ALTERNATION_QP_ITERS`]). 12 bought nothing for 1.9× the fit's
-/// time (the glossy scene, seed 1, 8 rounds: the fit under the true light 0.0463 against
-/// 0.0464 at 3; `bench-results/varpro-step.md`).
-pub const PROBE_QP_ITERS: usize = 3;
 
 /// One entry `(k, b)` of `λ` and its forward-difference step per channel.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -443,23 +443,30 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
         // The held-back observations of early stopping must not get worse either: a lower
         // `F` along the valley need not be nearer the truth's ratios (the built-in example).
-        let held_ok = || {
-            let score = |lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
-                let beta = beta_per_vertex(lambda, &self.weights, self.problem.n_vertices);
-                stop.peek(self.problem, &self.light.maps(lights), &beta)
-            };
-            let now = score(self.light.params(), &self.lambda);
-            now.zip(score(&base.light, &base.lambda))
-                .is_none_or(|(a, b)| a <= b)
-        };
         // The held-back score only where `F` dropped: two predictions saved on every
         // rejected move.
-        if ft.iter().sum::<f64>() < f0.iter().sum::<f64>() && held_ok() {
+        if ft.iter().sum::<f64>() < f0.iter().sum::<f64>() && self.held_no_worse(stop, &base) {
             self.ratio_moves.kept += 1;
             return Ok(Some(ft));
         }
         self.restore(base);
         Ok(Some(f0))
+    }
+
+    /// Whether early stopping's held-back observations are predicted no worse by the current
+    /// state than by `base` (the same weights; true when early stopping is off).
+    pub(crate) fn held_no_worse(
+        &self,
+        stop: &EarlyStop<BestIterate<M::Params>>,
+        base: &Snapshot<M::Params>,
+    ) -> bool {
+        let score = |lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
+            let beta = beta_per_vertex(lambda, &self.weights, self.problem.n_vertices);
+            stop.peek(self.problem, &self.light.maps(lights), &beta)
+        };
+        let now = score(self.light.params(), &self.lambda);
+        now.zip(score(&base.light, &base.lambda))
+            .is_none_or(|(a, b)| a <= b)
     }
 
     /// Early stopping's score of the current iterate, kept when it is the best so far

@@ -35,9 +35,7 @@ impl<M: LightModel> Alternation<'_, M> {
         let (base, omega0) = (self.snapshot(), self.omega.clone());
         let params = vp::parameters(&base.lambda);
         self.light.hold_shape(true);
-        self.light.probe_iterations(Some(vp::PROBE_QP_ITERS));
         let probes = self.probe_all(outer_it, &base, &omega0, &params);
-        self.light.probe_iterations(None);
         self.light.hold_shape(false);
         let probes = probes?;
         let system = vp::normal_equations(&probes.columns, &probes.r0, &params);
@@ -121,14 +119,7 @@ impl<M: LightModel> Alternation<'_, M> {
         };
         self.light.set_params(mixed);
         self.lambda = vp::moved(&base.lambda, params, delta, [0, 1, 2].map(|c| t[c] * on[c]));
-        let score = |alt: &Self, lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
-            let beta = beta_per_vertex(lambda, &alt.weights, alt.problem.n_vertices);
-            stop.peek(alt.problem, &alt.light.maps(lights), &beta)
-        };
-        let now = score(self, self.light.params(), &self.lambda);
-        let held_ok = now
-            .zip(score(self, &base.light, &base.lambda))
-            .is_none_or(|(a, b)| a <= b);
+        let held_ok = self.held_no_worse(stop, base);
         if !held_ok {
             self.restore(base.clone());
         }

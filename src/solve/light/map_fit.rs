@@ -66,15 +66,6 @@ impl MapFitState {
         self.mu[m] = Some(mu);
     }
 
-    /// The lighting QPs' GPCG cap: `qp_iters` (at most a single fit's), or the
-    /// alternation's again with `None` ([`crate::solve::light::LightModel::probe_iterations`]).
-    pub(crate) fn probe_iterations(&mut self, qp_iters: Option<usize>) {
-        let capped = self.opts.alternation_lighting().qp_max_iter;
-        self.light_opts.qp_max_iter = qp_iters.map_or(capped, |i| {
-            i.clamp(capped, self.opts.qp_max_iter.max(capped))
-        });
-    }
-
     /// Whether the alternation's QP caps are below a single fit's (its solver records
     /// count the QPs they stopped).
     pub(crate) fn capped(&self) -> bool {

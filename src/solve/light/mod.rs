@@ -118,14 +118,6 @@ pub trait LightModel: Send + Sync {
         let _ = hold;
     }
 
-    /// Solves the lighting QPs with up to `qp_iters` GPCG iterations while set (`None`:
-    /// the alternation's cap again): the variable-projection step's probes
-    /// ([`crate::solve::varpro_step`]) re-solve the lights further than a block step. A
-    /// no-op for models whose QPs are not capped.
-    fn probe_iterations(&mut self, qp_iters: Option<usize>) {
-        let _ = qp_iters;
-    }
-
     /// `θ + σ (θ − θ_prev)` projected on the model's feasible set (the extrapolation of
     /// the alternation, Bro 1998).
     fn extrapolate(&self, params: &Self::Params, prev: &Self::Params, sigma: f64) -> Self::Params;

@@ -131,10 +131,6 @@ impl LightModel for PaperLight {
         self.state.penalty(params) + self.background_penalty(params).iter().sum::<f64>()
     }
 
-    fn probe_iterations(&mut self, qp_iters: Option<usize>) {
-        self.state.probe_iterations(qp_iters);
-    }
-
     fn combine(&self, parts: &[(&Maps, [f64; 3])]) -> Option<Maps> {
         let maps: Vec<WeightedMaps> = parts.iter().map(|(p, w)| (p.as_slice(), *w)).collect();
         combine_maps(&maps)

@@ -504,10 +504,6 @@ impl LightModel for SharedLight {
     /// interpolation of each factor, not of the photos' maps; the step keeps the result
     /// only where `F` drops. The ratio step's weights sum to one, so a group's mean gain
     /// stays 1.
-    fn probe_iterations(&mut self, qp_iters: Option<usize>) {
-        self.state.probe_iterations(qp_iters);
-    }
-
     fn combine(&self, parts: &[(&SharedParams, [f64; 3])]) -> Option<SharedParams> {
         let maps: Vec<WeightedMaps> = parts.iter().map(|(p, w)| (p.maps.as_slice(), *w)).collect();
         let gains = (0..parts.first()?.0.gains.len())
