@@ -77,9 +77,7 @@ fn ratio_floor_of(
     let s = basis_responses(&problem, &case.train.lights);
     let dw: Vec<[f64; 3]> = obs.weight.iter().map(|&a| [f64::from(a); 3]).collect();
     let kk = case.lambda.len();
-    let coupling = LambdaCoupling {
-        achromatic_except: None,
-    };
+    let coupling = LambdaCoupling::default();
     let lambda_of = |weights: &[f64]| {
         lambda_step(&problem, &s, weights, kk, &dw, None, 1e-8, coupling)
             .expect("λ step")
@@ -302,9 +300,7 @@ fn lambda_under(
         ..case.train.problem(case.nv)
     };
     let dw: Vec<[f64; 3]> = obs.weight.iter().map(|&a| [f64::from(a); 3]).collect();
-    let coupling = LambdaCoupling {
-        achromatic_except: None,
-    };
+    let coupling = LambdaCoupling::default();
     lambda_step(&problem, s, w, case.lambda.len(), &dw, None, 1e-8, coupling)
         .expect("λ step")
         .lambda

@@ -66,6 +66,7 @@ pub mod alternation;
 pub mod budget;
 pub mod cluster;
 pub mod light;
+pub mod lobe_prune;
 pub mod matched;
 pub mod materials;
 pub mod normalise;

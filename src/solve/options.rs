@@ -245,6 +245,14 @@ pub struct EstimateOptions {
     /// ([`crate::solve::varpro_step`], issue 25, not in the paper; `K·B + 2` more lighting
     /// steps a round); 0 = off.
     pub varpro_steps: usize,
+    /// The variable-projection step's Jacobian by forward differences in its first round
+    /// only, then by Broyden's update from each kept step's secant
+    /// ([`crate::solve::varpro_step::broyden_update`]; a round then costs 2 lighting
+    /// steps, not `K·B + 2`); a round that keeps nothing probes again in the next.
+    pub varpro_broyden: bool,
+    /// From this round on each material keeps one shiny lobe, the one it weights most
+    /// ([`crate::solve::lobe_prune`], issue 25, not in the paper); 0 = off.
+    pub prune_round: usize,
     /// Photos that share one map with per-photo gains (issue 25, not in the paper;
     /// [`crate::solve::light::shared`]); `None`: a map per photo.
     pub light_groups: Option<LightGroups>,
@@ -439,6 +447,8 @@ impl Default for EstimateOptions {
             anderson_depth: 0,
             ratio_steps: 0,
             varpro_steps: 0,
+            varpro_broyden: false,
+            prune_round: 0,
             light_groups: None,
             scale_anchor: ScaleAnchor::Start,
         }

@@ -28,6 +28,13 @@
 //!    that refuses the full step is tried again at a quarter of it.
 //!
 //! A step costs `K·B + 2` lighting steps (`+1` for a quarter step).
+//!
+//! With [`crate::solve::EstimateOptions::varpro_broyden`] only the first round (and a round
+//! after one that kept nothing) probes; the next rounds carry the Jacobian over, updated by
+//! Broyden's rank-one secant from each try's move and the residual change it made
+//! ([`broyden_update`]), so a round costs 2 lighting steps. On the glossy Spot (seeds 1–2)
+//! that halved the fit's time and kept 60–80% of the probed step's gain
+//! (`bench-results/varpro-step.md`, section 9).
 
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
@@ -102,34 +109,84 @@ pub fn moved(
     out
 }
 
-/// Per channel, `JᵀJ` and `Jᵀ r0` of the forward-difference Jacobian whose column `i` is
-/// `(probes[i] − r0) / params[i].step` (a column of a zero step is zero).
-pub fn normal_equations(
+/// The reduced residual's Jacobian: `columns[i][p][c] = ∂r_{p,c} / ∂θ_{i,c}` (a channel of
+/// a zero step has a zero column).
+#[derive(Debug, Clone)]
+pub struct Jacobian {
+    /// One column per [`Parameter`], per observation and channel.
+    pub columns: Vec<Vec<[f64; 3]>>,
+}
+
+/// The forward-difference Jacobian: column `i` is `(probes[i] − r0) / params[i].step`.
+pub fn forward_differences(
     probes: &[Vec<[f64; 3]>],
     r0: &[[f64; 3]],
     params: &[Parameter],
-) -> [(DMatrix<f64>, DVector<f64>); 3] {
-    let n = params.len();
-    [0, 1, 2].map(|c| {
-        let col = |i: usize, p: usize| {
-            let h = params[i].step[c];
-            if h > 0.0 {
-                (probes[i][p][c] - r0[p][c]) / h
-            } else {
-                0.0
+) -> Jacobian {
+    let columns = probes
+        .iter()
+        .zip(params)
+        .map(|(probe, p)| {
+            probe
+                .iter()
+                .zip(r0)
+                .map(|(q, r)| {
+                    [0, 1, 2].map(|c| {
+                        let h = p.step[c];
+                        if h > 0.0 {
+                            (q[c] - r[c]) / h
+                        } else {
+                            0.0
+                        }
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    Jacobian { columns }
+}
+
+/// Broyden's rank-one update per channel (Broyden 1965, "A class of methods for solving
+/// nonlinear simultaneous equations", Math. Comp. 19): `J_c ← J_c + (Δr_c − J_c s_c) s_cᵀ /
+/// (s_cᵀ s_c)`, the least change of `J_c` (in the Frobenius norm) that satisfies the secant
+/// condition `J_c s_c = Δr_c`; `s[i][c]` the move of parameter `i`, `dr` the residual's
+/// change it made. A channel that did not move keeps its columns.
+pub fn broyden_update(jac: &mut Jacobian, s: &[[f64; 3]], dr: &[[f64; 3]]) {
+    for c in 0..3 {
+        let ss: f64 = s.iter().map(|v| v[c] * v[c]).sum();
+        if ss <= 0.0 {
+            continue;
+        }
+        for p in 0..dr.len() {
+            let js: f64 = jac
+                .columns
+                .iter()
+                .zip(s)
+                .map(|(col, v)| col[p][c] * v[c])
+                .sum();
+            let u = (dr[p][c] - js) / ss;
+            for (col, v) in jac.columns.iter_mut().zip(s) {
+                col[p][c] += u * v[c];
             }
-        };
+        }
+    }
+}
+
+/// Per channel, `JᵀJ` and `Jᵀ r0`.
+pub fn normal_equations(jac: &Jacobian, r0: &[[f64; 3]]) -> [(DMatrix<f64>, DVector<f64>); 3] {
+    let n = jac.columns.len();
+    [0, 1, 2].map(|c| {
         let mut jtj = DMatrix::<f64>::zeros(n, n);
         let mut jtr = DVector::<f64>::zeros(n);
         for p in 0..r0.len() {
             for i in 0..n {
-                let ji = col(i, p);
+                let ji = jac.columns[i][p][c];
                 if ji == 0.0 {
                     continue;
                 }
                 jtr[i] += ji * r0[p][c];
                 for j in i..n {
-                    jtj[(i, j)] += ji * col(j, p);
+                    jtj[(i, j)] += ji * jac.columns[j][p][c];
                 }
             }
         }
@@ -238,7 +295,7 @@ mod tests {
             .iter()
             .map(|p| residuals(&a, &y, &probed(&lambda, p)))
             .collect();
-        let system = normal_equations(&probes, &r0, &params);
+        let system = normal_equations(&forward_differences(&probes, &r0, &params), &r0);
         let delta = steps(&system, 0.0);
         let ata = a.transpose() * &a;
         for c in 0..3 {
@@ -291,5 +348,51 @@ mod tests {
         );
         assert_eq!(m[0][0], [0.0, 0.0, 1.05]);
         assert_eq!(m[0][1][0], 0.1);
+    }
+
+    /// On a linear model the forward differences are the exact Jacobian, which an exact
+    /// secant pair leaves as it is; from a wrong Jacobian one update satisfies the secant
+    /// condition and leaves `J v` unchanged for `v` orthogonal to the move.
+    #[test]
+    fn broyden_keeps_an_exact_jacobian_and_meets_the_secant_condition() {
+        let (a, y, lambda) = linear_case();
+        let params = parameters(&lambda);
+        let r0 = residuals(&a, &y, &lambda);
+        let probes: Vec<Vec<[f64; 3]>> = params
+            .iter()
+            .map(|p| residuals(&a, &y, &probed(&lambda, p)))
+            .collect();
+        let exact = forward_differences(&probes, &r0, &params);
+        let s = [
+            [0.1, -0.2, 0.05],
+            [0.0, 0.3, 0.1],
+            [-0.1, 0.1, 0.2],
+            [0.2, 0.0, -0.1],
+        ];
+        let dr: Vec<[f64; 3]> = (0..a.nrows())
+            .map(|p| [0, 1, 2].map(|c| (0..4).map(|i| exact.columns[i][p][c] * s[i][c]).sum()))
+            .collect();
+        let mut same = exact.clone();
+        broyden_update(&mut same, &s, &dr);
+        // Rounding of sums of 4 products of O(1) numbers: 1e-12.
+        let close = |x: f64, y: f64| (x - y).abs() < 1e-12;
+        for (cs, ce) in same.columns.iter().zip(&exact.columns) {
+            for (u, v) in cs.iter().zip(ce) {
+                assert!((0..3).all(|c| close(u[c], v[c])), "{u:?} vs {v:?}");
+            }
+        }
+        let mut wrong = Jacobian {
+            columns: vec![vec![[0.5, -0.3, 1.0]; a.nrows()]; 4],
+        };
+        let before = wrong.clone();
+        broyden_update(&mut wrong, &s, &dr);
+        // Channel 0's move has no component on parameter 1: that column stays.
+        for p in 0..a.nrows() {
+            for c in 0..3 {
+                let js: f64 = (0..4).map(|i| wrong.columns[i][p][c] * s[i][c]).sum();
+                assert!(close(js, dr[p][c]), "secant: {js} vs {}", dr[p][c]);
+            }
+            assert!(close(wrong.columns[1][p][0], before.columns[1][p][0]));
+        }
     }
 }

@@ -557,6 +557,8 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
         varpro_steps: crate::env_or("ABLATION_VARPRO_STEPS", 0),
+        prune_round: crate::env_or("ABLATION_PRUNE_ROUND", 0),
+        varpro_broyden: crate::env_or("ABLATION_VARPRO_BROYDEN", 0) == 1,
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
         // `run --weights-bic auto` by the training photos, the pilot's count and lobes, or
         // `ABLATION_DEFAULTS_WEIGHTS_BIC=X` (`--weights-bic X`).

@@ -31,6 +31,7 @@ use crate::solve::light::paper::PaperLight;
 use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
+use crate::solve::lobe_prune;
 use crate::solve::materials::{
     blend_scaled_gamma, data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty,
     weights_step, LambdaCoupling, NeighbourPull, WeightsRules, WeightsStep,
@@ -194,6 +195,15 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     ratio_idle: usize,
     /// The variable-projection step's record.
     varpro_moves: RatioMoves,
+    /// `pruned[k·B + b]`: `λ_{k,b,·}` held at zero ([`crate::solve::lobe_prune`]); empty
+    /// before [`EstimateOptions::prune_round`].
+    pruned: Vec<bool>,
+    /// The variable-projection step's parameters and Jacobian after its last kept step,
+    /// for Broyden's update in the next round ([`EstimateOptions::varpro_broyden`]).
+    varpro_jacobian: Option<(
+        Vec<crate::solve::varpro_step::Parameter>,
+        crate::solve::varpro_step::Jacobian,
+    )>,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -226,6 +236,8 @@ impl<'a, M: LightModel> Alternation<'a, M> {
             ratio_moves: RatioMoves::default(),
             ratio_idle: 0,
             varpro_moves: RatioMoves::default(),
+            pruned: Vec::new(),
+            varpro_jacobian: None,
         }
     }
 
@@ -236,6 +248,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         stop: &mut EarlyStop<BestIterate<M::Params>>,
         t0: Instant,
     ) -> Result<Iteration> {
+        self.prune_lobes(outer_it);
         let (lighting_seconds, lighting_cpu_seconds) = self.lighting(outer_it)?;
         if !self.opts.fixed_materials {
             self.ratio_step(outer_it, stop)?;
@@ -268,6 +281,26 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 material_cpu_seconds,
             },
         })
+    }
+
+    /// At round [`EstimateOptions::prune_round`], each material's shiny lobes but its
+    /// strongest held at zero from here on ([`lobe_prune::one_shiny_lobe`]); the
+    /// extrapolation's and Anderson's histories restart, so that no combination of
+    /// earlier iterates brings a pruned lobe back.
+    fn prune_lobes(&mut self, outer_it: usize) {
+        if self.opts.fixed_materials || outer_it != self.opts.prune_round {
+            return;
+        }
+        let nb = self.problem.transport.n_basis;
+        if nb < 3 {
+            return;
+        }
+        self.pruned = lobe_prune::one_shiny_lobe(&self.lambda, self.opts.lambert_basis);
+        lobe_prune::zero_pruned(&mut self.lambda, &self.pruned);
+        self.prev = None;
+        if let Some(hist) = self.anderson.as_mut() {
+            *hist = AndersonHistory::new(self.opts.anderson_depth);
+        }
     }
 
     /// The lighting step; its wall and CPU seconds.
@@ -501,7 +534,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
                 &dw.lambda,
                 self.ridge,
                 opts.beta,
-                LambdaCoupling::of(opts),
+                LambdaCoupling::of(opts, &self.pruned),
             )?;
             if self.ridge.is_none() {
                 self.ridge = Some(l.max_diag.map(|d| opts.beta * d));

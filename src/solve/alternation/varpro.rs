@@ -6,14 +6,21 @@ use crate::solve::light::LightModel;
 use crate::solve::objective::weighted_residuals;
 use crate::solve::problem::{basis_responses, beta_per_vertex, predict_from};
 use crate::solve::validation::EarlyStop;
-use crate::solve::varpro_step::{self as vp, Parameter};
+use crate::solve::varpro_step::{self as vp, Jacobian, Parameter};
 use crate::Result;
 
-/// The probes of one step: the residual at the current `λ` and at each probed entry,
-/// all with the lights re-solved.
-struct Probes {
+/// The reduced residual at the current `λ` (the lights re-solved) and its Jacobian.
+struct Linearised {
     r0: Vec<[f64; 3]>,
-    columns: Vec<Vec<[f64; 3]>>,
+    jac: Jacobian,
+}
+
+/// What one try of `λ + t Δ` saw: whether a channel kept it, the move it made (before
+/// the channels that refused it went back) and the residual there.
+struct Tried {
+    kept: bool,
+    s: Vec<[f64; 3]>,
+    r: Vec<[f64; 3]>,
 }
 
 impl<M: LightModel> Alternation<'_, M> {
@@ -33,35 +40,62 @@ impl<M: LightModel> Alternation<'_, M> {
             return Ok(());
         };
         let (base, omega0) = (self.snapshot(), self.omega.clone());
-        let params = vp::parameters(&base.lambda);
+        let params = self.varpro_parameters(&base.lambda);
         self.light.hold_shape(true);
-        let probes = self.probe_all(outer_it, &base, &omega0, &params);
+        let lin = self.linearise(outer_it, &base, &omega0, &params);
         self.light.hold_shape(false);
-        let probes = probes?;
-        let system = vp::normal_equations(&probes.columns, &probes.r0, &params);
-        let delta = vp::steps(&system, vp::DAMPING);
+        let Linearised { r0, mut jac } = lin?;
+        let delta = vp::steps(&vp::normal_equations(&jac, &r0), vp::DAMPING);
         self.varpro_moves.tried += 1;
         for scale in [1.0, 0.25] {
             let t = [scale; 3];
-            if self.varpro_try(outer_it, (&base, &omega0), (&params, &delta), t, f0, stop)? {
+            let tried =
+                self.varpro_try(outer_it, (&base, &omega0), (&params, &delta), t, f0, stop)?;
+            let dr: Vec<[f64; 3]> = tried
+                .r
+                .iter()
+                .zip(&r0)
+                .map(|(a, b)| [0, 1, 2].map(|c| a[c] - b[c]))
+                .collect();
+            vp::broyden_update(&mut jac, &tried.s, &dr);
+            if tried.kept {
                 self.varpro_moves.kept += 1;
+                self.varpro_jacobian = self.opts.varpro_broyden.then_some((params, jac));
                 return Ok(());
             }
         }
+        self.varpro_jacobian = None;
         self.restore(base);
         self.omega = omega0;
         Ok(())
     }
 
-    /// The residual at `base.lambda` and at each probe, the lights re-solved from
-    /// `base.light` every time, all weighted by `omega0`.
-    fn probe_all(
+    /// Every `(k, b)` of `lambda` but the pruned lobes ([`crate::solve::lobe_prune`]).
+    fn varpro_parameters(&self, lambda: &[Vec<[f64; 3]>]) -> Vec<Parameter> {
+        let nb = lambda.first().map_or(0, Vec::len);
+        vp::parameters(lambda)
+            .into_iter()
+            .filter(|p| {
+                !self
+                    .pruned
+                    .get(p.material * nb + p.lobe)
+                    .copied()
+                    .unwrap_or(false)
+            })
+            .collect()
+    }
+
+    /// The residual at `base.lambda`, the lights re-solved from `base.light`, and its
+    /// Jacobian: Broyden's from the last kept step when
+    /// [`crate::solve::EstimateOptions::varpro_broyden`] carried one over for the same
+    /// parameters, else by forward differences (one more lighting step per parameter).
+    fn linearise(
         &mut self,
         outer_it: usize,
         base: &Snapshot<M::Params>,
         omega0: &[[f32; 3]],
         params: &[Parameter],
-    ) -> Result<Probes> {
+    ) -> Result<Linearised> {
         let at = |alt: &mut Self, lambda: Vec<Vec<[f64; 3]>>| -> Result<Vec<[f64; 3]>> {
             alt.restore(base.clone());
             alt.omega.copy_from_slice(omega0);
@@ -69,12 +103,23 @@ impl<M: LightModel> Alternation<'_, M> {
             alt.lighting(outer_it)?;
             Ok(alt.residuals(omega0))
         };
+        let carried = self.varpro_jacobian.take();
         let r0 = at(self, base.lambda.clone())?;
-        let columns = params
+        let same = |p: &[Parameter]| {
+            p.len() == params.len()
+                && p.iter()
+                    .zip(params)
+                    .all(|(a, b)| (a.material, a.lobe) == (b.material, b.lobe))
+        };
+        if let Some((_, jac)) = carried.filter(|(p, _)| same(p)) {
+            return Ok(Linearised { r0, jac });
+        }
+        let probes = params
             .iter()
             .map(|p| at(self, vp::probed(&base.lambda, p)))
             .collect::<Result<Vec<_>>>()?;
-        Ok(Probes { r0, columns })
+        let jac = vp::forward_differences(&probes, &r0, params);
+        Ok(Linearised { r0, jac })
     }
 
     /// `√(α ω) r` at the current state with the IRLS weights `omega`.
@@ -87,7 +132,7 @@ impl<M: LightModel> Alternation<'_, M> {
 
     /// `λ + t Δ` with the lights re-solved from `base`'s, kept per channel where `F_c`
     /// drops below `f0`'s and then only when the held-back observations are predicted no
-    /// worse; whether any channel moved (otherwise the state is `base` again).
+    /// worse (otherwise the state is `base` again); what the try saw, for Broyden's update.
     fn varpro_try(
         &mut self,
         outer_it: usize,
@@ -96,17 +141,29 @@ impl<M: LightModel> Alternation<'_, M> {
         t: [f64; 3],
         f0: [f64; 3],
         stop: &EarlyStop<BestIterate<M::Params>>,
-    ) -> Result<bool> {
+    ) -> Result<Tried> {
         self.restore(base.clone());
         self.omega.copy_from_slice(omega0);
         self.lambda = vp::moved(&base.lambda, params, delta, t);
+        let s: Vec<[f64; 3]> = params
+            .iter()
+            .map(|p| {
+                let (a, b) = (
+                    self.lambda[p.material][p.lobe],
+                    base.lambda[p.material][p.lobe],
+                );
+                [0, 1, 2].map(|c| a[c] - b[c])
+            })
+            .collect();
         self.lighting(outer_it)?;
+        let r = self.residuals(omega0);
         self.omega.copy_from_slice(omega0);
         let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
         let keep = [0, 1, 2].map(|c| ft[c] < f0[c]);
+        let mut tried = Tried { kept: false, s, r };
         if !keep.iter().any(|&k| k) {
             self.restore(base.clone());
-            return Ok(false);
+            return Ok(tried);
         }
         let on = keep.map(|k| f64::from(u8::from(k)));
         let mixed = self.light.combine(&[
@@ -115,14 +172,14 @@ impl<M: LightModel> Alternation<'_, M> {
         ]);
         let Some(mixed) = mixed else {
             self.restore(base.clone());
-            return Ok(false);
+            return Ok(tried);
         };
         self.light.set_params(mixed);
         self.lambda = vp::moved(&base.lambda, params, delta, [0, 1, 2].map(|c| t[c] * on[c]));
-        let held_ok = self.held_no_worse(stop, base);
-        if !held_ok {
+        tried.kept = self.held_no_worse(stop, base);
+        if !tried.kept {
             self.restore(base.clone());
         }
-        Ok(held_ok)
+        Ok(tried)
     }
 }

@@ -137,19 +137,23 @@ pub(crate) fn data_weights(
     }
 }
 
-/// How the λ step couples the channels.
+/// How the λ step couples the channels, and the entries it holds at zero.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct LambdaCoupling {
+pub struct LambdaCoupling<'a> {
     /// `Some(l)`: every basis but `l` shares one weight per material across R, G and B
     /// (module docs); `None`: the channels are independent (the paper).
     pub achromatic_except: Option<usize>,
+    /// `pruned[k·B + b]`: `λ_{k,b,·}` held at zero ([`crate::solve::lobe_prune`]); empty:
+    /// none.
+    pub pruned: &'a [bool],
 }
 
-impl LambdaCoupling {
-    /// The coupling the options ask for.
-    pub fn of(opts: &EstimateOptions) -> Self {
+impl<'a> LambdaCoupling<'a> {
+    /// The coupling the options ask for, with the entries `pruned` held at zero.
+    pub fn of(opts: &EstimateOptions, pruned: &'a [bool]) -> Self {
         LambdaCoupling {
             achromatic_except: opts.achromatic_specular.then_some(opts.lambert_basis),
+            pruned,
         }
     }
 }
@@ -170,7 +174,7 @@ pub fn lambda_step(
     dw: &[[f64; 3]],
     ridge: Option<[f64; 3]>,
     rel_ridge: f64,
-    coupling: LambdaCoupling,
+    coupling: LambdaCoupling<'_>,
 ) -> Result<LambdaStep> {
     let nb = problem.transport.n_basis;
     let kk = n_materials;
@@ -191,6 +195,7 @@ pub fn lambda_step(
             .iter()
             .fold((f64::INFINITY, 0.0_f64), |(l, h), &v| (l.min(v), h.max(v)));
         cond[c] = if lo > 0.0 { hi / lo } else { f64::INFINITY };
+        hold_at_zero(&mut sys[c], coupling.pruned, maxd[c]);
     }
     let sol = match coupling.achromatic_except {
         // With the Lambertian lobe alone nothing is tied: the channels stay independent.
@@ -224,6 +229,18 @@ pub fn lambda_step(
         cond,
         max_diag: maxd,
     })
+}
+
+/// Entry `i`'s row and column of `(M, r)` replaced by `d λ_i = 0` wherever `pruned[i]`
+/// (`d > 0` keeps the system's scale), so the NNLS returns `λ_i = 0` and the other entries
+/// as if `λ_i` were fixed there.
+fn hold_at_zero((mat, rhs): &mut ChannelSystem, pruned: &[bool], d: f64) {
+    for (i, _) in pruned.iter().enumerate().filter(|(_, &p)| p) {
+        mat.row_mut(i).fill(0.0);
+        mat.column_mut(i).fill(0.0);
+        mat[(i, i)] = if d > 0.0 { d } else { 1.0 };
+        rhs[i] = 0.0;
+    }
 }
 
 /// The three channels' λ systems `(M_c, r_c)` (ridge included) solved as one NNLS with

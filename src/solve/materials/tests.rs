@@ -248,6 +248,7 @@ fn lambda_of(case: &TiedCase, coupling: LambdaCoupling) -> Vec<Vec<[f64; 3]>> {
 
 const TIED: LambdaCoupling = LambdaCoupling {
     achromatic_except: Some(0),
+    pruned: &[],
 };
 
 #[test]
@@ -522,4 +523,41 @@ fn bic_drops_the_second_material_of_pure_vertices_and_keeps_blends() {
     assert_eq!(blends, nv - pure, "every blend keeps both materials");
     let (without, _) = share(0.0);
     assert!(without > 0.3, "NNLS alone: {without}");
+}
+
+/// A pruned entry ([`crate::solve::lobe_prune`]) held at zero: the step's other entries
+/// against the least squares of the design without that column, solved directly (SVD of
+/// the stacked rows per channel: columns the other three `λ_{k,b,c}`).
+#[test]
+fn pruned_entry_is_held_at_zero_and_the_rest_solve_the_reduced_design() {
+    let case = tied_case(0.05);
+    // Material 1's specular lobe (index 1·2 + 1, the weaker) held at zero.
+    let pruned = [false, false, false, true];
+    let coupling = LambdaCoupling {
+        achromatic_except: None,
+        pruned: &pruned,
+    };
+    let lam = lambda_of(&case, coupling);
+    let np = case.obs.len();
+    let cols = [(0, 0), (0, 1), (1, 0)];
+    for c in 0..3 {
+        assert_eq!(lam[1][1][c], 0.0);
+        let mut a = DMatrix::<f64>::zeros(np, 3);
+        let mut y = DVector::<f64>::zeros(np);
+        for p in 0..np {
+            let x = case.obs.vertex[p] as usize;
+            for (j, &(k, b)) in cols.iter().enumerate() {
+                a[(p, j)] = case.weights[x * 2 + k] * case.s[p * 2 + b][c];
+            }
+            y[p] = case.obs.rgb[p][c] as f64;
+        }
+        let z = a.svd(true, true).solve(&y, 1e-14).unwrap();
+        // Every z is positive (the dropped lobe's light goes to the others), so the NNLS
+        // optimum is the unconstrained one; both in f64 on a system with condition number
+        // ~10²: 1e-9 is ample.
+        assert!(z.iter().all(|&v| v > 0.0), "{z}");
+        for (j, &(k, b)) in cols.iter().enumerate() {
+            assert!((lam[k][b][c] - z[j]).abs() < 1e-9, "{lam:?} vs {z}");
+        }
+    }
 }
