@@ -125,8 +125,13 @@ pub struct ModelReport {
 /// The variable-projection step's rounds and moves ([`crate::solve::varpro_step`]).
 #[derive(Debug, Clone, Serialize, Default, PartialEq, Eq)]
 pub struct VarproStepReport {
+    /// `auto` (`run`'s rule, [`crate::solve::varpro_step::default_rounds`]) or `fixed`.
+    pub mode: String,
     /// The first rounds that took it (0: off).
     pub rounds: usize,
+    /// `broyden` (forward differences in the first round, Broyden's update after) or
+    /// `forward-differences` (every round).
+    pub jacobian: String,
     /// Steps tried (one a round).
     pub tried: usize,
     /// Steps kept (`F` dropped in some channel and the held-back observations did not get

@@ -48,8 +48,13 @@ fn varpro_note(fitted: &Fitted) -> Option<String> {
     let rounds = fitted.estimate_options.varpro_steps;
     let m = &fitted.est.varpro_moves;
     (rounds > 0).then(|| {
+        let (flag, jacobian) = if fitted.estimate_options.varpro_broyden {
+            ("auto".to_string(), "its Jacobian updated by Broyden's secant after the first round")
+        } else {
+            (rounds.to_string(), "its Jacobian by forward differences")
+        };
         let what = format!(
-            "the variable-projection step (--varpro-steps {rounds}) kept {} of {} Gauss-Newton steps of every material's lobes with the lights re-solved (docs/method.md, \"The variable-projection step\")",
+            "the variable-projection step (--varpro-steps {flag}: {rounds} rounds, {jacobian}) kept {} of {} Gauss-Newton steps of every material's lobes with the lights re-solved (docs/method.md, \"The variable-projection step\")",
             m.kept, m.tried
         );
         if m.unsupported > 0 {

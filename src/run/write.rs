@@ -119,7 +119,14 @@ fn model_report(
         }),
         ratio_step: Some(ratio_step_report(opts, fitted)),
         varpro_step: Some(crate::report::VarproStepReport {
+            mode: opts.varpro_steps.mode().to_string(),
             rounds: fitted.estimate_options.varpro_steps,
+            jacobian: if fitted.estimate_options.varpro_broyden {
+                "broyden"
+            } else {
+                "forward-differences"
+            }
+            .to_string(),
             tried: fitted.est.varpro_moves.tried,
             kept: fitted.est.varpro_moves.kept,
             unsupported: fitted.est.varpro_moves.unsupported,

@@ -54,6 +54,30 @@ pub const FLOOR_SHARE: f64 = 0.2;
 /// Levenberg–Marquardt's `μ` (relative to `diag(JᵀJ)`).
 pub const DAMPING: f64 = 1e-2;
 
+/// Rounds that `run --varpro-steps auto` takes ([`default_rounds`]), as the ratio step's
+/// default.
+pub const DEFAULT_ROUNDS: usize = 8;
+
+/// The rounds `run --varpro-steps auto` takes (with [`broyden_update`]'s Jacobian): for
+/// a fit over the Lambertian lobe alone of two or more materials, where the ratio step
+/// runs too ([`crate::solve::ratio_step::default_rounds`]), [`DEFAULT_ROUNDS`]; none
+/// otherwise. Over the Lambertian lobe alone a round costs `K + 2` lighting steps in the
+/// first round and 2 after. On the rendered diffuse Spot (two materials, 24 training
+/// photos, seeds 1–5) it brought the worst albedo ratio within 3% on 5 of 5 seeds (4 of 5
+/// without) at 1.3–3.3× the fit's time; on the real Buddha photos (seeds 1–3) the
+/// headline came out 0.1–0.5% higher, so `run` leaves it off unless asked
+/// (`bench-results/varpro-step.md`, section 9). Shiny fits are left out: on three
+/// materials with a shiny lobe the step put the fit further from the truth on 2 of 3
+/// seeds (section 4).
+pub fn default_rounds(training_photos: usize, materials: usize, lambertian_alone: bool) -> usize {
+    let ratio = crate::solve::ratio_step::default_rounds(training_photos, materials);
+    if lambertian_alone && materials >= 2 && ratio > 0 {
+        DEFAULT_ROUNDS
+    } else {
+        0
+    }
+}
+
 /// One entry `(k, b)` of `λ` and its forward-difference step per channel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Parameter {

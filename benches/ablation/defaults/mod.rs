@@ -556,6 +556,8 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         ),
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
+        // `run --varpro-steps N` (default 0): forward differences, or Broyden's update after
+        // the first round with `ABLATION_VARPRO_BROYDEN=1` (as `--varpro-steps auto`).
         varpro_steps: crate::env_or("ABLATION_VARPRO_STEPS", 0),
         prune_round: crate::env_or("ABLATION_PRUNE_ROUND", 0),
         varpro_broyden: crate::env_or("ABLATION_VARPRO_BROYDEN", 0) == 1,

@@ -213,9 +213,17 @@ pub(crate) struct RunArgs {
     )]
     pub(crate) ratio_steps: String,
     /// The first N rounds move every material's lobes at once by a Gauss-Newton step with
-    /// the lights re-solved (K x lobes + 2 more lighting steps a round); 0 = off.
-    #[arg(long, default_value_t = 0, value_name = "N", help_heading = "Solver")]
-    pub(crate) varpro_steps: usize,
+    /// the lights re-solved (K x lobes + 2 more lighting steps a round); 0 = off; auto = 8
+    /// rounds, the Jacobian updated by Broyden's secant after the first (2 more lighting
+    /// steps a round), for two or more materials over the Lambertian lobe alone where the
+    /// ratio step runs, else off.
+    #[arg(
+        long,
+        default_value = "0",
+        value_name = "auto|N",
+        help_heading = "Solver"
+    )]
+    pub(crate) varpro_steps: String,
     /// Starting points to try, the best kept: 1 = materials from colour clusters; 2 adds
     /// every shiny lobe at 0.3 × the matte weight, then one lobe per material in turn.
     /// Each costs one fit.

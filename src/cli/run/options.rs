@@ -111,7 +111,7 @@ impl RunArgs {
         o.patience = self.patience;
         o.min_iterations = self.min_iterations;
         o.ratio_steps = relight_cpc::run::RatioSteps::parse(&self.ratio_steps)?;
-        o.varpro_steps = self.varpro_steps;
+        o.varpro_steps = relight_cpc::run::VarproSteps::parse(&self.varpro_steps)?;
         o.starts = self.starts;
         o.start_search = self.start_search == "brightness";
         o.restart = relight_cpc::run::Restart::parse(&self.restart)?;

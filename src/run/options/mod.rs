@@ -19,7 +19,8 @@ pub use light_by_scene::{scene_light, FitShape, CONSTRAINED_FROM_MATERIALS, PRIO
 pub(crate) use smoothness::smoothness_base;
 pub use smoothness::{pilot_smoothness_for, smoothness_for, SMOOTHNESS_FROM_PHOTOS};
 pub use values::{
-    Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, WeightsSmoothness, WeightsSum,
+    Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, VarproSteps, WeightsSmoothness,
+    WeightsSum,
 };
 pub use weights_bic::{weights_bic_for, BIC_FROM_PHOTOS};
 
@@ -93,8 +94,8 @@ pub struct RunOptions {
     /// The first rounds that take the ratio step ([`EstimateOptions::ratio_steps`]).
     pub ratio_steps: RatioSteps,
     /// The first rounds that take the variable-projection step
-    /// ([`EstimateOptions::varpro_steps`]); 0 = off.
-    pub varpro_steps: usize,
+    /// ([`EstimateOptions::varpro_steps`]) and its Jacobian.
+    pub varpro_steps: VarproSteps,
     /// At most this many observations per photo in its lighting QPs, a stratified sample
     /// ([`EstimateOptions::lighting_sample`]); 0 = all.
     pub lighting_sample: usize,
@@ -331,7 +332,7 @@ impl RunOptions {
             patience: Self::DEFAULT_PATIENCE,
             min_iterations: crate::solve::options::MIN_ITERATIONS,
             ratio_steps: RatioSteps::Auto,
-            varpro_steps: 0,
+            varpro_steps: VarproSteps::Fixed(0),
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_weights: crate::solve::cluster::StartWeights::Clustered,

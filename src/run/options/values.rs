@@ -140,6 +140,60 @@ impl RatioSteps {
     }
 }
 
+/// The rounds that take the variable-projection step
+/// ([`EstimateOptions::varpro_steps`](crate::solve::EstimateOptions::varpro_steps)) and
+/// how its Jacobian is had.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VarproSteps {
+    /// [`crate::solve::varpro_step::default_rounds`] of the fit's training photos,
+    /// materials and basis, the Jacobian by Broyden's update after the first round.
+    Auto,
+    /// This many rounds (0 = off), the Jacobian by forward differences every round.
+    Fixed(usize),
+}
+
+impl VarproSteps {
+    /// `auto` or a whole number.
+    pub fn parse(s: &str) -> Result<Self> {
+        Ok(
+            match parse_auto_or(s, "--varpro-steps", "a whole number of rounds (0 = off)")? {
+                None => VarproSteps::Auto,
+                Some(n) => VarproSteps::Fixed(n),
+            },
+        )
+    }
+
+    /// `auto` or `fixed`, as the report names the mode.
+    pub fn mode(self) -> &'static str {
+        match self {
+            VarproSteps::Auto => "auto",
+            VarproSteps::Fixed(_) => "fixed",
+        }
+    }
+
+    /// The rounds for a fit of `materials` materials over `basis` on `training_photos`
+    /// photos, and whether the Jacobian is Broyden's after the first round.
+    pub fn rounds(
+        self,
+        training_photos: usize,
+        materials: usize,
+        basis: &[BasisBrdf],
+    ) -> (usize, bool) {
+        match self {
+            VarproSteps::Auto => {
+                let lambertian_alone = matches!(basis, [BasisBrdf::Lambert]);
+                let n = crate::solve::varpro_step::default_rounds(
+                    training_photos,
+                    materials,
+                    lambertian_alone,
+                );
+                (n, true)
+            }
+            VarproSteps::Fixed(n) => (n, false),
+        }
+    }
+}
+
 /// The second fit after the first (`--restart`; [`crate::solve::materials::reanchor`],
 /// [`crate::solve::materials::irradiance`], [`crate::solve::materials::coarse_light`]);
 /// any is kept only when it predicts the held-back observations better.
@@ -256,6 +310,35 @@ mod tests {
         for bad in ["eight", "-1", "2.5", ""] {
             let err = RatioSteps::parse(bad).unwrap_err().to_string();
             assert!(err.contains(&format!("--ratio-steps {bad}")), "{err}");
+            assert!(err.contains("expected auto or a whole number"), "{err}");
+        }
+    }
+
+    /// `--varpro-steps`: `auto` takes Broyden's Jacobian and 8 rounds only for two or more
+    /// materials over the Lambertian lobe alone where the ratio step runs; a count takes
+    /// forward differences; anything else refused in words that name the flag and value.
+    #[test]
+    fn varpro_steps_auto_follows_the_basis_materials_and_photos() {
+        use crate::solve::ratio_step::{MAX_MATERIALS, MIN_PHOTOS};
+        use crate::solve::varpro_step::DEFAULT_ROUNDS;
+        let matte = [BasisBrdf::Lambert];
+        let shiny = [BasisBrdf::Lambert, BasisBrdf::Ggx { alpha: 0.3 }];
+        let auto = VarproSteps::parse("auto").unwrap();
+        assert_eq!(auto.rounds(MIN_PHOTOS, 2, &matte), (DEFAULT_ROUNDS, true));
+        assert_eq!(auto.rounds(MIN_PHOTOS, 2, &shiny), (0, true));
+        assert_eq!(auto.rounds(MIN_PHOTOS, 1, &matte), (0, true));
+        assert_eq!(auto.rounds(MIN_PHOTOS - 1, 2, &matte), (0, true));
+        assert_eq!(
+            auto.rounds(MIN_PHOTOS, MAX_MATERIALS + 1, &matte),
+            (0, true)
+        );
+        assert_eq!(
+            VarproSteps::parse("3").unwrap().rounds(1, 6, &shiny),
+            (3, false)
+        );
+        for bad in ["eight", "-1", ""] {
+            let err = VarproSteps::parse(bad).unwrap_err().to_string();
+            assert!(err.contains(&format!("--varpro-steps {bad}")), "{err}");
             assert!(err.contains("expected auto or a whole number"), "{err}");
         }
     }
