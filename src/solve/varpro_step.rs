@@ -32,9 +32,10 @@
 //! With [`crate::solve::EstimateOptions::varpro_broyden`] only the first round (and a round
 //! after one that kept nothing) probes; the next rounds carry the Jacobian over, updated by
 //! Broyden's rank-one secant from each try's move and the residual change it made
-//! ([`broyden_update`]), so a round costs 2 lighting steps. On the glossy Spot (seeds 1–2)
-//! that halved the fit's time and kept 60–80% of the probed step's gain
-//! (`bench-results/varpro-step.md`, section 9).
+//! ([`broyden_update`]), so a round costs 2 lighting steps. On the glossy Spot (seeds 1–5)
+//! the fit took 4.1–4.5× the plain fit's time instead of 7–10×, and kept 35–121% (median
+//! 81%) of the probed step's gain under the true light (`bench-results/varpro-step.md`,
+//! section 9).
 
 // Numerical kernels index several arrays in step; range loops read like the math.
 #![allow(clippy::needless_range_loop)]
@@ -64,7 +65,7 @@ pub const DEFAULT_ROUNDS: usize = 8;
 /// otherwise. Over the Lambertian lobe alone a round costs `K + 2` lighting steps in the
 /// first round and 2 after. On the rendered diffuse Spot (two materials, 24 training
 /// photos, seeds 1–5) it brought the worst albedo ratio within 3% on 5 of 5 seeds (4 of 5
-/// without) at 1.3–3.3× the fit's time; on the real Buddha photos (seeds 1–3) the
+/// without) at 1.3–3.2× the fit's time; on the real Buddha photos (seeds 1–3) the
 /// headline came out 0.1–0.5% higher, so `run` leaves it off unless asked
 /// (`bench-results/varpro-step.md`, section 9). Shiny fits are left out: on three
 /// materials with a shiny lobe the step put the fit further from the truth on 2 of 3
