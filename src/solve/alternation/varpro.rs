@@ -23,6 +23,20 @@ struct Tried {
     r: Vec<[f64; 3]>,
 }
 
+impl Tried {
+    /// Broyden's update of `jac` by this try's move and the residual change it made
+    /// from `r0` ([`vp::broyden_update`]).
+    fn secant_update(&self, jac: &mut Jacobian, r0: &[[f64; 3]]) {
+        let dr: Vec<[f64; 3]> = self
+            .r
+            .iter()
+            .zip(r0)
+            .map(|(a, b)| [0, 1, 2].map(|c| a[c] - b[c]))
+            .collect();
+        vp::broyden_update(jac, &self.s, &dr);
+    }
+}
+
 impl<M: LightModel> Alternation<'_, M> {
     /// The step in the first [`crate::solve::EstimateOptions::varpro_steps`] rounds: the
     /// materials' `λ` moved per channel where `F` drops and the held-back observations of
@@ -51,13 +65,9 @@ impl<M: LightModel> Alternation<'_, M> {
             let t = [scale; 3];
             let tried =
                 self.varpro_try(outer_it, (&base, &omega0), (&params, &delta), t, f0, stop)?;
-            let dr: Vec<[f64; 3]> = tried
-                .r
-                .iter()
-                .zip(&r0)
-                .map(|(a, b)| [0, 1, 2].map(|c| a[c] - b[c]))
-                .collect();
-            vp::broyden_update(&mut jac, &tried.s, &dr);
+            if self.opts.varpro_broyden {
+                tried.secant_update(&mut jac, &r0);
+            }
             if tried.kept {
                 self.varpro_moves.kept += 1;
                 self.varpro_jacobian = self.opts.varpro_broyden.then_some((params, jac));
