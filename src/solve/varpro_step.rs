@@ -65,8 +65,8 @@ pub const DEFAULT_ROUNDS: usize = 8;
 /// otherwise. Over the Lambertian lobe alone a round costs `K + 2` lighting steps in the
 /// first round and 2 after. On the rendered diffuse Spot (two materials, 24 training
 /// photos, seeds 1–5) it brought the worst albedo ratio within 3% on 5 of 5 seeds (4 of 5
-/// without) at 1.3–3.2× the fit's time; on the real Buddha photos (seeds 1–3) the
-/// headline came out 0.1–0.5% higher, so `run` leaves it off unless asked
+/// without) at 1.3–3.2× the fit's time; on the real Buddha photos the headline came
+/// out higher on 5 of 6 seeds (−0.1% to +0.6%), so `run` leaves it off unless asked
 /// (`bench-results/varpro-step.md`, section 9). Shiny fits are left out: on three
 /// materials with a shiny lobe the step put the fit further from the truth on 2 of 3
 /// seeds (section 4).
