@@ -250,6 +250,9 @@ pub struct EstimateOptions {
     /// ([`crate::solve::varpro_step::broyden_update`]; a round then costs 2 lighting
     /// steps, not `K·B + 2`); a round that keeps nothing probes again in the next.
     pub varpro_broyden: bool,
+    /// With [`EstimateOptions::varpro_broyden`], probe the Jacobian afresh every this many
+    /// rounds (rounds 1, 1 + n, 1 + 2n, …); 0 = only in the first round.
+    pub varpro_refresh: usize,
     /// From this round on each material keeps one shiny lobe, the one it weights most
     /// ([`crate::solve::lobe_prune`], issue 25, not in the paper); 0 = off.
     pub prune_round: usize,
@@ -448,6 +451,7 @@ impl Default for EstimateOptions {
             ratio_steps: 0,
             varpro_steps: 0,
             varpro_broyden: false,
+            varpro_refresh: 0,
             prune_round: 0,
             light_groups: None,
             scale_anchor: ScaleAnchor::Start,

@@ -561,6 +561,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         varpro_steps: crate::env_or("ABLATION_VARPRO_STEPS", 0),
         prune_round: crate::env_or("ABLATION_PRUNE_ROUND", 0),
         varpro_broyden: crate::env_or("ABLATION_VARPRO_BROYDEN", 0) == 1,
+        varpro_refresh: crate::env_or("ABLATION_VARPRO_REFRESH", 0),
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
         // `run --weights-bic auto` by the training photos, the pilot's count and lobes, or
         // `ABLATION_DEFAULTS_WEIGHTS_BIC=X` (`--weights-bic X`).

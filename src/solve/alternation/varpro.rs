@@ -113,7 +113,11 @@ impl<M: LightModel> Alternation<'_, M> {
             alt.lighting(outer_it)?;
             Ok(alt.residuals(omega0))
         };
-        let carried = self.varpro_jacobian.take();
+        let refresh = self.opts.varpro_refresh;
+        let carried = self
+            .varpro_jacobian
+            .take()
+            .filter(|_| refresh == 0 || !(outer_it - 1).is_multiple_of(refresh));
         let r0 = at(self, base.lambda.clone())?;
         let same = |p: &[Parameter]| {
             p.len() == params.len()
