@@ -198,12 +198,10 @@ pub(crate) struct Alternation<'a, M: LightModel> {
     /// `pruned[k·B + b]`: `λ_{k,b,·}` held at zero ([`crate::solve::lobe_prune`]); empty
     /// before [`EstimateOptions::prune_round`].
     pruned: Vec<bool>,
-    /// The variable-projection step's parameters and Jacobian after its last kept step,
-    /// for Broyden's update in the next round ([`EstimateOptions::varpro_broyden`]).
-    varpro_jacobian: Option<(
-        Vec<crate::solve::varpro_step::Parameter>,
-        crate::solve::varpro_step::Jacobian,
-    )>,
+    /// The variable-projection step's Jacobian after its last kept step, for Broyden's
+    /// update in the next round ([`EstimateOptions::varpro_broyden`]); its columns are the
+    /// unpruned entries of `λ`, so pruning drops it.
+    varpro_jacobian: Option<crate::solve::varpro_step::Jacobian>,
 }
 
 impl<'a, M: LightModel> Alternation<'a, M> {
@@ -286,7 +284,8 @@ impl<'a, M: LightModel> Alternation<'a, M> {
     /// At round [`EstimateOptions::prune_round`], each material's shiny lobes but its
     /// strongest held at zero from here on ([`lobe_prune::one_shiny_lobe`]); the
     /// extrapolation's and Anderson's histories restart, so that no combination of
-    /// earlier iterates brings a pruned lobe back.
+    /// earlier iterates brings a pruned lobe back, and the variable-projection step probes
+    /// its Jacobian afresh over the entries left.
     fn prune_lobes(&mut self, outer_it: usize) {
         if self.opts.fixed_materials || outer_it != self.opts.prune_round {
             return;
@@ -297,6 +296,7 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         }
         self.pruned = lobe_prune::one_shiny_lobe(&self.lambda, self.opts.lambert_basis);
         lobe_prune::zero_pruned(&mut self.lambda, &self.pruned);
+        self.varpro_jacobian = None;
         self.prev = None;
         if let Some(hist) = self.anderson.as_mut() {
             *hist = AndersonHistory::new(self.opts.anderson_depth);

@@ -16,19 +16,22 @@ struct Linearised {
 }
 
 /// What one try of `λ + t Δ` saw: whether a channel kept it, the move it made (before
-/// the channels that refused it went back) and the residual there.
+/// the channels that refused it went back) and, for Broyden's update
+/// ([`crate::solve::EstimateOptions::varpro_broyden`]), the residual there.
 struct Tried {
     kept: bool,
     s: Vec<[f64; 3]>,
-    r: Vec<[f64; 3]>,
+    r: Option<Vec<[f64; 3]>>,
 }
 
 impl Tried {
     /// Broyden's update of `jac` by this try's move and the residual change it made
-    /// from `r0` ([`vp::broyden_update`]).
+    /// from `r0` ([`vp::broyden_update`]); nothing when the try kept no residual.
     fn secant_update(&self, jac: &mut Jacobian, r0: &[[f64; 3]]) {
-        let dr: Vec<[f64; 3]> = self
-            .r
+        let Some(r) = &self.r else {
+            return;
+        };
+        let dr: Vec<[f64; 3]> = r
             .iter()
             .zip(r0)
             .map(|(a, b)| [0, 1, 2].map(|c| a[c] - b[c]))
@@ -65,12 +68,10 @@ impl<M: LightModel> Alternation<'_, M> {
             let t = [scale; 3];
             let tried =
                 self.varpro_try(outer_it, (&base, &omega0), (&params, &delta), t, f0, stop)?;
-            if self.opts.varpro_broyden {
-                tried.secant_update(&mut jac, &r0);
-            }
+            tried.secant_update(&mut jac, &r0);
             if tried.kept {
                 self.varpro_moves.kept += 1;
-                self.varpro_jacobian = self.opts.varpro_broyden.then_some((params, jac));
+                self.varpro_jacobian = self.opts.varpro_broyden.then_some(jac);
                 return Ok(());
             }
         }
@@ -97,8 +98,8 @@ impl<M: LightModel> Alternation<'_, M> {
 
     /// The residual at `base.lambda`, the lights re-solved from `base.light`, and its
     /// Jacobian: Broyden's from the last kept step when
-    /// [`crate::solve::EstimateOptions::varpro_broyden`] carried one over for the same
-    /// parameters, else by forward differences (one more lighting step per parameter).
+    /// [`crate::solve::EstimateOptions::varpro_broyden`] carried one over (and this is no
+    /// refresh round), else by forward differences (one more lighting step per parameter).
     fn linearise(
         &mut self,
         outer_it: usize,
@@ -119,13 +120,7 @@ impl<M: LightModel> Alternation<'_, M> {
             .take()
             .filter(|_| refresh == 0 || !(outer_it - 1).is_multiple_of(refresh));
         let r0 = at(self, base.lambda.clone())?;
-        let same = |p: &[Parameter]| {
-            p.len() == params.len()
-                && p.iter()
-                    .zip(params)
-                    .all(|(a, b)| (a.material, a.lobe) == (b.material, b.lobe))
-        };
-        if let Some((_, jac)) = carried.filter(|(p, _)| same(p)) {
+        if let Some(jac) = carried {
             return Ok(Linearised { r0, jac });
         }
         let probes = params
@@ -170,7 +165,7 @@ impl<M: LightModel> Alternation<'_, M> {
             })
             .collect();
         self.lighting(outer_it)?;
-        let r = self.residuals(omega0);
+        let r = self.opts.varpro_broyden.then(|| self.residuals(omega0));
         self.omega.copy_from_slice(omega0);
         let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
         let keep = [0, 1, 2].map(|c| ft[c] < f0[c]);
