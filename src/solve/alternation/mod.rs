@@ -3,12 +3,15 @@
 //! early stopping ends it; then the scale normalisation ([`crate::solve::normalise`]).
 //!
 //! One outer iteration (`Alternation::iteration`):
+//! 0. at [`EstimateOptions::prune_round`] only, each material's shiny lobes but its
+//!    strongest held at zero from then on ([`crate::solve::lobe_prune`]; `prune`);
 //! 1. lighting: the light model's [`LightModel::fit`] with `β` fixed; in the first
 //!    [`EstimateOptions::ratio_steps`] rounds then the ratio step
 //!    ([`crate::solve::ratio_step`]: each material's brightness per channel moved along
 //!    the valley with the lights re-solved, kept only when `F` drops and the held-back
-//!    observations are predicted no worse; no more after [`ratio_step::PATIENCE`] rounds
-//!    in a row that kept none); in the first [`EstimateOptions::varpro_steps`] rounds
+//!    observations are predicted no worse; no more after
+//!    [`crate::solve::ratio_step::PATIENCE`] rounds in a row that kept none; `ratio`); in
+//!    the first [`EstimateOptions::varpro_steps`] rounds
 //!    then the variable-projection step ([`crate::solve::varpro_step`]: every material's
 //!    `λ` moved by a damped Gauss–Newton step with the lights re-solved, kept per channel
 //!    on the same two tests; `varpro`);
@@ -22,6 +25,8 @@
 //! 4. validation: the held-back observations scored, the best iterate kept
 //!    ([`crate::solve::validation`]).
 
+mod prune;
+mod ratio;
 mod varpro;
 
 use std::time::Instant;
@@ -31,16 +36,14 @@ use crate::solve::light::paper::PaperLight;
 use crate::solve::light::shared::SharedLight;
 use crate::solve::light::sky::SkyLight;
 use crate::solve::light::{LightModel, LightingInput, LightingOutput};
-use crate::solve::lobe_prune;
 use crate::solve::materials::{
     blend_scaled_gamma, data_weights, lambda_step, sum_weights_gamma, sum_weights_penalty,
     weights_step, LambdaCoupling, NeighbourPull, WeightsRules, WeightsStep,
 };
 use crate::solve::normalise::normalise;
-use crate::solve::objective::{channel_data_fit, evaluate, gauge, Objective, Point};
+use crate::solve::objective::{evaluate, gauge, Objective, Point};
 use crate::solve::options::{EstimateOptions, SumScope};
-use crate::solve::problem::{basis_responses, beta_per_vertex, predict_from, Problem};
-use crate::solve::ratio_step;
+use crate::solve::problem::{basis_responses, beta_per_vertex, Problem};
 use crate::solve::result::{
     Conditioning, Estimate, IterState, Iteration, Materials0, RatioMoves, StepTimes,
 };
@@ -281,28 +284,6 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         })
     }
 
-    /// At round [`EstimateOptions::prune_round`], each material's shiny lobes but its
-    /// strongest held at zero from here on ([`lobe_prune::one_shiny_lobe`]); the
-    /// extrapolation's and Anderson's histories restart, so that no combination of
-    /// earlier iterates brings a pruned lobe back, and the variable-projection step probes
-    /// its Jacobian afresh over the entries left.
-    fn prune_lobes(&mut self, outer_it: usize) {
-        if self.opts.fixed_materials || outer_it != self.opts.prune_round {
-            return;
-        }
-        let nb = self.problem.transport.n_basis;
-        if nb < 3 {
-            return;
-        }
-        self.pruned = lobe_prune::one_shiny_lobe(&self.lambda, self.opts.lambert_basis);
-        lobe_prune::zero_pruned(&mut self.lambda, &self.pruned);
-        self.varpro_jacobian = None;
-        self.prev = None;
-        if let Some(hist) = self.anderson.as_mut() {
-            *hist = AndersonHistory::new(self.opts.anderson_depth);
-        }
-    }
-
     /// The lighting step; its wall and CPU seconds.
     pub(crate) fn lighting(&mut self, outer_it: usize) -> Result<(f64, f64)> {
         let beta = beta_per_vertex(&self.lambda, &self.weights, self.problem.n_vertices);
@@ -371,135 +352,6 @@ impl<'a, M: LightModel> Alternation<'a, M> {
         hist.start(flatten(&alt.lambda));
         alt.anderson = Some(hist);
         Ok(kept)
-    }
-
-    /// `F` per channel at the current state (data, the light model's prior, ridge), when
-    /// the light model's channels are separable.
-    fn channel_objective(&self) -> Option<[f64; 3]> {
-        let params = self.light.params();
-        let prior = self.light.channel_penalty(params)?;
-        let maps = self.light.maps(params);
-        let s = basis_responses(self.problem, &maps);
-        let beta = beta_per_vertex(&self.lambda, &self.weights, self.problem.n_vertices);
-        let pred = predict_from(self.problem, &beta, &s);
-        let data = channel_data_fit(self.problem, &pred, &self.omega);
-        let r = self.ridge.unwrap_or([0.0; 3]);
-        Some([0, 1, 2].map(|c| {
-            let rid: f64 = self
-                .lambda
-                .iter()
-                .flatten()
-                .map(|v| r[c] * v[c] * v[c])
-                .sum();
-            data[c] + prior[c] + rid
-        }))
-    }
-
-    /// The ratio step ([`crate::solve::ratio_step`]) in the first
-    /// [`EstimateOptions::ratio_steps`] rounds, right after the round's lighting step.
-    fn ratio_step(
-        &mut self,
-        outer_it: usize,
-        stop: &EarlyStop<BestIterate<M::Params>>,
-    ) -> Result<()> {
-        let kk = self.lambda.len();
-        if outer_it > self.opts.ratio_steps
-            || ratio_step::directions(kk) == 0
-            || self.ratio_moves.stopped_after.is_some()
-        {
-            return Ok(());
-        }
-        let Some(mut f0) = self.channel_objective() else {
-            self.ratio_moves.unsupported += 1;
-            return Ok(());
-        };
-        let kept_before = self.ratio_moves.kept;
-        for j in 0..ratio_step::directions(kk) {
-            let Some(f) = self.ratio_move(outer_it, j, f0, stop)? else {
-                self.ratio_moves.unsupported += 1;
-                return Ok(());
-            };
-            self.ratio_moves.tried += 1;
-            f0 = f;
-        }
-        self.ratio_idle = if self.ratio_moves.kept > kept_before {
-            0
-        } else {
-            self.ratio_idle + 1
-        };
-        if self.ratio_idle >= ratio_step::PATIENCE {
-            self.ratio_moves.stopped_after = Some(outer_it);
-        }
-        Ok(())
-    }
-
-    /// One direction of the ratio step from the state whose per-channel `F` is `f0`; the
-    /// per-channel `F` of the state it leaves, or `None` when the light model cannot mix
-    /// its parameters.
-    fn ratio_move(
-        &mut self,
-        outer_it: usize,
-        j: usize,
-        f0: [f64; 3],
-        stop: &EarlyStop<BestIterate<M::Params>>,
-    ) -> Result<Option<[f64; 3]>> {
-        let delta = ratio_step::PROBE_STEP;
-        let u = ratio_step::direction(self.lambda.len(), j);
-        let (base, omega0) = (self.snapshot(), self.omega.clone());
-        self.light.hold_shape(true);
-        let mut probe = |t: f64| -> Result<([f64; 3], M::Params)> {
-            self.restore(base.clone());
-            self.omega.clone_from(&omega0);
-            self.lambda = ratio_step::scaled(&base.lambda, &u, [t; 3]);
-            self.lighting(outer_it)?;
-            let f = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
-            Ok((f, self.light.params().clone()))
-        };
-        let probes = probe(-delta).and_then(|m| Ok((m, probe(delta)?)));
-        self.light.hold_shape(false);
-        let ((fm, lights_m), (fp, lights_p)) = probes?;
-        let t = [0, 1, 2].map(|c| ratio_step::parabola_step(fm[c], f0[c], fp[c], delta));
-        let w = t.map(|tc| ratio_step::lagrange_weights(tc, delta));
-        let weights_of = |i: usize| [w[0][i], w[1][i], w[2][i]];
-        let mixed = self.light.combine(&[
-            (&lights_m, weights_of(0)),
-            (&base.light, weights_of(1)),
-            (&lights_p, weights_of(2)),
-        ]);
-        self.restore(base.clone());
-        self.omega.clone_from(&omega0);
-        let Some(mixed) = mixed else {
-            return Ok(None);
-        };
-        self.light.set_params(mixed);
-        self.lambda = ratio_step::scaled(&base.lambda, &u, t);
-        let ft = self.channel_objective().unwrap_or([f64::INFINITY; 3]);
-        // The held-back observations of early stopping must not get worse either: a lower
-        // `F` along the valley need not be nearer the truth's ratios (the built-in example).
-        // The held-back score only where `F` dropped: two predictions saved on every
-        // rejected move.
-        if ft.iter().sum::<f64>() < f0.iter().sum::<f64>() && self.held_no_worse(stop, &base) {
-            self.ratio_moves.kept += 1;
-            return Ok(Some(ft));
-        }
-        self.restore(base);
-        Ok(Some(f0))
-    }
-
-    /// Whether early stopping's held-back observations are predicted no worse by the current
-    /// state than by `base` (the same weights; true when early stopping is off).
-    pub(crate) fn held_no_worse(
-        &self,
-        stop: &EarlyStop<BestIterate<M::Params>>,
-        base: &Snapshot<M::Params>,
-    ) -> bool {
-        let score = |lights: &M::Params, lambda: &[Vec<[f64; 3]>]| {
-            let beta = beta_per_vertex(lambda, &self.weights, self.problem.n_vertices);
-            stop.peek(self.problem, &self.light.maps(lights), &beta)
-        };
-        let now = score(self.light.params(), &self.lambda);
-        now.zip(score(&base.light, &base.lambda))
-            .is_none_or(|(a, b)| a <= b)
     }
 
     /// Early stopping's score of the current iterate, kept when it is the best so far
