@@ -57,7 +57,7 @@ pub(crate) use options::smoothness_base;
 pub use options::{
     achromatic_for, pilot_smoothness_for, scene_light, smoothness_for, weights_bic_for, Achromatic,
     Clipped, FitShape, Holdout, LargeMeshSettings, MaterialCount, PriorStrength, RatioSteps,
-    Restart, RunOptions, StartBrightness, VarproSteps, WeightsSmoothness, WeightsSum,
+    Restart, RunOptions, StartBrightness, VarproPlan, VarproSteps, WeightsSmoothness, WeightsSum,
     ACHROMATIC_FROM_MATERIALS, BIC_FROM_PHOTOS, CLIPPED_AUTO_SHARE, CONSTRAINED_FROM_MATERIALS,
     DEFAULT_LIGHTING_SAMPLE, DEFAULT_LIGHT_CHOICE_HALVES, DEFAULT_LIGHT_GROUP_MINUTES, LARGE_MESH,
     LIGHTING_SAMPLE_MAX_RATIO, PRIOR_FROM_PHOTOS, SMOOTHNESS_FROM_PHOTOS,

@@ -65,11 +65,12 @@ pub const DEFAULT_ROUNDS: usize = 8;
 /// otherwise. Over the Lambertian lobe alone a round costs `K + 2` lighting steps in the
 /// first round and 2 after. On the rendered diffuse Spot (two materials, 24 training
 /// photos, seeds 1–5) it brought the worst albedo ratio within 3% on 5 of 5 seeds (4 of 5
-/// without) at 1.3–3.2× the fit's time; on the real Buddha photos the headline came
-/// out higher on 5 of 6 seeds (−0.1% to +0.6%), so `run` leaves it off unless asked
-/// (`bench-results/varpro-step.md`, section 9). Shiny fits are left out: on three
-/// materials with a shiny lobe the step put the fit further from the truth on 2 of 3
-/// seeds (section 4).
+/// without) at 1.3–3.2× the fit's time. On the real Buddha photos, each photo held out
+/// in turn (6 folds × 3 seeds, 13 fits where it ran), the held-out headline moved by a
+/// mean −0.5% (7 lower, 6 higher), so it is `run`'s default (`bench-results/varpro-step.md`,
+/// sections 9–10). Shiny fits are left out: on three materials with a shiny lobe the
+/// step put the fit further from the truth on 2 of 3 seeds (section 4), and on the
+/// glossy scene it left the worst ratio worse than without on 5 of 5 (section 9).
 pub fn default_rounds(training_photos: usize, materials: usize, lambertian_alone: bool) -> usize {
     let ratio = crate::solve::ratio_step::default_rounds(training_photos, materials);
     if lambertian_alone && materials >= 2 && ratio > 0 {

@@ -539,6 +539,11 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
     let scope = std::env::var("ABLATION_DEFAULTS_SCOPE").unwrap_or_default();
     let default_rounds =
         ratio_step::default_rounds(case.train.obs.photo_ranges.len(), pilot.materials);
+    let varpro = relight_cpc::run::VarproSteps::Auto.plan(
+        case.train.obs.photo_ranges.len(),
+        pilot.materials,
+        &kept,
+    );
     let opts = EstimateOptions {
         weights_sum: crate::env_or("ABLATION_DEFAULTS_WEIGHTS_SUM", pilot.weights_sum),
         weights_sum_scope: match scope.as_str() {
@@ -556,11 +561,12 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
         ),
         rel_tol,
         ratio_steps: crate::env_or("ABLATION_RATIO_STEPS", default_rounds),
-        // `run --varpro-steps N` (default 0): forward differences, or Broyden's update after
-        // the first round with `ABLATION_VARPRO_BROYDEN=1` (as `--varpro-steps auto`).
-        varpro_steps: crate::env_or("ABLATION_VARPRO_STEPS", 0),
+        // `run --varpro-steps auto` by the training photos, the pilot's count and lobes;
+        // `ABLATION_VARPRO_STEPS=N` takes N rounds (forward differences, or Broyden's
+        // update after the first round with `ABLATION_VARPRO_BROYDEN=1`).
+        varpro_steps: crate::env_or("ABLATION_VARPRO_STEPS", varpro.rounds),
         prune_round: crate::env_or("ABLATION_PRUNE_ROUND", 0),
-        varpro_broyden: crate::env_or("ABLATION_VARPRO_BROYDEN", 0) == 1,
+        varpro_broyden: crate::env_or("ABLATION_VARPRO_BROYDEN", u8::from(varpro.broyden)) == 1,
         varpro_refresh: crate::env_or("ABLATION_VARPRO_REFRESH", 0),
         weights_smoothness: crate::env_or("ABLATION_DEFAULTS_NEIGHBOUR", neighbour_prior),
         // `run --weights-bic auto` by the training photos, the pilot's count and lobes, or

@@ -219,7 +219,7 @@ pub(crate) struct RunArgs {
     /// ratio step runs, else off.
     #[arg(
         long,
-        default_value = "0",
+        default_value = "auto",
         value_name = "auto|N",
         help_heading = "Solver"
     )]

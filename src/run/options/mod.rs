@@ -19,8 +19,8 @@ pub use light_by_scene::{scene_light, FitShape, CONSTRAINED_FROM_MATERIALS, PRIO
 pub(crate) use smoothness::smoothness_base;
 pub use smoothness::{pilot_smoothness_for, smoothness_for, SMOOTHNESS_FROM_PHOTOS};
 pub use values::{
-    Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, VarproSteps, WeightsSmoothness,
-    WeightsSum,
+    Holdout, MaterialCount, PriorStrength, RatioSteps, Restart, VarproPlan, VarproSteps,
+    WeightsSmoothness, WeightsSum,
 };
 pub use weights_bic::{weights_bic_for, BIC_FROM_PHOTOS};
 
@@ -332,7 +332,7 @@ impl RunOptions {
             patience: Self::DEFAULT_PATIENCE,
             min_iterations: crate::solve::options::MIN_ITERATIONS,
             ratio_steps: RatioSteps::Auto,
-            varpro_steps: VarproSteps::Fixed(0),
+            varpro_steps: VarproSteps::Auto,
             lighting_sample: DEFAULT_LIGHTING_SAMPLE,
             starts: 1,
             start_weights: crate::solve::cluster::StartWeights::Clustered,
