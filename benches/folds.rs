@@ -255,9 +255,9 @@ fn write_results(setup: &Setup, pairs: &[Pair]) {
 /// The table and the summary in Markdown, under the date and the command.
 fn markdown(setup: &Setup, pairs: &[Pair], s: &serde_json::Value) -> String {
     let mut md = format!(
-        "# Photos held out in turn: `{}` → `{}`\n\n{}",
-        setup.flags_a,
-        setup.flags_b,
+        "# Photos held out in turn: {} → {}\n\n{}",
+        flags_label(&setup.flags_a),
+        flags_label(&setup.flags_b),
         run_line::environment_line("folds", &["FOLDS_", "RESULTS_SUFFIX"])
     );
     md += &format!(
@@ -287,14 +287,26 @@ fn markdown(setup: &Setup, pairs: &[Pair], s: &serde_json::Value) -> String {
             p.b.seconds
         );
     }
+    md += &summary_line(s);
+    md
+}
+
+/// The summary in words: how often and how far B moved the headline where it changed the
+/// fit, or that it changed none.
+fn summary_line(s: &serde_json::Value) -> String {
+    let (pairs, same) = (
+        s["pairs"].as_u64().unwrap_or(0),
+        s["same_fit"].as_u64().unwrap_or(0),
+    );
+    if pairs == same {
+        return format!("\nOf {pairs} pairs, all are the same fit: B changed no fit.\n");
+    }
     let pct = |k: &str| 100.0 * s[k].as_f64().unwrap_or(f64::NAN);
-    md += &format!(
-        "\nOf {} pairs, {} are the same fit. Over the other {}: B lower on {}, higher on {}; \
-         mean change {:+.2}%, median {:+.2}%, range {:+.2}% to {:+.2}%; B's wall time a \
-         median {:.2}× A's.\n",
-        s["pairs"],
-        s["same_fit"],
-        s["pairs"].as_u64().unwrap_or(0) - s["same_fit"].as_u64().unwrap_or(0),
+    format!(
+        "\nOf {pairs} pairs, {same} are the same fit. Over the other {}: B lower on {}, higher \
+         on {}; mean change {:+.2}%, median {:+.2}%, range {:+.2}% to {:+.2}%; B's wall time \
+         a median {:.2}× A's.\n",
+        pairs - same,
         s["b_lower"],
         s["b_higher"],
         pct("mean_change"),
@@ -302,6 +314,14 @@ fn markdown(setup: &Setup, pairs: &[Pair], s: &serde_json::Value) -> String {
         pct("min_change"),
         pct("max_change"),
         s["median_time_ratio"].as_f64().unwrap_or(f64::NAN)
-    );
-    md
+    )
+}
+
+/// A set of flags as a title names it: in backticks, or "the defaults" when there are none.
+fn flags_label(flags: &str) -> String {
+    if flags.trim().is_empty() {
+        "the defaults".to_string()
+    } else {
+        format!("`{flags}`")
+    }
 }
