@@ -121,7 +121,10 @@ impl FitStart {
         let init = starting_materials(opts, p.pilot_k.clone(), &p.mean_rgb, &p.seen, &mut reasons)?;
         let mut eopts = estimate_options(&p.eff, lambert, &p.strata);
         eopts.ratio_steps = p.eff.ratio_steps.rounds(training_photos, init.albedo.len());
-        let varpro = (p.eff.varpro_steps).plan(training_photos, init.albedo.len(), &p.eff.basis);
+        let varpro = p
+            .eff
+            .varpro_steps
+            .plan(training_photos, init.albedo.len(), &p.eff.basis);
         (eopts.varpro_steps, eopts.varpro_broyden) = (varpro.rounds, varpro.broyden);
         reasons.extend(varpro.why);
         let (bic, why) = weights_bic_for(
