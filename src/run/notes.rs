@@ -44,14 +44,18 @@ fn ratio_note(opts: &RunOptions, fitted: &Fitted) -> String {
 }
 
 /// What the variable-projection step (`--varpro-steps`) did, when asked for.
-fn varpro_note(fitted: &Fitted) -> Option<String> {
+fn varpro_note(opts: &RunOptions, fitted: &Fitted) -> Option<String> {
     let rounds = fitted.estimate_options.varpro_steps;
     let m = &fitted.est.varpro_moves;
     (rounds > 0).then(|| {
-        let (flag, jacobian) = if fitted.estimate_options.varpro_broyden {
-            ("auto".to_string(), "its Jacobian updated by Broyden's secant after the first round")
+        let flag = match opts.varpro_steps {
+            crate::run::VarproSteps::Auto => "auto".to_string(),
+            crate::run::VarproSteps::Fixed(n) => n.to_string(),
+        };
+        let jacobian = if fitted.estimate_options.varpro_broyden {
+            "its Jacobian updated by Broyden's secant after the first round"
         } else {
-            (rounds.to_string(), "its Jacobian by forward differences")
+            "its Jacobian by forward differences"
         };
         let what = format!(
             "the variable-projection step (--varpro-steps {flag}: {rounds} rounds, {jacobian}) kept {} of {} Gauss-Newton steps of every material's lobes with the lights re-solved (docs/method.md, \"The variable-projection step\")",
@@ -90,7 +94,7 @@ pub(crate) fn fit_notes(
     log.notes
         .extend(conditioning_notes(opts, &est.conditioning));
     log.notes.push(ratio_note(opts, fitted));
-    log.notes.extend(varpro_note(fitted));
+    log.notes.extend(varpro_note(opts, fitted));
     log.notes.extend(specular_note(opts, fitted));
     log.notes.extend(starts_note(multi));
     log.notes
