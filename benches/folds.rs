@@ -205,23 +205,38 @@ fn median(mut v: Vec<f64>) -> f64 {
     relight_cpc::stats::median(&mut v).unwrap_or(f64::NAN)
 }
 
-/// The summary over the pairs where the flags changed the fit.
-fn summary(pairs: &[Pair]) -> serde_json::Value {
+/// The summary over the pairs where the flags changed the fit (changes are B's headline
+/// relative to A's, minus 1; NaN, written as JSON `null`, when no pair changed).
+#[derive(serde::Serialize)]
+struct Summary {
+    pairs: usize,
+    same_fit: usize,
+    b_lower: usize,
+    b_higher: usize,
+    mean_change: f64,
+    median_change: f64,
+    min_change: f64,
+    max_change: f64,
+    median_time_ratio: f64,
+}
+
+/// The [`Summary`] of `pairs`.
+fn summary(pairs: &[Pair]) -> Summary {
     let moved: Vec<&Pair> = pairs.iter().filter(|p| !p.same()).collect();
     let changes: Vec<f64> = moved.iter().map(|p| p.change()).collect();
     let mean = changes.iter().sum::<f64>() / changes.len().max(1) as f64;
     let times: Vec<f64> = moved.iter().map(|p| p.b.seconds / p.a.seconds).collect();
-    serde_json::json!({
-        "pairs": pairs.len(),
-        "same_fit": pairs.len() - moved.len(),
-        "b_lower": changes.iter().filter(|c| **c < 0.0).count(),
-        "b_higher": changes.iter().filter(|c| **c > 0.0).count(),
-        "mean_change": if changes.is_empty() { f64::NAN } else { mean },
-        "median_change": median(changes.clone()),
-        "min_change": changes.iter().copied().fold(f64::INFINITY, f64::min),
-        "max_change": changes.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        "median_time_ratio": median(times),
-    })
+    Summary {
+        pairs: pairs.len(),
+        same_fit: pairs.len() - moved.len(),
+        b_lower: changes.iter().filter(|c| **c < 0.0).count(),
+        b_higher: changes.iter().filter(|c| **c > 0.0).count(),
+        mean_change: if changes.is_empty() { f64::NAN } else { mean },
+        median_change: median(changes.clone()),
+        min_change: changes.iter().copied().fold(f64::INFINITY, f64::min),
+        max_change: changes.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        median_time_ratio: median(times),
+    }
 }
 
 /// `bench-results/folds-SUFFIX.{md,json}`.
@@ -253,7 +268,7 @@ fn write_results(setup: &Setup, pairs: &[Pair]) {
 }
 
 /// The table and the summary in Markdown, under the date and the command.
-fn markdown(setup: &Setup, pairs: &[Pair], s: &serde_json::Value) -> String {
+fn markdown(setup: &Setup, pairs: &[Pair], s: &Summary) -> String {
     let mut md = format!(
         "# Photos held out in turn: {} → {}\n\n{}",
         flags_label(&setup.flags_a),
@@ -293,27 +308,23 @@ fn markdown(setup: &Setup, pairs: &[Pair], s: &serde_json::Value) -> String {
 
 /// The summary in words: how often and how far B moved the headline where it changed the
 /// fit, or that it changed none.
-fn summary_line(s: &serde_json::Value) -> String {
-    let (pairs, same) = (
-        s["pairs"].as_u64().unwrap_or(0),
-        s["same_fit"].as_u64().unwrap_or(0),
-    );
+fn summary_line(s: &Summary) -> String {
+    let (pairs, same) = (s.pairs, s.same_fit);
     if pairs == same {
         return format!("\nOf {pairs} pairs, all are the same fit: B changed no fit.\n");
     }
-    let pct = |k: &str| 100.0 * s[k].as_f64().unwrap_or(f64::NAN);
     format!(
         "\nOf {pairs} pairs, {same} are the same fit. Over the other {}: B lower on {}, higher \
          on {}; mean change {:+.2}%, median {:+.2}%, range {:+.2}% to {:+.2}%; B's wall time \
          a median {:.2}× A's.\n",
         pairs - same,
-        s["b_lower"],
-        s["b_higher"],
-        pct("mean_change"),
-        pct("median_change"),
-        pct("min_change"),
-        pct("max_change"),
-        s["median_time_ratio"].as_f64().unwrap_or(f64::NAN)
+        s.b_lower,
+        s.b_higher,
+        100.0 * s.mean_change,
+        100.0 * s.median_change,
+        100.0 * s.min_change,
+        100.0 * s.max_change,
+        s.median_time_ratio
     )
 }
 
