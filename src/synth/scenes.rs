@@ -126,6 +126,15 @@ pub(crate) fn scene_defs() -> Vec<SceneDef> {
             photos: 16,
         },
         SceneDef {
+            name: "spot-one",
+            description: "Spot, one material (Lambert + GGX 0.3), a different real map and rotation per photo, held-out photos",
+            shape: Shape::Spot,
+            lobes: vec![Lobe::Lambert, Lobe::Ggx { alpha: 0.3 }],
+            materials: vec![("orange-ggx", vec![[0.8, 0.45, 0.2], [0.25, 0.25, 0.25]])],
+            lighting: Lighting::Varying(ALL_MAPS),
+            photos: 16,
+        },
+        SceneDef {
             name: "spot-three",
             description: "Spot, three blended materials in bands (Lambert + GGX 0.3, Lambert, Lambert + GGX 0.3), a different real map and rotation per photo, held-out photos",
             shape: Shape::Spot,
@@ -232,7 +241,7 @@ pub(crate) fn make_geometry(
 ) -> Result<Geometry> {
     if exact && shape != Shape::Spot {
         return Err(Error::Config(
-            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-diffuse, spot-three, spot-sky, spot-static): the other shapes are built from parts".into(),
+            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-diffuse, spot-one, spot-three, spot-sky, spot-static): the other shapes are built from parts".into(),
         ));
     }
     let sphere_level = |target: usize| -> u32 {

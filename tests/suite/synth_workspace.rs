@@ -48,6 +48,7 @@ fn scene_list_is_complete() {
         "sphere-specular",
         "sphere-plane",
         "spot-varying",
+        "spot-one",
         "spot-static",
         "spot-textured",
     ] {

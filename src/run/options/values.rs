@@ -18,7 +18,8 @@ pub(crate) fn shiny_lobes(basis: &[BasisBrdf]) -> (bool, &'static str) {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MaterialCount {
     /// Choose from the data: with [`RunOptions::adaptive`](crate::run::RunOptions::adaptive), the smallest count within
-    /// [`crate::solve::adapt::MATERIAL_TOL`] of the best held-out error of a pilot fit
+    /// [`crate::solve::adapt::MATERIAL_TOL`] (one material:
+    /// [`crate::solve::adapt::ONE_MATERIAL_TOL`]) of the best held-out error of a pilot fit
     /// ([`crate::solve::adapt`]); without it, the
     /// smallest count whose k-means clustering of the hue features leaves little
     /// unexplained (see [`choose_material_count`](crate::run::choose_material_count)).

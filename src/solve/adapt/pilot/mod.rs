@@ -405,8 +405,9 @@ fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
         .collect::<Vec<_>>()
         .join(", ");
     let reason = format!(
-        "materials: {k} (auto), the smallest count within {:.0}% of the best held-out RMSE of a {PILOT_ITERATIONS}-iteration pilot at {g}² on 1 in {HELDOUT_EVERY} observations held out, scored at vertices at least {COUNT_MIN_SEEN} training observations see ({table}); the search ends because {stop}",
-        100.0 * MATERIAL_TOL
+        "materials: {k} (auto), the smallest count within {:.0}% of the best held-out RMSE (one material within {:.0}%) of a {PILOT_ITERATIONS}-iteration pilot at {g}² on 1 in {HELDOUT_EVERY} observations held out, scored at vertices at least {COUNT_MIN_SEEN} training observations see ({table}); the search ends because {stop}",
+        100.0 * MATERIAL_TOL,
+        100.0 * ONE_MATERIAL_TOL
     );
     Ok(CountChoice {
         k,
@@ -417,12 +418,11 @@ fn material_count(f: &Fitter, g: usize) -> Result<CountChoice> {
 }
 
 /// Index of the smallest count whose held-out RMSE (`heldout[i]` for `K = i + 1`) is within
-/// [`MATERIAL_TOL`] of the best (the first, when no score is finite).
+/// [`count_tol`] of the best (the first, when no score is finite).
 fn smallest_as_good(heldout: &[f64]) -> usize {
     let best = heldout.iter().copied().fold(f64::INFINITY, f64::min);
-    heldout
-        .iter()
-        .position(|&e| as_good(e, best, MATERIAL_TOL) || !best.is_finite())
+    (0..heldout.len())
+        .find(|&i| as_good(heldout[i], best, count_tol(i + 1)) || !best.is_finite())
         .unwrap_or(0)
 }
 
