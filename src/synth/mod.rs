@@ -75,7 +75,8 @@ pub struct SynthOptions {
     pub vertices: Option<usize>,
     /// Make the mesh exactly `vertices` vertices (whole subdivision steps, then a partial
     /// one: [`geometry::refine_to`]) instead of the first subdivision level with at least
-    /// that many. Spot scenes only (`spot-varying`, `spot-ggx`, `spot-diffuse`, `spot-one`, `spot-three`, `spot-sky`, `spot-static`).
+    /// that many. Scenes on Spot alone only (every `spot-` scene but `spot-textured`,
+    /// `scenes::spot_scene_names`).
     pub exact_vertices: bool,
     /// Standard deviation of Gaussian noise on the linear `[0, 1]` photo scale.
     pub noise: f64,

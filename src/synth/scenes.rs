@@ -198,6 +198,16 @@ pub(crate) fn scene_defs() -> Vec<SceneDef> {
     ]
 }
 
+/// The scenes on Spot alone ([`Shape::Spot`]), whose mesh can be refined to an exact
+/// vertex count.
+pub(crate) fn spot_scene_names() -> Vec<&'static str> {
+    scene_defs()
+        .iter()
+        .filter(|d| d.shape == Shape::Spot)
+        .map(|d| d.name)
+        .collect()
+}
+
 /// The scene names `synth` knows, in a fixed order.
 pub fn scene_names() -> Vec<&'static str> {
     scene_defs().iter().map(|d| d.name).collect()
@@ -240,9 +250,10 @@ pub(crate) fn make_geometry(
     out: &Path,
 ) -> Result<Geometry> {
     if exact && shape != Shape::Spot {
-        return Err(Error::Config(
-            "an exact vertex count needs a spot scene (spot-varying, spot-ggx, spot-diffuse, spot-one, spot-three, spot-sky, spot-static): the other shapes are built from parts".into(),
-        ));
+        return Err(Error::Config(format!(
+            "an exact vertex count needs a spot scene ({}): the other shapes are built from parts",
+            spot_scene_names().join(", ")
+        )));
     }
     let sphere_level = |target: usize| -> u32 {
         (0..12)

@@ -433,7 +433,7 @@ fn the_one_material_spot_keeps_one_material() {
     // One material (Lambert + GGX 0.3) on Spot under a different real map per photo: the
     // pilot must keep one, though the shape lets more materials trade brightness between
     // surfaces that face different ways (at 256² and 16 photos, seeds 1–5, two materials
-    // scored 0.05–4.2% above one: `bench-results/one-material-margin.md`).
+    // scored 0.05–4.0% above one: `bench-results/one-material-margin.md`).
     let dir = scratch("spot-one");
     let ws = workspace(&dir.0, "spot-one", 8, 3000);
     let s = run::run(&adaptive(&ws, &dir.0.join("out"))).unwrap();
@@ -457,9 +457,10 @@ fn materials_auto_finds_more_than_one_material_on_sphere_plane() {
     let s = run::run(&adaptive(&ws, &dir.0.join("out"))).unwrap();
     let m = &s.report.model;
     assert!(m.materials >= 2, "{:#?}", m.adaptive);
-    // The counts were scored from 1 up, the smallest within `MATERIAL_TOL` (one material:
-    // `ONE_MATERIAL_TOL`; plus the quantisation floor) of the best was taken, and the search went on until the cap or
-    // until `COUNT_PATIENCE` counts past that choice had not changed it.
+    // The counts were scored from 1 up, the smallest within `count_tol` (`MATERIAL_TOL`;
+    // one material `ONE_MATERIAL_TOL`) plus the quantisation floor of the best was taken,
+    // and the search went on until the cap or until `COUNT_PATIENCE` counts past that
+    // choice had not changed it.
     let d = decision(&s, "materials");
     let scores: Vec<f64> = (1..=adapt::MAX_MATERIALS)
         .map_while(|k| {

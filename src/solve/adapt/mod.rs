@@ -249,16 +249,10 @@ pub use sample::{observations_of, pilot_vertices, PILOT_MAX_VERTICES, PILOT_MIN_
 pub const DROP_SHARE: f64 = 0.01;
 /// Relative held-out RMSE margin of the material count (module docs, step 3).
 pub const MATERIAL_TOL: f64 = 0.06;
-/// Relative held-out RMSE margin within which one material is kept (module docs, step 3):
-/// the pilot's noise between two refits of one count ([`BASIS_TOL`]), not
-/// [`MATERIAL_TOL`]'s spread of k-means starts, since one material has no start to vary.
-/// Measured (`bench-results/one-material-margin.md`): on 17 one-material rendered pilots
-/// (three spheres and the one-material Spot, `synth spot-one`) one material scored best
-/// outright; on the real Buddha photos, every photo held out in turn at seeds 1–3, it
-/// scored 4.8–10.4% above the best, so at 6% the pilot kept one material in 4 of 15
-/// runs, where two materials predicted the held-out photos 5.3–15.6% better on 3 and
-/// 0.2% worse on 1; on rendered scenes of two or three materials it scored at least 6.2%
-/// above (`spot-textured`; 13.8% on the others).
+/// Relative held-out RMSE margin within which one material is kept (module docs, step 3,
+/// with the measurements): the pilot's noise between two refits of one count
+/// ([`BASIS_TOL`]), not [`MATERIAL_TOL`]'s spread of k-means starts, since one material
+/// has no start to vary.
 pub const ONE_MATERIAL_TOL: f64 = BASIS_TOL;
 /// Relative held-out RMSE margin of the basis ablation (module docs, step 4): the pilot's
 /// noise between two refits of one material count (the spread across counts is wider,
