@@ -67,6 +67,7 @@ pub mod budget;
 pub mod cluster;
 pub mod light;
 pub mod lobe_prune;
+pub mod loss_choice;
 pub mod matched;
 pub mod materials;
 pub mod normalise;

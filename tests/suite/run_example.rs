@@ -150,6 +150,11 @@ fn adaptive_example(
     let mut o = options(&dir.join(tag));
     o.adaptive = true;
     o.materials = MaterialCount::Auto;
+    // The robust loss in every run: these tests compare one choice of the pilot against
+    // the same run with it given, and `--loss auto` chooses per run (without the neighbour
+    // prior it keeps plain least squares here, with it the robust loss), which would
+    // compare two choices at once.
+    o.loss = relight_cpc::solve::loss_choice::LossChoice::Robust;
     edit(&mut o);
     run(&o)
         .expect("adaptive run on the built-in example")

@@ -165,8 +165,14 @@ pub(crate) struct RunArgs {
     /// changes with direction is penalised.
     #[arg(long, default_value_t = 0.0, help_heading = "Solver")]
     pub(crate) chroma_smoothness: f64,
-    /// Re-weighting passes per lighting fit that play down outlier pixels (1 = plain least
-    /// squares).
+    /// How pixels the model does not explain count: `robust` (outlier pixels played down,
+    /// Huber), `plain` (least squares, as the paper), or `auto` (both fitted below 50K
+    /// vertices, each scored on held-back halves of a few training photos, the better
+    /// kept; `robust` from 50K vertices on).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "robust", "plain"], help_heading = "Solver")]
+    pub(crate) loss: String,
+    /// Re-weighting passes per lighting fit of the robust loss that play down outlier
+    /// pixels (1 = plain least squares, whatever --loss says).
     #[arg(long, default_value_t = 3, value_name = "N", help_heading = "Solver")]
     pub(crate) irls_iterations: usize,
     /// Solver steps per lighting fit inside each round (each continues from the last);

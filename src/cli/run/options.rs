@@ -95,6 +95,7 @@ impl RunArgs {
         }
         o.chroma_smoothness = self.chroma_smoothness;
         o.irls_iterations = self.irls_iterations;
+        o.loss = relight_cpc::solve::loss_choice::LossChoice::parse(&self.loss)?;
         o.lighting_qp_iterations = self.lighting_qp_iterations;
         match &self.light {
             Some(l) => o.light = relight_cpc::solve::light::choose::LightChoice::parse(l)?,

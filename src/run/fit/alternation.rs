@@ -10,7 +10,9 @@ use crate::run::state::RunLog;
 use crate::run::tracker::HoldoutTracker;
 use crate::run::{Progress, Restart, RunOptions};
 use crate::solve::light::choose::{self, LightChoice, LightDecision};
+use crate::solve::loss_choice;
 use crate::solve::materials::{brightness, coarse_light, irradiance, reanchor};
+use crate::solve::options::PhotoHalves;
 use crate::solve::starts::{self, MultiStart};
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::transport::brdf::BasisBrdf;
@@ -105,9 +107,10 @@ struct ModelFit {
 }
 
 /// Each candidate light model (`--light`) fitted from every start; the one the validation
-/// score keeps ([`choose::decide`]), its reason pushed to `start`. With the choice's photo
-/// halves ([`FitStart::choice_halves`]) the candidates are scored on those halves held
-/// back and the model kept is fitted again with the run's own early stopping.
+/// score keeps ([`choose::decide`]), its reason pushed to `start`; then, with `--loss auto`,
+/// the data loss for it ([`choose_loss`]). With held-back photo halves
+/// ([`FitStart::choice_halves`]) the candidates are scored on them and the fit kept is
+/// fitted again with the run's own early stopping.
 fn fit_light_models(
     opts: &RunOptions,
     problem: &Problem,
@@ -118,57 +121,142 @@ fn fit_light_models(
 ) -> Result<Estimated> {
     let mut timeline: Vec<TimelinePoint> = Vec::new();
     let light_models = choose::candidates(opts.light, &start.eopts)?;
-    let choosing = start
+    let choosing_light = light_models.len() > 1;
+    let halves = start
         .choice_halves
         .clone()
-        .filter(|_| light_models.len() > 1);
+        .filter(|_| choosing_light || start.loss_auto);
+    let fits_planned =
+        light_models.len() + usize::from(halves.is_some()) + usize::from(start.loss_auto);
     let per_model = monitor.bar.length().unwrap_or(0);
-    let fits_planned = light_models.len() + usize::from(choosing.is_some());
     monitor.bar.set_length(per_model * fits_planned as u64);
+    let scored = |o: &EstimateOptions| EstimateOptions {
+        validation_halves: halves.clone().or_else(|| o.validation_halves.clone()),
+        ..o.clone()
+    };
+    let f = ModelFitter {
+        problem,
+        family,
+        monitor,
+    };
     let mut fits = Vec::with_capacity(light_models.len());
     for model in &light_models {
-        let mut eopts = model.options.clone();
-        if let Some(h) = &choosing {
-            eopts.validation_halves = Some(h.clone());
-        }
-        fits.push(fit_model(
-            problem,
-            family,
-            &eopts,
-            monitor,
-            &mut timeline,
-            log,
-        )?);
+        fits.push(f.fit(&scored(&model.options), &mut timeline, log)?);
     }
     let scores: Vec<f64> = fits.iter().map(|f| f.est.validation_error()).collect();
     let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
-    let (pick, mut light_decision) = choose::decide(opts.light, &names, &scores);
-    let mut kept = fits.swap_remove(pick);
-    if let Some(h) = &choosing {
-        light_decision.why = format!(
-            "{}, each scored on the right halves of {} training photos held back whole; \
-             the model kept fitted again with early stopping's own held-back observations",
-            light_decision.why,
-            h.right.len()
-        );
-        let eopts = &light_models[pick].options;
-        kept = fit_model(problem, family, eopts, monitor, &mut timeline, log)?;
-    }
-    if opts.light_by_scene {
-        light_decision.why = by_scene_why(opts.light, &light_decision.why);
-    }
+    let (pick, decision) = choose::decide(opts.light, &names, &scores);
+    let light_decision = light_why(opts, decision, halves.as_deref().filter(|_| choosing_light));
     start.reasons.push(format!(
         "light model `{}`: {}",
         light_decision.model, light_decision.why
     ));
+    let mut kept = LossCandidate {
+        fit: fits.swap_remove(pick),
+        options: light_models[pick].options.clone(),
+    };
+    if start.loss_auto {
+        let (chosen, why) = choose_loss(&f, kept, &scored, &mut timeline, log)?;
+        start.reasons.push(why);
+        kept = chosen;
+    }
+    if halves.is_some() {
+        kept.fit = f.fit(&kept.options, &mut timeline, log)?;
+    }
     Ok(Estimated {
-        est: kept.est,
-        multi: kept.multi,
-        eopts: light_models[pick].options.clone(),
+        est: kept.fit.est,
+        multi: kept.fit.multi,
+        eopts: kept.options,
         light_decision,
         // The timeline of the fit kept.
-        timeline: timeline.drain(kept.points).collect(),
+        timeline: timeline.drain(kept.fit.points).collect(),
     })
+}
+
+/// The light decision's words: the halves its candidates were scored on (`halves`, when
+/// the light was chosen on them) and, without `--light`, the scene's rule.
+fn light_why(
+    opts: &RunOptions,
+    mut d: LightDecision,
+    halves: Option<&PhotoHalves>,
+) -> LightDecision {
+    if let Some(h) = halves {
+        d.why = format!(
+            "{}, each scored on the right halves of {} training photos held back whole; \
+             the model kept fitted again with early stopping's own held-back observations",
+            d.why,
+            h.right.len()
+        );
+    }
+    if opts.light_by_scene {
+        d.why = by_scene_why(opts.light, &d.why);
+    }
+    d
+}
+
+/// A fit and the options it was fitted with (before held-back halves were added).
+struct LossCandidate {
+    fit: ModelFit,
+    options: EstimateOptions,
+}
+
+/// What a fit from every start needs besides its options.
+struct ModelFitter<'a> {
+    problem: &'a Problem<'a>,
+    family: &'a [starts::Start],
+    monitor: &'a Monitor<'a>,
+}
+
+impl ModelFitter<'_> {
+    /// `eopts` fitted from every start ([`fit_model`]).
+    fn fit(
+        &self,
+        eopts: &EstimateOptions,
+        timeline: &mut Vec<TimelinePoint>,
+        log: &mut RunLog,
+    ) -> Result<ModelFit> {
+        fit_model(
+            self.problem,
+            self.family,
+            eopts,
+            self.monitor,
+            timeline,
+            log,
+        )
+    }
+}
+
+/// `--loss auto` ([`loss_choice`]): the light model kept, fitted with the robust loss
+/// (`robust`, scored on the held-back halves), against the same model under plain least
+/// squares fitted and scored with `scored`'s halves; the one kept and the reason.
+fn choose_loss(
+    f: &ModelFitter,
+    robust: LossCandidate,
+    scored: &dyn Fn(&EstimateOptions) -> EstimateOptions,
+    timeline: &mut Vec<TimelinePoint>,
+    log: &mut RunLog,
+) -> Result<(LossCandidate, String)> {
+    let plain_options = loss_choice::plain(&robust.options);
+    let with_halves = scored(&plain_options);
+    let plain = f.fit(&with_halves, timeline, log)?;
+    let n_halves = with_halves
+        .validation_halves
+        .as_ref()
+        .map_or(0, |h| h.right.len());
+    let (r, p) = (
+        robust.fit.est.validation_error(),
+        plain.est.validation_error(),
+    );
+    let decision = loss_choice::decide(r, p, n_halves);
+    let kept = if decision.plain {
+        LossCandidate {
+            fit: plain,
+            options: plain_options,
+        }
+    } else {
+        robust
+    };
+    Ok((kept, decision.why))
 }
 
 /// One light model's options fitted from every start, its iterations on the console and

@@ -6,6 +6,7 @@ use crate::import::scene::View;
 use crate::observe::Observations;
 use crate::run::half_fit::{projected_x, span_mid};
 use crate::run::RunOptions;
+use crate::solve::loss_choice::LossChoice;
 use crate::solve::options::PhotoHalves;
 use crate::solve::{EstimateOptions, Robust};
 use crate::transport::brdf::BasisBrdf;
@@ -28,12 +29,16 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         rel_tol: o.rel_tol,
         smoothness: crate::run::smoothness_base(o.smoothness),
         chroma_smoothness: o.chroma_smoothness,
-        robust: if o.irls_iterations > 1 {
+        robust: if o.irls_iterations > 1 && o.loss != LossChoice::Plain {
             Robust::Huber { k: 1.345 }
         } else {
             Robust::None
         },
-        irls_iters: o.irls_iterations,
+        irls_iters: if o.loss == LossChoice::Plain {
+            1
+        } else {
+            o.irls_iterations
+        },
         robust_floor: o.robust_floor,
         weights_sum: o.weights_sum.value(),
         weights_sum_scope: o.weights_sum_scope,

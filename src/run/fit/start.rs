@@ -9,10 +9,11 @@ use crate::observe::Observations;
 use crate::run::state::{Imported, Prepared, RunLog};
 use crate::run::{
     achromatic_for, choose_material_count, scene_light, smoothness_for, weights_bic_for, FitShape,
-    MaterialCount, Progress, RunOptions, StartBrightness,
+    LargeMeshSettings, MaterialCount, Progress, RunOptions, StartBrightness,
 };
 use crate::solve::cluster::{initial_materials, unmixed_weights, InitialMaterials, StartWeights};
 use crate::solve::light::choose::LightChoice;
+use crate::solve::loss_choice::{is_robust, LossChoice};
 use crate::solve::starts;
 use crate::solve::{EstimateOptions, Materials0};
 use crate::Result;
@@ -87,6 +88,9 @@ pub(super) struct FitStart {
     /// The photo halves `--light auto` scores its candidates on
     /// ([`RunOptions::light_choice_halves`]); `None`: early stopping's own score.
     pub(super) choice_halves: Option<std::sync::Arc<crate::solve::options::PhotoHalves>>,
+    /// Whether the fit chooses its data loss by validation (`--loss auto` where it
+    /// applies, [`FitStart::loss_applies`]).
+    pub(super) loss_auto: bool,
     /// The run's options with the light model `run` picked for this fit when `--light`
     /// was not given ([`light_by_scene`]); `None`: the run's own.
     pub(super) by_scene: Option<RunOptions>,
@@ -166,6 +170,7 @@ impl FitStart {
             transients: None,
             recoloured: None,
             choice_halves: None,
+            loss_auto: false,
             by_scene: None,
         })
     }
@@ -234,10 +239,33 @@ impl FitStart {
         let views: Vec<&View> = train.iter().map(|&i| &scene.views[i]).collect();
         let positions = &scene.mesh.positions;
         self.eopts.validation_halves = photo_halves(&views, positions, obs, opts.validation_halves);
-        if opts.light.chooses() && self.eopts.validation_halves.is_none() {
+        let loss_asked = opts.loss == LossChoice::Auto && is_robust(&self.eopts);
+        if (opts.light.chooses() || loss_asked) && self.eopts.validation_halves.is_none() {
             self.choice_halves = photo_halves(&views, positions, obs, opts.light_choice_halves);
         }
+        if loss_asked {
+            self.loss_auto = self.loss_applies(positions.len());
+        }
         Ok(())
+    }
+
+    /// Whether `--loss auto` chooses the loss for a mesh of `vertices` vertices: below
+    /// [`LargeMeshSettings::FROM_VERTICES`], with held-back photo halves to score on (the
+    /// choice's or early stopping's). Else the robust loss stays, and the reasons say why.
+    fn loss_applies(&mut self, vertices: usize) -> bool {
+        let from = LargeMeshSettings::FROM_VERTICES;
+        let halves = self.choice_halves.is_some() || self.eopts.validation_halves.is_some();
+        let why = if vertices >= from {
+            format!("from {from} vertices (the mesh has {vertices}): the choice's two extra fits")
+        } else if !halves {
+            "no training photo has a right half to hold back".to_string()
+        } else {
+            return true;
+        };
+        self.reasons.push(format!(
+            "loss: the robust loss (Huber; --loss auto keeps it {why}); --loss plain fits plain least squares"
+        ));
+        false
     }
 
     /// The start's material brightness matched by normal ([`crate::solve::matched`]) on

@@ -76,8 +76,13 @@ pub struct RunOptions {
     /// Weight `κ` of the maps' chroma smoothness prior relative to the Laplacian's
     /// ([`crate::solve::light`] `chroma`); 0 = off.
     pub chroma_smoothness: f64,
-    /// IRLS passes per lighting step (1 = no reweighting).
+    /// IRLS passes per lighting step of the robust loss (1 = no reweighting).
     pub irls_iterations: usize,
+    /// The data loss ([`crate::solve::loss_choice`]): the robust loss, plain least
+    /// squares, or `auto` (both fitted below [`LargeMeshSettings::FROM_VERTICES`]
+    /// vertices, each scored on the right halves of [`RunOptions::light_choice_halves`]
+    /// training photos held back, the lower kept; the robust loss from that size on).
+    pub loss: crate::solve::loss_choice::LossChoice,
     /// GPCG iterations per lighting QP inside the alternation
     /// ([`EstimateOptions::alternation_qp_iters`]); 0 = every QP to the KKT tolerance.
     pub lighting_qp_iterations: usize,
@@ -327,6 +332,7 @@ impl RunOptions {
             smoothness: PriorStrength::Auto,
             chroma_smoothness: 0.0,
             irls_iterations: 3,
+            loss: crate::solve::loss_choice::LossChoice::Auto,
             lighting_qp_iterations: Self::default_lighting_qp_iterations(),
             lighting_cg_iterations: Self::default_lighting_cg_iterations(),
             patience: Self::DEFAULT_PATIENCE,
