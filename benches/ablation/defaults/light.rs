@@ -27,6 +27,9 @@ use relight_cpc::solve::{estimate, EstimateOptions, Materials0, Problem};
 pub struct ChosenLight {
     pub options: EstimateOptions,
     pub note: String,
+    /// The kept model's validation score on the choice's photo halves, when it was chosen
+    /// on them (the robust loss's score for [`super::loss`]).
+    pub robust_score: Option<f64>,
 }
 
 /// The row's light model for `opts` (the pilot's choices under the paper's map) from the
@@ -47,7 +50,11 @@ pub fn by_scene(
             "oracle-sh" => oracle_sh(case, candidate(case, opts, "prior")),
             _ => opts,
         };
-        return ChosenLight { options, note };
+        return ChosenLight {
+            options,
+            note,
+            robust_score: None,
+        };
     }
     match (run_rule(case, pilot), forced_auto) {
         (_, true) => chosen_on_halves(case, problem, m0, opts, LightChoice::Auto),
@@ -55,10 +62,12 @@ pub fn by_scene(
         (Some(LightChoice::Prior), _) => ChosenLight {
             options: candidate(case, opts, "prior"),
             note: "light `prior` (run's rule: the Lambertian lobe alone, two or more materials and many photos)".to_string(),
+            robust_score: None,
         },
         _ => ChosenLight {
             options: opts,
             note: "light `paper` (run's rule: the Lambertian lobe alone)".to_string(),
+            robust_score: None,
         },
     }
 }
@@ -119,6 +128,8 @@ fn chosen_on_halves(
             k,
             scored.join(", ")
         ),
+        // The loss choice scores on the default halves ([`super::loss`]).
+        robust_score: (k == DEFAULT_LIGHT_CHOICE_HALVES).then_some(scores[pick]),
     }
 }
 

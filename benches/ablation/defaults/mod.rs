@@ -24,6 +24,7 @@
 
 mod diagnosis;
 mod light;
+mod loss;
 mod mixture;
 mod second;
 mod start_probes;
@@ -84,6 +85,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let m0 = start_materials(case, &pilot, &init, colours);
     let fit_opts = fit_options(case, base, &pilot);
     let light = light::by_scene(case, &problem, &m0, fit_opts.clone(), &pilot);
+    let light = loss::by_run_rule(case, &problem, &m0, light);
     let opts = with_prior_noise(light.options);
     let m0 = if start_variant().as_deref() == Some("stiff-spec") {
         let scope = StartScope {
