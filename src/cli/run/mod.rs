@@ -91,9 +91,10 @@ pub(crate) struct RunArgs {
     /// the whole collection).
     #[arg(long, help_heading = "Model")]
     pub(crate) no_geotag_suns: bool,
-    /// Under `--light auto`, score the candidate light models on the right halves of this
-    /// many training photos held back whole, then fit the model kept again with the run's
-    /// own early stopping; 0 = score them on early stopping's held-back observations.
+    /// Under `--light auto` and `--loss auto`, score the candidate light models and losses
+    /// on the right halves of this many training photos held back whole, then fit the one
+    /// kept again with the run's own early stopping; 0 = score the light models on early
+    /// stopping's held-back observations (and keep the robust loss).
     #[arg(long, default_value_t = relight_cpc::run::DEFAULT_LIGHT_CHOICE_HALVES, help_heading = "Model")]
     pub(crate) light_choice_halves: usize,
     /// What fixes the per-channel scale between colours and light, which photos can never

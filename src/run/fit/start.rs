@@ -256,9 +256,11 @@ impl FitStart {
         let from = LargeMeshSettings::FROM_VERTICES;
         let halves = self.choice_halves.is_some() || self.eopts.validation_halves.is_some();
         let why = if vertices >= from {
-            format!("from {from} vertices (the mesh has {vertices}): the choice's two extra fits")
+            format!("from {from} vertices, where its two extra fits cost too much time: the mesh has {vertices}")
         } else if !halves {
-            "no training photo has a right half to hold back".to_string()
+            "without photo halves to score on (--light-choice-halves 0, or no more training \
+             photos than halves)"
+                .to_string()
         } else {
             return true;
         };

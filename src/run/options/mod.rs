@@ -220,10 +220,11 @@ pub struct RunOptions {
     /// time) from the solar position, up to one north for the collection
     /// ([`crate::solve::light::sky::clock`]); `false` searches every sun.
     pub geotag_suns: bool,
-    /// Under `--light auto`, the candidates are scored on the right halves of this many
-    /// training photos held back whole (the `half` protocol's split), and the model kept
-    /// is fitted again with the run's own early stopping; 0 scores them on the early
-    /// stopping's held-back observations ([`DEFAULT_LIGHT_CHOICE_HALVES`]).
+    /// Under `--light auto` (and `--loss auto`), the candidates are scored on the right
+    /// halves of this many training photos held back whole (the `half` protocol's split),
+    /// and the one kept is fitted again with the run's own early stopping; 0 scores the
+    /// light models on the early stopping's held-back observations and keeps the robust
+    /// loss ([`DEFAULT_LIGHT_CHOICE_HALVES`]).
     pub light_choice_halves: usize,
     /// The per-channel scale anchor between reflectance and light
     /// ([`crate::solve::normalise::ScaleAnchor`]).
