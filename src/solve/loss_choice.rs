@@ -5,11 +5,10 @@
 //!
 //! The two losses disagree by collection. On rendered scenes the robust loss keeps the
 //! model's own misfit (highlights the current lobes cannot make yet, shadow edges) out of
-//! the light and the albedo ratios: on `spot-diffuse` plain least squares made the worst
-//! diffuse ratio worse on 4 of 5 seeds. On the real Buddha photos held out in turn plain
+//! the light and the albedo ratios. On the real Buddha photos held out in turn plain
 //! least squares predicted the held-out photos better on 11 of 15 runs (mean −2.0%):
-//! there the misfit the robust loss plays down is signal. One default serves one of the
-//! two (`bench-results/robust-loss-real-and-rendered.md`).
+//! there the misfit the robust loss plays down is signal (`bench-results/folds-irls-1.md`).
+//! One default serves one of the two.
 //!
 //! `auto` scores both on the same held-back data, the right halves of a few training
 //! photos held back whole (the light choice's split, [`crate::run::photo_halves`]): the
@@ -22,10 +21,10 @@
 //!
 //! Plain least squares is kept only when it scores more than [`PLAIN_GAIN`] (3%) below the
 //! robust loss. The halves score does not see the albedo ratios, which the robust loss
-//! holds better on rendered scenes, and there the two losses score within 0.3–1.3% of
-//! each other on 5 of 7 runs (`spot-diffuse` seeds 1, 3, 4, 5, `spot-three` seed 1), where
-//! plain least squares made the worst ratio worse on 4 and the relit error worse on 4
-//! (`spot-three` seed 1: ratio 0.099 → 0.135, relit 1.09 → 1.17× its floor). On the
+//! holds better on rendered scenes: on 7 of the ablation's 15 rendered cases plain least
+//! squares scores 0.3–2.0% lower (`spot-diffuse` seeds 1, 3, 4, 5, `spot-three` seeds
+//! 1–3), and there it makes the worst ratio worse on 5 and the relit error worse on 5
+//! (`spot-three` seed 3: ratio 0.033 → 0.109, relit 1.12 → 1.25× its floor). On the
 //! Buddha folds plain least squares scores 0.8–12.6% lower on the 12 runs where it changes
 //! the fit; the margin keeps 7 of the 8 where it predicts the held-out photos better and
 //! drops 1 of the 4 where it predicts them worse (mean headline over the 15 runs: robust

@@ -156,9 +156,7 @@ fn fit_light_models(
         options: light_models[pick].options.clone(),
     };
     if start.loss_auto {
-        let (chosen, why) = choose_loss(&f, kept, &scored, &mut timeline, log)?;
-        start.reasons.push(why);
-        kept = chosen;
+        kept = choose_loss(&f, kept, &scored, &mut timeline, log, &mut start.reasons)?;
     }
     if halves.is_some() {
         kept.fit = f.fit(&kept.options, &mut timeline, log)?;
@@ -228,14 +226,16 @@ impl ModelFitter<'_> {
 
 /// `--loss auto` ([`loss_choice`]): the light model kept, fitted with the robust loss
 /// (`robust`, scored on the held-back halves), against the same model under plain least
-/// squares fitted and scored with `scored`'s halves; the one kept and the reason.
+/// squares fitted and scored with `scored`'s halves; the one kept, its reason pushed to
+/// `reasons`.
 fn choose_loss(
     f: &ModelFitter,
     robust: LossCandidate,
     scored: &dyn Fn(&EstimateOptions) -> EstimateOptions,
     timeline: &mut Vec<TimelinePoint>,
     log: &mut RunLog,
-) -> Result<(LossCandidate, String)> {
+    reasons: &mut Vec<String>,
+) -> Result<LossCandidate> {
     let plain_options = loss_choice::plain(&robust.options);
     let with_halves = scored(&plain_options);
     let plain = f.fit(&with_halves, timeline, log)?;
@@ -248,15 +248,15 @@ fn choose_loss(
         plain.est.validation_error(),
     );
     let decision = loss_choice::decide(r, p, n_halves);
-    let kept = if decision.plain {
+    reasons.push(decision.why);
+    Ok(if decision.plain {
         LossCandidate {
             fit: plain,
             options: plain_options,
         }
     } else {
         robust
-    };
-    Ok((kept, decision.why))
+    })
 }
 
 /// One light model's options fitted from every start, its iterations on the console and

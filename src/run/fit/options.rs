@@ -6,7 +6,7 @@ use crate::import::scene::View;
 use crate::observe::Observations;
 use crate::run::half_fit::{projected_x, span_mid};
 use crate::run::RunOptions;
-use crate::solve::loss_choice::LossChoice;
+use crate::solve::loss_choice::{self, LossChoice};
 use crate::solve::options::PhotoHalves;
 use crate::solve::{EstimateOptions, Robust};
 use crate::transport::brdf::BasisBrdf;
@@ -22,23 +22,19 @@ pub(crate) fn lambert_of(basis: &[BasisBrdf]) -> Result<usize> {
         })
 }
 
-/// The estimator's options from the run's.
+/// The estimator's options from the run's (`--loss plain`: [`loss_choice::plain`] of them).
 pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -> EstimateOptions {
-    EstimateOptions {
+    let opts = EstimateOptions {
         max_outer: o.max_iterations,
         rel_tol: o.rel_tol,
         smoothness: crate::run::smoothness_base(o.smoothness),
         chroma_smoothness: o.chroma_smoothness,
-        robust: if o.irls_iterations > 1 && o.loss != LossChoice::Plain {
+        robust: if o.irls_iterations > 1 {
             Robust::Huber { k: 1.345 }
         } else {
             Robust::None
         },
-        irls_iters: if o.loss == LossChoice::Plain {
-            1
-        } else {
-            o.irls_iterations
-        },
+        irls_iters: o.irls_iterations,
         robust_floor: o.robust_floor,
         weights_sum: o.weights_sum.value(),
         weights_sum_scope: o.weights_sum_scope,
@@ -60,6 +56,10 @@ pub(crate) fn estimate_options(o: &RunOptions, lambert: usize, strata: &[u32]) -
         scale_anchor: o.scale_anchor,
         clipped_bounds: o.clipped == super::super::Clipped::Bound,
         ..EstimateOptions::default()
+    };
+    match o.loss {
+        LossChoice::Plain => loss_choice::plain(&opts),
+        LossChoice::Robust | LossChoice::Auto => opts,
     }
 }
 
