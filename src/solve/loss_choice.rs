@@ -109,8 +109,7 @@ pub fn decide(robust: f64, plain: f64, halves: usize) -> LossDecision {
         why: format!(
             "loss: {kept} (--loss auto: validation scores on the right halves of {halves} \
              training photos held back whole: robust {robust:.5}, plain {plain:.5}; plain least \
-             squares is kept only more than {:.0}% below; the loss kept fitted again with early \
-             stopping's own held-back observations)",
+             squares is kept only more than {:.0}% below)",
             100.0 * PLAIN_GAIN
         ),
     }

@@ -128,8 +128,8 @@ fn chosen_on_halves(
             k,
             scored.join(", ")
         ),
-        // The loss choice scores on the default halves ([`super::loss`]).
-        robust_score: (k == DEFAULT_LIGHT_CHOICE_HALVES).then_some(scores[pick]),
+        // The loss choice scores on the same halves ([`super::loss`]).
+        robust_score: Some(scores[pick]),
     }
 }
 

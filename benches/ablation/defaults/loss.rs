@@ -4,7 +4,9 @@
 //! right halves of [`DEFAULT_LIGHT_CHOICE_HALVES`] training photos held back (the light
 //! choice's split), and the lower validation score is kept; the row's fit then runs with
 //! early stopping's own held-back observations, as `run` fits the kept loss again.
-//! `ABLATION_DEFAULTS_LOSS=robust|plain` keeps that loss, as `run --loss robust|plain`.
+//! `ABLATION_DEFAULTS_LOSS=robust|plain` keeps that loss, as `run --loss robust|plain`;
+//! `ABLATION_LIGHT_HALVES=k` scores on `k` photos' halves, as `run --light-choice-halves k`
+//! sets both choices' split.
 
 use super::light::{choice_halves, ChosenLight};
 use crate::synth_case::Case;
@@ -31,7 +33,8 @@ pub fn by_run_rule(
             robust_score: None,
         };
     }
-    let halves = choice_halves(case, DEFAULT_LIGHT_CHOICE_HALVES);
+    let k = crate::env_or("ABLATION_LIGHT_HALVES", DEFAULT_LIGHT_CHOICE_HALVES);
+    let halves = choice_halves(case, k);
     let applies = given == "auto"
         && is_robust(&light.options)
         && case.nv < LargeMeshSettings::FROM_VERTICES
@@ -50,7 +53,7 @@ pub fn by_run_rule(
     };
     let robust = light.robust_score.unwrap_or_else(|| score(&light.options));
     let plain_options = plain(&light.options);
-    let d = decide(robust, score(&plain_options), DEFAULT_LIGHT_CHOICE_HALVES);
+    let d = decide(robust, score(&plain_options), k);
     ChosenLight {
         options: if d.plain {
             plain_options

@@ -156,7 +156,9 @@ fn fit_light_models(
         options: light_models[pick].options.clone(),
     };
     if start.loss_auto {
-        kept = choose_loss(&f, kept, &scored, &mut timeline, log, &mut start.reasons)?;
+        let refit = halves.is_some();
+        let why = &mut start.reasons;
+        kept = choose_loss(&f, kept, &scored, refit, &mut timeline, log, why)?;
     }
     if halves.is_some() {
         kept.fit = f.fit(&kept.options, &mut timeline, log)?;
@@ -227,11 +229,12 @@ impl ModelFitter<'_> {
 /// `--loss auto` ([`loss_choice`]): the light model kept, fitted with the robust loss
 /// (`robust`, scored on the held-back halves), against the same model under plain least
 /// squares fitted and scored with `scored`'s halves; the one kept, its reason pushed to
-/// `reasons`.
+/// `reasons` (saying so when the kept loss is to be `refit` without the halves).
 fn choose_loss(
     f: &ModelFitter,
     robust: LossCandidate,
     scored: &dyn Fn(&EstimateOptions) -> EstimateOptions,
+    refit: bool,
     timeline: &mut Vec<TimelinePoint>,
     log: &mut RunLog,
     reasons: &mut Vec<String>,
@@ -247,7 +250,11 @@ fn choose_loss(
         robust.fit.est.validation_error(),
         plain.est.validation_error(),
     );
-    let decision = loss_choice::decide(r, p, n_halves);
+    let mut decision = loss_choice::decide(r, p, n_halves);
+    if refit {
+        decision.why += "; the loss kept fitted again with early stopping's own held-back \
+                         observations";
+    }
     reasons.push(decision.why);
     Ok(if decision.plain {
         LossCandidate {
