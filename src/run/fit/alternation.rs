@@ -1,25 +1,24 @@
-//! The alternation ([`alternate`]) under each candidate light model (`--light`) from every start, the
-//! model the validation score keeps ([`fit_light_models`]), the start search around it
-//! ([`search_starts`]), and what the console and the report's timeline show of each
-//! iterate ([`Monitor`]).
+//! The alternation ([`alternate`]) from every start under the light model and loss the
+//! validation score keeps ([`super::choice`]), the start search around it
+//! ([`search_starts`]), the restarts, and what the console and the report's timeline show
+//! of each iterate ([`Monitor`]).
 
+use super::choice::fit_light_models;
 use super::start::FitStart;
 use crate::report::TimelinePoint;
 use crate::run::state::Prepared;
 use crate::run::state::RunLog;
 use crate::run::tracker::HoldoutTracker;
 use crate::run::{Progress, Restart, RunOptions};
-use crate::solve::light::choose::{self, LightChoice, LightDecision};
-use crate::solve::loss_choice;
+use crate::solve::light::choose::LightDecision;
 use crate::solve::materials::{brightness, coarse_light, irradiance, reanchor};
-use crate::solve::options::PhotoHalves;
-use crate::solve::starts::{self, MultiStart};
+use crate::solve::starts::MultiStart;
 use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::transport::brdf::BasisBrdf;
 use crate::Result;
 
 /// The alternation from the start's family ([`FitStart::family`]) under each candidate
-/// light model ([`fit_light_models`]), then the start search when asked, with a progress
+/// light model ([`fit_light_models`], [`super::choice`]), then the start search when asked, with a progress
 /// bar and the held-out tracker ([`super::held_out_tracker`]) scoring every iterate for the
 /// timeline. The tracker's transport rows (the held-out photos') are freed on return.
 pub(super) fn alternate(
@@ -65,8 +64,8 @@ pub(super) fn alternate(
 
 /// The estimate's progress: its bar, its console lines and the held-out error of each
 /// iterate (the report's timeline).
-struct Monitor<'a> {
-    bar: &'a indicatif::ProgressBar,
+pub(super) struct Monitor<'a> {
+    pub(super) bar: &'a indicatif::ProgressBar,
     progress: &'a Progress,
     tracker: Option<&'a HoldoutTracker>,
     n_vertices: usize,
@@ -74,14 +73,14 @@ struct Monitor<'a> {
 
 impl Monitor<'_> {
     /// The held-out error of an iterate, for the timeline (finite, else none).
-    fn held_out(&self, state: &solve::IterState) -> Option<f64> {
+    pub(super) fn held_out(&self, state: &solve::IterState) -> Option<f64> {
         self.tracker
             .map(|t| t.rmse(state, self.n_vertices))
             .filter(|v| v.is_finite())
     }
 
     /// A console line under the bar (or alone when the bar is hidden).
-    fn say(&self, line: &str) {
+    pub(super) fn say(&self, line: &str) {
         if self.bar.is_hidden() {
             self.progress.line(line);
         } else {
@@ -97,207 +96,6 @@ pub(super) struct Estimated {
     pub(super) eopts: EstimateOptions,
     pub(super) light_decision: LightDecision,
     pub(super) timeline: Vec<TimelinePoint>,
-}
-
-/// One light model's fit from every start, and its points' range in the timeline.
-struct ModelFit {
-    est: solve::Estimate,
-    multi: MultiStart,
-    points: std::ops::Range<usize>,
-}
-
-/// Each candidate light model (`--light`) fitted from every start; the one the validation
-/// score keeps ([`choose::decide`]), its reason pushed to `start`; then, with `--loss auto`,
-/// the data loss for it ([`choose_loss`]). With held-back photo halves
-/// ([`FitStart::choice_halves`]) the candidates are scored on them and the fit kept is
-/// fitted again with the run's own early stopping.
-fn fit_light_models(
-    opts: &RunOptions,
-    problem: &Problem,
-    family: &[starts::Start],
-    start: &mut FitStart,
-    monitor: &Monitor,
-    log: &mut RunLog,
-) -> Result<Estimated> {
-    let mut timeline: Vec<TimelinePoint> = Vec::new();
-    let light_models = choose::candidates(opts.light, &start.eopts)?;
-    let choosing_light = light_models.len() > 1;
-    let halves = start
-        .choice_halves
-        .clone()
-        .filter(|_| choosing_light || start.loss_auto);
-    let fits_planned =
-        light_models.len() + usize::from(halves.is_some()) + usize::from(start.loss_auto);
-    let per_model = monitor.bar.length().unwrap_or(0);
-    monitor.bar.set_length(per_model * fits_planned as u64);
-    let scored = |o: &EstimateOptions| EstimateOptions {
-        validation_halves: halves.clone().or_else(|| o.validation_halves.clone()),
-        ..o.clone()
-    };
-    let f = ModelFitter {
-        problem,
-        family,
-        monitor,
-    };
-    let mut fits = Vec::with_capacity(light_models.len());
-    for model in &light_models {
-        fits.push(f.fit(&scored(&model.options), &mut timeline, log)?);
-    }
-    let scores: Vec<f64> = fits.iter().map(|f| f.est.validation_error()).collect();
-    let names: Vec<&str> = light_models.iter().map(|m| m.name).collect();
-    let (pick, decision) = choose::decide(opts.light, &names, &scores);
-    let light_decision = light_why(opts, decision, halves.as_deref().filter(|_| choosing_light));
-    start.reasons.push(format!(
-        "light model `{}`: {}",
-        light_decision.model, light_decision.why
-    ));
-    let mut kept = LossCandidate {
-        fit: fits.swap_remove(pick),
-        options: light_models[pick].options.clone(),
-    };
-    if start.loss_auto {
-        let refit = halves.is_some();
-        let why = &mut start.reasons;
-        kept = choose_loss(&f, kept, &scored, refit, &mut timeline, log, why)?;
-    }
-    if halves.is_some() {
-        kept.fit = f.fit(&kept.options, &mut timeline, log)?;
-    }
-    Ok(Estimated {
-        est: kept.fit.est,
-        multi: kept.fit.multi,
-        eopts: kept.options,
-        light_decision,
-        // The timeline of the fit kept.
-        timeline: timeline.drain(kept.fit.points).collect(),
-    })
-}
-
-/// The light decision's words: the halves its candidates were scored on (`halves`, when
-/// the light was chosen on them) and, without `--light`, the scene's rule.
-fn light_why(
-    opts: &RunOptions,
-    mut d: LightDecision,
-    halves: Option<&PhotoHalves>,
-) -> LightDecision {
-    if let Some(h) = halves {
-        d.why = format!(
-            "{}, each scored on the right halves of {} training photos held back whole; \
-             the model kept fitted again with early stopping's own held-back observations",
-            d.why,
-            h.right.len()
-        );
-    }
-    if opts.light_by_scene {
-        d.why = by_scene_why(opts.light, &d.why);
-    }
-    d
-}
-
-/// A fit and the options it was fitted with (before held-back halves were added).
-struct LossCandidate {
-    fit: ModelFit,
-    options: EstimateOptions,
-}
-
-/// What a fit from every start needs besides its options.
-struct ModelFitter<'a> {
-    problem: &'a Problem<'a>,
-    family: &'a [starts::Start],
-    monitor: &'a Monitor<'a>,
-}
-
-impl ModelFitter<'_> {
-    /// `eopts` fitted from every start ([`fit_model`]).
-    fn fit(
-        &self,
-        eopts: &EstimateOptions,
-        timeline: &mut Vec<TimelinePoint>,
-        log: &mut RunLog,
-    ) -> Result<ModelFit> {
-        fit_model(
-            self.problem,
-            self.family,
-            eopts,
-            self.monitor,
-            timeline,
-            log,
-        )
-    }
-}
-
-/// `--loss auto` ([`loss_choice`]): the light model kept, fitted with the robust loss
-/// (`robust`, scored on the held-back halves), against the same model under plain least
-/// squares fitted and scored with `scored`'s halves; the one kept, its reason pushed to
-/// `reasons` (saying so when the kept loss is to be `refit` without the halves).
-fn choose_loss(
-    f: &ModelFitter,
-    robust: LossCandidate,
-    scored: &dyn Fn(&EstimateOptions) -> EstimateOptions,
-    refit: bool,
-    timeline: &mut Vec<TimelinePoint>,
-    log: &mut RunLog,
-    reasons: &mut Vec<String>,
-) -> Result<LossCandidate> {
-    let plain_options = loss_choice::plain(&robust.options);
-    let with_halves = scored(&plain_options);
-    let plain = f.fit(&with_halves, timeline, log)?;
-    let n_halves = with_halves
-        .validation_halves
-        .as_ref()
-        .map_or(0, |h| h.right.len());
-    let (r, p) = (
-        robust.fit.est.validation_error(),
-        plain.est.validation_error(),
-    );
-    let mut decision = loss_choice::decide(r, p, n_halves);
-    if refit {
-        decision.why += "; the loss kept fitted again with early stopping's own held-back \
-                         observations";
-    }
-    reasons.push(decision.why);
-    Ok(if decision.plain {
-        LossCandidate {
-            fit: plain,
-            options: plain_options,
-        }
-    } else {
-        robust
-    })
-}
-
-/// One light model's options fitted from every start, its iterations on the console and
-/// appended to `timeline`.
-fn fit_model(
-    problem: &Problem,
-    family: &[starts::Start],
-    eopts: &EstimateOptions,
-    monitor: &Monitor,
-    timeline: &mut Vec<TimelinePoint>,
-    log: &mut RunLog,
-) -> Result<ModelFit> {
-    let n_starts = family.len();
-    let first = timeline.len();
-    let family = family.to_vec();
-    let (est, multi) = log.stages.run("estimate", || {
-        starts::estimate_best(problem, family, eopts, &mut |si, it, state| {
-            monitor.bar.inc(1);
-            let holdout_rmse = monitor.held_out(state);
-            let n_it = timeline
-                .iter()
-                .skip(first)
-                .filter(|p| p.start == si)
-                .count()
-                + 1;
-            monitor.say(&iteration_line(n_starts, si, n_it, it, holdout_rmse));
-            timeline.push(timeline_point(si, it.seconds, it, holdout_rmse));
-        })
-    })?;
-    Ok(ModelFit {
-        est,
-        multi,
-        points: first..timeline.len(),
-    })
 }
 
 /// The start search (`--start-search`, [`brightness::search`]) from the kept fit, around
@@ -572,7 +370,7 @@ fn skipped_reason(mode: Restart) -> String {
 
 /// One point of the report's timeline: iteration `it` of start `start`, `seconds` on the
 /// estimator's clock.
-fn timeline_point(
+pub(super) fn timeline_point(
     start: usize,
     seconds: f64,
     it: &solve::Iteration,
@@ -589,7 +387,7 @@ fn timeline_point(
 }
 
 /// The console line for outer iteration `n_it` of start `si` (of `n_starts`).
-fn iteration_line(
+pub(super) fn iteration_line(
     n_starts: usize,
     si: usize,
     n_it: usize,
@@ -608,16 +406,4 @@ fn iteration_line(
         holdout_rmse.map_or(String::new(), |h| format!(", held-out {h:.5}")),
         it.seconds
     )
-}
-
-/// The report's words for a light model `run` picked without `--light`: `auto`'s scores,
-/// or the model `choice` named (not "as given", which it was not), then why it is the
-/// default.
-fn by_scene_why(choice: LightChoice, decided: &str) -> String {
-    let why = "--light not given: the default for the mesh's size, the fit's lobes, its \
-               materials and training photos; see the notes";
-    match choice {
-        c if c.chooses() => format!("{decided} ({why})"),
-        c => format!("--light {} ({why})", c.name()),
-    }
 }

@@ -8,6 +8,7 @@
 //! - [`options`]: the estimator's options from the run's.
 
 mod alternation;
+mod choice;
 mod options;
 mod start;
 
