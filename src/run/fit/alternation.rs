@@ -17,10 +17,10 @@ use crate::solve::{self, EstimateOptions, Materials0, Problem};
 use crate::transport::brdf::BasisBrdf;
 use crate::Result;
 
-/// The alternation from the start's family ([`FitStart::family`]) under each candidate
-/// light model ([`fit_light_models`], [`super::choice`]), then the start search when asked, with a progress
-/// bar and the held-out tracker ([`super::held_out_tracker`]) scoring every iterate for the
-/// timeline. The tracker's transport rows (the held-out photos') are freed on return.
+/// The alternation from the start's family ([`FitStart::family`]) under the light model
+/// and loss chosen ([`fit_light_models`]), then the start search when asked, with a
+/// progress bar and the held-out tracker ([`super::held_out_tracker`]) scoring every
+/// iterate for the timeline. The tracker's transport rows (the held-out photos') are freed on return.
 pub(super) fn alternate(
     opts: &RunOptions,
     p: &Prepared,
