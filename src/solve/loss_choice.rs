@@ -81,6 +81,19 @@ pub fn is_robust(opts: &EstimateOptions) -> bool {
     opts.robust != Robust::None && opts.irls_iters > 1
 }
 
+/// Whether the loss changes a fit under `opts`' light model. The sun-and-sky model's
+/// lighting step ([`crate::solve::light::sky`]) fits each photo's sky without reweighting
+/// (only overexposed observations get bounds), so under it the robust loss and plain least
+/// squares give the same fit and `auto` has nothing to choose.
+pub fn loss_acts(opts: &EstimateOptions) -> bool {
+    opts.light_sky.is_none()
+}
+
+/// The reason `auto` gives when the light model kept leaves nothing to choose
+/// ([`loss_acts`]): the robust loss, as `--loss robust` fits it, without a second fit.
+pub const SKY_WHY: &str = "loss: the robust loss (Huber) (--loss auto: not chosen under the \
+     sun and sky, whose lighting step does not reweight: either loss gives the same fit)";
+
 /// `auto` keeps plain least squares only when its validation score is below
 /// `(1 − PLAIN_GAIN)` × the robust loss's (module docs).
 pub const PLAIN_GAIN: f64 = 0.03;
@@ -118,6 +131,17 @@ pub fn decide(robust: f64, plain: f64, halves: usize) -> LossDecision {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_loss_acts_under_every_light_model_but_the_sky() {
+        let base = EstimateOptions::default();
+        assert!(loss_acts(&base), "the paper's free map reweights");
+        let sky = EstimateOptions {
+            light_sky: Some(Default::default()),
+            ..base
+        };
+        assert!(!loss_acts(&sky));
+    }
 
     #[test]
     fn plain_is_kept_only_beyond_the_margin() {

@@ -353,6 +353,41 @@ fn small_sky_run(
     o
 }
 
+/// Under the sun and sky the lighting step does not reweight (only overexposed
+/// observations get bounds), so the robust loss and plain least squares fit the same, and
+/// `--loss auto` keeps the robust loss without fitting both
+/// ([`relight_cpc::solve::loss_choice::loss_acts`]). Checked on a geotagged workspace:
+/// `--loss plain` and `--loss robust` give the same training error, bit for bit (the
+/// premise), and `auto` gives `--loss robust`'s fit and headline, bit for bit, and says
+/// why it did not choose.
+#[test]
+fn under_the_sky_either_loss_fits_the_same_and_auto_does_not_choose() {
+    use relight_cpc::run::run;
+    use relight_cpc::solve::light::choose::LightChoice;
+    use relight_cpc::solve::loss_choice::{LossChoice, SKY_WHY};
+    let dir = scratch("sky-loss");
+    let ws = geotag_workspace(&dir.0, 1);
+    let with = |loss: LossChoice| {
+        let out = dir.0.join(format!("out-{}", loss.name()));
+        let mut o = small_sky_run(&ws, out, LightChoice::Sky);
+        o.loss = loss;
+        run(&o).expect("run --light sky").report
+    };
+    let (auto, robust, plain) = (
+        with(LossChoice::Auto),
+        with(LossChoice::Robust),
+        with(LossChoice::Plain),
+    );
+    assert_eq!(robust.train_rmse, plain.train_rmse, "the premise");
+    assert_eq!(auto.train_rmse, robust.train_rmse);
+    assert_eq!(auto.headline, robust.headline);
+    assert!(
+        auto.model.reasons.iter().any(|r| r == SKY_WHY),
+        "{:?}",
+        auto.model.reasons
+    );
+}
+
 /// A geotagged outdoor workspace through `run --light sky`: `synth --geotag` writes each
 /// photo's place and UTC time into its PNG, and the run reads them back. The suns the
 /// geotags give, turned by the north `synth` drew, are the suns it rendered with: the

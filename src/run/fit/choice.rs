@@ -3,7 +3,9 @@
 //! `--light` names one model or lets the validation score choose among candidates
 //! ([`choose::candidates`], [`choose::decide`]); `--loss auto` then fits the kept model
 //! with the robust loss and with plain least squares and keeps plain least squares only
-//! when it scores more than [`loss_choice::PLAIN_GAIN`] lower ([`loss_choice::decide`]).
+//! when it scores more than [`loss_choice::PLAIN_GAIN`] lower ([`loss_choice::decide`];
+//! under the sun and sky, which does not reweight, it keeps the robust loss without the
+//! second fit: [`loss_choice::loss_acts`]).
 //! Both choices score on the same split: the right halves of a few training photos held
 //! back whole ([`FitStart::choice_halves`]), which a free map per photo cannot
 //! extrapolate into. The fit kept is then fitted again with the run's own early stopping
@@ -39,25 +41,29 @@ pub(super) fn fit_light_models(
     let mut timeline: Vec<TimelinePoint> = Vec::new();
     let models = choose::candidates(opts.light, &start.eopts)?;
     let choosing_light = models.len() > 1;
+    // `--loss auto` has a choice only under a light model the loss acts on.
+    let loss_auto = start.loss_auto && models.iter().any(|m| loss_choice::loss_acts(&m.options));
     let f = ModelFitter {
         problem,
         family,
         monitor,
-        halves: (start.choice_halves.clone()).filter(|_| choosing_light || start.loss_auto),
+        halves: (start.choice_halves.clone()).filter(|_| choosing_light || loss_auto),
+        per_fit: monitor.bar.length().unwrap_or(0),
     };
     let refit = f.halves.is_some();
-    let fits_planned = models.len() + usize::from(refit) + usize::from(start.loss_auto);
-    let per_model = monitor.bar.length().unwrap_or(0);
-    monitor.bar.set_length(per_model * fits_planned as u64);
+    let fits_planned = models.len() + usize::from(refit) + usize::from(loss_auto);
+    monitor.bar.set_length(f.per_fit * fits_planned as u64);
     let light = choose_light(opts, &f, &models, &mut timeline, log)?;
     let d = &light.decision;
     start
         .reasons
         .push(format!("light model `{}`: {}", d.model, d.why));
     let mut kept = light.kept;
-    if start.loss_auto {
+    if loss_auto {
         let why = &mut start.reasons;
         kept = choose_loss(&f, kept, refit, &mut timeline, log, why)?;
+    } else if start.loss_auto {
+        start.reasons.push(loss_choice::SKY_WHY.to_string());
     }
     if refit {
         kept.fit = f.fit(&kept.options, &mut timeline, log)?;
@@ -116,6 +122,11 @@ fn choose_loss(
     log: &mut RunLog,
     reasons: &mut Vec<String>,
 ) -> Result<LossCandidate> {
+    if !loss_choice::loss_acts(&robust.options) {
+        reasons.push(loss_choice::SKY_WHY.to_string());
+        f.unplan_fit();
+        return Ok(robust);
+    }
     let plain_options = loss_choice::plain(&robust.options);
     let plain = f.fit_scored(&plain_options, timeline, log)?;
     let n_halves = f.halves.as_ref().map_or(0, |h| h.right.len());
@@ -153,6 +164,8 @@ struct ModelFitter<'a> {
     family: &'a [starts::Start],
     monitor: &'a Monitor<'a>,
     halves: Option<Arc<PhotoHalves>>,
+    /// The progress bar's length for one fit (outer iterations × starts).
+    per_fit: u64,
 }
 
 impl ModelFitter<'_> {
@@ -165,6 +178,12 @@ impl ModelFitter<'_> {
     ) -> Result<ModelFit> {
         let (problem, family, monitor) = (self.problem, self.family, self.monitor);
         fit_model(problem, family, eopts, monitor, timeline, log)
+    }
+
+    /// One planned fit fewer on the progress bar (a choice with nothing to choose).
+    fn unplan_fit(&self) {
+        let bar = self.monitor.bar;
+        bar.set_length(bar.length().unwrap_or(0).saturating_sub(self.per_fit));
     }
 
     /// `eopts` fitted from every start and scored on the choices' halves, when there are.
