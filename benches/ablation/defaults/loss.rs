@@ -3,7 +3,9 @@
 //! fitted from the start with the robust loss and with plain least squares, each with the
 //! right halves of [`DEFAULT_LIGHT_CHOICE_HALVES`] training photos held back (the light
 //! choice's split), and the lower validation score is kept; the row's fit then runs with
-//! early stopping's own held-back observations, as `run` fits the kept loss again.
+//! early stopping's own held-back observations, as `run` fits the kept loss again. Under
+//! the sun and sky the robust loss stays without the second fit, as in `run`
+//! ([`relight_cpc::solve::loss_choice::loss_acts`]).
 //! `ABLATION_DEFAULTS_LOSS=robust|plain` keeps that loss, as `run --loss robust|plain`;
 //! `ABLATION_LIGHT_HALVES=k` scores on `k` photos' halves, as `run --light-choice-halves k`
 //! sets both choices' split.
@@ -11,7 +13,7 @@
 use super::light::{choice_halves, ChosenLight};
 use crate::synth_case::Case;
 use relight_cpc::run::{LargeMeshSettings, DEFAULT_LIGHT_CHOICE_HALVES};
-use relight_cpc::solve::loss_choice::{decide, is_robust, plain};
+use relight_cpc::solve::loss_choice::{decide, is_robust, loss_acts, plain};
 use relight_cpc::solve::{estimate, EstimateOptions, Materials0, Problem};
 
 /// The row's loss for the light model `light` kept: as `ABLATION_DEFAULTS_LOSS` gives it,
@@ -37,6 +39,7 @@ pub fn by_run_rule(
     let halves = choice_halves(case, k);
     let applies = given == "auto"
         && is_robust(&light.options)
+        && loss_acts(&light.options)
         && case.nv < LargeMeshSettings::FROM_VERTICES
         && halves.is_some();
     if !applies {

@@ -129,7 +129,12 @@ fn choose_loss(
     }
     let plain_options = loss_choice::plain(&robust.options);
     let plain = f.fit_scored(&plain_options, timeline, log)?;
-    let n_halves = f.halves.as_ref().map_or(0, |h| h.right.len());
+    // The halves both were scored on: the choice's, else the user's `--validation-halves`.
+    let halves = f
+        .halves
+        .as_ref()
+        .or(robust.options.validation_halves.as_ref());
+    let n_halves = halves.map_or(0, |h| h.right.len());
     let (r, p) = (
         robust.fit.est.validation_error(),
         plain.est.validation_error(),
