@@ -53,7 +53,9 @@
 //! `ABLATION_NO_K=1` (skip the K search), `ABLATION_START=truth|gloss|open|matched|…`
 //! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`, `ABLATION_K1_ITERS` for `k1`),
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
-//! of `run`'s, `ablation/defaults.rs`), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
+//! of `run`'s, `ablation/defaults.rs`), `ABLATION_DEFAULTS_MAX_ITERS=N` (the `defaults` row
+//! with `run --iterations N`), `ABLATION_TRACE=1` (each outer round's early-stopping score,
+//! worst albedo ratio error and material accuracy, `defaults::tracer`), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
 //! `run --ratio-steps N`), `ABLATION_DEFAULTS_PATIENCE=N` (the `defaults` row with
 //! `run --patience N`), `ABLATION_DEFAULTS_IRLS=N`, `ABLATION_DEFAULTS_FLOOR=X`,
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,

@@ -36,7 +36,9 @@ use relight_cpc::solve::adapt::{self, PilotInput, PilotOutcome};
 use relight_cpc::solve::cluster::{unmixed_weights, InitialMaterials};
 use relight_cpc::solve::materials::propagate::propagate_unseen;
 use relight_cpc::solve::ratio_step;
-use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0, Problem};
+use relight_cpc::solve::{
+    estimate, Estimate, EstimateOptions, IterState, Iteration, Materials0, Problem,
+};
 
 /// The case's basis has its Lambertian lobe first (`fit_start`'s convention).
 const LAMBERT: usize = 0;
@@ -106,7 +108,15 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
             ..opts.clone()
         });
     let first = second::Fitted {
-        est: first_fit(&problem, m0, &opts, judge.as_ref(), &init, colours),
+        est: first_fit(
+            &problem,
+            m0,
+            &opts,
+            judge.as_ref(),
+            &init,
+            colours,
+            &mut tracer(case, &pilot.kept, &seen, "first"),
+        ),
         kept: &pilot.kept,
         seen: &seen,
     };
@@ -526,13 +536,17 @@ fn each_specular(m0: &mut Materials0, mut f: impl FnMut(usize, usize, &mut [f64;
 /// (`SYNTH_SHARED_SKIES=1` makes such groups); `ABLATION_DEFAULTS_GROUPS=1`: those groups
 /// known to `run`'s choice of light ([`groups_given`]). The specular lobes' colour as `run
 /// --achromatic-specular auto` ([`achromatic`]; `ABLATION_DEFAULTS_ACHROMATIC=on|off`).
+/// `ABLATION_DEFAULTS_MAX_ITERS=N`: `run --iterations N` (the cap on outer rounds).
 fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> EstimateOptions {
     let (max_outer, rel_tol) =
         if std::env::var("ABLATION_DEFAULTS_ITERS").is_ok_and(|v| v == "bench") {
             (base.max_outer, base.rel_tol)
         } else {
             (
-                RunOptions::DEFAULT_MAX_ITERATIONS,
+                crate::env_or(
+                    "ABLATION_DEFAULTS_MAX_ITERS",
+                    RunOptions::DEFAULT_MAX_ITERATIONS,
+                ),
                 RunOptions::DEFAULT_REL_TOL,
             )
         };
@@ -615,13 +629,45 @@ fn first_fit(
     judge: Option<&EstimateOptions>,
     init: &InitialMaterials,
     colours: Colours,
+    trace: &mut dyn FnMut(&Iteration, &IterState),
 ) -> Estimate {
     match start_variant().as_deref() {
         Some(v @ ("grid" | "grid-unmix")) if m0.lambda.len() <= 3 => {
             let unmix = (v == "grid-unmix").then_some(start_probes::UnmixFrom { init, colours });
             start_probes::grid_start_fit(problem, &m0, opts, judge, LAMBERT, unmix)
         }
-        _ => estimate(problem, m0, opts, &mut |_, _| {}).expect("defaults' fit"),
+        _ => estimate(problem, m0, opts, trace).expect("defaults' fit"),
+    }
+}
+
+/// `ABLATION_TRACE=1`: a callback that prints each outer iterate's early-stopping score,
+/// training RMSE and worst diffuse albedo ratio error (over materials and channels) under
+/// `label`; otherwise one that does nothing. The trace is how the stopping point's effect
+/// on the ratios is read (`bench-results/ratio-trace.md`).
+pub(super) fn tracer<'a>(
+    case: &'a Case,
+    kept: &'a [usize],
+    seen: &'a [bool],
+    label: &'a str,
+) -> impl FnMut(&Iteration, &IterState) + 'a {
+    let on = crate::env_flag("ABLATION_TRACE");
+    move |it, state| {
+        if !on {
+            return;
+        }
+        let full: Vec<Vec<[f64; 3]>> = state
+            .lambda
+            .iter()
+            .map(|row| full_basis(row, kept, case.basis.len()))
+            .collect();
+        let r = crate::metrics::ratio_errors(case, &full, state.weights, seen);
+        let (acc, _, _) = crate::metrics::best_order_of(case, state.weights, seen);
+        eprintln!(
+            "  trace {label}: validation {:.6} train {:.6} worst ratio {:.4} accuracy {acc:.4}",
+            it.validation_rel.unwrap_or(f64::NAN),
+            it.train_rmse,
+            r.iter().fold(0.0f64, |a, &b| a.max(b))
+        );
     }
 }
 

@@ -167,7 +167,8 @@ fn coarse_light_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
     if v == "coarse-light" {
         let held = coarse_light::held_fit_options(p.opts);
         let lights = &first.est.lights;
-        estimate_from_lights(p.problem, m, &held, lights, &mut |_, _| {}).expect("second fit")
+        let mut trace = super::tracer(p.case, first.kept, first.seen, "coarse-light");
+        estimate_from_lights(p.problem, m, &held, lights, &mut trace).expect("second fit")
     } else {
         estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("second fit")
     }
@@ -186,7 +187,8 @@ fn sh_ratio_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
         }
     }
     first.print_start(p.case, "sh-ratio", &m);
-    let mut second = estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("second fit");
+    let mut trace = super::tracer(p.case, first.kept, first.seen, "sh-ratio");
+    let mut second = estimate(p.problem, m, p.opts, &mut trace).expect("second fit");
     if v == "sh-ratio2" {
         let ratios = first.ratios(p.case, &second);
         eprintln!("sh-ratio2: second fit's worst ratio {ratios:.3?}");
@@ -206,7 +208,8 @@ fn reanchor_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
         if v == "reanchor-lambert" {
             keep_gloss(&mut m.lambda, &from.lambda, LAMBERT);
         }
-        from = estimate(p.problem, m, p.opts, &mut |_, _| {}).expect("second fit");
+        let mut trace = super::tracer(p.case, first.kept, first.seen, "reanchor");
+        from = estimate(p.problem, m, p.opts, &mut trace).expect("second fit");
     }
     from
 }
