@@ -641,9 +641,9 @@ fn first_fit(
 }
 
 /// `ABLATION_TRACE=1`: a callback that prints each outer iterate's early-stopping score,
-/// training RMSE and worst diffuse albedo ratio error (over materials and channels) under
-/// `label`; otherwise one that does nothing. The trace is how the stopping point's effect
-/// on the ratios is read (`bench-results/ratio-trace.md`).
+/// training RMSE, worst diffuse albedo ratio error (over materials and channels) and
+/// material accuracy under `label`; otherwise one that does nothing. The trace is how the stopping point's effect
+/// on the ratios is read (`bench-results/iteration-trace.md`).
 pub(super) fn tracer<'a>(
     case: &'a Case,
     kept: &'a [usize],
