@@ -54,7 +54,8 @@
 //! ([`fit_start`]; `ABLATION_MATCH_COS` for `matched`, `ABLATION_K1_ITERS` for `k1`),
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
 //! of `run`'s, `ablation/defaults.rs`), `ABLATION_DEFAULTS_MAX_ITERS=N` (the `defaults` row
-//! with `run --iterations N`), `ABLATION_TRACE=1` (each outer round's early-stopping score,
+//! with `run --iterations N`), `ABLATION_DEFAULTS_STOP_HALVES=N` (its early stopping on the
+//! right halves of `N` training photos, `run --validation-halves N`), `ABLATION_TRACE=1` (each outer round's early-stopping score,
 //! worst albedo ratio error and material accuracy, `defaults::tracer`), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
 //! `run --ratio-steps N`), `ABLATION_DEFAULTS_PATIENCE=N` (the `defaults` row with
 //! `run --patience N`), `ABLATION_DEFAULTS_IRLS=N`, `ABLATION_DEFAULTS_FLOOR=X`,

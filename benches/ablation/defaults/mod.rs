@@ -88,7 +88,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     let fit_opts = fit_options(case, base, &pilot);
     let light = light::by_scene(case, &problem, &m0, fit_opts.clone(), &pilot);
     let light = loss::by_run_rule(case, &problem, &m0, light);
-    let opts = with_prior_noise(light.options);
+    let opts = with_stop_halves(case, with_prior_noise(light.options));
     let m0 = if start_variant().as_deref() == Some("stiff-spec") {
         let scope = StartScope {
             kept: &pilot.kept,
@@ -637,6 +637,19 @@ fn first_fit(
             start_probes::grid_start_fit(problem, &m0, opts, judge, LAMBERT, unmix)
         }
         _ => estimate(problem, m0, opts, trace).expect("defaults' fit"),
+    }
+}
+
+/// `ABLATION_DEFAULTS_STOP_HALVES=N`: the fit's early stopping scored on the right halves
+/// of `N` training photos held back whole (`run --validation-halves N`) after the light
+/// model and the loss were chosen as `run` chooses them.
+fn with_stop_halves(case: &Case, opts: EstimateOptions) -> EstimateOptions {
+    match crate::env_or("ABLATION_DEFAULTS_STOP_HALVES", 0usize) {
+        0 => opts,
+        n => EstimateOptions {
+            validation_halves: light::choice_halves(case, n),
+            ..opts
+        },
     }
 }
 
