@@ -655,7 +655,8 @@ fn with_stop_halves(case: &Case, opts: EstimateOptions) -> EstimateOptions {
 
 /// `ABLATION_TRACE=1`: a callback that prints each outer iterate's early-stopping score,
 /// training RMSE, worst diffuse albedo ratio error (over materials and channels) and
-/// material accuracy under `label`; otherwise one that does nothing. The trace is how the stopping point's effect
+/// material accuracy under `label` (`ABLATION_TRACE=signed`: also each material's signed
+/// ratio error per channel); otherwise one that does nothing. The trace is how the stopping point's effect
 /// on the ratios is read (`bench-results/iteration-trace.md`).
 pub(super) fn tracer<'a>(
     case: &'a Case,
@@ -663,7 +664,8 @@ pub(super) fn tracer<'a>(
     seen: &'a [bool],
     label: &'a str,
 ) -> impl FnMut(&Iteration, &IterState) + 'a {
-    let on = crate::env_flag("ABLATION_TRACE");
+    let trace = std::env::var("ABLATION_TRACE").unwrap_or_default();
+    let (on, signed) = (trace == "1" || trace == "signed", trace == "signed");
     move |it, state| {
         if !on {
             return;
@@ -681,6 +683,10 @@ pub(super) fn tracer<'a>(
             it.train_rmse,
             r.iter().fold(0.0f64, |a, &b| a.max(b))
         );
+        if signed {
+            let s = crate::metrics::signed_ratio_errors(case, &full, state.weights, seen);
+            eprintln!("  trace {label}: signed ratio errors (material 1.., R G B) {s:.4?}");
+        }
     }
 }
 
