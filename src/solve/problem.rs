@@ -30,11 +30,18 @@ pub struct Problem<'a> {
 impl Problem<'_> {
     /// Checks sizes and indices; `Error::Internal` naming the first inconsistency.
     pub fn validate(&self) -> Result<()> {
+        self.check_observations()?;
+        self.check_transport()?;
+        self.check_photo_ranges()?;
+        self.check_values()
+    }
+
+    /// The observation arrays agree in length (and the clipped channels with their bounds).
+    fn check_observations(&self) -> Result<()> {
         let o = self.obs;
         let p = o.vertex.len();
-        let bad = |m: String| Err(Error::Internal(format!("estimation problem: {m}")));
         if o.photo.len() != p || o.rgb.len() != p || o.weight.len() != p {
-            return bad(format!(
+            return invalid(format!(
                 "observation arrays differ in length (vertex {p}, photo {}, rgb {}, weight {})",
                 o.photo.len(),
                 o.rgb.len(),
@@ -43,13 +50,20 @@ impl Problem<'_> {
         }
         let (nc, nb) = (o.clipped.len(), o.bound_weight.len());
         if nc != nb || (nc != 0 && nc != p) {
-            return bad(format!(
+            return invalid(format!(
                 "clipped channels ({nc}) and bound weights ({nb}) for {p} observations"
             ));
         }
+        Ok(())
+    }
+
+    /// The transport has one row per observation and basis, a power-of-two map side, and
+    /// indexes only that map's coefficients.
+    fn check_transport(&self) -> Result<()> {
+        let p = self.obs.vertex.len();
         let t = self.transport;
         if t.n_obs != p || t.offsets.len() != p * t.n_basis + 1 {
-            return bad(format!(
+            return invalid(format!(
                 "transport has {} observations × {} bases ({} offsets) for {p} observations",
                 t.n_obs,
                 t.n_basis,
@@ -57,20 +71,27 @@ impl Problem<'_> {
             ));
         }
         if t.n_basis == 0 || t.n_global < 2 || !t.n_global.is_power_of_two() {
-            return bad(format!(
+            return invalid(format!(
                 "transport has {} bases and map side {}",
                 t.n_basis, t.n_global
             ));
         }
         let n2 = (t.n_global * t.n_global) as u32;
         if let Some(i) = t.index.iter().position(|&m| u32::from(m) >= n2) {
-            return bad(format!(
+            return invalid(format!(
                 "transport entry {i} indexes coefficient {} ≥ {n2}",
                 t.index[i]
             ));
         }
+        Ok(())
+    }
+
+    /// One range per photo, inside the observations, holding only that photo's.
+    fn check_photo_ranges(&self) -> Result<()> {
+        let o = self.obs;
+        let p = o.vertex.len();
         if o.photo_ranges.len() != self.n_photos {
-            return bad(format!(
+            return invalid(format!(
                 "{} photo ranges for {} photos",
                 o.photo_ranges.len(),
                 self.n_photos
@@ -78,32 +99,44 @@ impl Problem<'_> {
         }
         for (i, r) in o.photo_ranges.iter().enumerate() {
             if r.end > p || r.start > r.end {
-                return bad(format!("photo {i} range {r:?} outside 0..{p}"));
+                return invalid(format!("photo {i} range {r:?} outside 0..{p}"));
             }
             if let Some(q) = r.clone().find(|&q| o.photo[q] as usize != i) {
-                return bad(format!(
+                return invalid(format!(
                     "observation {q} is in photo {i}'s range but names photo {}",
                     o.photo[q]
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Every observation names a vertex of the mesh and has a finite, non-negative weight
+    /// and a finite colour.
+    fn check_values(&self) -> Result<()> {
+        let o = self.obs;
         if let Some(q) = o.vertex.iter().position(|&x| x as usize >= self.n_vertices) {
-            return bad(format!(
+            return invalid(format!(
                 "observation {q} names vertex {} of {}",
                 o.vertex[q], self.n_vertices
             ));
         }
-        if let Some(q) = (0..p).find(|&q| {
+        if let Some(q) = (0..o.vertex.len()).find(|&q| {
             !(o.weight[q].is_finite() && o.weight[q] >= 0.0)
                 || o.rgb[q].iter().any(|v| !v.is_finite())
         }) {
-            return bad(format!(
+            return invalid(format!(
                 "observation {q} has weight {} and colour {:?}",
                 o.weight[q], o.rgb[q]
             ));
         }
         Ok(())
     }
+}
+
+/// An inconsistent estimation problem: an internal error (the pipeline built it wrong).
+fn invalid(m: String) -> Result<()> {
+    Err(Error::Internal(format!("estimation problem: {m}")))
 }
 
 /// `f(i)` for `i` in `0..sizes.len()`, in parallel, in index order, the items started
@@ -217,3 +250,85 @@ pub fn predict_from(problem: &Problem, beta: &[[f64; 3]], s: &[[f64; 3]]) -> Vec
 
 /// Observations per fixed-size chunk in ordered parallel reductions.
 pub(crate) const CHUNK: usize = 4096;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transport::TransportValue;
+
+    /// Two observations of one photo, of vertices 0 and 1, one basis over a 2² map.
+    fn observations() -> Observations {
+        Observations {
+            vertex: vec![0, 1],
+            photo: vec![0, 0],
+            rgb: vec![[0.5; 3]; 2],
+            weight: vec![1.0, 1.0],
+            dir: vec![[0.0, 0.0, 1.0]; 2],
+            photo_ranges: std::iter::once(0..2).collect(),
+            clipped: Vec::new(),
+            bound_weight: Vec::new(),
+        }
+    }
+
+    fn transport() -> Transport {
+        Transport {
+            n_global: 2,
+            n_basis: 1,
+            n_obs: 2,
+            offsets: vec![0, 1, 2],
+            index: vec![0, 3],
+            value: vec![TransportValue::from_f64(0.5); 2],
+        }
+    }
+
+    /// The error of validating `obs` and `t` as a problem of 2 vertices and 1 photo, or
+    /// `None` when it is accepted.
+    fn refusal(obs: &Observations, t: &Transport) -> Option<String> {
+        let problem = Problem {
+            obs,
+            transport: t,
+            n_vertices: 2,
+            n_photos: 1,
+        };
+        problem.validate().err().map(|e| e.to_string())
+    }
+
+    /// What the refusal must say, and the one change that makes a part inconsistent.
+    type Corruption<T> = (&'static str, fn(&mut T));
+
+    /// The consistent problem passes; each inconsistency, made one at a time, is refused
+    /// with what is wrong named (every check's first line of defence).
+    #[test]
+    fn each_inconsistency_is_refused_and_named() {
+        let (obs, t) = (observations(), transport());
+        assert_eq!(refusal(&obs, &t), None);
+        let obs_cases: [Corruption<Observations>; 7] = [
+            ("arrays differ in length", |o| o.rgb.push([0.0; 3])),
+            ("clipped channels (1)", |o| o.clipped.push(0)),
+            ("2 photo ranges for 1 photos", |o| o.photo_ranges.push(2..2)),
+            ("outside 0..2", |o| o.photo_ranges[0] = 0..3),
+            ("in photo 0's range but names photo 1", |o| o.photo[1] = 1),
+            ("names vertex 5 of 2", |o| o.vertex[1] = 5),
+            ("has weight NaN", |o| o.weight[0] = f32::NAN),
+        ];
+        for (want, corrupt) in obs_cases {
+            let mut bad = observations();
+            corrupt(&mut bad);
+            let err = refusal(&bad, &t).unwrap_or_default();
+            assert!(err.contains(want), "{want}: {err}");
+        }
+        let t_cases: [Corruption<Transport>; 3] = [
+            ("(2 offsets) for 2 observations", |t| {
+                t.offsets.pop();
+            }),
+            ("map side 3", |t| t.n_global = 3),
+            ("indexes coefficient 4 ≥ 4", |t| t.index[1] = 4),
+        ];
+        for (want, corrupt) in t_cases {
+            let mut bad = transport();
+            corrupt(&mut bad);
+            let err = refusal(&obs, &bad).unwrap_or_default();
+            assert!(err.contains(want), "{want}: {err}");
+        }
+    }
+}
