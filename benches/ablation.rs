@@ -55,9 +55,10 @@
 //! `ABLATION_DEFAULTS_ITERS=bench` (the `defaults` row at the bench's iteration cap instead
 //! of `run`'s, `ablation/defaults.rs`), `ABLATION_DEFAULTS_MAX_ITERS=N` (the `defaults` row
 //! with `run --iterations N`), `ABLATION_DEFAULTS_STOP_HALVES=N` (its early stopping on the
-//! right halves of `N` training photos, `run --validation-halves N`), `ABLATION_TRACE=1` (each outer round's early-stopping score,
-//! worst albedo ratio error and material accuracy, `defaults::tracer`; `signed`: also each
-//! material's signed ratio errors), `ABLATION_RATIO_STEPS=N` (the `defaults` row with
+//! right halves of `N` training photos, `run --validation-halves N`), `ABLATION_TRACE=1`
+//! (each outer round's early-stopping score, worst albedo ratio error and material
+//! accuracy, `defaults::tracer`; `signed`: also each material's signed ratio errors),
+//! `ABLATION_RATIO_STEPS=N` (the `defaults` row with
 //! `run --ratio-steps N`), `ABLATION_DEFAULTS_PATIENCE=N` (the `defaults` row with
 //! `run --patience N`), `ABLATION_DEFAULTS_IRLS=N`, `ABLATION_DEFAULTS_FLOOR=X`,
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,

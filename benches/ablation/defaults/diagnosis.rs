@@ -3,7 +3,7 @@
 //! first fit's or the TRUE pure vertices and from exact data
 //! (`bench-results/irradiance-start.md` section 1c, `coarse-light-start.md`).
 
-use super::full_basis;
+use super::full_lambda;
 use super::start_probes::nearest_order;
 use crate::synth_case::*;
 use relight_cpc::solve::{Estimate, Materials0};
@@ -210,10 +210,7 @@ fn weights_purity(
     }
     on_true.sort_by(f64::total_cmp);
     let q = |p: f64| on_true[((on_true.len() - 1) as f64 * p) as usize];
-    let full: Vec<Vec<[f64; 3]>> = lambda
-        .iter()
-        .map(|row| full_basis(row, kept, case.basis.len()))
-        .collect();
+    let full = full_lambda(case, kept, lambda);
     let metric = |weights: &[f64]| crate::metrics::ratio_errors(case, &full, weights, seen);
     let lambda_only = worst_ratio_errors(case, |k, c| lambda[k][lambert][c], order);
     format!(

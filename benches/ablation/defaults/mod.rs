@@ -137,11 +137,7 @@ pub fn fit_defaults(case: &Case, base: &EstimateOptions) -> DefaultsFit {
     }
     propagate_unseen(&case.positions, &seen, &mut est.weights, pilot.materials)
         .expect("propagation");
-    est.lambda = est
-        .lambda
-        .iter()
-        .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
-        .collect();
+    est.lambda = full_lambda(case, &pilot.kept, &est.lambda);
     if !case.train.background.iter().all(Vec::is_empty) {
         eprintln!(
             "  background against the fit: {}",
@@ -429,11 +425,7 @@ fn start_materials(
         scale_specular(&mut m0, x);
     }
     if std::env::var("ABLATION_START_RATIOS").is_ok_and(|v| v == "1") {
-        let lambda: Vec<_> = m0
-            .lambda
-            .iter()
-            .map(|row| full_basis(row, &pilot.kept, case.basis.len()))
-            .collect();
+        let lambda = full_lambda(case, &pilot.kept, &m0.lambda);
         eprintln!(
             "  the first fit's start: worst ratio per channel {:?}",
             crate::metrics::ratio_errors(case, &lambda, &m0.weights, colours.seen)
@@ -482,11 +474,7 @@ fn stiff_specular_start(
     stiff.validation_fraction = 0.0;
     stiff.ratio_steps = 0;
     let est = estimate(problem, m0.clone(), &stiff, &mut |_, _| {}).expect("stiff fit");
-    let lambda: Vec<_> = est
-        .lambda
-        .iter()
-        .map(|row| full_basis(row, scope.kept, case.basis.len()))
-        .collect();
+    let lambda = full_lambda(case, scope.kept, &est.lambda);
     eprintln!(
         "  stiff-light start: λ {:?}, worst ratio per channel {:?}",
         est.lambda,
@@ -622,6 +610,7 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
 /// The first fit from `m0`, or with `ABLATION_DEFAULTS_START=grid | grid-unmix` (up to three
 /// materials) the best of [`start_probes::grid_start_fit`]'s (`ABLATION_GRID_JUDGE=halves`:
 /// judged on the right halves of 4 training photos, as `--light auto` judges its models).
+/// `trace` sees every round of the fit from `m0` (the grid's fits are not traced).
 fn first_fit(
     problem: &Problem,
     m0: Materials0,
@@ -656,8 +645,8 @@ fn with_stop_halves(case: &Case, opts: EstimateOptions) -> EstimateOptions {
 /// `ABLATION_TRACE=1`: a callback that prints each outer iterate's early-stopping score,
 /// training RMSE, worst diffuse albedo ratio error (over materials and channels) and
 /// material accuracy under `label` (`ABLATION_TRACE=signed`: also each material's signed
-/// ratio error per channel); otherwise one that does nothing. The trace is how the stopping point's effect
-/// on the ratios is read (`bench-results/iteration-trace.md`).
+/// ratio error per channel); otherwise one that does nothing. The trace is how the
+/// stopping point's effect on the ratios is read (`bench-results/iteration-trace.md`).
 pub(super) fn tracer<'a>(
     case: &'a Case,
     kept: &'a [usize],
@@ -670,11 +659,7 @@ pub(super) fn tracer<'a>(
         if !on {
             return;
         }
-        let full: Vec<Vec<[f64; 3]>> = state
-            .lambda
-            .iter()
-            .map(|row| full_basis(row, kept, case.basis.len()))
-            .collect();
+        let full = full_lambda(case, kept, state.lambda);
         let r = crate::metrics::ratio_errors(case, &full, state.weights, seen);
         let (acc, _, _) = crate::metrics::best_order_of(case, state.weights, seen);
         eprintln!(
@@ -690,9 +675,20 @@ pub(super) fn tracer<'a>(
     }
 }
 
+/// Every material's `λ` over the kept bases (`kept[i]`: index of the `i`-th in the case's
+/// list) laid out over all the case's bases ([`full_basis`] per material).
+pub(super) fn full_lambda(
+    case: &Case,
+    kept: &[usize],
+    lambda: &[Vec<[f64; 3]>],
+) -> Vec<Vec<[f64; 3]>> {
+    let n = case.basis.len();
+    lambda.iter().map(|row| full_basis(row, kept, n)).collect()
+}
+
 /// A material's weights over the kept bases (`kept[i]`: index of the `i`-th in the full
 /// list) laid out over all `n` bases, 0 for a dropped one.
-pub(super) fn full_basis(row: &[[f64; 3]], kept: &[usize], n: usize) -> Vec<[f64; 3]> {
+fn full_basis(row: &[[f64; 3]], kept: &[usize], n: usize) -> Vec<[f64; 3]> {
     let mut full = vec![[0.0; 3]; n];
     for (v, &b) in row.iter().zip(kept) {
         full[b] = *v;

@@ -2,7 +2,7 @@
 //! `bench-results/restart-probes.md`, `irradiance-start.md` and `coarse-light-start.md`),
 //! and the second fits `run --restart auto` makes, which the `defaults` row applies.
 
-use super::{full_basis, start_variant, LAMBERT};
+use super::{full_lambda, start_variant, LAMBERT};
 use crate::synth_case::*;
 use relight_cpc::run::Restart;
 use relight_cpc::solve::alternation::estimate_from_lights;
@@ -31,10 +31,7 @@ impl Fitted<'_> {
     /// The worst diffuse albedo ratio error per channel of materials `lambda` with weights
     /// `weights` over the kept lobes ([`crate::metrics::ratio_errors`]).
     fn ratios_of(&self, case: &Case, lambda: &[Vec<[f64; 3]>], weights: &[f64]) -> [f64; 3] {
-        let full: Vec<Vec<[f64; 3]>> = lambda
-            .iter()
-            .map(|row| full_basis(row, self.kept, case.basis.len()))
-            .collect();
+        let full = full_lambda(case, self.kept, lambda);
         crate::metrics::ratio_errors(case, &full, weights, self.seen)
     }
 
