@@ -110,7 +110,9 @@
 //! the highlight-dominated observations, and the photos' residuals kept on one class of
 //! observations at a time, [`true_light::floor_sources`]), `ABLATION_FIT_SHARE=1` (one `λ`
 //! step under the `defaults` fit's maps without the observations its own shiny lobes
-//! dominate, [`true_light::fitted_share_probe`]), `ABLATION_NORMAL_GRID=N` (the rotation's
+//! dominate, [`true_light::fitted_share_probe`]), `ABLATION_PROFILE=1` (the objective
+//! at the truth and at the `defaults` fit's materials, the lights refitted for both;
+//! `axes`: also along the albedo ratio directions and where its minimum lies, [`profile`]), `ABLATION_NORMAL_GRID=N` (the rotation's
 //! normal grid, `run`'s 32 by default; `SYNTH_SPLAT_ROTATION=1` rotates at each vertex's
 //! exact normal instead), `ABLATION_LAMBDA=1` (every fit's `λ` per
 //! material and lobe against the truth's, after the per-channel scale of the diffuse
@@ -141,6 +143,8 @@ mod defaults;
 mod diagnose;
 #[path = "ablation/metrics.rs"]
 mod metrics;
+#[path = "ablation/profile.rs"]
+mod profile;
 #[path = "ablation/run_half.rs"]
 mod run_half;
 #[path = "support/run_line.rs"]
@@ -775,6 +779,9 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 eprintln!("  {figures:?} pilot {:?}", d.pilot.material_scores);
                 if env_flag("ABLATION_FIT_SHARE") {
                     true_light::fitted_share_probe(case, &d.est, &fl.seen);
+                }
+                if let Ok(mode) = std::env::var("ABLATION_PROFILE") {
+                    profile::ratio_profile(case, &d.opts, &d.est, &fl.seen, mode == "axes");
                 }
                 if env_flag("ABLATION_ACCURACY_MISSES") {
                     eprintln!(
