@@ -780,8 +780,9 @@ fn run_case(case: &Case, clean: bool, wanted: &Option<Vec<String>>) -> (Vec<Done
                 if env_flag("ABLATION_FIT_SHARE") {
                     true_light::fitted_share_probe(case, &d.est, &fl.seen);
                 }
-                if let Ok(mode) = std::env::var("ABLATION_PROFILE") {
-                    profile::ratio_profile(case, &d.opts, &d.est, &fl.seen, mode == "axes");
+                let profile = std::env::var("ABLATION_PROFILE").unwrap_or_default();
+                if profile == "1" || profile == "axes" {
+                    profile::ratio_profile(case, &d.opts, &d.est, &fl.seen, profile == "axes");
                 }
                 if env_flag("ABLATION_ACCURACY_MISSES") {
                     eprintln!(

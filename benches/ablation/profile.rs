@@ -26,29 +26,62 @@
 //! with everything else at the truth. The same for the plain data term after the refit
 //! (where a free map per photo lets the photos put them) and under the TRUE maps (where the
 //! photos put them when the light is known). Then the shiny lobes' strength: every lobe but
-//! the Lambertian one scaled by `1 + s` together, the terms summed over the channels.
+//! the Lambertian one scaled by `1 + s` together, each term over the three channels.
 //! Each term's stiffness is the rise of its quadratic 0.03 from its minimum along each axis
 //! (`½ A_jj 0.03²`) in units of the photos' noise `σ² = SSE_true,c(0) / Σ α` (the truth's
 //! residual under the true maps: quantisation, the renderer's noise and the transport's
 //! error together).
 
 use crate::synth_case::*;
-use relight_cpc::solve::{estimate, Estimate, EstimateOptions, Materials0};
+use relight_cpc::solve::{estimate, predict, Estimate, EstimateOptions, Materials0};
 
 /// The steps along each direction.
 const STEPS: [f64; 4] = [-0.06, -0.03, 0.03, 0.06];
 
-/// The three terms at one point of the profile.
+/// The three terms a point reports, in [`Point::channel`]'s order.
+const TERMS: [&str; 3] = [
+    "F, light refitted",
+    "data, light refitted",
+    "data, TRUE maps",
+];
+
+/// The terms at one point of the profile.
 #[derive(Debug, Clone, Copy)]
 struct Point {
-    /// The ratio errors `(e₁, e₂)` (`e₂` = 0 with two materials).
+    /// The ratio errors `(e₁, e₂)` (`e₂` = 0 with two materials), or the shiny lobes'
+    /// scale `(s, 0)`.
     e: [f64; 2],
-    /// Per channel: `F` after the refit, the refit's plain data term, the data term under
-    /// the true maps.
-    terms: [[f64; 3]; 3],
+    /// `F` after the refit, over the three channels.
+    f: f64,
     /// `F` less its robust data term `Σ α ω r²`: the light model's prior (and the ridge on
     /// `λ`, when on).
     prior: f64,
+    /// Per channel, the refit's plain data term `Σ α (y − ŷ)²`.
+    refit: [f64; 3],
+    /// Per channel, the plain data term under the TRUE maps.
+    known: [f64; 3],
+}
+
+impl Point {
+    /// Term `t` of [`TERMS`] as channel `c` sees it: `F` is one number over the three
+    /// channels, and along one channel's directions the other channels' terms stay (the
+    /// map models fit each channel on its own), so it stands for every channel.
+    fn channel(&self, t: usize, c: usize) -> f64 {
+        match t {
+            0 => self.f,
+            1 => self.refit[c],
+            _ => self.known[c],
+        }
+    }
+
+    /// Term `t` of [`TERMS`] over the three channels.
+    fn total(&self, t: usize) -> f64 {
+        match t {
+            0 => self.f,
+            1 => self.refit.iter().sum(),
+            _ => self.known.iter().sum(),
+        }
+    }
 }
 
 /// The objective at the truth and at the `defaults` fit's materials (`fit`), lights refitted
@@ -61,58 +94,51 @@ pub fn ratio_profile(
     seen: &[bool],
     axes: bool,
 ) {
-    let k = case.lambda.len();
-    // With the weights held their priors are constants of `F`: left out, so that `F` is the
-    // data term plus the light model's prior.
-    let full = EstimateOptions {
+    let t0 = std::time::Instant::now();
+    let with_weight_priors = EstimateOptions {
         validation_fraction: 0.0,
         ..opts.clone()
     };
+    // With the weights held their priors are constants of `F`: left out, so that `F` is the
+    // data term plus the light model's prior.
     let opts = EstimateOptions {
         weights_sum: 0.0,
         weights_smoothness: 0.0,
-        ..full.clone()
+        ..with_weight_priors.clone()
     };
-    let t0 = std::time::Instant::now();
     let fit_lambda = in_truth_gauge(case, fit);
-    let base = ratio_point(case, &opts, 0, [0.0, 0.0]);
-    let at_fit = point(case, &opts, fit_lambda.clone(), fit.weights.clone());
+    let base = point(case, &opts, &case.lambda, &case.weights);
+    let at_fit = point(case, &opts, &fit_lambda, &fit.weights);
     let full_f = |lambda: &[Vec<[f64; 3]>], weights: &[f64]| {
-        point(case, &full, lambda.to_vec(), weights.to_vec()).terms[0][0]
+        objective(&held_fit(case, &with_weight_priors, lambda, weights))
     };
     let (truth_full, fit_full) = (
         full_f(&case.lambda, &case.weights),
         full_f(&fit_lambda, &fit.weights),
     );
+    let change = |a: f64, b: f64| 100.0 * (b / a - 1.0);
     eprintln!(
         "  profile: with the weights' priors, at the truth / at the fit's materials: F {truth_full:.6e} / {fit_full:.6e} ({:+.2}%), of which the weights' priors {:.6e} / {:.6e}",
-        100.0 * (fit_full / truth_full - 1.0),
-        truth_full - base.terms[0][0],
-        fit_full - at_fit.terms[0][0],
+        change(truth_full, fit_full),
+        truth_full - base.f,
+        fit_full - at_fit.f,
     );
-    // `F` is over the three channels (each channel's entry holds the whole); the data terms
-    // are summed over them.
-    let sum = |p: &Point, t: usize| {
-        if t == 0 {
-            p.terms[0][0]
-        } else {
-            p.terms[t].iter().sum::<f64>()
-        }
-    };
+    let (t, f) = (|i| base.total(i), |i| at_fit.total(i));
     eprintln!(
         "  profile: at the truth / at the fit's materials, lights refitted: F {:.6e} / {:.6e} ({:+.2}%), of which the light's prior {:.6e} / {:.6e}; data {:.6e} / {:.6e} ({:+.2}%); data under the TRUE maps {:.6e} / {:.6e} ({:+.2}%)",
-        sum(&base, 0),
-        sum(&at_fit, 0),
-        100.0 * (sum(&at_fit, 0) / sum(&base, 0) - 1.0),
+        t(0),
+        f(0),
+        change(t(0), f(0)),
         base.prior,
         at_fit.prior,
-        sum(&base, 1),
-        sum(&at_fit, 1),
-        100.0 * (sum(&at_fit, 1) / sum(&base, 1) - 1.0),
-        sum(&base, 2),
-        sum(&at_fit, 2),
-        100.0 * (sum(&at_fit, 2) / sum(&base, 2) - 1.0),
+        t(1),
+        f(1),
+        change(t(1), f(1)),
+        t(2),
+        f(2),
+        change(t(2), f(2)),
     );
+    let k = case.lambda.len();
     if !axes || !(2..=3).contains(&k) {
         return;
     }
@@ -132,15 +158,10 @@ pub fn ratio_profile(
                 points.push(ratio_point(case, &opts, c, [t * d[0], t * d[1]]));
             }
         }
-        let sigma2 = points[0].terms[2][c] / alpha;
-        let names = [
-            "F, light refitted",
-            "data, light refitted",
-            "data, TRUE maps",
-        ];
-        for (term, name) in names.iter().enumerate() {
+        let sigma2 = base.known[c] / alpha;
+        for (term, name) in TERMS.iter().enumerate() {
             let vals: Vec<([f64; 2], f64)> =
-                points.iter().map(|p| (p.e, p.terms[term][c])).collect();
+                points.iter().map(|p| (p.e, p.channel(term, c))).collect();
             let (star, rise) = quadratic_minimum(&vals, k - 1, sigma2);
             eprintln!("  profile c{c} {name}: e* {star:+.4?}  Δχ²(0.03) {rise:.2?}");
         }
@@ -152,7 +173,8 @@ pub fn ratio_profile(
 }
 
 /// The shiny lobes' strength: every lobe but the Lambertian one, of every material, scaled
-/// by `1 + s` (`s ∈ {±0.15, ±0.3}`), the three terms summed over the channels.
+/// by `1 + s` (`s ∈ {±0.15, ±0.3}`), each term over the three channels, its stiffness in
+/// units of the noise of one channel of one observation.
 fn specular_profile(case: &Case, opts: &EstimateOptions, base: Point, alpha: f64) {
     if case
         .lambda
@@ -174,21 +196,12 @@ fn specular_profile(case: &Case, opts: &EstimateOptions, base: Point, alpha: f64
                 l
             })
             .collect();
-        let mut p = point(case, opts, lambda, case.weights.clone());
-        p.e = [s, 0.0];
-        points.push(p);
+        let p = point(case, opts, &lambda, &case.weights);
+        points.push(Point { e: [s, 0.0], ..p });
     }
-    let sigma2 = base.terms[2].iter().sum::<f64>() / (3.0 * alpha);
-    let names = [
-        "F, light refitted",
-        "data, light refitted",
-        "data, TRUE maps",
-    ];
-    for (term, name) in names.iter().enumerate() {
-        let vals: Vec<([f64; 2], f64)> = points
-            .iter()
-            .map(|p| (p.e, p.terms[term].iter().sum::<f64>() / 3.0))
-            .collect();
+    let sigma2 = base.total(2) / (3.0 * alpha);
+    for (term, name) in TERMS.iter().enumerate() {
+        let vals: Vec<([f64; 2], f64)> = points.iter().map(|p| (p.e, p.total(term))).collect();
         let (star, rise) = quadratic_minimum(&vals, 1, sigma2);
         eprintln!("  profile shiny lobes ×(1 + s) {name}: s* {star:+.4?}  Δχ²(0.03) {rise:.2?}");
     }
@@ -215,7 +228,8 @@ fn in_truth_gauge(case: &Case, fit: &Estimate) -> Vec<Vec<[f64; 3]>> {
         .collect()
 }
 
-/// The truth's `λ` with material `j`'s Lambertian lobe in channel `c` scaled by `1 + e_j`.
+/// The point at the truth's `λ` with material `j`'s Lambertian lobe in channel `c` scaled
+/// by `1 + e_j`.
 fn ratio_point(case: &Case, opts: &EstimateOptions, c: usize, e: [f64; 2]) -> Point {
     let mut lambda = case.lambda.clone();
     for (j, ej) in e.iter().enumerate().take(lambda.len() - 1) {
@@ -223,61 +237,64 @@ fn ratio_point(case: &Case, opts: &EstimateOptions, c: usize, e: [f64; 2]) -> Po
     }
     Point {
         e,
-        ..point(case, opts, lambda, case.weights.clone())
+        ..point(case, opts, &lambda, &case.weights)
     }
 }
 
-/// The three terms (module docs) at the reflectance `(lambda, weights)`.
-fn point(
+/// Every training photo's light fitted with the reflectance `(lambda, weights)` held.
+fn held_fit(
     case: &Case,
     opts: &EstimateOptions,
-    lambda: Vec<Vec<[f64; 3]>>,
-    weights: Vec<f64>,
-) -> Point {
+    lambda: &[Vec<[f64; 3]>],
+    weights: &[f64],
+) -> Estimate {
     let init = Materials0 {
-        lambda: lambda.clone(),
-        weights: weights.clone(),
+        lambda: lambda.to_vec(),
+        weights: weights.to_vec(),
     };
     let held = EstimateOptions {
         fixed_materials: true,
         ..opts.clone()
     };
-    let est = estimate(&case.train.problem(case.nv), init, &held, &mut |_, _| {})
-        .expect("a lighting step with the reflectance held");
-    // `F` is one number over the three channels; along one channel's directions the
-    // other channels' terms stay (the map models fit each channel on its own).
-    let f = est.timeline.last().map_or(f64::NAN, |it| it.objective);
-    let refit = predict_with(&case.train, case.nv, &est.lambda, &est.weights, &est.lights);
-    let known = predict_with(&case.train, case.nv, &lambda, &weights, &case.train.lights);
-    let robust = channel_sse_weighted(&case.train.obs, &refit, &est.irls_weights);
+    estimate(&case.train.problem(case.nv), init, &held, &mut |_, _| {})
+        .expect("a lighting step with the reflectance held")
+}
+
+/// `F` at the end of a fit.
+fn objective(est: &Estimate) -> f64 {
+    est.timeline.last().map_or(f64::NAN, |it| it.objective)
+}
+
+/// The terms (module docs) at the reflectance `(lambda, weights)`.
+fn point(case: &Case, opts: &EstimateOptions, lambda: &[Vec<[f64; 3]>], weights: &[f64]) -> Point {
+    let est = held_fit(case, opts, lambda, weights);
+    let f = objective(&est);
+    let refit = predict(&case.train.problem(case.nv), &est);
+    let known = predict_with(&case.train, case.nv, lambda, weights, &case.train.lights);
+    let obs = &case.train.obs;
+    let robust = channel_sse(obs, &refit, Some(&est.irls_weights));
     Point {
         e: [0.0; 2],
+        f,
         prior: f - robust.iter().sum::<f64>(),
-        terms: [
-            [f; 3],
-            channel_sse(&case.train.obs, &refit),
-            channel_sse(&case.train.obs, &known),
-        ],
+        refit: channel_sse(obs, &refit, None),
+        known: channel_sse(obs, &known, None),
     }
 }
 
-/// Per channel `Σ α (y − ŷ)²`.
-fn channel_sse(obs: &relight_cpc::observe::Observations, pred: &[[f64; 3]]) -> [f64; 3] {
-    channel_sse_weighted(obs, pred, &vec![[1.0; 3]; pred.len()])
-}
-
-/// Per channel `Σ α ω (y − ŷ)²` (`ω`: the robust weights).
-fn channel_sse_weighted(
+/// Per channel `Σ α ω (y − ŷ)²` (`ω`: the robust weights; `None`: 1).
+fn channel_sse(
     obs: &relight_cpc::observe::Observations,
     pred: &[[f64; 3]],
-    omega: &[[f32; 3]],
+    omega: Option<&[[f32; 3]]>,
 ) -> [f64; 3] {
     let mut s = [0.0; 3];
     for (p, y) in obs.rgb.iter().enumerate() {
         let a = f64::from(obs.weight[p]);
+        let w = omega.map_or([1.0; 3], |o| o[p]);
         for c in 0..3 {
             let r = f64::from(y[c]) - pred[p][c];
-            s[c] += a * f64::from(omega[p][c]) * r * r;
+            s[c] += a * f64::from(w[c]) * r * r;
         }
     }
     s
@@ -295,10 +312,10 @@ fn quadratic_minimum(vals: &[([f64; 2], f64)], dim: usize, sigma2: f64) -> (Vec<
             vec![1.0, e[0], e[0] * e[0], e[1], e[1] * e[1], e[0] * e[1]]
         }
     };
-    let m = if dim == 1 { 3 } else { 6 };
-    let x = nalgebra::DMatrix::from_fn(vals.len(), m, |i, j| feats(vals[i].0)[j]);
+    let rows: Vec<Vec<f64>> = vals.iter().map(|v| feats(v.0)).collect();
+    let x = nalgebra::DMatrix::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j]);
     let y = nalgebra::DVector::from_iterator(vals.len(), vals.iter().map(|v| v.1 - vals[0].1));
-    let Ok(q) = x.clone().svd(true, true).solve(&y, 1e-12) else {
+    let Ok(q) = x.svd(true, true).solve(&y, 1e-12) else {
         return (vec![f64::NAN; dim], vec![f64::NAN; dim]);
     };
     if dim == 1 {
