@@ -64,8 +64,8 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse|stiff-spec`
-//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last ten a second
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|reanchor-label|reanchor-label2|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse|stiff-spec|stiff-weights`
+//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last twelve a second
 //! fit from the first fit's materials (`sh-ratio2`: and a third fit from the model read
 //! again over the second fit's weights), `ABLATION_REFIT_PICK=1` keeping the one with the
 //! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
@@ -83,7 +83,11 @@
 //! on+coarse-light`; `ABLATION_ONE_SE=0` keeps each coarse-light held fit on the lower
 //! validation error alone, without the one-standard-error rule; `stiff-spec` starts the
 //! specular lobes from a stiff-light fit, `ABLATION_STIFF_HAAR`, `ABLATION_STIFF_ITERS`,
-//! `ABLATION_STIFF_TAKE=all`, `ablation/defaults/mod.rs`), `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
+//! `ABLATION_STIFF_TAKE=all`, `ablation/defaults/mod.rs`; `stiff-weights` fits first with
+//! the weights' priors `ABLATION_STIFF_WEIGHTS` times as strong, default 10, then from that
+//! fit under the row's options; `reanchor-label` is `reanchor` with one-hot weights,
+//! `reanchor-label2` twice),
+//! `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
 //! sum-to-one prior on blended vertices whatever the pilot's scope), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,
 //! `ablation/defaults.rs`), `ABLATION_DEFAULTS_LIGHT=paper|shared|oracle-sh` (the `defaults` row with

@@ -610,7 +610,8 @@ fn fit_options(case: &Case, base: &EstimateOptions, pilot: &PilotOutcome) -> Est
 /// The first fit from `m0`, or with `ABLATION_DEFAULTS_START=grid | grid-unmix` (up to three
 /// materials) the best of [`start_probes::grid_start_fit`]'s (`ABLATION_GRID_JUDGE=halves`:
 /// judged on the right halves of 4 training photos, as `--light auto` judges its models).
-/// `trace` sees every round of the fit from `m0` (the grid's fits are not traced).
+/// `trace` sees every round of the fit from `m0` (the grid's fits are not traced);
+/// `stiff-weights`: [`stiff_weights_fit`].
 fn first_fit(
     problem: &Problem,
     m0: Materials0,
@@ -625,8 +626,40 @@ fn first_fit(
             let unmix = (v == "grid-unmix").then_some(start_probes::UnmixFrom { init, colours });
             start_probes::grid_start_fit(problem, &m0, opts, judge, LAMBERT, unmix)
         }
+        Some("stiff-weights") => stiff_weights_fit(problem, m0, opts, trace),
         _ => estimate(problem, m0, opts, trace).expect("defaults' fit"),
     }
+}
+
+/// `ABLATION_DEFAULTS_START=stiff-weights` (a probe): a fit with the blending weights'
+/// priors (sum-to-one and neighbour) `ABLATION_STIFF_WEIGHTS` times as strong (default
+/// 10), then the fit under `opts` from its materials and lights: the weights held near
+/// one-hot, smooth blends while the lights are still poor (a continuation on the weights'
+/// priors). `trace` sees the second fit's rounds.
+fn stiff_weights_fit(
+    problem: &Problem,
+    m0: Materials0,
+    opts: &EstimateOptions,
+    trace: &mut dyn FnMut(&Iteration, &IterState),
+) -> Estimate {
+    let s = crate::env_or("ABLATION_STIFF_WEIGHTS", 10.0);
+    let stiff = EstimateOptions {
+        weights_sum: opts.weights_sum * s,
+        weights_smoothness: opts.weights_smoothness * s,
+        ..opts.clone()
+    };
+    let pre = estimate(problem, m0, &stiff, &mut |_, _| {}).expect("stiff-weights fit");
+    eprintln!(
+        "  stiff-weights fit ({s}×): {} rounds, λ {:?}",
+        pre.timeline.len(),
+        pre.lambda
+    );
+    let m = Materials0 {
+        lambda: pre.lambda,
+        weights: pre.weights,
+    };
+    relight_cpc::solve::alternation::estimate_from_lights(problem, m, opts, &pre.lights, trace)
+        .expect("defaults' fit after the stiff one")
 }
 
 /// `ABLATION_DEFAULTS_STOP_HALVES=N`: the fit's early stopping scored on the right halves

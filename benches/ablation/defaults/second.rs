@@ -56,8 +56,9 @@ impl Fitted<'_> {
 pub(super) fn second_fits(p: Probe, first: Fitted, materials: usize) -> Estimate {
     match start_variant().as_deref() {
         Some(
-            v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert" | "sh-ratio"
-            | "sh-ratio2" | "coarse-light" | "coarse-light-free" | "truth-held"),
+            v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert"
+            | "reanchor-label" | "reanchor-label2" | "sh-ratio" | "sh-ratio2" | "coarse-light"
+            | "coarse-light-free" | "truth-held"),
         ) => second_fit(p, v, first, crate::env_flag("ABLATION_REFIT_PICK")),
         Some("reanchor-coarse") => restarts(p, Restart::ReanchorCoarseLight, first),
         _ => {
@@ -79,16 +80,20 @@ fn second_fit(p: Probe, v: &str, first: Fitted, pick: bool) -> Estimate {
         "coarse-light" if pick => coarse_light_restart(p, &first),
         "coarse-light" | "coarse-light-free" => coarse_light_fit(p, v, &first),
         "sh-ratio" | "sh-ratio2" => sh_ratio_fit(p, v, &first),
-        "reanchor" | "reanchor2" | "reanchor-lambert" => reanchor_fit(p, v, &first),
+        "reanchor" | "reanchor2" | "reanchor-lambert" | "reanchor-label" | "reanchor-label2" => {
+            reanchor_fit(p, v, &first)
+        }
         _ => refit(p.problem, &first.est, p.opts, p.case, LAMBERT, v == "refit"),
     };
     let score = |e: &Estimate| e.validation.as_ref().map(|v| v.best_error());
     eprintln!(
-        "second fit {v}: worst ratio {:.3?} -> {:.3?}; validation {:?} -> {:?}",
+        "second fit {v}: worst ratio {:.3?} -> {:.3?}; validation {:?} -> {:?}; objective {:.6e} -> {:.6e}",
         first.ratios(p.case, &first.est),
         first.ratios(p.case, &second),
         score(&first.est),
-        score(&second)
+        score(&second),
+        returned_objective(&first.est),
+        returned_objective(&second)
     );
     // `coarse-light` with `pick` chose inside `fit_in_turn`, as `run` does (the held fit
     // also within one standard error of the first).
@@ -98,6 +103,17 @@ fn second_fit(p: Probe, v: &str, first: Fitted, pick: bool) -> Estimate {
     } else {
         first.est
     }
+}
+
+/// The objective at the iterate a fit returns (the validation's best one, else the last).
+fn returned_objective(e: &Estimate) -> f64 {
+    let n = e
+        .validation
+        .as_ref()
+        .map_or(e.timeline.len(), |v| v.best_iteration);
+    e.timeline
+        .get(n.wrapping_sub(1))
+        .map_or(f64::NAN, |it| it.objective)
 }
 
 /// `truth-held`: the lights fitted again with [`truth_held_start`]'s materials held.
@@ -196,17 +212,32 @@ fn sh_ratio_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
 }
 
 /// `reanchor`: a fit from the first fit's materials re-anchored ([`reanchor`], projected
-/// weights); `reanchor2` twice; `reanchor-lambert` with [`keep_gloss`].
+/// weights); `reanchor2` twice; `reanchor-lambert` with [`keep_gloss`]; `reanchor-label`
+/// with one-hot weights on each vertex's label ([`Reweight::Label`]), `reanchor-label2`
+/// twice.
 fn reanchor_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
     let mut from = first.est.clone();
-    for _ in 0..if v == "reanchor2" { 2 } else { 1 } {
-        let mut m = reanchor(&from.lambda, &from.weights, first.seen, Reweight::Project)
-            .expect("re-anchoring");
+    let rounds = if v.ends_with('2') { 2 } else { 1 };
+    for round in 0..rounds {
+        let how = if v.starts_with("reanchor-label") {
+            Reweight::Label
+        } else {
+            Reweight::Project
+        };
+        let mut m = reanchor(&from.lambda, &from.weights, first.seen, how).expect("re-anchoring");
         if v == "reanchor-lambert" {
             keep_gloss(&mut m.lambda, &from.lambda, LAMBERT);
         }
         let mut trace = super::tracer(p.case, first.kept, first.seen, "reanchor");
         from = estimate(p.problem, m, p.opts, &mut trace).expect("second fit");
+        if round + 1 < rounds {
+            eprintln!(
+                "{v}, round {}: worst ratio {:.3?}, objective {:.6e}",
+                round + 1,
+                first.ratios(p.case, &from),
+                returned_objective(&from)
+            );
+        }
     }
     from
 }
