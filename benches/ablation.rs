@@ -64,8 +64,8 @@
 //! `ABLATION_DEFAULTS_ROBUST=K|tukey` (the `defaults` row with `run --irls-iterations N`,
 //! IRLS's robust floor `X`, Huber's `k` or Tukey's biweight), `ABLATION_DEFAULTS_ALL_LOBES=1`
 //! (the `defaults` row keeps every lobe the pilot would drop),
-//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|reanchor-label|reanchor-label2|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse|stiff-spec|stiff-weights`
-//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last twelve a second
+//! `ABLATION_DEFAULTS_START=truth|truth-weights|truth-lambda|unmix|unmix2|unmix-match|grid|grid-unmix|refit|refit-w|reanchor|reanchor2|reanchor-lambert|reanchor-label|reanchor-label2|reanchor-label-truth-lambda|reanchor-label-truth-weights|reanchor-label-truth-diffuse|reanchor-project-truth-lambda|sh-ratio|sh-ratio2|coarse-light|coarse-light-free|reanchor-coarse|stiff-spec|stiff-weights`
+//! (with `ABLATION_GRID_STEP=X`, `ABLATION_GRID_N=N` for the grids; the last sixteen a second
 //! fit from the first fit's materials (`sh-ratio2`: and a third fit from the model read
 //! again over the second fit's weights), `ABLATION_REFIT_PICK=1` keeping the one with the
 //! lower validation error, `ABLATION_SH_OPEN=X` the least open fraction of the vertices
@@ -86,7 +86,9 @@
 //! `ABLATION_STIFF_TAKE=all`, `ablation/defaults/mod.rs`; `stiff-weights` fits first with
 //! the weights' priors `ABLATION_STIFF_WEIGHTS` times as strong, default 10, then from that
 //! fit under the row's options; `reanchor-label` is `reanchor` with one-hot weights,
-//! `reanchor-label2` twice),
+//! `reanchor-label2` twice, `reanchor-label-truth-lambda|weights|diffuse` with the true `λ`,
+//! the true weights or the true Lambertian lobes in place of the re-anchored ones,
+//! `reanchor-project-truth-lambda` the true `λ` with the fit's reflectance projected on it),
 //! `ABLATION_DEFAULTS_SCOPE=blends` (the `defaults` row with the
 //! sum-to-one prior on blended vertices whatever the pilot's scope), and
 //! `ABLATION_DEFAULTS_SMOOTHNESS=X` (its start and its maps' Laplacian weight,

@@ -49,17 +49,35 @@ impl Fitted<'_> {
     }
 }
 
+/// The probes [`second_fit`] makes, by their `ABLATION_DEFAULTS_START` value.
+const SECOND_FITS: &[&str] = &[
+    "refit",
+    "refit-w",
+    "reanchor",
+    "reanchor2",
+    "reanchor-lambert",
+    "reanchor-label",
+    "reanchor-label2",
+    "reanchor-label-truth-lambda",
+    "reanchor-label-truth-weights",
+    "reanchor-label-truth-diffuse",
+    "reanchor-project-truth-lambda",
+    "sh-ratio",
+    "sh-ratio2",
+    "coarse-light",
+    "coarse-light-free",
+    "truth-held",
+];
+
 /// The second fits after the first: with `ABLATION_DEFAULTS_START=v` one of the probes
 /// ([`second_fit`], kept whatever its score unless `ABLATION_REFIT_PICK=1`; `reanchor-coarse`:
 /// `run --restart on+coarse-light`); without one, as `run --restart auto`
 /// ([`auto_restart`]).
 pub(super) fn second_fits(p: Probe, first: Fitted, materials: usize) -> Estimate {
     match start_variant().as_deref() {
-        Some(
-            v @ ("refit" | "refit-w" | "reanchor" | "reanchor2" | "reanchor-lambert"
-            | "reanchor-label" | "reanchor-label2" | "sh-ratio" | "sh-ratio2" | "coarse-light"
-            | "coarse-light-free" | "truth-held"),
-        ) => second_fit(p, v, first, crate::env_flag("ABLATION_REFIT_PICK")),
+        Some(v) if SECOND_FITS.contains(&v) => {
+            second_fit(p, v, first, crate::env_flag("ABLATION_REFIT_PICK"))
+        }
         Some("reanchor-coarse") => restarts(p, Restart::ReanchorCoarseLight, first),
         _ => {
             let kept: Vec<_> = first.kept.iter().map(|&b| p.case.basis[b]).collect();
@@ -80,9 +98,7 @@ fn second_fit(p: Probe, v: &str, first: Fitted, pick: bool) -> Estimate {
         "coarse-light" if pick => coarse_light_restart(p, &first),
         "coarse-light" | "coarse-light-free" => coarse_light_fit(p, v, &first),
         "sh-ratio" | "sh-ratio2" => sh_ratio_fit(p, v, &first),
-        "reanchor" | "reanchor2" | "reanchor-lambert" | "reanchor-label" | "reanchor-label2" => {
-            reanchor_fit(p, v, &first)
-        }
+        v if v.starts_with("reanchor") => reanchor_fit(p, v, &first),
         _ => refit(p.problem, &first.est, p.opts, p.case, LAMBERT, v == "refit"),
     };
     let score = |e: &Estimate| e.validation.as_ref().map(|v| v.best_error());
@@ -214,20 +230,14 @@ fn sh_ratio_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
 /// `reanchor`: a fit from the first fit's materials re-anchored ([`reanchor`], projected
 /// weights); `reanchor2` twice; `reanchor-lambert` with [`keep_gloss`]; `reanchor-label`
 /// with one-hot weights on each vertex's label ([`Reweight::Label`]), `reanchor-label2`
-/// twice.
+/// twice; `reanchor-label-truth-lambda | -truth-weights` with half of it the truth
+/// ([`super::start_probes::truth_start`]), `reanchor-label-truth-diffuse` with the true
+/// Lambertian lobes and the re-anchored shiny ones.
 fn reanchor_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
     let mut from = first.est.clone();
     let rounds = if v.ends_with('2') { 2 } else { 1 };
     for round in 0..rounds {
-        let how = if v.starts_with("reanchor-label") {
-            Reweight::Label
-        } else {
-            Reweight::Project
-        };
-        let mut m = reanchor(&from.lambda, &from.weights, first.seen, how).expect("re-anchoring");
-        if v == "reanchor-lambert" {
-            keep_gloss(&mut m.lambda, &from.lambda, LAMBERT);
-        }
+        let m = reanchor_start(p, v, first, &from);
         let mut trace = super::tracer(p.case, first.kept, first.seen, "reanchor");
         from = estimate(p.problem, m, p.opts, &mut trace).expect("second fit");
         if round + 1 < rounds {
@@ -240,6 +250,98 @@ fn reanchor_fit(p: Probe, v: &str, first: &Fitted) -> Estimate {
         }
     }
     from
+}
+
+/// The start of [`reanchor_fit`]'s probe `v` from the fit `from` (printed beside the first
+/// fit's ratios, but for plain `reanchor`).
+fn reanchor_start(p: Probe, v: &str, first: &Fitted, from: &Estimate) -> Materials0 {
+    if v == "reanchor-project-truth-lambda" {
+        let m = truth_lambda_projected(from, p.case, first);
+        first.print_start(p.case, v, &m);
+        return m;
+    }
+    let how = if v.starts_with("reanchor-label") {
+        Reweight::Label
+    } else {
+        Reweight::Project
+    };
+    let mut m = reanchor(&from.lambda, &from.weights, first.seen, how).expect("re-anchoring");
+    if v == "reanchor-lambert" {
+        keep_gloss(&mut m.lambda, &from.lambda, LAMBERT);
+    }
+    with_half_truth(v, &mut m, p.case, first.kept);
+    if v != "reanchor" {
+        first.print_start(p.case, v, &m);
+    }
+    m
+}
+
+/// `reanchor-label-truth-{lambda,weights,diffuse}`: the re-anchored start `m` with the true
+/// `λ`, the true weights, or the true Lambertian lobes (the shiny ones re-anchored).
+fn with_half_truth(v: &str, m: &mut Materials0, case: &Case, kept: &[usize]) {
+    let Some(half) = v.strip_prefix("reanchor-label-") else {
+        return;
+    };
+    let shiny = m.lambda.clone();
+    let variant = if half == "truth-diffuse" {
+        "truth-lambda"
+    } else {
+        half
+    };
+    super::start_probes::truth_start(variant, m, case, kept);
+    if half == "truth-diffuse" {
+        for (row, fit) in m.lambda.iter_mut().zip(&shiny) {
+            for (b, v) in row.iter_mut().enumerate() {
+                if b != LAMBERT {
+                    *v = fit[b];
+                }
+            }
+        }
+    }
+}
+
+/// `reanchor-project-truth-lambda`: the true `λ` (in the fit's order, scaled per channel into
+/// the fit's gauge by least squares over the seen vertices' Lambertian reflectance) with the
+/// fit's reflectance projected on it as the weights ([`projected_on`]).
+fn truth_lambda_projected(fit: &Estimate, case: &Case, first: &Fitted) -> Materials0 {
+    use relight_cpc::solve::beta_per_vertex;
+    use relight_cpc::solve::materials::reanchor::projected_on;
+    let mut truth = Materials0 {
+        lambda: fit.lambda.clone(),
+        weights: fit.weights.clone(),
+    };
+    super::start_probes::truth_start("truth", &mut truth, case, first.kept);
+    let nb = truth.lambda[0].len();
+    let beta_true = beta_per_vertex(&truth.lambda, &truth.weights, case.nv);
+    let beta_fit = beta_per_vertex(&fit.lambda, &fit.weights, case.nv);
+    let mut gauge = [0.0; 3];
+    for c in 0..3 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for x in (0..case.nv).filter(|&x| first.seen[x]) {
+            let (f, t) = (
+                beta_fit[x * nb + LAMBERT][c],
+                beta_true[x * nb + LAMBERT][c],
+            );
+            num += f * t;
+            den += t * t;
+        }
+        gauge[c] = if den > 0.0 { num / den } else { 1.0 };
+    }
+    let mut onto = Materials0 {
+        lambda: fit.lambda.clone(),
+        weights: fit.weights.clone(),
+    };
+    super::start_probes::truth_start("truth-lambda", &mut onto, case, first.kept);
+    for v in onto.lambda.iter_mut().flatten() {
+        *v = [v[0] * gauge[0], v[1] * gauge[1], v[2] * gauge[2]];
+    }
+    eprintln!("  truth-lambda projected: the fit's gauge against the truth's {gauge:.3?}");
+    let weights =
+        projected_on(&onto.lambda, &fit.lambda, &fit.weights, first.seen).expect("projection");
+    Materials0 {
+        lambda: onto.lambda,
+        weights,
+    }
 }
 
 /// The restart `run --restart auto` makes after the defaults' fit
