@@ -190,10 +190,7 @@ pub(crate) fn convergence(md: &mut String) -> Value {
             &case.held.obs,
             &case.predict_held(&est.lambda, &est.weights),
         );
-        let ret_it = est
-            .validation
-            .as_ref()
-            .map_or(est.timeline.len(), |v| v.best_iteration);
+        let ret_it = est.kept_iteration();
         md.push_str(&format!(
             "| {label} | {} of ≤ {} | {} | {} | {bh:.4} ({}) | {ret:.4} (iteration {ret_it}) | {secs:.1} |\n",
             est.timeline.len(),

@@ -206,6 +206,14 @@ impl Estimate {
             .map_or(f64::NAN, Validation::best_error)
     }
 
+    /// The iterate returned, counted from 1: early stopping's best one
+    /// ([`Validation::best_iteration`]), else the last of the timeline.
+    pub fn kept_iteration(&self) -> usize {
+        self.validation
+            .as_ref()
+            .map_or(self.timeline.len(), |v| v.best_iteration)
+    }
+
     /// An estimate holding only `lights`, `lambda` and `weights`, with no record of a fit
     /// (empty timeline, no validation): for predicting with given reflectance and light.
     pub fn from_parts(

@@ -155,10 +155,7 @@ impl StartRecord {
             label,
             score,
             iterations: e.timeline.len(),
-            kept_iteration: e
-                .validation
-                .as_ref()
-                .map_or(e.timeline.len(), |v| v.best_iteration),
+            kept_iteration: e.kept_iteration(),
             seconds: e.timeline.last().map_or(0.0, |t| t.seconds),
         }
     }

@@ -123,12 +123,8 @@ fn second_fit(p: Probe, v: &str, first: Fitted, pick: bool) -> Estimate {
 
 /// The objective at the iterate a fit returns (the validation's best one, else the last).
 fn returned_objective(e: &Estimate) -> f64 {
-    let n = e
-        .validation
-        .as_ref()
-        .map_or(e.timeline.len(), |v| v.best_iteration);
     e.timeline
-        .get(n.wrapping_sub(1))
+        .get(e.kept_iteration().wrapping_sub(1))
         .map_or(f64::NAN, |it| it.objective)
 }
 
